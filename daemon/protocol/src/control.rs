@@ -1,0 +1,194 @@
+//! Requests and replies on the control socket.
+//!
+//! Rigs, calibrations and filters travel as text (TOML or a filter spec string) and are parsed and
+//! validated by the daemon, so that a daemon running under a hardened service can apply files it
+//! could not read itself, and so that every client gets the daemon's exact validation errors.
+
+use serde::{Deserialize, Serialize};
+
+/// A request from `frond` (or any client) to the daemon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ControlRequest {
+    /// Ask for a [`StatusReport`].
+    Status,
+    /// Replace the active rig. `toml` is a rig file's contents; `name` labels it.
+    SetRig {
+        /// Rig name (usually the file stem).
+        name: String,
+        /// Rig file contents.
+        toml: String,
+    },
+    /// Replace the active calibration. `toml` is a calibration file's contents.
+    SetCalibration {
+        /// Calibration id (usually the user name).
+        id: String,
+        /// Calibration file contents.
+        toml: String,
+    },
+    /// Replace the jitter filter: `none`, `lowpass:cutoff_hz=8`,
+    /// `one-euro:min_cutoff=1,beta=0.007,d_cutoff=1`.
+    SetFilter {
+        /// Filter spec text.
+        spec: String,
+    },
+    /// Start recording a take named `name` into the takes directory.
+    RecordStart {
+        /// Take name: letters, digits, `-`, `_` and `.`, not starting with `.`.
+        name: String,
+    },
+    /// Stop the current recording.
+    RecordStop,
+    /// Put a marker with `label` into the current take.
+    Mark {
+        /// Free text, at most 256 bytes.
+        label: String,
+    },
+    /// Ask for the most recent raw (uncalibrated) hand samples, for `frond calibrate`.
+    RawSample,
+}
+
+/// The daemon's answer to one [`ControlRequest`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ControlReply {
+    /// The request was applied.
+    Ok,
+    /// Answer to [`ControlRequest::Status`].
+    Status(StatusReport),
+    /// Answer to `RecordStart`/`RecordStop`.
+    Recording(RecordingStatus),
+    /// Answer to [`ControlRequest::RawSample`]: the latest uncalibrated sample, or none yet.
+    RawSample {
+        /// Device time in seconds.
+        t: f64,
+        /// Raw wrist `[pitch, yaw, roll]`, degrees.
+        wrist_deg: [f32; 3],
+        /// Raw thumb `[g1, g2, g3]`, degrees.
+        thumb_deg: [f32; 3],
+        /// True when the device is connected and the sample is fresh.
+        fresh: bool,
+    },
+    /// The request was refused.
+    Error(ControlError),
+}
+
+/// Why a control request was refused.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ControlError {
+    /// Machine-readable kind.
+    pub kind: ControlErrorKind,
+    /// Human-readable explanation naming the problem.
+    pub message: String,
+}
+
+/// Kinds of control refusals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ControlErrorKind {
+    /// The request did not decode or is too large.
+    BadRequest,
+    /// A rig, calibration or filter failed validation.
+    Invalid,
+    /// Recording is already running / not running.
+    WrongState,
+    /// The caller's uid/gid is not allowed.
+    PermissionDenied,
+    /// The take name is not acceptable (path escape, bad characters).
+    BadName,
+    /// The daemon could not do it (disk full, queue full, ...).
+    Internal,
+}
+
+/// Snapshot of the daemon's state for `frond status`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatusReport {
+    /// Daemon version.
+    pub daemon_version: String,
+    /// Seconds since the daemon started.
+    pub uptime_s: f64,
+    /// The hand source.
+    pub source: SourceStatus,
+    /// Active rig name.
+    pub rig_name: String,
+    /// Active calibration id (`none` when neutral is zero).
+    pub calibration_id: String,
+    /// Active filter spec.
+    pub filter: String,
+    /// Nominal tick rate.
+    pub tick_rate_hz: u32,
+    /// Ticks per second measured over the last second.
+    pub achieved_rate_hz: f64,
+    /// Total ticks since start.
+    pub ticks: u64,
+    /// Ticks that republished a held pose (no new report).
+    pub held_ticks: u64,
+    /// Frames the loop could not hand to the publisher (queue full).
+    pub publish_drops: u64,
+    /// Wake-up lateness of the loop (actual wake time minus deadline).
+    pub lateness: LatencySummary,
+    /// Connected subscribers.
+    pub subscribers: Vec<SubscriberStatus>,
+    /// Recording in progress, if any.
+    pub recording: Option<RecordingStatus>,
+    /// Device events (connect, lost, reopened), oldest first, at most the last 32.
+    pub device_events: Vec<String>,
+}
+
+/// The hand source's state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceStatus {
+    /// `hidraw` (real device), `fuse-hidraw` (virtual glove node), `in-process` (virtual glove
+    /// without a device node), `replay`, `osc`.
+    pub kind: String,
+    /// Device path or description.
+    pub path: String,
+    /// True while reports arrive.
+    pub connected: bool,
+    /// Valid reports read.
+    pub reports: u64,
+    /// Reports rejected (bad id, short, corrupt, out of range).
+    pub rejected: u64,
+    /// Gaps in the device's own report sequence numbers.
+    pub device_seq_gaps: u64,
+}
+
+/// Percentiles of a latency, microseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct LatencySummary {
+    /// Median.
+    pub p50_us: f64,
+    /// 99th percentile.
+    pub p99_us: f64,
+    /// 99.9th percentile.
+    pub p999_us: f64,
+    /// Maximum.
+    pub max_us: f64,
+    /// Number of samples behind the figures.
+    pub samples: u64,
+}
+
+/// One connected pose subscriber.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubscriberStatus {
+    /// Connection id, increasing.
+    pub id: u64,
+    /// Seconds since it connected.
+    pub connected_s: f64,
+    /// Frames written to it.
+    pub sent: u64,
+    /// Frames dropped because its queue was full.
+    pub dropped: u64,
+}
+
+/// A recording's state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordingStatus {
+    /// Take name.
+    pub name: String,
+    /// Path of the take file.
+    pub path: String,
+    /// Frames written so far.
+    pub frames: u64,
+    /// Frames the recorder could not accept (its queue was full); should stay 0.
+    pub dropped: u64,
+    /// True while recording continues.
+    pub active: bool,
+}

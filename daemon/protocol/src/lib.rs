@@ -1,0 +1,31 @@
+//! frond's wire protocol, shared by the daemon, the operator CLI and every exporter.
+//!
+//! Two Unix stream sockets speak it:
+//! - `poses.sock`: the daemon sends one [`ServerMessage::Hello`] on connect, then one
+//!   [`ServerMessage::Pose`] per realtime tick. Nothing a subscriber sends is read as a command.
+//! - `control.sock`: a client sends [`ControlRequest`]s, the daemon answers each with one
+//!   [`ControlReply`].
+//!
+//! Framing (see [`frame`]): `u32` little-endian length `N`, then `N` bytes: one protocol version byte
+//! followed by a MessagePack body (rmp-serde, structs as maps with field names so that third-party
+//! decoders can read it without our schema). A peer refuses frames of a newer version with
+//! [`DecodeError::UnsupportedVersion`] rather than guessing.
+
+pub mod control;
+pub mod frame;
+pub mod pose;
+
+pub use control::{
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, LatencySummary, RecordingStatus,
+    SourceStatus, StatusReport, SubscriberStatus,
+};
+pub use frame::{
+    DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,
+    encode_frame, read_frame, write_frame,
+};
+pub use pose::{HandWire, Hello, Pose, PoseFlags, ServerMessage};
+
+/// Default socket file names inside the socket directory.
+pub const POSES_SOCKET: &str = "poses.sock";
+/// Control socket file name inside the socket directory.
+pub const CONTROL_SOCKET: &str = "control.sock";

@@ -1,0 +1,113 @@
+//! Messages on the pose socket.
+
+use serde::{Deserialize, Serialize};
+
+/// Everything the daemon sends on `poses.sock`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ServerMessage {
+    /// First message on every connection.
+    Hello(Hello),
+    /// One per realtime tick.
+    Pose(Pose),
+}
+
+/// Sent once when a subscriber connects (and again if the rig changes).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    /// Version of this protocol the daemon speaks ([`crate::PROTOCOL_VERSION`]).
+    pub protocol_version: u8,
+    /// `CARGO_PKG_VERSION` of the daemon.
+    pub daemon_version: String,
+    /// Name of the active rig (e.g. `grass`).
+    pub rig_name: String,
+    /// Joint names, root first (4 of them).
+    pub joint_names: Vec<String>,
+    /// Nominal tick rate of the realtime loop.
+    pub tick_rate_hz: u32,
+    /// Sequence number of the next pose this subscriber will receive.
+    pub next_seq: u64,
+}
+
+/// Bit flags carried by every [`Pose`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct PoseFlags(pub u32);
+
+impl PoseFlags {
+    /// No new device report arrived this tick: the last pose is repeated.
+    pub const HELD: PoseFlags = PoseFlags(1);
+    /// The hand device is gone (unplugged, stalled, never appeared).
+    pub const DEVICE_LOST: PoseFlags = PoseFlags(1 << 1);
+    /// A jitter filter (low-pass or One Euro) was applied before mapping.
+    pub const FILTERED: PoseFlags = PoseFlags(1 << 2);
+    /// A recording is in progress.
+    pub const RECORDING: PoseFlags = PoseFlags(1 << 3);
+    /// The pose comes from looped playback of a take, not from the hand.
+    pub const PLAYBACK: PoseFlags = PoseFlags(1 << 4);
+
+    /// True when every bit of `other` is set in `self`.
+    pub const fn contains(self, other: PoseFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// Sets the bits of `other`.
+    pub fn insert(&mut self, other: PoseFlags) {
+        self.0 |= other.0;
+    }
+    /// Clears the bits of `other`.
+    pub fn remove(&mut self, other: PoseFlags) {
+        self.0 &= !other.0;
+    }
+    /// Sets or clears the bits of `other`.
+    pub fn set(&mut self, other: PoseFlags, on: bool) {
+        if on { self.insert(other) } else { self.remove(other) }
+    }
+    /// Names of the set flags, for logs and JSON output.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        const NAMES: [(PoseFlags, &str); 5] = [
+            (PoseFlags::HELD, "held"),
+            (PoseFlags::DEVICE_LOST, "device_lost"),
+            (PoseFlags::FILTERED, "filtered"),
+            (PoseFlags::RECORDING, "recording"),
+            (PoseFlags::PLAYBACK, "playback"),
+        ];
+        NAMES.into_iter().filter(move |(f, _)| self.contains(*f)).map(|(_, n)| n)
+    }
+}
+
+impl std::ops::BitOr for PoseFlags {
+    type Output = PoseFlags;
+    fn bitor(self, rhs: PoseFlags) -> PoseFlags {
+        PoseFlags(self.0 | rhs.0)
+    }
+}
+
+/// The calibrated hand sample a pose was mapped from (degrees; `t` in seconds of device time).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct HandWire {
+    /// Device time of the sample in seconds.
+    pub t: f64,
+    /// Calibrated wrist `[pitch, yaw, roll]` (`W` of seed 000, Eq. 2), degrees.
+    pub wrist_deg: [f32; 3],
+    /// Calibrated thumb bends `[G1, G2, G3]` (seed 000, Eq. 3), degrees.
+    pub thumb_deg: [f32; 3],
+}
+
+/// One realtime tick's output.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Tick sequence number, +1 per tick from daemon start; gaps mean dropped frames.
+    pub seq: u64,
+    /// Device timestamp of the report the pose was mapped from, microseconds (device clock,
+    /// unwrapped to 64 bits).
+    pub device_time_us: u64,
+    /// Host `CLOCK_MONOTONIC` nanoseconds when the tick published the pose.
+    pub host_monotonic_ns: u64,
+    /// Pose flags (held, device lost, filtered, ...).
+    pub flags: PoseFlags,
+    /// Element id: 0 is the plant's global element, others are secondary layers.
+    pub element: u16,
+    /// Joint rotations `[pitch, yaw, roll]` in degrees, joint 0 = root, 3 = top.
+    pub joints_deg: [[f32; 3]; 4],
+    /// The calibrated (and filtered) hand sample behind this pose.
+    pub hand: HandWire,
+}
