@@ -13,6 +13,7 @@
 
 pub mod control;
 pub mod frame;
+pub mod paths;
 pub mod pose;
 
 pub use control::{

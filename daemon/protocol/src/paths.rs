@@ -1,0 +1,91 @@
+//! Where frond's sockets and takes live, resolved the same way by the daemon, the CLI and the SDK.
+//!
+//! Order: explicit argument, then the environment variable (`FROND_SOCKET_DIR`,
+//! `FROND_TAKES_DIR`), then the XDG directory, then a fallback that works without XDG.
+
+use std::path::PathBuf;
+
+/// Environment variable naming the socket directory.
+pub const SOCKET_DIR_ENV: &str = "FROND_SOCKET_DIR";
+/// Environment variable naming the takes directory.
+pub const TAKES_DIR_ENV: &str = "FROND_TAKES_DIR";
+
+fn env_dir(name: &str) -> Option<PathBuf> {
+    std::env::var_os(name).filter(|v| !v.is_empty()).map(PathBuf::from)
+}
+
+fn uid() -> u32 {
+    // Avoids a libc dependency in the protocol crate: /proc/self is owned by our uid.
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata("/proc/self").map(|m| m.uid()).unwrap_or(0)
+}
+
+/// The socket directory: `$FROND_SOCKET_DIR`, else `$XDG_RUNTIME_DIR/frond`, else
+/// `/run/frond` for root, else `/tmp/frond-<uid>`.
+pub fn default_socket_dir() -> PathBuf {
+    if let Some(dir) = env_dir(SOCKET_DIR_ENV) {
+        return dir;
+    }
+    if let Some(xdg) = env_dir("XDG_RUNTIME_DIR") {
+        return xdg.join("frond");
+    }
+    match uid() {
+        0 => PathBuf::from("/run/frond"),
+        uid => PathBuf::from(format!("/tmp/frond-{uid}")),
+    }
+}
+
+/// The takes directory: `$FROND_TAKES_DIR`, else `$XDG_DATA_HOME/frond/takes`, else
+/// `$HOME/.local/share/frond/takes`, else `/var/lib/frond/takes`.
+pub fn default_takes_dir() -> PathBuf {
+    if let Some(dir) = env_dir(TAKES_DIR_ENV) {
+        return dir;
+    }
+    if let Some(xdg) = env_dir("XDG_DATA_HOME") {
+        return xdg.join("frond").join("takes");
+    }
+    if let Some(home) = env_dir("HOME") {
+        return home.join(".local/share/frond/takes");
+    }
+    PathBuf::from("/var/lib/frond/takes")
+}
+
+/// Resolves an optional explicit socket directory.
+pub fn socket_dir(explicit: Option<PathBuf>) -> PathBuf {
+    explicit.unwrap_or_else(default_socket_dir)
+}
+
+/// Resolves an optional explicit takes directory.
+pub fn takes_dir(explicit: Option<PathBuf>) -> PathBuf {
+    explicit.unwrap_or_else(default_takes_dir)
+}
+
+/// Checks a take name: 1-128 bytes of ASCII letters, digits, `-`, `_`, `.`, not starting with
+/// `.`, so a name can never escape the takes directory (`../`, `/`, NUL are all refused).
+pub fn validate_take_name(name: &str) -> Result<(), String> {
+    if name.is_empty() || name.len() > 128 {
+        return Err(format!("take name must be 1 to 128 characters, got {}", name.len()));
+    }
+    if name.starts_with('.') {
+        return Err(format!("take name {name:?} must not start with '.'"));
+    }
+    if let Some(c) = name.chars().find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))) {
+        return Err(format!("take name {name:?} contains {c:?}; use letters, digits, '-', '_' and '.' only"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn take_names_cannot_escape() {
+        for bad in ["", "../x", "/etc/passwd", "a/b", ".hidden", "a\0b", "..", "é"] {
+            assert!(validate_take_name(bad).is_err(), "{bad:?} accepted");
+        }
+        for good in ["take1", "wind-gust_02", "a.b"] {
+            assert!(validate_take_name(good).is_ok(), "{good:?} refused");
+        }
+    }
+}
