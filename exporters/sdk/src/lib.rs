@@ -1,1 +1,387 @@
-//! (in progress)
+//! Client side of frond's pose stream, for exporters.
+//!
+//! ```no_run
+//! use frond_sdk::Subscriber;
+//!
+//! let mut sub = Subscriber::connect("/run/user/1000/frond")?;
+//! println!("rig {}", sub.hello().rig_name);
+//! for pose in sub.by_ref().take(100) {
+//!     let pose = pose?;
+//!     println!("{} {:?}", pose.seq, pose.joints_deg);
+//! }
+//! println!("{:?}", sub.stats());
+//! # Ok::<(), frond_sdk::SdkError>(())
+//! ```
+//!
+//! A [`Subscriber`] connects to `poses.sock` in the daemon's socket directory, reads the daemon's
+//! [`Hello`], then delivers [`Pose`]s. It watches sequence numbers: a pose whose `seq` is past the
+//! expected one is reported as [`Event::Gap`] (the daemon dropped frames for this subscriber, e.g.
+//! because it read too slowly). When the connection ends it reports [`Event::Disconnected`] and, if
+//! reconnection is enabled (the default), reconnects with exponential backoff; a restarted daemon
+//! numbers its frames from its new `Hello.next_seq`, which is a [`Event::Reconnected`], not a gap.
+//!
+//! Nothing the socket delivers can make it panic: undecodable bytes surface as
+//! [`SdkError::Protocol`] and the connection is dropped (and re-established when reconnection is
+//! on); a daemon speaking a newer protocol version is refused with
+//! [`ProtocolError::UnsupportedVersion`], which ends the subscription.
+
+mod conn;
+mod error;
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+pub use error::{ProtocolError, SdkError};
+pub use frond_protocol::{HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags};
+
+use conn::{Conn, ReadOutcome};
+use frond_protocol::ServerMessage;
+
+/// What [`Subscriber::next_event`] reports.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// One pose, in order.
+    Pose(Pose),
+    /// Poses `expected..got` never arrived (the daemon dropped them for this subscriber).
+    /// `got - expected` frames are missing; the pose numbered `got` is the next event.
+    Gap {
+        /// The sequence number that was due.
+        expected: u64,
+        /// The sequence number that arrived.
+        got: u64,
+    },
+    /// The daemon sent a new hello on the same connection (its rig changed).
+    RigChanged(Hello),
+    /// A new connection was made after a disconnect; carries the new daemon's hello.
+    Reconnected(Hello),
+    /// The connection ended (daemon stopped or restarted). With reconnection on, the next call
+    /// reconnects; with it off, the subscription is finished.
+    Disconnected,
+}
+
+/// Counters since the subscriber was created.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Poses delivered.
+    pub frames: u64,
+    /// Gap events.
+    pub gaps: u64,
+    /// Frames missing in all gaps together.
+    pub missing: u64,
+    /// Successful reconnections.
+    pub reconnects: u64,
+    /// Connections that ended (cleanly or not).
+    pub disconnects: u64,
+}
+
+/// How a [`Subscriber`] behaves. Build with [`SubscriberOptions::new`] and the setters.
+#[derive(Debug, Clone)]
+pub struct SubscriberOptions {
+    reconnect: bool,
+    retry_interval: Duration,
+    max_retry_interval: Duration,
+    give_up_after: Option<Duration>,
+    read_timeout: Option<Duration>,
+    hello_timeout: Duration,
+}
+
+impl Default for SubscriberOptions {
+    fn default() -> Self {
+        SubscriberOptions {
+            reconnect: true,
+            retry_interval: Duration::from_millis(100),
+            max_retry_interval: Duration::from_secs(2),
+            give_up_after: Some(Duration::from_secs(30)),
+            read_timeout: None,
+            hello_timeout: Duration::from_secs(5),
+        }
+    }
+}
+
+impl SubscriberOptions {
+    /// Defaults: reconnect on, first retry after 100 ms doubling up to 2 s, give up after 30 s,
+    /// block without read timeout, 5 s for the hello.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Reconnect after the connection ends (default on).
+    pub fn reconnect(mut self, on: bool) -> Self {
+        self.reconnect = on;
+        self
+    }
+    /// Delay before the first reconnection attempt; doubles after each failure (default 100 ms).
+    pub fn retry_interval(mut self, interval: Duration) -> Self {
+        self.retry_interval = interval.max(Duration::from_millis(1));
+        self
+    }
+    /// Upper bound of the backoff delay (default 2 s).
+    pub fn max_retry_interval(mut self, interval: Duration) -> Self {
+        self.max_retry_interval = interval.max(Duration::from_millis(1));
+        self
+    }
+    /// Stop reconnecting after this long without success (`None`: never give up; default 30 s).
+    pub fn give_up_after(mut self, limit: Option<Duration>) -> Self {
+        self.give_up_after = limit;
+        self
+    }
+    /// Return [`SdkError::Timeout`] when no message arrives for this long (default: block).
+    /// The connection survives a timeout.
+    pub fn read_timeout(mut self, timeout: Option<Duration>) -> Self {
+        self.read_timeout = timeout.filter(|t| !t.is_zero());
+        self
+    }
+    /// How long to wait for the daemon's hello after connecting (default 5 s).
+    pub fn hello_timeout(mut self, timeout: Duration) -> Self {
+        self.hello_timeout = timeout.max(Duration::from_millis(1));
+        self
+    }
+    /// Connects to `poses.sock` in socket directory `dir` with these options.
+    pub fn connect(self, dir: impl AsRef<Path>) -> Result<Subscriber, SdkError> {
+        Subscriber::with_options(dir, self)
+    }
+}
+
+enum State {
+    Connected(Box<Conn>),
+    Disconnected,
+    Finished,
+}
+
+/// A subscription to the daemon's pose stream. Also an iterator of poses (see the
+/// [`Iterator`] impl).
+pub struct Subscriber {
+    path: PathBuf,
+    opts: SubscriberOptions,
+    state: State,
+    hello: Hello,
+    /// Sequence number due next on the current connection.
+    expected_seq: u64,
+    pending: VecDeque<Event>,
+    stats: Stats,
+    iter_done: bool,
+}
+
+impl std::fmt::Debug for Subscriber {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Subscriber")
+            .field("path", &self.path)
+            .field("hello", &self.hello)
+            .field("expected_seq", &self.expected_seq)
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Subscriber {
+    /// Connects with default options to `poses.sock` in the socket directory `dir`
+    /// (see `frond_protocol::paths::socket_dir` for the usual one) and reads the daemon's hello.
+    ///
+    /// Fails at once with [`SdkError::NotRunning`] when no daemon listens; reconnection applies
+    /// only to connections that were established once.
+    pub fn connect(dir: impl AsRef<Path>) -> Result<Subscriber, SdkError> {
+        Self::with_options(dir, SubscriberOptions::default())
+    }
+
+    /// Options builder; finish with [`SubscriberOptions::connect`].
+    pub fn options() -> SubscriberOptions {
+        SubscriberOptions::default()
+    }
+
+    /// Connects with `opts`.
+    pub fn with_options(dir: impl AsRef<Path>, opts: SubscriberOptions) -> Result<Subscriber, SdkError> {
+        let path = dir.as_ref().join(frond_protocol::POSES_SOCKET);
+        let (conn, hello) = Conn::open(&path, &opts)?;
+        Ok(Subscriber {
+            path,
+            expected_seq: hello.next_seq,
+            hello,
+            opts,
+            state: State::Connected(Box::new(conn)),
+            pending: VecDeque::new(),
+            stats: Stats::default(),
+            iter_done: false,
+        })
+    }
+
+    /// The latest hello from the daemon (updated on reconnect and rig change).
+    pub fn hello(&self) -> &Hello {
+        &self.hello
+    }
+
+    /// Counters since creation.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// Path of the pose socket.
+    pub fn socket_path(&self) -> &Path {
+        &self.path
+    }
+
+    /// True while a connection is open.
+    pub fn is_connected(&self) -> bool {
+        matches!(self.state, State::Connected(_))
+    }
+
+    /// Waits for the next event.
+    ///
+    /// After [`Event::Disconnected`] the next call reconnects (when enabled), blocking with
+    /// backoff until it succeeds ([`Event::Reconnected`]) or the bound of
+    /// [`SubscriberOptions::give_up_after`] passes ([`SdkError::ReconnectFailed`]). After a
+    /// protocol error the connection is dropped and the same applies. Once finished, returns
+    /// [`SdkError::Closed`].
+    pub fn next_event(&mut self) -> Result<Event, SdkError> {
+        if let Some(ev) = self.pending.pop_front() {
+            return Ok(ev);
+        }
+        match self.state {
+            State::Finished => return Err(SdkError::Closed),
+            State::Disconnected if !self.opts.reconnect => {
+                self.state = State::Finished;
+                return Err(SdkError::Closed);
+            }
+            State::Disconnected => return self.reconnect(),
+            State::Connected(_) => {}
+        }
+        let State::Connected(conn) = &mut self.state else { unreachable!("checked above") };
+        match conn.read_message(&self.path, self.opts.read_timeout) {
+            ReadOutcome::Message(ServerMessage::Pose(pose)) => self.on_pose(pose),
+            ReadOutcome::Message(ServerMessage::Hello(hello)) => match check_hello(&hello) {
+                Ok(()) => {
+                    self.hello = hello.clone();
+                    Ok(Event::RigChanged(hello))
+                }
+                Err(error) => Err(self.fail(error)),
+            },
+            ReadOutcome::Closed => {
+                tracing::info!(path = %self.path.display(), "pose stream closed");
+                self.drop_connection();
+                Ok(Event::Disconnected)
+            }
+            ReadOutcome::Err(SdkError::Io { source, path }) => {
+                tracing::warn!(path = %path.display(), error = %source, "pose stream i/o error");
+                self.drop_connection();
+                Ok(Event::Disconnected)
+            }
+            ReadOutcome::Err(SdkError::Protocol { error, .. }) => Err(self.fail(error)),
+            ReadOutcome::Err(other) => Err(other),
+        }
+    }
+
+    fn on_pose(&mut self, pose: Pose) -> Result<Event, SdkError> {
+        let expected = self.expected_seq;
+        if pose.seq < expected {
+            return Err(self.fail(ProtocolError::SeqWentBackwards { expected, got: pose.seq }));
+        }
+        self.expected_seq = pose.seq + 1;
+        self.stats.frames += 1;
+        if pose.seq > expected {
+            self.stats.gaps += 1;
+            self.stats.missing += pose.seq - expected;
+            self.pending.push_back(Event::Pose(pose));
+            return Ok(Event::Gap { expected, got: pose.seq });
+        }
+        Ok(Event::Pose(pose))
+    }
+
+    fn drop_connection(&mut self) {
+        self.state = State::Disconnected;
+        self.stats.disconnects += 1;
+    }
+
+    /// Drops the connection after a protocol error; a fatal one (or any, without reconnection)
+    /// finishes the subscription.
+    fn fail(&mut self, error: ProtocolError) -> SdkError {
+        tracing::warn!(path = %self.path.display(), %error, "protocol error; dropping the connection");
+        self.drop_connection();
+        if error.is_fatal() || !self.opts.reconnect {
+            self.state = State::Finished;
+        }
+        SdkError::Protocol { path: self.path.clone(), error }
+    }
+
+    fn reconnect(&mut self) -> Result<Event, SdkError> {
+        let start = Instant::now();
+        let mut delay = self.opts.retry_interval;
+        let mut attempts = 0u32;
+        loop {
+            attempts += 1;
+            match Conn::open(&self.path, &self.opts) {
+                Ok((conn, hello)) => {
+                    tracing::info!(path = %self.path.display(), attempts, "reconnected");
+                    self.state = State::Connected(Box::new(conn));
+                    self.expected_seq = hello.next_seq;
+                    self.hello = hello.clone();
+                    self.stats.reconnects += 1;
+                    return Ok(Event::Reconnected(hello));
+                }
+                Err(e) if e.is_fatal() => {
+                    self.state = State::Finished;
+                    return Err(e);
+                }
+                Err(e) => {
+                    let elapsed = start.elapsed();
+                    if self.opts.give_up_after.is_some_and(|limit| elapsed + delay > limit) {
+                        self.state = State::Finished;
+                        return Err(SdkError::ReconnectFailed {
+                            path: self.path.clone(),
+                            attempts,
+                            elapsed,
+                            last: Box::new(e),
+                        });
+                    }
+                    tracing::debug!(error = %e, ?delay, "reconnect attempt failed");
+                }
+            }
+            std::thread::sleep(delay);
+            delay = (delay * 2).min(self.opts.max_retry_interval);
+        }
+    }
+
+    /// Iterator over poses only; see the [`Iterator`] impl.
+    pub fn poses(&mut self) -> &mut Self {
+        self
+    }
+}
+
+/// Yields every pose in order. Gaps are counted in [`Subscriber::stats`] and reconnections happen
+/// inside; the iterator ends when the connection closes with reconnection off, and after a fatal
+/// error (which it yields first). Non-fatal errors (a timeout, a protocol error that a reconnect
+/// may cure) are yielded and iteration can continue.
+impl Iterator for Subscriber {
+    type Item = Result<Pose, SdkError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.iter_done {
+            return None;
+        }
+        loop {
+            match self.next_event() {
+                Ok(Event::Pose(pose)) => return Some(Ok(pose)),
+                Ok(Event::Gap { .. } | Event::RigChanged(_) | Event::Reconnected(_)) => continue,
+                Ok(Event::Disconnected) if self.opts.reconnect => continue,
+                Ok(Event::Disconnected) | Err(SdkError::Closed) => {
+                    self.iter_done = true;
+                    return None;
+                }
+                Err(e) => {
+                    if matches!(self.state, State::Finished) {
+                        self.iter_done = true;
+                    }
+                    return Some(Err(e));
+                }
+            }
+        }
+    }
+}
+
+fn check_hello(hello: &Hello) -> Result<(), ProtocolError> {
+    if hello.protocol_version != PROTOCOL_VERSION {
+        return Err(ProtocolError::UnsupportedVersion {
+            got: hello.protocol_version,
+            supported: PROTOCOL_VERSION,
+        });
+    }
+    Ok(())
+}
