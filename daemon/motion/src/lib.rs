@@ -1,6 +1,22 @@
 //! Pure motion math for frond (no I/O): hand samples, rigs, calibration, jitter filters, the
 //! hand-to-plant mapping of seed 000 (Eq. 2-4), and the take file codec.
+//!
+//! The path from a raw hand sample to a pose is [`Mapper::process`]: calibrate
+//! ([`CalibrationParams::apply`]), filter ([`HandFilter`]), map ([`map_pose`]). The realtime loop
+//! and the offline `frond map` both use it, so live and offline poses are identical.
 
+pub mod calibration;
+pub mod filter;
+pub mod jsonl;
+pub mod mapping;
+pub mod problems;
+pub mod rig;
 pub mod sample;
 
+pub use calibration::{Calibration, CalibrationError, CalibrationParams};
+pub use filter::{FilterSpec, FilterSpecError, HandFilter, LowPass, OneEuro};
+pub use jsonl::{JsonlError, parse_hand_line, parse_pose_line, write_hand_line, write_pose_line};
+pub use mapping::{Mapper, MappingParams, map_pose};
+pub use problems::{Problem, Problems};
+pub use rig::{ElementSpec, JointSpec, Rig, RigError};
 pub use sample::{HandSample, JOINTS, PoseFrame};

@@ -1,0 +1,187 @@
+//! The hand-to-plant mapping of seed 000 (section 5, Eq. 2-4), and [`Mapper`], the one code path
+//! from a raw hand sample to a pose used by both the daemon's realtime loop and `frond map`.
+//!
+//! Degrees in, degrees out. Joint 0 is the root, joint 3 the top.
+
+use crate::calibration::CalibrationParams;
+use crate::filter::{FilterSpec, HandFilter};
+use crate::sample::{HandSample, JOINTS, PoseFrame};
+
+/// Per-rig mapping parameters. `Copy`, so the realtime loop swaps them atomically by value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MappingParams {
+    /// Per joint `[s_pitch(i), s_yaw(i), s_roll(i)]` (seed 000, Eq. 2-4 scaling factors).
+    pub scale: [[f32; 3]; JOINTS],
+    /// Number of twistable joints `tau` (seed 000, Eq. 4), 0..=3; the top `tau` joints twist.
+    pub tau: u8,
+}
+
+impl Default for MappingParams {
+    /// All scales 1, `tau = 2` (the seed's usual setting).
+    fn default() -> Self {
+        MappingParams { scale: [[1.0; 3]; JOINTS], tau: 2 }
+    }
+}
+
+/// Saturating `f64` -> finite `f32` (NaN stays NaN). Intermediate products are formed in `f64`,
+/// where no product of a few `f32` values can overflow, so finite input always maps to a finite
+/// pose (huge values saturate at `±f32::MAX` instead of becoming infinite, then NaN via `inf * 0`).
+fn sat(v: f64) -> f32 {
+    (v as f32).clamp(-f32::MAX, f32::MAX)
+}
+
+/// `G_i / G_R_i`, or 0 when the range is not a positive finite number (a validated calibration
+/// never has such a range; this keeps unvalidated input from producing NaN).
+fn bend_ratio(g_deg: f32, range_deg: f32) -> f64 {
+    if range_deg > 0.0 && range_deg.is_finite() { g_deg as f64 / range_deg as f64 } else { 0.0 }
+}
+
+/// Whether joint `i` twists: seed 000, Eq. 4, `P_roll(i) = 0` for `i = 0..=3 - tau`, so the top
+/// `tau` joints twist. `tau >= 4` would make every joint twist (rigs refuse it).
+pub fn is_twistable(i: usize, tau: u8) -> bool {
+    i + tau as usize > JOINTS - 1
+}
+
+/// Maps one calibrated hand sample (`W` = wrist, `G_i` = thumb, seed 000 notation) to a pose.
+///
+/// - Seed 000, Eq. 2: `P_pitch(0) = s_pitch(0) * W_pitch`, `P_yaw(0) = s_yaw(0) * W_yaw`.
+/// - Seed 000, Eq. 3: for `i = 1..=3`, `P_pitch(i) = s_pitch(i) * P_pitch(0) * G_i / G_R_i`, and
+///   the same for yaw. `G_i` is `hand.thumb_deg[i - 1]`, `G_R_i` is `thumb_range_deg[i - 1]`.
+///   The upper joints follow the root's bending direction and scale with its magnitude.
+/// - Seed 000, Eq. 4: `P_roll(i) = 0` for `i <= 3 - tau`, otherwise `s_roll(i) * W_roll`.
+///   The seed writes `s_roll(0)` for every twisting joint; frond has a roll scale per joint,
+///   which reduces to the seed's formula when all `s_roll(i)` are equal (the default rigs).
+///
+/// Output `t` is `hand.t`. Pure, no allocation, no panic for any input; finite input gives a
+/// finite pose (see [`sat`]).
+pub fn map_pose(params: &MappingParams, thumb_range_deg: [f32; 3], hand: &HandSample) -> PoseFrame {
+    let s = &params.scale;
+    let w = hand.wrist_deg;
+    // Eq. 2, kept in f64 for Eq. 3.
+    let root_pitch = s[0][0] as f64 * w[0] as f64;
+    let root_yaw = s[0][1] as f64 * w[1] as f64;
+    let roll = w[2] as f64;
+
+    let mut joints_deg = [[0.0f32; 3]; JOINTS];
+    joints_deg[0][0] = sat(root_pitch);
+    joints_deg[0][1] = sat(root_yaw);
+    for (i, joint) in joints_deg.iter_mut().enumerate().skip(1) {
+        // Eq. 3.
+        let ratio = bend_ratio(hand.thumb_deg[i - 1], thumb_range_deg[i - 1]);
+        joint[0] = sat(s[i][0] as f64 * root_pitch * ratio);
+        joint[1] = sat(s[i][1] as f64 * root_yaw * ratio);
+    }
+    for (i, joint) in joints_deg.iter_mut().enumerate() {
+        // Eq. 4.
+        joint[2] = if is_twistable(i, params.tau) { sat(s[i][2] as f64 * roll) } else { 0.0 };
+    }
+    PoseFrame { t: hand.t, joints_deg }
+}
+
+/// Calibrate -> filter -> map, with its state (the filter history). `Copy`, no heap: the realtime
+/// loop owns one by value, `frond map` another, and they compute identical poses from identical
+/// samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mapper {
+    mapping: MappingParams,
+    calibration: CalibrationParams,
+    filter: HandFilter,
+}
+
+impl Mapper {
+    /// A mapper with a fresh filter.
+    pub fn new(mapping: MappingParams, calibration: CalibrationParams, filter: FilterSpec) -> Self {
+        Mapper { mapping, calibration, filter: HandFilter::new(filter) }
+    }
+
+    /// Replaces the rig's mapping parameters (filter state kept).
+    pub fn set_mapping(&mut self, mapping: MappingParams) {
+        self.mapping = mapping;
+    }
+
+    /// Replaces the calibration. The filter state is kept, so a change of neutral is smoothed
+    /// by an active filter rather than jumping.
+    pub fn set_calibration(&mut self, calibration: CalibrationParams) {
+        self.calibration = calibration;
+    }
+
+    /// Replaces the filter and resets its state (the next sample passes through).
+    pub fn set_filter(&mut self, filter: FilterSpec) {
+        self.filter = HandFilter::new(filter);
+    }
+
+    /// The running filter's spec.
+    pub fn filter_spec(&self) -> FilterSpec {
+        self.filter.spec()
+    }
+
+    /// The current mapping parameters.
+    pub fn mapping(&self) -> MappingParams {
+        self.mapping
+    }
+
+    /// The current calibration.
+    pub fn calibration(&self) -> CalibrationParams {
+        self.calibration
+    }
+
+    /// Forgets the filter history (e.g. after the device was lost).
+    pub fn reset_filter(&mut self) {
+        self.filter.reset();
+    }
+
+    /// Processes one raw sample: calibrate (`W = wrist - neutral`, `G_i = thumb_i - neutral_i`),
+    /// filter, then map (seed 000, Eq. 2-4). Returns the calibrated-and-filtered sample and the
+    /// pose. Never allocates, never panics; finite input gives finite output.
+    pub fn process(&mut self, raw: &HandSample) -> (HandSample, PoseFrame) {
+        let calibrated = self.calibration.apply(raw);
+        let filtered = self.filter.apply(&calibrated);
+        let pose = map_pose(&self.mapping, self.calibration.thumb_range_deg, &filtered);
+        (filtered, pose)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hand(wrist: [f32; 3], thumb: [f32; 3]) -> HandSample {
+        HandSample { t: 0.5, wrist_deg: wrist, thumb_deg: thumb }
+    }
+
+    #[test]
+    fn twistable_joints_by_tau() {
+        // Eq. 4: zero for i = 0..=3-tau.
+        let twist = |tau| (0..4).map(|i| is_twistable(i, tau)).collect::<Vec<_>>();
+        assert_eq!(twist(0), [false, false, false, false]);
+        assert_eq!(twist(1), [false, false, false, true]);
+        assert_eq!(twist(2), [false, false, true, true]);
+        assert_eq!(twist(3), [false, true, true, true]);
+    }
+
+    #[test]
+    fn unit_scales_tau_2_by_hand() {
+        // W = (20, -10, 30), G = (30, 35, 15), G_R = (60, 70, 60): ratios 0.5, 0.5, 0.25.
+        // Eq. 2: P0 = (20, -10). Eq. 3: P1 = P2 = (10, -5), P3 = (5, -2.5).
+        // Eq. 4 (tau 2): roll 0, 0, 30, 30.
+        let p = map_pose(
+            &MappingParams::default(),
+            [60.0, 70.0, 60.0],
+            &hand([20.0, -10.0, 30.0], [30.0, 35.0, 15.0]),
+        );
+        assert_eq!(p.t, 0.5);
+        assert_eq!(
+            p.joints_deg,
+            [[20.0, -10.0, 0.0], [10.0, -5.0, 0.0], [10.0, -5.0, 30.0], [5.0, -2.5, 30.0]]
+        );
+    }
+
+    #[test]
+    fn zero_range_does_not_make_nan() {
+        let p = map_pose(&MappingParams::default(), [0.0, f32::NAN, -1.0], &hand([10.0; 3], [5.0; 3]));
+        for j in &p.joints_deg[1..] {
+            assert_eq!(j[0], 0.0);
+            assert_eq!(j[1], 0.0);
+        }
+    }
+}

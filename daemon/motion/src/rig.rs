@@ -1,0 +1,470 @@
+//! Plant rigs (seed 000, section 4): a 4-joint skeleton (joint 0 = root at the ground, 3 = top),
+//! per-joint scaling factors `s_pitch(i)`, `s_yaw(i)`, `s_roll(i)` (Eq. 2-4), the number of
+//! twistable joints `tau` (Eq. 4), default thumb ranges, the jitter filter, and secondary elements
+//! such as leaves and petals (section 5.3), each a simple short plant of its own.
+//!
+//! Files are TOML (see `rig-files/plants/*.toml`). They are parsed into a raw form with unknown
+//! fields refused, then validated into [`Rig`], reporting every problem with its path.
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::filter::FilterSpec;
+use crate::mapping::MappingParams;
+use crate::problems::Problems;
+use crate::sample::JOINTS;
+
+/// Default number of twistable joints (seed 000: "In most of our experiments, we set tau = 2").
+pub const DEFAULT_TAU: u8 = 2;
+/// Default comfortable thumb ranges `G_R1..G_R3`, degrees, used when no calibration is given.
+pub const DEFAULT_THUMB_RANGE_DEG: [f32; 3] = [60.0, 70.0, 60.0];
+/// Largest `tau`: every joint above the root twists (Eq. 4 keeps `P_roll(0) = 0`).
+pub const MAX_TAU: u8 = 3;
+
+/// One skeleton joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointSpec {
+    /// Joint name (default `joint0`..`joint3`).
+    pub name: String,
+    /// Height of the joint above the ground in the rest pose, metres; strictly increasing.
+    pub height_m: f32,
+    /// `s_pitch(i)` (Eq. 2-3).
+    pub s_pitch: f32,
+    /// `s_yaw(i)` (Eq. 2-3).
+    pub s_yaw: f32,
+    /// `s_roll(i)` (Eq. 4).
+    pub s_roll: f32,
+}
+
+/// A kind of secondary element (seed 000, section 5.3): leaves, petals. Each is a simple short
+/// plant with its own 4-joint skeleton, animated by a separately authored secondary take and
+/// attached to a joint of the main skeleton.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElementSpec {
+    /// Element kind name, unique within the rig (`leaf`, `petal`).
+    pub name: String,
+    /// Main-skeleton joint it hangs from, 0..=3.
+    pub attach_joint: u8,
+    /// How many of them the plant has (>= 1); the seed assigns secondary takes to them at random.
+    pub count: u32,
+    /// Rest length of one element, metres (> 0).
+    pub length_m: f32,
+    /// Twistable joints of the element's own skeleton, 0..=3 (the seed: a leaf's root usually
+    /// does not twist).
+    pub tau: u8,
+}
+
+/// A validated rig.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rig {
+    /// Rig name (`grass`).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The four joints, root first.
+    pub joints: [JointSpec; JOINTS],
+    /// Twistable joints (Eq. 4), 0..=3.
+    pub tau: u8,
+    /// Default `G_R1..G_R3`, degrees, when no calibration is given.
+    pub thumb_range_deg: [f32; 3],
+    /// Jitter filter for this rig.
+    pub filter: FilterSpec,
+    /// Secondary elements.
+    pub elements: Vec<ElementSpec>,
+}
+
+/// Why a rig file was refused.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RigError {
+    /// Not TOML, or a field of the wrong type or unknown (the toml message, with its line).
+    #[error("rig: {0}")]
+    Toml(String),
+    /// Parsed, but some values are invalid; every problem is listed with its path.
+    #[error("rig: {0}")]
+    Invalid(Problems),
+}
+
+fn default_scale() -> f32 {
+    1.0
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawJoint {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    height_m: f32,
+    #[serde(default = "default_scale")]
+    s_pitch: f32,
+    #[serde(default = "default_scale")]
+    s_yaw: f32,
+    #[serde(default = "default_scale")]
+    s_roll: f32,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawElement {
+    name: String,
+    attach_joint: i64,
+    #[serde(default = "default_count")]
+    count: i64,
+    length_m: f32,
+    #[serde(default = "default_tau")]
+    tau: i64,
+}
+
+fn default_count() -> i64 {
+    1
+}
+
+fn default_tau() -> i64 {
+    DEFAULT_TAU as i64
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRig {
+    name: String,
+    #[serde(default)]
+    description: String,
+    #[serde(default = "default_tau")]
+    tau: i64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    thumb_range_deg: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    filter: Option<String>,
+    joints: Vec<RawJoint>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    elements: Vec<RawElement>,
+}
+
+fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
+    if (0..=MAX_TAU as i64).contains(&tau) {
+        tau as u8
+    } else {
+        p.push(path, format!("{tau} is out of range 0..={MAX_TAU}"));
+        DEFAULT_TAU
+    }
+}
+
+impl RawRig {
+    fn validate(self) -> Result<Rig, Problems> {
+        let mut p = Problems::default();
+        if self.name.trim().is_empty() {
+            p.push("name", "must not be empty");
+        }
+        let tau = check_tau(&mut p, "tau", self.tau);
+        let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
+        for (k, v) in thumb_range_deg.iter().enumerate() {
+            p.positive(format!("thumb_range_deg[{k}]"), *v);
+        }
+        let filter = match &self.filter {
+            None => FilterSpec::None,
+            Some(text) => text.parse().unwrap_or_else(|e| {
+                p.push("filter", format!("{e}"));
+                FilterSpec::None
+            }),
+        };
+
+        if self.joints.len() != JOINTS {
+            p.push("joints", format!("expected {JOINTS} joints, found {}", self.joints.len()));
+        }
+        let mut joints: [JointSpec; JOINTS] = std::array::from_fn(|i| JointSpec {
+            name: format!("joint{i}"),
+            height_m: i as f32,
+            s_pitch: 1.0,
+            s_yaw: 1.0,
+            s_roll: 1.0,
+        });
+        let mut prev_height: Option<f32> = None;
+        for (i, raw) in self.joints.iter().enumerate().take(JOINTS) {
+            let path = |f: &str| format!("joints[{i}].{f}");
+            let name = raw.name.clone().unwrap_or_else(|| format!("joint{i}"));
+            if name.trim().is_empty() {
+                p.push(path("name"), "must not be empty");
+            } else if let Some(j) = joints[..i].iter().position(|j| j.name == name) {
+                p.push(path("name"), format!("`{name}` is already the name of joints[{j}]"));
+            }
+            if p.finite(path("height_m"), raw.height_m) {
+                if i == 0 && raw.height_m < 0.0 {
+                    p.push(
+                        path("height_m"),
+                        format!("the root must not be below ground, found {}", raw.height_m),
+                    );
+                }
+                match prev_height {
+                    Some(prev) if raw.height_m <= prev => p.push(
+                        path("height_m"),
+                        format!("{} must be above joints[{}].height_m ({prev})", raw.height_m, i - 1),
+                    ),
+                    _ => {}
+                }
+                prev_height = Some(raw.height_m);
+            } else {
+                prev_height = None;
+            }
+            p.finite(path("s_pitch"), raw.s_pitch);
+            p.finite(path("s_yaw"), raw.s_yaw);
+            p.finite(path("s_roll"), raw.s_roll);
+            joints[i] = JointSpec {
+                name,
+                height_m: raw.height_m,
+                s_pitch: raw.s_pitch,
+                s_yaw: raw.s_yaw,
+                s_roll: raw.s_roll,
+            };
+        }
+
+        let mut elements = Vec::with_capacity(self.elements.len());
+        for (e, raw) in self.elements.iter().enumerate() {
+            let path = |f: &str| format!("elements[{e}].{f}");
+            if raw.name.trim().is_empty() {
+                p.push(path("name"), "must not be empty");
+            } else if let Some(j) = self.elements[..e].iter().position(|o| o.name == raw.name) {
+                p.push(path("name"), format!("`{}` is already the name of elements[{j}]", raw.name));
+            }
+            let attach_joint = if (0..JOINTS as i64).contains(&raw.attach_joint) {
+                raw.attach_joint as u8
+            } else {
+                p.push(
+                    path("attach_joint"),
+                    format!("{} is out of range 0..={}", raw.attach_joint, JOINTS - 1),
+                );
+                0
+            };
+            let count = if (1..=u32::MAX as i64).contains(&raw.count) {
+                raw.count as u32
+            } else {
+                p.push(path("count"), format!("{} must be at least 1", raw.count));
+                1
+            };
+            p.positive(path("length_m"), raw.length_m);
+            let tau = check_tau(&mut p, &path("tau"), raw.tau);
+            elements.push(ElementSpec {
+                name: raw.name.clone(),
+                attach_joint,
+                count,
+                length_m: raw.length_m,
+                tau,
+            });
+        }
+
+        if !p.is_empty() {
+            return Err(p);
+        }
+        Ok(Rig {
+            name: self.name,
+            description: self.description,
+            joints,
+            tau,
+            thumb_range_deg,
+            filter,
+            elements,
+        })
+    }
+}
+
+impl Rig {
+    /// Parses a rig file and validates it, reporting every problem with its path.
+    pub fn from_toml_str(text: &str) -> Result<Rig, RigError> {
+        let raw: RawRig =
+            toml::from_str(text).map_err(|e| RigError::Toml(e.to_string().trim_end().to_string()))?;
+        raw.validate().map_err(RigError::Invalid)
+    }
+
+    /// Writes the rig as TOML (no comments); [`Rig::from_toml_str`] reads it back identically.
+    pub fn to_toml_string(&self) -> String {
+        let raw = RawRig {
+            name: self.name.clone(),
+            description: self.description.clone(),
+            tau: self.tau as i64,
+            thumb_range_deg: Some(self.thumb_range_deg),
+            filter: Some(self.filter.to_string()),
+            joints: self
+                .joints
+                .iter()
+                .map(|j| RawJoint {
+                    name: Some(j.name.clone()),
+                    height_m: j.height_m,
+                    s_pitch: j.s_pitch,
+                    s_yaw: j.s_yaw,
+                    s_roll: j.s_roll,
+                })
+                .collect(),
+            elements: self
+                .elements
+                .iter()
+                .map(|e| RawElement {
+                    name: e.name.clone(),
+                    attach_joint: e.attach_joint as i64,
+                    count: e.count as i64,
+                    length_m: e.length_m,
+                    tau: e.tau as i64,
+                })
+                .collect(),
+        };
+        // Plain strings, integers and f32 values always serialize.
+        toml::to_string(&raw).unwrap_or_default()
+    }
+
+    /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`.
+    pub fn mapping(&self) -> MappingParams {
+        MappingParams {
+            scale: std::array::from_fn(|i| {
+                let j = &self.joints[i];
+                [j.s_pitch, j.s_yaw, j.s_roll]
+            }),
+            tau: self.tau,
+        }
+    }
+
+    /// The joint names, root first (for the protocol `Hello` and take headers).
+    pub fn joint_names(&self) -> Vec<String> {
+        self.joints.iter().map(|j| j.name.clone()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+name = "blade"
+joints = [
+  { height_m = 0.0 },
+  { height_m = 0.1 },
+  { height_m = 0.2 },
+  { height_m = 0.3 },
+]
+"#;
+
+    #[test]
+    fn defaults() {
+        let r = Rig::from_toml_str(MINIMAL).unwrap();
+        assert_eq!(r.name, "blade");
+        assert_eq!(r.description, "");
+        assert_eq!(r.tau, 2);
+        assert_eq!(r.thumb_range_deg, [60.0, 70.0, 60.0]);
+        assert_eq!(r.filter, FilterSpec::None);
+        assert!(r.elements.is_empty());
+        assert_eq!(r.joint_names(), ["joint0", "joint1", "joint2", "joint3"]);
+        assert_eq!(r.mapping(), MappingParams::default());
+    }
+
+    #[test]
+    fn mapping_takes_per_joint_scales() {
+        let text = r#"
+name = "x"
+tau = 3
+joints = [
+  { height_m = 0.0, s_pitch = 0.5, s_yaw = 0.25, s_roll = 2 },
+  { height_m = 0.1, s_pitch = 1.5 },
+  { height_m = 0.2, s_yaw = -1 },
+  { height_m = 0.3, s_roll = 0 },
+]
+"#;
+        let m = Rig::from_toml_str(text).unwrap().mapping();
+        assert_eq!(m.tau, 3);
+        assert_eq!(m.scale, [[0.5, 0.25, 2.0], [1.5, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 0.0]]);
+    }
+
+    #[test]
+    fn unknown_fields_are_refused() {
+        let e =
+            Rig::from_toml_str(&MINIMAL.replace("name = \"blade\"", "name = \"b\"\ntwist = 1")).unwrap_err();
+        assert!(matches!(e, RigError::Toml(_)));
+        assert!(e.to_string().contains("twist"), "{e}");
+        let e = Rig::from_toml_str(&MINIMAL.replace("{ height_m = 0.2 }", "{ height_m = 0.2, s_pich = 1 }"))
+            .unwrap_err();
+        assert!(e.to_string().contains("s_pich"), "{e}");
+    }
+
+    #[test]
+    fn every_problem_is_listed_with_its_path() {
+        let text = r#"
+name = ""
+tau = 4
+thumb_range_deg = [60, 0, -1]
+filter = "lowpass:cutoff_hz=-2"
+joints = [
+  { name = "base", height_m = -0.1, s_pitch = inf },
+  { name = "base", height_m = 0.3 },
+  { height_m = 0.3, s_roll = nan },
+  { name = "", height_m = 0.2 },
+]
+[[elements]]
+name = "leaf"
+attach_joint = 4
+count = 0
+length_m = 0
+tau = -1
+[[elements]]
+name = "leaf"
+attach_joint = 1
+length_m = 0.05
+"#;
+        let Err(RigError::Invalid(p)) = Rig::from_toml_str(text) else {
+            panic!("expected validation errors");
+        };
+        let msg = p.to_string();
+        let want = [
+            "name: must not be empty",
+            "tau: 4 is out of range 0..=3",
+            "thumb_range_deg[1]: must be greater than 0, found 0",
+            "thumb_range_deg[2]: must be greater than 0, found -1",
+            "filter: parameter `cutoff_hz`: -2 must be a finite number > 0",
+            "joints[0].height_m: the root must not be below ground, found -0.1",
+            "joints[0].s_pitch: must be a finite number, found inf",
+            "joints[1].name: `base` is already the name of joints[0]",
+            "joints[2].height_m: 0.3 must be above joints[1].height_m (0.3)",
+            "joints[2].s_roll: must be a finite number, found NaN",
+            "joints[3].name: must not be empty",
+            "joints[3].height_m: 0.2 must be above joints[2].height_m (0.3)",
+            "elements[0].attach_joint: 4 is out of range 0..=3",
+            "elements[0].count: 0 must be at least 1",
+            "elements[0].length_m: must be greater than 0, found 0",
+            "elements[0].tau: -1 is out of range 0..=3",
+            "elements[1].name: `leaf` is already the name of elements[0]",
+        ];
+        let got: Vec<String> = p.0.iter().map(|x| x.to_string()).collect();
+        assert_eq!(got, want, "{msg}");
+        assert!(msg.starts_with("17 problems:"), "{msg}");
+    }
+
+    #[test]
+    fn wrong_joint_count() {
+        let text = "name = \"x\"\njoints = [{ height_m = 0.0 }, { height_m = 1.0 }]\n";
+        let Err(RigError::Invalid(p)) = Rig::from_toml_str(text) else {
+            panic!("expected validation errors");
+        };
+        assert_eq!(p.to_string(), "1 problem:\n  joints: expected 4 joints, found 2");
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let text = r#"
+name = "flower"
+description = "stem with \"leaves\""
+tau = 1
+thumb_range_deg = [55.5, 0.1, 80]
+filter = "one-euro:beta=0.01"
+joints = [
+  { name = "root", height_m = 0.0, s_pitch = 0.3, s_yaw = 0.3, s_roll = 0.7 },
+  { name = "lower", height_m = 0.1, s_pitch = 0.6 },
+  { name = "upper", height_m = 0.2 },
+  { name = "head", height_m = 0.35, s_pitch = 1.2, s_yaw = 1.2 },
+]
+[[elements]]
+name = "leaf"
+attach_joint = 1
+count = 3
+length_m = 0.08
+tau = 1
+"#;
+        let r = Rig::from_toml_str(text).unwrap();
+        let again = Rig::from_toml_str(&r.to_toml_string()).unwrap();
+        assert_eq!(again, r, "{}", r.to_toml_string());
+        assert_eq!(r.elements[0].count, 3);
+    }
+}
