@@ -1,0 +1,63 @@
+//! The shipped rig and calibration files parse, validate and say what their comments say.
+
+use frond_motion::{Calibration, FilterSpec, Rig};
+
+const GRASS: &str = include_str!("../../../rig-files/plants/grass.toml");
+const FLOWER: &str = include_str!("../../../rig-files/plants/flower.toml");
+const SHRUB: &str = include_str!("../../../rig-files/plants/shrub.toml");
+const DEFAULT_CAL: &str = include_str!("../../../rig-files/calibrations/default.toml");
+const EXAMPLE_CAL: &str = include_str!("../../../rig-files/calibrations/example-user.toml");
+
+#[test]
+fn grass_is_a_single_blade_with_tau_2() {
+    let r = Rig::from_toml_str(GRASS).unwrap();
+    assert_eq!(r.name, "grass");
+    assert_eq!(r.tau, 2);
+    assert!(r.elements.is_empty());
+    assert!(matches!(r.filter, FilterSpec::OneEuro { .. }));
+}
+
+#[test]
+fn flower_has_a_leaf_and_a_stiffer_root() {
+    let f = Rig::from_toml_str(FLOWER).unwrap();
+    let g = Rig::from_toml_str(GRASS).unwrap();
+    assert_eq!(f.name, "flower");
+    assert_eq!(f.elements.len(), 1);
+    assert_eq!(f.elements[0].name, "leaf");
+    assert!(f.joints[0].s_pitch < g.joints[0].s_pitch);
+    assert!(f.joints[0].s_yaw < g.joints[0].s_yaw);
+}
+
+#[test]
+fn shrub_is_stiff_with_tau_1() {
+    let s = Rig::from_toml_str(SHRUB).unwrap();
+    let g = Rig::from_toml_str(GRASS).unwrap();
+    assert_eq!(s.tau, 1);
+    for (a, b) in s.joints.iter().zip(&g.joints) {
+        assert!(a.s_pitch < b.s_pitch && a.s_yaw < b.s_yaw && a.s_roll < b.s_roll);
+    }
+}
+
+#[test]
+fn shipped_rigs_round_trip() {
+    for text in [GRASS, FLOWER, SHRUB] {
+        let r = Rig::from_toml_str(text).unwrap();
+        assert_eq!(Rig::from_toml_str(&r.to_toml_string()).unwrap(), r);
+    }
+}
+
+#[test]
+fn calibrations_parse_and_round_trip() {
+    let d = Calibration::from_toml_str(DEFAULT_CAL).unwrap();
+    assert_eq!(d.neutral_wrist_deg, [0.0; 3]);
+    assert_eq!(d.neutral_thumb_deg, [0.0; 3]);
+    let g = Rig::from_toml_str(GRASS).unwrap();
+    // The default file agrees with what `--calibration` omitted means for the shipped rigs.
+    assert_eq!(d.params(), Calibration::neutral_for(&g).params());
+    let e = Calibration::from_toml_str(EXAMPLE_CAL).unwrap();
+    assert_eq!(e.id, "example-user");
+    assert!(e.wrist_range_deg.is_some());
+    for c in [d, e] {
+        assert_eq!(Calibration::from_toml_str(&c.to_toml_string()).unwrap(), c);
+    }
+}
