@@ -12,6 +12,7 @@
 //! [`DecodeError::UnsupportedVersion`] rather than guessing.
 
 pub mod control;
+pub mod convention;
 pub mod frame;
 pub mod paths;
 pub mod pose;
