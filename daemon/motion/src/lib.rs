@@ -12,6 +12,7 @@ pub mod mapping;
 pub mod problems;
 pub mod rig;
 pub mod sample;
+pub mod take;
 
 pub use calibration::{Calibration, CalibrationError, CalibrationParams};
 pub use filter::{FilterSpec, FilterSpecError, HandFilter, LowPass, OneEuro};
@@ -20,3 +21,4 @@ pub use mapping::{Mapper, MappingParams, map_pose};
 pub use problems::{Problem, Problems};
 pub use rig::{ElementSpec, JointSpec, Rig, RigError};
 pub use sample::{HandSample, JOINTS, PoseFrame};
+pub use take::{TakeError, TakeFrame, TakeHeader, TakeRecord, TakeScan, resample, scan_take};
