@@ -1,0 +1,184 @@
+//! Command-line syntax of `frond` (clap derive). Parsing only; validation happens in the commands.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+/// frond: operate the hand-to-plant puppet daemon.
+#[derive(Debug, Parser)]
+#[command(name = "frond", version, about, propagate_version = true)]
+pub struct Cli {
+    /// Options shared by every command.
+    #[command(flatten)]
+    pub global: Global,
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Where the daemon's sockets and takes are.
+#[derive(Debug, Clone, Args)]
+pub struct Global {
+    /// Directory of the daemon's sockets (poses.sock, control.sock)
+    /// [default: $XDG_RUNTIME_DIR/frond, /run/frond for root].
+    #[arg(long, global = true, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    pub socket_dir: Option<PathBuf>,
+    /// Directory of recorded takes [default: $XDG_DATA_HOME/frond/takes].
+    #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR")]
+    pub takes_dir: Option<PathBuf>,
+}
+
+/// `frond` commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Show the daemon's state: source, rig, rates, loop lateness, subscribers, recording.
+    Status {
+        /// Print the full status report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print live poses. Frames that only repeat the previous pose (flag `held`) are skipped
+    /// unless --include-held is given, so each line is one new device sample.
+    Tap {
+        /// One JSON object a line: {"seq":..,"t":..,"joints":[[p,y,r],x4]} plus "flags" when set.
+        #[arg(long)]
+        jsonl: bool,
+        /// Exit after printing N frames.
+        #[arg(long, value_name = "N")]
+        count: Option<u64>,
+        /// Also print held frames (every tick of the daemon).
+        #[arg(long)]
+        include_held: bool,
+    },
+    /// Map a hand recording (JSONL on stdin) to poses (JSONL on stdout), offline, with the
+    /// daemon's own mapping code. Bad lines are reported on stderr with their line number and
+    /// skipped; the good ones are written; the exit status is 1 if any line was bad.
+    Map {
+        /// Rig file (TOML).
+        #[arg(long, value_name = "FILE")]
+        rig: PathBuf,
+        /// Calibration file (TOML) [default: zero neutral, the rig's thumb ranges].
+        #[arg(long, value_name = "FILE")]
+        calibration: Option<PathBuf>,
+        /// Jitter filter: none, lowpass, one-euro, or a full spec such as
+        /// lowpass:cutoff_hz=8 [default: the rig's filter].
+        #[arg(long, value_name = "SPEC")]
+        filter: Option<String>,
+        /// Read this file instead of stdin.
+        #[arg(long, value_name = "FILE")]
+        input: Option<PathBuf>,
+    },
+    /// Measure a user's neutral pose and comfortable ranges and write a calibration file.
+    Calibrate(CalibrateArgs),
+    /// Manage calibrations on the running daemon.
+    #[command(subcommand)]
+    Calibration(CalibrationCommand),
+    /// Manage the rig of the running daemon.
+    #[command(subcommand)]
+    Rig(RigCommand),
+    /// Set the daemon's jitter filter (none, lowpass:cutoff_hz=8,
+    /// one-euro:min_cutoff=1,beta=0.007,d_cutoff=1).
+    Filter {
+        /// Filter spec.
+        spec: String,
+    },
+    /// Put a labelled marker into the current recording.
+    Mark {
+        /// Marker text (at most 256 bytes).
+        label: String,
+    },
+    /// Start or stop recording a take.
+    #[command(subcommand)]
+    Record(RecordCommand),
+    /// List, export and repair recorded takes.
+    #[command(subcommand)]
+    Take(TakeCommand),
+    /// Start the daemon on the virtual glove, show live status, record a take, stop everything.
+    Demo {
+        /// Seconds to record.
+        #[arg(long, default_value_t = 5.0, value_name = "N")]
+        seconds: f64,
+        /// Take name [default: demo-<unix time>].
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
+    },
+}
+
+/// `frond calibrate` options.
+#[derive(Debug, Clone, Args)]
+pub struct CalibrateArgs {
+    /// Whose calibration this is (the file is named after it).
+    #[arg(long, value_name = "NAME")]
+    pub user: String,
+    /// Seconds for each step.
+    #[arg(long, default_value_t = 4.0, value_name = "S")]
+    pub seconds_per_step: f64,
+    /// Do not wait for Enter before each step.
+    #[arg(long)]
+    pub yes: bool,
+    /// Output file [default: $XDG_CONFIG_HOME/frond/calibrations/NAME.toml].
+    #[arg(short = 'o', long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Also apply the new calibration to the running daemon.
+    #[arg(long)]
+    pub apply: bool,
+}
+
+/// `frond calibration ...`
+#[derive(Debug, Subcommand)]
+pub enum CalibrationCommand {
+    /// Send a calibration file to the daemon, which applies it live.
+    Apply {
+        /// Calibration file (TOML).
+        file: PathBuf,
+    },
+}
+
+/// `frond rig ...`
+#[derive(Debug, Subcommand)]
+pub enum RigCommand {
+    /// Send a rig file to the daemon, which switches to it live.
+    Set {
+        /// Rig file (TOML).
+        file: PathBuf,
+    },
+}
+
+/// `frond record ...`
+#[derive(Debug, Subcommand)]
+pub enum RecordCommand {
+    /// Start recording a take NAME into the daemon's takes directory.
+    Start {
+        /// Take name: letters, digits, '-', '_', '.'.
+        name: String,
+    },
+    /// Stop the current recording and print the take's path and frame count.
+    Stop,
+}
+
+/// `frond take ...`
+#[derive(Debug, Subcommand)]
+pub enum TakeCommand {
+    /// List the takes in the takes directory.
+    List {
+        /// JSON array instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print a take's poses, one JSON object a line.
+    Export {
+        /// Take name (or a path to a .take file).
+        name: String,
+        /// JSON Lines output (the only format for now).
+        #[arg(long)]
+        jsonl: bool,
+        /// Resample to this many frames per second.
+        #[arg(long, value_name = "FPS")]
+        fps: Option<f64>,
+    },
+    /// Cut a torn tail off a take (after a crash), keeping every complete frame.
+    Repair {
+        /// Take name (or a path to a .take file).
+        name: String,
+    },
+}

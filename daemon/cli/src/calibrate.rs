@@ -1,0 +1,346 @@
+//! `frond calibrate`: measure a user's neutral pose and comfortable ranges (seed 000,
+//! section 5.4) from the daemon's raw samples and write a calibration file.
+//!
+//! Steps, a few seconds each, polling `RawSample` at about 50 Hz:
+//! - neutral: the mean of every sample is the neutral wrist and thumb;
+//! - wrist pitch, yaw, roll extremes (one step each): `[min, max]` of that axis
+//!   (informational, stored as `wrist_range_deg`);
+//! - thumb: `G_R_i = max(thumb_i) - neutral_thumb_i` (the comfortable bending range of Eq. 3);
+//!   a range under 5 degrees is refused, since it would blow up `G_i / G_R_i`.
+
+use std::io::{self, BufRead, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, anyhow, bail};
+use frond_motion::Calibration;
+use frond_protocol::{ControlReply, ControlRequest, paths};
+
+use crate::args::{CalibrateArgs, Global};
+use crate::control::Control;
+use crate::usage;
+
+/// Smallest acceptable comfortable range, degrees.
+pub(crate) const MIN_RANGE_DEG: f32 = 5.0;
+/// Poll period for raw samples (about 50 Hz).
+const POLL: Duration = Duration::from_millis(20);
+
+/// One raw (uncalibrated) sample from the daemon.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Raw {
+    pub t: f64,
+    pub wrist_deg: [f32; 3],
+    pub thumb_deg: [f32; 3],
+}
+
+/// What each step asks the user to do.
+const STEPS: [(&str, &str); 5] = [
+    ("neutral", "Rest your hand in its relaxed neutral pose and hold it still."),
+    ("wrist pitch", "Bend your wrist up and down to its comfortable extremes, a few times."),
+    ("wrist yaw", "Swing your wrist left and right to its comfortable extremes, a few times."),
+    ("wrist roll", "Roll your forearm both ways as far as is comfortable, a few times."),
+    ("thumb", "Bend your thumb as far as is comfortable (curl all three joints), then relax, a few times."),
+];
+
+pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
+    if let Err(e) = paths::validate_take_name(&a.user) {
+        return usage(format!("--user: {}", e.replace("take name", "user name")));
+    }
+    if !(a.seconds_per_step.is_finite() && (0.2..=120.0).contains(&a.seconds_per_step)) {
+        return usage(format!("--seconds-per-step must be between 0.2 and 120, got {}", a.seconds_per_step));
+    }
+    let output = match &a.output {
+        Some(p) => p.clone(),
+        None => default_calibration_path(&a.user)?,
+    };
+    let mut control = Control::from_global(g)?;
+    let step_len = Duration::from_secs_f64(a.seconds_per_step);
+    let tty = io::stdout().is_terminal();
+    println!("Calibrating {:?}: {} steps of {:.1} s each.", a.user, STEPS.len(), a.seconds_per_step);
+    let mut recorded: Vec<Vec<Raw>> = Vec::with_capacity(STEPS.len());
+    for (i, (name, instruction)) in STEPS.iter().enumerate() {
+        println!("\nStep {}/{} ({name}): {instruction}", i + 1, STEPS.len());
+        if !a.yes {
+            print!("Press Enter to start... ");
+            io::stdout().flush()?;
+            let mut line = String::new();
+            if io::stdin().lock().read_line(&mut line)? == 0 {
+                bail!("standard input closed while waiting for Enter; use --yes to run without prompts");
+            }
+        }
+        let samples = record_step(&mut control, step_len, tty)?;
+        if samples.is_empty() {
+            bail!(
+                "step {name}: no fresh samples from the device in {:.1} s; check `frond status` \
+                 (is the glove connected?)",
+                a.seconds_per_step
+            );
+        }
+        println!("  {} samples", samples.len());
+        recorded.push(samples);
+    }
+    let wrist_steps = [&recorded[1][..], &recorded[2][..], &recorded[3][..]];
+    let measured = compute(&a.user, &recorded[0], wrist_steps, &recorded[4])?;
+    for w in &measured.warnings {
+        eprintln!("frond: warning: {w}");
+    }
+    let cal = measured.calibration;
+    let text = format!(
+        "# frond calibration for {:?}, written by `frond calibrate` (seed 000, section 5.4)\n{}",
+        a.user,
+        cal.to_toml_string()
+    );
+    write_atomically(&output, &text)?;
+    println!("\n{text}\nwrote {}", output.display());
+    if a.apply {
+        match control.request(&ControlRequest::SetCalibration { id: cal.id.clone(), toml: text })? {
+            ControlReply::Ok => println!("applied to the running daemon"),
+            _ => bail!("the daemon gave an unexpected reply to SetCalibration"),
+        }
+    } else {
+        println!("apply it with: frond calibration apply {}", output.display());
+    }
+    Ok(())
+}
+
+/// Polls raw samples for `len`, printing live values on a terminal.
+fn record_step(control: &mut Control, len: Duration, tty: bool) -> anyhow::Result<Vec<Raw>> {
+    let start = Instant::now();
+    let mut next = start;
+    let mut out: Vec<Raw> = Vec::new();
+    let mut last_print = start;
+    while start.elapsed() < len {
+        match control.request(&ControlRequest::RawSample)? {
+            ControlReply::RawSample { t, wrist_deg, thumb_deg, fresh } => {
+                let finite = t.is_finite() && wrist_deg.iter().chain(&thumb_deg).all(|v| v.is_finite());
+                let repeated = out.last().is_some_and(|r| r.t == t);
+                if fresh && finite && !repeated {
+                    out.push(Raw { t, wrist_deg, thumb_deg });
+                }
+                if tty && last_print.elapsed() >= Duration::from_millis(100) {
+                    last_print = Instant::now();
+                    let left = len.saturating_sub(start.elapsed()).as_secs_f64();
+                    print!(
+                        "\r\x1b[K  wrist p/y/r {:7.1} {:7.1} {:7.1}   thumb {:6.1} {:6.1} {:6.1}   {left:4.1} s left{}",
+                        wrist_deg[0],
+                        wrist_deg[1],
+                        wrist_deg[2],
+                        thumb_deg[0],
+                        thumb_deg[1],
+                        thumb_deg[2],
+                        if fresh { "" } else { "  (device not connected)" }
+                    );
+                    io::stdout().flush()?;
+                }
+            }
+            _ => bail!("the daemon gave an unexpected reply to RawSample"),
+        }
+        next += POLL;
+        if let Some(wait) = next.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        } else {
+            next = Instant::now();
+        }
+    }
+    if tty {
+        println!();
+    }
+    Ok(out)
+}
+
+/// The result of [`compute`].
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Measured {
+    pub calibration: Calibration,
+    pub warnings: Vec<String>,
+}
+
+/// Turns the recorded steps into a calibration. Each slice must be non-empty.
+pub(crate) fn compute(
+    user: &str,
+    neutral: &[Raw],
+    wrist_steps: [&[Raw]; 3],
+    thumb: &[Raw],
+) -> anyhow::Result<Measured> {
+    if neutral.is_empty() || thumb.is_empty() || wrist_steps.iter().any(|s| s.is_empty()) {
+        bail!("every calibration step needs at least one sample");
+    }
+    let mut warnings = Vec::new();
+    let mean = |get: &dyn Fn(&Raw) -> f32| -> f32 {
+        (neutral.iter().map(|r| get(r) as f64).sum::<f64>() / neutral.len() as f64) as f32
+    };
+    let neutral_wrist_deg: [f32; 3] = std::array::from_fn(|k| mean(&|r| r.wrist_deg[k]));
+    let neutral_thumb_deg: [f32; 3] = std::array::from_fn(|k| mean(&|r| r.thumb_deg[k]));
+    // Movement during the neutral step makes the mean meaningless; say so.
+    let spread = |get: &dyn Fn(&Raw) -> f32| {
+        let (lo, hi) =
+            neutral.iter().map(get).fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        hi - lo
+    };
+    const AXES: [&str; 3] = ["pitch", "yaw", "roll"];
+    for (k, axis) in AXES.iter().enumerate() {
+        let w = spread(&|r| r.wrist_deg[k]);
+        let g = spread(&|r| r.thumb_deg[k]);
+        if w > 10.0 {
+            warnings.push(format!("the wrist {axis} moved {w:.1} degrees during the neutral step"));
+        }
+        if g > 10.0 {
+            warnings.push(format!("thumb joint g{} moved {g:.1} degrees during the neutral step", k + 1));
+        }
+    }
+
+    let mut wrist_range = [[0.0f32; 2]; 3];
+    let mut wrist_ok = true;
+    for (k, step) in wrist_steps.iter().enumerate() {
+        let (lo, hi) = step
+            .iter()
+            .map(|r| r.wrist_deg[k])
+            .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        wrist_range[k] = [lo, hi];
+        if hi - lo < MIN_RANGE_DEG {
+            wrist_ok = false;
+            warnings.push(format!(
+                "the wrist {} only moved {:.1} degrees during its step; wrist ranges are not stored",
+                AXES[k],
+                hi - lo
+            ));
+        }
+    }
+
+    let mut thumb_range_deg = [0.0f32; 3];
+    let mut problems = Vec::new();
+    for (k, range) in thumb_range_deg.iter_mut().enumerate() {
+        let max = thumb.iter().map(|r| r.thumb_deg[k]).fold(f32::MIN, f32::max);
+        *range = max - neutral_thumb_deg[k];
+        if range.is_nan() || *range < MIN_RANGE_DEG {
+            problems.push(format!(
+                "thumb joint g{}: comfortable range G_R{} = {:.1} degrees (max {max:.1} - neutral {:.1}) \
+                 is below {MIN_RANGE_DEG} degrees",
+                k + 1,
+                k + 1,
+                *range,
+                neutral_thumb_deg[k]
+            ));
+        }
+    }
+    if !problems.is_empty() {
+        return Err(anyhow!(
+            "{}; bend the thumb further during the thumb step, and check that the device reports \
+             the thumb (`frond tap`)",
+            problems.join("; ")
+        ));
+    }
+    let calibration = Calibration {
+        id: user.to_string(),
+        neutral_wrist_deg,
+        neutral_thumb_deg,
+        thumb_range_deg,
+        wrist_range_deg: wrist_ok.then_some(wrist_range),
+    };
+    calibration.validate().map_err(|p| anyhow!("the measured calibration is invalid: {p:?}"))?;
+    Ok(Measured { calibration, warnings })
+}
+
+/// `$XDG_CONFIG_HOME/frond/calibrations/NAME.toml`, else `$HOME/.config/...`.
+pub(crate) fn default_calibration_path(user: &str) -> anyhow::Result<PathBuf> {
+    let base = std::env::var_os("XDG_CONFIG_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME").filter(|v| !v.is_empty()).map(|h| PathBuf::from(h).join(".config"))
+        })
+        .ok_or_else(|| anyhow!("neither XDG_CONFIG_HOME nor HOME is set; pass -o FILE"))?;
+    Ok(base.join("frond").join("calibrations").join(format!("{user}.toml")))
+}
+
+/// Writes `text` to `path` via a temporary file in the same directory and a rename.
+pub(crate) fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)
+        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
+    tmp.write_all(text.as_bytes())?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| anyhow!("cannot write {}: {}", path.display(), e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn raw(wrist: [f32; 3], thumb: [f32; 3]) -> Raw {
+        Raw { t: 0.0, wrist_deg: wrist, thumb_deg: thumb }
+    }
+
+    fn steps() -> (Vec<Raw>, [Vec<Raw>; 3], Vec<Raw>) {
+        let neutral = vec![raw([1.0, -2.0, 3.0], [4.0, 6.0, 0.0]), raw([3.0, -4.0, 5.0], [6.0, 8.0, 2.0])];
+        let pitch = vec![raw([-50.0, 0.0, 0.0], [0.0; 3]), raw([60.0, 9.0, 0.0], [0.0; 3])];
+        let yaw = vec![raw([0.0, -20.0, 0.0], [0.0; 3]), raw([0.0, 30.0, 0.0], [0.0; 3])];
+        let roll = vec![raw([0.0, 0.0, -70.0], [0.0; 3]), raw([0.0, 0.0, 80.0], [0.0; 3])];
+        let thumb = vec![raw([0.0; 3], [40.0, 10.0, 30.0]), raw([0.0; 3], [20.0, 77.0, 64.0])];
+        (neutral, [pitch, yaw, roll], thumb)
+    }
+
+    #[test]
+    fn neutral_is_the_mean_and_ranges_are_max_minus_neutral() {
+        let (n, [p, y, r], t) = steps();
+        let m = compute("alice", &n, [&p, &y, &r], &t).unwrap();
+        let c = m.calibration;
+        assert_eq!(c.id, "alice");
+        assert_eq!(c.neutral_wrist_deg, [2.0, -3.0, 4.0]);
+        assert_eq!(c.neutral_thumb_deg, [5.0, 7.0, 1.0]);
+        // max g = 40, 77, 64 -> minus neutral 5, 7, 1.
+        assert_eq!(c.thumb_range_deg, [35.0, 70.0, 63.0]);
+        assert_eq!(c.wrist_range_deg, Some([[-50.0, 60.0], [-20.0, 30.0], [-70.0, 80.0]]));
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        // The file it writes reads back identically.
+        assert_eq!(Calibration::from_toml_str(&c.to_toml_string()).unwrap(), c);
+    }
+
+    #[test]
+    fn a_tiny_thumb_range_is_refused_naming_the_joint() {
+        let (n, [p, y, r], mut t) = steps();
+        for s in &mut t {
+            s.thumb_deg[1] = 9.0; // neutral g2 is 7: range 2 degrees
+        }
+        let err = compute("bob", &n, [&p, &y, &r], &t).unwrap_err().to_string();
+        assert!(err.contains("thumb joint g2"), "{err}");
+        assert!(err.contains("G_R2 = 2.0 degrees"), "{err}");
+        assert!(!err.contains("g1"), "{err}");
+    }
+
+    #[test]
+    fn a_still_wrist_step_drops_wrist_ranges_with_a_warning() {
+        let (n, [p, _, r], t) = steps();
+        let still = vec![raw([0.0, 1.0, 0.0], [0.0; 3])];
+        let m = compute("carol", &n, [&p, &still, &r], &t).unwrap();
+        assert_eq!(m.calibration.wrist_range_deg, None);
+        assert!(m.warnings.iter().any(|w| w.contains("wrist yaw")), "{:?}", m.warnings);
+    }
+
+    #[test]
+    fn moving_during_neutral_is_warned() {
+        let (mut n, [p, y, r], t) = steps();
+        n.push(raw([30.0, -3.0, 4.0], [5.0, 7.0, 1.0]));
+        let m = compute("dan", &n, [&p, &y, &r], &t).unwrap();
+        assert!(m.warnings.iter().any(|w| w.contains("wrist pitch moved")), "{:?}", m.warnings);
+    }
+
+    #[test]
+    fn the_default_path_follows_xdg() {
+        // Only checks the shape: the environment is shared by tests, so it is not modified here.
+        let p = default_calibration_path("eve").unwrap();
+        assert!(p.ends_with("frond/calibrations/eve.toml"), "{}", p.display());
+    }
+
+    #[test]
+    fn writes_atomically_creating_directories() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a/b/c.toml");
+        write_atomically(&path, "x = 1\n").unwrap();
+        write_atomically(&path, "x = 2\n").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "x = 2\n");
+        assert_eq!(std::fs::read_dir(path.parent().unwrap()).unwrap().count(), 1);
+    }
+}

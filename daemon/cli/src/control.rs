@@ -1,0 +1,257 @@
+//! Client of the daemon's control socket, and the one-shot commands built on it
+//! (`rig set`, `calibration apply`, `filter`, `mark`, `record start|stop`).
+
+use std::io;
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, anyhow, bail};
+use frond_motion::{Calibration, FilterSpec, Rig};
+use frond_protocol::{
+    CONTROL_SOCKET, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus, StatusReport, paths,
+    read_frame, write_frame,
+};
+
+use crate::args::Global;
+use crate::usage;
+
+/// How long to wait for one reply.
+const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+/// Largest marker label the daemon accepts, bytes.
+const MAX_LABEL_BYTES: usize = 256;
+
+/// One connection to `control.sock`; carries any number of request/reply pairs.
+pub(crate) struct Control {
+    path: PathBuf,
+    stream: UnixStream,
+    out: FrameBuf,
+    scratch: Vec<u8>,
+}
+
+/// The explanation printed when the daemon cannot be reached.
+pub(crate) fn not_running_message(path: &Path, err: &io::Error) -> String {
+    let why = match err.kind() {
+        io::ErrorKind::NotFound => format!("no control socket at {}", path.display()),
+        io::ErrorKind::ConnectionRefused => {
+            format!("nothing listens on {} (left behind by a daemon that exited)", path.display())
+        }
+        _ => format!("cannot connect to {}: {err}", path.display()),
+    };
+    format!(
+        "the frond daemon is not running: {why}. Start it with `frondd --socket-dir {}` \
+         (or `systemctl --user start frondd`), or try `frond demo`; if it runs elsewhere, pass \
+         --socket-dir or set FROND_SOCKET_DIR",
+        path.parent().unwrap_or(Path::new(".")).display()
+    )
+}
+
+impl Control {
+    /// Connects to the control socket of the daemon in `socket_dir`.
+    pub(crate) fn connect(socket_dir: &Path) -> anyhow::Result<Control> {
+        let path = socket_dir.join(CONTROL_SOCKET);
+        let stream = match UnixStream::connect(&path) {
+            Ok(s) => s,
+            Err(e) if e.kind() == io::ErrorKind::PermissionDenied => {
+                bail!(
+                    "permission denied connecting to {} (is the daemon run by another user?)",
+                    path.display()
+                )
+            }
+            Err(e) => bail!(not_running_message(&path, &e)),
+        };
+        stream.set_read_timeout(Some(REPLY_TIMEOUT))?;
+        stream.set_write_timeout(Some(REPLY_TIMEOUT))?;
+        Ok(Control { path, stream, out: FrameBuf::default(), scratch: Vec::new() })
+    }
+
+    /// Connects using the global options.
+    pub(crate) fn from_global(g: &Global) -> anyhow::Result<Control> {
+        Control::connect(&paths::socket_dir(g.socket_dir.clone()))
+    }
+
+    /// Sends `req` and returns the daemon's reply; a refusal becomes an error with its message.
+    pub(crate) fn request(&mut self, req: &ControlRequest) -> anyhow::Result<ControlReply> {
+        write_frame(&mut self.stream, &mut self.out, req)
+            .with_context(|| format!("sending a request to {}", self.path.display()))?;
+        let reply: ControlReply = read_frame(&mut self.stream, &mut self.scratch).map_err(|e| match e {
+            ReadError::Io(io) if matches!(io.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                anyhow!("the daemon did not answer within {REPLY_TIMEOUT:?} on {}", self.path.display())
+            }
+            ReadError::Closed => anyhow!("the daemon closed {} without answering", self.path.display()),
+            other => anyhow!("bad reply on {}: {other}", self.path.display()),
+        })?;
+        match reply {
+            ControlReply::Error(err) => Err(anyhow!("the daemon refused: {} ({:?})", err.message, err.kind)),
+            other => Ok(other),
+        }
+    }
+
+    /// Sends `req` and expects a plain `Ok`.
+    pub(crate) fn expect_ok(&mut self, req: &ControlRequest) -> anyhow::Result<()> {
+        match self.request(req)? {
+            ControlReply::Ok => Ok(()),
+            other => Err(unexpected(&other)),
+        }
+    }
+
+    /// Asks for the daemon's status.
+    pub(crate) fn status(&mut self) -> anyhow::Result<StatusReport> {
+        match self.request(&ControlRequest::Status)? {
+            ControlReply::Status(s) => Ok(s),
+            other => Err(unexpected(&other)),
+        }
+    }
+
+    /// Starts recording `name`.
+    pub(crate) fn record_start(&mut self, name: &str) -> anyhow::Result<RecordingStatus> {
+        match self.request(&ControlRequest::RecordStart { name: name.to_string() })? {
+            ControlReply::Recording(r) => Ok(r),
+            ControlReply::Ok => Ok(RecordingStatus {
+                name: name.to_string(),
+                path: String::new(),
+                frames: 0,
+                dropped: 0,
+                active: true,
+            }),
+            other => Err(unexpected(&other)),
+        }
+    }
+
+    /// Stops the recording.
+    pub(crate) fn record_stop(&mut self) -> anyhow::Result<RecordingStatus> {
+        match self.request(&ControlRequest::RecordStop)? {
+            ControlReply::Recording(r) => Ok(r),
+            other => Err(unexpected(&other)),
+        }
+    }
+}
+
+fn unexpected(reply: &ControlReply) -> anyhow::Error {
+    let kind = match reply {
+        ControlReply::Ok => "Ok",
+        ControlReply::Status(_) => "Status",
+        ControlReply::Recording(_) => "Recording",
+        ControlReply::RawSample { .. } => "RawSample",
+        ControlReply::Error(_) => "Error",
+    };
+    anyhow!("the daemon gave an unexpected reply ({kind}); is it a different frond version?")
+}
+
+/// Reads a text file, naming it in the error.
+pub(crate) fn read_text(path: &Path, what: &str) -> anyhow::Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {what} file {}", path.display()))
+}
+
+/// Reads and validates a calibration file.
+pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, String)> {
+    let text = read_text(path, "calibration")?;
+    let cal = Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    Ok((cal, text))
+}
+
+/// Reads and validates a rig file.
+pub(crate) fn load_rig(path: &Path) -> anyhow::Result<(Rig, String)> {
+    let text = read_text(path, "rig")?;
+    let rig = Rig::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    Ok((rig, text))
+}
+
+/// Parses a filter argument: a full spec, or a bare kind (`lowpass`, `one-euro`) with defaults.
+pub(crate) fn parse_filter(spec: &str) -> anyhow::Result<FilterSpec> {
+    match spec.trim().parse::<FilterSpec>() {
+        Ok(f) => Ok(f),
+        Err(e) => usage(format!("--filter {spec:?}: {e}")),
+    }
+}
+
+pub(crate) fn apply_calibration(g: &Global, file: &Path) -> anyhow::Result<()> {
+    let (cal, text) = load_calibration(file)?;
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::SetCalibration { id: cal.id.clone(), toml: text })?;
+    println!("applied calibration {:?} from {}", cal.id, file.display());
+    Ok(())
+}
+
+pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
+    let (_rig, text) = load_rig(file)?;
+    let name = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "rig".into());
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: text })?;
+    println!("rig set to {name} ({})", file.display());
+    Ok(())
+}
+
+pub(crate) fn set_filter(g: &Global, spec: &str) -> anyhow::Result<()> {
+    let filter = parse_filter(spec)?;
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::SetFilter { spec: filter.to_string() })?;
+    println!("filter set to {filter}");
+    Ok(())
+}
+
+pub(crate) fn mark(g: &Global, label: &str) -> anyhow::Result<()> {
+    if label.len() > MAX_LABEL_BYTES {
+        return usage(format!("marker label is {} bytes; the limit is {MAX_LABEL_BYTES}", label.len()));
+    }
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::Mark { label: label.to_string() })?;
+    println!("marked {label:?}");
+    Ok(())
+}
+
+pub(crate) fn check_take_name(name: &str) -> anyhow::Result<()> {
+    paths::validate_take_name(name).or_else(usage)
+}
+
+pub(crate) fn record_start(g: &Global, name: &str) -> anyhow::Result<()> {
+    check_take_name(name)?;
+    let mut c = Control::from_global(g)?;
+    let r = c.record_start(name)?;
+    if r.path.is_empty() {
+        println!("recording {name}");
+    } else {
+        println!("recording {name} to {}", r.path);
+    }
+    Ok(())
+}
+
+pub(crate) fn record_stop(g: &Global) -> anyhow::Result<()> {
+    let mut c = Control::from_global(g)?;
+    let r = c.record_stop()?;
+    println!("stopped {}: {} frames in {}", r.name, r.frames, r.path);
+    if r.dropped > 0 {
+        eprintln!("frond: warning: the recorder dropped {} frames (disk too slow?)", r.dropped);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn not_running_names_the_socket_and_how_to_start() {
+        let e = io::Error::from(io::ErrorKind::NotFound);
+        let msg = not_running_message(Path::new("/tmp/x/control.sock"), &e);
+        assert!(msg.contains("no control socket at /tmp/x/control.sock"), "{msg}");
+        assert!(msg.contains("frondd --socket-dir /tmp/x"), "{msg}");
+        let e = io::Error::from(io::ErrorKind::ConnectionRefused);
+        let msg = not_running_message(Path::new("/tmp/x/control.sock"), &e);
+        assert!(msg.contains("nothing listens on /tmp/x/control.sock"), "{msg}");
+    }
+
+    #[test]
+    fn bad_take_names_are_usage_errors() {
+        let err = check_take_name("../etc").unwrap_err();
+        assert!(err.downcast_ref::<crate::UsageError>().is_some());
+        check_take_name("take_1").unwrap();
+    }
+
+    #[test]
+    fn a_bad_filter_is_a_usage_error() {
+        let err = parse_filter("butterworth").unwrap_err();
+        assert!(err.downcast_ref::<crate::UsageError>().is_some());
+        assert!(err.to_string().contains("butterworth"), "{err}");
+    }
+}

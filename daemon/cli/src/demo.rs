@@ -1,0 +1,326 @@
+//! `frond demo`: start `frondd` on the virtual glove with a private socket directory, show live
+//! status and a few poses, record a take, stop everything, and say where the take is.
+//!
+//! The daemon runs in its own process group (so the terminal's Ctrl-C reaches only `frond`,
+//! which then stops the recording and the daemon in order) with `PR_SET_PDEATHSIG` set to
+//! SIGTERM (so even a `kill -9` of `frond` takes the daemon down). A drop guard sends SIGTERM,
+//! waits, and falls back to SIGKILL on every exit path, errors included.
+
+use std::fs::File;
+use std::io::{self, IsTerminal, Write};
+use std::os::unix::net::UnixStream;
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant, SystemTime};
+
+use anyhow::{Context, anyhow, bail};
+use frond_protocol::{CONTROL_SOCKET, POSES_SOCKET, PoseFlags, paths};
+use frond_sdk::{Event, SdkError, Subscriber};
+
+use crate::args::Global;
+use crate::control::{Control, check_take_name};
+use crate::{Interrupted, signals, tap, usage};
+
+/// How long the daemon gets to create its sockets.
+const READY_TIMEOUT: Duration = Duration::from_secs(20);
+/// How long the daemon gets to exit after SIGTERM before SIGKILL.
+const STOP_TIMEOUT: Duration = Duration::from_secs(5);
+/// Poses printed before recording starts.
+const TAP_LINES: usize = 3;
+
+pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Result<()> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
+        return usage(format!("--seconds must be between 0 and 3600, got {seconds}"));
+    }
+    let name = name.unwrap_or_else(|| {
+        let now = SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+        format!("demo-{now}")
+    });
+    check_take_name(&name)?;
+    let frondd = find_frondd()?;
+    let takes_dir = paths::takes_dir(g.takes_dir.clone());
+    std::fs::create_dir_all(&takes_dir)
+        .with_context(|| format!("cannot create the takes directory {}", takes_dir.display()))?;
+    let socket_dir = tempfile::Builder::new()
+        .prefix("frond-demo-")
+        .tempdir()
+        .context("cannot create a private socket directory")?;
+    signals::install().context("installing signal handlers")?;
+
+    println!("starting {} (sockets in {})", frondd.display(), socket_dir.path().display());
+    let mut daemon = Daemon::spawn(&frondd, socket_dir.path(), &takes_dir)?;
+    daemon.wait_ready()?;
+    let result = demo_session(&mut daemon, socket_dir.path(), &takes_dir, &name, seconds);
+    let stopped = daemon.stop();
+    match (&result, stopped) {
+        (_, Ok(status)) if !status.success() => {
+            eprintln!("frond: warning: frondd exited with {status}; its log:\n{}", daemon.log_tail())
+        }
+        (_, Err(e)) => eprintln!("frond: warning: stopping frondd: {e:#}"),
+        _ => println!("daemon stopped"),
+    }
+    let take = result?;
+    println!();
+    println!("take {name}: {} frames in {}", take.frames, take.path);
+    let td = takes_dir.display();
+    println!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl");
+    println!("at 30 fps:  frond take export {name} --jsonl --fps 30 --takes-dir {td} > {name}-30fps.jsonl");
+    println!("list takes: frond take list --takes-dir {td}");
+    Ok(())
+}
+
+struct TakeResult {
+    path: String,
+    frames: u64,
+}
+
+fn demo_session(
+    daemon: &mut Daemon,
+    socket_dir: &Path,
+    takes_dir: &Path,
+    name: &str,
+    seconds: f64,
+) -> anyhow::Result<TakeResult> {
+    let mut control = Control::connect(socket_dir)?;
+    let st = control.status()?;
+    println!(
+        "frondd {} running: source {} {} ({}), rig {}, filter {}, {} Hz",
+        st.daemon_version,
+        st.source.kind,
+        st.source.path,
+        if st.source.connected { "connected" } else { "not connected yet" },
+        st.rig_name,
+        st.filter,
+        st.tick_rate_hz
+    );
+    let mut sub = Subscriber::options()
+        .reconnect(false)
+        .read_timeout(Some(Duration::from_millis(200)))
+        .connect(socket_dir)?;
+    let names = sub.hello().joint_names.clone();
+
+    // A few live poses.
+    let mut shown = 0;
+    let mut line = String::new();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while shown < TAP_LINES && Instant::now() < deadline {
+        check_interrupt(daemon)?;
+        match next_event(&mut sub)? {
+            Some(Event::Pose(p)) if !p.flags.contains(PoseFlags::HELD) => {
+                line.clear();
+                tap::pose_human(&p, &names, &mut line);
+                println!("{line}");
+                shown += 1;
+            }
+            _ => {}
+        }
+    }
+
+    let rec = control.record_start(name)?;
+    if !rec.path.is_empty() {
+        println!("recording {name} to {} for {seconds} s", rec.path);
+    }
+    let tty = io::stdout().is_terminal();
+    let start = Instant::now();
+    let length = Duration::from_secs_f64(seconds);
+    let mut next_status = start;
+    let outcome = (|| -> anyhow::Result<()> {
+        while start.elapsed() < length {
+            check_interrupt(daemon)?;
+            let _ = next_event(&mut sub)?;
+            if Instant::now() >= next_status {
+                let st = control.status()?;
+                let stats = sub.stats();
+                let frames = st.recording.as_ref().map(|r| r.frames).unwrap_or(0);
+                let text = format!(
+                    "REC {name} {:>5.1}/{seconds:.1}s | {} frames | {:.1} Hz of {} | late p99 {:.0} us max {:.0} us | \
+                     received {} gaps {} | source {}",
+                    start.elapsed().as_secs_f64().min(seconds),
+                    frames,
+                    st.achieved_rate_hz,
+                    st.tick_rate_hz,
+                    st.lateness.p99_us,
+                    st.lateness.max_us,
+                    stats.frames,
+                    stats.gaps,
+                    if st.source.connected { "connected" } else { "LOST" },
+                );
+                if tty {
+                    print!("\r\x1b[K{text}");
+                    io::stdout().flush()?;
+                    next_status += Duration::from_millis(250);
+                } else {
+                    println!("{text}");
+                    next_status += Duration::from_secs(1);
+                }
+            }
+        }
+        Ok(())
+    })();
+    if tty {
+        println!();
+    }
+    // Stop the recording whatever happened, so the take is closed properly.
+    let stop = control.record_stop();
+    outcome?;
+    let stopped = stop?;
+    let path = if stopped.path.is_empty() {
+        takes_dir.join(format!("{name}.take")).display().to_string()
+    } else {
+        stopped.path
+    };
+    Ok(TakeResult { path, frames: stopped.frames })
+}
+
+fn check_interrupt(daemon: &mut Daemon) -> anyhow::Result<()> {
+    if signals::interrupted() {
+        return Err(Interrupted.into());
+    }
+    if let Some(status) = daemon.try_wait()? {
+        bail!("frondd exited unexpectedly ({status}); its log:\n{}", daemon.log_tail());
+    }
+    Ok(())
+}
+
+/// One event, or `None` after a read timeout.
+fn next_event(sub: &mut Subscriber) -> anyhow::Result<Option<Event>> {
+    match sub.next_event() {
+        Ok(Event::Disconnected) => bail!("the daemon closed the pose stream"),
+        Ok(ev) => Ok(Some(ev)),
+        Err(SdkError::Timeout { .. }) => Ok(None),
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// `frondd` next to this executable, else on `PATH`.
+fn find_frondd() -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe().context("cannot find the frond executable's path")?;
+    let beside = exe.with_file_name("frondd");
+    if is_executable(&beside) {
+        return Ok(beside);
+    }
+    if let Some(path) = std::env::var_os("PATH") {
+        for dir in std::env::split_paths(&path) {
+            let candidate = dir.join("frondd");
+            if is_executable(&candidate) {
+                return Ok(candidate);
+            }
+        }
+    }
+    Err(anyhow!(
+        "cannot find frondd: not at {} and not on PATH (build it with `cargo build --release -p frondd`)",
+        beside.display()
+    ))
+}
+
+fn is_executable(p: &Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+}
+
+/// The child daemon; stopped on drop.
+struct Daemon {
+    child: Child,
+    socket_dir: PathBuf,
+    log_path: PathBuf,
+    exited: Option<ExitStatus>,
+}
+
+impl Daemon {
+    fn spawn(frondd: &Path, socket_dir: &Path, takes_dir: &Path) -> anyhow::Result<Daemon> {
+        let log_path = socket_dir.join("frondd.log");
+        let log = File::create(&log_path).with_context(|| format!("cannot create {}", log_path.display()))?;
+        let mut cmd = Command::new(frondd);
+        cmd.arg("--socket-dir")
+            .arg(socket_dir)
+            .arg("--takes-dir")
+            .arg(takes_dir)
+            .arg("--log-level")
+            .arg("info")
+            .env_remove(paths::SOCKET_DIR_ENV)
+            .env_remove(paths::TAKES_DIR_ENV)
+            .stdin(Stdio::null())
+            .stdout(log.try_clone()?)
+            .stderr(log)
+            .process_group(0);
+        // SAFETY: the closure runs in the forked child before exec and only calls prctl(2),
+        // which is async-signal-safe, and allocates nothing.
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM as libc::c_ulong) != 0 {
+                    return Err(io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child = cmd.spawn().with_context(|| format!("cannot start {}", frondd.display()))?;
+        Ok(Daemon { child, socket_dir: socket_dir.to_owned(), log_path, exited: None })
+    }
+
+    fn try_wait(&mut self) -> io::Result<Option<ExitStatus>> {
+        if self.exited.is_none() {
+            self.exited = self.child.try_wait()?;
+        }
+        Ok(self.exited)
+    }
+
+    /// Waits until both sockets accept connections.
+    fn wait_ready(&mut self) -> anyhow::Result<()> {
+        let start = Instant::now();
+        loop {
+            check_interrupt(self)?;
+            let control = UnixStream::connect(self.socket_dir.join(CONTROL_SOCKET));
+            if control.is_ok() && self.socket_dir.join(POSES_SOCKET).exists() {
+                return Ok(());
+            }
+            if start.elapsed() > READY_TIMEOUT {
+                bail!(
+                    "frondd did not open {} within {READY_TIMEOUT:?}; its log:\n{}",
+                    self.socket_dir.join(CONTROL_SOCKET).display(),
+                    self.log_tail()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// SIGTERM, wait up to [`STOP_TIMEOUT`], then SIGKILL.
+    fn stop(&mut self) -> anyhow::Result<ExitStatus> {
+        if let Some(status) = self.try_wait()? {
+            return Ok(status);
+        }
+        let pid = self.child.id() as libc::pid_t;
+        // SAFETY: kill(2) on our own child's pid, which has not been reaped (try_wait above
+        // returned None), so the pid cannot have been reused.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+        let start = Instant::now();
+        while start.elapsed() < STOP_TIMEOUT {
+            if let Some(status) = self.try_wait()? {
+                return Ok(status);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        eprintln!("frond: frondd ignored SIGTERM for {STOP_TIMEOUT:?}; killing it");
+        self.child.kill()?;
+        let status = self.child.wait()?;
+        self.exited = Some(status);
+        Ok(status)
+    }
+
+    /// The last lines of the daemon's log, for error messages.
+    fn log_tail(&self) -> String {
+        let text = std::fs::read_to_string(&self.log_path).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        let tail = &lines[lines.len().saturating_sub(20)..];
+        if tail.is_empty() { "  (empty)".into() } else { tail.iter().map(|l| format!("  {l}\n")).collect() }
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        if let Err(e) = self.stop() {
+            eprintln!("frond: could not stop frondd (pid {}): {e:#}", self.child.id());
+        }
+    }
+}

@@ -1,0 +1,121 @@
+//! The `frond` command as a library, so that its pieces are unit-tested beside the code.
+//!
+//! Exit codes: 0 success, 1 failure, 2 usage error (bad arguments or values), 130 interrupted.
+//! Errors are printed as `frond: error: ...` on stderr. A closed stdout (`frond tap | head`)
+//! ends the command quietly with status 0.
+
+pub mod args;
+mod calibrate;
+mod control;
+mod demo;
+mod map;
+mod signals;
+mod status;
+mod takes;
+mod tap;
+
+use std::ffi::OsString;
+use std::fmt;
+use std::io;
+use std::process::ExitCode;
+
+use clap::Parser;
+
+pub use args::{Cli, Command};
+
+/// An error in what the user asked for (exit status 2).
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl fmt::Display for UsageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// Shorthand for returning a [`UsageError`].
+pub(crate) fn usage<T>(msg: impl Into<String>) -> anyhow::Result<T> {
+    Err(UsageError(msg.into()).into())
+}
+
+/// The user pressed Ctrl-C (or the command got SIGTERM); exit status 130.
+#[derive(Debug)]
+pub struct Interrupted;
+
+impl fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("interrupted")
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// Parses `args` and runs the command; returns the process exit code.
+pub fn main_with_args<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => {
+            // --help, --version
+            let _ = e.print();
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            let rendered = e.render().to_string();
+            let msg = rendered.strip_prefix("error: ").unwrap_or(&rendered);
+            eprint!("frond: error: {msg}");
+            return ExitCode::from(2);
+        }
+    };
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => exit_for(&e),
+    }
+}
+
+fn exit_for(e: &anyhow::Error) -> ExitCode {
+    if is_broken_pipe(e) {
+        return ExitCode::SUCCESS;
+    }
+    if e.downcast_ref::<Interrupted>().is_some() {
+        eprintln!("frond: interrupted");
+        return ExitCode::from(130);
+    }
+    eprintln!("frond: error: {e:#}");
+    if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
+}
+
+/// True when the error comes from writing to a closed pipe.
+pub(crate) fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<io::Error>().is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe))
+}
+
+/// Runs one parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let g = &cli.global;
+    match cli.command {
+        Command::Status { json } => status::run(g, json),
+        Command::Tap { jsonl, count, include_held } => tap::run(g, jsonl, count, include_held),
+        Command::Map { rig, calibration, filter, input } => {
+            map::run(&rig, calibration.as_deref(), filter.as_deref(), input.as_deref())
+        }
+        Command::Calibrate(a) => calibrate::run(g, &a),
+        Command::Calibration(args::CalibrationCommand::Apply { file }) => {
+            control::apply_calibration(g, &file)
+        }
+        Command::Rig(args::RigCommand::Set { file }) => control::set_rig(g, &file),
+        Command::Filter { spec } => control::set_filter(g, &spec),
+        Command::Mark { label } => control::mark(g, &label),
+        Command::Record(args::RecordCommand::Start { name }) => control::record_start(g, &name),
+        Command::Record(args::RecordCommand::Stop) => control::record_stop(g),
+        Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
+        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps }) => takes::export(g, &name, fps),
+        Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
+        Command::Demo { seconds, name } => demo::run(g, seconds, name),
+    }
+}

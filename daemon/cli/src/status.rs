@@ -1,0 +1,178 @@
+//! `frond status`: the daemon's state as a readable table or JSON.
+
+use std::fmt::Write as _;
+
+use frond_protocol::{StatusReport, paths};
+
+use crate::args::Global;
+use crate::control::Control;
+
+pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<()> {
+    let socket_dir = paths::socket_dir(g.socket_dir.clone());
+    let report = Control::connect(&socket_dir)?.status()?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", render(&report));
+    }
+    Ok(())
+}
+
+/// `1h 02m 03s`, `2m 05s`, `4.2s`.
+pub(crate) fn human_duration(s: f64) -> String {
+    if !s.is_finite() || s < 0.0 {
+        return "?".into();
+    }
+    let whole = s as u64;
+    match whole {
+        0..60 => format!("{s:.1}s"),
+        60..3600 => format!("{}m {:02}s", whole / 60, whole % 60),
+        _ => format!("{}h {:02}m {:02}s", whole / 3600, whole / 60 % 60, whole % 60),
+    }
+}
+
+/// The readable status table.
+pub(crate) fn render(r: &StatusReport) -> String {
+    let mut o = String::new();
+    let src = &r.source;
+    let _ = writeln!(o, "daemon       frondd {}, up {}", r.daemon_version, human_duration(r.uptime_s));
+    let _ = writeln!(
+        o,
+        "source       {} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
+        src.kind,
+        src.path,
+        if src.connected { "connected" } else { "NOT CONNECTED" },
+        src.reports,
+        src.rejected,
+        src.device_seq_gaps
+    );
+    let _ = writeln!(o, "rig          {}", r.rig_name);
+    let _ = writeln!(o, "calibration  {}", r.calibration_id);
+    let _ = writeln!(o, "filter       {}", r.filter);
+    let _ = writeln!(
+        o,
+        "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} publish drops)",
+        r.tick_rate_hz, r.achieved_rate_hz, r.ticks, r.held_ticks, r.publish_drops
+    );
+    let l = &r.lateness;
+    let _ = writeln!(
+        o,
+        "lateness     p50 {:.1} us, p99 {:.1} us, p99.9 {:.1} us, max {:.1} us ({} samples)",
+        l.p50_us, l.p99_us, l.p999_us, l.max_us, l.samples
+    );
+    match &r.recording {
+        Some(rec) => {
+            let _ = writeln!(
+                o,
+                "recording    {} {} -> {} ({} frames, {} dropped)",
+                if rec.active { "RECORDING" } else { "stopped" },
+                rec.name,
+                rec.path,
+                rec.frames,
+                rec.dropped
+            );
+        }
+        None => {
+            let _ = writeln!(o, "recording    no");
+        }
+    }
+    let _ = writeln!(o, "subscribers  {}", r.subscribers.len());
+    if !r.subscribers.is_empty() {
+        let _ = writeln!(o, "  {:>6} {:>12} {:>12} {:>10}", "id", "connected", "sent", "dropped");
+        for s in &r.subscribers {
+            let _ = writeln!(
+                o,
+                "  {:>6} {:>12} {:>12} {:>10}",
+                s.id,
+                human_duration(s.connected_s),
+                s.sent,
+                s.dropped
+            );
+        }
+    }
+    if r.device_events.is_empty() {
+        let _ = writeln!(o, "device events: none");
+    } else {
+        let _ = writeln!(o, "device events (oldest first):");
+        for e in &r.device_events {
+            let _ = writeln!(o, "  {e}");
+        }
+    }
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use frond_protocol::{LatencySummary, RecordingStatus, SourceStatus, SubscriberStatus};
+
+    use super::*;
+
+    fn report() -> StatusReport {
+        StatusReport {
+            daemon_version: "0.1.0".into(),
+            uptime_s: 3725.0,
+            source: SourceStatus {
+                kind: "fuse-hidraw".into(),
+                path: "/tmp/vhid/hidraw0".into(),
+                connected: true,
+                reports: 1234,
+                rejected: 5,
+                device_seq_gaps: 1,
+            },
+            rig_name: "grass".into(),
+            calibration_id: "alice".into(),
+            filter: "one-euro:min_cutoff=1,beta=0.007,d_cutoff=1".into(),
+            tick_rate_hz: 1000,
+            achieved_rate_hz: 999.94,
+            ticks: 5000,
+            held_ticks: 12,
+            publish_drops: 0,
+            lateness: LatencySummary {
+                p50_us: 12.5,
+                p99_us: 40.0,
+                p999_us: 80.31,
+                max_us: 120.0,
+                samples: 1000,
+            },
+            subscribers: vec![SubscriberStatus { id: 7, connected_s: 65.0, sent: 4321, dropped: 3 }],
+            recording: Some(RecordingStatus {
+                name: "take1".into(),
+                path: "/d/take1.take".into(),
+                frames: 99,
+                dropped: 0,
+                active: true,
+            }),
+            device_events: vec!["connected /tmp/vhid/hidraw0".into()],
+        }
+    }
+
+    #[test]
+    fn the_table_shows_every_field() {
+        let t = render(&report());
+        for needle in [
+            "frondd 0.1.0, up 1h 02m 05s",
+            "fuse-hidraw /tmp/vhid/hidraw0 (connected; 1234 reports, 5 rejected, 1 device sequence gaps)",
+            "rig          grass",
+            "calibration  alice",
+            "filter       one-euro:min_cutoff=1,beta=0.007,d_cutoff=1",
+            "1000 Hz nominal, 999.9 Hz achieved (5000 ticks, 12 held, 0 publish drops)",
+            "p50 12.5 us, p99 40.0 us, p99.9 80.3 us, max 120.0 us (1000 samples)",
+            "RECORDING take1 -> /d/take1.take (99 frames, 0 dropped)",
+            "subscribers  1",
+            "connected /tmp/vhid/hidraw0",
+        ] {
+            assert!(t.contains(needle), "missing {needle:?} in\n{t}");
+        }
+        let sub_line = t.lines().find(|l| l.trim_start().starts_with("7 ")).unwrap();
+        let cols: Vec<&str> = sub_line.split_whitespace().collect();
+        assert_eq!(cols, ["7", "1m", "05s", "4321", "3"]);
+    }
+
+    #[test]
+    fn durations_read_naturally() {
+        assert_eq!(human_duration(4.25), "4.2s");
+        assert_eq!(human_duration(125.0), "2m 05s");
+        assert_eq!(human_duration(3600.0 * 2.0 + 61.0), "2h 01m 01s");
+        assert_eq!(human_duration(f64::NAN), "?");
+    }
+}

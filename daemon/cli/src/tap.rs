@@ -1,0 +1,169 @@
+//! `frond tap`: live poses from the daemon, one line each.
+//!
+//! Held frames (ticks without a new device report, flag `held`) repeat the previous pose; they
+//! are skipped by default so each line is one new device sample, exactly what `frond map` prints
+//! for the same input. `--include-held` prints every tick. Lines are flushed one by one; a closed
+//! stdout (`| head`) ends quietly.
+
+use std::fmt::Write as _;
+use std::io::Write;
+
+use anyhow::Context;
+use frond_motion::PoseFrame;
+use frond_motion::jsonl::write_pose_line;
+use frond_protocol::{Pose, PoseFlags, paths};
+use frond_sdk::{Event, SdkError, Subscriber};
+
+use crate::args::Global;
+
+pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: bool) -> anyhow::Result<()> {
+    let dir = paths::socket_dir(g.socket_dir.clone());
+    let mut sub = Subscriber::options().connect(&dir).map_err(|e| match e {
+        SdkError::NotRunning { source, .. } => anyhow::anyhow!(crate::control::not_running_message(
+            &dir.join(frond_protocol::POSES_SOCKET),
+            &source
+        )),
+        other => other.into(),
+    })?;
+    let mut names = sub.hello().joint_names.clone();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let mut line = String::with_capacity(256);
+    let mut printed = 0u64;
+    if count == Some(0) {
+        return Ok(());
+    }
+    loop {
+        match sub.next_event().context("reading the pose stream")? {
+            Event::Pose(pose) => {
+                if pose.flags.contains(PoseFlags::HELD) && !include_held {
+                    continue;
+                }
+                line.clear();
+                if jsonl {
+                    pose_jsonl(&pose, &mut line);
+                } else {
+                    pose_human(&pose, &names, &mut line);
+                }
+                line.push('\n');
+                out.write_all(line.as_bytes())?;
+                out.flush()?;
+                printed += 1;
+                if count.is_some_and(|n| printed >= n) {
+                    return Ok(());
+                }
+            }
+            Event::Gap { expected, got } => {
+                eprintln!("frond tap: gap: {} frames missing (seq {expected}..{})", got - expected, got - 1);
+            }
+            Event::RigChanged(h) => {
+                eprintln!("frond tap: rig changed to {}", h.rig_name);
+                names = h.joint_names;
+            }
+            Event::Reconnected(h) => {
+                eprintln!("frond tap: reconnected (daemon {}, rig {})", h.daemon_version, h.rig_name);
+                names = h.joint_names;
+            }
+            Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
+        }
+    }
+}
+
+/// The pose as a `PoseFrame` line: `t` is the device time of the hand sample behind it.
+pub(crate) fn pose_frame(pose: &Pose) -> PoseFrame {
+    PoseFrame { t: pose.hand.t, joints_deg: pose.joints_deg }
+}
+
+/// `{"seq":..,"t":..,"joints":[...]}` exactly as `frond map` formats numbers, plus
+/// `"flags":[..]` when any flag is set. No newline.
+pub(crate) fn pose_jsonl(pose: &Pose, out: &mut String) {
+    let start = out.len();
+    write_pose_line(&pose_frame(pose), Some(pose.seq), out);
+    if pose.flags.0 != 0 && out[start..].ends_with('}') {
+        out.pop();
+        out.push_str(",\"flags\":[");
+        for (i, name) in pose.flags.names().enumerate() {
+            if i > 0 {
+                out.push(',');
+            }
+            let _ = write!(out, "\"{name}\"");
+        }
+        if pose.flags.names().next().is_none() {
+            // Bits this build has no name for.
+            let _ = write!(out, "\"0x{:x}\"", pose.flags.0);
+        }
+        out.push_str("]}");
+    }
+}
+
+/// A compact readable line: `#seq t=.. root [p y r] ... flags`.
+pub(crate) fn pose_human(pose: &Pose, names: &[String], out: &mut String) {
+    let _ = write!(out, "#{:<8} t={:>10.4}", pose.seq, pose.hand.t);
+    for (i, j) in pose.joints_deg.iter().enumerate() {
+        let name = names.get(i).map(String::as_str).unwrap_or("?");
+        let _ = write!(out, "  {name} [{:7.2} {:7.2} {:7.2}]", j[0], j[1], j[2]);
+    }
+    for name in pose.flags.names() {
+        let _ = write!(out, " {name}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use frond_protocol::HandWire;
+
+    use super::*;
+
+    fn pose(flags: PoseFlags) -> Pose {
+        Pose {
+            seq: 42,
+            device_time_us: 1_500_000,
+            host_monotonic_ns: 9,
+            flags,
+            element: 0,
+            joints_deg: [[1.5, -2.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -3.25]],
+            hand: HandWire { t: 1.5, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
+        }
+    }
+
+    #[test]
+    fn jsonl_without_flags_is_the_pose_line() {
+        let mut s = String::new();
+        pose_jsonl(&pose(PoseFlags::default()), &mut s);
+        assert_eq!(
+            s,
+            r#"{"seq":42,"t":1.5,"joints":[[1.5,-2.0,0.0],[0.1,0.0,0.0],[0.0,0.0,0.0],[0.0,0.0,-3.25]]}"#
+        );
+    }
+
+    #[test]
+    fn jsonl_names_the_flags() {
+        let mut s = String::new();
+        pose_jsonl(&pose(PoseFlags::HELD | PoseFlags::FILTERED), &mut s);
+        let v: serde_json::Value = serde_json::from_str(&s).unwrap();
+        assert_eq!(v["flags"], serde_json::json!(["held", "filtered"]));
+        assert_eq!(v["seq"], 42);
+        // The line still parses as a pose line with the same frame.
+        let (seq, frame) = frond_motion::jsonl::parse_pose_line_with_seq(&s).unwrap();
+        assert_eq!(seq, Some(42));
+        assert_eq!(frame, pose_frame(&pose(PoseFlags::default())));
+    }
+
+    #[test]
+    fn unknown_flag_bits_are_shown_in_hex() {
+        let mut s = String::new();
+        pose_jsonl(&pose(PoseFlags(1 << 20)), &mut s);
+        assert!(s.ends_with(r#","flags":["0x100000"]}"#), "{s}");
+    }
+
+    #[test]
+    fn human_line_uses_joint_names() {
+        let mut s = String::new();
+        let names: Vec<String> = ["base", "mid", "upper", "tip"].map(String::from).to_vec();
+        pose_human(&pose(PoseFlags::HELD), &names, &mut s);
+        assert!(s.starts_with("#42"), "{s}");
+        assert!(s.contains("base [   1.50   -2.00    0.00]"), "{s}");
+        assert!(s.contains("tip [   0.00    0.00   -3.25]"), "{s}");
+        assert!(s.ends_with(" held"), "{s}");
+    }
+}

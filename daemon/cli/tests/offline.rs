@@ -1,0 +1,243 @@
+//! `frond` commands that need no daemon, run as the real binary.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use frond_motion::PoseFrame;
+use frond_motion::jsonl::parse_pose_line;
+
+fn frond() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));
+    c.env_remove("FROND_SOCKET_DIR").env_remove("FROND_TAKES_DIR");
+    c
+}
+
+fn run(cmd: &mut Command, stdin: &str) -> Output {
+    let mut child = cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    child.stdin.take().unwrap().write_all(stdin.as_bytes()).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8(b.to_vec()).unwrap()
+}
+
+/// A rig with unequal scales and tau = 1, and no filter.
+const RIG: &str = r#"
+name = "test-reed"
+tau = 1
+thumb_range_deg = [60.0, 70.0, 60.0]
+filter = "none"
+[[joints]]
+height_m = 0.0
+s_pitch = 0.5
+s_yaw = 2.0
+s_roll = 1.0
+[[joints]]
+height_m = 0.1
+s_pitch = 1.0
+s_yaw = 1.0
+s_roll = 1.0
+[[joints]]
+height_m = 0.2
+s_pitch = 0.5
+s_yaw = 0.5
+s_roll = 1.0
+[[joints]]
+height_m = 0.3
+s_pitch = 2.0
+s_yaw = 1.0
+s_roll = 0.5
+"#;
+
+const CALIBRATION: &str = r#"
+id = "tester"
+neutral_wrist_deg = [10.0, -4.0, 2.0]
+neutral_thumb_deg = [2.0, 4.0, 8.0]
+thumb_range_deg = [40.0, 20.0, 16.0]
+"#;
+
+struct Files {
+    _dir: tempfile::TempDir,
+    rig: PathBuf,
+    calibration: PathBuf,
+    root: PathBuf,
+}
+
+fn files() -> Files {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = dir.path().join("reed.toml");
+    let calibration = dir.path().join("tester.toml");
+    std::fs::write(&rig, RIG).unwrap();
+    std::fs::write(&calibration, CALIBRATION).unwrap();
+    Files { root: dir.path().to_owned(), _dir: dir, rig, calibration }
+}
+
+fn poses(stdout: &[u8]) -> Vec<PoseFrame> {
+    text(stdout).lines().map(|l| parse_pose_line(l).unwrap()).collect()
+}
+
+#[test]
+fn map_with_a_calibration_matches_hand_computed_poses() {
+    let f = files();
+    let hand = concat!(
+        "{\"t\":0.0,\"wrist\":[30,6,12],\"thumb\":[22,14,12]}\n",
+        "{\"t\":0.5,\"wrist\":[-10,-4,-6],\"thumb\":[2,-6,0]}\n",
+    );
+    let out = run(frond().args(["map", "--rig"]).arg(&f.rig).arg("--calibration").arg(&f.calibration), hand);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    // Line 1: W = (20, 10, 10), G = (20, 10, 4), G/G_R = (0.5, 0.5, 0.25).
+    //   Eq. 2: P0 = (0.5*20, 2*10) = (10, 20). Eq. 3: P1 = 1*(10, 20)*0.5 = (5, 10),
+    //   P2 = 0.5*(10, 20)*0.5 = (2.5, 5), P3 = (2*10, 1*20)*0.25 = (5, 5).
+    //   Eq. 4, tau 1: only joint 3 rolls, 0.5*10 = 5.
+    // Line 2: W = (-20, 0, -8), G = (0, -10, -8), G/G_R = (0, -0.5, -0.5).
+    //   P0 = (-10, 0); P1 = (0, 0); P2 = 0.5*(-10)*(-0.5) = 2.5; P3 = 2*(-10)*(-0.5) = 10;
+    //   roll 3 = 0.5*(-8) = -4.
+    let expected = vec![
+        PoseFrame { t: 0.0, joints_deg: [[10.0, 20.0, 0.0], [5.0, 10.0, 0.0], [2.5, 5.0, 0.0], [5.0, 5.0, 5.0]] },
+        PoseFrame { t: 0.5, joints_deg: [[-10.0, 0.0, 0.0], [0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [10.0, 0.0, -4.0]] },
+    ];
+    assert_eq!(poses(&out.stdout), expected);
+    assert_eq!(
+        text(&out.stdout).lines().next().unwrap(),
+        r#"{"t":0.0,"joints":[[10.0,20.0,0.0],[5.0,10.0,0.0],[2.5,5.0,0.0],[5.0,5.0,5.0]]}"#
+    );
+    assert!(out.stderr.is_empty(), "{}", text(&out.stderr));
+}
+
+#[test]
+fn map_without_calibration_uses_zero_neutral_and_the_rig_ranges() {
+    let f = files();
+    // Rig ranges (60, 70, 60): G/G_R = (0.5, 0.5, 0.25).
+    // P0 = (0.5*30, 2*6) = (15, 12); P1 = (7.5, 6); P2 = 0.5*(15, 12)*0.5 = (3.75, 3);
+    // P3 = (2*15, 1*12)*0.25 = (7.5, 3), roll 0.5*12 = 6.
+    let hand = "{\"t\":1.25,\"wrist\":[30,6,12],\"thumb\":[30,35,15]}\n";
+    let input = f.root.join("hand.jsonl");
+    std::fs::write(&input, hand).unwrap();
+    let out = run(frond().args(["map", "--rig"]).arg(&f.rig).arg("--input").arg(&input), "");
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(
+        poses(&out.stdout),
+        vec![PoseFrame {
+            t: 1.25,
+            joints_deg: [[15.0, 12.0, 0.0], [7.5, 6.0, 0.0], [3.75, 3.0, 0.0], [7.5, 3.0, 6.0]]
+        }]
+    );
+}
+
+#[test]
+fn map_filter_option_overrides_the_rig() {
+    let f = files();
+    // A step in wrist pitch: unfiltered the second root pitch is 0.5*40 = 20; a low-pass lags.
+    let hand = "{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n{\"t\":0.01,\"wrist\":[40,0,0],\"thumb\":[0,0,0]}\n";
+    let none = run(frond().args(["map", "--filter", "none", "--rig"]).arg(&f.rig), hand);
+    let low = run(frond().args(["map", "--filter", "lowpass:cutoff_hz=2", "--rig"]).arg(&f.rig), hand);
+    assert!(none.status.success() && low.status.success(), "{}", text(&low.stderr));
+    assert_eq!(poses(&none.stdout)[1].joints_deg[0][0], 20.0);
+    let lagged = poses(&low.stdout)[1].joints_deg[0][0];
+    assert!(lagged > 0.0 && lagged < 20.0, "{lagged}");
+    let bare = run(frond().args(["map", "--filter", "one-euro", "--rig"]).arg(&f.rig), hand);
+    assert!(bare.status.success(), "{}", text(&bare.stderr));
+}
+
+#[test]
+fn map_reports_every_bad_line_writes_the_good_ones_and_fails() {
+    let f = files();
+    let hand = concat!(
+        "{\"t\":0.0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n",
+        "{\"t\":0.1,\"wrist\":[0,0],\"thumb\":[0,0,0]}\n",
+        "{\"t\":0.2,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n",
+        "{\"t\":0.3,\"wrist\":[0,0,0],\"thumb\":[0,\"x\",0]}\n",
+        "{\"t\":0.4,\"wrist\":[0,0,0]}\n",
+        "{\"t\":0.5,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n",
+    );
+    let out = run(frond().args(["map", "--rig"]).arg(&f.rig), hand);
+    assert_eq!(out.status.code(), Some(1));
+    let ts: Vec<f64> = poses(&out.stdout).iter().map(|p| p.t).collect();
+    assert_eq!(ts, [0.0, 0.2, 0.5]);
+    let err = text(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert!(lines[0].starts_with("line 2: ") && lines[0].contains("wrist"), "{err}");
+    assert!(lines[1].starts_with("line 4: ") && lines[1].contains("thumb[1]"), "{err}");
+    assert!(lines[2].starts_with("line 5: ") && lines[2].contains("thumb"), "{err}");
+    assert!(lines[3].starts_with("frond: error: 3 of 6 input lines were malformed"), "{err}");
+}
+
+#[test]
+fn map_names_a_missing_or_invalid_rig_file() {
+    let f = files();
+    let missing = f.root.join("nope.toml");
+    let out = run(frond().args(["map", "--rig"]).arg(&missing), "");
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.starts_with("frond: error: cannot read rig file") && err.contains(&path_str(&missing)), "{err}");
+
+    let bad = f.root.join("bad.toml");
+    std::fs::write(&bad, RIG.replace("tau = 1", "tau = 7")).unwrap();
+    let out = run(frond().args(["map", "--rig"]).arg(&bad), "");
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.contains(&path_str(&bad)) && err.contains("tau"), "{err}");
+
+    let bad_cal = f.root.join("badcal.toml");
+    std::fs::write(&bad_cal, CALIBRATION.replace("[40.0, 20.0, 16.0]", "[40.0, -1.0, 16.0]")).unwrap();
+    let out = run(frond().args(["map", "--rig"]).arg(&f.rig).arg("--calibration").arg(&bad_cal), "");
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.contains(&path_str(&bad_cal)) && err.contains("thumb_range_deg[1]"), "{err}");
+}
+
+fn path_str(p: &Path) -> String {
+    p.display().to_string()
+}
+
+#[test]
+fn usage_errors_exit_2_with_the_frond_prefix() {
+    let f = files();
+    let cases: Vec<Vec<String>> = vec![
+        vec!["map".into()],
+        vec!["tap".into(), "--count".into(), "many".into()],
+        vec!["frobnicate".into()],
+        vec!["record".into(), "start".into(), "../escape".into()],
+        vec!["filter".into(), "butterworth".into()],
+        vec!["map".into(), "--filter".into(), "lowpass:cutoff_hz=-3".into(), "--rig".into(), path_str(&f.rig)],
+        vec!["demo".into(), "--seconds".into(), "-1".into()],
+        vec!["calibrate".into(), "--user".into(), "a/b".into(), "--yes".into()],
+        vec!["mark".into(), "x".repeat(300)],
+    ];
+    for args in cases {
+        let out = run(frond().args(&args).arg("--socket-dir").arg(f.root.join("nowhere")), "");
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.starts_with("frond: error: "), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn help_exits_0() {
+    let out = run(frond().arg("--help"), "");
+    assert!(out.status.success());
+    let help = text(&out.stdout);
+    for cmd in ["status", "tap", "map", "calibrate", "record", "take", "demo", "--socket-dir", "--takes-dir"] {
+        assert!(help.contains(cmd), "{cmd} missing from\n{help}");
+    }
+}
+
+#[test]
+fn commands_without_a_daemon_say_how_to_start_it() {
+    let f = files();
+    let dir = f.root.join("sockets");
+    for args in [&["status"][..], &["tap", "--count", "1"], &["record", "stop"], &["mark", "hello"]] {
+        let out = run(frond().args(args).arg("--socket-dir").arg(&dir), "");
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains("the frond daemon is not running"), "{args:?}: {err}");
+        assert!(err.contains(&path_str(&dir)), "{args:?}: {err}");
+        assert!(err.contains("frondd --socket-dir"), "{args:?}: {err}");
+    }
+    // The environment variable works like the flag.
+    let out = run(frond().arg("status").env("FROND_SOCKET_DIR", &dir), "");
+    assert!(text(&out.stderr).contains(&path_str(&dir.join("control.sock"))), "{}", text(&out.stderr));
+}
