@@ -1,1 +1,18 @@
-//! (in progress)
+//! frond hand sources: the reference glove report, device profiles, the profile-driven report
+//! parser, the [`HandSource`](source::HandSource) trait with its hidapi, replay and in-process
+//! implementations, and the virtual glove (`frond-vhid`).
+
+pub mod glove;
+pub mod jsonl;
+pub mod profile;
+pub mod report;
+pub mod source;
+pub mod vhid;
+
+pub use profile::{ChannelId, DeviceProfile, ProfileError};
+pub use report::{CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters};
+pub use source::{HandSource, HidSource, ReplaySource, SourceError, SourceKind};
+pub use vhid::{
+    FaultPlan, GloveSource, InProcessGlove, UnplugPlan, VhidError, VirtualGloveConfig, VirtualGloveHandle,
+    mount_fuse,
+};

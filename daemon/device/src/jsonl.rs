@@ -1,0 +1,94 @@
+//! Loading JSONL hand recordings: one `{"t":0.0333,"wrist":[p,y,r],"thumb":[g1,g2,g3]}` per line
+//! (seconds, degrees).
+//!
+//! TODO: switch to `frond_motion::jsonl::parse_hand_line` once it lands, so both paths share one
+//! parser. Numbers go through serde_json's `f64` then `as f32`, the same rounding it will use.
+
+use std::path::{Path, PathBuf};
+
+use frond_motion::HandSample;
+use serde::Deserialize;
+
+/// Why a hand file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum HandFileError {
+    #[error("cannot read hand file {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}: {message}")]
+    Line { path: PathBuf, line: usize, message: String },
+    #[error("{path}: no samples")]
+    Empty { path: PathBuf },
+}
+
+#[derive(Deserialize)]
+struct Line {
+    t: f64,
+    wrist: [f32; 3],
+    thumb: [f32; 3],
+}
+
+/// Parses one line of the hand format.
+pub fn parse_hand_line(line: &str) -> Result<HandSample, String> {
+    let l: Line = serde_json::from_str(line).map_err(|e| e.to_string())?;
+    if !l.t.is_finite() {
+        return Err("t is not a finite number".into());
+    }
+    Ok(HandSample { t: l.t, wrist_deg: l.wrist, thumb_deg: l.thumb })
+}
+
+/// Parses a whole hand file; blank lines are skipped; times must not decrease.
+pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandFileError> {
+    let mut out: Vec<HandSample> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let err = |message: String| HandFileError::Line { path: path.to_owned(), line: i + 1, message };
+        let s = parse_hand_line(line).map_err(err)?;
+        if let Some(prev) = out.last()
+            && s.t < prev.t
+        {
+            return Err(err(format!("t {} is earlier than the previous line's {}", s.t, prev.t)));
+        }
+        out.push(s);
+    }
+    if out.is_empty() {
+        return Err(HandFileError::Empty { path: path.to_owned() });
+    }
+    Ok(out)
+}
+
+/// Loads a hand file into memory.
+pub fn load_hand_file(path: &Path) -> Result<Vec<HandSample>, HandFileError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|source| HandFileError::Io { path: path.to_owned(), source })?;
+    parse_hand_text(path, &text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_line_is_reported_with_its_number() {
+        let text = "{\"t\":0,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}\n\n{\"t\":0.1,\"wrist\":[1,2]}\n";
+        let e = parse_hand_text(Path::new("x.jsonl"), text).unwrap_err();
+        assert!(e.to_string().starts_with("x.jsonl:3: "), "{e}");
+    }
+
+    #[test]
+    fn decreasing_time_is_an_error() {
+        let text =
+            "{\"t\":1,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}\n{\"t\":0.5,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}";
+        let e = parse_hand_text(Path::new("x"), text).unwrap_err();
+        assert!(e.to_string().contains("x:2: t 0.5 is earlier"), "{e}");
+    }
+
+    #[test]
+    fn parses_values_like_text() {
+        let s = parse_hand_line(r#"{"t":0.0333,"wrist":[12.34,-5,0],"thumb":[1,2,3.5]}"#).unwrap();
+        assert_eq!(s.t, 0.0333);
+        assert_eq!(s.wrist_deg, [12.34, -5.0, 0.0]);
+        assert_eq!(s.thumb_deg, [1.0, 2.0, 3.5]);
+    }
+}

@@ -1,0 +1,366 @@
+//! Profile-driven parsing of HID input reports into [`DeviceSample`]s.
+//!
+//! The parser runs on the realtime loop: it never allocates and never panics, whatever the bytes.
+//! Every rejected report is counted by kind in [`SourceCounters`], which the daemon's status thread
+//! reads through an `Arc`.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use frond_motion::HandSample;
+
+use crate::profile::{AngleUnit, Channel, ChannelId, ChecksumKind, DeviceProfile, TimeUnit};
+
+/// One parsed device report.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DeviceSample {
+    /// Report sequence number from the device (or a local counter if the profile has none).
+    pub device_seq: u32,
+    /// Device time in microseconds, unwrapped to 64 bits.
+    pub device_time_us: u64,
+    /// The hand sample in degrees; `t` is `device_time_us / 1e6` seconds.
+    pub raw: HandSample,
+    /// Flex of index, middle, ring, little finger in degrees (0 when the profile has none).
+    pub flex_deg: [f32; 4],
+    /// Status byte (bit 0 = tracking ok); 1 when the profile has no status field.
+    pub status: u8,
+}
+
+/// Why a report was rejected. Each kind has its own counter in [`SourceCounters`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ReportError {
+    #[error("report id {got:#04x}, expected {expected:#04x}")]
+    WrongId { got: u8, expected: u8 },
+    #[error("short report: {len} bytes, expected {expected}")]
+    Short { len: usize, expected: usize },
+    #[error("oversized report: {len} bytes, expected {expected}")]
+    Oversized { len: usize, expected: usize },
+    #[error("checksum mismatch")]
+    Checksum,
+    #[error("channel {0} out of its physical range")]
+    OutOfRange(ChannelId),
+}
+
+/// Counters of one hand source, shared with the status thread.
+#[derive(Debug, Default)]
+pub struct SourceCounters {
+    /// Reports accepted.
+    pub reports: AtomicU64,
+    /// Reports with the wrong report id.
+    pub wrong_id: AtomicU64,
+    /// Reports shorter than the profile's `report_len`.
+    pub short: AtomicU64,
+    /// Reports longer than the profile's `report_len`.
+    pub oversized: AtomicU64,
+    /// Reports whose checksum did not match.
+    pub checksum: AtomicU64,
+    /// Reports with a channel outside its physical range.
+    pub out_of_range: AtomicU64,
+    /// Reports missing between consecutive accepted reports, from the sequence field (lost in
+    /// transport or rejected above). A backwards jump is taken as a device restart, not a gap.
+    pub seq_gaps: AtomicU64,
+}
+
+/// A plain copy of [`SourceCounters`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CountersSnapshot {
+    pub reports: u64,
+    pub wrong_id: u64,
+    pub short: u64,
+    pub oversized: u64,
+    pub checksum: u64,
+    pub out_of_range: u64,
+    pub seq_gaps: u64,
+}
+
+impl SourceCounters {
+    /// Reads every counter (relaxed; good for status displays).
+    pub fn snapshot(&self) -> CountersSnapshot {
+        let r = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        CountersSnapshot {
+            reports: r(&self.reports),
+            wrong_id: r(&self.wrong_id),
+            short: r(&self.short),
+            oversized: r(&self.oversized),
+            checksum: r(&self.checksum),
+            out_of_range: r(&self.out_of_range),
+            seq_gaps: r(&self.seq_gaps),
+        }
+    }
+
+    fn bump(a: &AtomicU64, n: u64) {
+        a.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
+impl CountersSnapshot {
+    /// All rejected reports.
+    pub fn rejected(&self) -> u64 {
+        self.wrong_id + self.short + self.oversized + self.checksum + self.out_of_range
+    }
+}
+
+/// Parses reports according to a [`DeviceProfile`]; keeps the sequence and time-unwrapping state.
+#[derive(Debug)]
+pub struct ReportParser {
+    report_id: Option<u8>,
+    report_len: usize,
+    sequence: Option<(usize, crate::profile::FieldType)>,
+    time: Option<crate::profile::TimeField>,
+    checksum: Option<ChecksumKind>,
+    status_offset: Option<usize>,
+    /// Channels indexed by [`ChannelId::slot`].
+    channels: [Option<Channel>; 10],
+    counters: Arc<SourceCounters>,
+    last_seq: Option<u32>,
+    local_seq: u32,
+    /// Last raw time value and the unwrapped microseconds it maps to.
+    last_time: Option<(u32, u64)>,
+    created: Instant,
+}
+
+impl ReportParser {
+    /// A parser for `profile` with fresh counters.
+    pub fn new(profile: &DeviceProfile) -> Self {
+        Self::with_counters(profile, Arc::new(SourceCounters::default()))
+    }
+
+    /// A parser for `profile` that counts into `counters`.
+    pub fn with_counters(profile: &DeviceProfile, counters: Arc<SourceCounters>) -> Self {
+        let mut channels = [None; 10];
+        for c in &profile.channels {
+            channels[c.id.slot()] = Some(*c);
+        }
+        Self {
+            report_id: profile.report_id,
+            report_len: profile.report_len,
+            sequence: profile.sequence.map(|s| (s.offset, s.ty)),
+            time: profile.device_time,
+            checksum: profile.checksum.map(|c| c.kind),
+            status_offset: profile.status_offset,
+            channels,
+            counters,
+            last_seq: None,
+            local_seq: 0,
+            last_time: None,
+            created: Instant::now(),
+        }
+    }
+
+    /// The counters this parser updates.
+    pub fn counters(&self) -> Arc<SourceCounters> {
+        Arc::clone(&self.counters)
+    }
+
+    /// Report length the profile expects (id byte included).
+    pub fn report_len(&self) -> usize {
+        self.report_len
+    }
+
+    /// Parses one report. Rejected reports are counted and returned as errors; accepted ones
+    /// update the sequence-gap and time-unwrapping state. Never allocates, never panics.
+    pub fn parse(&mut self, bytes: &[u8]) -> Result<DeviceSample, ReportError> {
+        match self.parse_inner(bytes) {
+            Ok(s) => {
+                SourceCounters::bump(&self.counters.reports, 1);
+                Ok(s)
+            }
+            Err(e) => {
+                let c = &self.counters;
+                let counter = match e {
+                    ReportError::WrongId { .. } => &c.wrong_id,
+                    ReportError::Short { .. } => &c.short,
+                    ReportError::Oversized { .. } => &c.oversized,
+                    ReportError::Checksum => &c.checksum,
+                    ReportError::OutOfRange(_) => &c.out_of_range,
+                };
+                SourceCounters::bump(counter, 1);
+                Err(e)
+            }
+        }
+    }
+
+    fn parse_inner(&mut self, bytes: &[u8]) -> Result<DeviceSample, ReportError> {
+        let expected = self.report_len;
+        if bytes.is_empty() {
+            return Err(ReportError::Short { len: 0, expected });
+        }
+        if let Some(id) = self.report_id
+            && bytes[0] != id
+        {
+            return Err(ReportError::WrongId { got: bytes[0], expected: id });
+        }
+        if bytes.len() < expected {
+            return Err(ReportError::Short { len: bytes.len(), expected });
+        }
+        if bytes.len() > expected {
+            return Err(ReportError::Oversized { len: bytes.len(), expected });
+        }
+        if let Some(ChecksumKind::Sum8) = self.checksum
+            && crate::glove::sum8(bytes) != 0
+        {
+            return Err(ReportError::Checksum);
+        }
+        // Profile validation guarantees every offset + size <= report_len == bytes.len().
+        let mut values = [0.0f32; 10];
+        for c in self.channels.iter().flatten() {
+            let v = c.ty.read_f64(bytes, c.offset) / c.divisor;
+            // `!(a <= v && v <= b)` also rejects NaN.
+            if !(c.min <= v && v <= c.max) {
+                return Err(ReportError::OutOfRange(c.id));
+            }
+            values[c.id.slot()] = match c.unit {
+                AngleUnit::Deg => v as f32,
+                AngleUnit::Rad => v.to_degrees() as f32,
+            };
+        }
+        let device_seq = match self.sequence {
+            Some((offset, ty)) => {
+                let seq = ty.read_u32(bytes, offset);
+                self.track_seq(seq, ty.bits());
+                seq
+            }
+            None => {
+                self.local_seq = self.local_seq.wrapping_add(1);
+                self.local_seq
+            }
+        };
+        let device_time_us = match self.time {
+            Some(tf) => {
+                let raw = tf.ty.read_u32(bytes, tf.offset);
+                let ticks = self.unwrap_time(raw, tf.ty.bits());
+                match tf.unit {
+                    TimeUnit::Us => ticks,
+                    TimeUnit::Ms => ticks.saturating_mul(1000),
+                }
+            }
+            // No device clock: fall back to host monotonic time since the parser was created.
+            None => self.created.elapsed().as_micros() as u64,
+        };
+        let status = match self.status_offset {
+            Some(o) => bytes[o],
+            None => 1,
+        };
+        Ok(DeviceSample {
+            device_seq,
+            device_time_us,
+            raw: HandSample {
+                t: device_time_us as f64 / 1e6,
+                wrist_deg: [values[0], values[1], values[2]],
+                thumb_deg: [values[3], values[4], values[5]],
+            },
+            flex_deg: [values[6], values[7], values[8], values[9]],
+            status,
+        })
+    }
+
+    fn track_seq(&mut self, seq: u32, bits: u32) {
+        let mask: u32 = if bits >= 32 { u32::MAX } else { (1u32 << bits) - 1 };
+        if let Some(last) = self.last_seq {
+            let diff = seq.wrapping_sub(last) & mask;
+            let half = (mask >> 1) + 1;
+            if diff > 1 && diff < half {
+                SourceCounters::bump(&self.counters.seq_gaps, u64::from(diff - 1));
+            }
+        }
+        self.last_seq = Some(seq);
+    }
+
+    fn unwrap_time(&mut self, raw: u32, bits: u32) -> u64 {
+        let mask: u32 = if bits >= 32 { u32::MAX } else { (1u32 << bits) - 1 };
+        let unwrapped = match self.last_time {
+            None => u64::from(raw),
+            Some((last_raw, last)) => {
+                let delta = raw.wrapping_sub(last_raw) & mask;
+                last.wrapping_add(u64::from(delta))
+            }
+        };
+        self.last_time = Some((raw, unwrapped));
+        unwrapped
+    }
+
+    /// Forgets sequence and time history (e.g. after the device was replugged and restarted).
+    pub fn reset_history(&mut self) {
+        self.last_seq = None;
+        self.last_time = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::glove::{GloveReport, encode_report};
+
+    fn glove() -> ReportParser {
+        ReportParser::new(&DeviceProfile::frond_glove())
+    }
+
+    fn report(seq: u32, t_us: u32) -> GloveReport {
+        GloveReport {
+            seq,
+            device_time_us: t_us,
+            wrist_cdeg: [1234, -4500, 1],
+            thumb_cdeg: [3000, 0, -17999],
+            flex_cdeg: [10, 20, 30, 40],
+            status: 1,
+        }
+    }
+
+    #[test]
+    fn parses_hand_computed_values() {
+        let mut p = glove();
+        let s = p.parse(&encode_report(&report(7, 33_300))).unwrap();
+        assert_eq!(s.device_seq, 7);
+        assert_eq!(s.device_time_us, 33_300);
+        assert_eq!(s.raw.t, 0.0333);
+        // Same f32 as parsing the decimal text.
+        assert_eq!(s.raw.wrist_deg, [12.34, -45.0, 0.01]);
+        assert_eq!(s.raw.thumb_deg, [30.0, 0.0, -179.99]);
+        assert_eq!(s.flex_deg, [0.1, 0.2, 0.3, 0.4]);
+        assert_eq!(s.status, 1);
+        assert_eq!(p.counters().snapshot().reports, 1);
+    }
+
+    #[test]
+    fn each_rejection_has_its_own_counter() {
+        let mut p = glove();
+        let good = encode_report(&report(1, 0));
+        let mut wrong_id = good;
+        wrong_id[0] = 2;
+        assert!(matches!(p.parse(&wrong_id), Err(ReportError::WrongId { got: 2, .. })));
+        assert!(matches!(p.parse(&good[..10]), Err(ReportError::Short { len: 10, .. })));
+        assert!(matches!(p.parse(&[]), Err(ReportError::Short { len: 0, .. })));
+        let mut long = [0u8; 65];
+        long[..64].copy_from_slice(&good);
+        assert!(matches!(p.parse(&long), Err(ReportError::Oversized { len: 65, .. })));
+        let mut bad = good;
+        bad[10] ^= 0x40;
+        assert_eq!(p.parse(&bad), Err(ReportError::Checksum));
+        let mut r = report(2, 0);
+        r.thumb_cdeg[1] = 18_001; // 180.01 > max 180
+        assert_eq!(p.parse(&encode_report(&r)), Err(ReportError::OutOfRange(ChannelId::ThumbG2)));
+        let c = p.counters().snapshot();
+        assert_eq!(
+            (c.wrong_id, c.short, c.oversized, c.checksum, c.out_of_range, c.reports),
+            (1, 2, 1, 1, 1, 0)
+        );
+    }
+
+    #[test]
+    fn sequence_gaps_count_missing_reports_and_time_unwraps() {
+        let mut p = glove();
+        p.parse(&encode_report(&report(10, u32::MAX - 99))).unwrap();
+        p.parse(&encode_report(&report(11, u32::MAX))).unwrap();
+        let s = p.parse(&encode_report(&report(15, 100))).unwrap(); // 3 missing
+        assert_eq!(s.device_time_us, u64::from(u32::MAX) + 101);
+        assert_eq!(p.counters().snapshot().seq_gaps, 3);
+        p.parse(&encode_report(&report(2, 200))).unwrap(); // restart, not a gap
+        p.parse(&encode_report(&report(3, 300))).unwrap();
+        assert_eq!(p.counters().snapshot().seq_gaps, 3);
+        // Sequence wrap is not a gap either.
+        p.parse(&encode_report(&report(u32::MAX, 400))).unwrap();
+        p.parse(&encode_report(&report(0, 500))).unwrap();
+        assert_eq!(p.counters().snapshot().seq_gaps, 3);
+    }
+}

@@ -1,0 +1,377 @@
+//! The virtual glove: a report generator that plays a JSONL hand file or a procedural sway as
+//! reference-glove reports ([`crate::glove`]), with fault injection, served as a device node:
+//!
+//! - [`mount_fuse`]: a FUSE file that behaves as a hidraw node (used where `/dev/uhid` is absent,
+//!   e.g. this machine and CI). Opened through the same hidapi code path as a physical glove.
+//! - [`uhid::UhidGlove`]: a kernel HID device through `/dev/uhid` (a real `/dev/hidrawN`).
+//! - [`InProcessGlove`]: the generator inside the daemon feeding a bounded lock-free queue, for
+//!   when no node can be created; same report bytes, same parser.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use frond_motion::HandSample;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+use crate::glove::{GloveReport, REPORT_LEN, STATUS_TRACKING_OK, encode_report};
+use crate::jsonl::{HandFileError, load_hand_file};
+
+mod fuse;
+mod inprocess;
+pub mod uhid;
+
+pub use fuse::{NODE_NAME, VirtualGloveHandle, mount_fuse, mount_fuse_node};
+pub use inprocess::InProcessGlove;
+
+/// Highest report rate of the virtual glove.
+pub const MAX_RATE_HZ: f64 = 8000.0;
+
+/// What the virtual glove plays.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GloveSource {
+    /// The built-in procedural sway (a plant in the wind) at `rate_hz` reports per second.
+    Sway { rate_hz: f64 },
+    /// A JSONL hand file played at its timestamps; `looped` starts over at the end.
+    Jsonl { path: PathBuf, looped: bool },
+}
+
+/// Periodic or one-off unplugging.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnplugPlan {
+    /// First unplug, milliseconds after the first report.
+    pub at_ms: u64,
+    /// How long the device stays unplugged.
+    pub duration_ms: u64,
+    /// Repeat every this many milliseconds (`None`: once).
+    pub every_ms: Option<u64>,
+}
+
+impl UnplugPlan {
+    /// Whether the device is unplugged `elapsed_ms` after the first report.
+    pub fn unplugged_at(&self, elapsed_ms: u64) -> bool {
+        if elapsed_ms < self.at_ms {
+            return false;
+        }
+        let since = elapsed_ms - self.at_ms;
+        let phase = match self.every_ms {
+            Some(every) if every > 0 => since % every,
+            _ => since,
+        };
+        phase < self.duration_ms
+    }
+}
+
+/// Faults to inject.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultPlan {
+    /// Probability that a report is dropped (its sequence number is still used up).
+    pub drop_prob: f64,
+    /// Probability that one byte of a report is corrupted (the checksum then fails).
+    pub corrupt_prob: f64,
+    /// Unplugging schedule.
+    pub unplug: Option<UnplugPlan>,
+    /// Each report is delayed by a uniform random 0..=`jitter_us` microseconds (device time is
+    /// not affected: it is when the glove sampled the hand).
+    pub jitter_us: u32,
+    /// Seed of the fault generator (reproducible runs).
+    pub seed: u64,
+}
+
+impl Default for FaultPlan {
+    fn default() -> Self {
+        Self { drop_prob: 0.0, corrupt_prob: 0.0, unplug: None, jitter_us: 0, seed: 0x5EED_F20D }
+    }
+}
+
+/// Virtual glove configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VirtualGloveConfig {
+    pub source: GloveSource,
+    pub faults: FaultPlan,
+    /// Wait this long after the node is ready before the first report.
+    pub start_delay_ms: u64,
+}
+
+impl VirtualGloveConfig {
+    /// The built-in sway at `rate_hz`, no faults.
+    pub fn sway(rate_hz: f64) -> Self {
+        Self { source: GloveSource::Sway { rate_hz }, faults: FaultPlan::default(), start_delay_ms: 0 }
+    }
+}
+
+/// Errors of the virtual glove.
+#[derive(Debug, thiserror::Error)]
+pub enum VhidError {
+    #[error(transparent)]
+    HandFile(#[from] HandFileError),
+    #[error("invalid virtual glove configuration: {0}")]
+    Config(String),
+    #[error("cannot use FUSE: {0}")]
+    NoFuse(String),
+    #[error("mount directory {0} is not empty (mounting would hide its contents)")]
+    MountDirNotEmpty(PathBuf),
+    #[error("cannot mount the virtual glove at {dir}: {source}")]
+    Mount { dir: PathBuf, source: std::io::Error },
+    #[error("cannot unmount {dir}: {source}")]
+    Unmount { dir: PathBuf, source: std::io::Error },
+    #[error("uhid: {0}")]
+    Uhid(String),
+    #[error("cannot start the report thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// What the generator did (shared, readable while it runs).
+#[derive(Debug, Default)]
+pub struct VhidStats {
+    /// Reports handed to the node or queue.
+    pub sent: AtomicU64,
+    /// Reports dropped by fault injection.
+    pub dropped: AtomicU64,
+    /// Reports corrupted by fault injection.
+    pub corrupted: AtomicU64,
+    /// Reports lost because the device was unplugged.
+    pub unplugged_lost: AtomicU64,
+    /// Reports with an angle clamped to the i16 centidegree range.
+    pub clamped: AtomicU64,
+    /// Number of unplug events.
+    pub unplugs: AtomicU64,
+    /// Set once a non-looping JSONL file has been played to the end.
+    pub finished: AtomicBool,
+}
+
+/// Where generated reports go.
+pub(crate) trait ReportSink: Send {
+    fn send(&mut self, report: &[u8; REPORT_LEN]);
+    fn set_plugged(&mut self, plugged: bool);
+}
+
+#[derive(Debug)]
+enum Prepared {
+    Sway { rate_hz: f64 },
+    Samples { samples: Vec<HandSample>, looped: bool, period_s: f64 },
+}
+
+/// A configured generator with its file loaded (errors surface before any node is created).
+#[derive(Debug)]
+pub(crate) struct Generator {
+    prepared: Prepared,
+    faults: FaultPlan,
+    start_delay: Duration,
+}
+
+/// The procedural sway: a few incommensurate sines on wrist and thumb (degrees).
+pub fn sway_sample(t: f64) -> (HandSample, [f32; 4]) {
+    use std::f64::consts::TAU;
+    let s = |f: f64, ph: f64| (TAU * f * t + ph).sin();
+    let wrist = [
+        12.0 * s(0.31, 0.0) + 5.0 * s(0.73, 1.3) + 1.5 * s(2.9, 0.2),
+        8.0 * s(0.23, 0.5) + 3.0 * s(1.07, 0.0),
+        6.0 * s(0.17, 2.0) + 2.0 * s(0.61, 0.9),
+    ];
+    let thumb = [0.0, 1.0, 2.0]
+        .map(|i: f64| 25.0 + 15.0 * s(0.41, 0.7 * i) + 4.0 * s(1.31, i) + 1.0 * s(3.7, 0.3 * i));
+    let flex = [0.0, 1.0, 2.0, 3.0].map(|i: f64| (20.0 + 10.0 * s(0.19 + 0.03 * i, i)) as f32);
+    (HandSample { t, wrist_deg: wrist.map(|v| v as f32), thumb_deg: thumb.map(|v| v as f32) }, flex)
+}
+
+impl Generator {
+    pub(crate) fn prepare(config: &VirtualGloveConfig) -> Result<Self, VhidError> {
+        let f = &config.faults;
+        for (name, p) in [("drop", f.drop_prob), ("corrupt", f.corrupt_prob)] {
+            if !(0.0..=1.0).contains(&p) {
+                return Err(VhidError::Config(format!("{name} probability {p} is not within 0..=1")));
+            }
+        }
+        if let Some(u) = f.unplug {
+            if u.duration_ms == 0 {
+                return Err(VhidError::Config("unplug duration must be > 0 ms".into()));
+            }
+            if u.every_ms.is_some_and(|e| e <= u.duration_ms) {
+                return Err(VhidError::Config(
+                    "unplug period must be longer than the unplug duration".into(),
+                ));
+            }
+        }
+        let prepared = match &config.source {
+            GloveSource::Sway { rate_hz } => {
+                if !(rate_hz.is_finite() && *rate_hz >= 1.0 && *rate_hz <= MAX_RATE_HZ) {
+                    return Err(VhidError::Config(format!(
+                        "rate {rate_hz} Hz is not within 1..={MAX_RATE_HZ}"
+                    )));
+                }
+                Prepared::Sway { rate_hz: *rate_hz }
+            }
+            GloveSource::Jsonl { path, looped } => {
+                let samples = load_hand_file(path)?;
+                let span = samples[samples.len() - 1].t - samples[0].t;
+                let mean_dt = if samples.len() > 1 { span / (samples.len() - 1) as f64 } else { 1.0 / 30.0 };
+                if samples[0].t < 0.0 {
+                    return Err(VhidError::Config(format!(
+                        "{}: negative times cannot be sent as device time",
+                        path.display()
+                    )));
+                }
+                Prepared::Samples { samples, looped: *looped, period_s: span + mean_dt.max(1e-6) }
+            }
+        };
+        Ok(Self {
+            prepared,
+            faults: config.faults,
+            start_delay: Duration::from_millis(config.start_delay_ms),
+        })
+    }
+
+    /// Item `n`: (host offset from the first report in seconds, device time µs, hand, flex),
+    /// or `None` when the source is exhausted.
+    fn item(&self, n: u64) -> Option<(f64, u64, HandSample, [f32; 4])> {
+        match &self.prepared {
+            Prepared::Sway { rate_hz } => {
+                let t = n as f64 / rate_hz;
+                let us = (n as f64 * 1e6 / rate_hz).round() as u64;
+                let (hand, flex) = sway_sample(t);
+                Some((t, us, hand, flex))
+            }
+            Prepared::Samples { samples, looped, period_s } => {
+                let len = samples.len() as u64;
+                let (k, i) = (n / len, (n % len) as usize);
+                if k > 0 && !looped {
+                    return None;
+                }
+                let s = samples[i];
+                let t_dev = s.t + k as f64 * period_s;
+                let us = (t_dev * 1e6).round() as u64;
+                Some((t_dev - samples[0].t, us, s, [0.0; 4]))
+            }
+        }
+    }
+
+    /// Runs until the source ends or `stop` is set.
+    pub(crate) fn run(self, sink: &mut dyn ReportSink, stop: &AtomicBool, stats: &VhidStats) {
+        let mut rng = SmallRng::seed_from_u64(self.faults.seed);
+        if !sleep_until(Instant::now() + self.start_delay, stop) {
+            return;
+        }
+        let start = Instant::now();
+        let mut plugged = true;
+        let mut seq: u32 = 0;
+        let mut n: u64 = 0;
+        while let Some((offset_s, time_us, hand, flex)) = self.item(n) {
+            n += 1;
+            let jitter =
+                if self.faults.jitter_us > 0 { rng.random_range(0..=self.faults.jitter_us) } else { 0 };
+            let due = start + Duration::from_secs_f64(offset_s) + Duration::from_micros(u64::from(jitter));
+            if !sleep_until(due, stop) {
+                return;
+            }
+            let this_seq = seq;
+            seq = seq.wrapping_add(1);
+            if let Some(u) = self.faults.unplug {
+                let now_unplugged = u.unplugged_at((offset_s * 1000.0) as u64);
+                if now_unplugged == plugged {
+                    plugged = !now_unplugged;
+                    if !plugged {
+                        stats.unplugs.fetch_add(1, Ordering::Relaxed);
+                    }
+                    sink.set_plugged(plugged);
+                }
+            }
+            if !plugged {
+                stats.unplugged_lost.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            if self.faults.drop_prob > 0.0 && rng.random_bool(self.faults.drop_prob) {
+                stats.dropped.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            let (report, clamped) = GloveReport::from_degrees(
+                this_seq,
+                time_us as u32, // the device's microsecond counter wraps
+                &hand,
+                flex,
+                STATUS_TRACKING_OK,
+            );
+            if clamped {
+                stats.clamped.fetch_add(1, Ordering::Relaxed);
+            }
+            let mut bytes = encode_report(&report);
+            if self.faults.corrupt_prob > 0.0 && rng.random_bool(self.faults.corrupt_prob) {
+                let at = rng.random_range(0..REPORT_LEN);
+                bytes[at] ^= rng.random_range(1..=255u8);
+                stats.corrupted.fetch_add(1, Ordering::Relaxed);
+            }
+            sink.send(&bytes);
+            stats.sent.fetch_add(1, Ordering::Relaxed);
+        }
+        if !plugged {
+            sink.set_plugged(true);
+        }
+        stats.finished.store(true, Ordering::Release);
+    }
+}
+
+/// Sleeps until `due`, waking at least every 20 ms to check `stop`. Returns false if stopped.
+fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
+    loop {
+        if stop.load(Ordering::Acquire) {
+            return false;
+        }
+        let now = Instant::now();
+        if now >= due {
+            return true;
+        }
+        std::thread::sleep((due - now).min(Duration::from_millis(20)));
+    }
+}
+
+/// Spawns the generator on its own thread.
+pub(crate) fn spawn_generator(
+    generator: Generator,
+    mut sink: Box<dyn ReportSink>,
+    stop: Arc<AtomicBool>,
+    stats: Arc<VhidStats>,
+) -> Result<std::thread::JoinHandle<()>, VhidError> {
+    std::thread::Builder::new()
+        .name("frond-vhid-reports".into())
+        .spawn(move || generator.run(sink.as_mut(), &stop, &stats))
+        .map_err(VhidError::Thread)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unplug_windows() {
+        let once = UnplugPlan { at_ms: 100, duration_ms: 50, every_ms: None };
+        assert!(!once.unplugged_at(99));
+        assert!(once.unplugged_at(100));
+        assert!(once.unplugged_at(149));
+        assert!(!once.unplugged_at(150));
+        assert!(!once.unplugged_at(1100));
+        let periodic = UnplugPlan { every_ms: Some(1000), ..once };
+        assert!(periodic.unplugged_at(1120));
+        assert!(!periodic.unplugged_at(1150));
+    }
+
+    #[test]
+    fn sway_stays_inside_the_glove_range() {
+        for n in 0..20_000 {
+            let (h, f) = sway_sample(n as f64 * 0.01);
+            for v in h.wrist_deg.iter().chain(&h.thumb_deg).chain(&f) {
+                assert!(v.abs() < 60.0, "{v}");
+            }
+        }
+    }
+
+    #[test]
+    fn bad_configs_are_refused() {
+        let mut c = VirtualGloveConfig::sway(9000.0);
+        assert!(matches!(Generator::prepare(&c), Err(VhidError::Config(_))));
+        c = VirtualGloveConfig::sway(100.0);
+        c.faults.drop_prob = 1.5;
+        assert!(matches!(Generator::prepare(&c), Err(VhidError::Config(_))));
+    }
+}
