@@ -1,0 +1,67 @@
+//! The per-tick work the realtime loop borrows from this crate allocates nothing: `Mapper::process`
+//! for every filter kind, and encoding a Frame record into a buffer with room.
+//! (One test in this binary, so no other test thread allocates while it counts.)
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+
+use frond_motion::take::{TakeFrame, TakeRecord, encode_record};
+use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards every call unchanged to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn per_tick_work_does_not_allocate() {
+    let specs = [FilterSpec::None, FilterSpec::LOWPASS_DEFAULT, FilterSpec::ONE_EURO_DEFAULT];
+    let mut mappers = specs
+        .map(|s| Mapper::new(MappingParams::default(), CalibrationParams::neutral([60.0, 70.0, 60.0]), s));
+    let mut buf: Vec<u8> = Vec::with_capacity(128 * 1024); // room for 600 frames of 127 bytes
+    let mut samples = [HandSample::default(); 200];
+    for (k, s) in samples.iter_mut().enumerate() {
+        let x = (k as f32 * 0.1).sin() * 30.0;
+        *s = HandSample { t: k as f64 * 0.001, wrist_deg: [x, -x, x], thumb_deg: [x.abs(); 3] };
+    }
+
+    let before = ALLOCATIONS.load(Relaxed);
+    for s in &samples {
+        for m in &mut mappers {
+            let (hand, pose) = m.process(s);
+            let frame = TakeFrame { seq: 1, device_time_us: 2, host_ns: 3, flags: 0, element: 0, pose, hand };
+            encode_record(&TakeRecord::Frame(frame), &mut buf);
+        }
+        m_set_filter_is_heap_free(&mut mappers[0]);
+    }
+    let after = ALLOCATIONS.load(Relaxed);
+    assert_eq!(after - before, 0, "allocations during {} ticks", samples.len());
+    assert!(!buf.is_empty());
+}
+
+/// Control-plane swaps the loop applies between ticks must not allocate either.
+fn m_set_filter_is_heap_free(m: &mut Mapper) {
+    m.set_filter(FilterSpec::None);
+    m.set_mapping(MappingParams::default());
+    m.set_calibration(CalibrationParams::neutral([60.0, 70.0, 60.0]));
+}
