@@ -165,18 +165,25 @@ pub enum TakeCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Print a take's poses, one JSON object a line.
+    /// Print a take's poses (main skeleton), one JSON object a line: {"t":..,"joints":[..]}.
+    /// Held frames (repeats of the previous pose) are skipped unless --include-held is given, so
+    /// each line is one device sample with its recorded time. With --fps the poses are
+    /// resampled by linear interpolation and `t` counts from 0.
     Export {
         /// Take name (or a path to a .take file).
         name: String,
         /// JSON Lines output (the only format for now).
         #[arg(long)]
         jsonl: bool,
-        /// Resample to this many frames per second.
+        /// Resample to this many frames per second (e.g. 30, the seed's rate).
         #[arg(long, value_name = "FPS")]
         fps: Option<f64>,
+        /// Also print held frames (every recorded tick); ignored with --fps.
+        #[arg(long)]
+        include_held: bool,
     },
-    /// Cut a torn tail off a take (after a crash), keeping every complete frame.
+    /// Cut a torn tail off a take (after a crash) and close it, keeping every complete frame.
+    /// Refuses takes modified in the last few seconds, which may still be recording.
     Repair {
         /// Take name (or a path to a .take file).
         name: String,

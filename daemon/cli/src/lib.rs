@@ -114,7 +114,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Record(args::RecordCommand::Start { name }) => control::record_start(g, &name),
         Command::Record(args::RecordCommand::Stop) => control::record_stop(g),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
-        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps }) => takes::export(g, &name, fps),
+        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held }) => {
+            takes::export(g, &name, fps, include_held)
+        }
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
     }

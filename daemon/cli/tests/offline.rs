@@ -95,8 +95,14 @@ fn map_with_a_calibration_matches_hand_computed_poses() {
     //   P0 = (-10, 0); P1 = (0, 0); P2 = 0.5*(-10)*(-0.5) = 2.5; P3 = 2*(-10)*(-0.5) = 10;
     //   roll 3 = 0.5*(-8) = -4.
     let expected = vec![
-        PoseFrame { t: 0.0, joints_deg: [[10.0, 20.0, 0.0], [5.0, 10.0, 0.0], [2.5, 5.0, 0.0], [5.0, 5.0, 5.0]] },
-        PoseFrame { t: 0.5, joints_deg: [[-10.0, 0.0, 0.0], [0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [10.0, 0.0, -4.0]] },
+        PoseFrame {
+            t: 0.0,
+            joints_deg: [[10.0, 20.0, 0.0], [5.0, 10.0, 0.0], [2.5, 5.0, 0.0], [5.0, 5.0, 5.0]],
+        },
+        PoseFrame {
+            t: 0.5,
+            joints_deg: [[-10.0, 0.0, 0.0], [0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [10.0, 0.0, -4.0]],
+        },
     ];
     assert_eq!(poses(&out.stdout), expected);
     assert_eq!(
@@ -130,7 +136,8 @@ fn map_without_calibration_uses_zero_neutral_and_the_rig_ranges() {
 fn map_filter_option_overrides_the_rig() {
     let f = files();
     // A step in wrist pitch: unfiltered the second root pitch is 0.5*40 = 20; a low-pass lags.
-    let hand = "{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n{\"t\":0.01,\"wrist\":[40,0,0],\"thumb\":[0,0,0]}\n";
+    let hand =
+        "{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n{\"t\":0.01,\"wrist\":[40,0,0],\"thumb\":[0,0,0]}\n";
     let none = run(frond().args(["map", "--filter", "none", "--rig"]).arg(&f.rig), hand);
     let low = run(frond().args(["map", "--filter", "lowpass:cutoff_hz=2", "--rig"]).arg(&f.rig), hand);
     assert!(none.status.success() && low.status.success(), "{}", text(&low.stderr));
@@ -171,7 +178,10 @@ fn map_names_a_missing_or_invalid_rig_file() {
     let out = run(frond().args(["map", "--rig"]).arg(&missing), "");
     assert_eq!(out.status.code(), Some(1));
     let err = text(&out.stderr);
-    assert!(err.starts_with("frond: error: cannot read rig file") && err.contains(&path_str(&missing)), "{err}");
+    assert!(
+        err.starts_with("frond: error: cannot read rig file") && err.contains(&path_str(&missing)),
+        "{err}"
+    );
 
     let bad = f.root.join("bad.toml");
     std::fs::write(&bad, RIG.replace("tau = 1", "tau = 7")).unwrap();
@@ -201,7 +211,13 @@ fn usage_errors_exit_2_with_the_frond_prefix() {
         vec!["frobnicate".into()],
         vec!["record".into(), "start".into(), "../escape".into()],
         vec!["filter".into(), "butterworth".into()],
-        vec!["map".into(), "--filter".into(), "lowpass:cutoff_hz=-3".into(), "--rig".into(), path_str(&f.rig)],
+        vec![
+            "map".into(),
+            "--filter".into(),
+            "lowpass:cutoff_hz=-3".into(),
+            "--rig".into(),
+            path_str(&f.rig),
+        ],
         vec!["demo".into(), "--seconds".into(), "-1".into()],
         vec!["calibrate".into(), "--user".into(), "a/b".into(), "--yes".into()],
         vec!["mark".into(), "x".repeat(300)],
@@ -220,7 +236,8 @@ fn help_exits_0() {
     let out = run(frond().arg("--help"), "");
     assert!(out.status.success());
     let help = text(&out.stdout);
-    for cmd in ["status", "tap", "map", "calibrate", "record", "take", "demo", "--socket-dir", "--takes-dir"] {
+    for cmd in ["status", "tap", "map", "calibrate", "record", "take", "demo", "--socket-dir", "--takes-dir"]
+    {
         assert!(help.contains(cmd), "{cmd} missing from\n{help}");
     }
 }

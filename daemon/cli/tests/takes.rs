@@ -1,0 +1,272 @@
+//! `frond take list|export|repair` on take files built with the motion crate's codec.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, SystemTime};
+
+use frond_motion::jsonl::{parse_pose_line, write_pose_line};
+use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
+use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
+use frond_protocol::PoseFlags;
+
+fn frond(takes: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));
+    c.env_remove("FROND_SOCKET_DIR").env("FROND_TAKES_DIR", takes);
+    c
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8(b.to_vec()).unwrap()
+}
+
+fn ok(out: Output) -> String {
+    assert!(out.status.success(), "status {:?}, stderr {}", out.status, text(&out.stderr));
+    text(&out.stdout)
+}
+
+/// Root pitch of the test take at `t`: 10 degrees per second from t = 2 s.
+fn pitch(t: f64) -> f32 {
+    (10.0 * (t - 2.0)) as f32
+}
+
+fn frame(seq: u64, t: f64, flags: PoseFlags) -> TakeFrame {
+    let p = pitch(t);
+    TakeFrame {
+        seq,
+        device_time_us: (t * 1e6).round() as u64,
+        host_ns: 1_000_000 * seq,
+        flags: flags.0,
+        element: 0,
+        pose: PoseFrame { t, joints_deg: [[p, -p, 0.0], [p / 2.0, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.5]] },
+        hand: HandSample { t, wrist_deg: [p, -p, 1.5], thumb_deg: [0.0; 3] },
+    }
+}
+
+/// 101 samples at 100 Hz from t = 2 s to 3 s, each followed by a held repeat (the daemon at
+/// 200 Hz), one marker, and an End record when `end`.
+fn build_take(name: &str, end: bool) -> (Vec<u8>, Vec<TakeFrame>) {
+    let mut bytes = Vec::new();
+    encode_file_start(&mut bytes);
+    encode_record(
+        &TakeRecord::Header(TakeHeader {
+            name: name.into(),
+            rig_name: "grass".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: 200,
+            created_unix_s: 1_700_000_000,
+            daemon_version: "0.1.0".into(),
+            joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
+        }),
+        &mut bytes,
+    );
+    let mut frames = Vec::new();
+    for i in 0..=100u64 {
+        let t = 2.0 + i as f64 / 100.0;
+        frames.push(frame(2 * i, t, PoseFlags::FILTERED));
+        frames.push(frame(2 * i + 1, t, PoseFlags::HELD));
+    }
+    for f in &frames {
+        encode_record(&TakeRecord::Frame(*f), &mut bytes);
+    }
+    encode_record(&TakeRecord::Marker { seq: 40, label: "gust".into() }, &mut bytes);
+    if end {
+        encode_record(&TakeRecord::End { frames: frames.len() as u64 }, &mut bytes);
+    }
+    (bytes, frames)
+}
+
+fn setup() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let takes = dir.path().join("takes");
+    std::fs::create_dir(&takes).unwrap();
+    (dir, takes)
+}
+
+fn age(path: &Path) {
+    let f = std::fs::File::options().write(true).open(path).unwrap();
+    f.set_modified(SystemTime::now() - Duration::from_secs(60)).unwrap();
+}
+
+#[test]
+fn export_prints_each_sample_once_with_its_recorded_pose() {
+    let (_d, takes) = setup();
+    let (bytes, frames) = build_take("breeze", true);
+    std::fs::write(takes.join("breeze.take"), bytes).unwrap();
+    let out = ok(frond(&takes).args(["take", "export", "breeze", "--jsonl"]).output().unwrap());
+    // Each line is the recorded pose as write_pose_line prints it. (Compared as text: the JSON
+    // reader is not bit-exact for every f64, e.g. 2.2800000000000002 reads back as 2.28.)
+    let want: Vec<String> = frames
+        .iter()
+        .filter(|f| f.flags & PoseFlags::HELD.0 == 0)
+        .map(|f| {
+            let mut s = String::new();
+            write_pose_line(&f.pose, None, &mut s);
+            s
+        })
+        .collect();
+    let got: Vec<&str> = out.lines().collect();
+    assert_eq!(got.len(), 101);
+    assert_eq!(got, want);
+    for (line, f) in got.iter().zip(frames.iter().step_by(2)) {
+        let p = parse_pose_line(line).unwrap();
+        assert_eq!(p.joints_deg, f.pose.joints_deg);
+        assert!((p.t - f.pose.t).abs() < 1e-12);
+    }
+    assert!(out.lines().next().unwrap().starts_with(r#"{"t":2.0,"joints":[[0.0,-0.0,0.0]"#), "{out}");
+
+    let all =
+        ok(frond(&takes).args(["take", "export", "breeze", "--jsonl", "--include-held"]).output().unwrap());
+    assert_eq!(all.lines().count(), 202);
+}
+
+#[test]
+fn export_at_30_fps_interpolates_from_zero() {
+    let (_d, takes) = setup();
+    let (bytes, _) = build_take("breeze", true);
+    std::fs::write(takes.join("breeze.take"), bytes).unwrap();
+    let out =
+        ok(frond(&takes).args(["take", "export", "breeze", "--jsonl", "--fps", "30"]).output().unwrap());
+    let got: Vec<PoseFrame> = out.lines().map(|l| parse_pose_line(l).unwrap()).collect();
+    // 1 s at 30 FPS: frames k/30 for k = 0..=30. The root pitch is linear in time (10 deg/s).
+    assert_eq!(got.len(), 31);
+    for (k, p) in got.iter().enumerate() {
+        let t = k as f64 / 30.0;
+        assert!((p.t - t).abs() < 1e-12, "frame {k}: t {}", p.t);
+        let want = 10.0 * t as f32;
+        assert!((p.joints_deg[0][0] - want).abs() < 1e-4, "frame {k}: {} vs {want}", p.joints_deg[0][0]);
+        assert!((p.joints_deg[0][1] + want).abs() < 1e-4);
+        assert_eq!(p.joints_deg[3][2], 1.5);
+    }
+}
+
+#[test]
+fn list_shows_complete_open_torn_and_corrupt_takes() {
+    let (_d, takes) = setup();
+    let (done, _) = build_take("a-done", true);
+    std::fs::write(takes.join("a-done.take"), &done).unwrap();
+    let (open, _) = build_take("b-open", false);
+    std::fs::write(takes.join("b-open.take"), &open).unwrap();
+    let mut torn = open.clone();
+    torn.extend_from_slice(&[200, 0, 0, 0, 9, 9, 9]);
+    std::fs::write(takes.join("c-torn.take"), &torn).unwrap();
+    let mut corrupt = done.clone();
+    corrupt[200] ^= 0x55;
+    std::fs::write(takes.join("d-corrupt.take"), &corrupt).unwrap();
+    std::fs::write(takes.join("notes.txt"), "not a take").unwrap();
+
+    let json = ok(frond(&takes).args(["take", "list", "--json"]).output().unwrap());
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let rows = v.as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["a-done", "b-open", "c-torn", "d-corrupt"]);
+    let states: Vec<&str> = rows.iter().map(|r| r["state"].as_str().unwrap()).collect();
+    assert_eq!(states, ["complete", "open", "torn", "corrupt"]);
+    assert_eq!(rows[0]["frames"], 202);
+    assert_eq!(rows[0]["duration_s"].as_f64().unwrap(), 1.0);
+    assert_eq!(rows[0]["size_bytes"], done.len() as u64);
+    assert_eq!(rows[0]["markers"], 1);
+    assert_eq!(rows[0]["rig"], "grass");
+    assert_eq!(rows[2]["torn_bytes"], 7);
+    assert!(rows[3]["error"].as_str().unwrap().contains("corrupt record at offset"), "{json}");
+
+    let table = ok(frond(&takes).args(["take", "list"]).output().unwrap());
+    let line = table.lines().find(|l| l.starts_with("a-done")).unwrap();
+    let cols: Vec<&str> = line.split_whitespace().collect();
+    assert_eq!(cols[..3], ["a-done", "202", "1.00s"], "{table}");
+    assert!(table.contains("torn (7 bytes; `frond take repair c-torn`)"), "{table}");
+}
+
+#[test]
+fn list_of_a_missing_directory_is_empty() {
+    let (_d, takes) = setup();
+    let missing = takes.join("none");
+    let json = ok(frond(&missing).args(["take", "list", "--json"]).output().unwrap());
+    assert_eq!(json.trim(), "[]");
+    let table = ok(frond(&missing).args(["take", "list"]).output().unwrap());
+    assert!(table.starts_with("no takes in"), "{table}");
+}
+
+#[test]
+fn repair_cuts_a_torn_tail_then_the_take_is_complete() {
+    let (_d, takes) = setup();
+    let (open, frames) = build_take("gust", false);
+    let mut torn = open.clone();
+    torn.extend_from_slice(&[10, 0, 0, 0, 1, 2, 3, 4, 5]);
+    let path = takes.join("gust.take");
+    std::fs::write(&path, &torn).unwrap();
+
+    // Export still works, with a warning.
+    let out = frond(&takes).args(["take", "export", "gust", "--jsonl"]).output().unwrap();
+    assert!(out.status.success());
+    assert!(text(&out.stderr).contains("torn record (9 bytes)"), "{}", text(&out.stderr));
+    assert_eq!(text(&out.stdout).lines().count(), 101);
+
+    // A freshly written file may still be recording: refused.
+    let out = frond(&takes).args(["take", "repair", "gust"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("may still be recording"), "{}", text(&out.stderr));
+
+    age(&path);
+    let msg = ok(frond(&takes).args(["take", "repair", "gust"]).output().unwrap());
+    assert!(msg.contains("dropped 9 torn bytes, kept 202 frames, closed with an End record"), "{msg}");
+    let mut want = open;
+    encode_record(&TakeRecord::End { frames: frames.len() as u64 }, &mut want);
+    assert_eq!(std::fs::read(&path).unwrap(), want);
+    // No temporary files left behind.
+    assert_eq!(std::fs::read_dir(&takes).unwrap().count(), 1);
+
+    age(&path);
+    let msg = ok(frond(&takes).args(["take", "repair", "gust"]).output().unwrap());
+    assert!(msg.contains("nothing to repair"), "{msg}");
+}
+
+#[test]
+fn corrupt_or_missing_takes_fail_with_their_name() {
+    let (_d, takes) = setup();
+    let (mut bytes, _) = build_take("bad", true);
+    bytes[200] ^= 0x55;
+    let path = takes.join("bad.take");
+    std::fs::write(&path, &bytes).unwrap();
+    age(&path);
+    for cmd in [&["take", "export", "bad", "--jsonl"][..], &["take", "repair", "bad"]] {
+        let out = frond(&takes).args(cmd).output().unwrap();
+        assert_eq!(out.status.code(), Some(1), "{cmd:?}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains(&path.display().to_string()) && err.contains("corrupt record at offset"),
+            "{err}"
+        );
+    }
+    assert_eq!(std::fs::read(&path).unwrap(), bytes, "a failed repair must not touch the file");
+
+    let out = frond(&takes).args(["take", "export", "nope", "--jsonl"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("no take named \"nope\""), "{}", text(&out.stderr));
+
+    let out = frond(&takes).args(["take", "export", "../etc/passwd"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+
+    let out = frond(&takes).args(["take", "export", "bad", "--fps", "0"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+
+    std::fs::write(takes.join("text.take"), "hello").unwrap();
+    let out = frond(&takes).args(["take", "export", "text"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("not a frond take"), "{}", text(&out.stderr));
+}
+
+#[test]
+fn export_accepts_a_path() {
+    let (_d, takes) = setup();
+    let (bytes, _) = build_take("elsewhere", true);
+    let path = takes.join("elsewhere.take");
+    std::fs::write(&path, bytes).unwrap();
+    let out = ok(Command::new(env!("CARGO_BIN_EXE_frond"))
+        .env_remove("FROND_TAKES_DIR")
+        .args(["take", "export", "--jsonl"])
+        .arg(&path)
+        .output()
+        .unwrap());
+    assert_eq!(out.lines().count(), 101);
+}
