@@ -53,7 +53,7 @@ pub fn is_twistable(i: usize, tau: u8) -> bool {
 ///   which reduces to the seed's formula when all `s_roll(i)` are equal (the default rigs).
 ///
 /// Output `t` is `hand.t`. Pure, no allocation, no panic for any input; finite input gives a
-/// finite pose (see [`sat`]).
+/// finite pose (huge values saturate at `±f32::MAX`).
 pub fn map_pose(params: &MappingParams, thumb_range_deg: [f32; 3], hand: &HandSample) -> PoseFrame {
     let s = &params.scale;
     let w = hand.wrist_deg;
