@@ -1,0 +1,125 @@
+//! Counting-allocator test: the realtime read path (report parsing and `read_pending` of each
+//! source) allocates nothing in steady state. Allocations are counted per thread, so the FUSE
+//! server and report generator threads do not interfere.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::time::Duration;
+
+use common::*;
+use frond_device::glove::{GloveReport, encode_report};
+use frond_device::vhid::mount_fuse;
+use frond_device::{
+    DeviceProfile, DeviceSample, HandSource, HidSource, InProcessGlove, ReplaySource, ReportParser,
+    SourceKind, VirtualGloveConfig,
+};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; the counter is a const-initialised thread-local
+// Cell that never allocates.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as our caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as our caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as our caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocs() -> u64 {
+    ALLOCS.with(Cell::get)
+}
+
+/// Calls `read_pending` until `n` samples arrived; returns the allocations made by those calls.
+fn count_reads(src: &mut dyn HandSource, n: usize) -> u64 {
+    let mut buf = [DeviceSample::default(); 16];
+    let mut got = 0;
+    let mut total = 0;
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while got < n {
+        assert!(std::time::Instant::now() < deadline, "only {got} samples");
+        let before = allocs();
+        let k = src.read_pending(&mut buf).unwrap();
+        total += allocs() - before;
+        got += k;
+        if k == 0 {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    total
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    let before = allocs();
+    let v = std::hint::black_box(vec![1u8; 16]);
+    assert_eq!(allocs() - before, 1);
+    drop(v);
+}
+
+#[test]
+fn parsing_allocates_nothing() {
+    let mut p = ReportParser::new(&DeviceProfile::frond_glove());
+    let reports: Vec<_> = (0..1000u32)
+        .map(|i| {
+            let mut b =
+                encode_report(&GloveReport { seq: i, device_time_us: i * 1000, ..GloveReport::default() });
+            if i % 7 == 0 {
+                b[20] ^= 1; // some rejected reports too
+            }
+            b
+        })
+        .collect();
+    let before = allocs();
+    for r in &reports {
+        let _ = p.parse(r);
+        let _ = p.parse(&r[..10]);
+    }
+    assert_eq!(allocs() - before, 0);
+    assert!(p.counters().snapshot().reports > 800);
+}
+
+#[test]
+fn hid_source_reads_allocate_nothing_in_steady_state() {
+    if !fuse_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let glove = mount_fuse(&tmp.path().join("mnt"), VirtualGloveConfig::sway(1000.0)).unwrap();
+    let profile = DeviceProfile::frond_glove();
+    let mut src = HidSource::open_path(&profile, glove.node_path(), SourceKind::FuseHidraw).unwrap();
+    count_reads(&mut src, 20); // warm up
+    assert_eq!(count_reads(&mut src, 300), 0);
+}
+
+#[test]
+fn in_process_and_replay_reads_allocate_nothing() {
+    let mut src = InProcessGlove::new(VirtualGloveConfig::sway(1000.0)).unwrap();
+    count_reads(&mut src, 10);
+    assert_eq!(count_reads(&mut src, 200), 0);
+
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("hand.jsonl");
+    std::fs::write(&file, hand_jsonl(200, 1000.0)).unwrap();
+    let mut replay = ReplaySource::load(&file).unwrap();
+    count_reads(&mut replay, 1);
+    assert_eq!(count_reads(&mut replay, 199), 0);
+}
