@@ -1,13 +1,12 @@
 //! Loading JSONL hand recordings: one `{"t":0.0333,"wrist":[p,y,r],"thumb":[g1,g2,g3]}` per line
 //! (seconds, degrees).
 //!
-//! TODO: switch to `frond_motion::jsonl::parse_hand_line` once it lands, so both paths share one
-//! parser. Numbers go through serde_json's `f64` then `as f32`, the same rounding it will use.
+//! Lines are parsed by `frond_motion::jsonl::parse_hand_line`; this module adds line numbers,
+//! blank-line skipping and the non-decreasing-time check playback needs.
 
 use std::path::{Path, PathBuf};
 
 use frond_motion::HandSample;
-use serde::Deserialize;
 
 /// Why a hand file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -20,20 +19,14 @@ pub enum HandFileError {
     Empty { path: PathBuf },
 }
 
-#[derive(Deserialize)]
-struct Line {
-    t: f64,
-    wrist: [f32; 3],
-    thumb: [f32; 3],
-}
-
-/// Parses one line of the hand format.
+/// Parses one line of the hand format (the shared parser of `frond_motion`, so the device path
+/// and `frond map` read files identically).
 pub fn parse_hand_line(line: &str) -> Result<HandSample, String> {
-    let l: Line = serde_json::from_str(line).map_err(|e| e.to_string())?;
-    if !l.t.is_finite() {
+    let s = frond_motion::jsonl::parse_hand_line(line).map_err(|e| e.to_string())?;
+    if !s.t.is_finite() {
         return Err("t is not a finite number".into());
     }
-    Ok(HandSample { t: l.t, wrist_deg: l.wrist, thumb_deg: l.thumb })
+    Ok(s)
 }
 
 /// Parses a whole hand file; blank lines are skipped; times must not decrease.
