@@ -1,1 +1,181 @@
-fn main() {}
+//! `frond-osc`: streams the daemon's poses as OSC (frond namespace or VMC) over UDP.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use clap::{Parser, ValueEnum};
+use frond_osc::encode::VmcRig;
+use frond_osc::resample::RATE_RANGE_HZ;
+use frond_osc::{Bridge, BridgeConfig, DEFAULT_FROND_PORT, DEFAULT_VMC_PORT, Protocol, bench, rig, sender};
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum ProtocolArg {
+    /// frond's own namespace: /frond/pose, /frond/joint/<i>/quat, /frond/status
+    Frond,
+    /// The VMC protocol (/VMC/Ext/Bone/Pos ...), Unity's left-handed frame
+    Vmc,
+}
+
+/// Streams frond's live poses as OSC bundles over UDP (frond namespace or VMC).
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Args {
+    /// Destination HOST:PORT (repeatable). Default 127.0.0.1 on port 9000 (frond) or 39539 (vmc);
+    /// a HOST without port gets that default port.
+    #[arg(long = "target", value_name = "HOST:PORT")]
+    targets: Vec<String>,
+    /// OSC dialect.
+    #[arg(long, value_enum, default_value = "frond")]
+    protocol: ProtocolArg,
+    /// Output rate in Hz: send the newest frame at this rate (never a stale one twice).
+    /// Default: every frame the daemon publishes.
+    #[arg(long, value_name = "HZ")]
+    rate: Option<f64>,
+    /// Local address to send from, e.g. 0.0.0.0:0 or 192.168.1.5:0.
+    #[arg(long, value_name = "ADDR")]
+    bind: Option<String>,
+    /// Print counters (received, gaps, per-target sent/refused/dropped) to stderr every second
+    /// and at exit.
+    #[arg(long)]
+    stats: bool,
+    /// The daemon's socket directory.
+    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    socket_dir: Option<PathBuf>,
+    /// Rig file (rig-files/plants/*.toml) for VMC joint offsets and, if it has a [vmc] table, bone
+    /// names. Default: the grass rig's heights and the daemon's joint names.
+    #[arg(long, value_name = "FILE")]
+    rig: Option<PathBuf>,
+    /// VMC bone names: `humanoid` (Hips,Spine,Chest,Neck) or four comma-separated names.
+    #[arg(long, value_name = "NAMES")]
+    vmc_bones: Option<String>,
+    /// Measure daemon-to-receiver latency (p50/p99) with 1 and 4 loopback targets, print JSON
+    /// lines, and exit.
+    #[arg(long)]
+    bench: bool,
+    /// Seconds per bench run.
+    #[arg(long, default_value_t = 5.0, value_name = "S")]
+    bench_seconds: f64,
+    /// Log filter (error, warn, info, debug, trace).
+    #[arg(long, default_value = "info", value_name = "LEVEL")]
+    log_level: String,
+}
+
+/// Validates the raw arguments into a bridge configuration, reporting every problem at once.
+fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
+    let mut problems = Vec::new();
+    let protocol = match args.protocol {
+        ProtocolArg::Frond => Protocol::Frond,
+        ProtocolArg::Vmc => Protocol::Vmc,
+    };
+    let default_port = match protocol {
+        Protocol::Frond => DEFAULT_FROND_PORT,
+        Protocol::Vmc => DEFAULT_VMC_PORT,
+    };
+    let specs = if args.targets.is_empty() { vec!["127.0.0.1".to_string()] } else { args.targets.clone() };
+    let mut targets = Vec::new();
+    for spec in &specs {
+        match sender::parse_target(spec, default_port) {
+            Ok(t) => targets.push(t),
+            Err(e) => problems.push(e.to_string()),
+        }
+    }
+    let bind = match &args.bind {
+        None => None,
+        Some(b) => match b.parse() {
+            Ok(addr) => Some(addr),
+            Err(_) => {
+                problems.push(format!("--bind `{b}`: expected IP:PORT, e.g. 0.0.0.0:0"));
+                None
+            }
+        },
+    };
+    if let Some(rate) = args.rate
+        && !RATE_RANGE_HZ.contains(&rate)
+    {
+        problems.push(format!(
+            "--rate {rate}: must be between {} and {} Hz",
+            RATE_RANGE_HZ.start(),
+            RATE_RANGE_HZ.end()
+        ));
+    }
+    if !(args.bench_seconds.is_finite() && args.bench_seconds > 0.0 && args.bench_seconds <= 3600.0) {
+        problems.push(format!("--bench-seconds {}: must be in (0, 3600]", args.bench_seconds));
+    }
+    let mut vmc_rig = VmcRig::default();
+    let mut names_fixed = false;
+    if let Some(path) = &args.rig {
+        match rig::load(path) {
+            Ok(file) => {
+                vmc_rig = file.vmc;
+                names_fixed = file.has_vmc_bones;
+            }
+            Err(e) => problems.push(e.to_string()),
+        }
+    }
+    if let Some(spec) = &args.vmc_bones {
+        match rig::parse_bone_names(spec) {
+            Ok(names) => {
+                vmc_rig.bone_names = names;
+                names_fixed = true;
+            }
+            Err(e) => problems.push(e),
+        }
+    }
+    if !problems.is_empty() {
+        bail!("invalid arguments:\n  {}", problems.join("\n  "));
+    }
+    let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
+    let mut config = BridgeConfig::new(socket_dir, protocol, targets);
+    config.bind = bind;
+    config.rate_hz = args.rate;
+    config.vmc_rig = vmc_rig;
+    config.vmc_names_fixed = names_fixed;
+    Ok(config)
+}
+
+fn run(args: &Args) -> anyhow::Result<()> {
+    let config = validate(args)?;
+    if args.bench {
+        for n in [1, 4] {
+            let report = bench::run(&config.socket_dir, n, Duration::from_secs_f64(args.bench_seconds))
+                .with_context(|| format!("bench with {n} target(s)"))?;
+            println!("{}", report.to_json());
+        }
+        return Ok(());
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop)).context("install signal handler")?;
+    }
+    let mut bridge = Bridge::connect(&config)?;
+    for t in bridge.sender().targets() {
+        tracing::info!(target_addr = %t.addr(), local = ?t.local_addr().ok(), protocol = ?config.protocol, "sending");
+    }
+    let every = args.stats.then_some(Duration::from_secs(1));
+    let result = bridge.run(&stop, every, |s| eprintln!("frond-osc stats: {s}"));
+    let stats = bridge.stats();
+    if args.stats {
+        eprintln!("frond-osc stats: {stats}");
+    } else {
+        tracing::info!(%stats, "stopped");
+    }
+    Ok(result?)
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-osc: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,335 @@
+//! The exporter loop: a subscriber thread reads the daemon's pose stream and hands poses to the
+//! sending loop over a bounded queue (dropping, and counting, what does not fit, so a stalled
+//! network path can never back up into the daemon's socket); the sending loop encodes each frame
+//! (or each resampled tick) once and sends it to every target.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
+use std::time::{Duration, Instant};
+
+use frond_protocol::{Hello, Pose};
+use frond_sdk::{Event, SdkError, Subscriber};
+use thiserror::Error;
+
+use crate::encode::{ClockOffset, Datagrams, EncodeError, FrondEncoder, VmcEncoder, VmcRig, monotonic_ns};
+use crate::resample::{ResampleCounters, Resampler};
+use crate::sender::{Sender, SenderError, TargetCounters};
+
+/// Which OSC dialect to send.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Protocol {
+    /// frond's own namespace (`/frond/pose`, ...).
+    Frond,
+    /// The VMC protocol.
+    Vmc,
+}
+
+/// Everything the bridge needs.
+#[derive(Debug, Clone)]
+pub struct BridgeConfig {
+    /// The daemon's socket directory.
+    pub socket_dir: PathBuf,
+    /// Dialect.
+    pub protocol: Protocol,
+    /// Destinations.
+    pub targets: Vec<SocketAddr>,
+    /// Local address to send from (default: any, port 0).
+    pub bind: Option<SocketAddr>,
+    /// Output rate; `None` forwards every frame as it arrives.
+    pub rate_hz: Option<f64>,
+    /// VMC rig (heights, bone names).
+    pub vmc_rig: VmcRig,
+    /// When true the VMC bone names are fixed (from `--vmc-bones` or a rig file's `[vmc]` table);
+    /// otherwise they follow the daemon's hello (its joint names).
+    pub vmc_names_fixed: bool,
+    /// Timetag clock offset (measure it with [`ClockOffset::measure`]).
+    pub clock_offset: ClockOffset,
+    /// Capacity of the queue between the subscriber thread and the sending loop.
+    pub queue_capacity: usize,
+}
+
+impl BridgeConfig {
+    /// A configuration with defaults for everything but the socket directory, dialect and targets.
+    pub fn new(socket_dir: PathBuf, protocol: Protocol, targets: Vec<SocketAddr>) -> BridgeConfig {
+        BridgeConfig {
+            socket_dir,
+            protocol,
+            targets,
+            bind: None,
+            rate_hz: None,
+            vmc_rig: VmcRig::default(),
+            vmc_names_fixed: false,
+            clock_offset: ClockOffset::measure(),
+            queue_capacity: 4096,
+        }
+    }
+}
+
+/// Why the bridge stopped or could not start.
+#[derive(Debug, Error)]
+pub enum BridgeError {
+    /// The targets could not be set up.
+    #[error(transparent)]
+    Sender(#[from] SenderError),
+    /// The subscription failed (daemon not running, gave up reconnecting, version mismatch).
+    #[error(transparent)]
+    Subscribe(#[from] SdkError),
+    /// A frame could not be encoded.
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+}
+
+/// Counters of a running bridge.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BridgeStats {
+    /// Poses the subscriber received.
+    pub received: u64,
+    /// Gaps in the daemon's sequence numbers (frames the daemon dropped for us).
+    pub gaps: u64,
+    /// Frames missing in those gaps.
+    pub missing: u64,
+    /// Poses dropped because the sending loop was behind (queue full).
+    pub queue_dropped: u64,
+    /// Reconnections to the daemon.
+    pub reconnects: u64,
+    /// Frames encoded and handed to the sender.
+    pub frames_out: u64,
+    /// Resampler counters (zero without `--rate`).
+    pub resample: ResampleCounters,
+    /// Per-target counters.
+    pub targets: Vec<(SocketAddr, TargetCounters)>,
+}
+
+impl std::fmt::Display for BridgeStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "received={} gaps={} missing={} queue_dropped={} reconnects={} frames_out={}",
+            self.received, self.gaps, self.missing, self.queue_dropped, self.reconnects, self.frames_out
+        )?;
+        let r = &self.resample;
+        if r.received > 0 {
+            write!(
+                f,
+                " superseded={} idle_ticks={} missed_ticks={}",
+                r.superseded, r.idle_ticks, r.missed_ticks
+            )?;
+        }
+        for (addr, c) in &self.targets {
+            write!(
+                f,
+                " | {addr}: frames={} datagrams={} bytes={} refused={} would_block={} errors={}",
+                c.frames_sent, c.datagrams_sent, c.bytes_sent, c.refused, c.would_block, c.errors
+            )?;
+        }
+        Ok(())
+    }
+}
+
+#[derive(Default)]
+struct SubCounters {
+    received: AtomicU64,
+    gaps: AtomicU64,
+    missing: AtomicU64,
+    queue_dropped: AtomicU64,
+    reconnects: AtomicU64,
+}
+
+enum Msg {
+    Pose(Pose),
+    Hello(Hello),
+    End(SdkError),
+}
+
+enum Encoder {
+    Frond(FrondEncoder),
+    Vmc(VmcEncoder),
+}
+
+impl Encoder {
+    fn encode(&mut self, pose: &Pose, out: &mut Datagrams) -> Result<(), EncodeError> {
+        match self {
+            Encoder::Frond(e) => e.encode(pose, out),
+            Encoder::Vmc(e) => e.encode(pose, out),
+        }
+    }
+}
+
+/// A connected bridge, ready to [`run`](Bridge::run).
+pub struct Bridge {
+    rx: Receiver<Msg>,
+    counters: Arc<SubCounters>,
+    encoder: Encoder,
+    sender: Sender,
+    resampler: Option<Resampler>,
+    datagrams: Datagrams,
+    vmc_names_fixed: bool,
+    frames_out: u64,
+}
+
+impl Bridge {
+    /// Sets up the targets, connects to the daemon (failing at once if it is not running) and
+    /// starts the subscriber thread. After that the subscriber reconnects for ever.
+    pub fn connect(config: &BridgeConfig) -> Result<Bridge, BridgeError> {
+        let sender = Sender::new(&config.targets, config.bind)?;
+        let sub = Subscriber::options().give_up_after(None).connect(&config.socket_dir)?;
+        let mut vmc_rig = config.vmc_rig.clone();
+        if !config.vmc_names_fixed {
+            apply_hello_names(&mut vmc_rig, sub.hello());
+        }
+        let encoder = match config.protocol {
+            Protocol::Frond => Encoder::Frond(FrondEncoder::new(config.clock_offset)),
+            Protocol::Vmc => Encoder::Vmc(VmcEncoder::new(config.clock_offset, vmc_rig)),
+        };
+        let (tx, rx) = sync_channel(config.queue_capacity.max(1));
+        let counters = Arc::new(SubCounters::default());
+        let thread_counters = Arc::clone(&counters);
+        std::thread::Builder::new()
+            .name("frond-osc-sub".into())
+            .spawn(move || subscribe(sub, &tx, &thread_counters))
+            .expect("spawn the subscriber thread");
+        Ok(Bridge {
+            rx,
+            counters,
+            encoder,
+            sender,
+            resampler: config.rate_hz.map(Resampler::new),
+            datagrams: Datagrams::new(),
+            vmc_names_fixed: config.vmc_names_fixed,
+            frames_out: 0,
+        })
+    }
+
+    /// The sender (targets and their local addresses).
+    pub fn sender(&self) -> &Sender {
+        &self.sender
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> BridgeStats {
+        let c = &self.counters;
+        BridgeStats {
+            received: c.received.load(Ordering::Relaxed),
+            gaps: c.gaps.load(Ordering::Relaxed),
+            missing: c.missing.load(Ordering::Relaxed),
+            queue_dropped: c.queue_dropped.load(Ordering::Relaxed),
+            reconnects: c.reconnects.load(Ordering::Relaxed),
+            frames_out: self.frames_out,
+            resample: self.resampler.as_ref().map(Resampler::counters).unwrap_or_default(),
+            targets: self.sender.targets().iter().map(|t| (t.addr(), t.counters())).collect(),
+        }
+    }
+
+    /// Runs until `stop` is set (checked at least every 100 ms) or the subscription ends for good.
+    /// Calls `on_stats` every `stats_every` (if given).
+    pub fn run(
+        &mut self,
+        stop: &AtomicBool,
+        stats_every: Option<Duration>,
+        mut on_stats: impl FnMut(&BridgeStats),
+    ) -> Result<(), BridgeError> {
+        let mut last_stats = Instant::now();
+        while !stop.load(Ordering::Relaxed) {
+            let mut wait = Duration::from_millis(100);
+            if let Some(due) = self.resampler.as_ref().and_then(Resampler::next_tick_ns) {
+                wait = wait.min(Duration::from_nanos(due.saturating_sub(monotonic_ns())));
+            }
+            match self.rx.recv_timeout(wait) {
+                Ok(Msg::Pose(pose)) => match &mut self.resampler {
+                    Some(r) => r.push(pose, monotonic_ns()),
+                    None => self.send(&pose)?,
+                },
+                Ok(Msg::Hello(hello)) => self.on_hello(&hello),
+                Ok(Msg::End(e)) => return Err(e.into()),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return Err(SdkError::Closed.into()),
+            }
+            if let Some(mut r) = self.resampler.take() {
+                let mut result = Ok(());
+                r.poll(monotonic_ns(), |pose| {
+                    if result.is_ok() {
+                        result = self.send(pose);
+                    }
+                });
+                self.resampler = Some(r);
+                result?;
+            }
+            if let Some(every) = stats_every
+                && last_stats.elapsed() >= every
+            {
+                last_stats = Instant::now();
+                on_stats(&self.stats());
+            }
+        }
+        Ok(())
+    }
+
+    fn send(&mut self, pose: &Pose) -> Result<(), EncodeError> {
+        self.encoder.encode(pose, &mut self.datagrams)?;
+        self.sender.send(&self.datagrams);
+        self.frames_out += 1;
+        Ok(())
+    }
+
+    fn on_hello(&mut self, hello: &Hello) {
+        tracing::info!(rig = %hello.rig_name, joints = ?hello.joint_names, "daemon hello");
+        if let Encoder::Vmc(e) = &mut self.encoder
+            && !self.vmc_names_fixed
+        {
+            let mut rig = e.rig().clone();
+            apply_hello_names(&mut rig, hello);
+            e.set_rig(rig);
+        }
+    }
+}
+
+/// Takes the bone names from the daemon's joint names when it announces four valid ones.
+fn apply_hello_names(rig: &mut VmcRig, hello: &Hello) {
+    if hello.joint_names.len() == 4 && hello.joint_names.iter().all(|n| !n.is_empty() && n.len() <= 255) {
+        rig.bone_names = std::array::from_fn(|i| hello.joint_names[i].clone());
+    }
+}
+
+fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters) {
+    loop {
+        let msg = match sub.next_event() {
+            Ok(Event::Pose(pose)) => {
+                counters.received.fetch_add(1, Ordering::Relaxed);
+                match tx.try_send(Msg::Pose(pose)) {
+                    Ok(()) => continue,
+                    Err(TrySendError::Full(_)) => {
+                        counters.queue_dropped.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
+                    Err(TrySendError::Disconnected(_)) => return,
+                }
+            }
+            Ok(Event::Gap { expected, got }) => {
+                counters.gaps.fetch_add(1, Ordering::Relaxed);
+                counters.missing.fetch_add(got - expected, Ordering::Relaxed);
+                continue;
+            }
+            Ok(Event::RigChanged(hello)) => Msg::Hello(hello),
+            Ok(Event::Reconnected(hello)) => {
+                counters.reconnects.fetch_add(1, Ordering::Relaxed);
+                Msg::Hello(hello)
+            }
+            Ok(Event::Disconnected) => {
+                tracing::warn!("daemon disconnected; reconnecting");
+                continue;
+            }
+            Err(e) if e.is_fatal() => Msg::End(e),
+            Err(e) => {
+                tracing::warn!(error = %e, "pose stream error");
+                continue;
+            }
+        };
+        let end = matches!(msg, Msg::End(_));
+        if tx.send(msg).is_err() || end {
+            return;
+        }
+    }
+}
