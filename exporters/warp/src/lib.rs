@@ -1,0 +1,10 @@
+//! frond-warp: a live, hand-driven picture of vegetation in the wind (seed 001).
+//!
+//! Pipeline per frame: user or hand forces -> [`fluid`] (stable-fluids wind, Eq. 1-2) -> per
+//! layer [`wave`] (vegetation velocity, Eq. 3-4) -> [`warp`] (grid-based inverse warping, Eq. 5-8)
+//! -> [`compose`] over the background ([`inpaint`]ed when absent).
+
+pub mod fluid;
+pub mod params;
+pub mod warp;
+pub mod wave;
