@@ -94,6 +94,8 @@ pub enum Command {
     #[command(subcommand)]
     Take(TakeCommand),
     /// Start the daemon on the virtual glove, show live status, record a take, stop everything.
+    /// The daemon gets a private socket directory (--socket-dir is not used); the take goes to
+    /// --takes-dir. Ctrl-C stops the recording and the daemon before exiting.
     Demo {
         /// Seconds to record.
         #[arg(long, default_value_t = 5.0, value_name = "N")]
