@@ -1,1 +1,123 @@
-fn main() {}
+//! `frondd`: the frond daemon. See the crate docs and README for the data flow.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use clap::Parser;
+use frond_protocol::paths;
+use frondd::config::{Config, DEFAULT_CONFIG, RawConfig};
+use frondd::daemon::{Dirs, run};
+
+/// frond daemon: reads a hand device at a fixed rate and publishes plant poses.
+#[derive(Debug, Parser)]
+#[command(version, about, long_about = None)]
+struct Args {
+    /// Configuration file (TOML); keys it sets override the embedded defaults.
+    #[arg(long, env = "FROND_CONFIG")]
+    config: Option<PathBuf>,
+    /// Directory of poses.sock and control.sock [default: $XDG_RUNTIME_DIR/frond].
+    #[arg(long, env = "FROND_SOCKET_DIR")]
+    socket_dir: Option<PathBuf>,
+    /// Directory where takes are recorded [default: $XDG_DATA_HOME/frond/takes].
+    #[arg(long, env = "FROND_TAKES_DIR")]
+    takes_dir: Option<PathBuf>,
+    /// Loop rate in Hz (30..=8000).
+    #[arg(long)]
+    rate: Option<u32>,
+    /// Rig: embedded name (grass, flower, shrub) or a rig TOML file.
+    #[arg(long)]
+    rig: Option<String>,
+    /// Calibration TOML file.
+    #[arg(long)]
+    calibration: Option<String>,
+    /// Jitter filter: none, lowpass[:cutoff_hz=F], one-euro[:min_cutoff=..,beta=..,d_cutoff=..].
+    #[arg(long)]
+    filter: Option<String>,
+    /// Hand source: auto, virtual, in-process, hid, replay.
+    #[arg(long)]
+    source: Option<String>,
+    /// Device profile TOML (default: the embedded reference glove profile).
+    #[arg(long)]
+    profile: Option<String>,
+    /// hidraw node to open (implies --source hid unless --source is given).
+    #[arg(long)]
+    device: Option<String>,
+    /// JSONL hand recording to replay (implies --source replay).
+    #[arg(long)]
+    replay: Option<String>,
+    /// Log level or filter (error, warn, info, debug, trace, or a tracing filter).
+    #[arg(long, env = "FROND_LOG", default_value = "info")]
+    log_level: String,
+    /// Print the embedded default configuration and exit.
+    #[arg(long)]
+    print_default_config: bool,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    if args.print_default_config {
+        print!("{DEFAULT_CONFIG}");
+        return ExitCode::SUCCESS;
+    }
+    let filter = match tracing_subscriber::EnvFilter::try_new(&args.log_level) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("frondd: error: --log-level {:?}: {e}", args.log_level);
+            return ExitCode::from(2);
+        }
+    };
+    use std::io::IsTerminal;
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .init();
+
+    let source = args.source.clone().or_else(|| {
+        if args.replay.is_some() {
+            Some("replay".into())
+        } else if args.device.is_some() {
+            Some("hid".into())
+        } else {
+            None
+        }
+    });
+    let overrides = RawConfig::from_overrides(
+        args.rate,
+        args.rig,
+        args.calibration,
+        args.filter,
+        source,
+        args.profile,
+        args.device,
+        args.replay,
+    );
+    let config = match Config::load(args.config.as_deref(), overrides) {
+        Ok(c) => c,
+        Err(errors) => {
+            for e in errors {
+                eprintln!("frondd: error: {e}");
+            }
+            return ExitCode::from(2);
+        }
+    };
+    let dirs =
+        Dirs { socket_dir: paths::socket_dir(args.socket_dir), takes_dir: paths::takes_dir(args.takes_dir) };
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        if let Err(e) = signal_hook::flag::register(signal, stop.clone()) {
+            eprintln!("frondd: error: cannot install the signal handler: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    match run(config, dirs, stop) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            eprintln!("frondd: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,318 @@
+//! Daemon configuration: embedded defaults, an optional TOML file, then command-line overrides,
+//! validated into a typed [`Config`] that reports every problem with its key path.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Deserialize;
+
+/// The embedded default configuration (documented, shipped in the binary).
+pub const DEFAULT_CONFIG: &str = include_str!("default-config.toml");
+
+/// Configuration as written in TOML (every field optional so a file may set only some).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawConfig {
+    tick_rate_hz: Option<i64>,
+    rig: Option<String>,
+    calibration: Option<String>,
+    filter: Option<String>,
+    #[serde(default)]
+    source: RawSource,
+    #[serde(default)]
+    publisher: RawPublisher,
+    #[serde(default)]
+    recorder: RawRecorder,
+    #[serde(default)]
+    realtime: RawRealtime,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSource {
+    kind: Option<String>,
+    profile: Option<String>,
+    path: Option<String>,
+    replay: Option<String>,
+    stall_ms: Option<i64>,
+    virtual_rate_hz: Option<i64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPublisher {
+    queue_frames: Option<i64>,
+    max_subscribers: Option<i64>,
+    write_timeout_ms: Option<i64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRecorder {
+    fsync_interval_ms: Option<i64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRealtime {
+    priority: Option<i64>,
+    lock_memory: Option<bool>,
+}
+
+impl RawConfig {
+    /// Parses one TOML document; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<RawConfig, String> {
+        toml::from_str(text).map_err(|e| format!("{origin}: {e}"))
+    }
+
+    /// Overlays `other` onto `self`: every key `other` sets wins.
+    pub fn overlay(mut self, other: RawConfig) -> RawConfig {
+        fn pick<T>(a: &mut Option<T>, b: Option<T>) {
+            if b.is_some() {
+                *a = b;
+            }
+        }
+        pick(&mut self.tick_rate_hz, other.tick_rate_hz);
+        pick(&mut self.rig, other.rig);
+        pick(&mut self.calibration, other.calibration);
+        pick(&mut self.filter, other.filter);
+        pick(&mut self.source.kind, other.source.kind);
+        pick(&mut self.source.profile, other.source.profile);
+        pick(&mut self.source.path, other.source.path);
+        pick(&mut self.source.replay, other.source.replay);
+        pick(&mut self.source.stall_ms, other.source.stall_ms);
+        pick(&mut self.source.virtual_rate_hz, other.source.virtual_rate_hz);
+        pick(&mut self.publisher.queue_frames, other.publisher.queue_frames);
+        pick(&mut self.publisher.max_subscribers, other.publisher.max_subscribers);
+        pick(&mut self.publisher.write_timeout_ms, other.publisher.write_timeout_ms);
+        pick(&mut self.recorder.fsync_interval_ms, other.recorder.fsync_interval_ms);
+        pick(&mut self.realtime.priority, other.realtime.priority);
+        pick(&mut self.realtime.lock_memory, other.realtime.lock_memory);
+        self
+    }
+
+    /// Command-line overrides.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_overrides(
+        rate: Option<u32>,
+        rig: Option<String>,
+        calibration: Option<String>,
+        filter: Option<String>,
+        source: Option<String>,
+        profile: Option<String>,
+        device: Option<String>,
+        replay: Option<String>,
+    ) -> RawConfig {
+        RawConfig {
+            tick_rate_hz: rate.map(i64::from),
+            rig,
+            calibration,
+            filter,
+            source: RawSource { kind: source, profile, path: device, replay, ..Default::default() },
+            ..Default::default()
+        }
+    }
+}
+
+/// Which hand source to use.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceChoice {
+    /// A matching glove if present, else the virtual glove.
+    Auto,
+    /// The virtual glove (FUSE node, or in-process without FUSE).
+    Virtual,
+    /// The virtual glove in-process only.
+    InProcess,
+    /// A real device only.
+    Hid,
+    /// A JSONL hand recording.
+    Replay(PathBuf),
+}
+
+/// Validated configuration.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// Loop rate.
+    pub tick_rate_hz: u32,
+    /// Rig: embedded name or path.
+    pub rig: String,
+    /// Calibration file.
+    pub calibration: Option<PathBuf>,
+    /// Filter spec overriding the rig's.
+    pub filter: Option<String>,
+    /// Hand source.
+    pub source: SourceChoice,
+    /// Device profile file (None = embedded reference glove).
+    pub profile: Option<PathBuf>,
+    /// Device node path.
+    pub device_path: Option<PathBuf>,
+    /// Stall detection window.
+    pub stall: Duration,
+    /// Rate of the built-in sway.
+    pub virtual_rate_hz: u32,
+    /// Subscriber queue length.
+    pub queue_frames: usize,
+    /// Subscriber limit.
+    pub max_subscribers: usize,
+    /// Subscriber write timeout.
+    pub write_timeout: Duration,
+    /// fdatasync interval of takes.
+    pub fsync_interval: Duration,
+    /// SCHED_FIFO priority (0 = none).
+    pub rt_priority: u8,
+    /// mlockall.
+    pub lock_memory: bool,
+}
+
+fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
+    let v = v.unwrap_or(lo);
+    if v < lo || v > hi {
+        errors.push(format!("{key}: {v} is out of range {lo}..={hi}"));
+        return lo;
+    }
+    v
+}
+
+impl Config {
+    /// Validates a merged raw configuration, reporting every problem at once.
+    pub fn validate(raw: RawConfig) -> Result<Config, Vec<String>> {
+        let mut errors = Vec::new();
+        let tick_rate_hz = range(&mut errors, "tick_rate_hz", raw.tick_rate_hz, 30, 8000) as u32;
+        let rig = raw.rig.unwrap_or_else(|| "grass".into());
+        if rig.trim().is_empty() {
+            errors.push("rig: must name an embedded rig or a file".into());
+        }
+        let kind = raw.source.kind.unwrap_or_else(|| "auto".into());
+        let source = match kind.as_str() {
+            "auto" => SourceChoice::Auto,
+            "virtual" => SourceChoice::Virtual,
+            "in-process" => SourceChoice::InProcess,
+            "hid" => SourceChoice::Hid,
+            "replay" => match &raw.source.replay {
+                Some(p) => SourceChoice::Replay(PathBuf::from(p)),
+                None => {
+                    errors.push("source.replay: required when source.kind = \"replay\"".into());
+                    SourceChoice::Auto
+                }
+            },
+            other => {
+                errors.push(format!(
+                    "source.kind: {other:?} is not one of auto, virtual, in-process, hid, replay"
+                ));
+                SourceChoice::Auto
+            }
+        };
+        if let Some(filter) = &raw.filter
+            && let Err(e) = filter.parse::<frond_motion::FilterSpec>()
+        {
+            errors.push(format!("filter: {e}"));
+        }
+        let stall_ms = range(&mut errors, "source.stall_ms", raw.source.stall_ms.or(Some(250)), 10, 60_000);
+        let virtual_rate_hz =
+            range(&mut errors, "source.virtual_rate_hz", raw.source.virtual_rate_hz.or(Some(1000)), 1, 8000);
+        let queue_frames = range(
+            &mut errors,
+            "publisher.queue_frames",
+            raw.publisher.queue_frames.or(Some(1024)),
+            2,
+            1 << 20,
+        );
+        let max_subscribers = range(
+            &mut errors,
+            "publisher.max_subscribers",
+            raw.publisher.max_subscribers.or(Some(64)),
+            1,
+            crate::engine::MAX_SUBSCRIBERS as i64,
+        );
+        let write_timeout_ms = range(
+            &mut errors,
+            "publisher.write_timeout_ms",
+            raw.publisher.write_timeout_ms.or(Some(2000)),
+            10,
+            600_000,
+        );
+        let fsync_ms = range(
+            &mut errors,
+            "recorder.fsync_interval_ms",
+            raw.recorder.fsync_interval_ms.or(Some(1000)),
+            10,
+            1000,
+        );
+        let rt_priority =
+            range(&mut errors, "realtime.priority", raw.realtime.priority.or(Some(0)), 0, 99) as u8;
+        if !errors.is_empty() {
+            return Err(errors);
+        }
+        Ok(Config {
+            tick_rate_hz,
+            rig,
+            calibration: raw.calibration.map(PathBuf::from),
+            filter: raw.filter,
+            source,
+            profile: raw.source.profile.map(PathBuf::from),
+            device_path: raw.source.path.map(PathBuf::from),
+            stall: Duration::from_millis(stall_ms as u64),
+            virtual_rate_hz: virtual_rate_hz as u32,
+            queue_frames: queue_frames as usize,
+            max_subscribers: max_subscribers as usize,
+            write_timeout: Duration::from_millis(write_timeout_ms as u64),
+            fsync_interval: Duration::from_millis(fsync_ms as u64),
+            rt_priority,
+            lock_memory: raw.realtime.lock_memory.unwrap_or(false),
+        })
+    }
+
+    /// Loads embedded defaults, then `file` if given, then `overrides`.
+    pub fn load(file: Option<&Path>, overrides: RawConfig) -> Result<Config, Vec<String>> {
+        let mut raw = RawConfig::parse(DEFAULT_CONFIG, "embedded default config").map_err(|e| vec![e])?;
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| vec![format!("{}: cannot read config: {e}", path.display())])?;
+            raw = raw.overlay(RawConfig::parse(&text, &path.display().to_string()).map_err(|e| vec![e])?);
+        }
+        Config::validate(raw.overlay(overrides))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_default_is_valid() {
+        let c = Config::load(None, RawConfig::default()).expect("default config validates");
+        assert_eq!(c.tick_rate_hz, 1000);
+        assert_eq!(c.source, SourceChoice::Auto);
+        assert_eq!(c.rig, "grass");
+    }
+
+    #[test]
+    fn every_problem_is_reported_with_its_path() {
+        let raw = RawConfig::parse(
+            "tick_rate_hz = 9000\n[source]\nkind = \"usb\"\n[publisher]\nqueue_frames = 1\n",
+            "test",
+        )
+        .unwrap();
+        let errors = Config::validate(raw).unwrap_err();
+        assert_eq!(errors.len(), 3, "{errors:?}");
+        assert!(errors[0].starts_with("tick_rate_hz: 9000"), "{errors:?}");
+        assert!(errors[1].starts_with("source.kind: \"usb\""), "{errors:?}");
+        assert!(errors[2].starts_with("publisher.queue_frames: 1"), "{errors:?}");
+    }
+
+    #[test]
+    fn unknown_keys_are_refused() {
+        let err = RawConfig::parse("tick_rate = 10", "f.toml").unwrap_err();
+        assert!(err.contains("f.toml") && err.contains("tick_rate"), "{err}");
+    }
+
+    #[test]
+    fn overrides_win() {
+        let c = Config::load(
+            None,
+            RawConfig::from_overrides(Some(500), None, None, None, None, None, None, None),
+        )
+        .unwrap();
+        assert_eq!(c.tick_rate_hz, 500);
+    }
+}

@@ -1,0 +1,403 @@
+//! The control socket: status, rig/calibration/filter changes, recording, markers.
+//!
+//! Each connection gets a thread (bounded in number) that reads one request frame at a time,
+//! with a read timeout, and answers with one reply frame. Every refusal is a typed
+//! [`ControlError`] reply and a log line. Changes reach the realtime loop as [`LoopCommand`]s.
+
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant, SystemTime};
+
+use crossbeam_channel::{Sender, bounded};
+use frond_device::SourceCounters;
+use frond_motion::take::TakeHeader;
+use frond_motion::{Calibration, FilterSpec, Rig};
+use frond_protocol::{
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus,
+    SourceStatus, StatusReport, paths::validate_take_name, read_frame, write_frame,
+};
+use tracing::{info, warn};
+
+use crate::engine::LoopCommand;
+use crate::publisher::SubscriberRegistry;
+use crate::recorder::{RecorderCounters, RecorderMsg};
+use crate::stats::LoopStats;
+
+/// Most control connections at once.
+pub const MAX_CONTROL_CLIENTS: usize = 16;
+/// Idle time after which a control connection is closed.
+pub const CONTROL_READ_TIMEOUT: Duration = Duration::from_secs(30);
+/// Largest control request accepted, bytes.
+pub const MAX_CONTROL_REQUEST: usize = 256 * 1024;
+/// Device events kept for status.
+pub const DEVICE_EVENTS_KEPT: usize = 32;
+
+/// What the daemon is doing, as seen by control and status (not touched by the loop).
+pub struct DaemonState {
+    /// Active rig.
+    pub rig: Rig,
+    /// Active calibration.
+    pub calibration: Calibration,
+    /// Active filter.
+    pub filter: FilterSpec,
+    /// Source kind (`hidraw`, `fuse-hidraw`, `in-process`, `replay`).
+    pub source_kind: String,
+    /// Source path or description.
+    pub source_path: String,
+    /// The source's counters.
+    pub source_counters: Arc<SourceCounters>,
+    /// Device history, oldest first.
+    pub device_events: std::collections::VecDeque<String>,
+    /// Current take: name and path.
+    pub recording: Option<(String, PathBuf)>,
+    /// Ticks per second over the last second.
+    pub achieved_rate_hz: f64,
+}
+
+impl DaemonState {
+    /// Adds a device event (timestamped) and logs it.
+    pub fn push_event(&mut self, started: Instant, text: String) {
+        let line = format!("+{:.3}s {text}", started.elapsed().as_secs_f64());
+        if self.device_events.len() == DEVICE_EVENTS_KEPT {
+            self.device_events.pop_front();
+        }
+        self.device_events.push_back(line);
+    }
+}
+
+/// Everything the control threads share.
+pub struct ControlContext {
+    /// Mutable daemon state.
+    pub state: Mutex<DaemonState>,
+    /// Loop counters.
+    pub stats: Arc<LoopStats>,
+    /// Subscribers.
+    pub registry: Arc<SubscriberRegistry>,
+    /// Recorder counters.
+    pub recorder_counters: Arc<RecorderCounters>,
+    /// Commands to the loop.
+    pub commands: Sender<LoopCommand>,
+    /// Messages to the recorder.
+    pub recorder: Sender<RecorderMsg>,
+    /// Daemon start.
+    pub started: Instant,
+    /// Where takes go.
+    pub takes_dir: PathBuf,
+    /// Nominal loop rate.
+    pub tick_rate_hz: u32,
+}
+
+fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
+    let message = message.into();
+    warn!(?kind, %message, "control request refused");
+    ControlReply::Error(ControlError { kind, message })
+}
+
+impl ControlContext {
+    fn lock(&self) -> std::sync::MutexGuard<'_, DaemonState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn send_loop(&self, cmd: LoopCommand) -> Result<(), Box<ControlReply>> {
+        self.commands.send_timeout(cmd, Duration::from_millis(500)).map_err(|_| {
+            Box::new(refuse(ControlErrorKind::Internal, "the realtime loop is not accepting commands"))
+        })
+    }
+
+    /// Answers one request.
+    pub fn handle(&self, req: ControlRequest) -> ControlReply {
+        match req {
+            ControlRequest::Status => ControlReply::Status(self.status()),
+            ControlRequest::SetRig { name, toml } => self.set_rig(name, &toml),
+            ControlRequest::SetCalibration { id, toml } => self.set_calibration(id, &toml),
+            ControlRequest::SetFilter { spec } => self.set_filter(&spec),
+            ControlRequest::RecordStart { name } => self.record_start(name),
+            ControlRequest::RecordStop => self.record_stop(),
+            ControlRequest::Mark { label } => self.mark(label),
+            ControlRequest::RawSample => match self.stats.raw.load() {
+                Some((t, wrist_deg, thumb_deg, fresh)) => {
+                    ControlReply::RawSample { t, wrist_deg, thumb_deg, fresh }
+                }
+                None => {
+                    ControlReply::RawSample { t: 0.0, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3], fresh: false }
+                }
+            },
+        }
+    }
+
+    fn set_rig(&self, name: String, text: &str) -> ControlReply {
+        let mut rig = match Rig::from_toml_str(text) {
+            Ok(rig) => rig,
+            Err(e) => return refuse(ControlErrorKind::Invalid, format!("rig {name:?}: {e}")),
+        };
+        if rig.name.is_empty() {
+            rig.name = name;
+        }
+        let mut state = self.lock();
+        if let Err(reply) = self.send_loop(LoopCommand::SetMapping(rig.mapping())) {
+            return *reply;
+        }
+        // Without a user calibration the thumb ranges come from the rig.
+        if state.calibration.id == "none" {
+            state.calibration = Calibration::neutral_for(&rig);
+            let _ = self.send_loop(LoopCommand::SetCalibration(state.calibration.params()));
+        }
+        info!(rig = %rig.name, "rig applied");
+        state.rig = rig;
+        ControlReply::Ok
+    }
+
+    fn set_calibration(&self, id: String, text: &str) -> ControlReply {
+        let mut cal = match Calibration::from_toml_str(text) {
+            Ok(c) => c,
+            Err(e) => return refuse(ControlErrorKind::Invalid, format!("calibration {id:?}: {e}")),
+        };
+        if cal.id.is_empty() {
+            cal.id = id;
+        }
+        let mut state = self.lock();
+        if let Err(reply) = self.send_loop(LoopCommand::SetCalibration(cal.params())) {
+            return *reply;
+        }
+        info!(calibration = %cal.id, "calibration applied");
+        state.calibration = cal;
+        ControlReply::Ok
+    }
+
+    fn set_filter(&self, spec: &str) -> ControlReply {
+        let filter: FilterSpec = match spec.parse() {
+            Ok(f) => f,
+            Err(e) => return refuse(ControlErrorKind::Invalid, format!("filter {spec:?}: {e}")),
+        };
+        let mut state = self.lock();
+        if let Err(reply) = self.send_loop(LoopCommand::SetFilter(filter)) {
+            return *reply;
+        }
+        info!(%filter, "filter applied");
+        state.filter = filter;
+        ControlReply::Ok
+    }
+
+    fn record_start(&self, name: String) -> ControlReply {
+        if let Err(e) = validate_take_name(&name) {
+            return refuse(ControlErrorKind::BadName, e);
+        }
+        let mut state = self.lock();
+        if let Some((current, _)) = &state.recording {
+            return refuse(ControlErrorKind::WrongState, format!("already recording take {current:?}"));
+        }
+        if let Err(e) = std::fs::create_dir_all(&self.takes_dir) {
+            return refuse(
+                ControlErrorKind::Internal,
+                format!("cannot create the takes directory {}: {e}", self.takes_dir.display()),
+            );
+        }
+        let path = self.takes_dir.join(format!("{name}.take"));
+        if path.exists() {
+            return refuse(
+                ControlErrorKind::WrongState,
+                format!("take {name:?} already exists at {}; choose another name", path.display()),
+            );
+        }
+        let header = TakeHeader {
+            name: name.clone(),
+            rig_name: state.rig.name.clone(),
+            calibration_id: state.calibration.id.clone(),
+            filter: state.filter.to_string(),
+            tick_rate_hz: self.tick_rate_hz,
+            created_unix_s: SystemTime::now()
+                .duration_since(SystemTime::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0),
+            daemon_version: env!("CARGO_PKG_VERSION").to_string(),
+            joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
+        };
+        let (tx, rx) = bounded(1);
+        let start = RecorderMsg::Start { path: path.clone(), header: Box::new(header), reply: tx };
+        if self.recorder.send_timeout(start, Duration::from_secs(1)).is_err() {
+            return refuse(ControlErrorKind::Internal, "the recorder is not accepting requests");
+        }
+        match rx.recv_timeout(Duration::from_secs(5)) {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
+            Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not answer"),
+        }
+        if let Err(reply) = self.send_loop(LoopCommand::SetRecording(true)) {
+            return *reply;
+        }
+        info!(take = %name, path = %path.display(), "recording started");
+        state.recording = Some((name.clone(), path.clone()));
+        ControlReply::Recording(RecordingStatus {
+            name,
+            path: path.display().to_string(),
+            frames: 0,
+            dropped: 0,
+            active: true,
+        })
+    }
+
+    fn record_stop(&self) -> ControlReply {
+        let mut state = self.lock();
+        let Some((name, path)) = state.recording.clone() else {
+            return refuse(ControlErrorKind::WrongState, "no take is being recorded");
+        };
+        if let Err(reply) = self.send_loop(LoopCommand::SetRecording(false)) {
+            return *reply;
+        }
+        // Wait until the loop has stopped forwarding frames, so that every frame it sent is
+        // queued before the Stop message and lands in the take.
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while self.stats.recording.load(Relaxed) && Instant::now() < deadline {
+            thread::sleep(Duration::from_millis(1));
+        }
+        let (tx, rx) = bounded(1);
+        if self.recorder.send_timeout(RecorderMsg::Stop { reply: tx }, Duration::from_secs(1)).is_err() {
+            return refuse(ControlErrorKind::Internal, "the recorder is not accepting requests");
+        }
+        let frames = match rx.recv_timeout(Duration::from_secs(10)) {
+            Ok(Ok(frames)) => frames,
+            Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
+            Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not finish the take"),
+        };
+        state.recording = None;
+        let dropped = self.stats.record_drops.load(Relaxed);
+        info!(take = %name, frames, dropped, "recording stopped");
+        ControlReply::Recording(RecordingStatus {
+            name,
+            path: path.display().to_string(),
+            frames,
+            dropped,
+            active: false,
+        })
+    }
+
+    fn mark(&self, label: String) -> ControlReply {
+        if label.len() > 256 {
+            return refuse(
+                ControlErrorKind::BadRequest,
+                format!("marker label is {} bytes; the limit is 256", label.len()),
+            );
+        }
+        if self.lock().recording.is_none() {
+            return refuse(ControlErrorKind::WrongState, "no take is being recorded");
+        }
+        let seq = self.stats.next_seq.load(Relaxed);
+        match self.recorder.send_timeout(RecorderMsg::Mark { seq, label }, Duration::from_secs(1)) {
+            Ok(()) => ControlReply::Ok,
+            Err(_) => refuse(ControlErrorKind::Internal, "the recorder is not accepting requests"),
+        }
+    }
+
+    /// Builds a status report.
+    pub fn status(&self) -> StatusReport {
+        let state = self.lock();
+        let c = &state.source_counters;
+        let s = &self.stats;
+        let counters = c.snapshot();
+        let rejected = counters.rejected();
+        StatusReport {
+            daemon_version: env!("CARGO_PKG_VERSION").to_string(),
+            uptime_s: self.started.elapsed().as_secs_f64(),
+            source: SourceStatus {
+                kind: state.source_kind.clone(),
+                path: state.source_path.clone(),
+                connected: s.device_connected.load(Relaxed),
+                reports: counters.reports,
+                rejected,
+                device_seq_gaps: counters.seq_gaps,
+            },
+            rig_name: state.rig.name.clone(),
+            calibration_id: state.calibration.id.clone(),
+            filter: state.filter.to_string(),
+            tick_rate_hz: self.tick_rate_hz,
+            achieved_rate_hz: state.achieved_rate_hz,
+            ticks: s.ticks.load(Relaxed),
+            held_ticks: s.held_ticks.load(Relaxed),
+            publish_drops: s.publish_drops.load(Relaxed),
+            lateness: s.lateness.summary(),
+            subscribers: self.registry.snapshot(),
+            recording: state.recording.as_ref().map(|(name, path)| RecordingStatus {
+                name: name.clone(),
+                path: path.display().to_string(),
+                frames: self.recorder_counters.frames.load(Relaxed),
+                dropped: s.record_drops.load(Relaxed),
+                active: true,
+            }),
+            device_events: state.device_events.iter().cloned().collect(),
+        }
+    }
+}
+
+/// Accepts control connections until `stop` is set.
+pub fn spawn_control(
+    listener: UnixListener,
+    ctx: Arc<ControlContext>,
+    stop: Arc<AtomicBool>,
+) -> std::io::Result<thread::JoinHandle<()>> {
+    listener.set_nonblocking(true)?;
+    thread::Builder::new().name("frond-control".into()).spawn(move || {
+        let clients = Arc::new(AtomicUsize::new(0));
+        while !stop.load(Relaxed) {
+            let stream = match listener.accept() {
+                Ok((s, _)) => s,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    thread::sleep(Duration::from_millis(20));
+                    continue;
+                }
+                Err(e) => {
+                    warn!(error = %e, "accepting a control connection failed");
+                    thread::sleep(Duration::from_millis(100));
+                    continue;
+                }
+            };
+            if clients.load(Relaxed) >= MAX_CONTROL_CLIENTS {
+                let mut stream = stream;
+                let _ = write_frame(
+                    &mut stream,
+                    &mut FrameBuf::default(),
+                    &refuse(ControlErrorKind::Internal, "too many control connections; try again"),
+                );
+                continue;
+            }
+            clients.fetch_add(1, Relaxed);
+            let (ctx, clients) = (ctx.clone(), clients.clone());
+            let spawned = thread::Builder::new().name("frond-control-conn".into()).spawn(move || {
+                serve_connection(stream, &ctx);
+                clients.fetch_sub(1, Relaxed);
+            });
+            if let Err(e) = spawned {
+                warn!(error = %e, "could not start a control connection thread");
+            }
+        }
+    })
+}
+
+fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
+    let _ = stream.set_nonblocking(false);
+    let _ = stream.set_read_timeout(Some(CONTROL_READ_TIMEOUT));
+    let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
+    let mut scratch = Vec::new();
+    let mut out = FrameBuf::default();
+    loop {
+        let reply = match read_frame::<ControlRequest, _>(&mut stream, &mut scratch) {
+            Ok(req) => ctx.handle(req),
+            Err(ReadError::Closed) => return,
+            Err(ReadError::Io(e))
+                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+            {
+                return;
+            }
+            Err(e) => {
+                let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
+                let _ = write_frame(&mut stream, &mut out, &reply);
+                return;
+            }
+        };
+        if write_frame(&mut stream, &mut out, &reply).is_err() {
+            return;
+        }
+    }
+}

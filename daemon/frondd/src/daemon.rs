@@ -1,0 +1,333 @@
+//! Starting, running and stopping the daemon: wires config, source, loop, sockets and threads.
+
+use std::os::unix::fs::PermissionsExt;
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, anyhow, bail};
+use crossbeam_channel::{Receiver, Sender, bounded};
+use frond_device::HandSource;
+use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
+use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION};
+use tracing::{error, info, warn};
+
+use crate::config::Config;
+use crate::control::{ControlContext, DaemonState, spawn_control};
+use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
+use crate::notify::Notifier;
+use crate::publisher::{PublisherConfig, SubscriberRegistry, spawn_acceptor};
+use crate::realtime::{lock_memory, spawn_loop};
+use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
+use crate::source::open_source;
+use crate::stats::LoopStats;
+
+/// Rigs built into the binary, by name.
+pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
+    ("grass", include_str!("../../../rig-files/plants/grass.toml")),
+    ("flower", include_str!("../../../rig-files/plants/flower.toml")),
+    ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
+];
+
+/// Where the daemon puts things.
+#[derive(Debug, Clone)]
+pub struct Dirs {
+    /// Socket directory.
+    pub socket_dir: PathBuf,
+    /// Takes directory.
+    pub takes_dir: PathBuf,
+}
+
+/// Loads a rig by embedded name or path.
+pub fn load_rig(spec: &str) -> Result<Rig> {
+    if let Some((_, text)) = EMBEDDED_RIGS.iter().find(|(name, _)| *name == spec) {
+        let mut rig = Rig::from_toml_str(text).map_err(|e| anyhow!("embedded rig {spec}: {e}"))?;
+        if rig.name.is_empty() {
+            rig.name = spec.to_string();
+        }
+        return Ok(rig);
+    }
+    let path = Path::new(spec);
+    let text = std::fs::read_to_string(path).with_context(|| {
+        format!(
+            "rig {spec:?} is neither an embedded rig ({}) nor a readable file",
+            EMBEDDED_RIGS.map(|(n, _)| n).join(", ")
+        )
+    })?;
+    let mut rig = Rig::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    if rig.name.is_empty() {
+        rig.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    }
+    Ok(rig)
+}
+
+fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration> {
+    let Some(path) = path else { return Ok(Calibration::neutral_for(rig)) };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read calibration {}", path.display()))?;
+    let mut cal = Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    if cal.id.is_empty() {
+        cal.id = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    }
+    Ok(cal)
+}
+
+/// Creates the socket directory (mode 0750) and refuses to start over a running daemon.
+fn prepare_socket_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create socket directory {}", dir.display()))?;
+    let _ = std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o750));
+    let control = dir.join(CONTROL_SOCKET);
+    if UnixStream::connect(&control).is_ok() {
+        bail!("another frondd is already running with socket directory {}", dir.display());
+    }
+    for name in [CONTROL_SOCKET, POSES_SOCKET] {
+        let path = dir.join(name);
+        if path.exists() {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("cannot remove stale socket {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
+fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf)> {
+    let path = dir.join(name);
+    let listener = UnixListener::bind(&path).with_context(|| format!("cannot bind {}", path.display()))?;
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o660))
+        .with_context(|| format!("cannot set the mode of {}", path.display()))?;
+    Ok((listener, path))
+}
+
+/// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`).
+pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
+    let started = Instant::now();
+    let rig = load_rig(&config.rig)?;
+    let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
+    let filter: FilterSpec = match &config.filter {
+        Some(spec) => spec.parse().map_err(|e| anyhow!("filter {spec:?}: {e}"))?,
+        None => rig.filter,
+    };
+    prepare_socket_dir(&dirs.socket_dir)?;
+    let memory = lock_memory(config.lock_memory);
+
+    let opened = open_source(&config, &dirs.socket_dir)?;
+    info!(kind = %opened.kind, path = %opened.path, "hand source ready");
+
+    let stats = Arc::new(LoopStats::default());
+    let (cmd_tx, cmd_rx) = bounded::<LoopCommand>(256);
+    let (rec_tx, rec_rx) = bounded::<RecorderMsg>(16_384);
+    let (reopen_tx, reopen_rx) = bounded::<Box<dyn HandSource>>(1);
+    let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
+
+    let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
+    let engine = Engine::new(
+        mapper,
+        Some(opened.source),
+        config.stall.as_nanos() as u64,
+        EngineLinks {
+            commands: cmd_rx,
+            recorder: rec_tx.clone(),
+            reopen: reopen_tx,
+            garbage: garbage_tx,
+            stats: stats.clone(),
+        },
+    );
+
+    let recorder_counters = Arc::new(RecorderCounters::default());
+    let recorder = spawn_recorder(rec_rx, recorder_counters.clone(), config.fsync_interval)?;
+    let loop_stop = Arc::new(AtomicBool::new(false));
+    let (rt, rt_report) =
+        spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), loop_stop.clone())?;
+    let scheduling = rt_report.recv().unwrap_or_else(|_| "unknown".into());
+    info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, "realtime loop running");
+
+    let mut state = DaemonState {
+        rig,
+        calibration,
+        filter,
+        source_kind: opened.kind.clone(),
+        source_path: opened.path.clone(),
+        source_counters: opened.counters.clone(),
+        device_events: Default::default(),
+        recording: None,
+        achieved_rate_hz: 0.0,
+    };
+    state.push_event(started, format!("{} {} opened", opened.kind, opened.path));
+    let ctx = Arc::new(ControlContext {
+        state: Mutex::new(state),
+        stats: stats.clone(),
+        registry: Arc::new(SubscriberRegistry::default()),
+        recorder_counters,
+        commands: cmd_tx.clone(),
+        recorder: rec_tx.clone(),
+        started,
+        takes_dir: dirs.takes_dir.clone(),
+        tick_rate_hz: config.tick_rate_hz,
+    });
+
+    let threads_stop = Arc::new(AtomicBool::new(false));
+    let (pose_listener, pose_path) = bind(&dirs.socket_dir, POSES_SOCKET)?;
+    let hello_ctx = ctx.clone();
+    let hello = Arc::new(move || {
+        let state = hello_ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+        Hello {
+            protocol_version: PROTOCOL_VERSION,
+            daemon_version: env!("CARGO_PKG_VERSION").to_string(),
+            rig_name: state.rig.name.clone(),
+            joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
+            tick_rate_hz: hello_ctx.tick_rate_hz,
+            next_seq: 0,
+        }
+    });
+    let publisher = PublisherConfig {
+        queue_frames: config.queue_frames,
+        write_timeout: config.write_timeout,
+        max_subscribers: config.max_subscribers,
+    };
+    let acceptor = spawn_acceptor(
+        pose_listener,
+        publisher,
+        hello,
+        cmd_tx.clone(),
+        ctx.registry.clone(),
+        threads_stop.clone(),
+    )?;
+    let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;
+    let control = spawn_control(control_listener, ctx.clone(), threads_stop.clone())?;
+    let reopener = spawn_reopener(reopen_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;
+
+    let notifier = Notifier::from_env();
+    notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
+    info!(socket_dir = %dirs.socket_dir.display(), takes_dir = %dirs.takes_dir.display(), "frondd ready");
+
+    housekeeping(&ctx, &garbage_rx, &notifier, &stop);
+
+    // Shutdown: finish the take first, so every frame the loop produced is in it.
+    notifier.notify("STOPPING=1");
+    info!("stopping");
+    if ctx.state.lock().unwrap_or_else(|e| e.into_inner()).recording.is_some() {
+        match ctx.handle(frond_protocol::ControlRequest::RecordStop) {
+            frond_protocol::ControlReply::Recording(r) => {
+                info!(take = %r.name, frames = r.frames, "take finished")
+            }
+            other => warn!(?other, "finishing the take at shutdown"),
+        }
+    }
+    loop_stop.store(true, Relaxed);
+    threads_stop.store(true, Relaxed);
+    let engine = rt.join().map_err(|_| anyhow!("the realtime loop panicked"))?;
+    drop(engine); // closes every subscriber queue, so writer threads end
+    for (name, handle) in [("accept", acceptor), ("control", control), ("reopen", reopener)] {
+        if handle.join().is_err() {
+            error!(thread = name, "thread panicked");
+        }
+    }
+    drop(cmd_tx);
+    drop(rec_tx);
+    drop(ctx);
+    if recorder.join().is_err() {
+        error!("recorder thread panicked");
+    }
+    for path in [pose_path, control_path] {
+        let _ = std::fs::remove_file(path);
+    }
+    drop(opened.keepalive); // unmounts the virtual glove node, if any
+    info!("stopped");
+    Ok(())
+}
+
+/// Runs on the main thread until `stop`: achieved rate, device events, garbage, watchdog.
+fn housekeeping(ctx: &ControlContext, garbage: &Receiver<Garbage>, notifier: &Notifier, stop: &AtomicBool) {
+    let stats = &ctx.stats;
+    let mut last_ticks = stats.ticks.load(Relaxed);
+    let mut last_rate_at = Instant::now();
+    let mut connected = stats.device_connected.load(Relaxed);
+    let mut stalls = stats.stall_events.load(Relaxed);
+    let watchdog = notifier.watchdog_interval().map(|d| d / 2);
+    let mut last_ping = Instant::now();
+    let mut ticks_at_ping = last_ticks;
+    while !stop.load(Relaxed) {
+        thread::sleep(Duration::from_millis(50));
+        while garbage.try_recv().is_ok() {}
+        let now_connected = stats.device_connected.load(Relaxed);
+        if now_connected != connected {
+            connected = now_connected;
+            let new_stalls = stats.stall_events.load(Relaxed);
+            let what = if connected {
+                "device reports resumed"
+            } else if new_stalls != stalls {
+                "device stalled (no reports)"
+            } else {
+                "device lost"
+            };
+            stalls = new_stalls;
+            if connected {
+                info!("{what}")
+            } else {
+                warn!("{what}")
+            }
+            ctx.state.lock().unwrap_or_else(|e| e.into_inner()).push_event(ctx.started, what.to_string());
+        }
+        let elapsed = last_rate_at.elapsed();
+        if elapsed >= Duration::from_secs(1) {
+            let ticks = stats.ticks.load(Relaxed);
+            let rate = (ticks - last_ticks) as f64 / elapsed.as_secs_f64();
+            ctx.state.lock().unwrap_or_else(|e| e.into_inner()).achieved_rate_hz = rate;
+            last_ticks = ticks;
+            last_rate_at = Instant::now();
+        }
+        if let Some(interval) = watchdog {
+            // Feed the watchdog only while the loop is really ticking: a hung loop stops the pings.
+            let ticks = stats.ticks.load(Relaxed);
+            if last_ping.elapsed() >= interval && ticks > ticks_at_ping {
+                notifier.notify("WATCHDOG=1");
+                last_ping = Instant::now();
+                ticks_at_ping = ticks;
+            }
+        }
+    }
+}
+
+/// Reopens a lost source off the realtime thread, every 100 ms, and hands it back to the loop.
+fn spawn_reopener(
+    rx: Receiver<Box<dyn HandSource>>,
+    commands: Sender<LoopCommand>,
+    ctx: Arc<ControlContext>,
+    stop: Arc<AtomicBool>,
+) -> std::io::Result<thread::JoinHandle<()>> {
+    thread::Builder::new().name("frond-reopen".into()).spawn(move || {
+        while !stop.load(Relaxed) {
+            let Ok(mut source) = rx.recv_timeout(Duration::from_millis(100)) else { continue };
+            let lost_at = Instant::now();
+            let mut attempts = 0u64;
+            loop {
+                if stop.load(Relaxed) {
+                    return;
+                }
+                attempts += 1;
+                match source.reopen() {
+                    Ok(()) => {
+                        let text = format!(
+                            "device reopened after {:.0} ms ({attempts} attempts)",
+                            lost_at.elapsed().as_secs_f64() * 1000.0
+                        );
+                        info!("{text}");
+                        ctx.state.lock().unwrap_or_else(|e| e.into_inner()).push_event(ctx.started, text);
+                        if commands
+                            .send_timeout(LoopCommand::ReplaceSource(source), Duration::from_secs(1))
+                            .is_err()
+                        {
+                            warn!("the loop did not take the reopened device");
+                        }
+                        break;
+                    }
+                    Err(_) => thread::sleep(Duration::from_millis(100)),
+                }
+            }
+        }
+    })
+}

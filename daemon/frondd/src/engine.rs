@@ -1,0 +1,295 @@
+//! The realtime loop's per-tick work, separate from the thread that paces it so that tests can
+//! drive it tick by tick (the counting-allocator test does).
+//!
+//! One tick: apply pending commands, read every pending device report, and for each report
+//! calibrate -> filter -> map (the same [`Mapper::process`] as `frond map`) and publish a frame;
+//! when no report arrived, republish the last pose flagged `held`. Frames go to each subscriber's
+//! bounded queue and to the recorder with `try_send`; a full queue costs that consumer a frame
+//! (counted), never the loop a wait. Nothing here allocates, locks or blocks.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering::Relaxed;
+
+use crossbeam_channel::{Receiver, Sender, TrySendError};
+use frond_device::{DeviceSample, HandSource};
+use frond_motion::take::TakeFrame;
+use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, PoseFrame};
+use frond_protocol::{HandWire, Pose, PoseFlags};
+
+use crate::clock::monotonic_ns;
+use crate::publisher::{Outbound, SubscriberSlot};
+use crate::recorder::RecorderMsg;
+use crate::stats::LoopStats;
+
+/// Most subscribers the loop serves at once.
+pub const MAX_SUBSCRIBERS: usize = 64;
+/// Reports read from the device per `read_pending` call.
+const SAMPLE_BATCH: usize = 64;
+/// `read_pending` calls per tick at most (a burst beyond this waits for the next tick).
+const MAX_READS_PER_TICK: usize = 16;
+
+/// Requests to the loop from the control and housekeeping threads.
+pub enum LoopCommand {
+    /// New mapping scales and tau (from a rig).
+    SetMapping(MappingParams),
+    /// New calibration.
+    SetCalibration(CalibrationParams),
+    /// New jitter filter (state is reset).
+    SetFilter(FilterSpec),
+    /// Start or stop forwarding frames to the recorder.
+    SetRecording(bool),
+    /// A new pose subscriber.
+    AddSubscriber(SubscriberSlot),
+    /// A (re)opened hand source.
+    ReplaceSource(Box<dyn HandSource>),
+}
+
+/// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
+pub enum Garbage {
+    /// A subscriber whose connection ended.
+    Subscriber(SubscriberSlot),
+    /// A source replaced by a newer one.
+    Source(Box<dyn HandSource>),
+}
+
+/// Channels and shared state the engine talks through.
+pub struct EngineLinks {
+    /// Commands in.
+    pub commands: Receiver<LoopCommand>,
+    /// Frames (and nothing else from the loop) to the recorder.
+    pub recorder: Sender<RecorderMsg>,
+    /// A source that failed, for the reopen thread.
+    pub reopen: Sender<Box<dyn HandSource>>,
+    /// Things to drop elsewhere.
+    pub garbage: Sender<Garbage>,
+    /// Counters read by status.
+    pub stats: Arc<LoopStats>,
+}
+
+/// The realtime loop's state. Allocates only in [`Engine::new`].
+pub struct Engine {
+    mapper: Mapper,
+    source: Option<Box<dyn HandSource>>,
+    samples: Box<[DeviceSample]>,
+    subscribers: Box<[Option<SubscriberSlot>]>,
+    links: EngineLinks,
+    recording: bool,
+    seq: u64,
+    last: Pose,
+    last_report_ns: u64,
+    stall_after_ns: u64,
+    device_lost: bool,
+}
+
+impl Engine {
+    /// A new engine with the given mapper and (optional) source.
+    pub fn new(
+        mapper: Mapper,
+        source: Option<Box<dyn HandSource>>,
+        stall_after_ns: u64,
+        links: EngineLinks,
+    ) -> Self {
+        let now = monotonic_ns();
+        let device_lost = source.is_none();
+        links.stats.device_connected.store(!device_lost, Relaxed);
+        let mut last = Pose::default();
+        last.flags.set(PoseFlags::DEVICE_LOST, device_lost);
+        Engine {
+            mapper,
+            source,
+            samples: vec![DeviceSample::default(); SAMPLE_BATCH].into_boxed_slice(),
+            subscribers: (0..MAX_SUBSCRIBERS).map(|_| None).collect(),
+            links,
+            recording: false,
+            seq: 0,
+            last,
+            last_report_ns: now,
+            stall_after_ns,
+            device_lost,
+        }
+    }
+
+    /// Runs one tick at host time `now_ns`. Publishes at least one frame.
+    pub fn tick(&mut self, now_ns: u64) {
+        self.apply_commands(now_ns);
+        let fresh = self.read_device(now_ns);
+        if fresh > 0 {
+            self.last_report_ns = now_ns;
+            if self.device_lost {
+                self.set_device_lost(false);
+            }
+        } else {
+            let stalled =
+                self.source.is_some() && now_ns.saturating_sub(self.last_report_ns) > self.stall_after_ns;
+            if stalled && !self.device_lost {
+                self.links.stats.stall_events.fetch_add(1, Relaxed);
+                self.set_device_lost(true);
+            }
+            self.links.stats.held_ticks.fetch_add(1, Relaxed);
+            let mut held = self.last;
+            held.flags.insert(PoseFlags::HELD);
+            held.flags.set(PoseFlags::DEVICE_LOST, self.device_lost);
+            held.flags.set(PoseFlags::RECORDING, self.recording);
+            self.publish(held);
+        }
+        self.links.stats.ticks.fetch_add(1, Relaxed);
+    }
+
+    fn apply_commands(&mut self, now_ns: u64) {
+        while let Ok(cmd) = self.links.commands.try_recv() {
+            match cmd {
+                LoopCommand::SetMapping(m) => self.mapper.set_mapping(m),
+                LoopCommand::SetCalibration(c) => self.mapper.set_calibration(c),
+                LoopCommand::SetFilter(f) => self.mapper.set_filter(f),
+                LoopCommand::SetRecording(on) => {
+                    self.recording = on;
+                    self.links.stats.recording.store(on, Relaxed);
+                }
+                LoopCommand::AddSubscriber(slot) => self.add_subscriber(slot),
+                LoopCommand::ReplaceSource(src) => {
+                    if let Some(old) = self.source.replace(src) {
+                        let _ = self.links.garbage.try_send(Garbage::Source(old));
+                    }
+                    // Give the reopened device the full stall window before judging it.
+                    self.last_report_ns = now_ns;
+                }
+            }
+        }
+    }
+
+    fn add_subscriber(&mut self, slot: SubscriberSlot) {
+        // Tell the writer which sequence number comes next so the SDK's gap detection starts
+        // from the right place.
+        if slot.tx.try_send(Outbound::Start { next_seq: self.seq }).is_err() {
+            let _ = self.links.garbage.try_send(Garbage::Subscriber(slot));
+            return;
+        }
+        match self.subscribers.iter_mut().find(|s| s.is_none()) {
+            Some(free) => *free = Some(slot),
+            None => {
+                // More than MAX_SUBSCRIBERS: the accept thread checks the count first, so this
+                // only happens in a race; the connection is closed by dropping its slot.
+                let _ = self.links.garbage.try_send(Garbage::Subscriber(slot));
+            }
+        }
+    }
+
+    /// Reads every pending report and publishes one frame per valid report. Returns the count.
+    fn read_device(&mut self, now_ns: u64) -> usize {
+        let mut fresh = 0;
+        for _ in 0..MAX_READS_PER_TICK {
+            let Some(source) = self.source.as_mut() else { break };
+            match source.read_pending(&mut self.samples) {
+                Ok(n) => {
+                    for i in 0..n {
+                        let sample = self.samples[i];
+                        self.publish_sample(&sample);
+                    }
+                    fresh += n;
+                    if n < self.samples.len() {
+                        break;
+                    }
+                }
+                Err(_) => {
+                    self.lose_source(now_ns);
+                    break;
+                }
+            }
+        }
+        fresh
+    }
+
+    fn lose_source(&mut self, _now_ns: u64) {
+        if let Some(src) = self.source.take()
+            && let Err(e) = self.links.reopen.try_send(src)
+        {
+            // The reopen thread is gone (shutdown): keep the source and stay lost.
+            self.source = Some(e.into_inner());
+        }
+        if !self.device_lost {
+            self.set_device_lost(true);
+        }
+    }
+
+    fn set_device_lost(&mut self, lost: bool) {
+        self.device_lost = lost;
+        self.links.stats.device_connected.store(!lost, Relaxed);
+        if lost {
+            self.links.stats.device_lost_events.fetch_add(1, Relaxed);
+            self.links.stats.raw.set_stale();
+        }
+    }
+
+    fn publish_sample(&mut self, sample: &DeviceSample) {
+        self.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
+        let (hand, pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
+        let mut flags = PoseFlags::default();
+        flags.set(PoseFlags::FILTERED, self.mapper.filter_spec() != FilterSpec::None);
+        flags.set(PoseFlags::RECORDING, self.recording);
+        let frame = Pose {
+            seq: 0,
+            device_time_us: sample.device_time_us,
+            host_monotonic_ns: 0,
+            flags,
+            element: 0,
+            joints_deg: pose.joints_deg,
+            hand: HandWire { t: hand.t, wrist_deg: hand.wrist_deg, thumb_deg: hand.thumb_deg },
+        };
+        self.last = frame;
+        let published = self.publish(frame);
+        if self.recording {
+            let take_frame = TakeFrame {
+                seq: published.seq,
+                device_time_us: published.device_time_us,
+                host_ns: published.host_monotonic_ns,
+                flags: published.flags.0,
+                element: 0,
+                pose,
+                hand,
+            };
+            match self.links.recorder.try_send(RecorderMsg::Frame(take_frame)) {
+                Ok(()) => {
+                    self.links.stats.recorded_frames.fetch_add(1, Relaxed);
+                }
+                Err(_) => {
+                    self.links.stats.record_drops.fetch_add(1, Relaxed);
+                }
+            }
+        }
+    }
+
+    /// Stamps `frame` with the next sequence number and the host time and offers it to every
+    /// subscriber. Returns the stamped frame.
+    fn publish(&mut self, mut frame: Pose) -> Pose {
+        frame.seq = self.seq;
+        frame.host_monotonic_ns = monotonic_ns();
+        self.seq += 1;
+        self.links.stats.next_seq.store(self.seq, Relaxed);
+        for slot in self.subscribers.iter_mut() {
+            let Some(sub) = slot else { continue };
+            match sub.tx.try_send(Outbound::Pose(frame)) {
+                Ok(()) => {}
+                Err(TrySendError::Full(_)) => {
+                    sub.counters.dropped.fetch_add(1, Relaxed);
+                    self.links.stats.publish_drops.fetch_add(1, Relaxed);
+                }
+                Err(TrySendError::Disconnected(_)) => {
+                    if let Some(dead) = slot.take() {
+                        let _ = self.links.garbage.try_send(Garbage::Subscriber(dead));
+                    }
+                }
+            }
+        }
+        frame
+    }
+
+    /// Number of subscribers currently served.
+    pub fn subscriber_count(&self) -> usize {
+        self.subscribers.iter().filter(|s| s.is_some()).count()
+    }
+
+    /// Next sequence number.
+    pub fn next_seq(&self) -> u64 {
+        self.seq
+    }
+}

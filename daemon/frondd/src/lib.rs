@@ -1,0 +1,19 @@
+//! frondd, the frond daemon: reads the hand device at a fixed rate, calibrates, filters and maps
+//! the hand onto the plant skeleton (seed 000, Eq. 2-4) and publishes poses to subscribers.
+//!
+//! Threads: `frond-rt` (the realtime loop, [`engine`] paced by [`realtime`]), `frond-accept` and
+//! one writer per subscriber ([`publisher`]), `frond-control` ([`control`]), `frond-recorder`
+//! ([`recorder`]), and housekeeping (status rate, device events, reopening a lost device,
+//! dropping what the loop may not free). Data flows one way: device -> loop -> queues -> sockets.
+
+pub mod clock;
+pub mod config;
+pub mod control;
+pub mod daemon;
+pub mod engine;
+pub mod notify;
+pub mod publisher;
+pub mod realtime;
+pub mod recorder;
+pub mod source;
+pub mod stats;

@@ -1,0 +1,77 @@
+//! The realtime thread: paces [`Engine::tick`] on absolute deadlines.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::thread;
+
+use crate::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
+use crate::engine::Engine;
+use crate::stats::LoopStats;
+
+/// What realtime tuning was obtained, for the log and `frond status`.
+#[derive(Debug, Clone, Default)]
+pub struct RealtimeReport {
+    /// SCHED_FIFO priority in force, or the reason it is not.
+    pub scheduling: String,
+    /// mlockall outcome.
+    pub memory_lock: String,
+}
+
+/// Asks for SCHED_FIFO at `priority` (if non-zero) for the calling thread.
+fn set_fifo(priority: u8) -> String {
+    if priority == 0 {
+        return "normal (realtime.priority = 0)".into();
+    }
+    let param = libc::sched_param { sched_priority: i32::from(priority) };
+    // SAFETY: `param` is a valid sched_param; pid 0 means the calling thread.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        format!("SCHED_FIFO priority {priority}")
+    } else {
+        format!("normal (SCHED_FIFO {priority} refused: {})", std::io::Error::last_os_error())
+    }
+}
+
+/// Locks all current and future pages in memory when asked.
+pub fn lock_memory(enabled: bool) -> String {
+    if !enabled {
+        return "off (realtime.lock_memory = false)".into();
+    }
+    // SAFETY: mlockall has no memory-safety preconditions.
+    let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+    if rc == 0 { "locked".into() } else { format!("refused: {}", std::io::Error::last_os_error()) }
+}
+
+/// Starts the loop thread. It runs until `stop` is set, then returns the engine.
+pub fn spawn_loop(
+    mut engine: Engine,
+    rate_hz: u32,
+    priority: u8,
+    stats: Arc<LoopStats>,
+    stop: Arc<AtomicBool>,
+) -> std::io::Result<(thread::JoinHandle<Engine>, std::sync::mpsc::Receiver<String>)> {
+    let (report_tx, report_rx) = std::sync::mpsc::channel();
+    let handle = thread::Builder::new().name("frond-rt".into()).spawn(move || {
+        let _ = report_tx.send(set_fifo(priority));
+        drop(report_tx);
+        let period = NS_PER_S / u64::from(rate_hz.max(1));
+        let mut deadline = monotonic_ns() + period;
+        while !stop.load(Relaxed) {
+            sleep_until_ns(deadline);
+            let now = monotonic_ns();
+            stats.lateness.record(now.saturating_sub(deadline));
+            engine.tick(now);
+            deadline += period;
+            let after = monotonic_ns();
+            if after >= deadline + period {
+                // More than a whole period behind: skip the missed deadlines instead of
+                // bursting through them, and count it.
+                let missed = (after - deadline) / period;
+                deadline += missed * period;
+                stats.overruns.fetch_add(1, Relaxed);
+            }
+        }
+        engine
+    })?;
+    Ok((handle, report_rx))
+}

@@ -1,0 +1,179 @@
+//! The recorder thread: writes takes off the realtime thread.
+//!
+//! A take file is append-only (see `frond_motion::take`): every record is length-prefixed and
+//! checksummed, so a reader can follow it while it grows and a crash leaves at most a torn tail.
+//! Durability policy: every batch is `write`n at once (so `kill -9` of the daemon loses nothing
+//! the loop handed over: the kernel has it), and the file is `fdatasync`ed at least every
+//! `fsync_interval` (1 s by default), bounding what a power loss can take to that window.
+
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
+use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use tracing::{error, info, warn};
+
+/// Messages to the recorder. The loop only ever sends `Frame`.
+pub enum RecorderMsg {
+    /// A frame to append.
+    Frame(TakeFrame),
+    /// Open a new take file (never overwrites).
+    Start {
+        /// Path of the new take.
+        path: PathBuf,
+        /// Its header.
+        header: Box<TakeHeader>,
+        /// Where to answer.
+        reply: Sender<Result<(), String>>,
+    },
+    /// A marker at pose `seq`.
+    Mark {
+        /// Sequence number the marker belongs to.
+        seq: u64,
+        /// Label text.
+        label: String,
+    },
+    /// Finish the take: End record, sync, close. Answers the frame count.
+    Stop {
+        /// Where to answer.
+        reply: Sender<Result<u64, String>>,
+    },
+}
+
+/// Counters of the current take, read by status.
+#[derive(Default)]
+pub struct RecorderCounters {
+    /// Frames written to the current take.
+    pub frames: AtomicU64,
+    /// Write errors since start.
+    pub write_errors: AtomicU64,
+}
+
+struct Open {
+    file: File,
+    path: PathBuf,
+    frames: u64,
+    last_sync: Instant,
+}
+
+/// Spawns the recorder thread. It ends when every sender is gone, finishing an open take first.
+pub fn spawn_recorder(
+    rx: Receiver<RecorderMsg>,
+    counters: Arc<RecorderCounters>,
+    fsync_interval: Duration,
+) -> std::io::Result<thread::JoinHandle<()>> {
+    thread::Builder::new().name("frond-recorder".into()).spawn(move || {
+        let mut open: Option<Open> = None;
+        let mut buf = Vec::with_capacity(256 * 1024);
+        loop {
+            let first = match rx.recv_timeout(fsync_interval) {
+                Ok(m) => Some(m),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => break,
+            };
+            let mut next = first;
+            while let Some(msg) = next.take() {
+                handle(msg, &mut open, &mut buf, &counters);
+                if buf.len() < 192 * 1024 {
+                    next = rx.try_recv().ok();
+                }
+            }
+            flush(&mut open, &mut buf, &counters, fsync_interval);
+        }
+        if let Some(o) = open.take() {
+            let path = o.path.clone();
+            match finish(o, &mut buf) {
+                Ok(frames) => info!(path = %path.display(), frames, "take finished at shutdown"),
+                Err(e) => error!(path = %path.display(), error = %e, "finishing the take at shutdown failed"),
+            }
+        }
+    })
+}
+
+fn handle(msg: RecorderMsg, open: &mut Option<Open>, buf: &mut Vec<u8>, counters: &RecorderCounters) {
+    match msg {
+        RecorderMsg::Frame(frame) => {
+            if let Some(o) = open.as_mut() {
+                encode_record(&TakeRecord::Frame(frame), buf);
+                o.frames += 1;
+                counters.frames.store(o.frames, Relaxed);
+            }
+        }
+        RecorderMsg::Mark { seq, label } => {
+            if open.is_some() {
+                encode_record(&TakeRecord::Marker { seq, label }, buf);
+            }
+        }
+        RecorderMsg::Start { path, header, reply } => {
+            if open.is_some() {
+                let _ = reply.send(Err("a take is already being recorded".into()));
+                return;
+            }
+            let result = OpenOptions::new().write(true).create_new(true).open(&path).and_then(|mut file| {
+                let mut head = Vec::new();
+                encode_file_start(&mut head);
+                encode_record(&TakeRecord::Header(*header), &mut head);
+                file.write_all(&head)?;
+                file.sync_data()?;
+                Ok(file)
+            });
+            match result {
+                Ok(file) => {
+                    counters.frames.store(0, Relaxed);
+                    *open = Some(Open { file, path, frames: 0, last_sync: Instant::now() });
+                    let _ = reply.send(Ok(()));
+                }
+                Err(e) => {
+                    let _ = reply.send(Err(format!("cannot create {}: {e}", path.display())));
+                }
+            }
+        }
+        RecorderMsg::Stop { reply } => {
+            let Some(o) = open.take() else {
+                let _ = reply.send(Err("no take is being recorded".into()));
+                return;
+            };
+            let _ = reply.send(finish(o, buf).map_err(|e| e.to_string()));
+        }
+    }
+}
+
+/// Writes what is buffered, then the End record, and syncs.
+fn finish(mut o: Open, buf: &mut Vec<u8>) -> std::io::Result<u64> {
+    encode_record(&TakeRecord::End { frames: o.frames }, buf);
+    o.file.write_all(buf)?;
+    buf.clear();
+    o.file.sync_all()?;
+    Ok(o.frames)
+}
+
+fn flush(open: &mut Option<Open>, buf: &mut Vec<u8>, counters: &RecorderCounters, fsync_interval: Duration) {
+    let Some(o) = open.as_mut() else {
+        buf.clear();
+        return;
+    };
+    if !buf.is_empty() {
+        if let Err(e) = o.file.write_all(buf) {
+            counters.write_errors.fetch_add(1, Relaxed);
+            warn!(path = %o.path.display(), error = %e, "writing the take failed; frames kept in memory are retried");
+            if buf.len() > 64 * 1024 * 1024 {
+                error!(path = %o.path.display(), "take buffer over 64 MiB with the disk failing: dropping it");
+                buf.clear();
+            }
+            return;
+        }
+        buf.clear();
+    }
+    if o.last_sync.elapsed() >= fsync_interval {
+        if let Err(e) = o.file.sync_data() {
+            counters.write_errors.fetch_add(1, Relaxed);
+            warn!(path = %o.path.display(), error = %e, "fdatasync of the take failed");
+        }
+        o.last_sync = Instant::now();
+    }
+}

@@ -1,0 +1,116 @@
+//! Choosing and opening the hand source (off the realtime thread, at start-up).
+//!
+//! `auto` (the default) prefers a real glove matching the device profile, and otherwise starts the
+//! virtual glove's built-in sway itself: as a FUSE hidraw node under the socket directory, opened
+//! through the same hidapi path as a physical glove, or, where FUSE cannot be mounted, in-process
+//! with the same report bytes. `frond status` says which.
+
+use std::any::Any;
+use std::os::unix::fs::MetadataExt;
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{Context, Result, anyhow};
+use frond_device::vhid::{InProcessGlove, VirtualGloveConfig};
+use frond_device::{DeviceProfile, HandSource, HidSource, ReplaySource, SourceCounters, SourceKind};
+use tracing::{info, warn};
+
+use crate::config::{Config, SourceChoice};
+
+/// An opened source and what must live as long as it.
+pub struct OpenedSource {
+    /// The source the loop reads.
+    pub source: Box<dyn HandSource>,
+    /// Kind name for status.
+    pub kind: String,
+    /// Path or description.
+    pub path: String,
+    /// Its counters.
+    pub counters: Arc<SourceCounters>,
+    /// Keeps a virtual glove node mounted; dropping it unmounts.
+    pub keepalive: Option<Box<dyn Any + Send>>,
+}
+
+fn opened(source: Box<dyn HandSource>, keepalive: Option<Box<dyn Any + Send>>) -> OpenedSource {
+    OpenedSource {
+        kind: source.kind().to_string(),
+        path: source.describe().to_string(),
+        counters: source.counters(),
+        source,
+        keepalive,
+    }
+}
+
+fn load_profile(config: &Config) -> Result<DeviceProfile> {
+    match &config.profile {
+        Some(path) => DeviceProfile::load(path).map_err(|e| anyhow!("{e}")),
+        None => Ok(DeviceProfile::frond_glove()),
+    }
+}
+
+/// A node served by FUSE has no device number; a kernel hidraw node has one.
+fn kind_of_node(path: &Path) -> SourceKind {
+    match std::fs::metadata(path) {
+        Ok(m) if m.rdev() == 0 => SourceKind::FuseHidraw,
+        _ => SourceKind::Hidraw,
+    }
+}
+
+fn open_path(profile: &DeviceProfile, path: &Path) -> Result<OpenedSource> {
+    let src = HidSource::open_path(profile, path, kind_of_node(path)).map_err(|e| anyhow!("{e}"))?;
+    Ok(opened(Box::new(src), None))
+}
+
+fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<OpenedSource> {
+    let glove = VirtualGloveConfig::sway(f64::from(config.virtual_rate_hz));
+    if allow_fuse && Path::new("/dev/fuse").exists() {
+        let dir = socket_dir.join("vhid");
+        match frond_device::vhid::mount_fuse(&dir, glove.clone()) {
+            Ok(handle) => {
+                let node = handle.node_path().to_path_buf();
+                let profile = DeviceProfile::frond_glove();
+                match HidSource::open_path(&profile, &node, SourceKind::FuseHidraw) {
+                    Ok(src) => return Ok(opened(Box::new(src), Some(Box::new(handle)))),
+                    Err(e) => {
+                        warn!(error = %e, "opening the virtual glove's FUSE node failed; using it in-process")
+                    }
+                }
+            }
+            Err(e) => warn!(error = %e, "cannot mount the virtual glove as a FUSE node; using it in-process"),
+        }
+    }
+    let glove = InProcessGlove::new(glove).map_err(|e| anyhow!("{e}"))?;
+    Ok(opened(Box::new(glove), None))
+}
+
+/// Opens the source the configuration asks for.
+pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
+    let profile = load_profile(config)?;
+    match &config.source {
+        SourceChoice::Replay(path) => {
+            let src = ReplaySource::load(path).map_err(|e| anyhow!("{e}"))?;
+            Ok(opened(Box::new(src), None))
+        }
+        SourceChoice::Hid => match &config.device_path {
+            Some(path) => open_path(&profile, path).with_context(|| format!("opening {}", path.display())),
+            None => {
+                let src = HidSource::open(&profile).map_err(|e| anyhow!("{e}"))?;
+                Ok(opened(Box::new(src), None))
+            }
+        },
+        SourceChoice::InProcess => open_virtual(config, socket_dir, false),
+        SourceChoice::Virtual => open_virtual(config, socket_dir, true),
+        SourceChoice::Auto => {
+            if let Some(path) = &config.device_path {
+                return open_path(&profile, path).with_context(|| format!("opening {}", path.display()));
+            }
+            match HidSource::open(&profile) {
+                Ok(src) => Ok(opened(Box::new(src), None)),
+                Err(e) => {
+                    info!(reason = %e, "no glove found; starting the built-in virtual glove");
+                    open_virtual(config, socket_dir, true)
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,175 @@
+//! Harness for frond's end-to-end tests: finds the built binaries, starts the virtual glove and
+//! the daemon in private directories, and cleans up (kills, unmounts) whatever happens.
+//!
+//! The binaries are taken from the cargo target directory next to the test executable
+//! (`target/<profile>/`), or from `$FROND_BIN_DIR`. `scripts/test` builds them first
+//! (`cargo build --workspace --bins`).
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use frond_protocol::{ControlReply, ControlRequest, FrameBuf, read_frame, write_frame};
+
+/// Path of a workspace binary, or a panic that says how to build it.
+pub fn bin(name: &str) -> PathBuf {
+    let dir = match std::env::var_os("FROND_BIN_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => {
+            let exe = std::env::current_exe().expect("current exe");
+            // target/<profile>/deps/<test> -> target/<profile>
+            exe.parent().and_then(Path::parent).expect("target dir").to_path_buf()
+        }
+    };
+    let path = dir.join(name);
+    assert!(
+        path.exists(),
+        "{} is missing: build the binaries first with `cargo build --workspace --bins` (scripts/test does)",
+        path.display()
+    );
+    path
+}
+
+/// The repository root.
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("repo root").to_path_buf()
+}
+
+/// True when this machine can mount the virtual glove's FUSE node.
+pub fn fuse_available() -> bool {
+    Path::new("/dev/fuse").exists()
+}
+
+/// A child process killed (SIGTERM, then SIGKILL) when dropped.
+pub struct Proc {
+    /// The child.
+    pub child: Child,
+    /// Name for messages.
+    pub name: String,
+}
+
+impl Proc {
+    /// Sends SIGTERM and waits up to `timeout` for exit; returns the exit status if it exited.
+    pub fn terminate(&mut self, timeout: Duration) -> Option<std::process::ExitStatus> {
+        // SAFETY: kill(2) on our own child's pid; harmless if it already exited.
+        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some(status);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        None
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            if self.terminate(Duration::from_secs(3)).is_none() {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+            }
+        }
+    }
+}
+
+/// Starts `frond-vhid` with `args` and waits for the node path it prints first.
+pub fn start_vhid(args: &[&str]) -> (Proc, PathBuf, BufReader<std::process::ChildStdout>) {
+    let mut child = Command::new(bin("frond-vhid"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start frond-vhid");
+    let mut out = BufReader::new(child.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("read frond-vhid's first line");
+    let proc = Proc { child, name: "frond-vhid".into() };
+    let node = PathBuf::from(line.trim());
+    assert!(!line.trim().is_empty(), "frond-vhid printed no node path");
+    (proc, node, out)
+}
+
+/// A running `frondd` in private directories.
+pub struct Daemon {
+    /// The process.
+    pub proc: Proc,
+    /// Its socket directory.
+    pub socket_dir: PathBuf,
+    /// Its takes directory.
+    pub takes_dir: PathBuf,
+}
+
+impl Daemon {
+    /// Starts `frondd` with `args` (plus private socket and takes dirs under `root`) and waits
+    /// until the control socket answers.
+    pub fn start(root: &Path, args: &[&str]) -> Daemon {
+        let socket_dir = root.join("run");
+        let takes_dir = root.join("takes");
+        let child = Command::new(bin("frondd"))
+            .arg("--socket-dir")
+            .arg(&socket_dir)
+            .arg("--takes-dir")
+            .arg(&takes_dir)
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start frondd");
+        let mut daemon = Daemon { proc: Proc { child, name: "frondd".into() }, socket_dir, takes_dir };
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            if let Ok(ControlReply::Status(_)) = daemon.try_control(&ControlRequest::Status) {
+                return daemon;
+            }
+            if let Ok(Some(status)) = daemon.proc.child.try_wait() {
+                panic!("frondd exited during start-up: {status}");
+            }
+            assert!(Instant::now() < deadline, "frondd did not answer on its control socket within 20 s");
+            std::thread::sleep(Duration::from_millis(25));
+        }
+    }
+
+    fn try_control(&self, req: &ControlRequest) -> std::io::Result<ControlReply> {
+        let mut stream = UnixStream::connect(self.socket_dir.join(frond_protocol::CONTROL_SOCKET))?;
+        stream.set_read_timeout(Some(Duration::from_secs(10)))?;
+        write_frame(&mut stream, &mut FrameBuf::default(), req)?;
+        read_frame(&mut stream, &mut Vec::new()).map_err(|e| std::io::Error::other(e.to_string()))
+    }
+
+    /// Sends a control request and returns the reply (panics on transport errors).
+    pub fn control(&self, req: &ControlRequest) -> ControlReply {
+        self.try_control(req).expect("control request")
+    }
+
+    /// The daemon's status.
+    pub fn status(&self) -> frond_protocol::StatusReport {
+        match self.control(&ControlRequest::Status) {
+            ControlReply::Status(s) => s,
+            other => panic!("unexpected status reply {other:?}"),
+        }
+    }
+
+    /// A `frond` command pointed at this daemon.
+    pub fn frond(&self) -> Command {
+        let mut cmd = Command::new(bin("frond"));
+        cmd.env("FROND_SOCKET_DIR", &self.socket_dir).env("FROND_TAKES_DIR", &self.takes_dir);
+        cmd
+    }
+}
+
+/// Waits until `cond` holds or `timeout` passes; returns whether it held.
+pub fn wait_for(timeout: Duration, mut cond: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if cond() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    cond()
+}
