@@ -4,7 +4,15 @@
 //! layer [`wave`] (vegetation velocity, Eq. 3-4) -> [`warp`] (grid-based inverse warping, Eq. 5-8)
 //! -> [`compose`] over the background ([`inpaint`]ed when absent).
 
+pub mod compose;
 pub mod fluid;
+pub mod inpaint;
+pub mod layers;
 pub mod params;
 pub mod warp;
 pub mod wave;
+pub mod wind;
+
+pub use compose::Animator;
+pub use layers::{LayerInput, Rgba, Scene, SceneError};
+pub use params::{FluidParams, Horizon, InvalidParams, LayerParams, SceneParams, WindParams, WindSource};

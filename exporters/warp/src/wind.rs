@@ -1,0 +1,183 @@
+//! Where the wind comes from: the hand (through the root joint of the daemon's poses), or a
+//! procedural wind with the same three parameters (direction, strength, frequency).
+//!
+//! Hand mapping: the root joint's rotation (`joints_deg[0]`, frond's convention: stem +Y, pitch
+//! about +X, yaw about +Z) tilts the stem tip `R (0, 1, 0)`. The tip's sideways offset `x` is the
+//! wind's horizontal component on the picture and its offset towards the viewer `z` the vertical
+//! one (the picture is seen from slightly above: towards the viewer is down). The bend angle sets
+//! the strength (`bend / full_bend_deg`, clamped to [0, 1]) and the sway rate (direction reversals
+//! of the bend, with hysteresis) sets the interval between injections: a hand swaying at 1 Hz blows
+//! a gust per second; a hand held still and bent blows a steady wind (interval 0).
+
+use frond_protocol::convention::joint_matrix;
+
+use crate::params::WindParams;
+
+/// Bend of the root joint at which the strength reaches 1.
+pub const FULL_BEND_DEG: f32 = 40.0;
+/// A reversal counts only after the bend came back this far from its extreme.
+const REVERSAL_HYSTERESIS_DEG: f32 = 2.0;
+/// Without a reversal for this long, the wind is steady.
+const SWAY_TIMEOUT_S: f64 = 3.0;
+
+/// Direction (degrees, 0 = right, 90 = down) and strength in [0, 1] from a root joint rotation.
+pub fn hand_to_wind(root_deg: [f32; 3]) -> (f32, f32) {
+    let m = joint_matrix(root_deg);
+    // Tip of the stem: R * (0, 1, 0) = second column.
+    let tip = [m[0][1], m[1][1], m[2][1]];
+    let bend_deg = (tip[1].clamp(-1.0, 1.0)).acos().to_degrees() as f32;
+    let (x, z) = (tip[0] as f32, tip[2] as f32);
+    let direction = if x.abs() + z.abs() < 1e-9 { 0.0 } else { z.atan2(x).to_degrees() };
+    (direction, (bend_deg / FULL_BEND_DEG).clamp(0.0, 1.0))
+}
+
+/// Measures how fast the hand sways from the root joint's bend over time.
+#[derive(Debug, Clone, Default)]
+pub struct SwayMeter {
+    /// Bend along the main axis at the last extreme, and whether it was a maximum.
+    extreme: Option<(f32, bool)>,
+    last_reversal_s: Option<f64>,
+    half_period_s: Option<f64>,
+}
+
+impl SwayMeter {
+    /// A meter that has seen nothing.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Feeds the signed bend (degrees along the current wind axis) at time `t_s`.
+    pub fn push(&mut self, t_s: f64, bend_deg: f32) {
+        match self.extreme {
+            None => self.extreme = Some((bend_deg, true)),
+            Some((ext, rising)) => {
+                if (rising && bend_deg >= ext) || (!rising && bend_deg <= ext) {
+                    self.extreme = Some((bend_deg, rising));
+                } else if (ext - bend_deg).abs() >= REVERSAL_HYSTERESIS_DEG {
+                    if let Some(prev) = self.last_reversal_s {
+                        let half = (t_s - prev).max(1e-3);
+                        self.half_period_s = Some(match self.half_period_s {
+                            Some(h) => 0.5 * h + 0.5 * half,
+                            None => half,
+                        });
+                    }
+                    self.last_reversal_s = Some(t_s);
+                    self.extreme = Some((bend_deg, !rising));
+                }
+            }
+        }
+        if self.last_reversal_s.is_some_and(|r| t_s - r > SWAY_TIMEOUT_S) {
+            self.half_period_s = None;
+            self.last_reversal_s = None;
+        }
+    }
+
+    /// Interval between injections: one sway period, or 0 (steady) without swaying.
+    pub fn interval_s(&self) -> f32 {
+        self.half_period_s.map_or(0.0, |h| (2.0 * h).clamp(0.05, 10.0) as f32)
+    }
+}
+
+/// Turns root-joint rotations over time into wind parameters.
+#[derive(Debug, Clone, Default)]
+pub struct HandWind {
+    sway: SwayMeter,
+}
+
+impl HandWind {
+    /// A fresh mapping.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Updates `wind` (direction, strength, interval; the source is kept) from the root joint at
+    /// time `t_s`.
+    pub fn update(&mut self, t_s: f64, root_deg: [f32; 3], wind: &mut WindParams) {
+        let (direction, strength) = hand_to_wind(root_deg);
+        // Signed bend along a fixed axis (sideways): reversals of a sway show up there.
+        let m = joint_matrix(root_deg);
+        let signed = (m[0][1] as f32).asin().to_degrees() + (m[2][1] as f32).asin().to_degrees();
+        self.sway.push(t_s, signed);
+        wind.direction_deg = direction;
+        wind.strength = strength;
+        wind.interval_s = self.sway.interval_s();
+    }
+}
+
+/// Deterministic gusts for when no hand drives the wind: each injection's strength and direction
+/// vary a little around the user's settings, from a seeded hash (same seed, same wind).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProceduralWind {
+    /// Seed of the variation.
+    pub seed: u64,
+}
+
+impl ProceduralWind {
+    /// `(direction_deg, strength)` of injection number `k` for the user's `base` settings:
+    /// strength scaled by [0.6, 1], direction turned by up to +-12 degrees.
+    pub fn gust(&self, k: u64, base: &WindParams) -> (f32, f32) {
+        let a = unit(splitmix(self.seed ^ k.wrapping_mul(0x9E37_79B9_7F4A_7C15)));
+        let b = unit(splitmix(self.seed.wrapping_add(0x5851_F42D) ^ k.wrapping_mul(0xD1B5_4A32_D192_ED03)));
+        (base.direction_deg + (b * 2.0 - 1.0) * 12.0, base.strength * (0.6 + 0.4 * a))
+    }
+}
+
+fn splitmix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn unit(x: u64) -> f32 {
+    (x >> 40) as f32 / (1u64 << 24) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn upright_root_is_calm_and_bends_map_to_directions() {
+        assert_eq!(hand_to_wind([0.0, 0.0, 0.0]).1, 0.0);
+        // Yaw about +Z by -20 degrees tips the stem towards +X: wind to the right, half strength.
+        let (dir, s) = hand_to_wind([0.0, -20.0, 0.0]);
+        assert!(dir.abs() < 1e-3 && (s - 0.5).abs() < 1e-3, "{dir} {s}");
+        // Pitch about +X by +20 degrees tips it towards +Z (the viewer): wind downwards.
+        let (dir, s) = hand_to_wind([20.0, 0.0, 0.0]);
+        assert!((dir - 90.0).abs() < 1e-3 && (s - 0.5).abs() < 1e-3, "{dir} {s}");
+        // Beyond the full bend the strength saturates at 1.
+        assert_eq!(hand_to_wind([0.0, 80.0, 0.0]).1, 1.0);
+    }
+
+    #[test]
+    fn sway_rate_sets_injection_interval() {
+        let mut hw = HandWind::new();
+        let mut wind = WindParams::default();
+        // 1 Hz sway of +-25 degrees yaw, sampled at 100 Hz for 5 s.
+        for k in 0..500 {
+            let t = k as f64 / 100.0;
+            let yaw = 25.0 * (std::f64::consts::TAU * t).sin() as f32;
+            hw.update(t, [0.0, yaw, 0.0], &mut wind);
+        }
+        assert!((wind.interval_s - 1.0).abs() < 0.05, "interval {}", wind.interval_s);
+        // Held still and bent: steady wind after the timeout.
+        for k in 0..400 {
+            hw.update(5.0 + k as f64 / 100.0, [0.0, -30.0, 0.0], &mut wind);
+        }
+        assert_eq!(wind.interval_s, 0.0);
+        assert!((wind.strength - 0.75).abs() < 1e-3);
+    }
+
+    #[test]
+    fn procedural_gusts_are_deterministic_and_near_the_settings() {
+        let base = WindParams { direction_deg: 30.0, strength: 0.5, ..WindParams::default() };
+        let p = ProceduralWind { seed: 7 };
+        for k in 0..50 {
+            let (d, s) = p.gust(k, &base);
+            assert_eq!((d, s), p.gust(k, &base));
+            assert!((18.0..=42.0).contains(&d) && (0.3..=0.5).contains(&s), "{d} {s}");
+        }
+        assert_ne!(p.gust(1, &base), ProceduralWind { seed: 8 }.gust(1, &base));
+    }
+}
