@@ -51,7 +51,7 @@ fn steady_state_frames_allocate_nothing() {
     let pose = |seq: u64| Pose {
         seq,
         host_monotonic_ns: seq * 1_000_000,
-        flags: if seq % 7 == 0 { PoseFlags::DEVICE_LOST } else { PoseFlags::default() },
+        flags: if seq.is_multiple_of(7) { PoseFlags::DEVICE_LOST } else { PoseFlags::default() },
         joints_deg: [[seq as f32 * 0.1, 2.0, 3.0]; 4],
         ..Pose::default()
     };
