@@ -7,11 +7,15 @@
 
 pub mod calibration;
 pub mod filter;
+pub mod gltf_mesh;
 pub mod jsonl;
 pub mod mapping;
+pub mod mesh;
 pub mod problems;
 pub mod rig;
+pub mod rng;
 pub mod sample;
+pub mod skeleton;
 pub mod take;
 
 pub use calibration::{Calibration, CalibrationError, CalibrationParams};

@@ -61,3 +61,21 @@ fn calibrations_parse_and_round_trip() {
         assert_eq!(Calibration::from_toml_str(&c.to_toml_string()).unwrap(), c);
     }
 }
+
+#[test]
+fn shipped_rigs_have_well_formed_procedural_meshes() {
+    use frond_motion::mesh::procedural_model;
+    use frond_motion::rig::{MeshShape, MeshSpec};
+    for (text, shape, leaves) in
+        [(GRASS, MeshShape::Blade, 0), (FLOWER, MeshShape::Flower, 2), (SHRUB, MeshShape::Shrub, 0)]
+    {
+        let r = Rig::from_toml_str(text).unwrap();
+        assert!(matches!(r.mesh, MeshSpec::Procedural { shape: s, .. } if s == shape), "{}", r.name);
+        let m = procedural_model(&r).unwrap();
+        m.stem.check().unwrap();
+        assert_eq!(m.elements.len(), leaves, "{}", r.name);
+    }
+    let g = procedural_model(&Rig::from_toml_str(GRASS).unwrap()).unwrap();
+    let top = g.stem.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
+    assert!((top - 0.30).abs() < 1e-6, "grass is 30 cm tall, found {top}");
+}
