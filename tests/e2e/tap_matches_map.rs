@@ -61,7 +61,7 @@ fn tap_receives_every_sample_as_frond_map_computes_it() {
     assert_eq!(expected.len(), SAMPLES);
 
     // Live: glove node -> frondd (hidapi by path) -> frond tap.
-    let node = dir.path().join("hidraw-e2e");
+    let node = dir.path().join("vhid").join("hidraw-e2e");
     let (_vhid, node_path, _vhid_out) = start_vhid(&[
         "--play",
         hand_path.to_str().unwrap(),

@@ -48,6 +48,8 @@ pub enum ControlRequest {
 }
 
 /// The daemon's answer to one [`ControlRequest`].
+// Replies are rare (operator commands), so the size of the status variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ControlReply {
     /// The request was applied.
