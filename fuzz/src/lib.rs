@@ -1,0 +1,1 @@
+//! Parser fuzzing harness (see tests/).
