@@ -1,0 +1,379 @@
+//! End to end: `frondd --source in-process` (the built-in virtual glove) -> `frond-osc` -> a UDP
+//! receiver. The OSC checks are done by an independent receiver written in Python on python-osc
+//! (`osc_receiver.py`, venv at `tests/python/.venv`, made by `install-python.sh`); the values it
+//! received are compared with what a `frond_sdk` subscriber got from the same daemon at the same
+//! time.
+//!
+//! Needs `target/<profile>/frondd` (`cargo build --workspace --bins`) and, for the Python tests,
+//! the venv. Missing either, a test prints why and passes as skipped, unless `CI=true` or
+//! `FROND_REQUIRE_PYTHON=1`, where it fails.
+
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use frond_osc::encode::{DEFAULT_HEIGHTS_M, unity_quat};
+use frond_protocol::convention::joint_quat;
+use frond_protocol::{Hello, Pose};
+use frond_sdk::{SdkError, Subscriber};
+
+fn required() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+        || std::env::var("FROND_REQUIRE_PYTHON").is_ok_and(|v| v == "1")
+}
+
+/// Prints why the test is skipped, or fails when the environment demands the test.
+fn skip(why: &str) {
+    assert!(!required(), "{why} (required because CI=true or FROND_REQUIRE_PYTHON=1)");
+    eprintln!("SKIPPED: {why}");
+}
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("repo root")
+}
+
+fn frond_osc() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_frond-osc"))
+}
+
+fn frondd() -> Option<PathBuf> {
+    let dir = match std::env::var_os("FROND_BIN_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => frond_osc().parent()?.to_path_buf(),
+    };
+    Some(dir.join("frondd")).filter(|p| p.exists())
+}
+
+fn python() -> Option<PathBuf> {
+    let py = repo_root().join("tests/python/.venv/bin/python");
+    let ok = Command::new(&py)
+        .args(["-c", "import pythonosc"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    ok.then_some(py)
+}
+
+/// Kills (SIGTERM, then SIGKILL) and reaps the child when dropped.
+struct Proc(Child);
+
+impl Proc {
+    fn terminate(&mut self) -> Option<std::process::ExitStatus> {
+        // SAFETY: kill(2) on our own child's pid; harmless if it already exited (not yet reaped).
+        unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(s)) = self.0.try_wait() {
+                return Some(s);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        None
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait()
+            && self.terminate().is_none()
+        {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+}
+
+struct Daemon {
+    _proc: Proc,
+    socket_dir: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+fn start_daemon(frondd: &Path) -> Daemon {
+    let dir = tempfile::tempdir().unwrap();
+    let socket_dir = dir.path().join("run");
+    let child = Command::new(frondd)
+        .arg("--socket-dir")
+        .arg(&socket_dir)
+        .arg("--takes-dir")
+        .arg(dir.path().join("takes"))
+        .args(["--source", "in-process", "--log-level", "warn"])
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("start frondd");
+    let mut proc = Proc(child);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while Subscriber::connect(&socket_dir).is_err() {
+        if let Ok(Some(status)) = proc.0.try_wait() {
+            panic!("frondd exited during start-up: {status}");
+        }
+        assert!(Instant::now() < deadline, "frondd's pose socket did not come up within 20 s");
+        std::thread::sleep(Duration::from_millis(25));
+    }
+    Daemon { _proc: proc, socket_dir, _dir: dir }
+}
+
+/// A `frond_sdk` subscriber collecting every pose until stopped.
+struct Collector {
+    stop: Arc<AtomicBool>,
+    handle: JoinHandle<(Hello, Vec<Pose>)>,
+}
+
+impl Collector {
+    fn start(socket_dir: &Path) -> Collector {
+        let mut sub = Subscriber::options()
+            .read_timeout(Some(Duration::from_millis(200)))
+            .connect(socket_dir)
+            .expect("sdk subscriber");
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let handle = std::thread::spawn(move || {
+            let mut poses = Vec::new();
+            while !flag.load(Ordering::Relaxed) {
+                match sub.next() {
+                    Some(Ok(p)) => poses.push(p),
+                    Some(Err(SdkError::Timeout { .. })) => {}
+                    Some(Err(e)) => panic!("sdk subscriber: {e}"),
+                    None => break,
+                }
+            }
+            (sub.hello().clone(), poses)
+        });
+        Collector { stop, handle }
+    }
+
+    fn finish(self) -> (Hello, Vec<Pose>) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.handle.join().expect("collector thread")
+    }
+}
+
+/// Starts the Python receiver; returns it and the UDP port it printed.
+fn start_receiver(py: &Path, mode: &str, count: usize, out: &Path) -> (Proc, u16) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/osc_receiver.py");
+    let mut child = Command::new(py)
+        .arg(script)
+        .args(["--mode", mode, "--count", &count.to_string(), "--timeout", "60", "--out"])
+        .arg(out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start the python receiver");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("receiver port");
+    let port = line.trim().parse().unwrap_or_else(|_| panic!("receiver printed `{line}`, not a port"));
+    (Proc(child), port)
+}
+
+fn start_osc(socket_dir: &Path, args: &[&str]) -> Proc {
+    let child = Command::new(frond_osc())
+        .arg("--socket-dir")
+        .arg(socket_dir)
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start frond-osc");
+    Proc(child)
+}
+
+/// Waits for the receiver to finish; panics with its stderr unless it succeeded.
+fn wait_receiver(receiver: &mut Proc) {
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let status = loop {
+        if let Some(s) = receiver.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "the python receiver did not finish within 90 s");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut err = String::new();
+    receiver.0.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    assert!(status.success(), "the python receiver failed ({status}): {err}");
+}
+
+fn read_jsonl(path: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("receiver wrote JSON"))
+        .collect()
+}
+
+fn f32s(v: &serde_json::Value) -> Vec<f32> {
+    v.as_array().expect("array").iter().map(|x| x.as_f64().expect("number") as f32).collect()
+}
+
+fn stop_and_stderr(mut proc: Proc) -> String {
+    let status = proc.terminate();
+    assert!(status.is_some(), "frond-osc did not exit on SIGTERM");
+    let mut err = String::new();
+    proc.0.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    assert!(status.unwrap().success(), "frond-osc exited with {status:?}: {err}");
+    err
+}
+
+#[test]
+fn frond_namespace_delivers_every_frame_in_order_with_the_daemons_values() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python() else {
+        return skip("no python-osc venv at tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("frames.jsonl");
+    const FRAMES: usize = 1500;
+    let (mut receiver, port) = start_receiver(&py, "frond", FRAMES, &out);
+    let collector = Collector::start(&daemon.socket_dir);
+    // A target that is down comes first: it must not hold up the live one.
+    let dead = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let live = format!("127.0.0.1:{port}");
+    let osc = start_osc(&daemon.socket_dir, &["--target", &dead.to_string(), "--target", &live, "--stats"]);
+    wait_receiver(&mut receiver);
+    let (_, poses) = collector.finish();
+    let stderr = stop_and_stderr(osc);
+
+    let by_seq: HashMap<u32, &Pose> = poses.iter().map(|p| (p.seq as u32, p)).collect();
+    let frames = read_jsonl(&out);
+    assert_eq!(frames.len(), FRAMES);
+    for f in &frames {
+        let seq = f["seq"].as_i64().unwrap() as u32;
+        let pose = by_seq
+            .get(&seq)
+            .unwrap_or_else(|| panic!("OSC frame {seq} was never published to the SDK subscriber"));
+        assert_eq!(f["t"].as_f64().unwrap(), pose.hand.t, "t of {seq}");
+        let joints = f32s(&f["joints"]);
+        assert_eq!(joints, pose.joints_deg.concat(), "joint angles of {seq}");
+        assert_eq!(f["flags"].as_u64().unwrap(), u64::from(pose.flags.0), "flags of {seq}");
+        for (i, q) in f["quats"].as_array().unwrap().iter().enumerate() {
+            assert_eq!(f32s(q), joint_quat(pose.joints_deg[i]), "quaternion of joint {i} in {seq}");
+        }
+    }
+    // The last stats line names the refused target with a non-zero count.
+    let last = stderr.lines().rev().find(|l| l.starts_with("frond-osc stats:")).expect("a final stats line");
+    let dead_part =
+        last.split(" | ").find(|p| p.starts_with(&dead.to_string())).expect("dead target in stats");
+    assert!(!dead_part.contains("refused=0 "), "refusals of the dead target are counted: {last}");
+}
+
+#[test]
+fn vmc_mode_sends_the_rig_bones_with_unit_unity_rotations() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python() else {
+        return skip("no python-osc venv at tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("vmc.jsonl");
+    let (mut receiver, port) = start_receiver(&py, "vmc", 500, &out);
+    let collector = Collector::start(&daemon.socket_dir);
+    let osc = start_osc(&daemon.socket_dir, &["--protocol", "vmc", "--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut receiver);
+    let (hello, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    // VMC carries T as f32 seconds of device time: match frames to the SDK's poses by it.
+    let by_t: HashMap<u32, &Pose> = poses.iter().map(|p| ((p.hand.t as f32).to_bits(), p)).collect();
+    let frames = read_jsonl(&out);
+    let mut matched = 0;
+    for f in &frames {
+        let bones = f["bones"].as_object().unwrap();
+        let mut names: Vec<&String> = bones.keys().collect();
+        names.sort();
+        let mut expected: Vec<&String> = hello.joint_names.iter().collect();
+        expected.sort();
+        assert_eq!(names, expected, "bones are named after the daemon's joints");
+        for (i, name) in hello.joint_names.iter().enumerate() {
+            let b = f32s(&bones[name]);
+            // Default rig heights (no --rig): local offsets straight up.
+            let below = if i == 0 { 0.0 } else { DEFAULT_HEIGHTS_M[i - 1] };
+            assert_eq!(b[..3], [0.0, DEFAULT_HEIGHTS_M[i] - below, 0.0], "position of {name}");
+        }
+        let t = f["t"].as_f64().unwrap() as f32;
+        if let Some(pose) = by_t.get(&t.to_bits()) {
+            matched += 1;
+            for (i, name) in hello.joint_names.iter().enumerate() {
+                let rot = f32s(&bones[name])[3..].to_vec();
+                assert_eq!(rot, unity_quat(joint_quat(pose.joints_deg[i])), "rotation of {name} at t={t}");
+            }
+        }
+    }
+    assert!(
+        matched >= frames.len() * 9 / 10,
+        "only {matched} of {} VMC frames matched an SDK pose",
+        frames.len()
+    );
+}
+
+/// `--rate` through the real pipeline: strictly increasing sequence numbers (no frame sent
+/// twice), at most the requested rate, each one a real daemon frame. Needs no Python.
+#[test]
+fn rate_resampling_never_repeats_a_frame() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let daemon = start_daemon(&frondd);
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    let collector = Collector::start(&daemon.socket_dir);
+    let target = sock.local_addr().unwrap().to_string();
+    let osc = start_osc(&daemon.socket_dir, &["--target", &target, "--rate", "50"]);
+    let started = Instant::now();
+    let mut seqs = Vec::new();
+    let mut buf = [0u8; 1500];
+    while started.elapsed() < Duration::from_millis(1500) {
+        let Ok(n) = sock.recv(&mut buf) else { continue };
+        let (_, rosc::OscPacket::Bundle(b)) = rosc::decoder::decode_udp(&buf[..n]).unwrap() else {
+            panic!("bundle expected")
+        };
+        let rosc::OscPacket::Message(m) = &b.content[0] else { panic!("message expected") };
+        let rosc::OscType::Int(seq) = m.args[0] else { panic!("int seq expected") };
+        let joints: Vec<f32> = m.args[2..14]
+            .iter()
+            .map(|a| if let rosc::OscType::Float(f) = a { *f } else { panic!() })
+            .collect();
+        seqs.push((seq as u32, joints));
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    let (_, poses) = collector.finish();
+    stop_and_stderr(osc);
+    assert!(seqs.len() >= 10, "only {} frames at 50 Hz in {elapsed:.1} s", seqs.len());
+    assert!(
+        (seqs.len() as f64) <= 50.0 * elapsed + 3.0,
+        "{} frames in {elapsed:.2} s exceeds 50 Hz",
+        seqs.len()
+    );
+    assert!(seqs.windows(2).all(|w| w[1].0 > w[0].0), "sequence numbers strictly increase");
+    let by_seq: HashMap<u32, &Pose> = poses.iter().map(|p| (p.seq as u32, p)).collect();
+    for (seq, joints) in &seqs {
+        if let Some(p) = by_seq.get(seq) {
+            assert_eq!(joints, &p.joints_deg.concat(), "frame {seq} is the daemon's frame");
+        }
+    }
+}
+
+/// `frond-osc --bench` runs and reports for 1 and 4 targets (the numbers are for issue 9's bench,
+/// not asserted here).
+#[test]
+fn bench_reports_latency_for_one_and_four_targets() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let daemon = start_daemon(&frondd);
+    let out = Command::new(frond_osc())
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(["--bench", "--bench-seconds", "0.5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lines: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 2);
+    for (line, targets) in lines.iter().zip([1, 4]) {
+        assert_eq!(line["targets"], targets);
+        assert!(line["samples"].as_u64().unwrap() > 0, "{line}");
+        assert!(line["p50_us"].as_f64().unwrap() <= line["p99_us"].as_f64().unwrap(), "{line}");
+    }
+}
