@@ -6,9 +6,12 @@
 //! and the offline `frond map` both use it, so live and offline poses are identical.
 
 pub mod calibration;
+pub mod clip;
+pub mod edit;
 pub mod filter;
 pub mod gltf_mesh;
 pub mod jsonl;
+pub mod layers;
 pub mod mapping;
 pub mod mesh;
 pub mod problems;

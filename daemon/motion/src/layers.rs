@@ -1,0 +1,343 @@
+//! A whole take in memory, with layers (seed 000, section 5.3): layer 0 is the global element
+//! (the whole plant), layer `k + 1` a secondary element such as `leaf` or `petal`
+//! (`TakeFrame::element`). Layer names live in the header record as an optional JSON list
+//! `"elements": ["leaf", "petal"]` (name of layer 1, 2, ...); takes without it read as before and
+//! their secondary layers are named after the rig element of the same index, or `element<k>`.
+//!
+//! [`assign_layers`] hands secondary layers to a rig's secondary element instances: by kind name
+//! (a layer `leaf` or `leaf#2` animates leaves), at random among the layers of that kind when an
+//! element has several similar instances.
+
+use crate::clip::Clip;
+use crate::rig::ElementSpec;
+use crate::rng::SeededRng;
+use crate::sample::{HandSample, PoseFrame};
+use crate::take::{
+    TakeError, TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record, scan_take,
+};
+
+/// The `held` pose flag (same bit as `frond_protocol::PoseFlags::HELD`): no new device report.
+pub const FLAG_HELD: u32 = 1;
+/// The `playback` pose flag (same bit as `frond_protocol::PoseFlags::PLAYBACK`).
+pub const FLAG_PLAYBACK: u32 = 1 << 4;
+/// Layer id of the global element.
+pub const GLOBAL_LAYER: u16 = 0;
+
+/// A take: header, secondary layer names, frames of every layer, markers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Take {
+    /// Metadata.
+    pub header: TakeHeader,
+    /// Name of layer `k + 1` at index `k`; may be shorter than the number of layers.
+    pub element_names: Vec<String>,
+    /// All frames, every layer, in file order.
+    pub frames: Vec<TakeFrame>,
+    /// Markers as `(seq, label)`.
+    pub markers: Vec<(u64, String)>,
+}
+
+#[derive(serde::Deserialize)]
+struct HeaderExtra {
+    #[serde(default)]
+    elements: Vec<String>,
+}
+
+/// Reads the `elements` list from a take's header record (empty when absent or unreadable).
+pub fn header_element_names(bytes: &[u8]) -> Vec<String> {
+    use crate::take::{MAGIC, RECORD_HEAD_LEN, RecordAt, read_record_at};
+    match read_record_at(bytes, MAGIC.len()) {
+        Ok(RecordAt::Record { record: TakeRecord::Header(_), next }) => {
+            let payload = &bytes[MAGIC.len() + RECORD_HEAD_LEN + 1..next];
+            serde_json::from_slice::<HeaderExtra>(payload).map(|h| h.elements).unwrap_or_default()
+        }
+        _ => Vec::new(),
+    }
+}
+
+fn encode_header(h: &TakeHeader, elements: &[String], out: &mut Vec<u8>) {
+    if elements.is_empty() {
+        encode_record(&TakeRecord::Header(h.clone()), out);
+        return;
+    }
+    // The header JSON plus "elements"; readers that do not know the field ignore it.
+    let mut v = serde_json::to_value(h).unwrap_or_default();
+    if let Some(m) = v.as_object_mut() {
+        m.insert("elements".to_string(), serde_json::Value::from(elements.to_vec()));
+    }
+    let body = serde_json::to_vec(&v).unwrap_or_default();
+    let start = out.len();
+    out.extend_from_slice(&[0; 8]);
+    out.push(1); // KIND_HEADER
+    out.extend_from_slice(&body);
+    let len = (out.len() - start - 8) as u32;
+    let crc = crc32fast::hash(&out[start + 8..]);
+    out[start..start + 4].copy_from_slice(&len.to_le_bytes());
+    out[start + 4..start + 8].copy_from_slice(&crc.to_le_bytes());
+}
+
+impl Take {
+    /// An empty take.
+    pub fn new(header: TakeHeader) -> Self {
+        Take { header, element_names: Vec::new(), frames: Vec::new(), markers: Vec::new() }
+    }
+
+    /// Reads a take file's bytes (a torn tail is ignored, as by every reader). A take without a
+    /// header record is refused.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Take, TakeError> {
+        let scan = scan_take(bytes)?;
+        let header = scan.header.ok_or(TakeError::Structure {
+            offset: crate::take::MAGIC.len() as u64,
+            reason: "the take has no header record".to_string(),
+        })?;
+        Ok(Take {
+            header,
+            element_names: header_element_names(bytes),
+            frames: scan.frames,
+            markers: scan.markers,
+        })
+    }
+
+    /// The complete file: magic, header (with `elements` when there are names), frames,
+    /// markers, End.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(64 + self.frames.len() * 127);
+        encode_file_start(&mut out);
+        encode_header(&self.header, &self.element_names, &mut out);
+        for f in &self.frames {
+            encode_record(&TakeRecord::Frame(*f), &mut out);
+        }
+        for (seq, label) in &self.markers {
+            encode_record(&TakeRecord::Marker { seq: *seq, label: label.clone() }, &mut out);
+        }
+        encode_record(&TakeRecord::End { frames: self.frames.len() as u64 }, &mut out);
+        out
+    }
+
+    /// The layer ids present, ascending.
+    pub fn layer_ids(&self) -> Vec<u16> {
+        let mut ids: Vec<u16> = self.frames.iter().map(|f| f.element).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
+    }
+
+    /// A layer's name: `global` for 0, else its header name, else `element<k>`.
+    pub fn layer_name(&self, id: u16) -> String {
+        match id {
+            GLOBAL_LAYER => "global".to_string(),
+            k => self.element_names.get(k as usize - 1).cloned().unwrap_or_else(|| format!("element{k}")),
+        }
+    }
+
+    /// The id of a layer given by name (`global`, a header name, `element<k>`) or number.
+    pub fn layer_id(&self, name: &str) -> Option<u16> {
+        if let Ok(k) = name.parse::<u16>() {
+            return Some(k);
+        }
+        if name == "global" {
+            return Some(GLOBAL_LAYER);
+        }
+        if let Some(k) = self.element_names.iter().position(|n| n == name) {
+            return Some(k as u16 + 1);
+        }
+        name.strip_prefix("element").and_then(|k| k.parse().ok())
+    }
+
+    /// The frames of one layer, held frames dropped unless `include_held`.
+    pub fn layer(&self, id: u16, include_held: bool) -> Vec<TakeFrame> {
+        self.frames
+            .iter()
+            .filter(|f| f.element == id && (include_held || f.flags & FLAG_HELD == 0))
+            .copied()
+            .collect()
+    }
+
+    /// One layer resampled to `fps` (held frames dropped), starting at 0.
+    pub fn clip(&self, id: u16, fps: f64) -> Clip {
+        let poses: Vec<PoseFrame> = self.layer(id, false).iter().map(|f| f.pose).collect();
+        Clip::from_poses(&poses, fps)
+    }
+
+    /// Replaces a layer's frames (and names it, for a secondary layer). The new frames are put
+    /// after the other layers' frames.
+    pub fn set_layer(&mut self, id: u16, name: Option<&str>, frames: impl IntoIterator<Item = TakeFrame>) {
+        self.frames.retain(|f| f.element != id);
+        self.frames.extend(frames.into_iter().map(|mut f| {
+            f.element = id;
+            f
+        }));
+        if let (Some(name), true) = (name, id > 0) {
+            let k = id as usize - 1;
+            while self.element_names.len() <= k {
+                let n = self.element_names.len() + 1;
+                self.element_names.push(format!("element{n}"));
+            }
+            self.element_names[k] = name.to_string();
+        }
+    }
+
+    /// The time of the frame a marker points at, seconds from the first global frame.
+    pub fn marker_time(&self, label: &str) -> Option<f64> {
+        let (seq, _) = self.markers.iter().find(|(_, l)| l == label)?;
+        let global = self.layer(GLOBAL_LAYER, true);
+        let t0 = global.first()?.pose.t;
+        let f = global.iter().find(|f| f.seq >= *seq)?;
+        Some(f.pose.t - t0)
+    }
+}
+
+/// Frames for a layer from a clip, `seq = k`, device time `t` in microseconds, with hand samples
+/// when given (index `k`, else zero).
+pub fn frames_from_clip(
+    clip: &Clip,
+    element: u16,
+    flags: u32,
+    hands: Option<&[HandSample]>,
+) -> Vec<TakeFrame> {
+    clip.frames
+        .iter()
+        .enumerate()
+        .map(|(k, p)| TakeFrame {
+            seq: k as u64,
+            device_time_us: (p.t * 1e6).round().max(0.0) as u64,
+            host_ns: 0,
+            flags,
+            element,
+            pose: *p,
+            hand: hands
+                .and_then(|h| h.get(k))
+                .copied()
+                .unwrap_or(HandSample { t: p.t, ..Default::default() }),
+        })
+        .collect()
+}
+
+/// A secondary layer chosen for one element instance.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Assignment {
+    /// Index into the rig's elements.
+    pub element: usize,
+    /// Instance number, `0..count`.
+    pub instance: u32,
+    /// The layer animating it, `None` when the take has no layer of that kind.
+    pub layer: Option<u16>,
+}
+
+/// The kind of a layer name: the part before `#` (`leaf#2` is a `leaf`).
+pub fn layer_kind(name: &str) -> &str {
+    name.split('#').next().unwrap_or(name)
+}
+
+/// Assigns secondary layers (id, name) to every instance of the rig's elements (seed 000,
+/// section 5.3): an instance of element `leaf` gets one of the layers of kind `leaf`, uniformly at
+/// random with the seeded generator (similar elements share the authored animations randomly);
+/// elements of a kind with no layer stay unanimated.
+pub fn assign_layers(elements: &[ElementSpec], layers: &[(u16, String)], seed: u64) -> Vec<Assignment> {
+    let mut rng = SeededRng::new(seed);
+    let mut out = Vec::new();
+    for (e, spec) in elements.iter().enumerate() {
+        let candidates: Vec<u16> = layers
+            .iter()
+            .filter(|(id, n)| *id > 0 && layer_kind(n) == spec.name)
+            .map(|(id, _)| *id)
+            .collect();
+        for instance in 0..spec.count {
+            let layer = match candidates.len() {
+                0 => None,
+                1 => Some(candidates[0]),
+                n => Some(candidates[rng.below(n)]),
+            };
+            out.push(Assignment { element: e, instance, layer });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> TakeHeader {
+        TakeHeader {
+            name: "t".into(),
+            rig_name: "flower".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: 30,
+            created_unix_s: 0,
+            daemon_version: "test".into(),
+            joint_names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
+        }
+    }
+
+    fn frame(seq: u64, element: u16, v: f32) -> TakeFrame {
+        TakeFrame {
+            seq,
+            element,
+            pose: PoseFrame { t: seq as f64 / 30.0, joints_deg: [[v; 3]; 4] },
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn flags_match_the_protocol() {
+        assert_eq!(FLAG_HELD, frond_protocol::PoseFlags::HELD.0);
+        assert_eq!(FLAG_PLAYBACK, frond_protocol::PoseFlags::PLAYBACK.0);
+    }
+
+    #[test]
+    fn layered_take_round_trips_with_names() {
+        let mut t = Take::new(header());
+        t.set_layer(0, None, (0..3).map(|k| frame(k, 0, k as f32)));
+        t.set_layer(2, Some("petal"), (0..2).map(|k| frame(k, 0, -(k as f32))));
+        t.markers.push((1, "here".into()));
+        assert_eq!(t.element_names, ["element1", "petal"]);
+        let bytes = t.to_bytes();
+        let back = Take::from_bytes(&bytes).unwrap();
+        assert_eq!(back, t);
+        assert_eq!(back.layer_ids(), [0, 2]);
+        assert_eq!(back.layer_name(2), "petal");
+        assert_eq!(back.layer_id("petal"), Some(2));
+        assert_eq!(back.layer_id("global"), Some(0));
+        assert_eq!(back.layer_id("element1"), Some(1));
+        assert_eq!(back.layer(2, false).len(), 2);
+        assert!((back.marker_time("here").unwrap() - 1.0 / 30.0).abs() < 1e-12);
+        // The plain codec still reads it (the extra header field is ignored).
+        let scan = scan_take(&bytes).unwrap();
+        assert_eq!(scan.header.unwrap(), header());
+        assert!(scan.ended);
+    }
+
+    #[test]
+    fn old_takes_without_names_read() {
+        let mut t = Take::new(header());
+        t.set_layer(1, None, [frame(0, 1, 1.0)]);
+        t.element_names.clear();
+        let back = Take::from_bytes(&t.to_bytes()).unwrap();
+        assert!(back.element_names.is_empty());
+        assert_eq!(back.layer_name(1), "element1");
+        let mut no_header = Vec::new();
+        encode_file_start(&mut no_header);
+        assert!(Take::from_bytes(&no_header).unwrap_err().to_string().contains("no header record"));
+    }
+
+    #[test]
+    fn assignment_by_name_and_at_random_among_similar() {
+        let el = |name: &str, count| ElementSpec {
+            name: name.into(),
+            attach_joint: 1,
+            count,
+            length_m: 0.1,
+            tau: 2,
+        };
+        let elements = [el("leaf", 40), el("petal", 2), el("thorn", 1)];
+        let layers = [(1, "leaf".to_string()), (2, "leaf#2".to_string()), (3, "petal".to_string())];
+        let a = assign_layers(&elements, &layers, 9);
+        assert_eq!(a.len(), 43);
+        let leaves: Vec<u16> = a.iter().filter(|x| x.element == 0).map(|x| x.layer.unwrap()).collect();
+        assert!(leaves.contains(&1) && leaves.contains(&2) && !leaves.contains(&3));
+        assert!(a.iter().filter(|x| x.element == 1).all(|x| x.layer == Some(3)));
+        assert_eq!(a.last().unwrap().layer, None);
+        assert_eq!(assign_layers(&elements, &layers, 9), a);
+    }
+}
