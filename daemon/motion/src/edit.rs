@@ -412,9 +412,9 @@ mod tests {
                 prop_assert!(same(&out[k], &base[k]));
                 prop_assert_eq!(out[k].pose.t.to_bits(), base[k].pose.t.to_bits());
             }
-            for k in to + 1..base.len() {
+            for (k, b) in base.iter().enumerate().skip(to + 1) {
                 let j = k + new.len() - (to + 1 - from);
-                prop_assert!(same(&out[j], &base[k]));
+                prop_assert!(same(&out[j], b));
             }
         }
     }
