@@ -16,3 +16,8 @@ pub mod wind;
 pub use compose::Animator;
 pub use layers::{LayerInput, Rgba, Scene, SceneError};
 pub use params::{FluidParams, Horizon, InvalidParams, LayerParams, SceneParams, WindParams, WindSource};
+pub mod bench;
+pub mod cli;
+pub mod render;
+pub mod samples;
+pub mod serve;

@@ -1,1 +1,135 @@
-fn main() {}
+//! `frond-warp`: thin entry point; everything lives in the `frond_warp` library.
+
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::Parser;
+use frond_warp::cli::{BenchArgs, Cli, Command, RenderArgs, SceneArgs, ServeArgs};
+use frond_warp::params::Checker;
+use frond_warp::render::{OutputKind, PoseTrack};
+use frond_warp::{Animator, Scene};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+        Command::Serve(args) => serve(args),
+        Command::MakeSamples { dir } => make_samples(&dir),
+        Command::Bench(args) => bench(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-warp: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn load_scene(args: &SceneArgs) -> anyhow::Result<Scene> {
+    Ok(Scene::load(&args.image, &args.layers, args.background.as_deref(), args.scale_map.as_deref())?)
+}
+
+fn render(args: RenderArgs) -> anyhow::Result<()> {
+    // Every argument problem at once: output kind, frames, fps and the simulation parameters.
+    let mut ck = Checker::new();
+    ck.range_i64("--frames", args.frames, 1, 100_000);
+    ck.range_f32("--fps", args.fps, 1.0, 240.0);
+    let out = OutputKind::from_path(&args.output);
+    if let Err(e) = &out {
+        ck.push("--output", args.output.display(), e);
+    }
+    let params = args.sim.to_params(args.scene.layers.len());
+    let mut problems = ck.finish().err().map(|e| e.0).unwrap_or_default();
+    if let Err(e) = &params {
+        problems.extend(e.0.iter().cloned());
+    }
+    if !problems.is_empty() {
+        return Err(frond_warp::InvalidParams(problems).into());
+    }
+    let (out, params) = (out?, params?);
+    let scene = load_scene(&args.scene)?;
+    let track = args.take.as_deref().map(PoseTrack::from_take).transpose()?;
+    let mut animator = Animator::new(scene, params)?;
+    let n = frond_warp::render::render(
+        &mut animator,
+        track.as_ref(),
+        args.frames as usize,
+        args.fps,
+        &out,
+        args.quiet,
+    )?;
+    if !args.quiet {
+        eprintln!(
+            "frond-warp: wrote {n} frames to {} (wind: {})",
+            args.output.display(),
+            if track.is_some() { "take" } else { "procedural" }
+        );
+    }
+    Ok(())
+}
+
+fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    let params = args.sim.to_params(args.scene.layers.len())?;
+    let scene = load_scene(&args.scene)?;
+    let animator = Animator::new(scene, params)?;
+    let socket_dir = frond_protocol::paths::socket_dir(args.socket_dir.clone());
+    frond_warp::serve::serve(
+        animator,
+        frond_warp::serve::ServeOptions { listen: args.listen, socket_dir, no_daemon: args.no_daemon },
+    )
+}
+
+fn make_samples(dir: &std::path::Path) -> anyhow::Result<()> {
+    let names = frond_warp::samples::write_samples(dir)
+        .with_context(|| format!("writing samples to {}", dir.display()))?;
+    for n in names {
+        println!("{}", dir.join(n).display());
+    }
+    Ok(())
+}
+
+fn bench(args: BenchArgs) -> anyhow::Result<()> {
+    if cfg!(debug_assertions) {
+        eprintln!("frond-warp: warning: debug build; build with --release for meaningful timings");
+    }
+    let warp = frond_warp::bench::bench_warp(args.width, args.height, args.iterations);
+    let pipeline: Vec<_> = if args.pipeline_frames > 0 {
+        [(1280, 720), (1920, 1080)]
+            .iter()
+            .map(|&(w, h)| frond_warp::bench::bench_pipeline(w, h, args.pipeline_frames))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if let Some(dir) = &args.write_field {
+        frond_warp::bench::write_field(dir, args.width, args.height)
+            .with_context(|| format!("writing the field to {}", dir.display()))?;
+    }
+    if args.json {
+        let v = serde_json::json!({
+            "warp": warp,
+            "pipeline": pipeline,
+            "field_dir": args.write_field,
+            "threads": 1,
+            "release": !cfg!(debug_assertions),
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "warp {}x{}: median {:.2} ms, min {:.2} ms ({:.0} Mpx/s, single thread, {} iterations)",
+            warp.width, warp.height, warp.median_ms, warp.min_ms, warp.mpix_per_s, warp.iterations
+        );
+        for p in pipeline {
+            println!("pipeline {}x{}: {:.1} frames/s ({} frames)", p.width, p.height, p.fps, p.frames);
+        }
+        if let Some(dir) = &args.write_field {
+            println!(
+                "field written to {} (python3 exporters/warp/bench/remap.py {})",
+                dir.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}

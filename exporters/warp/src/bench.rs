@@ -1,0 +1,140 @@
+//! Timing of the warp and of the whole pipeline, for `frond-warp bench` and `frond bench`.
+//!
+//! [`bench_warp`] times [`Warper::remap`] (single thread) on a synthetic RGBA frame with a smooth
+//! displacement field; [`write_field`] writes that same frame and field (and our output) so that
+//! `exporters/warp/bench/remap.py` can time OpenCV's `cv2.remap` on identical input in the same
+//! run and report how far its output is from ours. [`bench_pipeline`] measures whole frames
+//! (wind, waves, warp, composite) per second.
+
+use std::path::Path;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::compose::Animator;
+use crate::layers::{LayerInput, Rgba, Scene};
+use crate::params::SceneParams;
+use crate::warp::Warper;
+
+/// Result of [`bench_warp`].
+#[derive(Debug, Clone, Serialize)]
+pub struct WarpBench {
+    /// Frame width.
+    pub width: usize,
+    /// Frame height.
+    pub height: usize,
+    /// Timed iterations.
+    pub iterations: usize,
+    /// Median time per frame, milliseconds.
+    pub median_ms: f64,
+    /// Fastest frame, milliseconds.
+    pub min_ms: f64,
+    /// Megapixels per second at the median.
+    pub mpix_per_s: f64,
+}
+
+/// Result of [`bench_pipeline`].
+#[derive(Debug, Clone, Serialize)]
+pub struct PipelineBench {
+    /// Frame width.
+    pub width: usize,
+    /// Frame height.
+    pub height: usize,
+    /// Frames simulated and composed.
+    pub frames: usize,
+    /// Frames per second.
+    pub fps: f64,
+}
+
+/// A deterministic test picture.
+pub fn synthetic_frame(w: usize, h: usize) -> Vec<u8> {
+    let mut v = vec![0u8; w * h * 4];
+    for y in 0..h {
+        for x in 0..w {
+            let p = (y * w + x) * 4;
+            v[p] = (x * 255 / w.max(1)) as u8;
+            v[p + 1] = (y * 255 / h.max(1)) as u8;
+            v[p + 2] = (((x / 8) ^ (y / 8)) & 1) as u8 * 200;
+            v[p + 3] = 255;
+        }
+    }
+    v
+}
+
+/// A warper over `w x h` (16 px cells) with a smooth field of up to about 6 pixels.
+pub fn synthetic_warper(w: usize, h: usize) -> Warper {
+    let mut warper = Warper::new(w, h, 16, 16);
+    let (cols, rows) = warper.corners();
+    for cy in 0..rows {
+        for cx in 0..cols {
+            let (x, y) = (cx as f32 * 0.21, cy as f32 * 0.17);
+            warper.set_corner(cx, cy, [5.0 * (x + 0.5 * y).sin(), 3.0 * (0.7 * x - y).cos()]);
+        }
+    }
+    warper
+}
+
+/// Times `iterations` warps of a `w x h` RGBA frame on this thread.
+pub fn bench_warp(w: usize, h: usize, iterations: usize) -> WarpBench {
+    let src = synthetic_frame(w, h);
+    let mut dst = vec![0u8; src.len()];
+    let warper = synthetic_warper(w, h);
+    warper.remap(&src, &mut dst); // warm-up
+    let mut times: Vec<f64> = (0..iterations.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            warper.remap(&src, &mut dst);
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    WarpBench {
+        width: w,
+        height: h,
+        iterations: times.len(),
+        median_ms: median,
+        min_ms: times[0],
+        mpix_per_s: (w * h) as f64 / 1e6 / (median / 1e3),
+    }
+}
+
+/// Frames per second of the whole pipeline on a synthetic scene (one layer over the lower two
+/// thirds, default parameters, steady wind).
+pub fn bench_pipeline(w: usize, h: usize, frames: usize) -> PipelineBench {
+    let pic = Rgba { width: w, height: h, data: synthetic_frame(w, h) };
+    let mask: Vec<u8> = (0..w * h).map(|p| if p / w >= h / 3 { 255 } else { 0 }).collect();
+    let scene = Scene::build(pic, vec![("bench".into(), LayerInput::Mask(mask))], None, None).expect("scene");
+    let mut p = SceneParams::default();
+    p.wind.strength = 0.8;
+    let mut a = Animator::new(scene, p).expect("params");
+    a.step(1.0 / 30.0);
+    let t = Instant::now();
+    for _ in 0..frames.max(1) {
+        a.step(1.0 / 30.0);
+    }
+    PipelineBench {
+        width: w,
+        height: h,
+        frames: frames.max(1),
+        fps: frames.max(1) as f64 / t.elapsed().as_secs_f64(),
+    }
+}
+
+/// Writes `src.rgba`, `map_x.f32`, `map_y.f32` (little-endian float32, row-major, pixels),
+/// `ours.rgba` and `meta.json` for `remap.py`.
+pub fn write_field(dir: &Path, w: usize, h: usize) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let src = synthetic_frame(w, h);
+    let warper = synthetic_warper(w, h);
+    let mut ours = vec![0u8; src.len()];
+    warper.remap(&src, &mut ours);
+    let (mx, my) = warper.source_maps();
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    std::fs::write(dir.join("src.rgba"), &src)?;
+    std::fs::write(dir.join("ours.rgba"), &ours)?;
+    std::fs::write(dir.join("map_x.f32"), f32s(&mx))?;
+    std::fs::write(dir.join("map_y.f32"), f32s(&my))?;
+    std::fs::write(dir.join("meta.json"), serde_json::json!({ "width": w, "height": h }).to_string())?;
+    Ok(())
+}

@@ -1,0 +1,393 @@
+//! Command-line arguments of `frond-warp`, parsed raw (numbers as written, negative ones too) and
+//! validated into [`SceneParams`] so that every bad parameter is reported at once, by name, with
+//! its allowed range.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::params::{Checker, Horizon, InvalidParams, LayerParams, SceneParams, WindSource};
+
+const ABOUT: &str = "Animate vegetation in a picture with the wind, driven by the hand (seed 001).
+
+A picture's vegetation layers (masks cut out of the picture, or RGBA images with alpha) sway over
+the background (given, or inpainted where masks fully cover the picture). Per frame:
+  1. wind: stable fluids on a coarse grid (--fluid-grid, default 64), open boundaries; forces of a
+     direction (--direction), strength in [0, 1] (--strength) and interval between injections
+     (--interval) at a source (--source border|X,Y, --radius);
+  2. vegetation: a damped wave simulation of each layer's velocity (Eq. 3-4), pulled towards the
+     wind (--stiffness), damping --gamma in [0.01, 1], wave speed --c in [1, 10];
+  3. warp: a grid of --cell pixels over each layer, corners moved against the velocity by
+     lambda * R * V_p * dt cells (Eq. 5-7; --lambda-x/--lambda-y, R = (l/h)^r with --rigidity r
+     in [0, 10] and --horizon bottom|top|none), each pixel mapped bilinearly inside its cell
+     (Eq. 8) and filtered bilinearly; an optional --scale-map (grey) scales lambda per pixel.
+Pixels outside every layer never change (unless --sway-margin lets layers grow).
+
+Live: `serve` subscribes to frondd (--socket-dir, env FROND_SOCKET_DIR): the root joint's bend
+sets the wind direction and strength, the sway rate the interval. Without a daemon it falls back to
+a procedural wind with the page's settings and says so.
+
+Examples:
+  frond-warp make-samples rig-files/images
+  frond-warp render --image rig-files/images/grass.png --layer rig-files/images/grass-mask.png \\
+      --scale-map rig-files/images/grass-scale.png --frames 90 --fps 30 -o grass.gif
+  frond-warp render --image rig-files/images/shrub-background.png --layer rig-files/images/shrub.png \\
+      --horizon bottom --rigidity 1 --sway-margin 6 --frames 60 -o frames/
+  frond-warp serve --image rig-files/images/grass.png --layer rig-files/images/grass-mask.png \\
+      --listen 127.0.0.1:8080
+  frond-warp bench --json";
+
+/// `frond-warp`.
+#[derive(Debug, Parser)]
+#[command(name = "frond-warp", version, about = "Hand-driven vegetation-in-the-wind preview (seed 001)", long_about = ABOUT)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render an animation offline to a GIF, an animated WebP or a directory of PNGs.
+    Render(RenderArgs),
+    /// Serve the live preview on a web page.
+    Serve(ServeArgs),
+    /// Write the procedurally drawn sample pictures into DIR.
+    MakeSamples {
+        /// Output directory (created if needed).
+        dir: PathBuf,
+    },
+    /// Time the warp of one frame (single thread) and the full pipeline.
+    Bench(BenchArgs),
+}
+
+/// The picture and its layers.
+#[derive(Debug, Clone, Args)]
+pub struct SceneArgs {
+    /// The picture (PNG, JPEG, GIF or WebP).
+    #[arg(long, value_name = "IMG")]
+    pub image: PathBuf,
+    /// A vegetation layer: a mask (greyscale / no alpha: cut out of the picture) or an RGBA image
+    /// with alpha. Repeat for several layers, back to front.
+    #[arg(long = "layer", value_name = "MASK_OR_RGBA")]
+    pub layers: Vec<PathBuf>,
+    /// Background under the layers (default: the picture, inpainted under fully masked areas).
+    #[arg(long, value_name = "BG")]
+    pub background: Option<PathBuf>,
+    /// Greyscale map of |lambda| per pixel (white = full motion).
+    #[arg(long, value_name = "MAP")]
+    pub scale_map: Option<PathBuf>,
+}
+
+/// Simulation and warp parameters (raw; see [`SimArgs::to_params`]).
+#[derive(Debug, Clone, Args)]
+#[command(next_help_heading = "Wind and vegetation")]
+pub struct SimArgs {
+    /// Wind direction in degrees: 0 blows to the right, 90 down [-360, 360].
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub direction: f32,
+    /// Wind strength [0, 1].
+    #[arg(long, default_value_t = 0.6, allow_negative_numbers = true)]
+    pub strength: f32,
+    /// Seconds between wind injections (0 = continuous) [0, 10].
+    #[arg(long, default_value_t = 0.8, allow_negative_numbers = true)]
+    pub interval: f32,
+    /// Wind source: `border` (the upwind border) or a point `X,Y` in fractions of the picture.
+    #[arg(long, default_value = "border", allow_negative_numbers = true)]
+    pub source: String,
+    /// Radius of a point source / depth of the border source, fraction of the picture [0.01, 0.5].
+    #[arg(long, default_value_t = 0.08, allow_negative_numbers = true)]
+    pub radius: f32,
+    /// Wind grid cells per side [8, 256].
+    #[arg(long, default_value_t = 64, allow_negative_numbers = true)]
+    pub fluid_grid: i64,
+    /// Wind viscosity [0, 0.01].
+    #[arg(long, default_value_t = 0.0001, allow_negative_numbers = true)]
+    pub viscosity: f32,
+    /// Damping gamma of the vegetation [0.01, 1] (larger: more rigid).
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    pub gamma: f32,
+    /// Wave speed c [1, 10] (wave-grid cells per second).
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
+    pub c: f32,
+    /// How fast the vegetation follows the wind, Hz [0.1, 10].
+    #[arg(long, default_value_t = 1.2, allow_negative_numbers = true)]
+    pub stiffness: f32,
+    /// Rigidity r [0, 10] of R = (l/h)^r (Eq. 6).
+    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    pub rigidity: f32,
+    /// Where the vegetation is fixed: bottom (roots visible), top (field seen from above), none.
+    #[arg(long, default_value = "bottom")]
+    pub horizon: String,
+    /// Grid cell size s_x = s_y in pixels [2, 256].
+    #[arg(long, default_value_t = 16, allow_negative_numbers = true)]
+    pub cell: i64,
+    /// Scale factor lambda_x [0, 1000] (Eq. 5).
+    #[arg(long, default_value_t = 12.0, allow_negative_numbers = true)]
+    pub lambda_x: f32,
+    /// Scale factor lambda_y [0, 1000] (Eq. 5).
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
+    pub lambda_y: f32,
+    /// Wave grid cells along the picture's longer side [4, 256].
+    #[arg(long, default_value_t = 48, allow_negative_numbers = true)]
+    pub wave_grid: i64,
+    /// Pixels a layer may sway beyond its mask [0, 64].
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub sway_margin: i64,
+    /// Per-layer override `N:key=value[,key=value]` (keys: gamma, c, stiffness, rigidity, horizon,
+    /// cell, lambda_x, lambda_y, wave_grid, sway_margin); N counts layers from 0. Repeatable.
+    #[arg(long = "layer-set", value_name = "N:K=V,...")]
+    pub layer_set: Vec<String>,
+    /// Seed of the procedural wind.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// `frond-warp render`.
+#[derive(Debug, Clone, Args)]
+pub struct RenderArgs {
+    /// Picture and layers.
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Parameters.
+    #[command(flatten)]
+    pub sim: SimArgs,
+    /// A recorded take (NAME.take): its root joint drives the wind instead of the procedural wind.
+    #[arg(long, value_name = "TAKE")]
+    pub take: Option<PathBuf>,
+    /// Frames to render [1, 100000].
+    #[arg(long, allow_negative_numbers = true)]
+    pub frames: i64,
+    /// Frames per second [1, 240].
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    pub fps: f32,
+    /// Output: out.gif, out.webp or a directory (DIR/) of PNG frames.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `frond-warp serve`.
+#[derive(Debug, Clone, Args)]
+pub struct ServeArgs {
+    /// Picture and layers.
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Parameters (initial values; the page changes them).
+    #[command(flatten)]
+    pub sim: SimArgs,
+    /// Address to listen on (port 0 picks a free port; the URL is printed).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub listen: String,
+    /// Socket directory of frondd.
+    #[arg(long, env = "FROND_SOCKET_DIR")]
+    pub socket_dir: Option<PathBuf>,
+    /// Do not connect to the daemon (procedural wind only).
+    #[arg(long)]
+    pub no_daemon: bool,
+}
+
+/// `frond-warp bench`.
+#[derive(Debug, Clone, Args)]
+pub struct BenchArgs {
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Frame width for the warp timing.
+    #[arg(long, default_value_t = 1920)]
+    pub width: usize,
+    /// Frame height for the warp timing.
+    #[arg(long, default_value_t = 1080)]
+    pub height: usize,
+    /// Timed warps.
+    #[arg(long, default_value_t = 20)]
+    pub iterations: usize,
+    /// Frames per pipeline measurement (at 1280x720 and 1920x1080); 0 skips it.
+    #[arg(long, default_value_t = 30)]
+    pub pipeline_frames: usize,
+    /// Also write the frame and displacement field for exporters/warp/bench/remap.py into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub write_field: Option<PathBuf>,
+}
+
+impl SimArgs {
+    /// Validates into scene parameters for `layers` layers; every problem is reported.
+    pub fn to_params(&self, layers: usize) -> Result<SceneParams, InvalidParams> {
+        let mut ck = Checker::new();
+        let mut p = SceneParams { seed: self.seed, ..SceneParams::default() };
+        p.wind.direction_deg = self.direction;
+        p.wind.strength = self.strength;
+        p.wind.interval_s = self.interval;
+        p.wind.radius = self.radius;
+        p.wind.source = match self.source.as_str() {
+            "border" => WindSource::Border,
+            s => match s.split_once(',').map(|(a, b)| (a.trim().parse::<f32>(), b.trim().parse::<f32>())) {
+                Some((Ok(x), Ok(y))) => WindSource::Point { x, y },
+                _ => {
+                    ck.push("source", s, "`border` or a point `X,Y` with X, Y in [0, 1]");
+                    WindSource::Border
+                }
+            },
+        };
+        p.fluid.grid = to_u32(&mut ck, "fluid-grid", self.fluid_grid);
+        p.fluid.viscosity = self.viscosity;
+        let horizon = self.horizon.parse::<Horizon>().unwrap_or_else(|_| {
+            ck.push("horizon", &self.horizon, "bottom, top or none");
+            Horizon::Bottom
+        });
+        let cell = to_u32(&mut ck, "cell", self.cell);
+        let base = LayerParams {
+            gamma: self.gamma,
+            c: self.c,
+            stiffness_hz: self.stiffness,
+            rigidity: self.rigidity,
+            horizon,
+            cell_x: cell,
+            cell_y: cell,
+            lambda_x: self.lambda_x,
+            lambda_y: self.lambda_y,
+            wave_grid: to_u32(&mut ck, "wave-grid", self.wave_grid),
+            sway_margin_px: to_u32(&mut ck, "sway-margin", self.sway_margin),
+        };
+        p.layers = vec![base; layers];
+        for spec in &self.layer_set {
+            apply_layer_set(&mut ck, &mut p.layers, spec);
+        }
+        // Range checks, with the command line's flag names for the shared values.
+        let mut ranges = Checker::new();
+        ranges.extend_prefixed("--", {
+            let mut c = p.wind.check();
+            c.extend_prefixed("", p.fluid.check());
+            c
+        });
+        let mut layer_ck = Checker::new();
+        if layers == 0 {
+            layer_ck.extend_prefixed("", base.check());
+        }
+        for (i, l) in p.layers.iter().enumerate() {
+            layer_ck.extend_prefixed(&format!("layer[{i}]."), l.check());
+        }
+        ck.extend_prefixed("", ranges);
+        ck.extend_prefixed("", layer_ck);
+        ck.finish()?;
+        Ok(p)
+    }
+}
+
+/// An integer flag that must fit `u32` (negative values are reported, not wrapped).
+fn to_u32(ck: &mut Checker, name: &str, v: i64) -> u32 {
+    if v < 0 || v > u32::MAX as i64 {
+        ck.push(name, v, "a non-negative integer");
+        0
+    } else {
+        v as u32
+    }
+}
+
+fn apply_layer_set(ck: &mut Checker, layers: &mut [LayerParams], spec: &str) {
+    let Some((idx, rest)) = spec.split_once(':') else {
+        ck.push("layer-set", spec, "N:key=value[,key=value]");
+        return;
+    };
+    let Some(l) = idx.trim().parse::<usize>().ok().and_then(|i| layers.get_mut(i)) else {
+        ck.push("layer-set", spec, format!("a layer index from 0 to {}", layers.len() as i64 - 1));
+        return;
+    };
+    for kv in rest.split(',') {
+        let Some((k, v)) = kv.split_once('=') else {
+            ck.push("layer-set", kv, "key=value");
+            continue;
+        };
+        let (k, v) = (k.trim(), v.trim());
+        let num = v.parse::<f64>();
+        let name = format!("layer-set {idx}:{k}");
+        match (k, num) {
+            ("horizon", _) => match v.parse::<Horizon>() {
+                Ok(h) => l.horizon = h,
+                Err(_) => ck.push(&name, v, "bottom, top or none"),
+            },
+            ("gamma", Ok(x)) => l.gamma = x as f32,
+            ("c", Ok(x)) => l.c = x as f32,
+            ("stiffness", Ok(x)) => l.stiffness_hz = x as f32,
+            ("rigidity", Ok(x)) => l.rigidity = x as f32,
+            ("lambda_x", Ok(x)) => l.lambda_x = x as f32,
+            ("lambda_y", Ok(x)) => l.lambda_y = x as f32,
+            ("cell", Ok(x)) => {
+                let c = to_u32(ck, &name, x as i64);
+                l.cell_x = c;
+                l.cell_y = c;
+            }
+            ("wave_grid", Ok(x)) => l.wave_grid = to_u32(ck, &name, x as i64),
+            ("sway_margin", Ok(x)) => l.sway_margin_px = to_u32(ck, &name, x as i64),
+            (
+                "gamma" | "c" | "stiffness" | "rigidity" | "lambda_x" | "lambda_y" | "cell" | "wave_grid"
+                | "sway_margin",
+                Err(_),
+            ) => ck.push(&name, v, "a number"),
+            _ => ck.push(&name, k, "one of gamma, c, stiffness, rigidity, horizon, cell, lambda_x, lambda_y, wave_grid, sway_margin"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sim(args: &[&str]) -> SimArgs {
+        #[derive(Parser)]
+        struct T {
+            #[command(flatten)]
+            sim: SimArgs,
+        }
+        let mut v = vec!["t"];
+        v.extend_from_slice(args);
+        T::try_parse_from(v).unwrap().sim
+    }
+
+    #[test]
+    fn defaults_validate() {
+        let p = sim(&[]).to_params(2).unwrap();
+        assert_eq!(p.layers.len(), 2);
+        assert_eq!(p.fluid.grid, 64);
+    }
+
+    #[test]
+    fn all_bad_values_reported_with_names_and_ranges() {
+        let err = sim(&[
+            "--cell",
+            "-4",
+            "--gamma",
+            "2",
+            "--strength",
+            "-0.5",
+            "--horizon",
+            "left",
+            "--source",
+            "3",
+        ])
+        .to_params(1)
+        .unwrap_err()
+        .to_string();
+        for needle in [
+            "cell = -4",
+            "horizon = left",
+            "source = 3",
+            "--strength = -0.5 is out of range (allowed: 0 to 1)",
+            "layer[0].gamma = 2 is out of range (allowed: 0.01 to 1)",
+        ] {
+            assert!(err.contains(needle), "missing `{needle}` in:\n{err}");
+        }
+    }
+
+    #[test]
+    fn layer_set_overrides_one_layer() {
+        let p = sim(&["--layer-set", "1:gamma=0.5,horizon=top,cell=8"]).to_params(2).unwrap();
+        assert_eq!(p.layers[0].gamma, 0.05);
+        assert_eq!((p.layers[1].gamma, p.layers[1].horizon, p.layers[1].cell_x), (0.5, Horizon::Top, 8));
+        let err = sim(&["--layer-set", "5:gamma=0.5"]).to_params(2).unwrap_err().to_string();
+        assert!(err.contains("layer index from 0 to 1"), "{err}");
+    }
+}

@@ -1,0 +1,351 @@
+//! Offline rendering: `frond-warp render ... --frames N --fps F -o out.gif|out.webp|DIR/`.
+//!
+//! The wind comes from a recorded take (the root joint through [`crate::wind::HandWind`], frame
+//! times from the take's pose times) or, without one, from the seeded procedural wind. Either way
+//! the output depends only on the inputs and the seed.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+
+use image::codecs::gif::{GifEncoder, Repeat};
+use image::{Delay, Frame, RgbaImage};
+use thiserror::Error;
+
+use crate::compose::Animator;
+use crate::wind::HandWind;
+
+/// Where frames go.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum OutputKind {
+    /// An animated GIF.
+    Gif(PathBuf),
+    /// An animated, lossless WebP.
+    Webp(PathBuf),
+    /// A directory of `frame_00000.png`...
+    Dir(PathBuf),
+}
+
+/// Errors of rendering.
+#[derive(Debug, Error)]
+pub enum RenderError {
+    /// The output name says neither .gif, .webp nor a directory.
+    #[error("output {0} must end in .gif or .webp, or be a directory (end it with /)")]
+    UnknownOutput(PathBuf),
+    /// Writing failed.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Encoding failed.
+    #[error("cannot encode {path}: {source}")]
+    Encode {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: image::ImageError,
+    },
+    /// The take could not be read.
+    #[error("cannot read take {path}: {message}")]
+    Take {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+}
+
+impl OutputKind {
+    /// Classifies `-o`: `.gif`, `.webp`, or a directory (trailing `/` or existing directory).
+    pub fn from_path(path: &Path) -> Result<OutputKind, RenderError> {
+        let s = path.to_string_lossy();
+        if s.ends_with('/') || path.is_dir() {
+            return Ok(OutputKind::Dir(path.to_path_buf()));
+        }
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("gif") => Ok(OutputKind::Gif(path.to_path_buf())),
+            Some("webp") => Ok(OutputKind::Webp(path.to_path_buf())),
+            _ => Err(RenderError::UnknownOutput(path.to_path_buf())),
+        }
+    }
+}
+
+/// Root-joint rotations over time (seconds from the first pose).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PoseTrack {
+    /// Times, seconds, non-decreasing.
+    pub times_s: Vec<f64>,
+    /// Root joint `[pitch, yaw, roll]` at each time, degrees.
+    pub roots_deg: Vec<[f32; 3]>,
+}
+
+impl PoseTrack {
+    /// Reads a `.take` file (frond's take format) and keeps the root joint of every frame.
+    pub fn from_take(path: &Path) -> Result<PoseTrack, RenderError> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.to_string() })?;
+        let scan = frond_motion::take::scan_take(&bytes)
+            .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.to_string() })?;
+        let poses = scan.poses();
+        if poses.is_empty() {
+            return Err(RenderError::Take {
+                path: path.to_path_buf(),
+                message: "the take has no frames".into(),
+            });
+        }
+        let t0 = poses[0].t;
+        Ok(PoseTrack {
+            times_s: poses.iter().map(|p| p.t - t0).collect(),
+            roots_deg: poses.iter().map(|p| p.joints_deg[0]).collect(),
+        })
+    }
+}
+
+/// Progress on stderr: a bar on a terminal, nothing otherwise (or when quiet).
+struct Progress {
+    total: usize,
+    on: bool,
+}
+
+impl Progress {
+    fn new(total: usize, quiet: bool) -> Progress {
+        Progress { total, on: !quiet && std::io::stderr().is_terminal() }
+    }
+    fn tick(&self, done: usize) {
+        if !self.on {
+            return;
+        }
+        let width = 30;
+        let filled = done * width / self.total.max(1);
+        let mut err = std::io::stderr().lock();
+        let _ = write!(
+            err,
+            "\r[{}{}] {done}/{} frames",
+            "#".repeat(filled),
+            ".".repeat(width - filled),
+            self.total
+        );
+        if done == self.total {
+            let _ = writeln!(err);
+        }
+        let _ = err.flush();
+    }
+}
+
+/// Renders `frames` frames at `fps` into `out`; with a `track`, the hand of the take drives the
+/// wind (looping if the take is shorter). Returns the number of frames written.
+pub fn render(
+    animator: &mut Animator,
+    track: Option<&PoseTrack>,
+    frames: usize,
+    fps: f32,
+    out: &OutputKind,
+    quiet: bool,
+) -> Result<usize, RenderError> {
+    let dt = 1.0 / fps;
+    let (w, h) = (animator.scene().width, animator.scene().height);
+    let progress = Progress::new(frames, quiet);
+    let mut hand = HandWind::new();
+    let mut cursor = 0usize;
+    let mut sink = Sink::open(out, w, h, fps)?;
+    if track.is_some() {
+        animator.set_procedural(false);
+    }
+    for k in 0..frames {
+        if let Some(tr) = track {
+            let duration = tr.times_s.last().copied().unwrap_or(0.0).max(1e-9);
+            let t = (k as f64 * dt as f64) % (duration + dt as f64);
+            if k > 0 && cursor < tr.times_s.len() && tr.times_s[cursor] > t {
+                cursor = 0; // looped
+            }
+            let mut wind = animator.params().wind;
+            while cursor < tr.times_s.len() && tr.times_s[cursor] <= t {
+                hand.update(k as f64 * dt as f64, tr.roots_deg[cursor], &mut wind);
+                cursor += 1;
+            }
+            // Settings from a take are valid by construction (clamped strength and interval).
+            let _ = animator.set_wind(wind);
+        }
+        let frame = animator.step(dt);
+        sink.push(k, frame)?;
+        progress.tick(k + 1);
+    }
+    sink.finish()?;
+    Ok(frames)
+}
+
+enum Sink {
+    Gif(PathBuf, Box<GifEncoder<std::io::BufWriter<std::fs::File>>>, u32, u32, Delay),
+    Webp(PathBuf, WebpAnim),
+    Dir(PathBuf, u32, u32),
+}
+
+impl Sink {
+    fn open(out: &OutputKind, w: usize, h: usize, fps: f32) -> Result<Sink, RenderError> {
+        let (w, h) = (w as u32, h as u32);
+        Ok(match out {
+            OutputKind::Gif(path) => {
+                let f = std::fs::File::create(path)
+                    .map_err(|source| RenderError::Write { path: path.clone(), source })?;
+                let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(f), 10);
+                enc.set_repeat(Repeat::Infinite)
+                    .map_err(|source| RenderError::Encode { path: path.clone(), source })?;
+                let delay = Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32);
+                Sink::Gif(path.clone(), Box::new(enc), w, h, delay)
+            }
+            OutputKind::Webp(path) => {
+                Sink::Webp(path.clone(), WebpAnim::new(w, h, (1000.0 / fps).round() as u32))
+            }
+            OutputKind::Dir(path) => {
+                std::fs::create_dir_all(path)
+                    .map_err(|source| RenderError::Write { path: path.clone(), source })?;
+                Sink::Dir(path.clone(), w, h)
+            }
+        })
+    }
+
+    fn push(&mut self, k: usize, frame: &[u8]) -> Result<(), RenderError> {
+        match self {
+            Sink::Gif(path, enc, w, h, delay) => {
+                let img = RgbaImage::from_raw(*w, *h, frame.to_vec()).expect("frame size");
+                enc.encode_frame(Frame::from_parts(img, 0, 0, *delay))
+                    .map_err(|source| RenderError::Encode { path: path.clone(), source })
+            }
+            Sink::Webp(path, anim) => {
+                anim.push(frame).map_err(|source| RenderError::Encode { path: path.clone(), source })
+            }
+            Sink::Dir(dir, w, h) => {
+                let path = dir.join(format!("frame_{k:05}.png"));
+                image::save_buffer(&path, frame, *w, *h, image::ColorType::Rgba8)
+                    .map_err(|source| RenderError::Encode { path, source })
+            }
+        }
+    }
+
+    fn finish(self) -> Result<(), RenderError> {
+        match self {
+            Sink::Gif(..) | Sink::Dir(..) => Ok(()),
+            Sink::Webp(path, anim) => {
+                std::fs::write(&path, anim.finish()).map_err(|source| RenderError::Write { path, source })
+            }
+        }
+    }
+}
+
+/// An animated WebP assembled from lossless (VP8L) frames: `RIFF/WEBP` with `VP8X`, `ANIM` and
+/// one `ANMF` chunk per frame (the WebP container specification).
+pub struct WebpAnim {
+    w: u32,
+    h: u32,
+    duration_ms: u32,
+    frames: Vec<u8>,
+}
+
+impl WebpAnim {
+    /// An empty animation of `w x h` with `duration_ms` per frame.
+    pub fn new(w: u32, h: u32, duration_ms: u32) -> WebpAnim {
+        WebpAnim { w, h, duration_ms: duration_ms.clamp(1, 0xFF_FFFF), frames: Vec::new() }
+    }
+
+    /// Encodes one RGBA frame.
+    pub fn push(&mut self, rgba: &[u8]) -> Result<(), image::ImageError> {
+        let mut single = Vec::new();
+        image::codecs::webp::WebPEncoder::new_lossless(&mut single).encode(
+            rgba,
+            self.w,
+            self.h,
+            image::ExtendedColorType::Rgba8,
+        )?;
+        // Find the VP8L chunk of the single-image file (after "RIFF" size "WEBP").
+        let mut pos = 12;
+        let mut bitstream = None;
+        while pos + 8 <= single.len() {
+            let id = &single[pos..pos + 4];
+            let len = u32::from_le_bytes(single[pos + 4..pos + 8].try_into().expect("4 bytes")) as usize;
+            let end = (pos + 8 + len).min(single.len());
+            if id == b"VP8L" {
+                bitstream = Some(single[pos..end].to_vec());
+                break;
+            }
+            pos = pos + 8 + len + (len & 1);
+        }
+        let chunk = bitstream.ok_or_else(|| {
+            image::ImageError::IoError(std::io::Error::other("webp encoder produced no VP8L chunk"))
+        })?;
+        let mut payload = Vec::with_capacity(chunk.len() + 16);
+        payload.extend_from_slice(&[0, 0, 0, 0, 0, 0]); // frame x/2, y/2 = 0
+        payload.extend_from_slice(&u24(self.w - 1));
+        payload.extend_from_slice(&u24(self.h - 1));
+        payload.extend_from_slice(&u24(self.duration_ms));
+        payload.push(0b10); // no blending, no disposal
+        payload.extend_from_slice(&chunk);
+        if chunk.len() % 2 == 1 {
+            payload.push(0);
+        }
+        push_chunk(&mut self.frames, b"ANMF", &payload);
+        Ok(())
+    }
+
+    /// The complete file.
+    pub fn finish(self) -> Vec<u8> {
+        let mut body = Vec::new();
+        body.extend_from_slice(b"WEBP");
+        let mut vp8x = vec![0b0001_0010, 0, 0, 0]; // alpha + animation
+        vp8x.extend_from_slice(&u24(self.w - 1));
+        vp8x.extend_from_slice(&u24(self.h - 1));
+        push_chunk(&mut body, b"VP8X", &vp8x);
+        push_chunk(&mut body, b"ANIM", &[0, 0, 0, 0, 0, 0]); // background, loop forever
+        body.extend_from_slice(&self.frames);
+        let mut out = Vec::with_capacity(body.len() + 8);
+        out.extend_from_slice(b"RIFF");
+        out.extend_from_slice(&(body.len() as u32).to_le_bytes());
+        out.extend_from_slice(&body);
+        out
+    }
+}
+
+fn u24(v: u32) -> [u8; 3] {
+    let b = v.to_le_bytes();
+    [b[0], b[1], b[2]]
+}
+
+fn push_chunk(out: &mut Vec<u8>, id: &[u8; 4], payload: &[u8]) {
+    out.extend_from_slice(id);
+    out.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    out.extend_from_slice(payload);
+    if payload.len() % 2 == 1 {
+        out.push(0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_kinds() {
+        assert!(matches!(OutputKind::from_path(Path::new("a.GIF")), Ok(OutputKind::Gif(_))));
+        assert!(matches!(OutputKind::from_path(Path::new("a.webp")), Ok(OutputKind::Webp(_))));
+        assert!(matches!(OutputKind::from_path(Path::new("frames/")), Ok(OutputKind::Dir(_))));
+        let err = OutputKind::from_path(Path::new("a.mp4")).unwrap_err().to_string();
+        assert!(err.contains("a.mp4") && err.contains(".gif"), "{err}");
+    }
+
+    #[test]
+    fn animated_webp_decodes_frame_by_frame() {
+        let mut anim = WebpAnim::new(5, 3, 40);
+        let f1: Vec<u8> = (0..60).map(|i| (i * 4) as u8).collect();
+        let f2: Vec<u8> = (0..60).map(|i| 255 - (i * 4) as u8).map(|v| v | 1).collect();
+        anim.push(&f1).unwrap();
+        anim.push(&f2).unwrap();
+        let bytes = anim.finish();
+        let dec = image::codecs::webp::WebPDecoder::new(std::io::Cursor::new(bytes)).unwrap();
+        use image::AnimationDecoder;
+        let frames: Vec<_> = dec.into_frames().collect::<Result<_, _>>().unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[0].buffer().as_raw(), &f1);
+        assert_eq!(frames[1].buffer().as_raw(), &f2);
+    }
+}

@@ -1,0 +1,335 @@
+//! `frond-warp serve`: the live animation on a web page.
+//!
+//! Three threads: the simulation (fixed 30 Hz steps on absolute deadlines, publishing each frame
+//! into a shared slot), the pose listener (subscribes to `frondd` through `frond_sdk`, reconnects,
+//! and reports the connection state), and the HTTP server (tiny_http) serving:
+//!
+//! - `GET /` the page (canvas, controls, daemon state, frames per second);
+//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers);
+//! - `GET /still` the unwarped composite, raw RGBA (what a still frame looks like);
+//! - `GET /status` JSON: frame number, simulation fps, daemon state, wind source, parameters;
+//! - `POST /params` JSON controls (`direction_deg`, `strength`, `interval_s`, `gamma`, `c`,
+//!   `rigidity`, `cell`, `lambda`, `grid`), validated; applied at the next frame. A bad value
+//!   answers 400 with every problem named.
+//!
+//! When the daemon streams poses, the root joint drives direction, strength and interval (the
+//! page says "hand"); otherwise the procedural wind uses the page's settings (and says so).
+
+use std::io::Read;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+use tiny_http::{Header, Method, Response, Server};
+
+use crate::compose::Animator;
+use crate::params::{InvalidParams, SceneParams};
+use crate::wind::HandWind;
+
+/// Simulation rate of the live preview.
+pub const SERVE_FPS: f32 = 30.0;
+
+/// Controls the page can change (all optional; missing ones keep their value).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Controls {
+    /// Wind direction, degrees (0 = right, 90 = down).
+    pub direction_deg: Option<f32>,
+    /// Wind strength [0, 1].
+    pub strength: Option<f32>,
+    /// Interval between injections, seconds.
+    pub interval_s: Option<f32>,
+    /// Damping gamma of every layer.
+    pub gamma: Option<f32>,
+    /// Wave speed c of every layer.
+    pub c: Option<f32>,
+    /// Rigidity r of every layer.
+    pub rigidity: Option<f32>,
+    /// Cell size (s_x = s_y) of every layer, pixels.
+    pub cell: Option<u32>,
+    /// Scale factor (lambda_x; lambda_y keeps its ratio) of every layer.
+    pub lambda: Option<f32>,
+    /// Wind grid cells per side.
+    pub grid: Option<u32>,
+}
+
+impl Controls {
+    /// Applies to a copy of `params` and validates the result.
+    pub fn apply(&self, params: &SceneParams) -> Result<SceneParams, InvalidParams> {
+        let mut p = params.clone();
+        if let Some(v) = self.direction_deg {
+            p.wind.direction_deg = v;
+        }
+        if let Some(v) = self.strength {
+            p.wind.strength = v;
+        }
+        if let Some(v) = self.interval_s {
+            p.wind.interval_s = v;
+        }
+        if let Some(v) = self.grid {
+            p.fluid.grid = v;
+        }
+        for l in &mut p.layers {
+            if let Some(v) = self.gamma {
+                l.gamma = v;
+            }
+            if let Some(v) = self.c {
+                l.c = v;
+            }
+            if let Some(v) = self.rigidity {
+                l.rigidity = v;
+            }
+            if let Some(v) = self.cell {
+                l.cell_x = v;
+                l.cell_y = v;
+            }
+            if let Some(v) = self.lambda {
+                let ratio = if l.lambda_x > 0.0 { l.lambda_y / l.lambda_x } else { 1.0 / 3.0 };
+                l.lambda_x = v;
+                l.lambda_y = v * ratio;
+            }
+        }
+        p.validate()?;
+        Ok(p)
+    }
+}
+
+/// Connection state to the daemon, as shown on the page.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DaemonState {
+    /// Connected and receiving poses.
+    pub connected: bool,
+    /// Human-readable state.
+    pub message: String,
+}
+
+struct Shared {
+    frame: Vec<u8>,
+    frame_no: u64,
+    fps: f32,
+    params: SceneParams,
+    pending: Option<SceneParams>,
+    daemon: DaemonState,
+    /// Latest root joint from the daemon and when it arrived.
+    root: Option<([f32; 3], Instant)>,
+    hand_driven: bool,
+}
+
+/// Options of [`serve`].
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// Address to listen on (`127.0.0.1:0` picks a free port).
+    pub listen: String,
+    /// Daemon socket directory.
+    pub socket_dir: PathBuf,
+    /// Do not try to reach the daemon at all.
+    pub no_daemon: bool,
+}
+
+/// Runs the preview until the process ends. Prints `listening on http://ADDR/` once bound.
+pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
+    let server =
+        Server::http(&opts.listen).map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", opts.listen))?;
+    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| opts.listen.clone());
+    let shared = Arc::new(Mutex::new(Shared {
+        frame: animator.frame().to_vec(),
+        frame_no: 0,
+        fps: 0.0,
+        params: animator.params().clone(),
+        pending: None,
+        daemon: DaemonState { connected: false, message: "not connected yet".into() },
+        root: None,
+        hand_driven: false,
+    }));
+    let (w, h) = (animator.scene().width, animator.scene().height);
+    let still = animator.scene().still();
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let shared = shared.clone();
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("warp-sim".into())
+            .spawn(move || sim_loop(animator, shared, stop))?;
+    }
+    if opts.no_daemon {
+        shared.lock().expect("lock").daemon.message = "daemon disabled (--no-daemon): procedural wind".into();
+    } else {
+        let shared = shared.clone();
+        let dir = opts.socket_dir.clone();
+        std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(dir, shared))?;
+    }
+    println!("listening on http://{addr}/");
+    eprintln!("frond-warp: serving a {w}x{h} preview on http://{addr}/");
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    for mut req in server.incoming_requests() {
+        let url = req.url().split('?').next().unwrap_or("").to_string();
+        let resp = match (req.method(), url.as_str()) {
+            (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
+            (Method::Get, "/frame") => {
+                let s = shared.lock().expect("lock");
+                let mut r = Response::from_data(s.frame.clone());
+                for (k, v) in [
+                    ("X-Width", w.to_string()),
+                    ("X-Height", h.to_string()),
+                    ("X-Frame", s.frame_no.to_string()),
+                ] {
+                    r.add_header(Header::from_bytes(k, v).expect("header"));
+                }
+                r.add_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header"));
+                r.add_header(Header::from_bytes("Cache-Control", "no-store").expect("header"));
+                r.with_status_code(200)
+            }
+            (Method::Get, "/still") => Response::from_data(still.clone())
+                .with_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header")),
+            (Method::Get, "/status") => {
+                let s = shared.lock().expect("lock");
+                let body = serde_json::json!({
+                    "frame": s.frame_no,
+                    "fps": s.fps,
+                    "width": w,
+                    "height": h,
+                    "daemon": s.daemon,
+                    "wind_source": if s.hand_driven { "hand" } else { "procedural" },
+                    "params": s.params,
+                });
+                text(200, &body.to_string(), "application/json")
+            }
+            (Method::Post, "/params") => {
+                let mut body = String::new();
+                let read = req.as_reader().take(64 * 1024).read_to_string(&mut body);
+                match read.map_err(|e| e.to_string()).and_then(|_| {
+                    serde_json::from_str::<Controls>(&body).map_err(|e| format!("bad controls JSON: {e}"))
+                }) {
+                    Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+                    Ok(ctl) => {
+                        let mut s = shared.lock().expect("lock");
+                        let base = s.pending.clone().unwrap_or_else(|| s.params.clone());
+                        match ctl.apply(&base) {
+                            Ok(p) => {
+                                s.pending = Some(p);
+                                text(200, "ok", "text/plain")
+                            }
+                            Err(e) => text(400, &e.to_string(), "text/plain; charset=utf-8"),
+                        }
+                    }
+                }
+            }
+            _ => text(404, "not found", "text/plain"),
+        };
+        let _ = req.respond(resp);
+    }
+    stop.store(true, Ordering::Relaxed);
+    Ok(())
+}
+
+fn text(code: u16, body: &str, ctype: &str) -> Response<std::io::Cursor<Vec<u8>>> {
+    Response::from_string(body)
+        .with_status_code(code)
+        .with_header(Header::from_bytes("Content-Type", ctype).expect("header"))
+}
+
+fn sim_loop(mut animator: Animator, shared: Arc<Mutex<Shared>>, stop: Arc<AtomicBool>) {
+    let dt = 1.0 / SERVE_FPS;
+    let period = Duration::from_secs_f32(dt);
+    let mut next = Instant::now();
+    let mut hand = HandWind::new();
+    let start = Instant::now();
+    let mut window_start = Instant::now();
+    let mut window_frames = 0u32;
+    let mut fps = 0.0f32;
+    let mut spare = animator.frame().to_vec();
+    while !stop.load(Ordering::Relaxed) {
+        let (pending, root) = {
+            let mut s = shared.lock().expect("lock");
+            (s.pending.take(), s.root)
+        };
+        if let Some(p) = pending {
+            // Validated by the HTTP handler; a failure here would only repeat its message.
+            let _ = animator.set_params(p);
+        }
+        // Hand-driven while poses are fresh.
+        let live = root.filter(|(_, at)| at.elapsed() < Duration::from_millis(500));
+        if let Some((root_deg, _)) = live {
+            animator.set_procedural(false);
+            let mut wind = animator.params().wind;
+            hand.update(start.elapsed().as_secs_f64(), root_deg, &mut wind);
+            let _ = animator.set_wind(wind);
+        } else {
+            animator.set_procedural(true);
+        }
+        animator.step(dt);
+        spare.copy_from_slice(animator.frame());
+        window_frames += 1;
+        let el = window_start.elapsed().as_secs_f32();
+        if el >= 1.0 {
+            fps = window_frames as f32 / el;
+            window_frames = 0;
+            window_start = Instant::now();
+        }
+        {
+            let mut s = shared.lock().expect("lock");
+            std::mem::swap(&mut s.frame, &mut spare);
+            s.frame_no += 1;
+            s.fps = fps;
+            s.params = animator.params().clone();
+            s.hand_driven = live.is_some();
+        }
+        next += period;
+        let now = Instant::now();
+        if next > now {
+            std::thread::sleep(next - now);
+        } else {
+            next = now; // overran: do not try to catch up
+        }
+    }
+}
+
+fn pose_loop(dir: PathBuf, shared: Arc<Mutex<Shared>>) {
+    let set = |connected: bool, message: String| {
+        let mut s = shared.lock().expect("lock");
+        s.daemon = DaemonState { connected, message };
+    };
+    loop {
+        let opts = frond_sdk::Subscriber::options()
+            .reconnect(true)
+            .give_up_after(None)
+            .read_timeout(Some(Duration::from_millis(500)));
+        match opts.connect(&dir) {
+            Err(e) => {
+                set(false, format!("no daemon at {}: procedural wind ({e})", dir.display()));
+                std::thread::sleep(Duration::from_secs(2));
+            }
+            Ok(mut sub) => {
+                set(true, format!("connected to {} (rig {})", dir.display(), sub.hello().rig_name));
+                loop {
+                    match sub.next_event() {
+                        Ok(frond_sdk::Event::Pose(p)) => {
+                            if p.element == 0 {
+                                shared.lock().expect("lock").root = Some((p.joints_deg[0], Instant::now()));
+                            }
+                        }
+                        Ok(frond_sdk::Event::Disconnected) => set(
+                            false,
+                            format!("daemon at {} went away; reconnecting (procedural wind)", dir.display()),
+                        ),
+                        Ok(frond_sdk::Event::Reconnected(h)) => {
+                            set(true, format!("connected to {} (rig {})", dir.display(), h.rig_name))
+                        }
+                        Ok(_) => {}
+                        Err(frond_sdk::SdkError::Timeout { .. }) => {}
+                        Err(e) => {
+                            set(false, format!("daemon stream ended: {e}; retrying (procedural wind)"));
+                            std::thread::sleep(Duration::from_secs(2));
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+const PAGE: &str = include_str!("page.html");
