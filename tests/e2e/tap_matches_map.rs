@@ -31,7 +31,9 @@ fn joints_of(v: &Value) -> Vec<u32> {
         .as_array()
         .expect("joints array")
         .iter()
-        .flat_map(|j| j.as_array().expect("joint").iter().map(|x| (x.as_f64().expect("number") as f32).to_bits()))
+        .flat_map(|j| {
+            j.as_array().expect("joint").iter().map(|x| (x.as_f64().expect("number") as f32).to_bits())
+        })
         .collect()
 }
 

@@ -60,6 +60,9 @@ pub(crate) fn render(r: &StatusReport) -> String {
         "lateness     p50 {:.1} us, p99 {:.1} us, p99.9 {:.1} us, max {:.1} us ({} samples)",
         l.p50_us, l.p99_us, l.p999_us, l.max_us, l.samples
     );
+    if !r.realtime.is_empty() {
+        let _ = writeln!(o, "realtime     {}", r.realtime);
+    }
     match &r.recording {
         Some(rec) => {
             let _ = writeln!(
@@ -143,6 +146,7 @@ mod tests {
                 active: true,
             }),
             device_events: vec!["connected /tmp/vhid/hidraw0".into()],
+            realtime: "normal".into(),
         }
     }
 

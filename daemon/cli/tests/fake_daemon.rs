@@ -56,6 +56,7 @@ fn status_report() -> StatusReport {
         subscribers: vec![SubscriberStatus { id: 3, connected_s: 2.0, sent: 2000, dropped: 1 }],
         recording: None,
         device_events: vec!["opened virtual glove".into()],
+        realtime: "normal".into(),
     }
 }
 

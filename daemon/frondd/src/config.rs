@@ -10,7 +10,7 @@ use serde::Deserialize;
 pub const DEFAULT_CONFIG: &str = include_str!("default-config.toml");
 
 /// Configuration as written in TOML (every field optional so a file may set only some).
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawConfig {
     tick_rate_hz: Option<i64>,
@@ -25,9 +25,18 @@ pub struct RawConfig {
     recorder: RawRecorder,
     #[serde(default)]
     realtime: RawRealtime,
+    #[serde(default)]
+    control: RawControl,
 }
 
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawControl {
+    allowed_uids: Option<Vec<i64>>,
+    allowed_gids: Option<Vec<i64>>,
+}
+
+#[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawSource {
     kind: Option<String>,
@@ -38,7 +47,7 @@ struct RawSource {
     virtual_rate_hz: Option<i64>,
 }
 
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawPublisher {
     queue_frames: Option<i64>,
@@ -46,13 +55,13 @@ struct RawPublisher {
     write_timeout_ms: Option<i64>,
 }
 
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawRecorder {
     fsync_interval_ms: Option<i64>,
 }
 
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawRealtime {
     priority: Option<i64>,
@@ -88,6 +97,8 @@ impl RawConfig {
         pick(&mut self.recorder.fsync_interval_ms, other.recorder.fsync_interval_ms);
         pick(&mut self.realtime.priority, other.realtime.priority);
         pick(&mut self.realtime.lock_memory, other.realtime.lock_memory);
+        pick(&mut self.control.allowed_uids, other.control.allowed_uids);
+        pick(&mut self.control.allowed_gids, other.control.allowed_gids);
         self
     }
 
@@ -162,6 +173,10 @@ pub struct Config {
     pub rt_priority: u8,
     /// mlockall.
     pub lock_memory: bool,
+    /// Users (besides root and the daemon's own user) allowed on the control socket.
+    pub allowed_uids: Vec<u32>,
+    /// Groups allowed on the control socket (primary or supplementary group of the client).
+    pub allowed_gids: Vec<u32>,
 }
 
 fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
@@ -240,6 +255,18 @@ impl Config {
         );
         let rt_priority =
             range(&mut errors, "realtime.priority", raw.realtime.priority.or(Some(0)), 0, 99) as u8;
+        let ids = |errors: &mut Vec<String>, key: &str, v: Option<Vec<i64>>| -> Vec<u32> {
+            let mut out = Vec::new();
+            for (i, id) in v.unwrap_or_default().into_iter().enumerate() {
+                match u32::try_from(id) {
+                    Ok(id) => out.push(id),
+                    Err(_) => errors.push(format!("{key}[{i}]: {id} is not a valid id")),
+                }
+            }
+            out
+        };
+        let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids);
+        let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids);
         if !errors.is_empty() {
             return Err(errors);
         }
@@ -259,6 +286,8 @@ impl Config {
             fsync_interval: Duration::from_millis(fsync_ms as u64),
             rt_priority,
             lock_memory: raw.realtime.lock_memory.unwrap_or(false),
+            allowed_uids,
+            allowed_gids,
         })
     }
 

@@ -17,7 +17,7 @@ use frond_motion::take::TakeHeader;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
     ControlError, ControlErrorKind, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus,
-    SourceStatus, StatusReport, paths::validate_take_name, read_frame, write_frame,
+    SourceStatus, StatusReport, paths::validate_take_name, read_frame_limited, write_frame,
 };
 use tracing::{info, warn};
 
@@ -55,6 +55,8 @@ pub struct DaemonState {
     pub recording: Option<(String, PathBuf)>,
     /// Ticks per second over the last second.
     pub achieved_rate_hz: f64,
+    /// Realtime tuning in force.
+    pub realtime: String,
 }
 
 impl DaemonState {
@@ -88,6 +90,81 @@ pub struct ControlContext {
     pub takes_dir: PathBuf,
     /// Nominal loop rate.
     pub tick_rate_hz: u32,
+    /// Who may use the control socket.
+    pub access: AccessPolicy,
+    /// Whether testing aids (`FreezeLoop`) are enabled (`--test-hooks`).
+    pub test_hooks: bool,
+}
+
+/// Who may use the control socket, checked against the peer's credentials (SO_PEERCRED).
+#[derive(Debug, Clone, Default)]
+pub struct AccessPolicy {
+    /// The daemon's effective uid (always allowed, as is root).
+    pub own_uid: u32,
+    /// Extra allowed users.
+    pub allowed_uids: Vec<u32>,
+    /// Allowed groups (the client's primary or supplementary groups).
+    pub allowed_gids: Vec<u32>,
+}
+
+/// A connected client's credentials.
+#[derive(Debug, Clone, Copy)]
+pub struct PeerCred {
+    /// Process id.
+    pub pid: i32,
+    /// User id.
+    pub uid: u32,
+    /// Primary group id.
+    pub gid: u32,
+}
+
+/// Reads SO_PEERCRED of a connected Unix socket.
+pub fn peer_cred(stream: &UnixStream) -> std::io::Result<PeerCred> {
+    use std::os::fd::AsRawFd;
+    let mut cred = libc::ucred { pid: 0, uid: 0, gid: 0 };
+    let mut len = std::mem::size_of::<libc::ucred>() as libc::socklen_t;
+    // SAFETY: `cred` and `len` are valid for writes of the sizes passed; the fd is a live socket.
+    let rc = unsafe {
+        libc::getsockopt(
+            stream.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_PEERCRED,
+            (&mut cred as *mut libc::ucred).cast(),
+            &mut len,
+        )
+    };
+    if rc != 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(PeerCred { pid: cred.pid, uid: cred.uid, gid: cred.gid })
+}
+
+/// Supplementary groups of process `pid`, from `/proc/<pid>/status`.
+fn supplementary_groups(pid: i32) -> Vec<u32> {
+    let Ok(text) = std::fs::read_to_string(format!("/proc/{pid}/status")) else { return Vec::new() };
+    text.lines()
+        .find_map(|l| l.strip_prefix("Groups:"))
+        .map(|g| g.split_whitespace().filter_map(|x| x.parse().ok()).collect())
+        .unwrap_or_default()
+}
+
+impl AccessPolicy {
+    /// Whether `peer` may use the control socket; `Err` says why not.
+    pub fn check(&self, peer: &PeerCred) -> Result<(), String> {
+        if peer.uid == 0 || peer.uid == self.own_uid || self.allowed_uids.contains(&peer.uid) {
+            return Ok(());
+        }
+        if self.allowed_gids.contains(&peer.gid)
+            || supplementary_groups(peer.pid).iter().any(|g| self.allowed_gids.contains(g))
+        {
+            return Ok(());
+        }
+        Err(format!(
+            "uid {} (gid {}) is not allowed on the control socket; add it to control.allowed_uids or \
+             one of its groups to control.allowed_gids in the daemon's config",
+            peer.uid, peer.gid
+        ))
+    }
 }
 
 fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
@@ -117,6 +194,19 @@ impl ControlContext {
             ControlRequest::RecordStart { name } => self.record_start(name),
             ControlRequest::RecordStop => self.record_stop(),
             ControlRequest::Mark { label } => self.mark(label),
+            ControlRequest::FreezeLoop { ms } => {
+                if !self.test_hooks {
+                    return refuse(
+                        ControlErrorKind::PermissionDenied,
+                        "FreezeLoop needs frondd --test-hooks",
+                    );
+                }
+                warn!(ms, "freezing the realtime loop on request (test hook)");
+                match self.send_loop(LoopCommand::Freeze(ms.min(60_000))) {
+                    Ok(()) => ControlReply::Ok,
+                    Err(reply) => *reply,
+                }
+            }
             ControlRequest::RawSample => match self.stats.raw.load() {
                 Some((t, wrist_deg, thumb_deg, fresh)) => {
                     ControlReply::RawSample { t, wrist_deg, thumb_deg, fresh }
@@ -327,6 +417,7 @@ impl ControlContext {
                 active: true,
             }),
             device_events: state.device_events.iter().cloned().collect(),
+            realtime: state.realtime.clone(),
         }
     }
 }
@@ -381,21 +472,27 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
     let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
     let mut scratch = Vec::new();
     let mut out = FrameBuf::default();
+    let allowed = peer_cred(&stream).map_err(|e| format!("cannot read the client's credentials: {e}"));
+    if let Err(why) = allowed.and_then(|peer| ctx.access.check(&peer)) {
+        let _ = write_frame(&mut stream, &mut out, &refuse(ControlErrorKind::PermissionDenied, why));
+        return;
+    }
     loop {
-        let reply = match read_frame::<ControlRequest, _>(&mut stream, &mut scratch) {
-            Ok(req) => ctx.handle(req),
-            Err(ReadError::Closed) => return,
-            Err(ReadError::Io(e))
-                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
-            {
-                return;
-            }
-            Err(e) => {
-                let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
-                let _ = write_frame(&mut stream, &mut out, &reply);
-                return;
-            }
-        };
+        let reply =
+            match read_frame_limited::<ControlRequest, _>(&mut stream, &mut scratch, MAX_CONTROL_REQUEST) {
+                Ok(req) => ctx.handle(req),
+                Err(ReadError::Closed) => return,
+                Err(ReadError::Io(e))
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+                {
+                    return;
+                }
+                Err(e) => {
+                    let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
+                    let _ = write_frame(&mut stream, &mut out, &reply);
+                    return;
+                }
+            };
         if write_frame(&mut stream, &mut out, &reply).is_err() {
             return;
         }

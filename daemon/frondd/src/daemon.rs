@@ -16,13 +16,13 @@ use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION};
 use tracing::{error, info, warn};
 
 use crate::config::Config;
-use crate::control::{ControlContext, DaemonState, spawn_control};
+use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
 use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
 use crate::notify::Notifier;
 use crate::publisher::{PublisherConfig, SubscriberRegistry, spawn_acceptor};
 use crate::realtime::{lock_memory, spawn_loop};
 use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
-use crate::source::open_source;
+use crate::source::{SourceFactory, open_source};
 use crate::stats::LoopStats;
 
 /// Rigs built into the binary, by name.
@@ -31,6 +31,23 @@ pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
     ("flower", include_str!("../../../rig-files/plants/flower.toml")),
     ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
 ];
+
+/// Reloads the configuration on SIGHUP (re-reads the config file with the same overrides).
+pub type ConfigLoader = Box<dyn Fn() -> Result<Config, Vec<String>> + Send>;
+
+/// How the daemon was started, besides its configuration.
+pub struct RunOptions {
+    /// Socket and takes directories.
+    pub dirs: Dirs,
+    /// Set by SIGTERM/SIGINT: stop.
+    pub stop: Arc<AtomicBool>,
+    /// Set by SIGHUP: reload config, rig, calibration and filter.
+    pub reload: Arc<AtomicBool>,
+    /// Reads the configuration again.
+    pub loader: ConfigLoader,
+    /// Enable testing aids (`FreezeLoop`).
+    pub test_hooks: bool,
+}
 
 /// Where the daemon puts things.
 #[derive(Debug, Clone)]
@@ -103,7 +120,8 @@ fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf)> {
 }
 
 /// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`).
-pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
+pub fn run(config: Config, options: RunOptions) -> Result<()> {
+    let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
     let started = Instant::now();
     let rig = load_rig(&config.rig)?;
     let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
@@ -114,19 +132,25 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
 
-    let opened = open_source(&config, &dirs.socket_dir)?;
-    info!(kind = %opened.kind, path = %opened.path, "hand source ready");
+    let mut opened = open_source(&config, &dirs.socket_dir)?;
+    if opened.source.is_some() {
+        info!(kind = %opened.kind, path = %opened.path, "hand source ready");
+    }
 
     let stats = Arc::new(LoopStats::default());
     let (cmd_tx, cmd_rx) = bounded::<LoopCommand>(256);
     let (rec_tx, rec_rx) = bounded::<RecorderMsg>(16_384);
     let (reopen_tx, reopen_rx) = bounded::<Box<dyn HandSource>>(1);
+    let (await_tx, await_rx) = bounded::<SourceFactory>(1);
+    if let Some(factory) = opened.pending.take() {
+        let _ = await_tx.send(factory);
+    }
     let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
 
     let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
     let engine = Engine::new(
         mapper,
-        Some(opened.source),
+        opened.source.take(),
         config.stall.as_nanos() as u64,
         EngineLinks {
             commands: cmd_rx,
@@ -144,6 +168,7 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
         spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), loop_stop.clone())?;
     let scheduling = rt_report.recv().unwrap_or_else(|_| "unknown".into());
     info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, "realtime loop running");
+    let realtime = format!("scheduling {scheduling}; memory lock {memory}");
 
     let mut state = DaemonState {
         rig,
@@ -155,8 +180,10 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
         device_events: Default::default(),
         recording: None,
         achieved_rate_hz: 0.0,
+        realtime,
     };
-    state.push_event(started, format!("{} {} opened", opened.kind, opened.path));
+    let first_event = if await_rx.is_empty() { "opened" } else { "not present; waiting for it" };
+    state.push_event(started, format!("{} {} {first_event}", opened.kind, opened.path));
     let ctx = Arc::new(ControlContext {
         state: Mutex::new(state),
         stats: stats.clone(),
@@ -167,6 +194,13 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
         started,
         takes_dir: dirs.takes_dir.clone(),
         tick_rate_hz: config.tick_rate_hz,
+        access: AccessPolicy {
+            // SAFETY: geteuid has no preconditions and cannot fail.
+            own_uid: unsafe { libc::geteuid() },
+            allowed_uids: config.allowed_uids.clone(),
+            allowed_gids: config.allowed_gids.clone(),
+        },
+        test_hooks,
     });
 
     let threads_stop = Arc::new(AtomicBool::new(false));
@@ -198,13 +232,14 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
     )?;
     let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;
     let control = spawn_control(control_listener, ctx.clone(), threads_stop.clone())?;
-    let reopener = spawn_reopener(reopen_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;
+    let reopener = spawn_reopener(reopen_rx, await_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;
 
     let notifier = Notifier::from_env();
     notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
     info!(socket_dir = %dirs.socket_dir.display(), takes_dir = %dirs.takes_dir.display(), "frondd ready");
 
-    housekeeping(&ctx, &garbage_rx, &notifier, &stop);
+    let reload_fn = |ctx: &ControlContext| reload_config(ctx, &loader, &config);
+    housekeeping(&ctx, &garbage_rx, &notifier, &stop, &reload, &reload_fn);
 
     // Shutdown: finish the take first, so every frame the loop produced is in it.
     notifier.notify("STOPPING=1");
@@ -240,8 +275,67 @@ pub fn run(config: Config, dirs: Dirs, stop: Arc<AtomicBool>) -> Result<()> {
     Ok(())
 }
 
-/// Runs on the main thread until `stop`: achieved rate, device events, garbage, watchdog.
-fn housekeeping(ctx: &ControlContext, garbage: &Receiver<Garbage>, notifier: &Notifier, stop: &AtomicBool) {
+/// SIGHUP: re-reads the configuration and applies rig, calibration and filter live, keeping every
+/// subscriber connected. Settings that need a restart (rate, source, sockets) are reported.
+fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) {
+    let config = match loader() {
+        Ok(c) => c,
+        Err(errors) => {
+            for e in &errors {
+                error!("reload refused: {e}");
+            }
+            return;
+        }
+    };
+    let result = (|| -> Result<()> {
+        let rig = load_rig(&config.rig)?;
+        let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
+        let filter: FilterSpec = match &config.filter {
+            Some(spec) => spec.parse().map_err(|e| anyhow!("filter {spec:?}: {e}"))?,
+            None => rig.filter,
+        };
+        let send = |cmd| {
+            ctx.commands
+                .send_timeout(cmd, Duration::from_secs(1))
+                .map_err(|_| anyhow!("the loop is not accepting commands"))
+        };
+        send(LoopCommand::SetMapping(rig.mapping()))?;
+        send(LoopCommand::SetCalibration(calibration.params()))?;
+        send(LoopCommand::SetFilter(filter))?;
+        let mut state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+        info!(rig = %rig.name, calibration = %calibration.id, %filter, "configuration reloaded");
+        state.rig = rig;
+        state.calibration = calibration;
+        state.filter = filter;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        error!("reload failed, keeping the running configuration: {e:#}");
+        return;
+    }
+    let restart_needed: Vec<&str> = [
+        (config.tick_rate_hz != running.tick_rate_hz, "tick_rate_hz"),
+        (config.source != running.source || config.device_path != running.device_path, "source"),
+        (config.profile != running.profile, "source.profile"),
+        (config.queue_frames != running.queue_frames, "publisher.queue_frames"),
+    ]
+    .into_iter()
+    .filter_map(|(changed, key)| changed.then_some(key))
+    .collect();
+    if !restart_needed.is_empty() {
+        warn!(keys = ?restart_needed, "these settings take effect only after a restart");
+    }
+}
+
+/// Runs on the main thread until `stop`: achieved rate, device events, garbage, watchdog, reload.
+fn housekeeping(
+    ctx: &ControlContext,
+    garbage: &Receiver<Garbage>,
+    notifier: &Notifier,
+    stop: &AtomicBool,
+    reload: &AtomicBool,
+    reload_fn: &dyn Fn(&ControlContext),
+) {
     let stats = &ctx.stats;
     let mut last_ticks = stats.ticks.load(Relaxed);
     let mut last_rate_at = Instant::now();
@@ -252,6 +346,11 @@ fn housekeeping(ctx: &ControlContext, garbage: &Receiver<Garbage>, notifier: &No
     let mut ticks_at_ping = last_ticks;
     while !stop.load(Relaxed) {
         thread::sleep(Duration::from_millis(50));
+        if reload.swap(false, Relaxed) {
+            notifier.notify("RELOADING=1");
+            reload_fn(ctx);
+            notifier.notify("READY=1");
+        }
         while garbage.try_recv().is_ok() {}
         let now_connected = stats.device_connected.load(Relaxed);
         if now_connected != connected {
@@ -292,14 +391,55 @@ fn housekeeping(ctx: &ControlContext, garbage: &Receiver<Garbage>, notifier: &No
     }
 }
 
-/// Reopens a lost source off the realtime thread, every 100 ms, and hands it back to the loop.
+/// Opens an awaited device (one that was absent at start-up), retrying every 100 ms.
+fn await_device(
+    mut factory: SourceFactory,
+    commands: &Sender<LoopCommand>,
+    ctx: &ControlContext,
+    stop: &AtomicBool,
+) {
+    let waiting_since = Instant::now();
+    while !stop.load(Relaxed) {
+        match factory() {
+            Ok(source) => {
+                let text = format!(
+                    "{} {} appeared after {:.1} s",
+                    source.kind(),
+                    source.describe(),
+                    waiting_since.elapsed().as_secs_f64()
+                );
+                info!("{text}");
+                {
+                    let mut state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+                    state.source_counters = source.counters();
+                    state.source_kind = source.kind().to_string();
+                    state.source_path = source.describe().to_string();
+                    state.push_event(ctx.started, text);
+                }
+                if commands.send_timeout(LoopCommand::ReplaceSource(source), Duration::from_secs(1)).is_err()
+                {
+                    warn!("the loop did not take the device");
+                }
+                return;
+            }
+            Err(_) => thread::sleep(Duration::from_millis(100)),
+        }
+    }
+}
+
+/// Reopens a lost source off the realtime thread, every 100 ms, and hands it back to the loop;
+/// also opens a device that was absent at start-up.
 fn spawn_reopener(
     rx: Receiver<Box<dyn HandSource>>,
+    awaited: Receiver<SourceFactory>,
     commands: Sender<LoopCommand>,
     ctx: Arc<ControlContext>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-reopen".into()).spawn(move || {
+        if let Ok(factory) = awaited.try_recv() {
+            await_device(factory, &commands, &ctx, &stop);
+        }
         while !stop.load(Relaxed) {
             let Ok(mut source) = rx.recv_timeout(Duration::from_millis(100)) else { continue };
             let lost_at = Instant::now();

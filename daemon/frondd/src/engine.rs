@@ -42,6 +42,9 @@ pub enum LoopCommand {
     AddSubscriber(SubscriberSlot),
     /// A (re)opened hand source.
     ReplaceSource(Box<dyn HandSource>),
+    /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
+    /// loop would, so tests can check that the watchdog pings stop.
+    Freeze(u32),
 }
 
 /// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
@@ -146,6 +149,9 @@ impl Engine {
                     self.links.stats.recording.store(on, Relaxed);
                 }
                 LoopCommand::AddSubscriber(slot) => self.add_subscriber(slot),
+                LoopCommand::Freeze(ms) => {
+                    std::thread::sleep(std::time::Duration::from_millis(u64::from(ms)))
+                }
                 LoopCommand::ReplaceSource(src) => {
                     if let Some(old) = self.source.replace(src) {
                         let _ = self.links.garbage.try_send(Garbage::Source(old));

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use clap::Parser;
 use frond_protocol::paths;
 use frondd::config::{Config, DEFAULT_CONFIG, RawConfig};
-use frondd::daemon::{Dirs, run};
+use frondd::daemon::{ConfigLoader, Dirs, RunOptions, run};
 
 /// frond daemon: reads a hand device at a fixed rate and publishes plant poses.
 #[derive(Debug, Parser)]
@@ -53,6 +53,9 @@ struct Args {
     /// Print the embedded default configuration and exit.
     #[arg(long)]
     print_default_config: bool,
+    /// Enable testing aids on the control socket (FreezeLoop). Never on a stage.
+    #[arg(long, hide = true)]
+    test_hooks: bool,
 }
 
 fn main() -> ExitCode {
@@ -94,6 +97,10 @@ fn main() -> ExitCode {
         args.device,
         args.replay,
     );
+    let config_path = args.config.clone();
+    let reload_overrides = overrides.clone();
+    let loader: ConfigLoader =
+        Box::new(move || Config::load(config_path.as_deref(), reload_overrides.clone()));
     let config = match Config::load(args.config.as_deref(), overrides) {
         Ok(c) => c,
         Err(errors) => {
@@ -106,13 +113,20 @@ fn main() -> ExitCode {
     let dirs =
         Dirs { socket_dir: paths::socket_dir(args.socket_dir), takes_dir: paths::takes_dir(args.takes_dir) };
     let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        if let Err(e) = signal_hook::flag::register(signal, stop.clone()) {
+    let reload = Arc::new(AtomicBool::new(false));
+    let handlers = [
+        (signal_hook::consts::SIGTERM, &stop),
+        (signal_hook::consts::SIGINT, &stop),
+        (signal_hook::consts::SIGHUP, &reload),
+    ];
+    for (signal, flag) in handlers {
+        if let Err(e) = signal_hook::flag::register(signal, flag.clone()) {
             eprintln!("frondd: error: cannot install the signal handler: {e}");
             return ExitCode::FAILURE;
         }
     }
-    match run(config, dirs, stop) {
+    let options = RunOptions { dirs, stop, reload, loader, test_hooks: args.test_hooks };
+    match run(config, options) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e:#}");

@@ -10,17 +10,22 @@ use std::os::unix::fs::MetadataExt;
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use frond_device::vhid::{InProcessGlove, VirtualGloveConfig};
 use frond_device::{DeviceProfile, HandSource, HidSource, ReplaySource, SourceCounters, SourceKind};
 use tracing::{info, warn};
 
 use crate::config::{Config, SourceChoice};
 
-/// An opened source and what must live as long as it.
+/// Opens a source that is not there yet; called every 100 ms by the reopen thread.
+pub type SourceFactory = Box<dyn FnMut() -> Result<Box<dyn HandSource>, String> + Send>;
+
+/// An opened source (or one still awaited) and what must live as long as it.
 pub struct OpenedSource {
-    /// The source the loop reads.
-    pub source: Box<dyn HandSource>,
+    /// The source the loop reads; `None` while waiting for a device that has not appeared.
+    pub source: Option<Box<dyn HandSource>>,
+    /// How to open the awaited device, when `source` is `None`.
+    pub pending: Option<SourceFactory>,
     /// Kind name for status.
     pub kind: String,
     /// Path or description.
@@ -36,7 +41,8 @@ fn opened(source: Box<dyn HandSource>, keepalive: Option<Box<dyn Any + Send>>) -
         kind: source.kind().to_string(),
         path: source.describe().to_string(),
         counters: source.counters(),
-        source,
+        source: Some(source),
+        pending: None,
         keepalive,
     }
 }
@@ -59,6 +65,31 @@ fn kind_of_node(path: &Path) -> SourceKind {
 fn open_path(profile: &DeviceProfile, path: &Path) -> Result<OpenedSource> {
     let src = HidSource::open_path(profile, path, kind_of_node(path)).map_err(|e| anyhow!("{e}"))?;
     Ok(opened(Box::new(src), None))
+}
+
+/// A device that is not there (yet): the daemon runs, flags frames `device_lost`, and the
+/// reopen thread keeps trying.
+fn awaited(profile: DeviceProfile, path: Option<std::path::PathBuf>, reason: String) -> OpenedSource {
+    let (kind, describe) = match &path {
+        Some(p) => (kind_of_node(p).to_string(), p.display().to_string()),
+        None => (SourceKind::Hidraw.to_string(), profile.name.clone()),
+    };
+    warn!(device = %describe, %reason, "hand device not available; waiting for it (frames are flagged device_lost)");
+    let factory: SourceFactory = Box::new(move || {
+        let src = match &path {
+            Some(p) => HidSource::open_path(&profile, p, kind_of_node(p)),
+            None => HidSource::open(&profile),
+        };
+        src.map(|s| Box::new(s) as Box<dyn HandSource>).map_err(|e| e.to_string())
+    });
+    OpenedSource {
+        source: None,
+        pending: Some(factory),
+        kind,
+        path: describe,
+        counters: Arc::new(SourceCounters::default()),
+        keepalive: None,
+    }
 }
 
 fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<OpenedSource> {
@@ -92,17 +123,19 @@ pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::Hid => match &config.device_path {
-            Some(path) => open_path(&profile, path).with_context(|| format!("opening {}", path.display())),
-            None => {
-                let src = HidSource::open(&profile).map_err(|e| anyhow!("{e}"))?;
-                Ok(opened(Box::new(src), None))
-            }
+            Some(path) => Ok(open_path(&profile, path)
+                .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), format!("{e:#}")))),
+            None => match HidSource::open(&profile) {
+                Ok(src) => Ok(opened(Box::new(src), None)),
+                Err(e) => Ok(awaited(profile, None, e.to_string())),
+            },
         },
         SourceChoice::InProcess => open_virtual(config, socket_dir, false),
         SourceChoice::Virtual => open_virtual(config, socket_dir, true),
         SourceChoice::Auto => {
             if let Some(path) = &config.device_path {
-                return open_path(&profile, path).with_context(|| format!("opening {}", path.display()));
+                return Ok(open_path(&profile, path)
+                    .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), format!("{e:#}"))));
             }
             match HidSource::open(&profile) {
                 Ok(src) => Ok(opened(Box::new(src), None)),

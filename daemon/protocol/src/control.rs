@@ -45,6 +45,12 @@ pub enum ControlRequest {
     },
     /// Ask for the most recent raw (uncalibrated) hand samples, for `frond calibrate`.
     RawSample,
+    /// Testing aid: block the realtime loop for `ms` milliseconds (watchdog tests). Refused
+    /// unless the daemon was started with `--test-hooks`.
+    FreezeLoop {
+        /// How long to block the loop.
+        ms: u32,
+    },
 }
 
 /// The daemon's answer to one [`ControlRequest`].
@@ -132,6 +138,9 @@ pub struct StatusReport {
     pub recording: Option<RecordingStatus>,
     /// Device events (connect, lost, reopened), oldest first, at most the last 32.
     pub device_events: Vec<String>,
+    /// Realtime tuning in force (scheduling policy, memory lock), or why not.
+    #[serde(default)]
+    pub realtime: String,
 }
 
 /// The hand source's state.

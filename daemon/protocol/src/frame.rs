@@ -166,6 +166,16 @@ pub fn decode_frame<T: DeserializeOwned>(bytes: &[u8]) -> Result<Option<(T, usiz
 
 /// Reads exactly one frame from `reader`, using `buf` as scratch space.
 pub fn read_frame<T: DeserializeOwned, R: Read>(reader: &mut R, buf: &mut Vec<u8>) -> Result<T, ReadError> {
+    read_frame_limited(reader, buf, MAX_FRAME_LEN)
+}
+
+/// Like [`read_frame`], but refuses frames longer than `max_len` (at most [`MAX_FRAME_LEN`])
+/// from their header, before reading or buffering the body.
+pub fn read_frame_limited<T: DeserializeOwned, R: Read>(
+    reader: &mut R,
+    buf: &mut Vec<u8>,
+    max_len: usize,
+) -> Result<T, ReadError> {
     let mut header = [0u8; HEADER_LEN];
     let got = read_full(reader, &mut header)?;
     if got == 0 {
@@ -175,6 +185,10 @@ pub fn read_frame<T: DeserializeOwned, R: Read>(reader: &mut R, buf: &mut Vec<u8
         return Err(ReadError::Truncated { got, want: HEADER_LEN });
     }
     let total = check_header(&header)?;
+    let max_len = max_len.min(MAX_FRAME_LEN);
+    if total - 4 > max_len {
+        return Err(DecodeError::TooLarge { len: total - 4, max: max_len }.into());
+    }
     let body_len = total - HEADER_LEN;
     buf.clear();
     buf.resize(body_len, 0);

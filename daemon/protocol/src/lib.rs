@@ -23,7 +23,7 @@ pub use control::{
 };
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,
-    encode_frame, read_frame, write_frame,
+    encode_frame, read_frame, read_frame_limited, write_frame,
 };
 pub use pose::{HandWire, Hello, Pose, PoseFlags, ServerMessage};
 

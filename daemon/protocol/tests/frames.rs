@@ -137,6 +137,20 @@ fn read_frame_reports_closed_and_truncated_streams() {
 }
 
 #[test]
+fn limited_reads_refuse_big_frames_before_reading_them() {
+    let mut out = Vec::new();
+    encode_frame(&ControlRequest::SetRig { name: "big".into(), toml: "x".repeat(10_000) }, &mut out);
+    let mut r: &[u8] = &out;
+    let err =
+        frond_protocol::read_frame_limited::<ControlRequest, _>(&mut r, &mut Vec::new(), 1000).unwrap_err();
+    assert!(matches!(err, ReadError::Decode(DecodeError::TooLarge { max: 1000, .. })), "{err}");
+    // Only the header was consumed.
+    assert_eq!(r.len(), out.len() - frond_protocol::HEADER_LEN);
+    let mut r: &[u8] = &out;
+    assert!(frond_protocol::read_frame_limited::<ControlRequest, _>(&mut r, &mut Vec::new(), 20_000).is_ok());
+}
+
+#[test]
 fn a_control_request_is_not_a_server_message() {
     let mut out = Vec::new();
     encode_frame(&ControlRequest::Status, &mut out);

@@ -187,6 +187,19 @@ impl Filesystem for HidrawFs {
         }
     }
 
+    /// `close(2)` on a hidraw node has nothing to flush; answering avoids fuser's
+    /// "not implemented" warning on every close.
+    fn flush(
+        &self,
+        _req: &Request,
+        _ino: INodeNo,
+        _fh: FileHandle,
+        _lock_owner: LockOwner,
+        reply: ReplyEmpty,
+    ) {
+        reply.ok();
+    }
+
     fn release(
         &self,
         _req: &Request,
