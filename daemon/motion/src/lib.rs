@@ -12,6 +12,7 @@ pub mod filter;
 pub mod gltf_mesh;
 pub mod jsonl;
 pub mod layers;
+pub mod looping;
 pub mod mapping;
 pub mod mesh;
 pub mod problems;
