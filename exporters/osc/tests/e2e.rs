@@ -377,3 +377,58 @@ fn bench_reports_latency_for_one_and_four_targets() {
         assert!(line["p50_us"].as_f64().unwrap() <= line["p99_us"].as_f64().unwrap(), "{line}");
     }
 }
+
+fn python_with_bpy() -> Option<PathBuf> {
+    let py = python()?;
+    let ok = Command::new(&py)
+        .args(["-c", "import bpy"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    ok.then_some(py)
+}
+
+/// The Blender add-on, headless (bpy from PyPI): frond-osc drives its armature; the bone
+/// rotations Blender reports equal the daemon's joints in frond's convention, and Record keys the
+/// frames into an action (`blender_check.py` checks geometry and keys itself).
+#[test]
+fn blender_addon_drives_the_armature_and_records() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python_with_bpy() else {
+        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("blender.jsonl");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_check.py");
+    let mut child = Command::new(&py)
+        .arg(script)
+        .args(["--frames", "300", "--record", "200", "--timeout", "90", "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start blender_check.py");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("blender port");
+    let mut blender = Proc(child);
+    let port: u16 = line.trim().parse().unwrap_or_else(|_| panic!("blender_check printed `{line}`"));
+    let collector = Collector::start(&daemon.socket_dir);
+    let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    let (_, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    let by_seq: HashMap<u32, &Pose> = poses.iter().map(|p| (p.seq as u32, p)).collect();
+    let frames = read_jsonl(&out);
+    assert!(!frames.is_empty());
+    for f in &frames {
+        let seq = f["seq"].as_i64().unwrap() as u32;
+        let pose = by_seq.get(&seq).unwrap_or_else(|| panic!("frame {seq} unknown to the SDK subscriber"));
+        for (i, q) in f["quats"].as_array().unwrap().iter().enumerate() {
+            let [x, y, z, w] = joint_quat(pose.joints_deg[i]);
+            assert_eq!(f32s(q), [w, x, y, z], "Blender's rotation of joint{i} at {seq}");
+        }
+    }
+}
