@@ -1,0 +1,336 @@
+//! The `frond-warp` binary: offline rendering (deterministic, byte-exact at zero wind, driven by
+//! a take), sample generation, and clear errors for bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use frond_motion::{HandSample, PoseFrame};
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_frond-warp"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run frond-warp")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Writes a 64x48 picture, a grass mask (lower half, soft top row) and returns their paths.
+fn inputs(dir: &Path) -> (PathBuf, PathBuf) {
+    let mut pic = Vec::new();
+    for y in 0..H {
+        for x in 0..W {
+            pic.extend_from_slice(&[((x * 37 + y * 11) % 256) as u8, (x * 4) as u8, (y * 5) as u8]);
+        }
+    }
+    let mask: Vec<u8> = (0..W * H)
+        .map(|p| {
+            if p / W > 24 {
+                255
+            } else if p / W == 24 {
+                128
+            } else {
+                0
+            }
+        })
+        .collect();
+    let (ip, mp) = (dir.join("pic.png"), dir.join("mask.png"));
+    image::save_buffer(&ip, &pic, W, H, image::ColorType::Rgb8).unwrap();
+    image::save_buffer(&mp, &mask, W, H, image::ColorType::L8).unwrap();
+    (ip, mp)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn frames(dir: &Path) -> Vec<Vec<u8>> {
+    let mut names: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    names.sort();
+    names.iter().map(|p| image::open(p).unwrap().to_rgba8().into_raw()).collect()
+}
+
+#[test]
+fn zero_wind_render_equals_the_input_png() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let out = t.path().join("frames/");
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--strength",
+        "0",
+        "--frames",
+        "5",
+        "--fps",
+        "30",
+        "-o",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let input = image::open(&pic).unwrap().to_rgba8().into_raw();
+    let fs = frames(&out);
+    assert_eq!(fs.len(), 5);
+    for (k, f) in fs.iter().enumerate() {
+        assert!(f == &input, "frame {k} differs from the input");
+    }
+}
+
+#[test]
+fn render_is_deterministic_for_a_seed_and_gif_and_webp_are_written() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let render = |seed: &str, out: &Path| {
+        let o = run(&[
+            "render",
+            "--image",
+            s(&pic),
+            "--layer",
+            s(&mask),
+            "--strength",
+            "1",
+            "--interval",
+            "0.3",
+            "--fluid-grid",
+            "16",
+            "--seed",
+            seed,
+            "--frames",
+            "12",
+            "-o",
+            s(out),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    let (a, b, c) = (t.path().join("a/"), t.path().join("b/"), t.path().join("c/"));
+    render("5", &a);
+    render("5", &b);
+    render("6", &c);
+    let (fa, fb, fc) = (frames(&a), frames(&b), frames(&c));
+    assert_eq!(fa, fb, "same seed, different frames");
+    assert_ne!(fa, fc, "the seed has no effect");
+    assert_ne!(fa[11], fa[0], "nothing moves");
+
+    let gif = t.path().join("out.gif");
+    render("5", &gif);
+    let dec =
+        image::codecs::gif::GifDecoder::new(std::io::BufReader::new(std::fs::File::open(&gif).unwrap()))
+            .unwrap();
+    use image::AnimationDecoder;
+    assert_eq!(dec.into_frames().count(), 12);
+    let webp = t.path().join("out.webp");
+    render("5", &webp);
+    let dec =
+        image::codecs::webp::WebPDecoder::new(std::io::BufReader::new(std::fs::File::open(&webp).unwrap()))
+            .unwrap();
+    let wf: Vec<_> = dec.into_frames().collect::<Result<_, _>>().unwrap();
+    assert_eq!(wf.len(), 12);
+    assert_eq!(wf[7].buffer().as_raw(), &fa[7], "webp frames are lossless");
+}
+
+/// A take whose root joint sways +-30 degrees of yaw at 1 Hz for 2 s at 100 Hz.
+fn write_take(path: &Path) {
+    let mut out = Vec::new();
+    encode_file_start(&mut out);
+    encode_record(
+        &TakeRecord::Header(TakeHeader {
+            name: "sway".into(),
+            rig_name: "grass".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: 100,
+            created_unix_s: 0,
+            daemon_version: "test".into(),
+            joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
+        }),
+        &mut out,
+    );
+    for k in 0..200u64 {
+        let t = k as f64 / 100.0;
+        let yaw = 30.0 * (std::f64::consts::TAU * t).sin() as f32;
+        let frame = TakeFrame {
+            seq: k,
+            device_time_us: k * 10_000,
+            host_ns: k * 10_000_000,
+            pose: PoseFrame { t, joints_deg: [[0.0, yaw, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
+            hand: HandSample { t, wrist_deg: [0.0, yaw, 0.0], thumb_deg: [0.0; 3] },
+            ..TakeFrame::default()
+        };
+        encode_record(&TakeRecord::Frame(frame), &mut out);
+    }
+    encode_record(&TakeRecord::End { frames: 200 }, &mut out);
+    std::fs::write(path, out).unwrap();
+}
+
+#[test]
+fn a_take_drives_the_wind_deterministically() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let take = t.path().join("sway.take");
+    write_take(&take);
+    let render = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "render",
+            "--image",
+            s(&pic),
+            "--layer",
+            s(&mask),
+            "--fluid-grid",
+            "16",
+            "--frames",
+            "20",
+            "-o",
+            s(out),
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    let (a, b, still) = (t.path().join("a/"), t.path().join("b/"), t.path().join("still/"));
+    render(&["--take", s(&take)], &a);
+    render(&["--take", s(&take), "--seed", "99"], &b);
+    render(&["--strength", "0"], &still);
+    let (fa, fb, fs) = (frames(&a), frames(&b), frames(&still));
+    assert_eq!(fa, fb, "a take must not depend on the procedural seed");
+    assert_ne!(fa[19], fs[19], "the take's sway did not move the picture");
+
+    // A file that is not a take is a clear error.
+    std::fs::write(t.path().join("bad.take"), b"not a take at all").unwrap();
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--take",
+        s(&t.path().join("bad.take")),
+        "--frames",
+        "2",
+        "-o",
+        s(&a),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read take") && stderr(&o).contains("bad.take"), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let out = t.path().join("o/");
+
+    // Unreadable image.
+    let junk = t.path().join("junk.png");
+    std::fs::write(&junk, b"this is no png").unwrap();
+    let o = run(&["render", "--image", s(&junk), "--frames", "2", "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read image") && stderr(&o).contains("junk.png"), "{}", stderr(&o));
+    let o = run(&["render", "--image", s(&t.path().join("missing.png")), "--frames", "2", "-o", s(&out)]);
+    assert!(stderr(&o).contains("missing.png"), "{}", stderr(&o));
+
+    // Mask of another size.
+    let small = t.path().join("small.png");
+    image::save_buffer(&small, &vec![255u8; 32 * 24], 32, 24, image::ColorType::L8).unwrap();
+    let o = run(&["render", "--image", s(&pic), "--layer", s(&small), "--frames", "2", "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("small.png") && e.contains("32x24") && e.contains("64x48"), "{e}");
+
+    // Negative grid size and out-of-range parameters: all reported at once, by name and range.
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--cell",
+        "-4",
+        "--fluid-grid",
+        "-16",
+        "--gamma",
+        "1.5",
+        "--c",
+        "0",
+        "--rigidity",
+        "11",
+        "--strength",
+        "2",
+        "--frames",
+        "0",
+        "--fps",
+        "500",
+        "-o",
+        "out.mp4",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    for needle in [
+        "cell = -4",
+        "fluid-grid = -16",
+        "gamma = 1.5 is out of range (allowed: 0.01 to 1)",
+        "c = 0 is out of range (allowed: 1 to 10)",
+        "rigidity = 11 is out of range (allowed: 0 to 10)",
+        "--strength = 2 is out of range (allowed: 0 to 1)",
+        "--frames = 0 is out of range (allowed: 1 to 100000)",
+        "--fps = 500",
+        "out.mp4",
+    ] {
+        assert!(e.contains(needle), "missing `{needle}` in:\n{e}");
+    }
+    assert!(!out.exists(), "nothing is written on bad input");
+}
+
+#[test]
+fn make_samples_writes_the_committed_assets() {
+    let t = tempfile::tempdir().unwrap();
+    let o = run(&["make-samples", s(t.path())]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rig-files/images");
+    for name in ["grass.png", "grass-mask.png", "grass-scale.png", "shrub-background.png", "shrub.png"] {
+        let fresh = image::open(t.path().join(name)).unwrap();
+        let size = std::fs::metadata(t.path().join(name)).unwrap().len();
+        assert!(size < 200 * 1024, "{name} is {size} bytes");
+        let shipped = image::open(committed.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            fresh.to_rgba8() == shipped.to_rgba8(),
+            "{name}: committed asset differs from the generator's output"
+        );
+    }
+    // The samples animate: the grass field renders and moves.
+    let out = t.path().join("g/");
+    let o = run(&[
+        "render",
+        "--image",
+        s(&t.path().join("grass.png")),
+        "--layer",
+        s(&t.path().join("grass-mask.png")),
+        "--scale-map",
+        s(&t.path().join("grass-scale.png")),
+        "--strength",
+        "1",
+        "--interval",
+        "0",
+        "--frames",
+        "8",
+        "-o",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fs = frames(&out);
+    assert_ne!(fs[0], fs[7]);
+}
