@@ -166,6 +166,19 @@ fn run(args: &Args) -> anyhow::Result<()> {
     Ok(result?)
 }
 
+/// The error and its causes, leaving out a cause its parent's message already quotes.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = e.to_string();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            out.push_str(": ");
+            out.push_str(&text);
+        }
+    }
+    out
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
@@ -174,7 +187,7 @@ fn main() -> ExitCode {
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("frond-osc: {e:#}");
+            eprintln!("frond-osc: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
