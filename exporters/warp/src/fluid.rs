@@ -90,9 +90,7 @@ impl Fluid {
         let h = 1.0 / n as f32;
         let strength = strength.clamp(0.0, 1.0);
         let raise = |value: &mut f32, target: f32| {
-            if target > 0.0 && *value < target {
-                *value = target;
-            } else if target < 0.0 && *value > target {
+            if (target > 0.0 && *value < target) || (target < 0.0 && *value > target) {
                 *value = target;
             }
         };
@@ -116,7 +114,7 @@ impl Fluid {
 
     /// Advances the field by `dt` seconds: diffusion, projection, advection, projection.
     pub fn step(&mut self, dt: f32) {
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             return;
         }
         self.diffuse(dt);

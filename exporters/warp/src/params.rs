@@ -186,6 +186,7 @@ impl LayerParams {
 /// Where wind is injected.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase", tag = "kind")]
+#[derive(Default)]
 pub enum WindSource {
     /// A disc around a point, coordinates as fractions of the image ([0, 1], y down).
     Point {
@@ -195,13 +196,8 @@ pub enum WindSource {
         y: f32,
     },
     /// The border the wind comes from, chosen from the wind direction (upwind border).
+    #[default]
     Border,
-}
-
-impl Default for WindSource {
-    fn default() -> Self {
-        WindSource::Border
-    }
 }
 
 /// User forces on the wind field (seed 001, section III-C).

@@ -50,8 +50,8 @@ fn plot(img: &mut Rgba, x: i32, y: i32, c: [u8; 3], a: f32) {
         return;
     }
     let p = (y as usize * img.width + x as usize) * 4;
-    for k in 0..3 {
-        img.data[p + k] = (img.data[p + k] as f32 * (1.0 - a) + c[k] as f32 * a).round() as u8;
+    for (d, &s) in img.data[p..p + 3].iter_mut().zip(&c) {
+        *d = (*d as f32 * (1.0 - a) + s as f32 * a).round() as u8;
     }
     img.data[p + 3] = img.data[p + 3].max((a * 255.0).round() as u8);
 }

@@ -94,7 +94,7 @@ impl Wave {
 
     /// Advances by `dt` seconds; `wind(i, j)` gives the wind velocity at node `(i, j)`.
     pub fn step(&mut self, dt: f32, p: &WaveParams, mut wind: impl FnMut(usize, usize) -> [f32; 2]) {
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             return;
         }
         for j in 0..self.ny {
