@@ -7,6 +7,7 @@
 
 pub mod calibration;
 pub mod clip;
+pub mod controls;
 pub mod edit;
 pub mod filter;
 pub mod gltf_mesh;
