@@ -1,4 +1,6 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
 mod slow_subscriber;
+mod stage;
+mod systemd;
 mod tap_matches_map;
