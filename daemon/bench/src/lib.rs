@@ -1,0 +1,1 @@
+//! `frond bench` measurements (in progress).
