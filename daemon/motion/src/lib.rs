@@ -9,6 +9,7 @@ pub mod calibration;
 pub mod clip;
 pub mod controls;
 pub mod edit;
+pub mod field;
 pub mod filter;
 pub mod gltf_mesh;
 pub mod jsonl;
