@@ -13,6 +13,6 @@ pub use profile::{ChannelId, DeviceProfile, ProfileError};
 pub use report::{CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters};
 pub use source::{HandSource, HidSource, ReplaySource, SourceError, SourceKind};
 pub use vhid::{
-    FaultPlan, GloveSource, InProcessGlove, UnplugPlan, VhidError, VirtualGloveConfig, VirtualGloveHandle,
-    mount_fuse,
+    DeviceClock, FaultPlan, GloveSource, InProcessGlove, UnplugPlan, VhidError, VirtualGloveConfig,
+    VirtualGloveHandle, mount_fuse,
 };

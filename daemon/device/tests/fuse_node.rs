@@ -18,6 +18,7 @@ fn jsonl_config(path: &std::path::Path, start_delay_ms: u64) -> VirtualGloveConf
         source: GloveSource::Jsonl { path: path.to_owned(), looped: false },
         faults: FaultPlan::default(),
         start_delay_ms,
+        clock: frond_device::DeviceClock::Schedule,
     }
 }
 

@@ -36,6 +36,7 @@ fn in_process_glove_parses_the_same_reports_and_unplugs() {
             ..FaultPlan::default()
         },
         start_delay_ms: 0,
+        clock: frond_device::DeviceClock::Schedule,
     };
     let mut src = InProcessGlove::new(cfg).unwrap();
     assert_eq!(src.kind().to_string(), "in-process");
@@ -66,6 +67,7 @@ fn faults_are_counted_by_the_parser() {
         source: GloveSource::Sway { rate_hz: 2000.0 },
         faults: FaultPlan { drop_prob: 0.2, corrupt_prob: 0.2, ..FaultPlan::default() },
         start_delay_ms: 0,
+        clock: frond_device::DeviceClock::Schedule,
     };
     let mut src = InProcessGlove::new(cfg).unwrap();
     let got = read_n(&mut src, 400, Duration::from_secs(20)).unwrap();

@@ -13,8 +13,17 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
 use frond_device::vhid::{
-    self, FaultPlan, GloveSource, UnplugPlan, VhidStats, VirtualGloveConfig, uhid::UhidGlove,
+    self, DeviceClock, FaultPlan, GloveSource, UnplugPlan, VhidStats, VirtualGloveConfig, uhid::UhidGlove,
 };
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Clock {
+    /// The glove's own counter: each sample's time on the played schedule.
+    Schedule,
+    /// Host CLOCK_MONOTONIC microseconds (truncated to u32) at the moment each report is
+    /// written, for measuring glove-to-subscriber latency across processes.
+    Monotonic,
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum Backend {
@@ -74,6 +83,9 @@ struct Args {
     /// Keep the node alive this long after the last report of a JSONL file, then exit 0.
     #[arg(long, value_name = "N", default_value_t = 500)]
     linger_ms: u64,
+    /// What each report's device-time field carries.
+    #[arg(long, value_enum, default_value_t = Clock::Schedule)]
+    clock: Clock,
     /// Seed of the fault injection.
     #[arg(long, default_value_t = 0x5EED_F20D)]
     seed: u64,
@@ -127,6 +139,10 @@ fn config(args: &Args) -> Result<VirtualGloveConfig> {
             seed: args.seed,
         },
         start_delay_ms: args.start_delay_ms,
+        clock: match args.clock {
+            Clock::Schedule => DeviceClock::Schedule,
+            Clock::Monotonic => DeviceClock::Monotonic,
+        },
     })
 }
 

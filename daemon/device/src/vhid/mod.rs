@@ -86,6 +86,19 @@ impl Default for FaultPlan {
     }
 }
 
+/// What the report's device-time field carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DeviceClock {
+    /// The glove's own microsecond counter: the sample's time on the played schedule (starts at
+    /// the file's first timestamp, or 0 for the sway). The default.
+    #[default]
+    Schedule,
+    /// The host's `CLOCK_MONOTONIC` in microseconds (truncated to `u32`), read just before the
+    /// report is written to the node or queue. A subscriber in another process subtracts it
+    /// from its own `CLOCK_MONOTONIC` to measure glove-write -> receipt latency (`frond bench`).
+    Monotonic,
+}
+
 /// Virtual glove configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VirtualGloveConfig {
@@ -93,13 +106,28 @@ pub struct VirtualGloveConfig {
     pub faults: FaultPlan,
     /// Wait this long after the node is ready before the first report.
     pub start_delay_ms: u64,
+    /// What the device-time field carries.
+    pub clock: DeviceClock,
 }
 
 impl VirtualGloveConfig {
     /// The built-in sway at `rate_hz`, no faults.
     pub fn sway(rate_hz: f64) -> Self {
-        Self { source: GloveSource::Sway { rate_hz }, faults: FaultPlan::default(), start_delay_ms: 0 }
+        Self {
+            source: GloveSource::Sway { rate_hz },
+            faults: FaultPlan::default(),
+            start_delay_ms: 0,
+            clock: DeviceClock::Schedule,
+        }
     }
+}
+
+/// Host `CLOCK_MONOTONIC` in microseconds, truncated to the report's wrapping `u32` counter.
+pub fn monotonic_us_u32() -> u32 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    (ts.tv_sec as u64).wrapping_mul(1_000_000).wrapping_add(ts.tv_nsec as u64 / 1000) as u32
 }
 
 /// Errors of the virtual glove.
@@ -160,6 +188,7 @@ pub(crate) struct Generator {
     prepared: Prepared,
     faults: FaultPlan,
     start_delay: Duration,
+    clock: DeviceClock,
 }
 
 /// The procedural sway: a few incommensurate sines on wrist and thumb (degrees).
@@ -221,6 +250,7 @@ impl Generator {
             prepared,
             faults: config.faults,
             start_delay: Duration::from_millis(config.start_delay_ms),
+            clock: config.clock,
         })
     }
 
@@ -286,13 +316,12 @@ impl Generator {
                 stats.dropped.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
-            let (report, clamped) = GloveReport::from_degrees(
-                this_seq,
-                time_us as u32, // the device's microsecond counter wraps
-                &hand,
-                flex,
-                STATUS_TRACKING_OK,
-            );
+            let device_time_us = match self.clock {
+                DeviceClock::Schedule => time_us as u32, // the device's microsecond counter wraps
+                DeviceClock::Monotonic => monotonic_us_u32(),
+            };
+            let (report, clamped) =
+                GloveReport::from_degrees(this_seq, device_time_us, &hand, flex, STATUS_TRACKING_OK);
             if clamped {
                 stats.clamped.fetch_add(1, Ordering::Relaxed);
             }
@@ -364,6 +393,67 @@ mod tests {
                 assert!(v.abs() < 60.0, "{v}");
             }
         }
+    }
+
+    /// Keeps every report with the host time just before and just after it was handed over.
+    struct Capture(Vec<([u8; REPORT_LEN], u32)>);
+
+    impl ReportSink for Capture {
+        fn send(&mut self, report: &[u8; REPORT_LEN]) {
+            let after = monotonic_us_u32();
+            self.0.push((*report, after));
+        }
+        fn set_plugged(&mut self, _plugged: bool) {}
+    }
+
+    fn report_time(bytes: &[u8; REPORT_LEN]) -> u32 {
+        let at = crate::glove::TIME_OFFSET;
+        u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
+    }
+
+    fn play(clock: DeviceClock, rate_hz: f64, reports: usize) -> (u32, Vec<([u8; REPORT_LEN], u32)>) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("hand.jsonl");
+        let lines: String = (0..reports)
+            .map(|i| format!("{{\"t\":{},\"wrist\":[1,2,3],\"thumb\":[4,5,6]}}\n", 1.0 + i as f64 / rate_hz))
+            .collect();
+        std::fs::write(&path, lines).unwrap();
+        let config = VirtualGloveConfig {
+            source: GloveSource::Jsonl { path, looped: false },
+            clock,
+            ..VirtualGloveConfig::sway(rate_hz)
+        };
+        let generator = Generator::prepare(&config).unwrap();
+        let mut sink = Capture(Vec::new());
+        let before = monotonic_us_u32();
+        generator.run(&mut sink, &AtomicBool::new(false), &VhidStats::default());
+        (before, sink.0)
+    }
+
+    #[test]
+    fn monotonic_clock_stamps_the_host_time_of_the_write() {
+        let (start, got) = play(DeviceClock::Monotonic, 500.0, 20);
+        assert_eq!(got.len(), 20);
+        let mut previous = start;
+        for (bytes, after) in &got {
+            let t = report_time(bytes);
+            // Read after the previous report was handed over and before this one was: the
+            // wrapping difference is small and non-negative on both sides.
+            assert!(t.wrapping_sub(previous) < 1_000_000, "stamp {t} before {previous}");
+            assert!(after.wrapping_sub(t) < 1_000_000, "stamp {t} after the write at {after}");
+            previous = t;
+        }
+        // The reports went out 2 ms apart, and the stamps say so (not the file's 1.0 s + i/500).
+        let span = report_time(&got[19].0).wrapping_sub(report_time(&got[0].0));
+        assert!((38_000..1_000_000).contains(&span), "span {span} us");
+    }
+
+    #[test]
+    fn schedule_clock_is_the_default_and_carries_the_file_time() {
+        assert_eq!(VirtualGloveConfig::sway(100.0).clock, DeviceClock::Schedule);
+        let (_, got) = play(DeviceClock::Schedule, 500.0, 5);
+        let times: Vec<u32> = got.iter().map(|(b, _)| report_time(b)).collect();
+        assert_eq!(times, vec![1_000_000, 1_002_000, 1_004_000, 1_006_000, 1_008_000]);
     }
 
     #[test]
