@@ -18,6 +18,7 @@ import argparse
 import json
 import math
 import os
+import socket
 import sys
 import time
 
@@ -30,8 +31,9 @@ HEIGHTS = (0.0, 0.08, 0.16, 0.24, 0.32)  # grass rig; the last is the top bone's
 
 
 def fail(msg):
-    print(f"blender check failed: {msg}", file=sys.stderr)
-    sys.exit(1)
+    print(f"blender check failed: {msg}", file=sys.stderr, flush=True)
+    # Not sys.exit: bpy's shutdown can hang with the add-on still registered.
+    os._exit(1)
 
 
 def mat_mul(a, b):
@@ -113,8 +115,17 @@ def main():
     scene = bpy.context.scene
     scene.frond_receiver.armature = obj
     port = frond_receiver.start("127.0.0.1", 0)
-    print(port, flush=True)
     receiver = frond_receiver._state["receiver"]
+    # Malformed datagrams are counted and dropped, never raised.
+    junk = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for data in (b"", b"#bundle\0", b"#bundle\0" + bytes(8) + b"\xff\xff\xff\xff", b"/frond/pose\0,i\0\0", b"\xff\xfe"):
+        junk.sendto(data, ("127.0.0.1", port))
+    junk.close()
+    time.sleep(0.05)
+    if receiver.poll() or receiver.malformed != 5:
+        fail(f"malformed datagrams: {receiver.malformed} counted of 5")
+    print(port, flush=True)  # only now: frond-osc starts sending when it reads the port
+
     deadline = time.monotonic() + args.timeout
     out = open(args.out, "w")
     checked = [0]
