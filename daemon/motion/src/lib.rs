@@ -4,7 +4,15 @@
 //! The path from a raw hand sample to a pose is [`Mapper::process`]: calibrate
 //! ([`CalibrationParams::apply`]), filter ([`HandFilter`]), map ([`map_pose`]). The realtime loop
 //! and the offline `frond map` both use it, so live and offline poses are identical.
+//!
+//! The motion toolkit of seed 000, sections 4 and 6: [`skeleton`] (rotation convention, forward
+//! kinematics, procedural weights, Eq. 1 skinning), [`mesh`] and [`gltf_mesh`] (geometry),
+//! [`layers`] (layered takes), [`edit`] (import, resample, post-filter, splice), [`clip`] (clips
+//! and the delayed lookup), [`looping`] (Eq. 5), [`field`] (Eq. 6-7, `field.json`),
+//! [`controls`] (section 6.3), [`guided`] (Eq. 8) and [`align`] (section 6.5). Randomness comes
+//! from [`rng::SeededRng`] only.
 
+pub mod align;
 pub mod calibration;
 pub mod clip;
 pub mod controls;
@@ -12,6 +20,7 @@ pub mod edit;
 pub mod field;
 pub mod filter;
 pub mod gltf_mesh;
+pub mod guided;
 pub mod jsonl;
 pub mod layers;
 pub mod looping;
