@@ -1,1 +1,207 @@
-fn main() {}
+//! `frond-gltf`: bake frond takes, layered takes and fields into skinned, animated glTF files.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::{Context, bail};
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use frond_gltf::live::{LiveMode, capture};
+use frond_gltf::{BakeOptions, Baked, Baker, Field, Format, LoadedRig, TakeInput, output};
+
+#[derive(Parser)]
+#[command(
+    name = "frond-gltf",
+    version,
+    about = "Bake frond takes into skinned, animated glTF 2.0 (GLB) files"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake a take on one plant, or (with --field) on every plant of a field.
+    Bake(BakeArgs),
+    /// Capture the running daemon's next recording (or everything until Ctrl-C with --all) and
+    /// bake it when recording stops or on Ctrl-C.
+    Live(LiveArgs),
+}
+
+#[derive(Args)]
+struct Common {
+    /// Rig: an embedded rig name (grass, flower, shrub) or a rig file.
+    #[arg(long, value_name = "RIG")]
+    rig: String,
+    /// Output file (.glb; with --gltf a .gltf and a .bin beside it).
+    #[arg(short = 'o', long = "output", value_name = "FILE")]
+    output: PathBuf,
+    /// Key rate of the baked animation, frames per second.
+    #[arg(long, default_value_t = 30.0, value_name = "FPS")]
+    fps: f64,
+    /// Write .gltf + .bin instead of one .glb.
+    #[arg(long)]
+    gltf: bool,
+    /// Seed of the random assignment of secondary layers to similar elements.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// No progress bar and no summary (errors are still printed).
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct BakeArgs {
+    /// Take: a name in the takes directory, or a path to a .take file.
+    #[arg(long, value_name = "TAKE")]
+    take: String,
+    /// Field file (field.json from `frond take field`): bake every plant of the field.
+    #[arg(long, value_name = "FILE", requires = "duration")]
+    field: Option<PathBuf>,
+    /// Length of a field bake, seconds.
+    #[arg(long, value_name = "SECONDS", requires = "field")]
+    duration: Option<f64>,
+    /// Takes directory for take names [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
+    #[arg(long, value_name = "DIR")]
+    takes_dir: Option<PathBuf>,
+    #[command(flatten)]
+    common: Common,
+}
+
+#[derive(Args)]
+struct LiveArgs {
+    /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    #[arg(long, value_name = "DIR")]
+    socket_dir: Option<PathBuf>,
+    /// Animation name [default: the output file's stem].
+    #[arg(long, value_name = "NAME")]
+    name: Option<String>,
+    /// Capture every pose from now until Ctrl-C, not only a recording.
+    #[arg(long)]
+    all: bool,
+    #[command(flatten)]
+    common: Common,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Bake(a) => bake(a),
+        Command::Live(a) => live(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-gltf: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn options(c: &Common) -> anyhow::Result<(BakeOptions, Format)> {
+    if let Err(reason) = frond_gltf::anim::check_fps(c.fps) {
+        bail!("--fps {reason}");
+    }
+    let format = if c.gltf { Format::Gltf } else { Format::Glb };
+    Ok((BakeOptions { fps: c.fps, seed: c.seed }, format))
+}
+
+fn progress_bar(quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(0);
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed}/{eta}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
+fn bake(a: BakeArgs) -> anyhow::Result<()> {
+    let (opts, format) = options(&a.common)?;
+    let rig = LoadedRig::resolve(&a.common.rig)?;
+    let takes_dir = frond_protocol::paths::takes_dir(a.takes_dir.clone());
+    let take = TakeInput::resolve(&a.take, &takes_dir)?;
+    let field = a.field.as_deref().map(Field::read).transpose()?;
+    let model = rig.model()?;
+    let bar = progress_bar(a.common.quiet);
+    bar.set_message(format!("baking {}", take.name));
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let mut baker = Baker::new();
+    let baked = match (&field, a.duration) {
+        (Some(field), Some(duration)) => {
+            baker.bake_field(&rig, &model, &take, field, duration, &opts, &mut progress)?
+        }
+        _ => baker.bake_take(&rig, &model, &take, &opts, &mut progress)?,
+    };
+    bar.finish_and_clear();
+    finish(baked, &a.common.output, format, a.common.quiet)
+}
+
+fn finish(mut baked: Baked, path: &Path, format: Format, quiet: bool) -> anyhow::Result<()> {
+    for note in &baked.notes {
+        eprintln!("frond-gltf: note: {note}");
+    }
+    output::write(&mut baked, path, format)?;
+    if !quiet {
+        let s = baked.stats;
+        eprintln!(
+            "frond-gltf: wrote {} ({} plant{}, {} channels x {} keys, {} vertices)",
+            path.display(),
+            s.plants,
+            if s.plants == 1 { "" } else { "s" },
+            s.channels,
+            s.keys,
+            s.vertices
+        );
+    }
+    println!("{}", path.display());
+    Ok(())
+}
+
+fn live(a: LiveArgs) -> anyhow::Result<()> {
+    let (opts, format) = options(&a.common)?;
+    let rig = LoadedRig::resolve(&a.common.rig)?;
+    let model = rig.model()?;
+    // Refuse an unwritable destination before the performance, not after it.
+    let dir = match a.common.output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        bail!("cannot write {}: the directory {} does not exist", a.common.output.display(), dir.display());
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop)).context("installing the signal handler")?;
+    }
+    let socket_dir = frond_protocol::paths::socket_dir(a.socket_dir.clone());
+    let quiet = a.common.quiet;
+    let mut status = |line: &str| {
+        if !quiet {
+            eprintln!("frond-gltf: {line}");
+        }
+    };
+    let mode = if a.all { LiveMode::All } else { LiveMode::Recording };
+    let (cap, hello) = capture(&socket_dir, mode, &stop, &mut status)
+        .with_context(|| format!("live capture from {}", socket_dir.display()))?;
+    if cap.missing > 0 {
+        eprintln!(
+            "frond-gltf: note: the daemon dropped {} frames for this subscriber during the capture",
+            cap.missing
+        );
+    }
+    let name = a.name.clone().unwrap_or_else(|| {
+        a.common.output.file_stem().and_then(|s| s.to_str()).unwrap_or("live").to_string()
+    });
+    let take = cap.into_take(&name, &hello);
+    let baked = Baker::new().bake_take(&rig, &model, &take, &opts, &mut |_, _| {})?;
+    finish(baked, &a.common.output, format, quiet)
+}

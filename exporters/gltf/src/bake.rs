@@ -1,0 +1,302 @@
+//! Baking: a take (all its layers) on one plant, or on every plant of a field, into a glTF
+//! document held in memory. Pure: the inputs come from [`crate::input`] (or a test), the output
+//! goes to [`crate::output`].
+
+use gltf_json as json;
+use serde_json::json;
+
+use frond_motion::JOINTS;
+use frond_motion::mesh::PlantModel;
+
+use crate::anim::{Joints, Layers, check_fps, push_joint_quats};
+use crate::doc::{DocBuilder, Placement, PlantAssets, PlantNodes};
+use crate::error::BakeError;
+use crate::field::Field;
+use crate::input::{LoadedRig, TakeInput};
+use frond_motion::layers::{assign_layers, layer_kind};
+
+/// Options shared by every bake.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BakeOptions {
+    /// Key rate, frames per second (the seed's authoring rate, 30, by default).
+    pub fps: f64,
+    /// Seed of the random assignment of secondary layers to similar element instances.
+    pub seed: u64,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        BakeOptions { fps: 30.0, seed: 0 }
+    }
+}
+
+/// Counts describing a bake.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BakeStats {
+    /// Plants (skins) in the document.
+    pub plants: usize,
+    /// Keys per channel.
+    pub keys: usize,
+    /// Rotation channels.
+    pub channels: usize,
+    /// Vertices of the shared mesh.
+    pub vertices: usize,
+}
+
+/// A baked document: JSON, binary buffer, and notes worth telling the user.
+#[derive(Debug, Clone)]
+pub struct Baked {
+    /// The glTF JSON. Buffer 0 is [`Baked::bin`] (no `uri` until written as `.gltf`).
+    pub root: json::Root,
+    /// The binary buffer, 4-byte aligned.
+    pub bin: Vec<u8>,
+    /// Warnings that did not stop the bake (rig mismatch, torn tail, unknown layers).
+    pub notes: Vec<String>,
+    /// Counts.
+    pub stats: BakeStats,
+}
+
+/// Progress callback: `(done, total)` in keys.
+pub type Progress<'a> = &'a mut dyn FnMut(u64, u64);
+
+/// Bakes takes into documents, reusing its buffers from one bake to the next (give a finished
+/// [`Baked`] back with [`Baker::recycle`]).
+#[derive(Debug, Default)]
+pub struct Baker {
+    bin: Vec<u8>,
+    quats: Vec<[f32; 4]>,
+    poses: Vec<Joints>,
+}
+
+impl Baker {
+    /// A baker with empty buffers.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Returns a document's buffer for reuse.
+    pub fn recycle(&mut self, baked: Baked) {
+        if baked.bin.capacity() > self.bin.capacity() {
+            self.bin = baked.bin;
+        }
+    }
+
+    /// One plant animated by every layer of a take: element 0 on the rig's joints, layer `k + 1`
+    /// on every instance of the rig's secondary element `k`. One animation, named after the take.
+    pub fn bake_take(
+        &mut self,
+        rig: &LoadedRig,
+        model: &PlantModel,
+        take: &TakeInput,
+        opts: &BakeOptions,
+        progress: Progress<'_>,
+    ) -> Result<Baked, BakeError> {
+        let fps = check_fps(opts.fps).map_err(|reason| BakeError::Option { option: "--fps", reason })?;
+        let layers = Layers::from_frames(&take.frames, fps)
+            .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
+        let mut notes = take_notes(rig, take);
+        let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
+        let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
+        let assignment = assign(rig, take, &layers, opts.seed, &assets, &mut notes);
+        let nodes = doc.plant(&assets, &rig.rig.name, &Placement::default());
+        let input = doc.times(&layers.times_s);
+        let mut anim = doc.begin_animation(input);
+        let keys = layers.times_s.len();
+        let total = (keys * layers.layers.len()) as u64;
+        let mut channels = 0;
+        for (n, layer) in layers.layers.iter().enumerate() {
+            for joints in targets(&nodes, &assignment, layer.element) {
+                for (j, node) in joints.iter().enumerate() {
+                    self.quats.clear();
+                    push_joint_quats(layer.poses.iter().map(|p| p[j]), &mut self.quats);
+                    doc.rotation_channel(&mut anim, *node, &self.quats);
+                    channels += 1;
+                }
+            }
+            progress(((n + 1) * keys) as u64, total);
+        }
+        let extras = take_extras(rig, take, fps, None);
+        doc.end_animation(anim, &take.name, extras.clone());
+        let (root, bin) = doc.finish(extras);
+        Ok(Baked {
+            root,
+            bin,
+            notes,
+            stats: BakeStats { plants: 1, keys, channels, vertices: assets.vertices },
+        })
+    }
+
+    /// Every plant of a field (seed 000, section 6.2): each plant its own skeleton and skin over
+    /// the one shared mesh, animated by the take delayed per plant (Eq. 6-7, see
+    /// [`Field::pose_at`]), `duration_s` long from 0. One animation, named after the take.
+    #[allow(clippy::too_many_arguments)]
+    pub fn bake_field(
+        &mut self,
+        rig: &LoadedRig,
+        model: &PlantModel,
+        take: &TakeInput,
+        field: &Field,
+        duration_s: f64,
+        opts: &BakeOptions,
+        progress: Progress<'_>,
+    ) -> Result<Baked, BakeError> {
+        let fps = check_fps(opts.fps).map_err(|reason| BakeError::Option { option: "--fps", reason })?;
+        if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 24.0 * 3600.0) {
+            return Err(BakeError::Option {
+                option: "--duration",
+                reason: format!("must be a number of seconds above 0 and at most 86400, got {duration_s}"),
+            });
+        }
+        // The take's layers at the field's own frame rate: the clips plants look up.
+        let clips = Layers::from_frames(&take.frames, field.fps)
+            .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
+        let mut notes = take_notes(rig, take);
+        notes.extend(field.notes.iter().cloned());
+        let keys = (duration_s * fps + 1e-9).floor() as usize + 1;
+        let times_s: Vec<f64> = (0..keys).map(|k| k as f64 / fps).collect();
+
+        let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
+        let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
+        let assignment = assign(rig, take, &clips, opts.seed, &assets, &mut notes);
+        let digits = field.plants.len().max(1).to_string().len();
+        let plants: Vec<PlantNodes> = field
+            .plants
+            .iter()
+            .enumerate()
+            .map(|(i, p)| doc.plant(&assets, &format!("{}_{i:0digits$}", rig.rig.name), &p.placement()))
+            .collect();
+        let input = doc.times(&times_s);
+        let mut anim = doc.begin_animation(input);
+        let total = (keys * plants.len()) as u64;
+        let mut channels = 0;
+        for (i, (plant, nodes)) in field.plants.iter().zip(&plants).enumerate() {
+            for layer in &clips.layers {
+                let targets = targets(nodes, &assignment, layer.element);
+                if targets.is_empty() {
+                    continue;
+                }
+                self.poses.clear();
+                self.poses.extend(times_s.iter().map(|&t| field.pose_at(&layer.poses, plant, t)));
+                for joints in targets {
+                    for (j, node) in joints.iter().enumerate() {
+                        self.quats.clear();
+                        push_joint_quats(self.poses.iter().map(|p| p[j]), &mut self.quats);
+                        doc.rotation_channel(&mut anim, *node, &self.quats);
+                        channels += 1;
+                    }
+                }
+            }
+            progress(((i + 1) * keys) as u64, total);
+        }
+        let extras = take_extras(rig, take, fps, Some(field));
+        doc.end_animation(anim, &take.name, extras.clone());
+        let (root, bin) = doc.finish(extras);
+        Ok(Baked {
+            root,
+            bin,
+            notes,
+            stats: BakeStats { plants: plants.len(), keys, channels, vertices: assets.vertices },
+        })
+    }
+}
+
+fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
+    std::array::from_fn(|i| rig.rig.joints[i].name.clone())
+}
+
+fn element_names(rig: &LoadedRig) -> Vec<String> {
+    rig.rig.elements.iter().map(|e| e.name.clone()).collect()
+}
+
+/// The joint sets a layer animates: the main joints for layer 0, the element instances it was
+/// assigned to otherwise.
+fn targets(
+    nodes: &PlantNodes,
+    assignment: &[Option<u16>],
+    layer: u16,
+) -> Vec<[gltf_json::Index<gltf_json::Node>; JOINTS]> {
+    if layer == 0 {
+        return vec![nodes.main];
+    }
+    nodes.elements.iter().zip(assignment).filter(|(_, a)| **a == Some(layer)).map(|(j, _)| *j).collect()
+}
+
+/// Which layer animates each element instance of the plant (in `assets.elements` order), by
+/// `frond_motion::layers::assign_layers` (seed 000, section 5.3: by kind name, at random among
+/// several layers of one kind).
+fn assign(
+    rig: &LoadedRig,
+    take: &TakeInput,
+    layers: &Layers,
+    seed: u64,
+    assets: &PlantAssets,
+    notes: &mut Vec<String>,
+) -> Vec<Option<u16>> {
+    let named: Vec<(u16, String)> = layers
+        .layers
+        .iter()
+        .filter(|l| l.element > 0)
+        .map(|l| (l.element, take.layer_name(l.element, &rig.rig)))
+        .collect();
+    let chosen = assign_layers(&rig.rig.elements, &named, seed);
+    for (id, name) in &named {
+        if !rig.rig.elements.iter().any(|e| e.name == layer_kind(name)) {
+            notes.push(format!(
+                "take layer {id} `{name}` matches no secondary element of rig `{}`; ignored",
+                rig.rig.name
+            ));
+        }
+    }
+    assets
+        .elements
+        .iter()
+        .map(|e| {
+            chosen.iter().find(|a| a.element == e.element && a.instance == e.instance).and_then(|a| a.layer)
+        })
+        .collect()
+}
+
+fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let Some(h) = &take.header
+        && !h.rig_name.is_empty()
+        && h.rig_name != rig.rig.name
+    {
+        notes.push(format!(
+            "take `{}` was recorded with rig `{}`; baking it on rig `{}`",
+            take.name, h.rig_name, rig.rig.name
+        ));
+    }
+    if take.torn_bytes > 0 {
+        notes.push(format!(
+            "take `{}` ends in a torn tail of {} bytes (still being written, or a crash); baked the frames before it",
+            take.name, take.torn_bytes
+        ));
+    }
+    notes
+}
+
+/// `extras` written on the asset and the animation, so a file can be traced back to its take.
+fn take_extras(
+    rig: &LoadedRig,
+    take: &TakeInput,
+    fps: f64,
+    field: Option<&Field>,
+) -> Option<Box<json::extras::RawValue>> {
+    let h = take.header.as_ref();
+    let mut v = json!({
+        "take": take.name,
+        "rig": rig.rig.name,
+        "take_rig": h.map(|h| h.rig_name.clone()),
+        "capture_rate_hz": h.map(|h| h.tick_rate_hz),
+        "calibration_id": h.map(|h| h.calibration_id.clone()),
+        "filter": h.map(|h| h.filter.clone()),
+        "daemon_version": h.map(|h| h.daemon_version.clone()),
+        "recorded_unix_s": h.map(|h| h.created_unix_s),
+        "bake_fps": fps,
+    });
+    if let Some(f) = field {
+        v["field"] = json!({ "source": f.origin, "plants": f.plants.len(), "fps": f.fps });
+    }
+    json::extras::RawValue::from_string(v.to_string()).ok()
+}

@@ -1,0 +1,174 @@
+//! Bake throughput for `frond bench`: a long take on one plant and a large field, baked and
+//! encoded as GLB in memory (no disk I/O), on synthetic input made here.
+
+use std::time::{Duration, Instant};
+
+use frond_motion::{JOINTS, PoseFrame, TakeFrame, TakeHeader};
+
+use crate::bake::{BakeOptions, Baker};
+use crate::error::BakeError;
+use crate::field::{Field, FieldPlant};
+use crate::input::{LoadedRig, TakeInput};
+use crate::output::encode_glb;
+
+/// One measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchResult {
+    /// What was baked.
+    pub name: String,
+    /// Take frames read.
+    pub frames_in: usize,
+    /// Plants baked.
+    pub plants: usize,
+    /// Keys per channel.
+    pub keys: usize,
+    /// Rotation channels.
+    pub channels: usize,
+    /// GLB size, bytes.
+    pub bytes: usize,
+    /// Wall time of bake + GLB encoding.
+    pub elapsed: Duration,
+}
+
+impl BenchResult {
+    /// Rotation keys written per second.
+    pub fn keys_per_s(&self) -> f64 {
+        (self.keys * self.channels) as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+}
+
+impl std::fmt::Display for BenchResult {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {:.3} s ({} frames in, {} plants, {} channels x {} keys, {:.2} M keys/s, {:.1} MB GLB)",
+            self.name,
+            self.elapsed.as_secs_f64(),
+            self.frames_in,
+            self.plants,
+            self.channels,
+            self.keys,
+            self.keys_per_s() / 1e6,
+            self.bytes as f64 / 1e6
+        )
+    }
+}
+
+/// A synthetic take: `seconds` of a swaying plant captured at `rate_hz` (main layer only).
+pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
+    let n = (seconds * rate_hz).round().max(1.0) as usize;
+    let frames = (0..n)
+        .map(|k| {
+            let t = k as f64 / rate_hz;
+            let s = (t * 1.3).sin() as f32;
+            let c = (t * 0.7).cos() as f32;
+            let joints_deg: [[f32; 3]; JOINTS] = std::array::from_fn(|i| {
+                [25.0 * s * (i as f32 + 1.0) / 2.0, 15.0 * c, if i >= 2 { 10.0 * s } else { 0.0 }]
+            });
+            TakeFrame { seq: k as u64, pose: PoseFrame { t, joints_deg }, ..TakeFrame::default() }
+        })
+        .collect();
+    TakeInput {
+        name: "bench".to_string(),
+        header: Some(TakeHeader {
+            name: "bench".to_string(),
+            rig_name: "grass".to_string(),
+            calibration_id: "none".to_string(),
+            filter: "none".to_string(),
+            tick_rate_hz: rate_hz as u32,
+            created_unix_s: 0,
+            daemon_version: "bench".to_string(),
+            joint_names: Vec::new(),
+        }),
+        frames,
+        ..TakeInput::default()
+    }
+}
+
+/// A square grid of `plants` plants 0.25 m apart, delays growing along x (a wind front).
+pub fn grid_field(plants: usize) -> Field {
+    let side = (plants as f64).sqrt().ceil().max(1.0) as usize;
+    Field {
+        origin: "bench".to_string(),
+        fps: 30.0,
+        plants: (0..plants)
+            .map(|i| {
+                let (x, z) = ((i % side) as f32 * 0.25, (i / side) as f32 * 0.25);
+                FieldPlant {
+                    position_m: [x, 0.0, z],
+                    delay_s: f64::from(x) / 1.5,
+                    start_frame: (i / side * 7 % 60) as f64,
+                    scale: 0.9 + 0.2 * ((i * 37 % 11) as f32 / 10.0),
+                    yaw_deg: 0.0,
+                }
+            })
+            .collect(),
+        notes: Vec::new(),
+    }
+}
+
+fn grass() -> Result<LoadedRig, BakeError> {
+    LoadedRig::embedded("grass").unwrap_or_else(|| Err(BakeError::Json("no embedded grass rig".to_string())))
+}
+
+/// Bakes a `minutes`-long take captured at `rate_hz` (the daemon default is 1000) on the grass
+/// rig at 30 FPS, and encodes it as GLB.
+pub fn take_bake(minutes: f64, rate_hz: f64) -> Result<BenchResult, BakeError> {
+    let rig = grass()?;
+    let model = rig.model()?;
+    let take = synthetic_take(minutes * 60.0, rate_hz);
+    let mut baker = Baker::new();
+    let mut glb = Vec::new();
+    let start = Instant::now();
+    let baked = baker.bake_take(&rig, &model, &take, &BakeOptions::default(), &mut |_, _| {})?;
+    encode_glb(&baked, &mut glb)?;
+    let elapsed = start.elapsed();
+    Ok(BenchResult {
+        name: format!("gltf bake: {minutes} min take at {rate_hz} Hz"),
+        frames_in: take.frames.len(),
+        plants: 1,
+        keys: baked.stats.keys,
+        channels: baked.stats.channels,
+        bytes: glb.len(),
+        elapsed,
+    })
+}
+
+/// Bakes a field of `plants` grass plants for `seconds` at 30 FPS from a 20-second take, and
+/// encodes it as GLB.
+pub fn field_bake(plants: usize, seconds: f64) -> Result<BenchResult, BakeError> {
+    let rig = grass()?;
+    let model = rig.model()?;
+    let take = synthetic_take(20.0, 1000.0);
+    let field = grid_field(plants);
+    let mut baker = Baker::new();
+    let mut glb = Vec::new();
+    let start = Instant::now();
+    let baked =
+        baker.bake_field(&rig, &model, &take, &field, seconds, &BakeOptions::default(), &mut |_, _| {})?;
+    encode_glb(&baked, &mut glb)?;
+    let elapsed = start.elapsed();
+    Ok(BenchResult {
+        name: format!("gltf bake: {plants}-plant field, {seconds} s"),
+        frames_in: take.frames.len(),
+        plants: baked.stats.plants,
+        keys: baked.stats.keys,
+        channels: baked.stats.channels,
+        bytes: glb.len(),
+        elapsed,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_benches_run() {
+        let r = take_bake(0.05, 100.0).unwrap();
+        assert_eq!((r.plants, r.channels, r.keys), (1, 4, 90));
+        let r = field_bake(9, 1.0).unwrap();
+        assert_eq!((r.plants, r.channels, r.keys), (9, 36, 31));
+        assert!(r.to_string().contains("9-plant field"));
+    }
+}

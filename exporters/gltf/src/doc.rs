@@ -1,0 +1,636 @@
+//! The glTF document under construction: a `gltf_json::Root` and its one binary buffer, with
+//! helpers that write typed data and the accessors over it (min/max always set, from the exact
+//! values written), the plant assets (one mesh, material and inverse-bind-matrix accessor shared
+//! by every plant of a document) and plant instances (a node hierarchy and a skin each).
+
+use glam::{Mat4, Quat, Vec3};
+use gltf_json as json;
+use json::validation::{Checked::Valid, USize64};
+use json::{Index, accessor, buffer, mesh};
+use serde_json::Value;
+
+use frond_motion::JOINTS;
+use frond_motion::mesh::{PlantModel, SkinnedMesh};
+
+/// A document being built: JSON plus the binary buffer (buffer 0).
+pub struct DocBuilder {
+    /// The JSON side.
+    pub root: json::Root,
+    /// The binary buffer; every view starts 4-byte aligned.
+    pub bin: Vec<u8>,
+    /// Nodes of the default scene.
+    pub scene_nodes: Vec<Index<json::Node>>,
+}
+
+fn floats(v: &[f32]) -> Value {
+    Value::Array(v.iter().map(|&x| Value::from(f64::from(x))).collect())
+}
+
+fn ints(v: &[u32]) -> Value {
+    Value::Array(v.iter().map(|&x| Value::from(x)).collect())
+}
+
+/// Running per-component minimum and maximum of `N`-component float data.
+struct Bounds<const N: usize> {
+    min: [f32; N],
+    max: [f32; N],
+}
+
+impl<const N: usize> Bounds<N> {
+    fn new() -> Self {
+        Bounds { min: [f32::INFINITY; N], max: [f32::NEG_INFINITY; N] }
+    }
+    fn add(&mut self, v: &[f32; N]) {
+        for (c, &x) in v.iter().enumerate() {
+            self.min[c] = self.min[c].min(x);
+            self.max[c] = self.max[c].max(x);
+        }
+    }
+}
+
+impl DocBuilder {
+    /// An empty document writing into `bin` (cleared; its capacity is reused).
+    pub fn new(mut bin: Vec<u8>) -> Self {
+        bin.clear();
+        let root = json::Root {
+            asset: json::Asset {
+                generator: Some(crate::GENERATOR.to_string()),
+                version: "2.0".to_string(),
+                copyright: None,
+                extensions: None,
+                extras: None,
+                min_version: None,
+            },
+            ..Default::default()
+        };
+        DocBuilder { root, bin, scene_nodes: Vec::new() }
+    }
+
+    fn align4(&mut self) {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+    }
+
+    fn put_f32s(&mut self, v: &[f32]) {
+        for x in v {
+            self.bin.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    /// A view over `bin[start..]`.
+    fn view(&mut self, start: usize, target: Option<buffer::Target>) -> Index<buffer::View> {
+        let len = self.bin.len() - start;
+        self.root.push(buffer::View {
+            buffer: Index::new(0),
+            byte_length: USize64(len as u64),
+            byte_offset: Some(USize64(start as u64)),
+            byte_stride: None,
+            name: None,
+            target: target.map(Valid),
+            extensions: None,
+            extras: None,
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn accessor(
+        &mut self,
+        view: Index<buffer::View>,
+        byte_offset: usize,
+        count: usize,
+        component: accessor::ComponentType,
+        type_: accessor::Type,
+        min: Value,
+        max: Value,
+        name: Option<String>,
+    ) -> Index<json::Accessor> {
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: (byte_offset > 0).then_some(USize64(byte_offset as u64)),
+            count: USize64(count as u64),
+            component_type: Valid(accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Valid(type_),
+            min: Some(min),
+            max: Some(max),
+            name,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    /// A float accessor of `N`-component elements in its own view.
+    fn float_attr<const N: usize>(
+        &mut self,
+        data: &[[f32; N]],
+        type_: accessor::Type,
+        target: Option<buffer::Target>,
+        name: &str,
+    ) -> Index<json::Accessor> {
+        self.align4();
+        let start = self.bin.len();
+        let mut b = Bounds::<N>::new();
+        for v in data {
+            self.put_f32s(v);
+            b.add(v);
+        }
+        let view = self.view(start, target);
+        self.accessor(
+            view,
+            0,
+            data.len(),
+            accessor::ComponentType::F32,
+            type_,
+            floats(&b.min),
+            floats(&b.max),
+            Some(name.to_string()),
+        )
+    }
+
+    /// Animation key times (a SCALAR float accessor in its own view).
+    pub fn times(&mut self, times_s: &[f64]) -> Index<json::Accessor> {
+        let t: Vec<[f32; 1]> = times_s.iter().map(|&t| [t as f32]).collect();
+        self.float_attr(&t, accessor::Type::Scalar, None, "time")
+    }
+
+    /// The plant's mesh, material and inverse bind matrices (see [`PlantAssets`]).
+    pub fn plant_assets(
+        &mut self,
+        model: &PlantModel,
+        joint_names: &[String; JOINTS],
+        element_names: &[String],
+    ) -> PlantAssets {
+        let heights = model.skeleton.heights_m;
+        let mut positions: Vec<[f32; 3]> = Vec::new();
+        let mut normals: Vec<[f32; 3]> = Vec::new();
+        let mut joints: Vec<[u16; 4]> = Vec::new();
+        let mut weights: Vec<[f32; 4]> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        let mut ibm: Vec<Mat4> =
+            heights.iter().map(|&h| Mat4::from_translation(Vec3::new(0.0, -h, 0.0))).collect();
+
+        let mut add = |mesh: &SkinnedMesh, frame: Mat4, base: u16| {
+            let first = positions.len() as u32;
+            for ((p, n), w) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.weights) {
+                positions.push(frame.transform_point3(Vec3::from(*p)).to_array());
+                normals.push(frame.transform_vector3(Vec3::from(*n)).normalize_or(Vec3::Y).to_array());
+                let (j, w) = pack_influences(w, base);
+                joints.push(j);
+                weights.push(w);
+            }
+            // Degenerate triangles (two equal corners, e.g. where a strip meets a pointed tip)
+            // draw nothing; drop them.
+            for t in mesh.indices.chunks_exact(3) {
+                if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                    indices.extend(t.iter().map(|i| i + first));
+                }
+            }
+        };
+        add(&model.stem, Mat4::IDENTITY, 0);
+        let mut elements = Vec::with_capacity(model.elements.len());
+        for (k, e) in model.elements.iter().enumerate() {
+            let base = (JOINTS * (k + 1)) as u16;
+            let bind = Mat4::from_translation(Vec3::new(0.0, heights[e.attach_joint as usize], 0.0))
+                * e.attach_matrix();
+            add(&e.mesh, bind, base);
+            for &h in &e.skeleton.heights_m {
+                ibm.push((bind * Mat4::from_translation(Vec3::new(0.0, h, 0.0))).inverse());
+            }
+            let kind = element_names.get(e.element).cloned().unwrap_or_else(|| e.name.clone());
+            elements.push(ElementRig {
+                element: e.element,
+                instance: e.instance,
+                name: format!("{kind}{}", e.instance),
+                attach_joint: e.attach_joint as usize,
+                rotation: e.rotation,
+                offset_m: e.offset_m,
+                heights_m: e.skeleton.heights_m,
+            });
+        }
+        let joint_count = ibm.len();
+
+        let pos =
+            self.float_attr(&positions, accessor::Type::Vec3, Some(buffer::Target::ArrayBuffer), "position");
+        let nor =
+            self.float_attr(&normals, accessor::Type::Vec3, Some(buffer::Target::ArrayBuffer), "normal");
+        let wgt =
+            self.float_attr(&weights, accessor::Type::Vec4, Some(buffer::Target::ArrayBuffer), "weights");
+        let jnt = self.joints_attr(&joints, joint_count);
+        let idx = self.indices(&indices, positions.len());
+
+        // Inverse bind matrices: column-major, the bottom row forced to exactly (0, 0, 0, 1)
+        // (an affine inverse can leave -0.0 or rounding noise there).
+        let mats: Vec<[f32; 16]> = ibm
+            .iter()
+            .map(|m| {
+                let mut a = m.to_cols_array();
+                a[3] = 0.0;
+                a[7] = 0.0;
+                a[11] = 0.0;
+                a[15] = 1.0;
+                a.map(|x| if x == 0.0 { 0.0 } else { x })
+            })
+            .collect();
+        let ibm = self.float_attr(&mats, accessor::Type::Mat4, None, "inverse_bind_matrices");
+
+        let material = self.root.push(json::Material {
+            name: Some("plant".to_string()),
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor([0.30, 0.55, 0.20, 1.0]),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(0.85),
+                ..Default::default()
+            },
+            ..Default::default()
+        });
+        let mut attributes = std::collections::BTreeMap::new();
+        attributes.insert(Valid(mesh::Semantic::Positions), pos);
+        attributes.insert(Valid(mesh::Semantic::Normals), nor);
+        attributes.insert(Valid(mesh::Semantic::Joints(0)), jnt);
+        attributes.insert(Valid(mesh::Semantic::Weights(0)), wgt);
+        let mesh = self.root.push(json::Mesh {
+            extensions: None,
+            extras: None,
+            name: Some("plant".to_string()),
+            primitives: vec![mesh::Primitive {
+                attributes,
+                extensions: None,
+                extras: None,
+                indices: Some(idx),
+                material: Some(material),
+                mode: Valid(mesh::Mode::Triangles),
+                targets: None,
+            }],
+            weights: None,
+        });
+        PlantAssets {
+            mesh,
+            ibm,
+            heights_m: heights,
+            joint_names: joint_names.clone(),
+            elements,
+            vertices: positions.len(),
+        }
+    }
+
+    fn joints_attr(&mut self, joints: &[[u16; 4]], joint_count: usize) -> Index<json::Accessor> {
+        self.align4();
+        let start = self.bin.len();
+        let mut min = [u32::MAX; 4];
+        let mut max = [0u32; 4];
+        let small = joint_count <= 256;
+        for j in joints {
+            for c in 0..4 {
+                if small {
+                    self.bin.push(j[c] as u8);
+                } else {
+                    self.bin.extend_from_slice(&j[c].to_le_bytes());
+                }
+                min[c] = min[c].min(u32::from(j[c]));
+                max[c] = max[c].max(u32::from(j[c]));
+            }
+        }
+        let view = self.view(start, Some(buffer::Target::ArrayBuffer));
+        let ct = if small { accessor::ComponentType::U8 } else { accessor::ComponentType::U16 };
+        self.accessor(
+            view,
+            0,
+            joints.len(),
+            ct,
+            accessor::Type::Vec4,
+            ints(&min),
+            ints(&max),
+            Some("joints".to_string()),
+        )
+    }
+
+    fn indices(&mut self, indices: &[u32], vertices: usize) -> Index<json::Accessor> {
+        self.align4();
+        let start = self.bin.len();
+        let small = vertices <= usize::from(u16::MAX);
+        for &i in indices {
+            if small {
+                self.bin.extend_from_slice(&(i as u16).to_le_bytes());
+            } else {
+                self.bin.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        let view = self.view(start, Some(buffer::Target::ElementArrayBuffer));
+        let min = indices.iter().copied().min().unwrap_or(0);
+        let max = indices.iter().copied().max().unwrap_or(0);
+        let ct = if small { accessor::ComponentType::U16 } else { accessor::ComponentType::U32 };
+        self.accessor(
+            view,
+            0,
+            indices.len(),
+            ct,
+            accessor::Type::Scalar,
+            ints(&[min]),
+            ints(&[max]),
+            Some("indices".to_string()),
+        )
+    }
+
+    fn node(
+        &mut self,
+        name: String,
+        translation: [f32; 3],
+        rotation: [f32; 4],
+        scale: f32,
+    ) -> Index<json::Node> {
+        self.root.push(json::Node {
+            name: Some(name),
+            translation: (translation != [0.0; 3]).then_some(translation),
+            rotation: (rotation != [0.0, 0.0, 0.0, 1.0]).then_some(json::scene::UnitQuaternion(rotation)),
+            scale: (scale != 1.0).then_some([scale; 3]),
+            ..Default::default()
+        })
+    }
+
+    fn add_child(&mut self, parent: Index<json::Node>, child: Index<json::Node>) {
+        self.root.nodes[parent.value()].children.get_or_insert_with(Vec::new).push(child);
+    }
+
+    /// One plant: a root node placed in the scene, the rig's joints under it (named after the
+    /// rig's joints), each secondary element instance's skeleton under its attach joint, a skin
+    /// over all of them, and a root-level node with the shared mesh and that skin.
+    pub fn plant(&mut self, assets: &PlantAssets, name: &str, placement: &Placement) -> PlantNodes {
+        let root = self.node(name.to_string(), placement.translation_m, placement.rotation, placement.scale);
+        let h = assets.heights_m;
+        let mut main = [root; JOINTS];
+        let mut parent = root;
+        for i in 0..JOINTS {
+            let below = if i == 0 { 0.0 } else { h[i - 1] };
+            main[i] =
+                self.node(assets.joint_names[i].clone(), [0.0, h[i] - below, 0.0], [0.0, 0.0, 0.0, 1.0], 1.0);
+            self.add_child(parent, main[i]);
+            parent = main[i];
+        }
+        let mut elements = Vec::with_capacity(assets.elements.len());
+        for e in &assets.elements {
+            let attach = self.node(e.name.clone(), e.offset_m, e.rotation, 1.0);
+            self.add_child(main[e.attach_joint], attach);
+            let mut joints = [attach; JOINTS];
+            let mut parent = attach;
+            let mut below = 0.0;
+            for (k, (joint, &h)) in joints.iter_mut().zip(&e.heights_m).enumerate() {
+                *joint = self.node(
+                    format!("{}_joint{k}", e.name),
+                    [0.0, h - below, 0.0],
+                    [0.0, 0.0, 0.0, 1.0],
+                    1.0,
+                );
+                self.add_child(parent, *joint);
+                parent = *joint;
+                below = h;
+            }
+            elements.push(joints);
+        }
+        let mut skin_joints: Vec<Index<json::Node>> = main.to_vec();
+        skin_joints.extend(elements.iter().flat_map(|j| j.iter().copied()));
+        let skin = self.root.push(json::Skin {
+            extensions: None,
+            extras: None,
+            inverse_bind_matrices: Some(assets.ibm),
+            joints: skin_joints,
+            name: Some(name.to_string()),
+            skeleton: Some(root),
+        });
+        let mesh_node = self.root.push(json::Node {
+            name: Some(format!("{name}_mesh")),
+            mesh: Some(assets.mesh),
+            skin: Some(skin),
+            ..Default::default()
+        });
+        self.scene_nodes.push(root);
+        self.scene_nodes.push(mesh_node);
+        PlantNodes { root, main, elements }
+    }
+
+    /// Starts the data of one animation: every output accessor goes into one view.
+    pub fn begin_animation(&mut self, input: Index<json::Accessor>) -> AnimationBuilder {
+        self.align4();
+        let start = self.bin.len();
+        let view = self.view(start, None);
+        AnimationBuilder { input, view, start, channels: Vec::new(), samplers: Vec::new() }
+    }
+
+    /// A LINEAR rotation channel for `node` with unit quaternions `[x, y, z, w]`, one per key.
+    pub fn rotation_channel(
+        &mut self,
+        anim: &mut AnimationBuilder,
+        node: Index<json::Node>,
+        quats: &[[f32; 4]],
+    ) {
+        let offset = self.bin.len() - anim.start;
+        let mut b = Bounds::<4>::new();
+        for q in quats {
+            self.put_f32s(q);
+            b.add(q);
+        }
+        let output = self.accessor(
+            anim.view,
+            offset,
+            quats.len(),
+            accessor::ComponentType::F32,
+            accessor::Type::Vec4,
+            floats(&b.min),
+            floats(&b.max),
+            None,
+        );
+        let sampler = Index::new(anim.samplers.len() as u32);
+        anim.samplers.push(json::animation::Sampler {
+            extensions: None,
+            extras: None,
+            input: anim.input,
+            interpolation: Valid(json::animation::Interpolation::Linear),
+            output,
+        });
+        anim.channels.push(json::animation::Channel {
+            sampler,
+            target: json::animation::Target {
+                extensions: None,
+                extras: None,
+                node,
+                path: Valid(json::animation::Property::Rotation),
+            },
+            extensions: None,
+            extras: None,
+        });
+    }
+
+    /// Finishes an animation.
+    pub fn end_animation(
+        &mut self,
+        anim: AnimationBuilder,
+        name: &str,
+        extras: Option<Box<json::extras::RawValue>>,
+    ) {
+        let len = self.bin.len() - anim.start;
+        self.root.buffer_views[anim.view.value()].byte_length = USize64(len as u64);
+        if anim.channels.is_empty() {
+            return;
+        }
+        self.root.push(json::Animation {
+            extensions: None,
+            extras,
+            channels: anim.channels,
+            name: Some(name.to_string()),
+            samplers: anim.samplers,
+        });
+    }
+
+    /// Closes the document: the buffer (padded to 4 bytes), the scene, the asset extras.
+    pub fn finish(mut self, extras: Option<Box<json::extras::RawValue>>) -> (json::Root, Vec<u8>) {
+        self.align4();
+        self.root.push(json::Buffer {
+            byte_length: USize64(self.bin.len() as u64),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: None,
+        });
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: None,
+            name: Some("frond".to_string()),
+            nodes: std::mem::take(&mut self.scene_nodes),
+        });
+        self.root.scene = Some(scene);
+        self.root.asset.extras = extras;
+        (self.root, self.bin)
+    }
+}
+
+/// Joint indices and weights of one vertex for glTF: the non-zero influences first, unused
+/// slots joint 0 with weight 0 (the validator warns about a non-zero joint with zero weight),
+/// normalised so the `f32` sum is 1 as closely as `f32` allows.
+pub fn pack_influences(w: &[f32; JOINTS], base: u16) -> ([u16; 4], [f32; 4]) {
+    let mut joints = [0u16; 4];
+    let mut weights = [0f32; 4];
+    let total: f64 = w.iter().map(|&x| f64::from(x.max(0.0))).sum();
+    let mut n = 0;
+    for (i, &x) in w.iter().enumerate() {
+        if x > 0.0 && total > 0.0 {
+            joints[n] = base + i as u16;
+            weights[n] = (f64::from(x) / total) as f32;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        joints[0] = base;
+        weights[0] = 1.0;
+        return (joints, weights);
+    }
+    // Put the rounding residue on the largest weight.
+    let sum: f32 = weights.iter().sum();
+    let big = (0..n).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
+    weights[big] += 1.0 - sum;
+    (joints, weights)
+}
+
+/// Where a plant stands: its root node's transform.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    /// Translation, metres.
+    pub translation_m: [f32; 3],
+    /// Rotation, unit quaternion `[x, y, z, w]`.
+    pub rotation: [f32; 4],
+    /// Uniform scale.
+    pub scale: f32,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Placement { translation_m: [0.0; 3], rotation: [0.0, 0.0, 0.0, 1.0], scale: 1.0 }
+    }
+}
+
+impl Placement {
+    /// At `(x, 0, z)`, turned `yaw_deg` about +Y, scaled.
+    pub fn on_ground(x_m: f32, z_m: f32, yaw_deg: f32, scale: f32) -> Self {
+        Placement {
+            translation_m: [x_m, 0.0, z_m],
+            rotation: Quat::from_rotation_y(yaw_deg.to_radians()).to_array(),
+            scale,
+        }
+    }
+}
+
+/// One secondary element instance of the plant model, as the document sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElementRig {
+    /// Index into the rig's secondary elements.
+    pub element: usize,
+    /// Which instance of that element.
+    pub instance: u32,
+    /// Node name of its attach node (`leaf0`); its joints are `leaf0_joint0`..`leaf0_joint3`.
+    pub name: String,
+    /// Main joint it hangs from.
+    pub attach_joint: usize,
+    /// Attach rotation `[x, y, z, w]`.
+    pub rotation: [f32; 4],
+    /// Attach offset, metres.
+    pub offset_m: [f32; 3],
+    /// Its own joint heights.
+    pub heights_m: [f32; JOINTS],
+}
+
+/// What every plant of a document shares: one mesh (all geometry in the plant's bind space,
+/// skinned to the main joints `0..4` and element instance `k`'s joints `4 (k + 1)..`), one
+/// material, one inverse-bind-matrix accessor (the bind pose does not depend on where a plant
+/// stands, so every skin uses the same one).
+#[derive(Debug, Clone)]
+pub struct PlantAssets {
+    /// The mesh.
+    pub mesh: Index<json::Mesh>,
+    /// Inverse bind matrices, one per skin joint.
+    pub ibm: Index<json::Accessor>,
+    /// Main joint heights.
+    pub heights_m: [f32; JOINTS],
+    /// Main joint names.
+    pub joint_names: [String; JOINTS],
+    /// Secondary element instances, in skin order.
+    pub elements: Vec<ElementRig>,
+    /// Vertex count.
+    pub vertices: usize,
+}
+
+/// The nodes of one plant.
+#[derive(Debug, Clone)]
+pub struct PlantNodes {
+    /// The plant's root node.
+    pub root: Index<json::Node>,
+    /// Main joints, root first.
+    pub main: [Index<json::Node>; JOINTS],
+    /// Per element instance (in [`PlantAssets::elements`] order), its joints.
+    pub elements: Vec<[Index<json::Node>; JOINTS]>,
+}
+
+/// An animation being written (see [`DocBuilder::begin_animation`]).
+pub struct AnimationBuilder {
+    input: Index<json::Accessor>,
+    view: Index<buffer::View>,
+    start: usize,
+    channels: Vec<json::animation::Channel>,
+    samplers: Vec<json::animation::Sampler>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn influences_put_nonzero_weights_first() {
+        assert_eq!(pack_influences(&[0.0, 0.25, 0.75, 0.0], 4), ([5, 6, 0, 0], [0.25, 0.75, 0.0, 0.0]));
+        assert_eq!(pack_influences(&[1.0, 0.0, 0.0, 0.0], 0), ([0, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]));
+        assert_eq!(pack_influences(&[0.0; 4], 8), ([8, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]));
+        // Not summing to 1: renormalised.
+        let (_, w) = pack_influences(&[0.2, 0.2, 0.0, 0.0], 0);
+        assert_eq!(w, [0.5, 0.5, 0.0, 0.0]);
+        let (_, w) = pack_influences(&[0.1, 0.7, 0.2, 0.0], 0);
+        assert_eq!(w.iter().sum::<f32>(), 1.0);
+    }
+}

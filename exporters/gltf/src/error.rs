@@ -1,0 +1,107 @@
+//! Why a bake failed. Every message names the file or argument at fault.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// Everything that can stop a bake.
+#[derive(Debug, Error)]
+pub enum BakeError {
+    /// The take file does not exist.
+    #[error("take `{arg}` not found: no file {}", path.display())]
+    TakeNotFound {
+        /// The `--take` argument.
+        arg: String,
+        /// Where it was looked for.
+        path: PathBuf,
+    },
+    /// The take name is not a valid name (and not a path).
+    #[error("take `{arg}`: {reason}")]
+    TakeName {
+        /// The `--take` argument.
+        arg: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The take file could not be read.
+    #[error("cannot read take {}: {source}", path.display())]
+    TakeRead {
+        /// The take file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The take file is damaged (bad magic, corrupt record in the middle, bad structure).
+    #[error("take {origin} is damaged: {source}")]
+    TakeDamaged {
+        /// The take file (or `<memory>`).
+        origin: String,
+        /// What the take reader found.
+        source: frond_motion::TakeError,
+    },
+    /// The take holds no usable frames of the main skeleton.
+    #[error("take `{name}` has no frames of the main skeleton (element 0) to bake")]
+    TakeEmpty {
+        /// Take name.
+        name: String,
+    },
+    /// A rig name that is neither embedded nor an existing file.
+    #[error("rig `{arg}` not found: not an embedded rig ({embedded}) and no such file")]
+    RigNotFound {
+        /// The `--rig` argument.
+        arg: String,
+        /// The embedded rig names.
+        embedded: String,
+    },
+    /// The rig file could not be read.
+    #[error("cannot read rig {}: {source}", path.display())]
+    RigRead {
+        /// The rig file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The rig file is not a valid rig (no joints, bad heights, ...); lists every problem.
+    #[error("rig {origin}: {source}")]
+    RigInvalid {
+        /// The rig file or embedded name.
+        origin: String,
+        /// Every problem with its path.
+        source: frond_motion::RigError,
+    },
+    /// The rig's mesh could not be built or loaded.
+    #[error("rig {origin}: mesh: {reason}")]
+    RigMesh {
+        /// The rig file or embedded name.
+        origin: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// The field file could not be read or is invalid.
+    #[error("field {origin}: {reason}")]
+    Field {
+        /// The field file.
+        origin: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A bake option is out of range.
+    #[error("{option}: {reason}")]
+    Option {
+        /// The option (`--fps`).
+        option: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The output could not be written (nothing is left behind).
+    #[error("cannot write {}: {reason}", path.display())]
+    Output {
+        /// The output path.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+    /// The document could not be serialised (a bug).
+    #[error("cannot serialise the glTF document: {0}")]
+    Json(String),
+}

@@ -1,0 +1,167 @@
+//! Reading what a bake needs from disk: rigs (embedded or files), their meshes, and takes (by
+//! name in the takes directory, or by path). The document builder itself ([`crate::bake`]) is
+//! pure and works on what these functions return.
+
+use std::path::{Path, PathBuf};
+
+use frond_motion::mesh::{PlantModel, procedural_model};
+use frond_motion::rig::MeshSpec;
+use frond_motion::skeleton::Skeleton;
+use frond_motion::{Rig, TakeFrame, TakeHeader, scan_take};
+
+use crate::error::BakeError;
+
+/// The rigs of `rig-files/plants/`, built into the binary: `(name, TOML text)`.
+pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
+    ("grass", include_str!("../../../rig-files/plants/grass.toml")),
+    ("flower", include_str!("../../../rig-files/plants/flower.toml")),
+    ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
+];
+
+/// A validated rig and where it came from.
+#[derive(Debug, Clone)]
+pub struct LoadedRig {
+    /// The rig.
+    pub rig: Rig,
+    /// `embedded rig grass` or the file path, for messages.
+    pub origin: String,
+    /// Directory of the rig file (mesh files are relative to it); `None` when embedded.
+    pub dir: Option<PathBuf>,
+}
+
+impl LoadedRig {
+    /// Parses a rig from TOML text (no I/O). `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: impl Into<String>, dir: Option<PathBuf>) -> Result<Self, BakeError> {
+        let origin = origin.into();
+        let rig = Rig::from_toml_str(text)
+            .map_err(|source| BakeError::RigInvalid { origin: origin.clone(), source })?;
+        Ok(LoadedRig { rig, origin, dir })
+    }
+
+    /// An embedded rig by name (`grass`, `flower`, `shrub`).
+    pub fn embedded(name: &str) -> Option<Result<Self, BakeError>> {
+        EMBEDDED_RIGS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(n, text)| Self::from_toml(text, format!("embedded rig `{n}`"), None))
+    }
+
+    /// `--rig`: an existing file path, else an embedded rig name.
+    pub fn resolve(arg: &str) -> Result<Self, BakeError> {
+        let path = Path::new(arg);
+        if path.is_file() || arg.contains('/') || arg.ends_with(".toml") {
+            let text = std::fs::read_to_string(path)
+                .map_err(|source| BakeError::RigRead { path: path.to_path_buf(), source })?;
+            let dir = path
+                .parent()
+                .map(|d| if d.as_os_str().is_empty() { PathBuf::from(".") } else { d.to_path_buf() });
+            return Self::from_toml(&text, path.display().to_string(), dir);
+        }
+        Self::embedded(arg).unwrap_or_else(|| {
+            Err(BakeError::RigNotFound {
+                arg: arg.to_string(),
+                embedded: EMBEDDED_RIGS.map(|(n, _)| n).join(", "),
+            })
+        })
+    }
+
+    /// The plant geometry: the procedural shape the rig names, or its glTF/GLB mesh file (read
+    /// relative to the rig file, skin weights from the file where it has them).
+    pub fn model(&self) -> Result<PlantModel, BakeError> {
+        let mesh_err = |reason: String| BakeError::RigMesh { origin: self.origin.clone(), reason };
+        match &self.rig.mesh {
+            MeshSpec::Procedural { .. } => procedural_model(&self.rig).map_err(|e| mesh_err(e.to_string())),
+            MeshSpec::File { path } => {
+                let full = match &self.dir {
+                    Some(dir) => dir.join(path),
+                    None => PathBuf::from(path),
+                };
+                let bytes = std::fs::read(&full)
+                    .map_err(|e| mesh_err(format!("cannot read {}: {e}", full.display())))?;
+                let skeleton = Skeleton::from_rig(&self.rig);
+                let names: Vec<String> = self.rig.joints.iter().map(|j| j.name.clone()).collect();
+                let stem = frond_motion::gltf_mesh::load_gltf_mesh(&bytes, &skeleton, &names)
+                    .map_err(|e| mesh_err(format!("{}: {e}", full.display())))?;
+                Ok(PlantModel { skeleton, stem, elements: Vec::new() })
+            }
+        }
+    }
+}
+
+/// A take's content, ready to bake.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TakeInput {
+    /// Take name (the animation's name).
+    pub name: String,
+    /// The header record, when the take has one.
+    pub header: Option<TakeHeader>,
+    /// Names of secondary layers `1, 2, ...` from the header (`elements`), possibly fewer.
+    pub element_names: Vec<String>,
+    /// Every frame, all elements, in file order.
+    pub frames: Vec<TakeFrame>,
+    /// Bytes of a torn tail that were skipped (a take still being written, or a crash).
+    pub torn_bytes: u64,
+    /// True when the take has its End record.
+    pub ended: bool,
+}
+
+impl TakeInput {
+    /// Reads a take from its bytes (no I/O). `name` is used when the header has none;
+    /// `origin` names it in errors.
+    pub fn from_bytes(bytes: &[u8], name: &str, origin: &str) -> Result<Self, BakeError> {
+        let scan = scan_take(bytes)
+            .map_err(|source| BakeError::TakeDamaged { origin: origin.to_string(), source })?;
+        let name = scan
+            .header
+            .as_ref()
+            .map(|h| h.name.clone())
+            .filter(|n| !n.is_empty())
+            .unwrap_or_else(|| name.to_string());
+        Ok(TakeInput {
+            name,
+            header: scan.header,
+            element_names: frond_motion::layers::header_element_names(bytes),
+            frames: scan.frames,
+            torn_bytes: scan.torn_bytes,
+            ended: scan.ended,
+        })
+    }
+
+    /// `--take`: a path (contains `/`, ends in `.take`, or is an existing file), else a take name
+    /// in `takes_dir`.
+    pub fn resolve(arg: &str, takes_dir: &Path) -> Result<Self, BakeError> {
+        let path = take_path(arg, takes_dir)?;
+        let bytes = std::fs::read(&path).map_err(|source| match source.kind() {
+            std::io::ErrorKind::NotFound => {
+                BakeError::TakeNotFound { arg: arg.to_string(), path: path.clone() }
+            }
+            _ => BakeError::TakeRead { path: path.clone(), source },
+        })?;
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or(arg).to_string();
+        Self::from_bytes(&bytes, &stem, &path.display().to_string())
+    }
+}
+
+/// Where `--take ARG` points: see [`TakeInput::resolve`].
+pub fn take_path(arg: &str, takes_dir: &Path) -> Result<PathBuf, BakeError> {
+    let path = Path::new(arg);
+    if arg.contains('/') || arg.ends_with(".take") || path.is_file() {
+        return Ok(path.to_path_buf());
+    }
+    frond_protocol::paths::validate_take_name(arg)
+        .map_err(|reason| BakeError::TakeName { arg: arg.to_string(), reason })?;
+    Ok(takes_dir.join(format!("{arg}.take")))
+}
+
+impl TakeInput {
+    /// The name of layer `id` (> 0): the take's own name for it, else the rig's element of the
+    /// same index (takes recorded before layer names), else `element<id>`.
+    pub fn layer_name(&self, id: u16, rig: &frond_motion::Rig) -> String {
+        let k = usize::from(id).saturating_sub(1);
+        self.element_names
+            .get(k)
+            .or_else(|| rig.elements.get(k).map(|e| &e.name))
+            .cloned()
+            .unwrap_or_else(|| format!("element{id}"))
+    }
+}
