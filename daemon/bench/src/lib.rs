@@ -1,1 +1,103 @@
-//! `frond bench` measurements (in progress).
+//! `frond bench`: frond's speed, each measurement beside a baseline measured in the same run
+//! (machines are shared and noisy: a ratio counts, an absolute time alone does not).
+//!
+//! Sections (issue 9): [`timing::loop_timing`] (1), [`latency::glove_latency`] (2),
+//! [`tick::tick_cost`] (3), [`timing::max_rate`] (4), [`resources::daemon_resources`] (5) and
+//! [`components::components`] (6). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! prints it, `frond bench` prints [`report::Report::to_table`].
+
+pub mod alloc;
+pub mod components;
+pub mod latency;
+pub mod loops;
+pub mod procs;
+pub mod report;
+pub mod resources;
+pub mod rig;
+pub mod tick;
+pub mod timing;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use report::{Machine, Report, SCHEMA, Section, Status};
+
+/// Section keys, in report order.
+pub const SECTIONS: [&str; 6] =
+    ["loop_timing", "glove_latency", "tick_cost", "max_rate", "daemon_resources", "components"];
+
+/// What to run.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Short measurements (about 1-2 s each), for CI.
+    pub quick: bool,
+    /// Sections to run (keys of [`SECTIONS`]); empty = all.
+    pub sections: Vec<String>,
+    /// Where `frondd`, `frond-vhid` and the exporters' binaries are [default: `$FROND_BIN_DIR`,
+    /// else the directory of the running executable].
+    pub bin_dir: Option<PathBuf>,
+    /// Print progress on stderr.
+    pub progress: bool,
+}
+
+/// Checks section names; returns the unknown ones.
+pub fn unknown_sections(names: &[String]) -> Vec<String> {
+    names.iter().filter(|n| !SECTIONS.contains(&n.as_str())).cloned().collect()
+}
+
+fn title(name: &str) -> &'static str {
+    match name {
+        "loop_timing" => "loop wake-up lateness at 1 kHz and 8 kHz",
+        "glove_latency" => "virtual glove report write -> subscriber receipt",
+        "tick_cost" => "per-tick cost and allocations",
+        "max_rate" => "highest sustainable tick rate with 8 subscribers",
+        "daemon_resources" => "frondd CPU and memory at 1 kHz with 4 subscribers",
+        _ => "motion toolkit and exporters",
+    }
+}
+
+/// Runs the selected sections and returns the report.
+pub fn run(options: &Options) -> Report {
+    let fifo = loops::probe_fifo(loops::BENCH_PRIORITY);
+    let priority = if fifo.is_ok() { loops::BENCH_PRIORITY } else { 0 };
+    let realtime = match &fifo {
+        Ok(()) => format!("SCHED_FIFO priority {} for every measured loop", loops::BENCH_PRIORITY),
+        Err(e) => format!("normal scheduling (SCHED_FIFO refused: {e})"),
+    };
+    let machine = procs::machine(realtime);
+    let mut sections = Vec::new();
+    for name in SECTIONS {
+        if !options.sections.is_empty() && !options.sections.iter().any(|s| s == name) {
+            continue;
+        }
+        if options.progress {
+            eprintln!("frond bench: {name} ...");
+        }
+        let started = Instant::now();
+        let result = match name {
+            "loop_timing" => timing::loop_timing(options, priority),
+            "glove_latency" => latency::glove_latency(options),
+            "tick_cost" => tick::tick_cost(options),
+            "max_rate" => timing::max_rate(options, priority),
+            "daemon_resources" => resources::daemon_resources(options),
+            _ => Ok(components::components(options)),
+        };
+        let mut section =
+            result.unwrap_or_else(|e| Section::unavailable(name, title(name), Status::Error, e));
+        section.seconds = started.elapsed().as_secs_f64();
+        if options.progress {
+            eprintln!("frond bench: {name} done in {:.1} s", section.seconds);
+        }
+        sections.push(section);
+    }
+    let mut report = Report {
+        schema: SCHEMA,
+        frond_version: env!("CARGO_PKG_VERSION").into(),
+        quick: options.quick,
+        machine: Machine { ..machine },
+        sections,
+        targets: Vec::new(),
+    };
+    report.collect_targets();
+    report
+}

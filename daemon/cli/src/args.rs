@@ -104,6 +104,25 @@ pub enum Command {
         #[arg(long, value_name = "NAME")]
         name: Option<String>,
     },
+    /// Measure frond's speed, each figure against a baseline measured in the same run (loop
+    /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion
+    /// toolkit and exporters) and say whether each target holds.
+    Bench(BenchArgs),
+}
+
+/// `frond bench` options.
+#[derive(Debug, Clone, Args)]
+pub struct BenchArgs {
+    /// Short measurements (about 1-2 s each), for CI.
+    #[arg(long)]
+    pub quick: bool,
+    /// Print the report as one JSON document instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Run only this section (repeatable): loop_timing, glove_latency, tick_cost, max_rate,
+    /// daemon_resources, components.
+    #[arg(long, value_name = "NAME")]
+    pub section: Vec<String>,
 }
 
 /// `frond calibrate` options.

@@ -5,6 +5,7 @@
 //! ends the command quietly with status 0.
 
 pub mod args;
+mod bench;
 mod calibrate;
 mod control;
 mod demo;
@@ -119,5 +120,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
+        Command::Bench(a) => bench::run(&a),
     }
 }

@@ -1,0 +1,206 @@
+//! Section 3: per-tick cost of calibrate + filter + map, of a whole engine tick, and allocations
+//! per tick.
+
+use std::hint::black_box;
+use std::sync::Arc;
+
+use crossbeam_channel::{Receiver, Sender, bounded};
+use frond_motion::HandSample;
+use frond_protocol::{Pose, ServerMessage, encode_frame};
+use frondd::clock::monotonic_ns;
+use frondd::engine::{Engine, EngineLinks, Garbage, LoopCommand};
+use frondd::publisher::{Outbound, SubscriberCounters, SubscriberSlot};
+use frondd::recorder::RecorderMsg;
+use frondd::stats::LoopStats;
+use serde_json::json;
+
+use crate::Options;
+use crate::alloc::{count_allocations, counting_installed};
+use crate::report::{Bound, Measurement, Section};
+use crate::rig::{TickGlove, mapper};
+use crate::timing::SUBSCRIBERS;
+
+/// Median of `v` (sorted in place).
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() { 0.0 } else { v[v.len() / 2] }
+}
+
+/// Nanoseconds per call of `f`, median over `batches` batches of `n` calls.
+fn ns_per_call(batches: usize, n: u64, mut f: impl FnMut(u64)) -> f64 {
+    let mut per = Vec::with_capacity(batches);
+    let mut k = 0u64;
+    for _ in 0..batches {
+        let start = monotonic_ns();
+        for _ in 0..n {
+            f(k);
+            k += 1;
+        }
+        per.push((monotonic_ns() - start) as f64 / n as f64);
+    }
+    median(&mut per)
+}
+
+fn hand(k: u64) -> HandSample {
+    let t = k as f64 * 0.001;
+    HandSample {
+        t,
+        wrist_deg: [(t * 1.7).sin() as f32 * 20.0, (t * 0.9).cos() as f32 * 10.0, 3.0],
+        thumb_deg: [20.0 + (t * 2.3).sin() as f32 * 10.0, 25.0, (t * 3.1).cos() as f32 * 15.0 + 20.0],
+    }
+}
+
+/// An engine on the one-report-per-tick glove with 8 subscriber queues drained by the caller,
+/// and the other ends of its channels.
+struct TickRig {
+    engine: Engine,
+    rxs: Vec<Receiver<Outbound>>,
+    _commands: Sender<LoopCommand>,
+    _recorder: Receiver<RecorderMsg>,
+    _reopen: Receiver<Box<dyn frond_device::HandSource>>,
+    _garbage: Receiver<Garbage>,
+}
+
+fn engine() -> TickRig {
+    let (cmd_tx, cmd_rx) = bounded(64);
+    let (rec_tx, rec_rx) = bounded(16);
+    let (reopen_tx, reopen_rx) = bounded(1);
+    let (garbage_tx, garbage_rx) = bounded(64);
+    let mut engine = Engine::new(
+        mapper(),
+        Some(Box::new(TickGlove::new())),
+        250_000_000,
+        EngineLinks {
+            commands: cmd_rx,
+            recorder: rec_tx,
+            reopen: reopen_tx,
+            garbage: garbage_tx,
+            stats: Arc::new(LoopStats::default()),
+        },
+    );
+    let mut rxs = Vec::new();
+    for id in 0..SUBSCRIBERS as u64 {
+        let (tx, rx) = bounded(1024);
+        let counters = Arc::new(SubscriberCounters::default());
+        let _ = cmd_tx.send(LoopCommand::AddSubscriber(SubscriberSlot { id, tx, counters }));
+        rxs.push(rx);
+    }
+    engine.tick(monotonic_ns());
+    TickRig { engine, rxs, _commands: cmd_tx, _recorder: rec_rx, _reopen: reopen_rx, _garbage: garbage_rx }
+}
+
+fn drain(rxs: &[Receiver<Outbound>]) {
+    for rx in rxs {
+        while rx.try_recv().is_ok() {}
+    }
+}
+
+/// Section 3.
+pub fn tick_cost(o: &Options) -> Result<Section, String> {
+    let (batches, n) = if o.quick { (15, 20_000) } else { (41, 200_000) };
+    // calibrate + filter (One Euro) + map, the loop's per-report work.
+    let mut m = mapper();
+    for k in 0..10_000 {
+        black_box(m.process(&hand(k)));
+    }
+    let clock = ns_per_call(batches, n, |_| {
+        black_box(monotonic_ns());
+    });
+    let map_ns = ns_per_call(batches, n, |k| {
+        black_box(m.process(black_box(&hand(k))));
+    });
+    let clock2 = ns_per_call(batches, n, |_| {
+        black_box(monotonic_ns());
+    });
+    let clock_ns = (clock + clock2) / 2.0;
+
+    // A whole engine tick: read one report, calibrate, filter, map, stamp, offer to 8 queues.
+    let mut rig = engine();
+    let tick_batch = 500u64;
+    let mut now = monotonic_ns();
+    let mut tick_times = Vec::new();
+    for _ in 0..batches * (n as usize / 20_000).max(1) {
+        let start = monotonic_ns();
+        for _ in 0..tick_batch {
+            now += 1_000_000;
+            rig.engine.tick(now);
+        }
+        tick_times.push((monotonic_ns() - start) as f64 / tick_batch as f64);
+        drain(&rig.rxs);
+    }
+    let tick_ns = median(&mut tick_times);
+
+    let mut measurements = vec![
+        Measurement::new(
+            "calibrate_filter_map_ns",
+            "ns",
+            map_ns,
+            "one CLOCK_MONOTONIC read (vDSO)",
+            clock_ns,
+        )
+        .with_target("calibrate + filter + map under 1 us per tick", Bound::MaxMeasured, 1000.0),
+        Measurement::new(
+            "engine_tick_8_subscribers_ns",
+            "ns",
+            tick_ns,
+            "one CLOCK_MONOTONIC read (vDSO)",
+            clock_ns,
+        ),
+    ];
+    let mut details = json!({
+        "filter": "one-euro:min_cutoff=1,beta=0.007,d_cutoff=1",
+        "rig": "grass",
+        "batches": batches,
+        "calls_per_batch": n,
+        "clock_read_ns_before_after": [clock, clock2],
+    });
+    if counting_installed() {
+        let ticks = if o.quick { 20_000u64 } else { 200_000 };
+        let mut allocations = 0;
+        let mut done = 0;
+        while done < ticks {
+            let (_, a) = count_allocations(|| {
+                for _ in 0..tick_batch {
+                    now += 1_000_000;
+                    rig.engine.tick(now);
+                }
+            });
+            allocations += a;
+            done += tick_batch;
+            drain(&rig.rxs);
+        }
+        // Baseline: the same frames published the naive way, encoding each one into a fresh
+        // buffer per subscriber (what a loop without preallocated buffers does).
+        let pose = Pose::default();
+        let naive_frames = 2_000u64;
+        let (_, naive) = count_allocations(|| {
+            for _ in 0..naive_frames {
+                for _ in 0..SUBSCRIBERS {
+                    let mut buf = Vec::new();
+                    encode_frame(&ServerMessage::Pose(pose), &mut buf);
+                    black_box(&buf);
+                }
+            }
+        });
+        measurements.push(
+            Measurement::new(
+                "allocations_per_tick",
+                "allocations/tick",
+                allocations as f64 / ticks as f64,
+                "naive publish (a fresh buffer per encoded frame per subscriber), allocations/tick",
+                naive as f64 / naive_frames as f64,
+            )
+            .with_target("zero allocations per tick", Bound::MaxMeasured, 0.0),
+        );
+        details["allocation_ticks"] = json!(ticks);
+        details["allocations"] = json!(allocations);
+    } else {
+        details["allocations"] = json!({"status": "not available", "reason": "the counting allocator is not installed in this process (the frond binary installs it)"});
+    }
+    Ok(Section::ok(
+        "tick_cost",
+        "per-tick cost of calibrate + filter + map, of a whole engine tick, and allocations per tick",
+        measurements,
+        details,
+    ))
+}
