@@ -154,12 +154,20 @@ impl Warper {
                 let r = lerp2(row0[cx + 1], row1[cx + 1], v);
                 let end = ((cx + 1) * self.cell_x).min(w);
                 let x_start = cx * self.cell_x;
+                // The source point is linear in x inside a cell row: step it in 1/65536 pixel.
+                const SUB: f32 = 65536.0;
+                let sx0 = ((x_start as f32 + l[0]) * SUB).round() as i64;
+                let sy0 = ((y as f32 + l[1]) * SUB).round() as i64;
+                let dsx = ((1.0 + (r[0] - l[0]) * inv_sx) * SUB).round() as i64;
+                let dsy = ((r[1] - l[1]) * inv_sx * SUB).round() as i64;
+                let (mut sxa, mut sya) = (sx0 + (x - x_start) as i64 * dsx, sy0 + (x - x_start) as i64 * dsy);
                 while x < end {
-                    let u = (x - x_start) as f32 * inv_sx;
-                    let d = lerp2(l, r, u);
-                    let sxf = (((x as f32 + d[0]) * ONE as f32).round() as i32).clamp(0, max_x);
-                    let syf = (((y as f32 + d[1]) * ONE as f32).round() as i32).clamp(0, max_y);
+                    // Round 1/65536 to 1/256 pixel.
+                    let sxf = (((sxa + 128) >> 8) as i32).clamp(0, max_x);
+                    let syf = (((sya + 128) >> 8) as i32).clamp(0, max_y);
                     f(x, y, sxf, syf);
+                    sxa += dsx;
+                    sya += dsy;
                     x += 1;
                 }
             }
@@ -175,11 +183,14 @@ impl Warper {
         self.for_each_source(|x, y, sxf, syf| {
             let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, self.width, self.height);
             let o = (y * w + x) * 4;
+            let (p00, p10, p01, p11) = (px(src, i00), px(src, i10), px(src, i01), px(src, i11));
+            let (fx, fy) = (fx as u32, fy as u32);
+            let (gx, gy) = (ONE as u32 - fx, ONE as u32 - fy);
+            let out: &mut [u8; 4] = (&mut dst[o..o + 4]).try_into().expect("4 bytes");
             for c in 0..4 {
-                let top = src[i00 + c] as u32 * (ONE - fx) as u32 + src[i10 + c] as u32 * fx as u32;
-                let bot = src[i01 + c] as u32 * (ONE - fx) as u32 + src[i11 + c] as u32 * fx as u32;
-                let v = top * (ONE - fy) as u32 + bot * fy as u32;
-                dst[o + c] = ((v + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as u8;
+                let top = p00[c] as u32 * gx + p10[c] as u32 * fx;
+                let bot = p01[c] as u32 * gx + p11[c] as u32 * fx;
+                out[c] = ((top * gy + bot * fy + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as u8;
             }
         });
     }
@@ -241,6 +252,11 @@ impl Warper {
         });
         (mx, my)
     }
+}
+
+#[inline(always)]
+fn px(buf: &[u8], i: usize) -> [u8; 4] {
+    buf[i..i + 4].try_into().expect("4 bytes")
 }
 
 #[inline(always)]
