@@ -37,7 +37,7 @@ fn sd_notify_ready_and_watchdog_pings_stop_while_the_loop_is_frozen() {
     let _proc = Proc { child, name: "frondd".into() };
     // Messages with their arrival times.
     let mut log: Vec<(Instant, String)> = Vec::new();
-    let mut drain = |log: &mut Vec<(Instant, String)>, for_how_long: Duration| {
+    let drain = |log: &mut Vec<(Instant, String)>, for_how_long: Duration| {
         let until = Instant::now() + for_how_long;
         let mut buf = [0u8; 512];
         while Instant::now() < until {
