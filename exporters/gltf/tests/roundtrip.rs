@@ -137,3 +137,153 @@ fn grass_take_round_trips_through_the_gltf_crate() {
         }
     }
 }
+
+fn rotations(ch: &gltf::animation::Channel, buffers: &[Vec<u8>]) -> (Vec<f32>, Vec<[f32; 4]>) {
+    let r = ch.reader(|b| Some(&buffers[b.index()]));
+    let times = r.read_inputs().unwrap().collect();
+    let gltf::animation::util::ReadOutputs::Rotations(rot) = r.read_outputs().unwrap() else {
+        panic!("not rotations")
+    };
+    (times, rot.into_f32().collect())
+}
+
+#[test]
+fn layered_take_animates_each_leaf_skeleton_with_its_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = layered_take(dir.path(), "lay");
+    let out = dir.path().join("flower.glb");
+    run_ok(&["bake", "-q", "--take", take.to_str().unwrap(), "--rig", "flower", "-o", out.to_str().unwrap()]);
+    let (doc, buffers) = load(&out);
+    let skin = doc.skins().next().unwrap();
+    let names: Vec<String> = skin.joints().map(|n| n.name().unwrap().to_string()).collect();
+    assert_eq!(names.len(), 12);
+    assert_eq!(&names[..4], ["root", "stem_low", "stem_high", "head"]);
+    assert_eq!(names[4], "leaf0_joint0");
+    assert_eq!(names[11], "leaf1_joint3");
+    // Leaves hang from their attach joint (stem_low, joint 1) through an attach node.
+    let stem_low = skin.joints().nth(1).unwrap();
+    let attach: Vec<_> = stem_low.children().filter(|c| c.name().unwrap().starts_with("leaf")).collect();
+    assert_eq!(attach.iter().map(|n| n.name().unwrap()).collect::<Vec<_>>(), ["leaf0", "leaf1"]);
+    // Every joint's IBM undoes its rest transform, leaves included.
+    let ibms: Vec<[[f32; 4]; 4]> =
+        skin.reader(|b| Some(&buffers[b.index()])).read_inverse_bind_matrices().unwrap().collect();
+    for (j, ibm) in skin.joints().zip(&ibms) {
+        let m = node_global(&doc, j.index()) * Mat4::from_cols_array_2d(ibm);
+        assert!(m.abs_diff_eq(Mat4::IDENTITY, 1e-5), "{:?}", j.name());
+    }
+    // Leaf vertices are skinned to leaf joints only; stem vertices to stem joints only.
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    let joints: Vec<[u16; 4]> = reader.read_joints(0).unwrap().into_u16().collect();
+    let weights: Vec<[f32; 4]> = reader.read_weights(0).unwrap().into_f32().collect();
+    let leafy = joints.iter().zip(&weights).filter(|(j, w)| (0..4).any(|c| w[c] > 0.0 && j[c] >= 4)).count();
+    assert!(leafy > 0);
+    for (j, w) in joints.iter().zip(&weights) {
+        let used: Vec<u16> = (0..4).filter(|&c| w[c] > 0.0).map(|c| j[c]).collect();
+        assert!(used.iter().all(|&x| x < 4) || used.iter().all(|&x| x >= 4), "{j:?} {w:?}");
+        for c in 0..4 {
+            assert!(w[c] > 0.0 || j[c] == 0, "zero weight on joint {}", j[c]);
+        }
+    }
+    // 12 channels; leaf joints follow layer 1 (held at its first pose before it starts at +0.5 s).
+    let frames = frond_motion::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
+    let anim = doc.animations().next().unwrap();
+    assert_eq!(anim.channels().count(), 12);
+    for ch in anim.channels() {
+        let slot = names.iter().position(|n| Some(n.as_str()) == ch.target().node().name()).unwrap();
+        let (layer, joint) = if slot < 4 { (0, slot) } else { (1, slot % 4) };
+        let (times, quats) = rotations(&ch, &buffers);
+        assert_eq!(times.len(), 61);
+        for (k, q) in quats.iter().enumerate() {
+            let want = joint_quat(expected_angles(&frames, layer, 5.0, k as f64 / 30.0, joint));
+            assert!(close_quat(*q, want, 1e-5), "{} key {k}", names[slot]);
+        }
+    }
+}
+
+#[test]
+fn field_shares_one_mesh_and_delays_each_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "wind");
+    let field = field_json(dir.path(), 5);
+    let out = dir.path().join("field.glb");
+    run_ok(&[
+        "bake",
+        "-q",
+        "--field",
+        field.to_str().unwrap(),
+        "--take",
+        take.to_str().unwrap(),
+        "--rig",
+        "grass",
+        "--duration",
+        "3",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let (doc, buffers) = load(&out);
+    assert_eq!(doc.meshes().count(), 1);
+    assert_eq!(doc.skins().count(), 5);
+    let mesh_nodes: Vec<_> = doc.nodes().filter(|n| n.mesh().is_some()).collect();
+    assert_eq!(mesh_nodes.len(), 5);
+    assert!(mesh_nodes.iter().all(|n| n.mesh().unwrap().index() == 0 && n.skin().is_some()));
+    let ibm0 = doc.skins().next().unwrap().inverse_bind_matrices().unwrap().index();
+    assert!(doc.skins().all(|s| s.inverse_bind_matrices().unwrap().index() == ibm0));
+    assert_eq!(doc.animations().count(), 1);
+
+    // Clip of the take at the field's 30 FPS, from the raw frames.
+    let frames = frond_motion::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
+    let clip_len = 61;
+    let anim = doc.animations().next().unwrap();
+    assert_eq!(anim.channels().count(), 20);
+    for (i, skin) in doc.skins().enumerate() {
+        let root = skin.skeleton().unwrap();
+        let (t, _, s) = root.transform().decomposed();
+        assert_eq!(t, [i as f32 * 0.3, 0.0, (i % 2) as f32 * 0.2], "plant {i}");
+        assert!((s[0] - (1.0 + 0.1 * i as f32)).abs() < 1e-6);
+        for (j, joint) in skin.joints().enumerate() {
+            let ch = anim.channels().find(|c| c.target().node().index() == joint.index()).unwrap();
+            let (times, quats) = rotations(&ch, &buffers);
+            assert_eq!(times.len(), 91);
+            for (k, q) in quats.iter().enumerate() {
+                // start 3i, delay 0.2 i s = 6i frames: frame k - 3i, looping over the clip.
+                let f = (k as i64 - 3 * i as i64).rem_euclid(clip_len) as f64;
+                let want = joint_quat(expected_angles(&frames, 0, 5.0, f / 30.0, j));
+                assert!(close_quat(*q, want, 1e-5), "plant {i} joint {j} key {k}");
+            }
+        }
+    }
+}
+
+#[test]
+fn gltf_output_is_a_json_file_and_a_bin_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "split");
+    let glb = dir.path().join("a.glb");
+    let gltf_path = dir.path().join("b.gltf");
+    run_ok(&["bake", "-q", "--take", take.to_str().unwrap(), "--rig", "shrub", "-o", glb.to_str().unwrap()]);
+    run_ok(&[
+        "bake",
+        "-q",
+        "--take",
+        take.to_str().unwrap(),
+        "--rig",
+        "shrub",
+        "--gltf",
+        "-o",
+        gltf_path.to_str().unwrap(),
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&gltf_path).unwrap()).unwrap();
+    assert_eq!(json["buffers"][0]["uri"], "b.bin");
+    assert!(dir.path().join("b.bin").is_file());
+    let (a, abuf) = load(&glb);
+    let (b, bbuf) = load(&gltf_path);
+    let keys = |doc: &gltf::Document, bufs: &[Vec<u8>]| {
+        doc.animations().next().unwrap().channels().map(|c| rotations(&c, bufs)).collect::<Vec<_>>()
+    };
+    assert_eq!(keys(&a, &abuf), keys(&b, &bbuf));
+    // Nothing else in the directory: no temporary files left.
+    let mut names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    names.sort();
+    assert_eq!(names, ["a.glb", "b.bin", "b.gltf", "split.take"]);
+}

@@ -1,0 +1,212 @@
+//! Bad input gives a clear error naming the problem, exit status 1, and no output file (nor a
+//! temporary file) left behind.
+
+mod common;
+
+use std::path::Path;
+
+use common::*;
+
+/// Runs a failing bake into `dir/out.glb`; returns stderr. Checks that `dir` holds nothing new.
+fn fails(dir: &Path, args: &[&str]) -> String {
+    let before: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let out = run(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    assert!(stderr.starts_with("frond-gltf: error: "), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let after: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(before, after, "files left behind");
+    stderr
+}
+
+#[test]
+fn missing_take_by_name_and_by_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let out = format!("{d}/out.glb");
+    let e = fails(dir.path(), &["bake", "--take", "nope", "--takes-dir", d, "--rig", "grass", "-o", &out]);
+    assert!(e.contains("take `nope` not found") && e.contains(&format!("{d}/nope.take")), "{e}");
+    let e = fails(dir.path(), &["bake", "--take", "/no/such/x.take", "--rig", "grass", "-o", &out]);
+    assert!(e.contains("not found: no file /no/such/x.take"), "{e}");
+    let e =
+        fails(dir.path(), &["bake", "--take", "../escape", "--takes-dir", d, "--rig", "grass", "-o", &out]);
+    assert!(e.contains("not found"), "{e}");
+    let e =
+        fails(dir.path(), &["bake", "--take", "bad name", "--takes-dir", d, "--rig", "grass", "-o", &out]);
+    assert!(e.contains("take `bad name`") && e.contains("letters, digits"), "{e}");
+}
+
+#[test]
+fn take_names_resolve_in_the_takes_dir_and_env() {
+    let dir = tempfile::tempdir().unwrap();
+    grass_take(dir.path(), "named");
+    let out = dir.path().join("o.glb");
+    let o = out.to_str().unwrap();
+    run_ok(&[
+        "bake",
+        "-q",
+        "--take",
+        "named",
+        "--takes-dir",
+        dir.path().to_str().unwrap(),
+        "--rig",
+        "grass",
+        "-o",
+        o,
+    ]);
+    assert!(out.is_file());
+    std::fs::remove_file(&out).unwrap();
+    let status = std::process::Command::new(bin())
+        .args(["bake", "-q", "--take", "named", "--rig", "grass", "-o", o])
+        .env("FROND_TAKES_DIR", dir.path())
+        .status()
+        .unwrap();
+    assert!(status.success() && out.is_file());
+}
+
+#[test]
+fn damaged_and_empty_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "good");
+    let mut bytes = std::fs::read(&take).unwrap();
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    let out = keep.join("out.glb");
+    let o = out.to_str().unwrap();
+
+    // A flipped byte in the middle: corrupt, with valid records after it.
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0xff;
+    let bad = dir.path().join("corrupt.take");
+    std::fs::write(&bad, &bytes).unwrap();
+    let e = fails(&keep, &["bake", "--take", bad.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(e.contains("corrupt.take is damaged: corrupt record at offset"), "{e}");
+
+    // Not a take at all.
+    let junk = dir.path().join("junk.take");
+    std::fs::write(&junk, b"hello world, not a take").unwrap();
+    let e = fails(&keep, &["bake", "--take", junk.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(e.contains("junk.take is damaged: not a frond take: bad magic"), "{e}");
+
+    // Only a header: nothing to bake.
+    let empty = write_take(dir.path(), "empty", "grass", Vec::new(), &[]);
+    let e = fails(&keep, &["bake", "--take", empty.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(e.contains("take `empty` has no frames of the main skeleton"), "{e}");
+
+    // A torn tail (a take still being written) is baked, with a note.
+    let good = std::fs::read(&take).unwrap();
+    let torn = dir.path().join("torn.take");
+    std::fs::write(&torn, &good[..good.len() - 5]).unwrap();
+    let stderr = run_ok(&["bake", "--take", torn.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(stderr.contains("torn tail"), "{stderr}");
+    assert!(out.is_file());
+}
+
+#[test]
+fn bad_rigs() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "t");
+    let t = take.to_str().unwrap();
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    let o = keep.join("out.glb");
+    let o = o.to_str().unwrap();
+
+    let rig = dir.path().join("nojoints.toml");
+    std::fs::write(&rig, "name = \"bare\"\njoints = []\n").unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", rig.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("nojoints.toml") && e.contains("joints: expected 4 joints, found 0"), "{e}");
+
+    let rig = dir.path().join("nojoints2.toml");
+    std::fs::write(&rig, "name = \"bare\"\n").unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", rig.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("nojoints2.toml") && e.contains("joints"), "{e}");
+
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "cactus", "-o", o]);
+    assert!(e.contains("rig `cactus` not found: not an embedded rig (grass, flower, shrub)"), "{e}");
+
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "/no/such/rig.toml", "-o", o]);
+    assert!(e.contains("cannot read rig /no/such/rig.toml"), "{e}");
+
+    let rig = dir.path().join("meshfile.toml");
+    std::fs::write(
+        &rig,
+        "name = \"m\"\njoints = [{ height_m = 0.0 }, { height_m = 0.1 }, { height_m = 0.2 }, { height_m = 0.3 }]\n[mesh]\nfile = \"missing.glb\"\n",
+    )
+    .unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", rig.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("mesh: cannot read") && e.contains("missing.glb"), "{e}");
+}
+
+#[test]
+fn unwritable_outputs_leave_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "t");
+    let t = take.to_str().unwrap();
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+
+    let o = keep.join("missing/out.glb");
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o.to_str().unwrap()]);
+    assert!(e.contains("cannot write") && e.contains("does not exist"), "{e}");
+
+    // The output is a directory.
+    let sub = keep.join("sub.glb");
+    std::fs::create_dir(&sub).unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", sub.to_str().unwrap()]);
+    assert!(e.contains("it is a directory"), "{e}");
+
+    // The parent is a regular file.
+    let file = keep.join("plain");
+    std::fs::write(&file, b"x").unwrap();
+    let e =
+        fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", file.join("out.glb").to_str().unwrap()]);
+    assert!(e.contains("cannot write"), "{e}");
+
+    // An existing output is replaced whole, never truncated in place on failure: a failing
+    // bake (bad take) leaves the old file as it was.
+    let out = keep.join("old.glb");
+    std::fs::write(&out, b"previous").unwrap();
+    let e = fails(&keep, &["bake", "--take", "/no/such.take", "--rig", "grass", "-o", out.to_str().unwrap()]);
+    assert!(e.contains("not found"), "{e}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous");
+}
+
+#[test]
+fn bad_options_and_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), "t");
+    let t = take.to_str().unwrap();
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    let o = keep.join("out.glb");
+    let o = o.to_str().unwrap();
+
+    for fps in ["0", "-3", "nan", "5000"] {
+        let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o, &format!("--fps={fps}")]);
+        assert!(e.contains("--fps must be"), "{e}");
+    }
+    let field = dir.path().join("f.json");
+    std::fs::write(&field, r#"{"plants": [{"position": [0, 0], "scale": 0}]}"#).unwrap();
+    let f = field.to_str().unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", f, "--duration", "1", "-o", o]);
+    assert!(e.contains("f.json: plants[0].scale: 0 must be above 0"), "{e}");
+    let e = fails(
+        &keep,
+        &["bake", "--take", t, "--rig", "grass", "--field", "/no/f.json", "--duration", "1", "-o", o],
+    );
+    assert!(e.contains("field /no/f.json: cannot read"), "{e}");
+    let good = field_json(dir.path(), 2);
+    let e = fails(
+        &keep,
+        &["bake", "--take", t, "--rig", "grass", "--field", good.to_str().unwrap(), "--duration=-1", "-o", o],
+    );
+    assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
+
+    // --field and --duration go together (usage errors, exit 2).
+    let out = run(&["bake", "--take", t, "--rig", "grass", "--field", f, "-o", o]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = run(&["bake", "--take", t, "--rig", "grass", "--duration", "3", "-o", o]);
+    assert_eq!(out.status.code(), Some(2));
+}
