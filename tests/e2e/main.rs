@@ -1,5 +1,6 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
+mod osc_input;
 mod slow_subscriber;
 mod stage;
 mod systemd;

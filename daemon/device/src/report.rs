@@ -57,6 +57,8 @@ pub struct SourceCounters {
     pub checksum: AtomicU64,
     /// Reports with a channel outside its physical range.
     pub out_of_range: AtomicU64,
+    /// Messages that could not be decoded at all (OSC input: not OSC, wrong argument types).
+    pub malformed: AtomicU64,
     /// Reports missing between consecutive accepted reports, from the sequence field (lost in
     /// transport or rejected above). A backwards jump is taken as a device restart, not a gap.
     pub seq_gaps: AtomicU64,
@@ -71,6 +73,7 @@ pub struct CountersSnapshot {
     pub oversized: u64,
     pub checksum: u64,
     pub out_of_range: u64,
+    pub malformed: u64,
     pub seq_gaps: u64,
 }
 
@@ -85,6 +88,7 @@ impl SourceCounters {
             oversized: r(&self.oversized),
             checksum: r(&self.checksum),
             out_of_range: r(&self.out_of_range),
+            malformed: r(&self.malformed),
             seq_gaps: r(&self.seq_gaps),
         }
     }
@@ -97,7 +101,7 @@ impl SourceCounters {
 impl CountersSnapshot {
     /// All rejected reports.
     pub fn rejected(&self) -> u64 {
-        self.wrong_id + self.short + self.oversized + self.checksum + self.out_of_range
+        self.wrong_id + self.short + self.oversized + self.checksum + self.out_of_range + self.malformed
     }
 }
 

@@ -138,6 +138,8 @@ pub enum SourceChoice {
     Hid,
     /// A JSONL hand recording.
     Replay(PathBuf),
+    /// `/frond/hand` OSC messages on this UDP address.
+    Osc(String),
 }
 
 /// Validated configuration.
@@ -210,9 +212,18 @@ impl Config {
                     SourceChoice::Auto
                 }
             },
+            osc if osc.starts_with("osc://") => {
+                let addr = &osc["osc://".len()..];
+                if addr.parse::<std::net::SocketAddr>().is_err() {
+                    errors.push(format!(
+                        "source.kind: {osc:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001"
+                    ));
+                }
+                SourceChoice::Osc(addr.to_string())
+            }
             other => {
                 errors.push(format!(
-                    "source.kind: {other:?} is not one of auto, virtual, in-process, hid, replay"
+                    "source.kind: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT"
                 ));
                 SourceChoice::Auto
             }

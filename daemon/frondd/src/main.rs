@@ -35,7 +35,7 @@ struct Args {
     /// Jitter filter: none, lowpass[:cutoff_hz=F], one-euro[:min_cutoff=..,beta=..,d_cutoff=..].
     #[arg(long)]
     filter: Option<String>,
-    /// Hand source: auto, virtual, in-process, hid, replay.
+    /// Hand source: auto, virtual, in-process, hid, replay, osc://IP:PORT.
     #[arg(long)]
     source: Option<String>,
     /// Device profile TOML (default: the embedded reference glove profile).

@@ -12,7 +12,9 @@ use std::sync::Arc;
 
 use anyhow::{Result, anyhow};
 use frond_device::vhid::{InProcessGlove, VirtualGloveConfig};
-use frond_device::{DeviceProfile, HandSource, HidSource, ReplaySource, SourceCounters, SourceKind};
+use frond_device::{
+    DeviceProfile, HandSource, HidSource, OscHandSource, ReplaySource, SourceCounters, SourceKind,
+};
 use tracing::{info, warn};
 
 use crate::config::{Config, SourceChoice};
@@ -130,6 +132,10 @@ pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
                 Err(e) => Ok(awaited(profile, None, e.to_string())),
             },
         },
+        SourceChoice::Osc(addr) => {
+            let src = OscHandSource::bind(addr).map_err(|e| anyhow!("{e}"))?;
+            Ok(opened(Box::new(src), None))
+        }
         SourceChoice::InProcess => open_virtual(config, socket_dir, false),
         SourceChoice::Virtual => open_virtual(config, socket_dir, true),
         SourceChoice::Auto => {

@@ -6,9 +6,11 @@ use std::sync::Arc;
 use crate::report::{DeviceSample, SourceCounters};
 
 mod hid;
+mod osc;
 mod replay;
 
 pub use hid::HidSource;
+pub use osc::{OSC_HAND_ADDRESS, OscHandSource, decode_hand_packet};
 pub use replay::ReplaySource;
 
 /// What kind of source feeds the loop (shown by `frond status`).
@@ -22,6 +24,8 @@ pub enum SourceKind {
     InProcess,
     /// A JSONL hand recording played at its timestamps.
     Replay,
+    /// `/frond/hand` OSC messages over UDP (webcam or phone hand trackers).
+    Osc,
 }
 
 impl SourceKind {
@@ -32,6 +36,7 @@ impl SourceKind {
             Self::FuseHidraw => "fuse-hidraw",
             Self::InProcess => "in-process",
             Self::Replay => "replay",
+            Self::Osc => "osc",
         }
     }
 }

@@ -1,0 +1,314 @@
+//! OSC hand input: any tracker that can send wrist and thumb angles drives frond (seed 000,
+//! section 5.4: the method is device independent).
+//!
+//! Message: `/frond/hand` with seven numbers (`f` or `d`, `i` accepted too): `t` (seconds), wrist
+//! pitch, yaw, roll, thumb g1, g2, g3 (degrees). Bundles are unpacked. Anything else is counted
+//! and dropped: undecodable datagrams and wrong argument lists as `malformed`, other addresses as
+//! `wrong_id`, non-finite or beyond +-360 degree values as `out_of_range`.
+//!
+//! Decoding OSC allocates (rosc builds owned messages), so it runs on a receiver thread; the
+//! realtime loop only `try_recv`s finished [`DeviceSample`]s from a bounded queue.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crossbeam_channel::{Receiver, Sender, TrySendError};
+use frond_motion::HandSample;
+use rosc::{OscPacket, OscType};
+
+use super::{HandSource, SourceError, SourceKind};
+use crate::report::{DeviceSample, SourceCounters};
+
+/// The OSC address of a hand sample.
+pub const OSC_HAND_ADDRESS: &str = "/frond/hand";
+/// Largest accepted angle magnitude, degrees.
+const MAX_ABS_DEG: f64 = 360.0;
+const QUEUE_LEN: usize = 1024;
+
+/// Why one OSC message was dropped.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum OscHandError {
+    /// Not an OSC packet, or wrong arguments.
+    Malformed(String),
+    /// Another address.
+    OtherAddress(String),
+    /// A value out of range.
+    OutOfRange(String),
+}
+
+fn number(arg: &OscType) -> Option<f64> {
+    match *arg {
+        OscType::Float(v) => Some(f64::from(v)),
+        OscType::Double(v) => Some(v),
+        OscType::Int(v) => Some(f64::from(v)),
+        _ => None,
+    }
+}
+
+fn decode_message(msg: &rosc::OscMessage) -> Result<HandSample, OscHandError> {
+    if msg.addr != OSC_HAND_ADDRESS {
+        return Err(OscHandError::OtherAddress(msg.addr.clone()));
+    }
+    if msg.args.len() != 7 {
+        return Err(OscHandError::Malformed(format!(
+            "{OSC_HAND_ADDRESS} takes 7 numbers (t, wrist pitch yaw roll, thumb g1 g2 g3), got {} arguments",
+            msg.args.len()
+        )));
+    }
+    let mut v = [0.0f64; 7];
+    for (i, arg) in msg.args.iter().enumerate() {
+        v[i] = number(arg)
+            .ok_or_else(|| OscHandError::Malformed(format!("argument {i} is {arg:?}, not a number")))?;
+    }
+    if !v[0].is_finite() || v[0] < 0.0 {
+        return Err(OscHandError::OutOfRange(format!("t = {} s", v[0])));
+    }
+    if let Some((i, a)) = v[1..].iter().enumerate().find(|(_, a)| !a.is_finite() || a.abs() > MAX_ABS_DEG) {
+        return Err(OscHandError::OutOfRange(format!("angle {i} = {a} degrees")));
+    }
+    Ok(HandSample {
+        t: v[0],
+        wrist_deg: [v[1] as f32, v[2] as f32, v[3] as f32],
+        thumb_deg: [v[4] as f32, v[5] as f32, v[6] as f32],
+    })
+}
+
+fn collect(packet: &OscPacket, out: &mut Vec<Result<HandSample, OscHandError>>) {
+    match packet {
+        OscPacket::Message(m) => out.push(decode_message(m)),
+        OscPacket::Bundle(b) => b.content.iter().for_each(|p| collect(p, out)),
+    }
+}
+
+/// Decodes one UDP datagram into hand samples (or the reason each message was dropped).
+pub fn decode_hand_packet(datagram: &[u8]) -> Vec<Result<HandSample, OscHandError>> {
+    match rosc::decoder::decode_udp(datagram) {
+        Ok((_, packet)) => {
+            let mut out = Vec::new();
+            collect(&packet, &mut out);
+            out
+        }
+        Err(e) => vec![Err(OscHandError::Malformed(format!("not an OSC packet: {e:?}")))],
+    }
+}
+
+/// Hand samples received as OSC over UDP.
+pub struct OscHandSource {
+    rx: Receiver<DeviceSample>,
+    counters: Arc<SourceCounters>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+    describe: String,
+    local: SocketAddr,
+}
+
+impl OscHandSource {
+    /// Binds `addr` (e.g. `127.0.0.1:9001`) and starts the receiver thread.
+    pub fn bind(addr: &str) -> Result<Self, SourceError> {
+        let what = format!("osc://{addr}");
+        let socket = UdpSocket::bind(addr)
+            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
+        socket
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
+        let local = socket
+            .local_addr()
+            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
+        let (tx, rx) = crossbeam_channel::bounded(QUEUE_LEN);
+        let counters = Arc::new(SourceCounters::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (counters, stop) = (Arc::clone(&counters), Arc::clone(&stop));
+            std::thread::Builder::new()
+                .name("frond-osc-in".into())
+                .spawn(move || receive(socket, tx, counters, stop))
+                .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?
+        };
+        Ok(Self { rx, counters, stop, thread: Some(thread), describe: format!("osc://{local}"), local })
+    }
+
+    /// The bound address (useful with port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local
+    }
+}
+
+fn receive(
+    socket: UdpSocket,
+    tx: Sender<DeviceSample>,
+    counters: Arc<SourceCounters>,
+    stop: Arc<AtomicBool>,
+) {
+    let mut buf = vec![0u8; 65_536];
+    let mut seq = 0u32;
+    let bump = |c: &std::sync::atomic::AtomicU64| c.fetch_add(1, Ordering::Relaxed);
+    while !stop.load(Ordering::Relaxed) {
+        let n = match socket.recv(&mut buf) {
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                continue;
+            }
+            Err(_) => continue,
+        };
+        for item in decode_hand_packet(&buf[..n]) {
+            match item {
+                Ok(hand) => {
+                    seq = seq.wrapping_add(1);
+                    let sample = DeviceSample {
+                        device_seq: seq,
+                        device_time_us: (hand.t * 1e6).round() as u64,
+                        raw: hand,
+                        flex_deg: [0.0; 4],
+                        status: 1,
+                    };
+                    match tx.try_send(sample) {
+                        Ok(()) => {
+                            bump(&counters.reports);
+                        }
+                        // The loop drains every tick; a full queue means it is gone or stuck.
+                        Err(TrySendError::Full(_)) => {
+                            bump(&counters.seq_gaps);
+                        }
+                        Err(TrySendError::Disconnected(_)) => return,
+                    }
+                }
+                Err(OscHandError::Malformed(_)) => {
+                    bump(&counters.malformed);
+                }
+                Err(OscHandError::OtherAddress(_)) => {
+                    bump(&counters.wrong_id);
+                }
+                Err(OscHandError::OutOfRange(_)) => {
+                    bump(&counters.out_of_range);
+                }
+            }
+        }
+    }
+}
+
+impl HandSource for OscHandSource {
+    fn kind(&self) -> SourceKind {
+        SourceKind::Osc
+    }
+
+    fn describe(&self) -> &str {
+        &self.describe
+    }
+
+    fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
+        let mut n = 0;
+        while n < out.len() {
+            match self.rx.try_recv() {
+                Ok(s) => {
+                    out[n] = s;
+                    n += 1;
+                }
+                Err(_) => break,
+            }
+        }
+        Ok(n)
+    }
+
+    fn counters(&self) -> Arc<SourceCounters> {
+        Arc::clone(&self.counters)
+    }
+
+    fn reopen(&mut self) -> Result<(), SourceError> {
+        // A UDP listener has nothing to reopen; it never reports Disconnected.
+        Ok(())
+    }
+}
+
+impl Drop for OscHandSource {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `/frond/hand ,fffffff` with t = 0.5, wrist 10 -20 30, thumb 1 2 3, encoded by hand.
+    fn hand_bytes() -> Vec<u8> {
+        let mut b = b"/frond/hand\0".to_vec(); // 11 chars + NUL = 12, aligned
+        b.extend_from_slice(b",fffffff\0\0\0\0"); // 8 chars + NUL padded to 12
+        for v in [0.5f32, 10.0, -20.0, 30.0, 1.0, 2.0, 3.0] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b
+    }
+
+    #[test]
+    fn decodes_a_hand_written_message() {
+        let got = decode_hand_packet(&hand_bytes());
+        assert_eq!(
+            got,
+            vec![Ok(HandSample { t: 0.5, wrist_deg: [10.0, -20.0, 30.0], thumb_deg: [1.0, 2.0, 3.0] })]
+        );
+    }
+
+    #[test]
+    fn counts_and_drops_bad_messages() {
+        assert!(matches!(decode_hand_packet(b"garbage")[0], Err(OscHandError::Malformed(_))));
+        let mut other = hand_bytes();
+        other[1..6].copy_from_slice(b"xxxxx");
+        assert!(matches!(decode_hand_packet(&other)[0], Err(OscHandError::OtherAddress(_))));
+        let mut wild = hand_bytes();
+        let at = wild.len() - 4 * 6; // wrist pitch
+        wild[at..at + 4].copy_from_slice(&1000.0f32.to_be_bytes());
+        assert!(matches!(decode_hand_packet(&wild)[0], Err(OscHandError::OutOfRange(_))));
+        let mut nan = hand_bytes();
+        let at = nan.len() - 4;
+        nan[at..].copy_from_slice(&f32::NAN.to_be_bytes());
+        assert!(matches!(decode_hand_packet(&nan)[0], Err(OscHandError::OutOfRange(_))));
+        let short = rosc::encoder::encode(&OscPacket::Message(rosc::OscMessage {
+            addr: OSC_HAND_ADDRESS.into(),
+            args: vec![OscType::Float(1.0)],
+        }))
+        .unwrap();
+        assert!(matches!(decode_hand_packet(&short)[0], Err(OscHandError::Malformed(_))));
+    }
+
+    #[test]
+    fn source_delivers_in_order_and_counts_rejects() {
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for k in 0..20 {
+            let msg = OscPacket::Message(rosc::OscMessage {
+                addr: OSC_HAND_ADDRESS.into(),
+                args: [k as f32 * 0.01, k as f32, 0.0, 0.0, 5.0, 5.0, 5.0]
+                    .into_iter()
+                    .map(OscType::Float)
+                    .collect(),
+            });
+            tx.send_to(&rosc::encoder::encode(&msg).unwrap(), src.local_addr()).unwrap();
+        }
+        tx.send_to(b"not osc", src.local_addr()).unwrap();
+        let mut out = [DeviceSample::default(); 64];
+        let mut got = Vec::new();
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while got.len() < 20 && std::time::Instant::now() < deadline {
+            let n = src.read_pending(&mut out).unwrap();
+            got.extend_from_slice(&out[..n]);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert_eq!(got.len(), 20);
+        for (k, s) in got.iter().enumerate() {
+            assert_eq!(s.raw.wrist_deg[0], k as f32);
+            assert_eq!(s.device_time_us, (k as f64 * f64::from(0.01f32) * 1e6).round() as u64);
+        }
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while src.counters().snapshot().malformed == 0 && std::time::Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let c = src.counters().snapshot();
+        assert_eq!((c.reports, c.malformed), (20, 1));
+    }
+}

@@ -1,0 +1,97 @@
+//! OSC hand input: `frondd --source osc://...` maps `/frond/hand` messages exactly as `frond map`
+//! maps the same samples, and counts and drops malformed or out-of-range messages.
+
+use std::io::{BufRead, BufReader};
+use std::net::UdpSocket;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use frond_e2e::{Daemon, bin, repo_root, wait_for};
+use rosc::{OscMessage, OscPacket, OscType};
+use serde_json::Value;
+
+#[test]
+fn osc_hand_messages_drive_the_daemon_like_frond_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let rig = repo_root().join("rig-files/plants/flower.toml");
+    let source = format!("osc://127.0.0.1:{port}");
+    let daemon =
+        Daemon::start(dir.path(), &["--source", &source, "--rig", rig.to_str().unwrap(), "--filter", "none"]);
+    assert_eq!(daemon.status().source.kind, "osc");
+
+    // 50 samples on the 0.01 degree grid.
+    let samples: Vec<[f64; 7]> = (0..50)
+        .map(|k| {
+            let t = k as f64 * 0.02;
+            let q = |v: f64| (v * 100.0).round() / 100.0;
+            [t, q(20.0 * t.sin()), q(-7.5 * t), q(33.3), q(12.0 + t), q(40.0 - 3.0 * t), q(-5.25)]
+        })
+        .collect();
+    let hand_jsonl: String = samples
+        .iter()
+        .map(|s| {
+            format!(
+                "{{\"t\":{},\"wrist\":[{},{},{}],\"thumb\":[{},{},{}]}}\n",
+                s[0], s[1], s[2], s[3], s[4], s[5], s[6]
+            )
+        })
+        .collect();
+    let map = Command::new(bin("frond"))
+        .args(["map", "--filter", "none", "--rig"])
+        .arg(&rig)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    map.stdin.as_ref().unwrap().write_all(hand_jsonl.as_bytes()).unwrap();
+    let expected = map.wait_with_output().unwrap();
+    assert!(expected.status.success());
+    let expected: Vec<Value> = String::from_utf8(expected.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+
+    let mut tap = daemon.frond().args(["tap", "--jsonl"]).stdout(Stdio::piped()).spawn().unwrap();
+    let lines = BufReader::new(tap.stdout.take().unwrap()).lines();
+    std::thread::sleep(Duration::from_millis(300)); // let tap subscribe
+    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let send = |p: &OscPacket| tx.send_to(&rosc::encoder::encode(p).unwrap(), ("127.0.0.1", port)).unwrap();
+    for (k, s) in samples.iter().enumerate() {
+        let mut args = vec![OscType::Double(s[0])];
+        args.extend(s[1..].iter().map(|v| OscType::Float(*v as f32)));
+        send(&OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args }));
+        if k % 10 == 0 {
+            // Hostile neighbours: garbage, wrong arity, out of range, another address.
+            tx.send_to(b"\xff\xfe not osc", ("127.0.0.1", port)).unwrap();
+            send(&OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args: vec![OscType::Int(1)] }));
+            let mut wild = vec![OscType::Double(s[0]), OscType::Float(9999.0)];
+            wild.extend([0.0f32; 5].map(OscType::Float));
+            send(&OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args: wild }));
+            send(&OscPacket::Message(OscMessage { addr: "/other".into(), args: vec![] }));
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut got = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    for line in lines {
+        got.push(serde_json::from_str::<Value>(&line.unwrap()).unwrap());
+        if got.len() == samples.len() || Instant::now() > deadline {
+            break;
+        }
+    }
+    let _ = tap.kill();
+    let _ = tap.wait();
+    assert_eq!(got.len(), samples.len());
+    for (g, e) in got.iter().zip(&expected) {
+        assert_eq!(g["joints"], e["joints"], "live {g} != offline {e}");
+    }
+    assert!(
+        wait_for(Duration::from_secs(2), || daemon.status().source.rejected == 20),
+        "{:?}",
+        daemon.status()
+    );
+    assert_eq!(daemon.status().source.reports, 50);
+}
