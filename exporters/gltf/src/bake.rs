@@ -6,6 +6,7 @@ use gltf_json as json;
 use serde_json::json;
 
 use frond_motion::JOINTS;
+use frond_motion::clip::Clip;
 use frond_motion::mesh::PlantModel;
 
 use crate::anim::{Joints, Layers, check_fps, push_joint_quats};
@@ -127,8 +128,9 @@ impl Baker {
     }
 
     /// Every plant of a field (seed 000, section 6.2): each plant its own skeleton and skin over
-    /// the one shared mesh, animated by the take delayed per plant (Eq. 6-7, see
-    /// [`Field::pose_at`]), `duration_s` long from 0. One animation, named after the take.
+    /// the one shared mesh, animated by the take delayed per plant with its bend turned to the
+    /// force (Eq. 6-7, section 6.3 (1)(b), see [`Field::pose_at`]); secondary layers get the same
+    /// delayed lookup. `duration_s` long from 0, one animation named after the take.
     #[allow(clippy::too_many_arguments)]
     pub fn bake_field(
         &mut self,
@@ -148,35 +150,49 @@ impl Baker {
             });
         }
         // The take's layers at the field's own frame rate: the clips plants look up.
-        let clips = Layers::from_frames(&take.frames, field.fps)
+        let layers = Layers::from_frames(&take.frames, field.fps())
             .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
+        let clips: Vec<Clip> =
+            layers.layers.iter().map(|l| Clip::from_joints(l.poses.iter().copied(), field.fps())).collect();
         let mut notes = take_notes(rig, take);
-        notes.extend(field.notes.iter().cloned());
+        let f = &field.field;
+        if !f.take.is_empty() && f.take != take.name {
+            notes.push(format!(
+                "field {} was laid out for take `{}`; baking take `{}`",
+                field.origin, f.take, take.name
+            ));
+        }
+        if layers.times_s.len() < f.frames {
+            notes.push(format!(
+                "field {} expects {} frames of the take, it has {}: plants hold the last frame past its end (bake a looped take: frond take loop)",
+                field.origin,
+                f.frames,
+                layers.times_s.len()
+            ));
+        }
         let keys = (duration_s * fps + 1e-9).floor() as usize + 1;
         let times_s: Vec<f64> = (0..keys).map(|k| k as f64 / fps).collect();
 
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
         let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
-        let assignment = assign(rig, take, &clips, opts.seed, &assets, &mut notes);
-        let digits = field.plants.len().max(1).to_string().len();
-        let plants: Vec<PlantNodes> = field
-            .plants
-            .iter()
-            .enumerate()
-            .map(|(i, p)| doc.plant(&assets, &format!("{}_{i:0digits$}", rig.rig.name), &p.placement()))
+        let assignment = assign(rig, take, &layers, opts.seed, &assets, &mut notes);
+        let n_plants = field.plants().len();
+        let digits = n_plants.max(1).to_string().len();
+        let plants: Vec<PlantNodes> = (0..n_plants)
+            .map(|i| doc.plant(&assets, &format!("{}_{i:0digits$}", rig.rig.name), &field.placement(i)))
             .collect();
         let input = doc.times(&times_s);
         let mut anim = doc.begin_animation(input);
         let total = (keys * plants.len()) as u64;
         let mut channels = 0;
-        for (i, (plant, nodes)) in field.plants.iter().zip(&plants).enumerate() {
-            for layer in &clips.layers {
+        for (i, nodes) in plants.iter().enumerate() {
+            for (layer, clip) in layers.layers.iter().zip(&clips) {
                 let targets = targets(nodes, &assignment, layer.element);
                 if targets.is_empty() {
                     continue;
                 }
                 self.poses.clear();
-                self.poses.extend(times_s.iter().map(|&t| field.pose_at(&layer.poses, plant, t)));
+                self.poses.extend(times_s.iter().map(|&t| field.pose_at(i, clip, t)));
                 for joints in targets {
                     for (j, node) in joints.iter().enumerate() {
                         self.quats.clear();
@@ -296,7 +312,15 @@ fn take_extras(
         "bake_fps": fps,
     });
     if let Some(f) = field {
-        v["field"] = json!({ "source": f.origin, "plants": f.plants.len(), "fps": f.fps });
+        v["field"] = json!({
+            "source": f.origin,
+            "plants": f.plants().len(),
+            "fps": f.fps(),
+            "take": f.field.take,
+            "direction_deg": f.field.direction_deg,
+            "speed_m_s": f.field.speed_m_s,
+            "seed": f.field.seed,
+        });
     }
     json::extras::RawValue::from_string(v.to_string()).ok()
 }

@@ -7,9 +7,10 @@ use frond_motion::{JOINTS, PoseFrame, TakeFrame, TakeHeader};
 
 use crate::bake::{BakeOptions, Baker};
 use crate::error::BakeError;
-use crate::field::{Field, FieldPlant};
+use crate::field::Field;
 use crate::input::{LoadedRig, TakeInput};
 use crate::output::encode_glb;
+use frond_motion::field::{FieldParams, make_field};
 
 /// One measurement.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,26 +86,18 @@ pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
     }
 }
 
-/// A square grid of `plants` plants 0.25 m apart, delays growing along x (a wind front).
-pub fn grid_field(plants: usize) -> Field {
-    let side = (plants as f64).sqrt().ceil().max(1.0) as usize;
-    Field {
-        origin: "bench".to_string(),
-        fps: 30.0,
-        plants: (0..plants)
-            .map(|i| {
-                let (x, z) = ((i % side) as f32 * 0.25, (i / side) as f32 * 0.25);
-                FieldPlant {
-                    position_m: [x, 0.0, z],
-                    delay_s: f64::from(x) / 1.5,
-                    start_frame: (i / side * 7 % 60) as f64,
-                    scale: 0.9 + 0.2 * ((i * 37 % 11) as f32 / 10.0),
-                    yaw_deg: 0.0,
-                }
-            })
-            .collect(),
-        notes: Vec::new(),
-    }
+/// A field of `plants` plants (a `rows x cols` grid, every cell used) laid out by `frond_motion::field::make_field` (rows along +X,
+/// 0.25 m cells, wind at 1.5 m/s) over a take of `frames` frames at 30 FPS.
+pub fn grid_field(plants: usize, frames: usize) -> Result<Field, BakeError> {
+    // rows x cols == plants exactly: the largest divisor not above the square root.
+    let plants = plants.max(1);
+    let rows = (1..=plants).take_while(|r| r * r <= plants).filter(|r| plants % r == 0).last().unwrap_or(1);
+    let cols = plants / rows;
+    let params =
+        FieldParams { rows, cols, cell_m: 0.25, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 7 };
+    let f = make_field(&params, "bench", frames, 30.0)
+        .map_err(|e| BakeError::Field { origin: "bench".to_string(), reason: e.to_string() })?;
+    Field::from_json(&f.to_json(), "bench")
 }
 
 fn grass() -> Result<LoadedRig, BakeError> {
@@ -140,7 +133,7 @@ pub fn field_bake(plants: usize, seconds: f64) -> Result<BenchResult, BakeError>
     let rig = grass()?;
     let model = rig.model()?;
     let take = synthetic_take(20.0, 1000.0);
-    let field = grid_field(plants);
+    let field = grid_field(plants, 600)?;
     let mut baker = Baker::new();
     let mut glb = Vec::new();
     let start = Instant::now();

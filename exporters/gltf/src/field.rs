@@ -1,161 +1,84 @@
-//! Fields of plants (seed 000, section 6.2): `field.json` as written by `frond take field`,
-//! and the delayed lookup that animates each plant (Eq. 6-7).
-//!
-//! The reader takes what the baker needs from each plant and ignores everything else:
-//! - `position_m` (alias `position`): `[x, z]` on the ground, or `[x, y, z]`, metres;
-//! - `delay_s` (alias `delay`): `gamma_B` of Eq. 7, seconds (default 0);
-//! - `start_frame` (alias `start`): frame of the take where the plant's motion starts, at the
-//!   field's `fps` (default 0);
-//! - `scale`: uniform size (default 1);
-//! - `yaw_deg` (alias `rotation_deg`): turn about +Y, which rotates the bending direction with
-//!   the plant (section 6.3 (1)(b); default 0).
-//!
-//! Top level: `plants` (required), `fps` (frame rate of `start_frame`, default 30).
+//! Fields of plants (seed 000, section 6.2): `field.json` as written by `frond take field`, read
+//! and played with `frond_motion::field` (the one implementation of Eq. 6-7 and the bend
+//! rotation of section 6.3 (1)(b)), and where each plant stands in the glTF scene.
 
-use serde::Deserialize;
+use std::path::Path;
 
-use frond_motion::clip::lerp_joints;
+use frond_motion::clip::Clip;
+use frond_motion::field::Field as MotionField;
 
 use crate::anim::Joints;
 use crate::doc::Placement;
 use crate::error::BakeError;
 
-/// Largest accepted number of plants.
-pub const MAX_PLANTS: usize = 1_000_000;
+pub use frond_motion::field::FieldPlant;
 
-/// One plant of a field.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FieldPlant {
-    /// Position `[x, y, z]`, metres (y = 0 on the ground).
-    pub position_m: [f32; 3],
-    /// Delay behind the take's time line, seconds (Eq. 7's `gamma_B`, plus the rigidity of
-    /// the plant's row source when the field has one).
-    pub delay_s: f64,
-    /// Frame of the take (at [`Field::fps`]) the plant's motion starts at.
-    pub start_frame: f64,
-    /// Uniform scale.
-    pub scale: f32,
-    /// Turn about +Y, degrees.
-    pub yaw_deg: f32,
-}
-
-impl FieldPlant {
-    /// The plant's root node transform.
-    pub fn placement(&self) -> Placement {
-        let mut p = Placement::on_ground(self.position_m[0], self.position_m[2], self.yaw_deg, self.scale);
-        p.translation_m[1] = self.position_m[1];
-        p
-    }
-}
-
-/// A validated field.
+/// A validated `field.json` and where it came from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
-    /// Where it came from, for messages and extras.
+    /// The file (for messages and extras).
     pub origin: String,
-    /// Frame rate of `start_frame` and of the take's clip, frames per second.
-    pub fps: f64,
-    /// The plants.
-    pub plants: Vec<FieldPlant>,
-    /// Things worth telling the user.
-    pub notes: Vec<String>,
-}
-
-#[derive(Deserialize)]
-struct RawField {
-    #[serde(default)]
-    fps: Option<f64>,
-    plants: Vec<RawPlant>,
-}
-
-#[derive(Deserialize)]
-struct RawPlant {
-    #[serde(alias = "position")]
-    position_m: Vec<f32>,
-    #[serde(default, alias = "delay")]
-    delay_s: Option<f64>,
-    #[serde(default, alias = "start")]
-    start_frame: Option<f64>,
-    #[serde(default)]
-    scale: Option<f32>,
-    #[serde(default, alias = "rotation_deg")]
-    yaw_deg: Option<f32>,
+    /// The field.
+    pub field: MotionField,
 }
 
 impl Field {
-    /// Parses and validates `field.json` text, listing every problem with its path.
+    /// Parses and checks `field.json` text (no I/O); `origin` names it in errors.
     pub fn from_json(text: &str, origin: &str) -> Result<Field, BakeError> {
         let err = |reason: String| BakeError::Field { origin: origin.to_string(), reason };
-        let raw: RawField = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
-        let mut problems: Vec<String> = Vec::new();
-        let fps = raw.fps.unwrap_or(30.0);
-        if !(fps.is_finite() && fps > 0.0 && fps <= crate::anim::MAX_FPS) {
-            problems.push(format!("fps: must be above 0 and at most {}, got {fps}", crate::anim::MAX_FPS));
+        let field = MotionField::from_json(text).map_err(|e| err(e.to_string()))?;
+        if field.plants.is_empty() {
+            return Err(err("the field has no plants".to_string()));
         }
-        if raw.plants.is_empty() {
-            problems.push("plants: the field has no plants".to_string());
+        if !(field.fps.is_finite() && field.fps > 0.0 && field.fps <= crate::anim::MAX_FPS) {
+            return Err(err(format!(
+                "fps must be above 0 and at most {}, got {}",
+                crate::anim::MAX_FPS,
+                field.fps
+            )));
         }
-        if raw.plants.len() > MAX_PLANTS {
-            problems.push(format!("plants: {} plants, at most {MAX_PLANTS}", raw.plants.len()));
+        if let Some((i, p)) =
+            field.plants.iter().enumerate().find(|(_, p)| !(p.scale.is_finite() && p.scale > 0.0))
+        {
+            return Err(err(format!("plants[{i}].scale must be above 0, got {}", p.scale)));
         }
-        let mut plants = Vec::with_capacity(raw.plants.len().min(MAX_PLANTS));
-        for (i, p) in raw.plants.iter().enumerate().take(MAX_PLANTS) {
-            let mut bad = |field: &str, why: String| problems.push(format!("plants[{i}].{field}: {why}"));
-            let position_m = match p.position_m.as_slice() {
-                [x, z] => [*x, 0.0, *z],
-                [x, y, z] => [*x, *y, *z],
-                other => {
-                    bad("position_m", format!("expected [x, z] or [x, y, z], got {} numbers", other.len()));
-                    [0.0; 3]
-                }
-            };
-            if !position_m.iter().all(|c| c.is_finite()) {
-                bad("position_m", format!("{position_m:?} is not finite"));
-            }
-            let delay_s = p.delay_s.unwrap_or(0.0);
-            if !delay_s.is_finite() {
-                bad("delay_s", format!("{delay_s} is not finite"));
-            }
-            let start_frame = p.start_frame.unwrap_or(0.0);
-            if !(start_frame.is_finite() && start_frame >= 0.0) {
-                bad("start_frame", format!("{start_frame} must be a frame index >= 0"));
-            }
-            let scale = p.scale.unwrap_or(1.0);
-            if !(scale.is_finite() && scale > 0.0) {
-                bad("scale", format!("{scale} must be above 0"));
-            }
-            let yaw_deg = p.yaw_deg.unwrap_or(0.0);
-            if !yaw_deg.is_finite() {
-                bad("yaw_deg", format!("{yaw_deg} is not finite"));
-            }
-            plants.push(FieldPlant { position_m, delay_s, start_frame, scale, yaw_deg });
+        if let Some((i, _)) =
+            field.plants.iter().enumerate().find(|(_, p)| !p.position_m.iter().all(|c| c.is_finite()))
+        {
+            return Err(err(format!("plants[{i}].position_m is not finite")));
         }
-        if !problems.is_empty() {
-            return Err(err(problems.join("; ")));
-        }
-        Ok(Field { origin: origin.to_string(), fps, plants, notes: Vec::new() })
+        Ok(Field { origin: origin.to_string(), field })
     }
 
-    /// Reads and validates a field file.
-    pub fn read(path: &std::path::Path) -> Result<Field, BakeError> {
+    /// Reads and checks a field file.
+    pub fn read(path: &Path) -> Result<Field, BakeError> {
         let origin = path.display().to_string();
         let text = std::fs::read_to_string(path)
             .map_err(|e| BakeError::Field { origin: origin.clone(), reason: format!("cannot read: {e}") })?;
         Self::from_json(&text, &origin)
     }
 
-    /// A plant's pose at bake time `t_s` (seed 000, Eq. 6: `F_B(t) = F_A(t - gamma_B)`): the
-    /// take's clip `frames` (at [`Field::fps`]) at frame `start_frame + (t - delay_s) fps`,
-    /// linearly interpolated, played as an endless loop (wrapping from the last frame to the
-    /// first) so any duration and any delay have a pose.
-    pub fn pose_at(&self, frames: &[Joints], plant: &FieldPlant, t_s: f64) -> Joints {
-        let m = frames.len();
-        if m <= 1 {
-            return frames.first().copied().unwrap_or_default();
-        }
-        let f = (plant.start_frame + (t_s - plant.delay_s) * self.fps).rem_euclid(m as f64);
-        let i = (f.floor() as usize).min(m - 1);
-        lerp_joints(&frames[i], &frames[(i + 1) % m], f - i as f64)
+    /// Frame rate of the field's take clip.
+    pub fn fps(&self) -> f64 {
+        self.field.fps
+    }
+
+    /// The plants.
+    pub fn plants(&self) -> &[FieldPlant] {
+        &self.field.plants
+    }
+
+    /// Plant `id`'s root node: at `[x, 0, z]`, scaled by its size factor (the bend direction is
+    /// in its poses, see [`Field::pose_at`]).
+    pub fn placement(&self, id: usize) -> Placement {
+        let p = &self.field.plants[id];
+        Placement::on_ground(p.position_m[0], p.position_m[1], 0.0, p.scale)
+    }
+
+    /// Plant `id`'s pose at `t_s` from one layer's clip (at [`Field::fps`]): seed 000, Eq. 6-7,
+    /// `F_B(t) = F_A(t - gamma_B)`, by `frond_motion::field::Field::pose`.
+    pub fn pose_at(&self, id: usize, clip: &Clip, t_s: f64) -> Joints {
+        self.field.pose(id, clip, t_s)
     }
 }
 
@@ -163,63 +86,33 @@ impl Field {
 mod tests {
     use super::*;
 
-    fn j(a: f32) -> Joints {
-        [[a, 0.0, 0.0]; 4]
+    const ONE: &str = r#"{"version": 1, "take": "t", "fps": 10.0, "frames": 4, "rows": 1, "cols": 2,
+        "cell_m": 0.2, "speed_m_s": 1.0, "direction_deg": 90.0, "authored_direction_deg": 0.0,
+        "density": 1.0, "seed": 1, "plants": [
+        {"id": 0, "row": 0, "col": 0, "position_m": [1.0, 2.0], "source": 0, "delay_s": 0.0, "start_frame": 0, "scale": 1.0},
+        {"id": 1, "row": 0, "col": 1, "position_m": [1.5, 2.0], "source": 0, "delay_s": 0.1, "start_frame": 0, "scale": 1.2}]}"#;
+
+    #[test]
+    fn eq6_delayed_lookup_with_the_bend_turned_to_the_force() {
+        let f = Field::from_json(ONE, "f.json").unwrap();
+        let clip = Clip::from_joints((0..4).map(|k| [[10.0 * k as f32, 1.0, 5.0]; 4]), 10.0);
+        // Plant 0 at 0.15 s: frame 1.5 -> pitch 15, yaw 1; turned 90 degrees: (p, y) -> (y, -p).
+        assert_eq!(f.pose_at(0, &clip, 0.15)[0], [1.0, -15.0, 5.0]);
+        // Plant 1 is 0.1 s (one frame) behind.
+        assert_eq!(f.pose_at(1, &clip, 0.15)[0], [1.0, -5.0, 5.0]);
+        let p = f.placement(1);
+        assert_eq!((p.translation_m, p.scale), ([1.5, 0.0, 2.0], 1.2));
     }
 
     #[test]
-    fn eq6_delayed_lookup_by_hand() {
-        let field = Field::from_json(r#"{"fps": 10, "plants": [{"position": [1, 2]}]}"#, "t").unwrap();
-        let frames = [j(0.0), j(10.0), j(20.0), j(30.0)];
-        let p = |start_frame: f64, delay_s: f64| FieldPlant { start_frame, delay_s, ..field.plants[0] };
-        // No delay: frame t * fps.
-        assert_eq!(field.pose_at(&frames, &p(0.0, 0.0), 0.15), j(15.0));
-        // Start frame 2, delay 0.1 s = one frame behind: frame 2 + 1.5 - 1 = 2.5.
-        assert_eq!(field.pose_at(&frames, &p(2.0, 0.1), 0.15), j(25.0));
-        // Past the end it loops: frame 3.5 is between the last (30) and the first (0).
-        assert_eq!(field.pose_at(&frames, &p(3.0, 0.0), 0.05), j(15.0));
-        // A delay longer than the elapsed time reaches back across the loop: frame -1 = 3.
-        assert_eq!(field.pose_at(&frames, &p(0.0, 0.1), 0.0), j(30.0));
-        assert_eq!(field.pose_at(&[j(7.0)], &p(0.0, 0.0), 5.0), j(7.0));
-    }
-
-    #[test]
-    fn reads_positions_and_defaults() {
-        let f = Field::from_json(
-            r#"{"plants": [{"position_m": [1, 2], "delay_s": 0.5, "start_frame": 3, "scale": 2, "row": 0},
-                           {"position": [1, 0.5, 2], "rotation_deg": 90}], "seed": 4}"#,
-            "t",
-        )
-        .unwrap();
-        assert_eq!(f.fps, 30.0);
-        assert_eq!(
-            f.plants[0],
-            FieldPlant {
-                position_m: [1.0, 0.0, 2.0],
-                delay_s: 0.5,
-                start_frame: 3.0,
-                scale: 2.0,
-                yaw_deg: 0.0
-            }
+    fn refuses_bad_fields_naming_the_file() {
+        let e = Field::from_json("not json", "f.json").unwrap_err().to_string();
+        assert!(e.starts_with("field f.json: field.json: "), "{e}");
+        let bad = ONE.replace("\"scale\": 1.2", "\"scale\": 0.0");
+        assert!(
+            Field::from_json(&bad, "f").unwrap_err().to_string().contains("plants[1].scale must be above 0")
         );
-        assert_eq!(f.plants[1].position_m, [1.0, 0.5, 2.0]);
-        assert_eq!(f.plants[1].yaw_deg, 90.0);
-    }
-
-    #[test]
-    fn lists_every_problem_with_its_path() {
-        let e = Field::from_json(
-            r#"{"fps": 0, "plants": [{"position": [1]}, {"position": [0, 0], "scale": -1, "start_frame": -2}]}"#,
-            "f.json",
-        )
-        .unwrap_err()
-        .to_string();
-        for want in
-            ["field f.json", "fps:", "plants[0].position_m", "plants[1].scale", "plants[1].start_frame"]
-        {
-            assert!(e.contains(want), "{want} missing from {e}");
-        }
-        assert!(Field::from_json(r#"{"plants": []}"#, "f").unwrap_err().to_string().contains("no plants"));
-        assert!(Field::from_json("not json", "f").unwrap_err().to_string().starts_with("field f: "));
+        let bad = ONE.replace("\"version\": 1", "\"version\": 9");
+        assert!(Field::from_json(&bad, "f").unwrap_err().to_string().contains("version 9 is not supported"));
     }
 }

@@ -31,7 +31,7 @@ pub mod output;
 
 pub use bake::{BakeOptions, BakeStats, Baked, Baker};
 pub use error::BakeError;
-pub use field::{Field, FieldPlant};
+pub use field::Field;
 pub use input::{EMBEDDED_RIGS, LoadedRig, TakeInput};
 pub use output::{Format, encode_glb};
 

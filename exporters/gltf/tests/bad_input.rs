@@ -187,21 +187,23 @@ fn bad_options_and_fields() {
         let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o, &format!("--fps={fps}")]);
         assert!(e.contains("--fps must be"), "{e}");
     }
+    let good = field_json(dir.path(), 2, 0.0);
+    let text = std::fs::read_to_string(&good).unwrap();
     let field = dir.path().join("f.json");
-    std::fs::write(&field, r#"{"plants": [{"position": [0, 0], "scale": 0}]}"#).unwrap();
+    std::fs::write(&field, text.replace("\"scale\": 1.1", "\"scale\": 0")).unwrap();
     let f = field.to_str().unwrap();
     let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", f, "--duration", "1", "-o", o]);
-    assert!(e.contains("f.json: plants[0].scale: 0 must be above 0"), "{e}");
+    assert!(e.contains("f.json: plants[1].scale must be above 0"), "{e}");
+    std::fs::write(&field, text.replace("\"version\": 1", "\"version\": 2")).unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", f, "--duration", "1", "-o", o]);
+    assert!(e.contains("f.json: field.json: version 2 is not supported"), "{e}");
     let e = fails(
         &keep,
         &["bake", "--take", t, "--rig", "grass", "--field", "/no/f.json", "--duration", "1", "-o", o],
     );
     assert!(e.contains("field /no/f.json: cannot read"), "{e}");
-    let good = field_json(dir.path(), 2);
-    let e = fails(
-        &keep,
-        &["bake", "--take", t, "--rig", "grass", "--field", good.to_str().unwrap(), "--duration=-1", "-o", o],
-    );
+    let g = good.to_str().unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", g, "--duration=-1", "-o", o]);
     assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
 
     // --field and --duration go together (usage errors, exit 2).

@@ -58,7 +58,7 @@ fn every_rig_a_layered_take_and_a_field_validate_clean() {
     let out = d.join("layered.glb");
     bake(&["--take", s(&layered), "--rig", "flower", "-o", s(&out)]);
     files.push(out);
-    let field = field_json(d, 12);
+    let field = field_json(d, 12, 30.0);
     let out = d.join("field.glb");
     bake(&[
         "--field",

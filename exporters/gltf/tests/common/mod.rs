@@ -96,12 +96,14 @@ pub fn layered_take(dir: &Path, name: &str) -> PathBuf {
     write_take(dir, name, "flower", f, &["leaf"])
 }
 
-/// A field of `n` plants in a row with growing delays.
-pub fn field_json(dir: &Path, n: usize) -> PathBuf {
+/// A `field.json` (version 1, as `frond take field` writes it) of `n` plants in one row along
+/// +X: plant `i` at `[0.3 i, 0.2 (i % 2)]`, delay `0.2 i` s, start frame `3 i`, scale
+/// `1 + 0.1 i`, force heading `direction_deg` (authored at 0).
+pub fn field_json(dir: &Path, n: usize, direction_deg: f64) -> PathBuf {
     let plants: Vec<String> = (0..n)
         .map(|i| {
             format!(
-                r#"{{"position_m": [{x}, {z}], "row": 0, "source": 0, "delay_s": {d}, "start_frame": {s}, "scale": {sc}}}"#,
+                r#"{{"id": {i}, "row": 0, "col": {i}, "position_m": [{x}, {z}], "source": 0, "delay_s": {d}, "start_frame": {s}, "scale": {sc}}}"#,
                 x = i as f32 * 0.3,
                 z = (i % 2) as f32 * 0.2,
                 d = i as f64 * 0.2,
@@ -111,7 +113,16 @@ pub fn field_json(dir: &Path, n: usize) -> PathBuf {
         })
         .collect();
     let path = dir.join("field.json");
-    std::fs::write(&path, format!(r#"{{"fps": 30, "plants": [{}]}}"#, plants.join(","))).unwrap();
+    std::fs::write(
+        &path,
+        format!(
+            r#"{{"version": 1, "take": "wind", "fps": 30.0, "frames": 61, "rows": 1, "cols": {n}, "cell_m": 0.3,
+                "speed_m_s": 1.5, "direction_deg": {direction_deg}, "authored_direction_deg": 0.0, "density": 1.0,
+                "seed": 3, "plants": [{}]}}"#,
+            plants.join(",")
+        ),
+    )
+    .unwrap();
     path
 }
 
