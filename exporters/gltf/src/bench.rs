@@ -91,7 +91,11 @@ pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
 pub fn grid_field(plants: usize, frames: usize) -> Result<Field, BakeError> {
     // rows x cols == plants exactly: the largest divisor not above the square root.
     let plants = plants.max(1);
-    let rows = (1..=plants).take_while(|r| r * r <= plants).filter(|r| plants % r == 0).last().unwrap_or(1);
+    let rows = (1..=plants)
+        .take_while(|r| r * r <= plants)
+        .filter(|r| plants.is_multiple_of(*r))
+        .last()
+        .unwrap_or(1);
     let cols = plants / rows;
     let params =
         FieldParams { rows, cols, cell_m: 0.25, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 7 };
