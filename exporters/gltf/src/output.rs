@@ -113,9 +113,12 @@ fn check_destination(path: &Path) -> Result<(), BakeError> {
 
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile, BakeError> {
     let dir = parent_dir(path);
+    // Like any new file: 0666 less the umask (a temporary file defaults to 0600).
+    let mode = std::os::unix::fs::PermissionsExt::from_mode(0o666);
     let mut tmp = tempfile::Builder::new()
         .prefix(".frond-gltf-")
         .suffix(".tmp")
+        .permissions(mode)
         .tempfile_in(dir)
         .map_err(|e| output_err(path, format!("cannot create a file in {}: {e}", dir.display())))?;
     tmp.write_all(bytes).map_err(|e| output_err(path, e.to_string()))?;

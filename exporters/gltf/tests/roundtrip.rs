@@ -284,6 +284,18 @@ fn gltf_output_is_a_json_file_and_a_bin_beside_it() {
         doc.animations().next().unwrap().channels().map(|c| rotations(&c, bufs)).collect::<Vec<_>>()
     };
     assert_eq!(keys(&a, &abuf), keys(&b, &bbuf));
+    // Files get ordinary permissions (0666 less the umask), not a temporary file's 0600.
+    use std::os::unix::fs::PermissionsExt;
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let umask = status
+        .lines()
+        .find_map(|l| l.strip_prefix("Umask:"))
+        .map(|v| u32::from_str_radix(v.trim(), 8).unwrap());
+    let umask = umask.unwrap();
+    for f in ["a.glb", "b.gltf", "b.bin"] {
+        let mode = std::fs::metadata(dir.path().join(f)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o666 & !umask, "{f}");
+    }
     // Nothing else in the directory: no temporary files left.
     let mut names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     names.sort();
