@@ -108,6 +108,21 @@ pub enum Command {
     /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion
     /// toolkit and exporters) and say whether each target holds.
     Bench(BenchArgs),
+    /// Run the daemon on the virtual glove under faults (unplugs, corrupt reports, slow and
+    /// reconnecting subscribers, a recording) for a while, then check it held up and print the
+    /// figures. Needs /dev/fuse and root (the glove's hidraw node), and frondd and frond-vhid
+    /// beside frond or on PATH. Exit status 1 when a check fails.
+    Soak {
+        /// How long to run, seconds (at least 20).
+        #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+        duration: f64,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Seed of the glove's fault injection and the exporter's restart pattern.
+        #[arg(long, default_value_t = 0x5EED, value_name = "N")]
+        seed: u64,
+    },
 }
 
 /// `frond bench` options.

@@ -11,6 +11,7 @@ mod control;
 mod demo;
 mod map;
 mod signals;
+mod soak;
 mod status;
 mod takes;
 mod tap;
@@ -121,5 +122,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
         Command::Bench(a) => bench::run(&a),
+        Command::Soak { duration, json, seed } => soak::run(duration, json, seed),
     }
 }

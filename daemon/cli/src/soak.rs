@@ -1,0 +1,737 @@
+//! `frond soak`: the whole chain under faults for a given time, then a verdict with figures.
+//!
+//! Scenario (the same in `tests/e2e/soak.rs`, which runs this command): `frond-vhid` at 1 kHz
+//! as a FUSE hidraw node with a fault schedule (an unplug of [`UNPLUG_MS`] every
+//! [`UNPLUG_EVERY_MS`], 1% corrupted reports, 200 µs jitter), `frondd --source hid --device
+//! NODE` in private directories, three healthy subscribers, one deliberately slow subscriber,
+//! an exporter that disconnects and reconnects in a loop, a recording for the whole run, and a
+//! status poll every second that samples the daemon's RSS, threads and open files.
+//!
+//! Verdict: the daemon is still running and exits 0 on SIGTERM; healthy subscribers see no
+//! sequence gap outside the unplug windows; the device is back within 500 ms of each replug;
+//! the take is complete (contiguous frames, End record); RSS grows less than 2 MiB after the
+//! warm-up; threads and open files return to their idle counts once the clients are gone.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, anyhow, bail};
+use frond_protocol::{CONTROL_SOCKET, POSES_SOCKET, PoseFlags};
+use frond_sdk::{Event, Subscriber};
+use serde::Serialize;
+
+use crate::control::Control;
+use crate::{Interrupted, signals, usage};
+
+/// Length of each unplug window.
+pub const UNPLUG_MS: u64 = 300;
+/// Period of the unplugs; the first comes at [`FIRST_UNPLUG_MS`].
+pub const UNPLUG_EVERY_MS: u64 = 15_000;
+/// First unplug, after the glove's first report.
+pub const FIRST_UNPLUG_MS: u64 = 8_000;
+/// Probability that the glove corrupts a report.
+pub const CORRUPT_PROB: f64 = 0.01;
+/// Largest allowed time from a replug to the first fresh frame (issue 8).
+pub const REOPEN_LIMIT_MS: f64 = 500.0;
+/// Largest allowed RSS growth after the warm-up.
+pub const RSS_GROWTH_LIMIT_KIB: i64 = 2048;
+/// How long a SIGTERMed daemon may take to exit before it is killed.
+const STOP_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// One lost-device window as a healthy subscriber saw it.
+#[derive(Debug, Clone, Serialize)]
+pub struct LostWindow {
+    /// Sequence numbers of the first and last frame flagged `device_lost`.
+    pub first_seq: u64,
+    pub last_seq: u64,
+    /// Frames flagged `device_lost` (one per tick).
+    pub frames: u64,
+    /// Time from the glove's replug (its schedule, mapped to host time through the last fresh
+    /// report before the window) to the first fresh frame after it, milliseconds.
+    pub reopen_ms: Option<f64>,
+}
+
+/// What one subscriber saw.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SubscriberFigures {
+    pub name: String,
+    pub frames: u64,
+    /// Gaps (missing sequence numbers) next to a `device_lost` frame.
+    pub gaps_in_unplug_windows: u64,
+    /// Gaps anywhere else.
+    pub gaps_outside_unplug_windows: u64,
+    pub missing_frames: u64,
+    /// Connections (more than one only for the reconnecting exporter).
+    pub connections: u64,
+    /// Unexpected disconnects or errors, with what happened.
+    pub errors: Vec<String>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lost_windows: Vec<LostWindow>,
+    /// Fresh frames flagged `recording`, as runs of consecutive sequence numbers (healthy-1).
+    #[serde(skip)]
+    pub recorded_runs: Vec<(u64, u64)>,
+}
+
+/// One sample of the daemon process.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct ProcSample {
+    pub t_s: f64,
+    pub rss_kib: i64,
+    pub threads: i64,
+    pub fds: i64,
+}
+
+/// The take as read back after the run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct TakeFigures {
+    pub path: String,
+    pub frames: u64,
+    pub frames_reported: u64,
+    pub recorder_dropped: u64,
+    pub ended: bool,
+    pub torn_bytes: u64,
+    /// Places where the take's frame sequence differs from the fresh (not `held`) frames flagged
+    /// `recording` that healthy-1 received: frames missing from the take, or extra ones.
+    pub seq_breaks: u64,
+    /// Fresh recorded frames healthy-1 received that are not in the take.
+    pub missing_frames: u64,
+    pub error: Option<String>,
+}
+
+/// Everything `frond soak` measured, and the verdict.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SoakReport {
+    pub duration_s: f64,
+    pub seed: u64,
+    pub unplug_ms: u64,
+    pub unplug_every_ms: u64,
+    pub corrupt_prob: f64,
+    pub subscribers: Vec<SubscriberFigures>,
+    pub exporter_restarts: u64,
+    pub slow_subscriber_drops: u64,
+    pub publish_drops: u64,
+    pub ticks: u64,
+    pub reports: u64,
+    pub rejected_reports: u64,
+    pub device_events: Vec<String>,
+    pub reopen_ms_max: Option<f64>,
+    pub take: TakeFigures,
+    pub rss_kib_after_warmup: i64,
+    pub rss_kib_end: i64,
+    pub rss_growth_kib: i64,
+    pub idle_before: ProcSample,
+    pub idle_after: ProcSample,
+    pub threads_max: i64,
+    pub fds_max: i64,
+    pub daemon_alive_at_end: bool,
+    pub daemon_exit: Option<String>,
+    pub daemon_stop_ms: Option<f64>,
+    pub samples: Vec<ProcSample>,
+    pub failures: Vec<String>,
+}
+
+/// `frond soak --duration S [--json]`.
+pub(crate) fn run(duration_s: f64, json: bool, seed: u64) -> anyhow::Result<()> {
+    if !(duration_s.is_finite() && duration_s >= 20.0) {
+        return usage(format!("--duration must be at least 20 seconds, got {duration_s}"));
+    }
+    signals::install().context("installing signal handlers")?;
+    let report = soak(Duration::from_secs_f64(duration_s), seed)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_human(&report);
+    }
+    if !report.failures.is_empty() {
+        bail!("soak failed:\n  {}", report.failures.join("\n  "));
+    }
+    Ok(())
+}
+
+fn print_human(r: &SoakReport) {
+    println!("soak {:.0} s, seed {:#x}", r.duration_s, r.seed);
+    for s in &r.subscribers {
+        println!(
+            "  {:<10} {:>8} frames, gaps {} in / {} outside unplug windows, {} connection(s)",
+            s.name, s.frames, s.gaps_in_unplug_windows, s.gaps_outside_unplug_windows, s.connections
+        );
+    }
+    println!(
+        "  exporter restarts {}, slow subscriber drops {}",
+        r.exporter_restarts, r.slow_subscriber_drops
+    );
+    println!("  reports {} (rejected {}), ticks {}", r.reports, r.rejected_reports, r.ticks);
+    println!("  reopen after replug: max {:?} ms", r.reopen_ms_max);
+    println!(
+        "  take {}: {} frames, ended {}, torn {} bytes, seq breaks {}",
+        r.take.path, r.take.frames, r.take.ended, r.take.torn_bytes, r.take.seq_breaks
+    );
+    println!(
+        "  RSS {} -> {} KiB (growth {} KiB), threads {} -> {}, fds {} -> {} (idle before/after)",
+        r.rss_kib_after_warmup,
+        r.rss_kib_end,
+        r.rss_growth_kib,
+        r.idle_before.threads,
+        r.idle_after.threads,
+        r.idle_before.fds,
+        r.idle_after.fds
+    );
+    println!("  daemon exit {:?} after {:?} ms", r.daemon_exit, r.daemon_stop_ms);
+    if r.failures.is_empty() {
+        println!("PASS");
+    } else {
+        println!("FAIL:\n  {}", r.failures.join("\n  "));
+    }
+}
+
+/// A child process stopped (SIGTERM, then SIGKILL) on drop.
+struct Proc {
+    child: Child,
+    exited: Option<ExitStatus>,
+}
+
+impl Proc {
+    fn alive(&mut self) -> bool {
+        if self.exited.is_none() {
+            self.exited = self.child.try_wait().ok().flatten();
+        }
+        self.exited.is_none()
+    }
+
+    /// SIGTERM, wait up to `timeout`, then SIGKILL; returns the status and whether it needed
+    /// the kill.
+    fn stop(&mut self, timeout: Duration) -> (Option<ExitStatus>, bool) {
+        if !self.alive() {
+            return (self.exited, false);
+        }
+        // SAFETY: kill(2) on our own unreaped child (alive() just saw it running).
+        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+        let start = Instant::now();
+        while start.elapsed() < timeout {
+            if !self.alive() {
+                return (self.exited, false);
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let _ = self.child.kill();
+        self.exited = self.child.wait().ok();
+        (self.exited, true)
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.stop(Duration::from_secs(3));
+    }
+}
+
+fn find_bin(name: &str) -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe().context("cannot find the frond executable's path")?;
+    let beside = exe.with_file_name(name);
+    if beside.is_file() {
+        return Ok(beside);
+    }
+    std::env::var_os("PATH")
+        .and_then(|p| std::env::split_paths(&p).map(|d| d.join(name)).find(|c| c.is_file()))
+        .ok_or_else(|| anyhow!("cannot find {name}: not at {} and not on PATH", beside.display()))
+}
+
+fn log_tail(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(15)..].iter().map(|l| format!("    {l}\n")).collect()
+}
+
+/// Reads RSS, threads and open files of `pid`.
+fn sample_proc(pid: u32, t0: Instant) -> Option<ProcSample> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |key: &str| -> Option<i64> {
+        let line = status.lines().find(|l| l.starts_with(key))?;
+        line[key.len()..].split_whitespace().next()?.parse().ok()
+    };
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd")).ok()?.count() as i64;
+    Some(ProcSample {
+        t_s: t0.elapsed().as_secs_f64(),
+        rss_kib: field("VmRSS:")?,
+        threads: field("Threads:")?,
+        fds,
+    })
+}
+
+/// A sample once threads and open files held still for 500 ms and `done` holds (at most 5 s).
+fn settled_sample(pid: u32, t0: Instant, done: impl Fn(&ProcSample) -> bool) -> Option<ProcSample> {
+    let start = Instant::now();
+    let mut last = sample_proc(pid, t0)?;
+    let mut still_since = Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(50));
+        let s = sample_proc(pid, t0)?;
+        if (s.threads, s.fds) != (last.threads, last.fds) {
+            still_since = Instant::now();
+        }
+        last = s;
+        let still = still_since.elapsed() >= Duration::from_millis(500);
+        if (still && done(&s)) || start.elapsed() > Duration::from_secs(5) {
+            return Some(s);
+        }
+    }
+}
+
+/// Runs the scenario for `duration` and returns the figures with the verdict in `failures`.
+pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
+    let mut r = SoakReport {
+        duration_s: duration.as_secs_f64(),
+        seed,
+        unplug_ms: UNPLUG_MS,
+        unplug_every_ms: UNPLUG_EVERY_MS,
+        corrupt_prob: CORRUPT_PROB,
+        ..SoakReport::default()
+    };
+    if !Path::new("/dev/fuse").exists() {
+        bail!("the soak needs /dev/fuse (and root) for the virtual glove's hidraw node");
+    }
+    let (frondd, vhid) = (find_bin("frondd")?, find_bin("frond-vhid")?);
+    let root = tempfile::Builder::new().prefix("frond-soak-").tempdir().context("temp dir")?;
+    let (socket_dir, takes_dir) = (root.path().join("run"), root.path().join("takes"));
+    let (vhid_log, daemon_log) = (root.path().join("vhid.log"), root.path().join("frondd.log"));
+
+    let mut glove = {
+        let mut child = Command::new(&vhid)
+            .args(["--backend", "fuse", "--rate", "1000", "--jitter-us", "200"])
+            .args(["--corrupt", &CORRUPT_PROB.to_string(), "--seed", &seed.to_string()])
+            .args(["--unplug-at-ms", &FIRST_UNPLUG_MS.to_string(), "--unplug-ms", &UNPLUG_MS.to_string()])
+            .args(["--unplug-every-ms", &UNPLUG_EVERY_MS.to_string()])
+            .arg("--node")
+            .arg(root.path().join("glove").join("hidraw-frond"))
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(File::create(&vhid_log)?)
+            .spawn()
+            .with_context(|| format!("cannot start {}", vhid.display()))?;
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().context("vhid stdout")?).read_line(&mut line)?;
+        let proc = Proc { child, exited: None };
+        if line.trim().is_empty() {
+            bail!("frond-vhid printed no node path; its log:\n{}", log_tail(&vhid_log));
+        }
+        (proc, PathBuf::from(line.trim()))
+    };
+    let glove_started = Instant::now();
+    let mut daemon = Proc {
+        child: Command::new(&frondd)
+            .arg("--socket-dir")
+            .arg(&socket_dir)
+            .arg("--takes-dir")
+            .arg(&takes_dir)
+            .args(["--source", "hid", "--device"])
+            .arg(&glove.1)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(File::create(&daemon_log)?)
+            .spawn()
+            .with_context(|| format!("cannot start {}", frondd.display()))?,
+        exited: None,
+    };
+    let pid = daemon.child.id();
+    let t0 = Instant::now();
+    let mut control = loop {
+        if let Ok(c) = Control::connect(&socket_dir)
+            && socket_dir.join(POSES_SOCKET).exists()
+        {
+            break c;
+        }
+        if !daemon.alive() || t0.elapsed() > Duration::from_secs(20) {
+            bail!("frondd did not start; its log:\n{}", log_tail(&daemon_log));
+        }
+        std::thread::sleep(Duration::from_millis(25));
+    };
+    // Idle counts before any client: the daemon with its device and no connection, once the
+    // counts hold still for half a second.
+    drop(control);
+    r.idle_before = settled_sample(pid, t0, |_| true).context("cannot read /proc of frondd")?;
+    control = Control::connect(&socket_dir)?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut subs: Vec<JoinHandle<SubscriberFigures>> = Vec::new();
+    for i in 1..=3 {
+        subs.push(spawn_subscriber(&socket_dir, format!("healthy-{i}"), None, &stop)?);
+    }
+    subs.push(spawn_subscriber(&socket_dir, "slow".into(), Some(Duration::from_millis(2)), &stop)?);
+    let restarts = Arc::new(AtomicU64::new(0));
+    let exporter = spawn_exporter(&socket_dir, seed, &stop, &restarts)?;
+    let take_name = format!("soak-{seed:x}");
+    control.record_start(&take_name)?;
+
+    // The run: one status request and one /proc sample a second.
+    let warmup = Duration::from_secs(10).min(duration / 4);
+    let mut after_warmup: Option<ProcSample> = None;
+    while t0.elapsed() < duration {
+        if signals::interrupted() {
+            stop.store(true, Relaxed);
+            return Err(Interrupted.into());
+        }
+        std::thread::sleep(Duration::from_secs(1).min(duration.saturating_sub(t0.elapsed())));
+        if !daemon.alive() {
+            break;
+        }
+        control.status().context("status request during the soak")?;
+        if let Some(s) = sample_proc(pid, t0) {
+            if t0.elapsed() >= warmup && after_warmup.is_none() {
+                after_warmup = Some(s);
+            }
+            r.samples.push(s);
+        }
+    }
+    r.daemon_alive_at_end = daemon.alive();
+    let final_sample = sample_proc(pid, t0);
+
+    let status = if r.daemon_alive_at_end {
+        let rec = control.record_stop().context("record stop")?;
+        r.take.frames_reported = rec.frames;
+        r.take.recorder_dropped = rec.dropped;
+        r.take.path = rec.path;
+        Some(control.status()?)
+    } else {
+        None
+    };
+    stop.store(true, Relaxed);
+    r.subscribers = subs.into_iter().map(|h| h.join().unwrap_or_default()).collect();
+    let mut exporter_figures = exporter.join().unwrap_or_default();
+    r.exporter_restarts = restarts.load(Relaxed);
+    if let Some(s) = &status {
+        r.ticks = s.ticks;
+        r.reports = s.source.reports;
+        r.rejected_reports = s.source.rejected;
+        r.publish_drops = s.publish_drops;
+        r.device_events = s.device_events.clone();
+    }
+    drop(control);
+
+    // Idle counts after every client left (writer threads and sockets need a moment to go).
+    let before = r.idle_before;
+    r.idle_after =
+        settled_sample(pid, t0, |s| s.threads == before.threads && s.fds == before.fds).unwrap_or_default();
+
+    let stop_start = Instant::now();
+    let (exit, killed) = daemon.stop(STOP_TIMEOUT);
+    r.daemon_stop_ms = Some(stop_start.elapsed().as_secs_f64() * 1000.0);
+    r.daemon_exit =
+        exit.map(|s| if killed { format!("{s} (killed after {STOP_TIMEOUT:?})") } else { s.to_string() });
+    glove.0.stop(Duration::from_secs(3));
+    let glove_elapsed = glove_started.elapsed();
+
+    // The take.
+    if !r.take.path.is_empty() {
+        let seen = r.subscribers.first().map(|s| s.recorded_runs.clone()).unwrap_or_default();
+        read_take(&mut r.take, &seen);
+    }
+    // Reopen latency: the healthy subscribers saw the same windows; take the first one's.
+    let windows = r.subscribers.first().map(|s| s.lost_windows.clone()).unwrap_or_default();
+    r.reopen_ms_max = windows.iter().filter_map(|w| w.reopen_ms).reduce(f64::max);
+    r.slow_subscriber_drops =
+        r.subscribers.iter().filter(|s| s.name == "slow").map(|s| s.missing_frames).sum();
+    exporter_figures.name = "exporter".into();
+    r.subscribers.push(exporter_figures);
+    r.rss_kib_after_warmup = after_warmup.map_or(0, |s| s.rss_kib);
+    r.rss_kib_end = final_sample.map_or(0, |s| s.rss_kib);
+    r.rss_growth_kib = r.rss_kib_end - r.rss_kib_after_warmup;
+    r.threads_max = r.samples.iter().map(|s| s.threads).max().unwrap_or(0);
+    r.fds_max = r.samples.iter().map(|s| s.fds).max().unwrap_or(0);
+    verdict(&mut r, windows.len() as u64, glove_elapsed);
+    if !r.failures.is_empty() {
+        eprintln!("frondd log (last lines):\n{}", log_tail(&daemon_log));
+        eprintln!("frond-vhid log (last lines):\n{}", log_tail(&vhid_log));
+    }
+    Ok(r)
+}
+
+fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
+    let mut f = Vec::new();
+    if !r.daemon_alive_at_end {
+        f.push("frondd was not running at the end of the soak".to_string());
+    }
+    match &r.daemon_exit {
+        Some(s) if s == "exit status: 0" => {}
+        other => f.push(format!("frondd did not exit 0 on SIGTERM: {other:?}")),
+    }
+    for s in &r.subscribers {
+        if s.name != "slow" && s.gaps_outside_unplug_windows > 0 {
+            f.push(format!(
+                "{}: {} gap(s) outside the unplug windows",
+                s.name, s.gaps_outside_unplug_windows
+            ));
+        }
+        if !s.errors.is_empty() {
+            f.push(format!("{}: {}", s.name, s.errors.join("; ")));
+        }
+        if s.frames == 0 {
+            f.push(format!("{}: received no frames", s.name));
+        }
+    }
+    // Every unplug that ended before the glove stopped shows as one lost window.
+    let ms = glove_elapsed.as_millis() as u64;
+    let expected = if ms > FIRST_UNPLUG_MS + UNPLUG_MS {
+        1 + (ms - FIRST_UNPLUG_MS - UNPLUG_MS) / UNPLUG_EVERY_MS
+    } else {
+        0
+    };
+    if windows + 1 < expected {
+        f.push(format!("{windows} device-lost window(s) seen, the glove unplugged about {expected} times"));
+    }
+    if let Some(w) = r
+        .subscribers
+        .first()
+        .and_then(|s| s.lost_windows.iter().find(|w| w.reopen_ms.is_some_and(|ms| ms > REOPEN_LIMIT_MS)))
+    {
+        f.push(format!(
+            "device not back within {REOPEN_LIMIT_MS} ms of a replug: window seq {}..={} ({} frames), reopen {:?} ms",
+            w.first_seq, w.last_seq, w.frames, w.reopen_ms
+        ));
+    }
+    let t = &r.take;
+    if let Some(e) = &t.error {
+        f.push(format!("take {}: {e}", t.path));
+    } else if !t.ended
+        || t.torn_bytes > 0
+        || t.seq_breaks > 0
+        || t.frames != t.frames_reported
+        || t.frames == 0
+    {
+        f.push(format!(
+            "take incomplete: {} frames ({} reported), ended {}, torn {} bytes, {} seq breaks",
+            t.frames, t.frames_reported, t.ended, t.torn_bytes, t.seq_breaks
+        ));
+    }
+    if t.recorder_dropped > 0 {
+        f.push(format!("the recorder dropped {} frames", t.recorder_dropped));
+    }
+    if r.rss_growth_kib >= RSS_GROWTH_LIMIT_KIB {
+        f.push(format!(
+            "RSS grew {} KiB after warm-up ({} -> {} KiB), limit {RSS_GROWTH_LIMIT_KIB}",
+            r.rss_growth_kib, r.rss_kib_after_warmup, r.rss_kib_end
+        ));
+    }
+    let (a, b) = (r.idle_before, r.idle_after);
+    if a.threads != b.threads || a.fds != b.fds {
+        f.push(format!(
+            "idle counts changed: threads {} -> {}, open files {} -> {}",
+            a.threads, b.threads, a.fds, b.fds
+        ));
+    }
+    r.failures = f;
+}
+
+/// Appends `seq` to runs of consecutive numbers.
+fn push_run(runs: &mut Vec<(u64, u64)>, seq: u64) {
+    match runs.last_mut() {
+        Some((start, len)) if *start + *len == seq => *len += 1,
+        _ => runs.push((seq, 1)),
+    }
+}
+
+/// Reads the take back and compares its frames with `seen`, the fresh recorded frames a healthy
+/// subscriber received (as runs).
+fn read_take(t: &mut TakeFigures, seen: &[(u64, u64)]) {
+    let bytes = match std::fs::read(&t.path) {
+        Ok(b) => b,
+        Err(e) => {
+            t.error = Some(format!("cannot read: {e}"));
+            return;
+        }
+    };
+    match frond_motion::scan_take(&bytes) {
+        Ok(scan) => {
+            let mut runs = Vec::new();
+            let mut increasing = true;
+            let mut last: Option<u64> = None;
+            for f in scan.frames.iter().filter(|f| f.element == 0) {
+                increasing &= last.is_none_or(|l| f.seq > l);
+                last = Some(f.seq);
+                push_run(&mut runs, f.seq);
+            }
+            t.frames = runs.iter().map(|r| r.1).sum();
+            t.ended = scan.ended;
+            t.torn_bytes = scan.torn_bytes;
+            if !increasing {
+                t.error = Some("frame sequence numbers do not increase".into());
+            }
+            // Differences between the two run lists: runs present in one and not the other.
+            let (a, b): (std::collections::HashSet<_>, std::collections::HashSet<_>) =
+                (runs.iter().collect(), seen.iter().collect());
+            t.seq_breaks = a.symmetric_difference(&b).count() as u64;
+            let seen_total: u64 = seen.iter().map(|r| r.1).sum();
+            t.missing_frames = seen_total.saturating_sub(t.frames);
+        }
+        Err(e) => t.error = Some(e.to_string()),
+    }
+}
+
+/// Per-connection state of a subscriber: lost windows and the last fresh frame before them.
+#[derive(Default)]
+struct Tracker {
+    last: Option<frond_sdk::Pose>,
+    /// Last frame that carried a new report: (host ns, device µs).
+    last_fresh: Option<(u64, u64)>,
+    open: Option<(LostWindow, Option<(u64, u64)>)>,
+}
+
+impl Tracker {
+    fn on_pose(&mut self, p: &frond_sdk::Pose, fig: &mut SubscriberFigures, track_windows: bool) {
+        let lost = p.flags.contains(PoseFlags::DEVICE_LOST);
+        if track_windows && p.flags.contains(PoseFlags::RECORDING) && !p.flags.contains(PoseFlags::HELD) {
+            push_run(&mut fig.recorded_runs, p.seq);
+        }
+        if lost {
+            match &mut self.open {
+                Some((w, _)) => {
+                    w.last_seq = p.seq;
+                    w.frames += 1;
+                }
+                None => {
+                    let w = LostWindow { first_seq: p.seq, last_seq: p.seq, frames: 1, reopen_ms: None };
+                    self.open = Some((w, self.last_fresh));
+                }
+            }
+        } else if !p.flags.contains(PoseFlags::HELD) {
+            if let Some((mut w, before)) = self.open.take() {
+                w.reopen_ms =
+                    before.and_then(|(host_ns, dev_us)| reopen_ms(host_ns, dev_us, p.host_monotonic_ns));
+                if track_windows {
+                    fig.lost_windows.push(w);
+                }
+            }
+            self.last_fresh = Some((p.host_monotonic_ns, p.device_time_us));
+        }
+        self.last = Some(*p);
+    }
+
+    fn on_gap(&self, missing: u64, fig: &mut SubscriberFigures) {
+        fig.missing_frames += missing;
+        let near_lost =
+            self.open.is_some() || self.last.is_some_and(|p| p.flags.contains(PoseFlags::DEVICE_LOST));
+        if near_lost {
+            fig.gaps_in_unplug_windows += 1;
+        } else {
+            fig.gaps_outside_unplug_windows += 1;
+        }
+    }
+}
+
+/// Milliseconds from the glove's next scheduled replug after the report with device time
+/// `dev_us` (published at host time `host_ns`) to `fresh_ns`, the first fresh frame after the
+/// window. The glove's clock counts its reports (1 kHz sway: one per ms from its first report),
+/// and its unplug windows are scheduled on that clock: they end at `FIRST + k * EVERY + UNPLUG`
+/// ms. `None` when the estimate is meaningless (the daemon's unwrapped device time no longer
+/// matches the glove's schedule, e.g. after the 32-bit µs clock wrapped, past 71 minutes).
+fn reopen_ms(host_ns: u64, dev_us: u64, fresh_ns: u64) -> Option<f64> {
+    let dev_ms = dev_us / 1000;
+    let first_end = FIRST_UNPLUG_MS + UNPLUG_MS;
+    let k = if dev_ms < first_end { 0 } else { (dev_ms - first_end) / UNPLUG_EVERY_MS + 1 };
+    let replug_us = (first_end + k * UNPLUG_EVERY_MS) * 1000;
+    let replug_host_ns = host_ns as f64 + (replug_us - dev_us) as f64 * 1000.0;
+    let ms = (fresh_ns as f64 - replug_host_ns) / 1e6;
+    (ms > -50.0 && ms < 10_000.0).then_some(ms)
+}
+
+fn spawn_subscriber(
+    dir: &Path,
+    name: String,
+    per_frame_delay: Option<Duration>,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<JoinHandle<SubscriberFigures>> {
+    let mut sub = Subscriber::options()
+        .reconnect(false)
+        .read_timeout(Some(Duration::from_secs(2)))
+        .connect(dir)
+        .with_context(|| format!("subscriber {name}"))?;
+    let stop = Arc::clone(stop);
+    let track = name == "healthy-1";
+    Ok(std::thread::spawn(move || {
+        let mut fig = SubscriberFigures { name, connections: 1, ..Default::default() };
+        let mut tr = Tracker::default();
+        while !stop.load(Relaxed) {
+            match sub.next_event() {
+                Ok(Event::Pose(p)) => {
+                    fig.frames += 1;
+                    tr.on_pose(&p, &mut fig, track);
+                    if let Some(d) = per_frame_delay {
+                        std::thread::sleep(d);
+                    }
+                }
+                Ok(Event::Gap { expected, got }) => tr.on_gap(got - expected, &mut fig),
+                Ok(Event::RigChanged(_)) => {}
+                Ok(other) => {
+                    fig.errors.push(format!("unexpected {other:?}"));
+                    break;
+                }
+                Err(e) => {
+                    fig.errors.push(e.to_string());
+                    break;
+                }
+            }
+        }
+        fig
+    }))
+}
+
+/// An exporter that connects, reads a few hundred frames, disconnects and starts over.
+fn spawn_exporter(
+    dir: &Path,
+    seed: u64,
+    stop: &Arc<AtomicBool>,
+    restarts: &Arc<AtomicU64>,
+) -> anyhow::Result<JoinHandle<SubscriberFigures>> {
+    let (dir, stop, restarts) = (dir.to_path_buf(), Arc::clone(stop), Arc::clone(restarts));
+    if !dir.join(CONTROL_SOCKET).exists() {
+        bail!("no control socket in {}", dir.display());
+    }
+    Ok(std::thread::spawn(move || {
+        let mut fig = SubscriberFigures::default();
+        let mut x = seed | 1;
+        while !stop.load(Relaxed) {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let frames = 20 + x % 600;
+            let sub = Subscriber::options()
+                .reconnect(false)
+                .read_timeout(Some(Duration::from_secs(2)))
+                .connect(&dir);
+            let mut sub = match sub {
+                Ok(s) => s,
+                Err(e) => {
+                    fig.errors.push(format!("connect: {e}"));
+                    break;
+                }
+            };
+            fig.connections += 1;
+            let mut tr = Tracker::default();
+            let mut n = 0;
+            while n < frames && !stop.load(Relaxed) {
+                match sub.next_event() {
+                    Ok(Event::Pose(p)) => {
+                        n += 1;
+                        fig.frames += 1;
+                        tr.on_pose(&p, &mut fig, false);
+                    }
+                    Ok(Event::Gap { expected, got }) => tr.on_gap(got - expected, &mut fig),
+                    Ok(_) => {}
+                    Err(e) => {
+                        fig.errors.push(e.to_string());
+                        break;
+                    }
+                }
+            }
+            drop(sub);
+            restarts.fetch_add(1, Relaxed);
+            std::thread::sleep(Duration::from_millis(x % 50));
+        }
+        fig
+    }))
+}
