@@ -1,5 +1,6 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
+mod demo;
 mod osc_input;
 mod slow_subscriber;
 mod stage;

@@ -38,7 +38,7 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
         format!("demo-{now}")
     });
     check_take_name(&name)?;
-    let frondd = find_frondd()?;
+    let frondd = find_program("frondd")?;
     let takes_dir = paths::takes_dir(g.takes_dir.clone());
     std::fs::create_dir_all(&takes_dir)
         .with_context(|| format!("cannot create the takes directory {}", takes_dir.display()))?;
@@ -63,6 +63,13 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
     let take = result?;
     println!();
     println!("take {name}: {} frames in {}", take.frames, take.path);
+    match bake_glb(&take.path, "grass") {
+        Ok(glb) => println!(
+            "baked:      {} (skinned, animated glTF 2.0 for Blender, Maya, Unreal, Unity, three.js)",
+            glb.display()
+        ),
+        Err(e) => eprintln!("frond: warning: no GLB baked: {e:#}"),
+    }
     let td = takes_dir.display();
     println!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl");
     println!("at 30 fps:  frond take export {name} --jsonl --fps 30 --takes-dir {td} > {name}-30fps.jsonl");
@@ -193,25 +200,41 @@ fn next_event(sub: &mut Subscriber) -> anyhow::Result<Option<Event>> {
     }
 }
 
-/// `frondd` next to this executable, else on `PATH`.
-fn find_frondd() -> anyhow::Result<PathBuf> {
+/// A frond program (`frondd`, `frond-gltf`, ...) next to this executable, else on `PATH`.
+pub(crate) fn find_program(name: &str) -> anyhow::Result<PathBuf> {
     let exe = std::env::current_exe().context("cannot find the frond executable's path")?;
-    let beside = exe.with_file_name("frondd");
+    let beside = exe.with_file_name(name);
     if is_executable(&beside) {
         return Ok(beside);
     }
     if let Some(path) = std::env::var_os("PATH") {
         for dir in std::env::split_paths(&path) {
-            let candidate = dir.join("frondd");
+            let candidate = dir.join(name);
             if is_executable(&candidate) {
                 return Ok(candidate);
             }
         }
     }
     Err(anyhow!(
-        "cannot find frondd: not at {} and not on PATH (build it with `cargo build --release -p frondd`)",
+        "cannot find {name}: not at {} and not on PATH (build it with `cargo build --release --workspace --bins`)",
         beside.display()
     ))
+}
+
+/// Bakes the demo take into a GLB beside it with `frond-gltf`, so the animator can open it at once.
+fn bake_glb(take_path: &str, rig: &str) -> anyhow::Result<PathBuf> {
+    let gltf = find_program("frond-gltf")?;
+    let out = Path::new(take_path).with_extension("glb");
+    let status = Command::new(&gltf)
+        .args(["bake", "--quiet", "--rig", rig, "--take", take_path, "-o"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .status()
+        .with_context(|| format!("cannot run {}", gltf.display()))?;
+    if !status.success() {
+        return Err(anyhow!("{} bake exited with {status}", gltf.display()));
+    }
+    Ok(out)
 }
 
 fn is_executable(p: &Path) -> bool {
