@@ -1,0 +1,210 @@
+//! `frond bench --quick --json`: every section is there, and every ratio and target verdict
+//! follows from the measured numbers in the same document (recomputed here), with baselines that
+//! are measured (non-zero, and different from one run to the next), not constants.
+//!
+//! Needs the workspace's binaries beside `frond` (`cargo build --workspace --bins`, as
+//! scripts/test does) for the sections that start frondd and frond-vhid.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+const SECTIONS: [&str; 6] =
+    ["loop_timing", "glove_latency", "tick_cost", "max_rate", "daemon_resources", "components"];
+const PARTS: [&str; 5] = ["field_playback", "loop_synthesis", "gltf_bake", "warp", "osc"];
+
+fn frond() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_frond"))
+}
+
+fn bench_json(sections: &[&str]) -> (Value, String) {
+    let mut cmd = frond();
+    cmd.args(["bench", "--quick", "--json"]);
+    for s in sections {
+        cmd.args(["--section", s]);
+    }
+    let out = cmd.output().expect("run frond bench");
+    assert!(out.status.success(), "frond bench failed: {}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).expect("UTF-8 output");
+    let v = serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("frond bench --json printed no JSON ({e}): {text}"));
+    (v, text)
+}
+
+fn bins_present() -> bool {
+    let dir = Path::new(env!("CARGO_BIN_EXE_frond")).parent().unwrap();
+    dir.join("frondd").is_file() && dir.join("frond-vhid").is_file()
+}
+
+/// Every measurement of a section and its parts, as (path, measurement).
+fn measurements<'a>(key: &str, section: &'a Value, out: &mut Vec<(String, &'a Value)>) {
+    for m in section["measurements"].as_array().expect("measurements array") {
+        out.push((format!("{key}.{}", m["name"].as_str().unwrap()), m));
+    }
+    if let Some(parts) = section.get("parts").and_then(Value::as_object) {
+        for (name, p) in parts {
+            measurements(&format!("{key}.{name}"), p, out);
+        }
+    }
+}
+
+fn check_measurement(path: &str, m: &Value) {
+    let measured = m["measured"].as_f64().unwrap_or_else(|| panic!("{path}: measured is not a number"));
+    let baseline = m["baseline"].as_f64().unwrap_or_else(|| panic!("{path}: baseline is not a number"));
+    assert!(measured.is_finite() && measured >= 0.0, "{path}: measured {measured}");
+    assert!(
+        baseline.is_finite() && baseline > 0.0,
+        "{path}: baseline {baseline} must be measured and non-zero"
+    );
+    assert!(!m["baseline_name"].as_str().unwrap_or("").is_empty(), "{path}: unnamed baseline");
+    assert!(!m["unit"].as_str().unwrap_or("").is_empty(), "{path}: no unit");
+    let ratio = m["ratio"].as_f64().unwrap_or_else(|| panic!("{path}: no ratio"));
+    let expected = measured / baseline;
+    assert!(
+        (ratio - expected).abs() <= 1e-9 * expected.abs().max(1.0),
+        "{path}: ratio {ratio} != {measured} / {baseline}"
+    );
+    if let Some(t) = m.get("target") {
+        let limit = t["limit"].as_f64().unwrap();
+        let value = match t["bound"].as_str().unwrap() {
+            "max_ratio" => ratio,
+            "max_measured" => measured,
+            other => panic!("{path}: unknown bound {other}"),
+        };
+        assert_eq!(
+            t["holds"].as_bool(),
+            Some(value <= limit),
+            "{path}: verdict does not follow from {value} <= {limit}"
+        );
+        assert!(!t["text"].as_str().unwrap_or("").is_empty(), "{path}: target without text");
+    }
+}
+
+#[test]
+fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
+    let (report, text) = bench_json(&[]);
+    assert_eq!(report["schema"], 1);
+    assert_eq!(report["quick"], true);
+    assert!(report["machine"]["nproc"].as_u64().unwrap() >= 1);
+    let sections = report["sections"].as_object().expect("sections object");
+    let mut keys: Vec<&str> = sections.keys().map(String::as_str).collect();
+    let mut expected = SECTIONS.to_vec();
+    keys.sort_unstable();
+    expected.sort_unstable();
+    assert_eq!(keys, expected, "every section");
+    let at: Vec<usize> = SECTIONS.iter().map(|s| text.find(&format!("\"{s}\": {{")).unwrap()).collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "sections in issue order: {at:?}");
+
+    // In-process sections always run; the cross-process ones need the binaries and /dev/fuse.
+    let mut must_be_ok = vec!["loop_timing", "tick_cost", "max_rate", "components"];
+    if bins_present() {
+        must_be_ok.push("daemon_resources");
+        if Path::new("/dev/fuse").exists() {
+            must_be_ok.push("glove_latency");
+        }
+    }
+    for (key, s) in sections {
+        let status = s["status"].as_str().unwrap();
+        if must_be_ok.contains(&key.as_str()) {
+            assert_eq!(status, "ok", "{key}: {}", s["reason"]);
+        } else if status != "ok" {
+            assert!(s["reason"].as_str().is_some_and(|r| !r.is_empty()), "{key}: {status} without a reason");
+        }
+    }
+    let parts = sections["components"]["parts"].as_object().expect("component parts");
+    let mut part_keys: Vec<&str> = parts.keys().map(String::as_str).collect();
+    let mut expected = PARTS.to_vec();
+    part_keys.sort_unstable();
+    expected.sort_unstable();
+    assert_eq!(part_keys, expected);
+    for (key, p) in parts {
+        match p["status"].as_str().unwrap() {
+            "ok" => {
+                assert!(!p["measurements"].as_array().unwrap().is_empty(), "{key}: ok without measurements")
+            }
+            "not available" | "error" => {
+                assert!(p["reason"].as_str().is_some_and(|r| !r.is_empty()), "{key}: no reason")
+            }
+            other => panic!("{key}: unknown status {other}"),
+        }
+    }
+    for part in ["field_playback", "loop_synthesis"] {
+        assert_eq!(parts[part]["status"], "ok", "{part} is in this workspace: {}", parts[part]["reason"]);
+    }
+
+    let mut all = Vec::new();
+    for (key, s) in sections {
+        measurements(key, s, &mut all);
+    }
+    assert!(all.len() >= 20, "only {} measurements", all.len());
+    for (path, m) in &all {
+        check_measurement(path, m);
+    }
+    // The per-tick work allocates nothing, and the counter that says so does count: the naive
+    // baseline's allocations were seen.
+    let alloc =
+        all.iter().find(|(p, _)| p == "tick_cost.allocations_per_tick").expect("allocations measured").1;
+    assert_eq!(alloc["measured"], 0.0);
+    assert!(alloc["baseline"].as_f64().unwrap() >= 1.0);
+
+    // The targets summary lists exactly the measurements that carry a target, with their verdicts.
+    let targets = report["targets"].as_array().unwrap();
+    let with_target: Vec<_> = all.iter().filter(|(_, m)| m.get("target").is_some()).collect();
+    assert_eq!(targets.len(), with_target.len());
+    for (path, m) in &with_target {
+        let row = targets
+            .iter()
+            .find(|t| {
+                format!("{}.{}", t["section"].as_str().unwrap(), t["measurement"].as_str().unwrap()) == *path
+            })
+            .unwrap_or_else(|| panic!("{path} has a target but no row in the summary"));
+        assert_eq!(row["holds"], m["target"]["holds"], "{path}");
+    }
+    for name in ["full_lateness_p99_1000hz", "full_lateness_p99_8000hz"] {
+        assert!(targets.iter().any(|t| t["measurement"] == name), "no target row for {name}");
+    }
+
+    // A second run measures its baselines again: timed baselines are not constants.
+    let (again, _) = bench_json(&["loop_timing", "tick_cost"]);
+    let mut second = Vec::new();
+    for (key, s) in again["sections"].as_object().unwrap() {
+        measurements(key, s, &mut second);
+    }
+    let mut compared = 0;
+    let mut differ = 0;
+    for (path, m) in &second {
+        check_measurement(path, m);
+        if m["unit"] == "allocations/tick" {
+            continue; // a count, identical by design
+        }
+        let first = all
+            .iter()
+            .find(|(p, _)| p == path)
+            .unwrap_or_else(|| panic!("{path} missing from the first run"))
+            .1;
+        compared += 1;
+        if first["baseline"] != m["baseline"] {
+            differ += 1;
+        }
+    }
+    assert!(compared >= 10, "compared {compared}");
+    // Histogram buckets can make one percentile repeat; most timed baselines must not.
+    assert!(differ * 2 > compared, "only {differ} of {compared} baselines changed between runs");
+}
+
+#[test]
+fn table_output_and_unknown_sections() {
+    let out = frond().args(["bench", "--quick", "--section", "tick_cost"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("[tick_cost]"), "{text}");
+    assert!(text.contains("calibrate_filter_map_ns"), "{text}");
+    assert!(text.contains("targets:"), "{text}");
+    assert!(!text.contains("[loop_timing]"), "only the asked section runs: {text}");
+
+    let out = frond().args(["bench", "--section", "warp-speed"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("warp-speed") && err.contains("loop_timing"), "{err}");
+}
