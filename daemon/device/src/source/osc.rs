@@ -83,8 +83,40 @@ fn collect(packet: &OscPacket, out: &mut Vec<Result<HandSample, OscHandError>>) 
     }
 }
 
+/// Deepest bundle nesting accepted. rosc decodes nested bundles recursively, so one datagram of
+/// a few thousand nested bundles (64 KiB holds over 3000) would overflow the receiver thread's
+/// stack and abort the daemon; trackers send flat bundles.
+const MAX_BUNDLE_DEPTH: usize = 16;
+
+/// How deep bundles nest in `datagram` (0 for a message), walking the element size fields
+/// without recursion; stops counting once past `limit`.
+fn bundle_depth(datagram: &[u8], limit: usize) -> usize {
+    const BUNDLE_HEAD: usize = 16; // "#bundle\0" and the 8-byte time tag
+    let mut deepest = 0;
+    let mut pending: Vec<(&[u8], usize)> = vec![(datagram, 1)];
+    while let Some((element, depth)) = pending.pop() {
+        if !element.starts_with(b"#bundle\0") {
+            continue;
+        }
+        deepest = deepest.max(depth);
+        if deepest > limit {
+            break;
+        }
+        let mut rest = element.get(BUNDLE_HEAD..).unwrap_or(&[]);
+        while let Some(size) = rest.first_chunk::<4>().map(|b| u32::from_be_bytes(*b) as usize) {
+            let Some(inner) = rest.get(4..4 + size) else { break };
+            pending.push((inner, depth + 1));
+            rest = &rest[4 + size..];
+        }
+    }
+    deepest
+}
+
 /// Decodes one UDP datagram into hand samples (or the reason each message was dropped).
 pub fn decode_hand_packet(datagram: &[u8]) -> Vec<Result<HandSample, OscHandError>> {
+    if bundle_depth(datagram, MAX_BUNDLE_DEPTH) > MAX_BUNDLE_DEPTH {
+        return vec![Err(OscHandError::Malformed(format!("bundles nested deeper than {MAX_BUNDLE_DEPTH}")))];
+    }
     match rosc::decoder::decode_udp(datagram) {
         Ok((_, packet)) => {
             let mut out = Vec::new();
@@ -234,6 +266,35 @@ impl Drop for OscHandSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One hand message inside `depth` nested bundles, each level's size field covering the rest.
+    fn nested_bundles(depth: usize) -> Vec<u8> {
+        let mut out = hand_bytes();
+        for _ in 0..depth {
+            let mut b = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
+            b.extend_from_slice(&(out.len() as u32).to_be_bytes());
+            b.extend_from_slice(&out);
+            out = b;
+        }
+        out
+    }
+
+    #[test]
+    fn deeply_nested_bundles_are_refused_not_a_stack_overflow() {
+        // Found by frond-fuzz (fuzz/corpus/osc-hand/crash-nested-bundles): ~3000 levels in one
+        // 64 KiB datagram overflowed the 2 MiB stack inside rosc's recursive decoder.
+        let deep = nested_bundles(3200);
+        assert!(deep.len() <= 65_507, "fits one UDP datagram");
+        let out = decode_hand_packet(&deep);
+        assert!(
+            matches!(&out[..], [Err(OscHandError::Malformed(m))] if m.contains("nested deeper")),
+            "{out:?}"
+        );
+        let ok = decode_hand_packet(&nested_bundles(MAX_BUNDLE_DEPTH));
+        assert!(matches!(&ok[..], [Ok(_)]), "{ok:?}");
+        assert_eq!(bundle_depth(&hand_bytes(), MAX_BUNDLE_DEPTH), 0);
+        assert_eq!(bundle_depth(&nested_bundles(3), MAX_BUNDLE_DEPTH), 3);
+    }
 
     /// `/frond/hand ,fffffff` with t = 0.5, wrist 10 -20 30, thumb 1 2 3, encoded by hand.
     fn hand_bytes() -> Vec<u8> {
