@@ -3,6 +3,7 @@
 mod demo;
 mod osc_input;
 mod slow_subscriber;
+mod soak;
 mod stage;
 mod systemd;
 mod tap_matches_map;
