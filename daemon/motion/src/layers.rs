@@ -54,7 +54,9 @@ pub fn header_element_names(bytes: &[u8]) -> Vec<String> {
     }
 }
 
-fn encode_header(h: &TakeHeader, elements: &[String], out: &mut Vec<u8>) {
+/// Appends a take's header record carrying the secondary layer names (`elements`; layer `k + 1`
+/// is `elements[k]`), so a recorder can write layered takes that [`Take::from_bytes`] names.
+pub fn encode_header(h: &TakeHeader, elements: &[String], out: &mut Vec<u8>) {
     if elements.is_empty() {
         encode_record(&TakeRecord::Header(h.clone()), out);
         return;
