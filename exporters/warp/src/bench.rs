@@ -1,6 +1,6 @@
 //! Timing of the warp and of the whole pipeline, for `frond-warp bench` and `frond bench`.
 //!
-//! [`bench_warp`] times [`Warper::remap`] (single thread) on a synthetic RGBA frame with a smooth
+//! [`bench_warp`] times [`Warper::remap`] (single thread; [`bench_warp_with`] per kernel) on a synthetic RGBA frame with a smooth
 //! displacement field; [`write_field`] writes that same frame and field (and our output) so that
 //! `exporters/warp/bench/remap.py` can time OpenCV's `cv2.remap` on identical input in the same
 //! run and report how far its output is from ours. [`bench_pipeline`] measures whole frames
@@ -14,7 +14,7 @@ use serde::Serialize;
 use crate::compose::Animator;
 use crate::layers::{LayerInput, Rgba, Scene};
 use crate::params::SceneParams;
-use crate::warp::Warper;
+use crate::warp::{RemapKernel, Warper};
 
 /// Result of [`bench_warp`].
 #[derive(Debug, Clone, Serialize)]
@@ -31,6 +31,22 @@ pub struct WarpBench {
     pub min_ms: f64,
     /// Megapixels per second at the median.
     pub mpix_per_s: f64,
+    /// Median CPU time of this thread per frame, milliseconds: on a shared machine the wall time
+    /// includes time other processes held the core; this does not.
+    pub median_cpu_ms: f64,
+    /// Kernel that ran ([`RemapKernel::name`]).
+    pub kernel: &'static str,
+}
+
+/// CPU time consumed by the calling thread, seconds.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_THREAD_CPUTIME_ID needs nothing else.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 /// Result of [`bench_pipeline`].
@@ -74,20 +90,26 @@ pub fn synthetic_warper(w: usize, h: usize) -> Warper {
     warper
 }
 
-/// Times `iterations` warps of a `w x h` RGBA frame on this thread.
+/// Times `iterations` warps of a `w x h` RGBA frame on this thread with the best kernel.
 pub fn bench_warp(w: usize, h: usize, iterations: usize) -> WarpBench {
+    bench_warp_with(RemapKernel::best(), w, h, iterations)
+}
+
+/// Times `iterations` warps of a `w x h` RGBA frame on this thread with `kernel`.
+pub fn bench_warp_with(kernel: RemapKernel, w: usize, h: usize, iterations: usize) -> WarpBench {
     let src = synthetic_frame(w, h);
     let mut dst = vec![0u8; src.len()];
     let warper = synthetic_warper(w, h);
-    warper.remap(&src, &mut dst); // warm-up
-    let mut times: Vec<f64> = (0..iterations.max(1))
+    warper.remap_with(kernel, &src, &mut dst); // warm-up
+    let (mut times, mut cpu): (Vec<f64>, Vec<f64>) = (0..iterations.max(1))
         .map(|_| {
-            let t = Instant::now();
-            warper.remap(&src, &mut dst);
-            t.elapsed().as_secs_f64() * 1e3
+            let (t, c) = (Instant::now(), thread_cpu_s());
+            warper.remap_with(kernel, &src, &mut dst);
+            (t.elapsed().as_secs_f64() * 1e3, (thread_cpu_s() - c) * 1e3)
         })
-        .collect();
+        .unzip();
     times.sort_by(f64::total_cmp);
+    cpu.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
     WarpBench {
         width: w,
@@ -96,6 +118,8 @@ pub fn bench_warp(w: usize, h: usize, iterations: usize) -> WarpBench {
         median_ms: median,
         min_ms: times[0],
         mpix_per_s: (w * h) as f64 / 1e6 / (median / 1e3),
+        median_cpu_ms: cpu[cpu.len() / 2],
+        kernel: if kernel.is_available() { kernel.name() } else { RemapKernel::Scalar.name() },
     }
 }
 

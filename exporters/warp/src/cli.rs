@@ -211,6 +211,9 @@ pub struct BenchArgs {
     /// Also write the frame and displacement field for exporters/warp/bench/remap.py into DIR.
     #[arg(long, value_name = "DIR")]
     pub write_field: Option<PathBuf>,
+    /// Also time every warp kernel this CPU runs (scalar, SSE2, AVX2).
+    #[arg(long)]
+    pub all_kernels: bool,
 }
 
 impl SimArgs {

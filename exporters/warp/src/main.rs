@@ -94,6 +94,14 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
         eprintln!("frond-warp: warning: debug build; build with --release for meaningful timings");
     }
     let warp = frond_warp::bench::bench_warp(args.width, args.height, args.iterations);
+    let kernels: Vec<_> = if args.all_kernels {
+        frond_warp::warp::RemapKernel::available()
+            .into_iter()
+            .map(|k| frond_warp::bench::bench_warp_with(k, args.width, args.height, args.iterations))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let pipeline: Vec<_> = if args.pipeline_frames > 0 {
         [(1280, 720), (1920, 1080)]
             .iter()
@@ -109,6 +117,7 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
     if args.json {
         let v = serde_json::json!({
             "warp": warp,
+            "warp_kernels": kernels,
             "pipeline": pipeline,
             "field_dir": args.write_field,
             "threads": 1,
@@ -117,9 +126,23 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
         println!("{v}");
     } else {
         println!(
-            "warp {}x{}: median {:.2} ms, min {:.2} ms ({:.0} Mpx/s, single thread, {} iterations)",
-            warp.width, warp.height, warp.median_ms, warp.min_ms, warp.mpix_per_s, warp.iterations
+            "warp {}x{} ({}): median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms ({:.0} Mpx/s, single \
+             thread, {} iterations)",
+            warp.width,
+            warp.height,
+            warp.kernel,
+            warp.median_ms,
+            warp.min_ms,
+            warp.median_cpu_ms,
+            warp.mpix_per_s,
+            warp.iterations
         );
+        for k in &kernels {
+            println!(
+                "  kernel {}: median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms",
+                k.kernel, k.median_ms, k.min_ms, k.median_cpu_ms
+            );
+        }
         for p in pipeline {
             println!("pipeline {}x{}: {:.1} frames/s ({} frames)", p.width, p.height, p.fps, p.frames);
         }

@@ -19,6 +19,10 @@
 
 use crate::params::Horizon;
 
+mod kernels;
+
+pub use kernels::RemapKernel;
+
 /// Fraction bits of the fixed-point source coordinates.
 const FRAC_BITS: u32 = 8;
 const ONE: i32 = 1 << FRAC_BITS;
@@ -130,46 +134,30 @@ impl Warper {
         self.disp.iter().fold(0.0f32, |m, d| m.max((d[0] * d[0] + d[1] * d[1]).sqrt()))
     }
 
+    /// Eq. 8 run by run: the source point is linear in `x` inside one cell row, so each run of
+    /// pixels that share a cell row comes with its first source point and per-pixel step in
+    /// 1/65536 pixel (unclamped). An iterator rather than a callback so that the SIMD kernels,
+    /// compiled with their own target features, inline into the loop over it.
+    #[inline(always)]
+    fn runs(&self) -> Runs<'_> {
+        Runs { warper: self, y: 0, cx: usize::MAX, v: 0.0, left: [0.0; 2] }
+    }
+
     /// Eq. 8 for every pixel: calls `f(x, y, src_x, src_y)` with the source point in fixed point
     /// (1/256 pixel), clamped to the layer.
     #[inline(always)]
     fn for_each_source(&self, mut f: impl FnMut(usize, usize, i32, i32)) {
-        let (w, h) = (self.width, self.height);
-        let max_x = (w as i32 - 1) * ONE;
-        let max_y = (h as i32 - 1) * ONE;
-        let inv_sx = 1.0 / self.cell_x as f32;
-        let inv_sy = 1.0 / self.cell_y as f32;
-        for y in 0..h {
-            let cy = y / self.cell_y;
-            let v = (y - cy * self.cell_y) as f32 * inv_sy;
-            let row0 = &self.disp[cy * self.cols..(cy + 1) * self.cols];
-            let row1 = &self.disp[(cy + 1) * self.cols..(cy + 2) * self.cols];
-            let mut x = 0;
-            for cx in 0..self.cols - 1 {
-                if x >= w {
-                    break;
-                }
-                // Left and right cell edges interpolated in v.
-                let l = lerp2(row0[cx], row1[cx], v);
-                let r = lerp2(row0[cx + 1], row1[cx + 1], v);
-                let end = ((cx + 1) * self.cell_x).min(w);
-                let x_start = cx * self.cell_x;
-                // The source point is linear in x inside a cell row: step it in 1/65536 pixel.
-                const SUB: f32 = 65536.0;
-                let sx0 = ((x_start as f32 + l[0]) * SUB).round() as i64;
-                let sy0 = ((y as f32 + l[1]) * SUB).round() as i64;
-                let dsx = ((1.0 + (r[0] - l[0]) * inv_sx) * SUB).round() as i64;
-                let dsy = ((r[1] - l[1]) * inv_sx * SUB).round() as i64;
-                let (mut sxa, mut sya) = (sx0 + (x - x_start) as i64 * dsx, sy0 + (x - x_start) as i64 * dsy);
-                while x < end {
-                    // Round 1/65536 to 1/256 pixel.
-                    let sxf = (((sxa + 128) >> 8) as i32).clamp(0, max_x);
-                    let syf = (((sya + 128) >> 8) as i32).clamp(0, max_y);
-                    f(x, y, sxf, syf);
-                    sxa += dsx;
-                    sya += dsy;
-                    x += 1;
-                }
+        let max_x = (self.width as i32 - 1) * ONE;
+        let max_y = (self.height as i32 - 1) * ONE;
+        for run in self.runs() {
+            let (mut sxa, mut sya) = (run.sx, run.sy);
+            for x in run.x_start..run.x_end {
+                // Round 1/65536 to 1/256 pixel.
+                let sxf = (((sxa + 128) >> 8) as i32).clamp(0, max_x);
+                let syf = (((sya + 128) >> 8) as i32).clamp(0, max_y);
+                f(x, run.y, sxf, syf);
+                sxa += run.dsx;
+                sya += run.dsy;
             }
         }
     }
@@ -177,22 +165,51 @@ impl Warper {
     /// Warps an RGBA image (4 bytes per pixel, `width x height`) into `dst`: each channel is
     /// bilinearly sampled at the mapped source point (the operation `cv2.remap` with
     /// `INTER_LINEAR` and `BORDER_REPLICATE` performs for the same field).
+    ///
+    /// Uses the fastest [`RemapKernel`] this CPU supports; every kernel gives the same bytes.
     pub fn remap(&self, src: &[u8], dst: &mut [u8]) {
-        let w = self.width;
-        assert!(src.len() >= w * self.height * 4 && dst.len() >= w * self.height * 4, "buffer size");
-        self.for_each_source(|x, y, sxf, syf| {
-            let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, self.width, self.height);
-            let o = (y * w + x) * 4;
-            let (p00, p10, p01, p11) = (px(src, i00), px(src, i10), px(src, i01), px(src, i11));
-            let (fx, fy) = (fx as u32, fy as u32);
-            let (gx, gy) = (ONE as u32 - fx, ONE as u32 - fy);
-            let out: &mut [u8; 4] = (&mut dst[o..o + 4]).try_into().expect("4 bytes");
-            for c in 0..4 {
-                let top = p00[c] as u32 * gx + p10[c] as u32 * fx;
-                let bot = p01[c] as u32 * gx + p11[c] as u32 * fx;
-                out[c] = ((top * gy + bot * fy + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as u8;
+        self.remap_with(RemapKernel::best(), src, dst);
+    }
+
+    /// [`Warper::remap`] with a chosen kernel (for tests and benchmarks); a kernel the CPU lacks
+    /// falls back to [`RemapKernel::Scalar`].
+    ///
+    /// Runs whose taps all lie inside the image go to the kernel; runs that are an exact
+    /// whole-pixel shift are copied; the rest (near the border) take the clamped scalar path.
+    pub fn remap_with(&self, kernel: RemapKernel, src: &[u8], dst: &mut [u8]) {
+        let (w, h) = (self.width, self.height);
+        assert!(src.len() >= w * h * 4 && dst.len() >= w * h * 4, "buffer size");
+        let kernel = if kernel.is_available() { kernel } else { RemapKernel::Scalar };
+        kernels::remap(kernel, self, src, dst);
+    }
+
+    /// The frame loop of [`Warper::remap_with`] with kernel `K`, inlined into each kernel's
+    /// entry point (which carries its target features).
+    #[inline(always)]
+    fn remap_runs<K: kernels::Kernel>(&self, src: &[u8], dst: &mut [u8]) {
+        let (w, h) = (self.width, self.height);
+        let max_x = (w as i32 - 1) * ONE;
+        let max_y = (h as i32 - 1) * ONE;
+        for run in self.runs() {
+            let out = &mut dst[(run.y * w + run.x_start) * 4..(run.y * w + run.x_end) * 4];
+            if let Some(shift) = run.whole_pixel_shift(w, h) {
+                out.copy_from_slice(&src[shift..shift + out.len()]);
+            } else if let Some(interior) = run.interior(w, h) {
+                K::interior(src, w, out, interior);
+            } else {
+                let (mut sxa, mut sya) = (run.sx, run.sy);
+                for o in out.chunks_exact_mut(4) {
+                    let sxf = (((sxa + 128) >> 8) as i32).clamp(0, max_x);
+                    let syf = (((sya + 128) >> 8) as i32).clamp(0, max_y);
+                    let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, w, h);
+                    let p = [px(src, i00), px(src, i10), px(src, i01), px(src, i11)];
+                    let o: &mut [u8; 4] = o.try_into().expect("4 bytes");
+                    *o = kernels::bilinear(p, fx as u32, fy as u32);
+                    sxa += run.dsx;
+                    sya += run.dsy;
+                }
             }
-        });
+        }
     }
 
     /// Warps a straight-alpha RGBA layer and composites it over the opaque RGBA `frame`, only at
@@ -264,6 +281,156 @@ fn lerp2(a: [f32; 2], b: [f32; 2], t: f32) -> [f32; 2] {
     [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
 }
 
+/// `x.round() as i64` without a library call (the baseline x86_64 target has no rounding
+/// instruction): rounds half away from zero, saturates, and maps NaN to 0, exactly as the cast of
+/// `f32::round` does.
+#[inline(always)]
+fn round_i64(x: f32) -> i64 {
+    let t = x as i64; // truncates toward zero (saturating, NaN -> 0)
+    // For |x| < 2^23 both `t as f32` and the difference are exact; beyond, x is an integer.
+    let frac = x - t as f32;
+    // Branch-free: `frac` is effectively random, so branches would mispredict once per run.
+    t.saturating_add((frac >= 0.5) as i64).saturating_sub((frac <= -0.5) as i64)
+}
+
+/// [`round_i64`] of four values; when all lie within i32 (always, for sane fields) it rounds in
+/// 32 bits without saturation logic, four at a time.
+#[inline(always)]
+fn round4_i64(x: [f32; 4]) -> [i64; 4] {
+    // The largest f32 below 2^31.
+    const I32_SAFE: f32 = 2_147_483_520.0;
+    if x.iter().all(|v| v.abs() <= I32_SAFE) {
+        // Exact as in `round_i64`: for |v| >= 2^23, v is an integer and `t as f32 == v`.
+        x.map(|v| {
+            let t = v as i32;
+            let frac = v - t as f32;
+            (t + (frac >= 0.5) as i32 - (frac <= -0.5) as i32) as i64
+        })
+    } else {
+        x.map(round_i64)
+    }
+}
+
+/// One cell row's run of output pixels `x_start..x_end` of row `y`: the source point of
+/// `x_start` is `(sx, sy)` and each further pixel adds `(dsx, dsy)`, all in 1/65536 pixel.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    y: usize,
+    x_start: usize,
+    x_end: usize,
+    sx: i64,
+    sy: i64,
+    dsx: i64,
+    dsy: i64,
+}
+
+/// Iterator over the runs of a frame, row by row (see [`Warper::runs`]).
+struct Runs<'a> {
+    warper: &'a Warper,
+    y: usize,
+    /// Cell column of the next run; `usize::MAX` before the first row.
+    cx: usize,
+    /// Cell coordinate of row `y` inside its cell row.
+    v: f32,
+    /// Displacement of the next run's left cell edge at row `y`.
+    left: [f32; 2],
+}
+
+impl Runs<'_> {
+    /// Corner displacements of cell column edge `cx` interpolated at row `y` (Eq. 8 in `v`).
+    #[inline(always)]
+    fn edge(&self, cx: usize) -> [f32; 2] {
+        let wp = self.warper;
+        let cy = self.y / wp.cell_y;
+        lerp2(wp.disp[cy * wp.cols + cx], wp.disp[(cy + 1) * wp.cols + cx], self.v)
+    }
+}
+
+impl Iterator for Runs<'_> {
+    type Item = Run;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<Run> {
+        const SUB: f32 = 65536.0;
+        let wp = self.warper;
+        while self.cx == usize::MAX || self.cx + 1 >= wp.cols || self.cx * wp.cell_x >= wp.width {
+            // Next row.
+            self.y = if self.cx == usize::MAX { 0 } else { self.y + 1 };
+            self.cx = 0;
+            if self.y >= wp.height {
+                // Stays here: the iterator is fused.
+                self.y = wp.height;
+                self.cx = wp.cols;
+                return None;
+            }
+            let cy = self.y / wp.cell_y;
+            self.v = (self.y - cy * wp.cell_y) as f32 * (1.0 / wp.cell_y as f32);
+            self.left = self.edge(0);
+        }
+        let x_start = self.cx * wp.cell_x;
+        let (cx, y) = (self.cx, self.y);
+        let inv_sx = 1.0 / wp.cell_x as f32;
+        // Left and right cell edges interpolated in v.
+        let (l, r) = (self.left, self.edge(cx + 1));
+        self.left = r;
+        self.cx += 1;
+        let [sx, sy, dsx, dsy] = round4_i64([
+            (x_start as f32 + l[0]) * SUB,
+            (y as f32 + l[1]) * SUB,
+            (1.0 + (r[0] - l[0]) * inv_sx) * SUB,
+            (r[1] - l[1]) * inv_sx * SUB,
+        ]);
+        Some(Run { y, x_start, x_end: ((cx + 1) * wp.cell_x).min(wp.width), sx, sy, dsx, dsy })
+    }
+}
+
+impl Run {
+    /// Source point of the last pixel, 1/65536 pixel.
+    fn last(&self) -> (i64, i64) {
+        let k = (self.x_end - self.x_start) as i64 - 1;
+        (self.sx + k * self.dsx, self.sy + k * self.dsy)
+    }
+
+    /// When every pixel of the run samples exactly one source pixel (a whole-pixel shift, e.g.
+    /// where the corners do not move), the byte offset of the first one's source.
+    fn whole_pixel_shift(&self, w: usize, h: usize) -> Option<usize> {
+        if self.dsx != 1 << 16 || self.dsy != 0 {
+            return None;
+        }
+        let (fx, fy) = ((self.sx + 128) >> 8, (self.sy + 128) >> 8);
+        if fx & (ONE as i64 - 1) != 0 || fy & (ONE as i64 - 1) != 0 {
+            return None;
+        }
+        let (x0, y0) = (fx >> FRAC_BITS, fy >> FRAC_BITS);
+        let n = (self.x_end - self.x_start) as i64;
+        let inside = x0 >= 0 && x0 + n <= w as i64 && y0 >= 0 && y0 < h as i64;
+        inside.then(|| (y0 as usize * w + x0 as usize) * 4)
+    }
+
+    /// The run in 32-bit form when no tap of any of its pixels needs clamping: every source point
+    /// (rounded to 1/256 pixel) lies in `[0, w - 1) x [0, h - 1)`, so its right and lower
+    /// neighbours exist. The source point is linear in `x` and rounding is monotonic, so the
+    /// first and last pixels bound the run.
+    fn interior(&self, w: usize, h: usize) -> Option<kernels::Interior> {
+        // Keeps every 1/65536-pixel value of the run, and a few steps past its end, within i32.
+        let small_step = |d: i64| d.abs() < 1 << 24;
+        if w >= 1 << 15 || h >= 1 << 15 || !small_step(self.dsx) || !small_step(self.dsy) {
+            return None;
+        }
+        let (lx, ly) = self.last();
+        let ok = |a: i64, b: i64, size: usize| {
+            let (fa, fb) = ((a + 128) >> 8, (b + 128) >> 8);
+            fa.min(fb) >= 0 && fa.max(fb) < (size as i64 - 1) * ONE as i64
+        };
+        (ok(self.sx, lx, w) && ok(self.sy, ly, h)).then_some(kernels::Interior {
+            sx: self.sx as i32,
+            sy: self.sy as i32,
+            dsx: self.dsx as i32,
+            dsy: self.dsy as i32,
+        })
+    }
+}
+
 /// Byte offsets of the four bilinear taps and the fractions, clamped to the edge.
 #[inline(always)]
 fn taps(sxf: i32, syf: i32, stride: usize, w: usize, h: usize) -> (usize, usize, usize, usize, i32, i32) {
@@ -317,6 +484,24 @@ mod tests {
         assert_eq!(mx[6 * 9 + 2], 3.5);
         // Top-left pixel is its own source.
         assert_eq!(mx[0], 0.0);
+    }
+
+    #[test]
+    fn rounding_matches_f32_round_cast() {
+        let mut vals = vec![
+            0.0f32, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 0.49999997, -0.49999997, 0.50000006, 8388607.5,
+            -8388607.5, 8388608.0, 16777217.0, 2_147_483_520.0, -2_147_483_520.0, 2_147_483_648.0,
+            -2_147_483_648.0, 9.3e18, -9.3e18, 1e30, -1e30, f32::INFINITY, f32::NEG_INFINITY, f32::NAN,
+            f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 123456.49, -123456.51,
+        ];
+        // Every 65536th pixel position in 1/65536 units, with halves, over a 4K-wide range.
+        vals.extend((-300_000i64..300_000).map(|i| i as f32 * 1000.5 + 0.5));
+        for &v in &vals {
+            let want = v.round() as i64;
+            assert_eq!(round_i64(v), want, "round_i64({v:e})");
+            assert_eq!(round4_i64([v, 0.5, -1.5, v])[0], want, "round4_i64({v:e})");
+            assert_eq!(round4_i64([1.0, 2.0, 3.0, v])[3], want, "round4_i64 lane 3 ({v:e})");
+        }
     }
 
     #[test]
