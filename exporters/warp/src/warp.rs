@@ -489,12 +489,37 @@ mod tests {
     #[test]
     fn rounding_matches_f32_round_cast() {
         let mut vals = vec![
-            0.0f32, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 0.49999997, -0.49999997, 0.50000006, 8388607.5,
-            -8388607.5, 8388608.0, 16777217.0, 2_147_483_520.0, -2_147_483_520.0, 2_147_483_648.0,
-            -2_147_483_648.0, 9.3e18, -9.3e18, 1e30, -1e30, f32::INFINITY, f32::NEG_INFINITY, f32::NAN,
-            f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 123456.49, -123456.51,
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            -1.5,
+            2.5,
+            0.49999997,
+            -0.49999997,
+            0.50000006,
+            8388607.5,
+            -8388607.5,
+            8388608.0,
+            16777217.0,
+            2_147_483_520.0,
+            -2_147_483_520.0,
+            2_147_483_648.0,
+            -2_147_483_648.0,
+            9.3e18,
+            -9.3e18,
+            1e30,
+            -1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            123456.49,
+            -123456.51,
         ];
-        // Every 65536th pixel position in 1/65536 units, with halves, over a 4K-wide range.
+        // A spread of values with .0 and .5 fractions up to 3e8 (beyond 2^24 the halves vanish).
         vals.extend((-300_000i64..300_000).map(|i| i as f32 * 1000.5 + 0.5));
         for &v in &vals {
             let want = v.round() as i64;
