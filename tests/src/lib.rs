@@ -149,7 +149,7 @@ impl Daemon {
     /// The daemon's status.
     pub fn status(&self) -> frond_protocol::StatusReport {
         match self.control(&ControlRequest::Status) {
-            ControlReply::Status(s) => s,
+            ControlReply::Status(s) => *s,
             other => panic!("unexpected status reply {other:?}"),
         }
     }

@@ -143,7 +143,7 @@ impl Daemon {
     /// The daemon's status.
     pub fn status(&self) -> Result<frond_protocol::StatusReport, String> {
         match self.control(&ControlRequest::Status)? {
-            ControlReply::Status(s) => Ok(s),
+            ControlReply::Status(s) => Ok(*s),
             other => Err(format!("unexpected status reply {other:?}")),
         }
     }

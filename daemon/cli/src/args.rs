@@ -93,6 +93,29 @@ pub enum Command {
     /// List, export and repair recorded takes.
     #[command(subcommand)]
     Take(TakeCommand),
+    /// Loop a recorded take on the live pose stream (the global element), or --stop.
+    Play {
+        /// Take name.
+        take: Option<String>,
+        /// Stop looping.
+        #[arg(long, conflicts_with = "take")]
+        stop: bool,
+        /// Seed of the loop's random jumps.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Field playback in the daemon (seed 000, section 6.2).
+    #[command(subcommand)]
+    Field(FieldCommand),
+    /// Steer the playing field from the keyboard: arrows set the force direction, + and - its
+    /// strength, q quits (seed 000, section 6.3). A wrist swipe steers it too.
+    Control,
+    /// Guided procedural motion on the live mapping (seed 000, Eq. 8): `sigma=S1,S2,S3;sg=G1,G2,G3`
+    /// (seconds; gains), or `off`.
+    Guided {
+        /// Spec or `off`.
+        spec: String,
+    },
     /// Start the daemon on the virtual glove, show live status, record a take, stop everything.
     /// The daemon gets a private socket directory (--socket-dir is not used); the take goes to
     /// --takes-dir. Ctrl-C stops the recording and the daemon before exiting.
@@ -190,6 +213,48 @@ pub enum RecordCommand {
     },
     /// Stop the current recording and print the take's path and frame count.
     Stop,
+    /// Record a secondary layer (seed 000, section 5.3): the hand animates the rig's element
+    /// LAYER (e.g. leaf) while GLOBAL, the whole plant's take, loops on the stream for reference.
+    Layer {
+        /// New take name.
+        name: String,
+        /// Secondary element of the rig (e.g. leaf, petal).
+        #[arg(long)]
+        layer: String,
+        /// Global take to loop meanwhile.
+        #[arg(long = "over")]
+        over: Option<String>,
+        /// Seed of the loop's random jumps.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+/// `frond field ...`
+#[derive(Debug, Subcommand)]
+pub enum FieldCommand {
+    /// Play a field (field.json from `frond take field`) of a looped take in the daemon.
+    Start {
+        /// Take name (in the takes directory).
+        #[arg(long)]
+        take: String,
+        /// field.json file.
+        #[arg(long)]
+        field: PathBuf,
+        /// Plants published on the pose stream (1..=64).
+        #[arg(long, default_value_t = 16)]
+        plants: u16,
+        /// Seed of the loop's random jumps.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Stop field playback.
+    Stop,
+    /// One control: left, right, up, down, stronger (+), weaker (-).
+    Key {
+        /// Key name.
+        key: String,
+    },
 }
 
 /// `frond take ...`

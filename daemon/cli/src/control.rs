@@ -98,7 +98,7 @@ impl Control {
     /// Asks for the daemon's status.
     pub(crate) fn status(&mut self) -> anyhow::Result<StatusReport> {
         match self.request(&ControlRequest::Status)? {
-            ControlReply::Status(s) => Ok(s),
+            ControlReply::Status(s) => Ok(*s),
             other => Err(unexpected(&other)),
         }
     }

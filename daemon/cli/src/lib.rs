@@ -9,6 +9,7 @@ mod bench;
 mod calibrate;
 mod control;
 mod demo;
+mod live;
 mod map;
 mod signals;
 mod soak;
@@ -115,6 +116,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mark { label } => control::mark(g, &label),
         Command::Record(args::RecordCommand::Start { name }) => control::record_start(g, &name),
         Command::Record(args::RecordCommand::Stop) => control::record_stop(g),
+        Command::Record(args::RecordCommand::Layer { name, layer, over, seed }) => {
+            live::record_layer(g, &name, &layer, over, seed)
+        }
+        Command::Play { take, stop, seed } => live::play(g, take, stop, seed),
+        Command::Field(args::FieldCommand::Start { take, field, plants, seed }) => {
+            live::field_start(g, &take, &field, plants, seed)
+        }
+        Command::Field(args::FieldCommand::Stop) => live::field_stop(g),
+        Command::Field(args::FieldCommand::Key { key }) => live::field_key(g, &key),
+        Command::Control => live::control(g),
+        Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
         Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held }) => {
             takes::export(g, &name, fps, include_held)

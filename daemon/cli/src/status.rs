@@ -147,6 +147,7 @@ mod tests {
             }),
             device_events: vec!["connected /tmp/vhid/hidraw0".into()],
             realtime: "normal".into(),
+            modes: vec![],
         }
     }
 

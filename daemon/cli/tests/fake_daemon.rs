@@ -57,12 +57,13 @@ fn status_report() -> StatusReport {
         recording: None,
         device_events: vec!["opened virtual glove".into()],
         realtime: "normal".into(),
+        modes: vec![],
     }
 }
 
 fn reply_to(req: &ControlRequest, n: u64, raw: Raw) -> ControlReply {
     match req {
-        ControlRequest::Status => ControlReply::Status(status_report()),
+        ControlRequest::Status => ControlReply::Status(Box::new(status_report())),
         ControlRequest::RecordStart { name } => ControlReply::Recording(RecordingStatus {
             name: name.clone(),
             path: format!("/takes/{name}.take"),

@@ -57,6 +57,14 @@ pub struct DaemonState {
     pub achieved_rate_hz: f64,
     /// Realtime tuning in force.
     pub realtime: String,
+    /// Take looping on the stream.
+    pub playing: Option<String>,
+    /// Secondary layer being recorded, and whether its playback was started with it.
+    pub layer: Option<(String, bool)>,
+    /// Field playing: take name and plant count.
+    pub field: Option<(String, usize)>,
+    /// Guided motion spec in force.
+    pub guided: Option<String>,
 }
 
 impl DaemonState {
@@ -167,18 +175,18 @@ impl AccessPolicy {
     }
 }
 
-fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
+pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
     let message = message.into();
     warn!(?kind, %message, "control request refused");
     ControlReply::Error(ControlError { kind, message })
 }
 
 impl ControlContext {
-    fn lock(&self) -> std::sync::MutexGuard<'_, DaemonState> {
+    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, DaemonState> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    fn send_loop(&self, cmd: LoopCommand) -> Result<(), Box<ControlReply>> {
+    pub(crate) fn send_loop(&self, cmd: LoopCommand) -> Result<(), Box<ControlReply>> {
         self.commands.send_timeout(cmd, Duration::from_millis(500)).map_err(|_| {
             Box::new(refuse(ControlErrorKind::Internal, "the realtime loop is not accepting commands"))
         })
@@ -187,13 +195,23 @@ impl ControlContext {
     /// Answers one request.
     pub fn handle(&self, req: ControlRequest) -> ControlReply {
         match req {
-            ControlRequest::Status => ControlReply::Status(self.status()),
+            ControlRequest::Status => ControlReply::Status(Box::new(self.status())),
             ControlRequest::SetRig { name, toml } => self.set_rig(name, &toml),
             ControlRequest::SetCalibration { id, toml } => self.set_calibration(id, &toml),
             ControlRequest::SetFilter { spec } => self.set_filter(&spec),
-            ControlRequest::RecordStart { name } => self.record_start(name),
+            ControlRequest::RecordStart { name } => self.record_start(name, 0),
             ControlRequest::RecordStop => self.record_stop(),
             ControlRequest::Mark { label } => self.mark(label),
+            ControlRequest::PlayLoop { take, seed } => self.play_loop(take, seed),
+            ControlRequest::RecordLayer { name, layer, global_take, seed } => {
+                self.record_layer(name, layer, global_take, seed)
+            }
+            ControlRequest::FieldStart { take, field_json, plants, seed } => {
+                self.field_start(take, &field_json, plants, seed)
+            }
+            ControlRequest::FieldStop => self.field_stop(),
+            ControlRequest::FieldKey { key } => self.field_key(&key),
+            ControlRequest::SetGuided { spec } => self.set_guided(spec),
             ControlRequest::FreezeLoop { ms } => {
                 if !self.test_hooks {
                     return refuse(
@@ -271,7 +289,8 @@ impl ControlContext {
         ControlReply::Ok
     }
 
-    fn record_start(&self, name: String) -> ControlReply {
+    /// Starts a take whose hand frames are element `layer` (0 = the global element).
+    pub(crate) fn record_start(&self, name: String, layer: u16) -> ControlReply {
         if let Err(e) = validate_take_name(&name) {
             return refuse(ControlErrorKind::BadName, e);
         }
@@ -305,8 +324,9 @@ impl ControlContext {
             daemon_version: env!("CARGO_PKG_VERSION").to_string(),
             joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
         };
+        let elements: Vec<String> = state.rig.elements.iter().map(|e| e.name.clone()).collect();
         let (tx, rx) = bounded(1);
-        let start = RecorderMsg::Start { path: path.clone(), header: Box::new(header), reply: tx };
+        let start = RecorderMsg::Start { path: path.clone(), header: Box::new(header), elements, reply: tx };
         if self.recorder.send_timeout(start, Duration::from_secs(1)).is_err() {
             return refuse(ControlErrorKind::Internal, "the recorder is not accepting requests");
         }
@@ -315,10 +335,13 @@ impl ControlContext {
             Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
             Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not answer"),
         }
+        if let Err(reply) = self.send_loop(LoopCommand::SetLayer(layer)) {
+            return *reply;
+        }
         if let Err(reply) = self.send_loop(LoopCommand::SetRecording(true)) {
             return *reply;
         }
-        info!(take = %name, path = %path.display(), "recording started");
+        info!(take = %name, path = %path.display(), layer, "recording started");
         state.recording = Some((name.clone(), path.clone()));
         ControlReply::Recording(RecordingStatus {
             name,
@@ -330,6 +353,21 @@ impl ControlContext {
     }
 
     fn record_stop(&self) -> ControlReply {
+        let reply = self.record_stop_take();
+        // A layer session ends with its take: the hand is the global element again, and a
+        // playback started for the layer stops.
+        let layer = self.lock().layer.take();
+        if let Some((_, started_playback)) = layer {
+            let _ = self.send_loop(LoopCommand::SetLayer(0));
+            if started_playback {
+                let _ = self.send_loop(LoopCommand::SetPlayback(None));
+                self.lock().playing = None;
+            }
+        }
+        reply
+    }
+
+    fn record_stop_take(&self) -> ControlReply {
         let mut state = self.lock();
         let Some((name, path)) = state.recording.clone() else {
             return refuse(ControlErrorKind::WrongState, "no take is being recorded");
@@ -418,6 +456,7 @@ impl ControlContext {
             }),
             device_events: state.device_events.iter().cloned().collect(),
             realtime: state.realtime.clone(),
+            modes: self.modes(&state),
         }
     }
 }

@@ -181,6 +181,10 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         recording: None,
         achieved_rate_hz: 0.0,
         realtime,
+        playing: None,
+        layer: None,
+        field: None,
+        guided: None,
     };
     let first_event = if await_rx.is_empty() { "opened" } else { "not present; waiting for it" };
     state.push_event(started, format!("{} {} {first_event}", opened.kind, opened.path));

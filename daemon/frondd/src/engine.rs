@@ -16,10 +16,14 @@ use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, PoseFrame};
 use frond_protocol::{HandWire, Pose, PoseFlags};
 
-use crate::clock::monotonic_ns;
+use crate::clock::{NS_PER_S, monotonic_ns};
+use crate::live::{FIELD_PUBLISH_HZ, LiveField, LivePlayback, MAX_FIELD_PLANTS};
 use crate::publisher::{Outbound, SubscriberSlot};
 use crate::recorder::RecorderMsg;
 use crate::stats::LoopStats;
+use frond_motion::controls::ControlKey;
+use frond_motion::guided::GuidedLive;
+use frond_protocol::FIELD_ELEMENT_BASE;
 
 /// Most subscribers the loop serves at once.
 pub const MAX_SUBSCRIBERS: usize = 64;
@@ -45,6 +49,16 @@ pub enum LoopCommand {
     /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
     /// loop would, so tests can check that the watchdog pings stop.
     Freeze(u32),
+    /// Loop a take on the stream as element 0 (or stop, with `None`).
+    SetPlayback(Option<Box<LivePlayback>>),
+    /// Play a field (or stop, with `None`).
+    SetField(Option<Box<LiveField>>),
+    /// A field control key.
+    FieldKey(ControlKey),
+    /// Guided procedural motion on the live mapping (or off, with `None`).
+    SetGuided(Option<Box<GuidedLive>>),
+    /// Element id of the hand's frames: 0 for the global element, `k + 1` for a secondary layer.
+    SetLayer(u16),
 }
 
 /// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
@@ -53,6 +67,8 @@ pub enum Garbage {
     Subscriber(SubscriberSlot),
     /// A source replaced by a newer one.
     Source(Box<dyn HandSource>),
+    /// A finished playback, field or guided stage.
+    Live(Box<dyn std::any::Any + Send>),
 }
 
 /// Channels and shared state the engine talks through.
@@ -82,6 +98,10 @@ pub struct Engine {
     last_report_ns: u64,
     stall_after_ns: u64,
     device_lost: bool,
+    playback: Option<Box<LivePlayback>>,
+    field: Option<Box<LiveField>>,
+    guided: Option<Box<GuidedLive>>,
+    layer: u16,
 }
 
 impl Engine {
@@ -109,12 +129,23 @@ impl Engine {
             last_report_ns: now,
             stall_after_ns,
             device_lost,
+            playback: None,
+            field: None,
+            guided: None,
+            layer: 0,
+        }
+    }
+
+    fn discard<T: Send + 'static>(&self, old: Option<Box<T>>) {
+        if let Some(old) = old {
+            let _ = self.links.garbage.try_send(Garbage::Live(old));
         }
     }
 
     /// Runs one tick at host time `now_ns`. Publishes at least one frame.
     pub fn tick(&mut self, now_ns: u64) {
         self.apply_commands(now_ns);
+        self.play_live(now_ns);
         let fresh = self.read_device(now_ns);
         if fresh > 0 {
             self.last_report_ns = now_ns;
@@ -149,6 +180,28 @@ impl Engine {
                     self.links.stats.recording.store(on, Relaxed);
                 }
                 LoopCommand::AddSubscriber(slot) => self.add_subscriber(slot),
+                LoopCommand::SetPlayback(p) => {
+                    let old = std::mem::replace(&mut self.playback, p);
+                    self.discard(old);
+                }
+                LoopCommand::SetField(f) => {
+                    let old = std::mem::replace(&mut self.field, f);
+                    self.discard(old);
+                    self.publish_field_controls();
+                }
+                LoopCommand::FieldKey(key) => {
+                    if let Some(f) = self.field.as_mut() {
+                        let mut c = f.player.controls();
+                        c.key(key);
+                        f.player.set_controls(c);
+                    }
+                    self.publish_field_controls();
+                }
+                LoopCommand::SetGuided(g) => {
+                    let old = std::mem::replace(&mut self.guided, g);
+                    self.discard(old);
+                }
+                LoopCommand::SetLayer(layer) => self.layer = layer,
                 LoopCommand::Freeze(ms) => {
                     std::thread::sleep(std::time::Duration::from_millis(u64::from(ms)))
                 }
@@ -161,6 +214,42 @@ impl Engine {
                 }
             }
         }
+    }
+
+    /// Publishes the looped take's pose (every tick) and field plants (at [`FIELD_PUBLISH_HZ`]).
+    fn play_live(&mut self, now_ns: u64) {
+        let recording = self.recording;
+        let device_time_us = self.last.device_time_us;
+        let frame = |element: u16, joints_deg: [[f32; 3]; 4]| {
+            let mut flags = PoseFlags::PLAYBACK;
+            flags.set(PoseFlags::RECORDING, recording);
+            Pose { element, joints_deg, flags, device_time_us, ..Pose::default() }
+        };
+        if let Some(pb) = self.playback.as_mut() {
+            let t = now_ns.saturating_sub(pb.t0_ns) as f64 / NS_PER_S as f64;
+            let joints = pb.playback.pose_at(t);
+            self.publish(frame(0, joints));
+        }
+        let mut plants = [[[0.0f32; 3]; 4]; MAX_FIELD_PLANTS];
+        let mut n = 0;
+        if let Some(f) = self.field.as_mut()
+            && now_ns >= f.next_ns
+        {
+            let period = NS_PER_S / u64::from(FIELD_PUBLISH_HZ);
+            f.next_ns = (f.next_ns + period).max(now_ns);
+            let t = now_ns.saturating_sub(f.t0_ns) as f64 / NS_PER_S as f64;
+            f.player.frame(t, &mut f.out);
+            n = f.publish;
+            plants[..n].copy_from_slice(&f.out[..n]);
+        }
+        for (i, joints) in plants[..n].iter().enumerate() {
+            self.publish(frame(FIELD_ELEMENT_BASE + i as u16, *joints));
+        }
+    }
+
+    fn publish_field_controls(&self) {
+        let c = self.field.as_ref().map(|f| f.player.controls());
+        self.links.stats.field_controls.store(c);
     }
 
     fn add_subscriber(&mut self, slot: SubscriberSlot) {
@@ -228,7 +317,18 @@ impl Engine {
 
     fn publish_sample(&mut self, sample: &DeviceSample) {
         self.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
-        let (hand, pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
+        let (hand, mut pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
+        if let Some(g) = self.guided.as_mut() {
+            pose = g.apply(&pose, &hand);
+        }
+        if let Some(f) = self.field.as_mut()
+            && let Some(swipe) = f.swipe.push(&hand)
+        {
+            let mut c = f.player.controls();
+            c.swipe(&swipe, f.base_speed_m_s);
+            f.player.set_controls(c);
+            self.links.stats.field_controls.store(Some(c));
+        }
         let mut flags = PoseFlags::default();
         flags.set(PoseFlags::FILTERED, self.mapper.filter_spec() != FilterSpec::None);
         flags.set(PoseFlags::RECORDING, self.recording);
@@ -237,7 +337,7 @@ impl Engine {
             device_time_us: sample.device_time_us,
             host_monotonic_ns: 0,
             flags,
-            element: 0,
+            element: self.layer,
             joints_deg: pose.joints_deg,
             hand: HandWire { t: hand.t, wrist_deg: hand.wrist_deg, thumb_deg: hand.thumb_deg },
         };
@@ -249,7 +349,7 @@ impl Engine {
                 device_time_us: published.device_time_us,
                 host_ns: published.host_monotonic_ns,
                 flags: published.flags.0,
-                element: 0,
+                element: self.layer,
                 pose,
                 hand,
             };

@@ -9,8 +9,10 @@
 pub mod clock;
 pub mod config;
 pub mod control;
+mod control_live;
 pub mod daemon;
 pub mod engine;
+pub mod live;
 pub mod notify;
 pub mod publisher;
 pub mod realtime;

@@ -28,6 +28,8 @@ pub enum RecorderMsg {
         path: PathBuf,
         /// Its header.
         header: Box<TakeHeader>,
+        /// Names of the secondary layers (layer `k + 1` is `elements[k]`).
+        elements: Vec<String>,
         /// Where to answer.
         reply: Sender<Result<(), String>>,
     },
@@ -109,7 +111,7 @@ fn handle(msg: RecorderMsg, open: &mut Option<Open>, buf: &mut Vec<u8>, counters
                 encode_record(&TakeRecord::Marker { seq, label }, buf);
             }
         }
-        RecorderMsg::Start { path, header, reply } => {
+        RecorderMsg::Start { path, header, elements, reply } => {
             if open.is_some() {
                 let _ = reply.send(Err("a take is already being recorded".into()));
                 return;
@@ -117,7 +119,7 @@ fn handle(msg: RecorderMsg, open: &mut Option<Open>, buf: &mut Vec<u8>, counters
             let result = OpenOptions::new().write(true).create_new(true).open(&path).and_then(|mut file| {
                 let mut head = Vec::new();
                 encode_file_start(&mut head);
-                encode_record(&TakeRecord::Header(*header), &mut head);
+                frond_motion::layers::encode_header(&header, &elements, &mut head);
                 file.write_all(&head)?;
                 file.sync_data()?;
                 Ok(file)

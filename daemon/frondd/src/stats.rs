@@ -148,6 +148,53 @@ impl RawSampleCell {
     }
 }
 
+/// The live field controls, published by the loop for status. Each value is its own atomic: a
+/// reader racing a change may see a mix of old and new values for one refresh, which status
+/// tolerates; nothing acts on it.
+#[derive(Default)]
+pub struct FieldControlsCell {
+    active: AtomicBool,
+    values: [AtomicU64; 7],
+}
+
+impl FieldControlsCell {
+    /// Publishes the controls (or that no field plays).
+    pub fn store(&self, c: Option<frond_motion::controls::FieldControls>) {
+        let Some(c) = c else {
+            self.active.store(false, Relaxed);
+            return;
+        };
+        let v = [
+            c.direction_deg,
+            c.speed_m_s,
+            c.time_step,
+            f64::from(c.scale),
+            c.delays_s[0],
+            c.delays_s[1],
+            c.delays_s[2],
+        ];
+        for (cell, x) in self.values.iter().zip(v) {
+            cell.store(x.to_bits(), Relaxed);
+        }
+        self.active.store(true, Relaxed);
+    }
+
+    /// The controls, if a field plays.
+    pub fn load(&self) -> Option<frond_motion::controls::FieldControls> {
+        if !self.active.load(Relaxed) {
+            return None;
+        }
+        let v: [f64; 7] = std::array::from_fn(|i| f64::from_bits(self.values[i].load(Relaxed)));
+        Some(frond_motion::controls::FieldControls {
+            direction_deg: v[0],
+            speed_m_s: v[1],
+            time_step: v[2],
+            scale: v[3] as f32,
+            delays_s: [v[4], v[5], v[6]],
+        })
+    }
+}
+
 /// Counters shared between the loop (writer) and the status/housekeeping threads (readers).
 #[derive(Default)]
 pub struct LoopStats {
@@ -177,6 +224,8 @@ pub struct LoopStats {
     pub lateness: LatencyHistogram,
     /// Latest raw sample, for calibration.
     pub raw: RawSampleCell,
+    /// Live field controls.
+    pub field_controls: FieldControlsCell,
 }
 
 #[cfg(test)]

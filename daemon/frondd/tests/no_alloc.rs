@@ -232,3 +232,128 @@ fn device_loss_and_reopen_allocate_nothing_in_the_loop() {
     assert_eq!(ALLOCATIONS.load(Relaxed), 0);
     assert!(stats.device_lost_events.load(Relaxed) >= 9, "{}", stats.device_lost_events.load(Relaxed));
 }
+
+/// A 3 s take (1 kHz frames) as bytes, for the live modes.
+fn take_bytes() -> Vec<u8> {
+    use frond_motion::PoseFrame;
+    use frond_motion::layers::Take;
+    use frond_motion::take::{TakeFrame, TakeHeader};
+    let header = TakeHeader {
+        name: "g".into(),
+        rig_name: "flower".into(),
+        calibration_id: "none".into(),
+        filter: "none".into(),
+        tick_rate_hz: 1000,
+        created_unix_s: 0,
+        daemon_version: "test".into(),
+        joint_names: vec![],
+    };
+    let mut take = Take::new(header);
+    let frames = (0..3000u64).map(|k| {
+        let t = k as f64 / 1000.0;
+        let a = (t * 2.0).sin() as f32 * 20.0;
+        TakeFrame {
+            seq: k,
+            device_time_us: k * 1000,
+            pose: PoseFrame {
+                t,
+                joints_deg: [[a, a / 2.0, 0.0], [a / 3.0, 0.0, 0.0], [a, 1.0, 2.0], [a, -a, 3.0]],
+            },
+            ..TakeFrame::default()
+        }
+    });
+    take.set_layer(0, None, frames);
+    take.to_bytes()
+}
+
+#[test]
+fn live_modes_allocate_nothing_per_tick() {
+    use frond_motion::field::{FieldParams, make_field};
+    use frondd::live::{LiveField, LivePlayback, guided, parse_guided};
+    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/flower.toml")).unwrap();
+    let cal = frond_motion::Calibration::neutral_for(&rig);
+    let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
+    let (cmd_tx, cmd_rx) = bounded(64);
+    let (rec_tx, _rec_rx) = bounded(100_000);
+    let (reopen_tx, _reopen_rx) = bounded(1);
+    let (garbage_tx, garbage_rx) = bounded(64);
+    let stats = Arc::new(LoopStats::default());
+    let source = Scripted {
+        tick: 0,
+        seq: 0,
+        counters: Arc::new(SourceCounters::default()),
+        pattern: [1, 0, 1, 2, 1, 1, 0, 1],
+        fail_every: 0,
+    };
+    let mut engine = Engine::new(
+        mapper,
+        Some(Box::new(source)),
+        250_000_000,
+        EngineLinks {
+            commands: cmd_rx,
+            recorder: rec_tx,
+            reopen: reopen_tx,
+            garbage: garbage_tx,
+            stats: stats.clone(),
+        },
+    );
+    let (sub_tx, sub_rx) = bounded::<Outbound>(1 << 20);
+    let slot = SubscriberSlot { id: 1, tx: sub_tx, counters: Arc::new(SubscriberCounters::default()) };
+    cmd_tx.send(LoopCommand::AddSubscriber(slot)).unwrap();
+    let bytes = take_bytes();
+    let field = make_field(
+        &FieldParams {
+            rows: 10,
+            cols: 10,
+            cell_m: 0.5,
+            speed_m_s: 1.0,
+            direction_deg: 30.0,
+            density: 1.0,
+            seed: 3,
+        },
+        "g",
+        90,
+        30.0,
+    )
+    .unwrap();
+    let t0 = 1_000_000_000u64;
+    let playback = LivePlayback::new("g", &bytes, 5, t0).unwrap();
+    let live_field = LiveField::new(&bytes, &field.to_json(), 16, 5, t0).unwrap();
+    let stage = guided(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000);
+    cmd_tx.send(LoopCommand::SetPlayback(Some(Box::new(playback)))).unwrap();
+    cmd_tx.send(LoopCommand::SetField(Some(Box::new(live_field)))).unwrap();
+    cmd_tx.send(LoopCommand::SetGuided(Some(Box::new(stage)))).unwrap();
+    cmd_tx.send(LoopCommand::SetLayer(1)).unwrap();
+    cmd_tx.send(LoopCommand::SetRecording(true)).unwrap();
+    let mut now = t0;
+    for _ in 0..500 {
+        now += 1_000_000;
+        engine.tick(now);
+    }
+    let keys = [frond_motion::controls::ControlKey::Left, frond_motion::controls::ControlKey::Stronger];
+    for k in keys {
+        cmd_tx.send(LoopCommand::FieldKey(k)).unwrap();
+    }
+    let before = ALLOCATIONS.load(Relaxed);
+    COUNTING.with(|c| c.set(true));
+    for _ in 0..10_000 {
+        now += 1_000_000;
+        engine.tick(now);
+    }
+    COUNTING.with(|c| c.set(false));
+    assert_eq!(ALLOCATIONS.load(Relaxed) - before, 0, "allocations in live-mode ticks");
+    // The modes really ran: playback frames (element 0), field plants (0x1000..), leaf frames (1).
+    let mut elements = std::collections::HashSet::new();
+    while let Ok(msg) = sub_rx.try_recv() {
+        if let Outbound::Pose(p) = msg {
+            elements.insert(p.element);
+        }
+    }
+    assert!(elements.contains(&0) && elements.contains(&1), "{elements:?}");
+    assert!(
+        elements.contains(&frond_protocol::FIELD_ELEMENT_BASE)
+            && elements.contains(&(frond_protocol::FIELD_ELEMENT_BASE + 15))
+    );
+    assert_eq!(stats.field_controls.load().unwrap().direction_deg, 180.0);
+    drop(garbage_rx);
+}

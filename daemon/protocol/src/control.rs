@@ -45,6 +45,51 @@ pub enum ControlRequest {
     },
     /// Ask for the most recent raw (uncalibrated) hand samples, for `frond calibrate`.
     RawSample,
+    /// Loop a recorded take on the pose stream (element 0, flagged `playback`), as seed 000
+    /// section 5.3 shows the global animation while secondary layers are authored. `None` stops.
+    PlayLoop {
+        /// Take name in the takes directory, or `None` to stop.
+        take: Option<String>,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+    },
+    /// Record a secondary layer (`leaf`, `petal`, ...): hand frames are published and recorded as
+    /// that element, optionally while `global_take` loops on the stream as element 0.
+    RecordLayer {
+        /// New take name.
+        name: String,
+        /// Layer (a secondary element of the rig).
+        layer: String,
+        /// Global take to loop meanwhile.
+        global_take: Option<String>,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+    },
+    /// Play a field (seed 000, section 6.2): `field_json` as written by `frond take field`, of the
+    /// looped `take`; the first `plants` plants are published as elements `0x1000 + plant id`.
+    FieldStart {
+        /// Take name in the takes directory.
+        take: String,
+        /// field.json contents.
+        field_json: String,
+        /// How many plants to publish (at most 64).
+        plants: u16,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+    },
+    /// Stop field playback.
+    FieldStop,
+    /// A live field control (section 6.3): `left`, `right`, `up`, `down`, `stronger`, `weaker`.
+    FieldKey {
+        /// Key name.
+        key: String,
+    },
+    /// Guided procedural motion on the live mapping (seed 000, Eq. 8):
+    /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains), or `None` to switch it off.
+    SetGuided {
+        /// Spec text or `None`.
+        spec: Option<String>,
+    },
     /// Testing aid: block the realtime loop for `ms` milliseconds (watchdog tests). Refused
     /// unless the daemon was started with `--test-hooks`.
     FreezeLoop {
@@ -54,14 +99,12 @@ pub enum ControlRequest {
 }
 
 /// The daemon's answer to one [`ControlRequest`].
-// Replies are rare (operator commands), so the size of the status variant does not matter.
-#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ControlReply {
     /// The request was applied.
     Ok,
-    /// Answer to [`ControlRequest::Status`].
-    Status(StatusReport),
+    /// Answer to [`ControlRequest::Status`] (boxed: it is by far the largest reply).
+    Status(Box<StatusReport>),
     /// Answer to `RecordStart`/`RecordStop`.
     Recording(RecordingStatus),
     /// Answer to [`ControlRequest::RawSample`]: the latest uncalibrated sample, or none yet.
@@ -141,6 +184,10 @@ pub struct StatusReport {
     /// Realtime tuning in force (scheduling policy, memory lock), or why not.
     #[serde(default)]
     pub realtime: String,
+    /// Live modes in force: looped playback, layer being recorded, field playback with its
+    /// controls, guided motion.
+    #[serde(default)]
+    pub modes: Vec<String>,
 }
 
 /// The hand source's state.

@@ -92,6 +92,9 @@ pub struct HandWire {
     pub thumb_deg: [f32; 3],
 }
 
+/// Element ids from here on are field plants (`FIELD_ELEMENT_BASE + plant id`).
+pub const FIELD_ELEMENT_BASE: u16 = 0x1000;
+
 /// One realtime tick's output.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pose {
@@ -104,7 +107,8 @@ pub struct Pose {
     pub host_monotonic_ns: u64,
     /// Pose flags (held, device lost, filtered, ...).
     pub flags: PoseFlags,
-    /// Element id: 0 is the plant's global element, others are secondary layers.
+    /// Element id: 0 is the plant's global element, 1.. secondary layers (rig elements in order),
+    /// [`FIELD_ELEMENT_BASE`]` + i` plant `i` of a playing field.
     pub element: u16,
     /// Joint rotations `[pitch, yaw, roll]` in degrees, joint 0 = root, 3 = top.
     pub joints_deg: [[f32; 3]; 4],

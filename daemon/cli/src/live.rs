@@ -1,0 +1,219 @@
+//! Live modes of the daemon (seed 000, sections 5.3 and 6.2-6.4): looped playback, layered
+//! recording, field playback and its keyboard controls, guided motion.
+
+use std::io::{self, BufRead, IsTerminal, Read, Write};
+use std::path::Path;
+
+use anyhow::Context;
+use frond_protocol::{ControlReply, ControlRequest, RecordingStatus};
+
+use crate::args::Global;
+use crate::control::{Control, check_take_name};
+
+pub(crate) fn play(g: &Global, take: Option<String>, stop: bool, seed: u64) -> anyhow::Result<()> {
+    if !stop && take.is_none() {
+        return crate::usage("frond play needs a TAKE or --stop");
+    }
+    if let Some(t) = &take {
+        check_take_name(t)?;
+    }
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::PlayLoop { take: take.clone(), seed })?;
+    match take {
+        Some(t) => println!("looping take {t} on the pose stream (element 0, flagged playback)"),
+        None => println!("playback stopped"),
+    }
+    Ok(())
+}
+
+pub(crate) fn record_layer(
+    g: &Global,
+    name: &str,
+    layer: &str,
+    over: Option<String>,
+    seed: u64,
+) -> anyhow::Result<()> {
+    check_take_name(name)?;
+    if let Some(t) = &over {
+        check_take_name(t)?;
+    }
+    let mut c = Control::from_global(g)?;
+    let req = ControlRequest::RecordLayer {
+        name: name.into(),
+        layer: layer.into(),
+        global_take: over.clone(),
+        seed,
+    };
+    match c.request(&req)? {
+        ControlReply::Recording(RecordingStatus { path, .. }) => {
+            println!("recording layer {layer} as take {name} to {path}");
+            if let Some(t) = over {
+                println!("looping {t} meanwhile; `frond record stop` ends both");
+            }
+            Ok(())
+        }
+        other => Err(anyhow::anyhow!("unexpected reply {other:?}")),
+    }
+}
+
+pub(crate) fn field_start(
+    g: &Global,
+    take: &str,
+    field: &Path,
+    plants: u16,
+    seed: u64,
+) -> anyhow::Result<()> {
+    check_take_name(take)?;
+    if !(1..=64).contains(&plants) {
+        return crate::usage(format!("--plants must be 1..=64, got {plants}"));
+    }
+    let field_json = std::fs::read_to_string(field)
+        .with_context(|| format!("cannot read field file {}", field.display()))?;
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::FieldStart { take: take.into(), field_json, plants, seed })?;
+    println!("field of {take} playing; steer it with `frond control` or a wrist swipe");
+    Ok(())
+}
+
+pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
+    Control::from_global(g)?.expect_ok(&ControlRequest::FieldStop)?;
+    println!("field playback stopped");
+    Ok(())
+}
+
+pub(crate) fn field_key(g: &Global, key: &str) -> anyhow::Result<()> {
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::FieldKey { key: key.into() })?;
+    print_field_state(&mut c)
+}
+
+fn print_field_state(c: &mut Control) -> anyhow::Result<()> {
+    if let ControlReply::Status(s) = c.request(&ControlRequest::Status)? {
+        for m in s.modes.iter().filter(|m| m.starts_with("field")) {
+            println!("{m}");
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn guided(g: &Global, spec: &str) -> anyhow::Result<()> {
+    let spec = (spec != "off").then(|| spec.to_string());
+    Control::from_global(g)?.expect_ok(&ControlRequest::SetGuided { spec: spec.clone() })?;
+    match spec {
+        Some(s) => println!("guided motion on: {s}"),
+        None => println!("guided motion off"),
+    }
+    Ok(())
+}
+
+/// Puts the terminal in raw mode for the guard's lifetime.
+struct RawMode {
+    saved: libc::termios,
+}
+
+impl RawMode {
+    fn enter() -> Option<RawMode> {
+        // SAFETY: termios is plain data; tcgetattr fills it for fd 0 or fails.
+        let mut t: libc::termios = unsafe { std::mem::zeroed() };
+        // SAFETY: fd 0 and a valid termios pointer.
+        if unsafe { libc::tcgetattr(0, &mut t) } != 0 {
+            return None;
+        }
+        let saved = t;
+        t.c_lflag &= !(libc::ICANON | libc::ECHO);
+        t.c_cc[libc::VMIN] = 1;
+        t.c_cc[libc::VTIME] = 0;
+        // SAFETY: fd 0 and a valid termios.
+        if unsafe { libc::tcsetattr(0, libc::TCSANOW, &t) } != 0 {
+            return None;
+        }
+        Some(RawMode { saved })
+    }
+}
+
+impl Drop for RawMode {
+    fn drop(&mut self) {
+        // SAFETY: restores the settings read in `enter`.
+        unsafe { libc::tcsetattr(0, libc::TCSANOW, &self.saved) };
+    }
+}
+
+/// Maps terminal bytes to key names: arrows (ESC [ A..D), + / =, -, q.
+fn keys_from_bytes(bytes: &[u8]) -> Vec<&'static str> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            0x1b if bytes.get(i + 1) == Some(&b'[') && i + 2 < bytes.len() => {
+                match bytes[i + 2] {
+                    b'A' => out.push("up"),
+                    b'B' => out.push("down"),
+                    b'C' => out.push("right"),
+                    b'D' => out.push("left"),
+                    _ => {}
+                }
+                i += 3;
+                continue;
+            }
+            b'+' | b'=' => out.push("stronger"),
+            b'-' | b'_' => out.push("weaker"),
+            b'q' | b'Q' | 3 | 4 => out.push("quit"),
+            _ => {}
+        }
+        i += 1;
+    }
+    out
+}
+
+/// `frond control`: keys from a terminal (raw mode), or key names one per line from a pipe.
+pub(crate) fn control(g: &Global) -> anyhow::Result<()> {
+    let mut c = Control::from_global(g)?;
+    let send = |c: &mut Control, key: &str| -> anyhow::Result<()> {
+        c.expect_ok(&ControlRequest::FieldKey { key: key.into() })?;
+        print!("\r\x1b[K");
+        print_field_state(c)?;
+        io::stdout().flush()?;
+        Ok(())
+    };
+    if io::stdin().is_terminal() {
+        println!("arrows: force direction, + / -: strength, q: quit");
+        let _raw = RawMode::enter();
+        let mut buf = [0u8; 16];
+        loop {
+            let n = io::stdin().read(&mut buf)?;
+            if n == 0 {
+                return Ok(());
+            }
+            for key in keys_from_bytes(&buf[..n]) {
+                if key == "quit" {
+                    return Ok(());
+                }
+                send(&mut c, key)?;
+            }
+        }
+    }
+    for line in io::stdin().lock().lines() {
+        let line = line?;
+        let key = line.trim();
+        if key.is_empty() {
+            continue;
+        }
+        if key == "q" || key == "quit" {
+            break;
+        }
+        send(&mut c, key)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn terminal_bytes_become_keys() {
+        assert_eq!(keys_from_bytes(b"\x1b[A\x1b[D+-q"), ["up", "left", "stronger", "weaker", "quit"]);
+        assert_eq!(keys_from_bytes(b"\x1b[C\x1b[B=x"), ["right", "down", "stronger"]);
+        assert!(keys_from_bytes(b"\x1b[").is_empty());
+    }
+}

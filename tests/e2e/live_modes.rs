@@ -1,0 +1,131 @@
+//! The daemon's live modes from the motion toolkit: a looped global take on the stream while a
+//! secondary layer is recorded (seed 000, section 5.3), field playback steered by keys (6.2-6.3),
+//! and guided motion (6.4).
+
+use std::collections::HashSet;
+use std::time::Duration;
+
+use frond_e2e::{Daemon, wait_for};
+use frond_motion::field::{FieldParams, make_field};
+use frond_protocol::{FIELD_ELEMENT_BASE, PoseFlags};
+use frond_sdk::{Event, Subscriber};
+
+fn frond_ok(daemon: &Daemon, args: &[&str]) -> String {
+    let out = daemon.frond().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "frond {args:?} failed: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Elements seen (with their flags) in the next `n` poses.
+fn elements(sub: &mut Subscriber, n: usize) -> Vec<(u16, PoseFlags)> {
+    let mut out = Vec::new();
+    while out.len() < n {
+        if let Event::Pose(p) = sub.next_event().unwrap() {
+            out.push((p.element, p.flags));
+        }
+    }
+    out
+}
+
+#[test]
+fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "flower"]);
+
+    // A 2 s global take.
+    frond_ok(&daemon, &["record", "start", "global"]);
+    std::thread::sleep(Duration::from_secs(2));
+    frond_ok(&daemon, &["record", "stop"]);
+
+    // Looping it puts element-0 playback frames on the stream beside the hand's.
+    frond_ok(&daemon, &["play", "global"]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let seen = elements(&mut sub, 400);
+    assert!(seen.iter().any(|(e, f)| *e == 0 && f.contains(PoseFlags::PLAYBACK)), "no playback frames");
+    assert!(seen.iter().any(|(e, f)| *e == 0 && !f.contains(PoseFlags::PLAYBACK)), "no hand frames");
+    frond_ok(&daemon, &["play", "--stop"]);
+
+    // A leaf layer over the looped global take: the hand's frames become element 1 (leaf).
+    let rig_elements = daemon.status();
+    assert_eq!(rig_elements.rig_name, "flower");
+    frond_ok(&daemon, &["record", "layer", "leaf1", "--layer", "leaf", "--over", "global"]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let seen = elements(&mut sub, 600);
+    assert!(seen.iter().any(|(e, f)| *e == 1 && f.contains(PoseFlags::RECORDING)), "no leaf frames");
+    assert!(seen.iter().any(|(e, f)| *e == 0 && f.contains(PoseFlags::PLAYBACK)), "global take not looping");
+    assert!(
+        daemon.status().modes.iter().any(|m| m.contains("recording layer leaf")),
+        "{:?}",
+        daemon.status().modes
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    frond_ok(&daemon, &["record", "stop"]);
+    assert!(daemon.status().modes.is_empty(), "{:?}", daemon.status().modes);
+    let bytes = std::fs::read(daemon.takes_dir.join("leaf1.take")).unwrap();
+    let take = frond_motion::layers::Take::from_bytes(&bytes).unwrap();
+    assert_eq!(take.element_names, ["leaf"]);
+    assert!(!take.frames.is_empty() && take.frames.iter().all(|f| f.element == 1), "layer frames");
+    // An unknown layer is refused with the rig's elements named.
+    let out = daemon.frond().args(["record", "layer", "x", "--layer", "petal"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("leaf"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // A 3x4 field of the global take, steered by keys.
+    let field = make_field(
+        &FieldParams {
+            rows: 3,
+            cols: 4,
+            cell_m: 1.0,
+            speed_m_s: 2.0,
+            direction_deg: 0.0,
+            density: 1.0,
+            seed: 7,
+        },
+        "global",
+        60,
+        30.0,
+    )
+    .unwrap();
+    let field_path = dir.path().join("field.json");
+    std::fs::write(&field_path, field.to_json()).unwrap();
+    frond_ok(
+        &daemon,
+        &["field", "start", "--take", "global", "--field", field_path.to_str().unwrap(), "--plants", "5"],
+    );
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let plants: HashSet<u16> = elements(&mut sub, 1500)
+        .into_iter()
+        .filter(|(e, _)| *e >= FIELD_ELEMENT_BASE)
+        .map(|(e, _)| e - FIELD_ELEMENT_BASE)
+        .collect();
+    assert_eq!(plants, (0..5).collect(), "published plants");
+    let out = frond_ok(&daemon, &["field", "key", "left"]);
+    assert!(out.contains("direction 180"), "{out}");
+    frond_ok(&daemon, &["field", "key", "+"]);
+    assert!(
+        wait_for(Duration::from_secs(2), || daemon
+            .status()
+            .modes
+            .iter()
+            .any(|m| m.contains("propagation 2.50 m/s"))),
+        "{:?}",
+        daemon.status().modes
+    );
+    frond_ok(&daemon, &["field", "stop"]);
+
+    // Guided motion switches on and off, and bad specs are refused.
+    frond_ok(&daemon, &["guided", "sigma=0.1,0.2,0.3;sg=1,1,1"]);
+    assert!(daemon.status().modes.iter().any(|m| m.contains("guided motion")));
+    assert!(!daemon.frond().args(["guided", "sigma=1"]).output().unwrap().status.success());
+    frond_ok(&daemon, &["guided", "off"]);
+    assert!(daemon.status().modes.is_empty());
+}
