@@ -22,7 +22,15 @@ fn stalled_subscriber_does_not_disturb_a_healthy_one() {
     // 3000 consecutive frames (3 s at 1 kHz) with no gap for the healthy subscriber.
     let mut poses = 0;
     let mut last = None;
+    // The stalled subscriber's drops, sampled while it is still connected.
+    let mut stalled_dropped = 0;
     while poses < 3000 {
+        if poses % 250 == 0 {
+            let s = daemon.status();
+            if let Some(stalled) = s.subscribers.iter().find(|x| x.id == 1) {
+                stalled_dropped = stalled_dropped.max(stalled.dropped);
+            }
+        }
         match healthy.next_event().expect("event") {
             Event::Pose(p) => {
                 if let Some(prev) = last {
@@ -35,13 +43,20 @@ fn stalled_subscriber_does_not_disturb_a_healthy_one() {
             other => panic!("unexpected event {other:?}"),
         }
     }
-    // The stalled subscriber's drops were counted, and the daemon let it go.
-    let dropped_and_gone = wait_for(Duration::from_secs(10), || {
+    // The stalled subscriber (id 1, it connected first) had its drops counted, then the daemon
+    // let it go; the healthy one lost nothing, and the loop itself dropped nothing.
+    let gone = wait_for(Duration::from_secs(10), || {
         let s = daemon.status();
-        s.publish_drops > 0 && s.subscribers.len() == 1
+        if let Some(stalled) = s.subscribers.iter().find(|x| x.id == 1) {
+            stalled_dropped = stalled_dropped.max(stalled.dropped);
+        }
+        s.subscribers.len() == 1
     });
     let status = daemon.status();
-    assert!(dropped_and_gone, "stalled subscriber not dropped/disconnected: {status:?}");
+    assert!(stalled_dropped > 0, "the stalled subscriber's drops were not counted: {status:?}");
+    assert!(gone, "stalled subscriber not disconnected: {status:?}");
+    assert_eq!(status.subscribers[0].id, 2);
     assert_eq!(status.subscribers[0].dropped, 0, "healthy subscriber lost frames: {status:?}");
+    assert_eq!(status.publish_drops, 0, "the loop dropped frames: {status:?}");
     drop(stalled);
 }

@@ -13,7 +13,7 @@ use crossbeam_channel::{Receiver, Sender, bounded};
 use frond_protocol::{Hello, LatencySummary, PROTOCOL_VERSION};
 use frondd::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
 use frondd::engine::{Engine, EngineLinks, LoopCommand};
-use frondd::publisher::{PublisherConfig, SubscriberRegistry, spawn_acceptor};
+use frondd::publisher::{PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher};
 use frondd::realtime::spawn_loop;
 use frondd::recorder::RecorderMsg;
 use frondd::stats::{LatencyHistogram, LoopStats};
@@ -172,6 +172,7 @@ impl Accum {
 /// writer thread per subscriber) to `subscribers` Unix-socket clients that read every byte.
 pub struct FullLoop {
     engine: Option<Engine>,
+    publisher: Option<thread::JoinHandle<()>>,
     _dir: tempfile::TempDir,
     stop_all: Arc<AtomicBool>,
     acceptor: Option<JoinHandle<()>>,
@@ -192,16 +193,20 @@ impl FullLoop {
         let (rec_tx, rec_rx) = bounded(16);
         let (reopen_tx, reopen_rx) = bounded(1);
         let (garbage_tx, garbage_rx) = bounded(64);
+        let (publish, publish_rx) = PublishQueue::new(frondd::publisher::PUBLISH_QUEUE_FRAMES);
+        let (join_tx, join_rx) = bounded(16);
+        let loop_stats = Arc::new(LoopStats::default());
         let engine = Engine::new(
             mapper(),
             Some(Box::new(TickGlove::new())),
             250_000_000,
             EngineLinks {
                 commands: cmd_rx,
+                publish,
                 recorder: rec_tx,
                 reopen: reopen_tx,
                 garbage: garbage_tx,
-                stats: Arc::new(LoopStats::default()),
+                stats: loop_stats.clone(),
             },
         );
         let path = dir.path().join(frond_protocol::POSES_SOCKET);
@@ -222,15 +227,11 @@ impl FullLoop {
             write_timeout: Duration::from_secs(2),
             max_subscribers: 64,
         };
-        let acceptor = spawn_acceptor(
-            listener,
-            config,
-            Arc::new(move || hello.clone()),
-            cmd_tx.clone(),
-            registry.clone(),
-            stop_all.clone(),
-        )
-        .map_err(|e| e.to_string())?;
+        let publisher =
+            spawn_publisher(publish_rx, join_rx, config, Arc::new(move || hello.clone()), loop_stats)
+                .map_err(|e| e.to_string())?;
+        let acceptor = spawn_acceptor(listener, config, join_tx, registry.clone(), stop_all.clone())
+            .map_err(|e| e.to_string())?;
         let received = Arc::new(AtomicU64::new(0));
         let mut clients = Vec::new();
         for _ in 0..subscribers {
@@ -243,6 +244,7 @@ impl FullLoop {
             _dir: dir,
             stop_all,
             acceptor: Some(acceptor),
+            publisher: Some(publisher),
             clients,
             received,
             _commands: cmd_tx,
@@ -254,9 +256,7 @@ impl FullLoop {
         // Warm up until every subscriber is registered and receiving.
         let deadline = Instant::now() + Duration::from_secs(10);
         let warm = Arc::new(LoopStats::default());
-        while full.engine.as_ref().map_or(0, Engine::subscriber_count) < subscribers
-            || full.registry.snapshot().iter().filter(|s| s.sent > 0).count() < subscribers
-        {
+        while full.registry.snapshot().iter().filter(|s| s.sent > 0).count() < subscribers {
             if Instant::now() > deadline {
                 return Err(format!(
                     "only {} of {subscribers} subscribers connected",
@@ -301,9 +301,12 @@ impl FullLoop {
 impl Drop for FullLoop {
     fn drop(&mut self) {
         self.stop_all.store(true, Relaxed);
-        // Dropping the engine drops the subscriber queues: the writers end and close their
-        // sockets, and the clients see end-of-file.
+        // Dropping the engine closes the publisher's queue: it ends and closes the sockets, and
+        // the clients see end-of-file.
         self.engine = None;
+        if let Some(p) = self.publisher.take() {
+            let _ = p.join();
+        }
         if let Some(a) = self.acceptor.take() {
             let _ = a.join();
         }

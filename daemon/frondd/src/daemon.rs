@@ -19,7 +19,10 @@ use crate::config::Config;
 use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
 use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
 use crate::notify::Notifier;
-use crate::publisher::{PublisherConfig, SubscriberRegistry, spawn_acceptor};
+use crate::publisher::{
+    NewSubscriber, PUBLISH_QUEUE_FRAMES, PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor,
+    spawn_publisher,
+};
 use crate::realtime::{lock_memory, spawn_loop};
 use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
 use crate::source::{SourceFactory, open_source};
@@ -147,6 +150,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     }
     let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
 
+    let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
+    let (join_tx, join_rx) = bounded::<NewSubscriber>(16);
     let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
     let engine = Engine::new(
         mapper,
@@ -154,6 +159,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         config.stall.as_nanos() as u64,
         EngineLinks {
             commands: cmd_rx,
+            publish: publish_queue,
             recorder: rec_tx.clone(),
             reopen: reopen_tx,
             garbage: garbage_tx,
@@ -226,14 +232,9 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         write_timeout: config.write_timeout,
         max_subscribers: config.max_subscribers,
     };
-    let acceptor = spawn_acceptor(
-        pose_listener,
-        publisher,
-        hello,
-        cmd_tx.clone(),
-        ctx.registry.clone(),
-        threads_stop.clone(),
-    )?;
+    let publisher_thread = spawn_publisher(publish_rx, join_rx, publisher, hello, stats.clone())?;
+    let acceptor =
+        spawn_acceptor(pose_listener, publisher, join_tx, ctx.registry.clone(), threads_stop.clone())?;
     let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;
     let control = spawn_control(control_listener, ctx.clone(), threads_stop.clone())?;
     let reopener = spawn_reopener(reopen_rx, await_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;
@@ -259,8 +260,10 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     loop_stop.store(true, Relaxed);
     threads_stop.store(true, Relaxed);
     let engine = rt.join().map_err(|_| anyhow!("the realtime loop panicked"))?;
-    drop(engine); // closes every subscriber queue, so writer threads end
-    for (name, handle) in [("accept", acceptor), ("control", control), ("reopen", reopener)] {
+    drop(engine); // closes the publisher's queue, so it ends
+    for (name, handle) in
+        [("accept", acceptor), ("control", control), ("reopen", reopener), ("publish", publisher_thread)]
+    {
         if handle.join().is_err() {
             error!(thread = name, "thread panicked");
         }

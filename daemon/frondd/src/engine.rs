@@ -3,14 +3,14 @@
 //!
 //! One tick: apply pending commands, read every pending device report, and for each report
 //! calibrate -> filter -> map (the same [`Mapper::process`] as `frond map`) and publish a frame;
-//! when no report arrived, republish the last pose flagged `held`. Frames go to each subscriber's
-//! bounded queue and to the recorder with `try_send`; a full queue costs that consumer a frame
+//! when no report arrived, republish the last pose flagged `held`. Frames go to the publisher
+//! thread and to the recorder with `try_send` on bounded queues; a full queue costs a frame
 //! (counted), never the loop a wait. Nothing here allocates, locks or blocks.
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 
-use crossbeam_channel::{Receiver, Sender, TrySendError};
+use crossbeam_channel::{Receiver, Sender};
 use frond_device::{DeviceSample, HandSource};
 use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, PoseFrame};
@@ -18,14 +18,14 @@ use frond_protocol::{HandWire, Pose, PoseFlags};
 
 use crate::clock::{NS_PER_S, monotonic_ns};
 use crate::live::{FIELD_PUBLISH_HZ, LiveField, LivePlayback, MAX_FIELD_PLANTS};
-use crate::publisher::{Outbound, SubscriberSlot};
+use crate::publisher::PublishQueue;
 use crate::recorder::RecorderMsg;
 use crate::stats::LoopStats;
 use frond_motion::controls::ControlKey;
 use frond_motion::guided::GuidedLive;
 use frond_protocol::FIELD_ELEMENT_BASE;
 
-/// Most subscribers the loop serves at once.
+/// Most subscribers served at once.
 pub const MAX_SUBSCRIBERS: usize = 64;
 /// Reports read from the device per `read_pending` call.
 const SAMPLE_BATCH: usize = 64;
@@ -42,8 +42,6 @@ pub enum LoopCommand {
     SetFilter(FilterSpec),
     /// Start or stop forwarding frames to the recorder.
     SetRecording(bool),
-    /// A new pose subscriber.
-    AddSubscriber(SubscriberSlot),
     /// A (re)opened hand source.
     ReplaceSource(Box<dyn HandSource>),
     /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
@@ -63,8 +61,6 @@ pub enum LoopCommand {
 
 /// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
 pub enum Garbage {
-    /// A subscriber whose connection ended.
-    Subscriber(SubscriberSlot),
     /// A source replaced by a newer one.
     Source(Box<dyn HandSource>),
     /// A finished playback, field or guided stage.
@@ -75,6 +71,8 @@ pub enum Garbage {
 pub struct EngineLinks {
     /// Commands in.
     pub commands: Receiver<LoopCommand>,
+    /// Frames out, to the publisher thread.
+    pub publish: PublishQueue,
     /// Frames (and nothing else from the loop) to the recorder.
     pub recorder: Sender<RecorderMsg>,
     /// A source that failed, for the reopen thread.
@@ -90,7 +88,6 @@ pub struct Engine {
     mapper: Mapper,
     source: Option<Box<dyn HandSource>>,
     samples: Box<[DeviceSample]>,
-    subscribers: Box<[Option<SubscriberSlot>]>,
     links: EngineLinks,
     recording: bool,
     seq: u64,
@@ -121,7 +118,6 @@ impl Engine {
             mapper,
             source,
             samples: vec![DeviceSample::default(); SAMPLE_BATCH].into_boxed_slice(),
-            subscribers: (0..MAX_SUBSCRIBERS).map(|_| None).collect(),
             links,
             recording: false,
             seq: 0,
@@ -179,7 +175,6 @@ impl Engine {
                     self.recording = on;
                     self.links.stats.recording.store(on, Relaxed);
                 }
-                LoopCommand::AddSubscriber(slot) => self.add_subscriber(slot),
                 LoopCommand::SetPlayback(p) => {
                     let old = std::mem::replace(&mut self.playback, p);
                     self.discard(old);
@@ -250,23 +245,6 @@ impl Engine {
     fn publish_field_controls(&self) {
         let c = self.field.as_ref().map(|f| f.player.controls());
         self.links.stats.field_controls.store(c);
-    }
-
-    fn add_subscriber(&mut self, slot: SubscriberSlot) {
-        // Tell the writer which sequence number comes next so the SDK's gap detection starts
-        // from the right place.
-        if slot.tx.try_send(Outbound::Start { next_seq: self.seq }).is_err() {
-            let _ = self.links.garbage.try_send(Garbage::Subscriber(slot));
-            return;
-        }
-        match self.subscribers.iter_mut().find(|s| s.is_none()) {
-            Some(free) => *free = Some(slot),
-            None => {
-                // More than MAX_SUBSCRIBERS: the accept thread checks the count first, so this
-                // only happens in a race; the connection is closed by dropping its slot.
-                let _ = self.links.garbage.try_send(Garbage::Subscriber(slot));
-            }
-        }
     }
 
     /// Reads every pending report and publishes one frame per valid report. Returns the count.
@@ -364,34 +342,17 @@ impl Engine {
         }
     }
 
-    /// Stamps `frame` with the next sequence number and the host time and offers it to every
-    /// subscriber. Returns the stamped frame.
+    /// Stamps `frame` with the next sequence number and the host time and hands it to the
+    /// publisher thread (a full queue drops it, counted). Returns the stamped frame.
     fn publish(&mut self, mut frame: Pose) -> Pose {
         frame.seq = self.seq;
         frame.host_monotonic_ns = monotonic_ns();
         self.seq += 1;
         self.links.stats.next_seq.store(self.seq, Relaxed);
-        for slot in self.subscribers.iter_mut() {
-            let Some(sub) = slot else { continue };
-            match sub.tx.try_send(Outbound::Pose(frame)) {
-                Ok(()) => {}
-                Err(TrySendError::Full(_)) => {
-                    sub.counters.dropped.fetch_add(1, Relaxed);
-                    self.links.stats.publish_drops.fetch_add(1, Relaxed);
-                }
-                Err(TrySendError::Disconnected(_)) => {
-                    if let Some(dead) = slot.take() {
-                        let _ = self.links.garbage.try_send(Garbage::Subscriber(dead));
-                    }
-                }
-            }
+        if !self.links.publish.offer(frame) {
+            self.links.stats.publish_drops.fetch_add(1, Relaxed);
         }
         frame
-    }
-
-    /// Number of subscribers currently served.
-    pub fn subscriber_count(&self) -> usize {
-        self.subscribers.iter().filter(|s| s.is_some()).count()
     }
 
     /// Next sequence number.

@@ -1,53 +1,43 @@
-//! The pose socket: accepts subscribers and gives each one a bounded queue and a writer thread.
+//! The pose socket: one publisher thread serves every subscriber.
 //!
-//! The realtime loop `try_send`s every frame into each subscriber's queue; a full queue drops that
-//! frame for that subscriber only (counted). The writer thread blocks on the socket with a write
-//! timeout, so a stalled client is disconnected without ever slowing the loop or anyone else.
-//! Nothing a subscriber sends is read: the pose socket is read-only for them.
+//! The realtime loop `try_send`s each frame once into the publisher's bounded queue (a full
+//! queue costs a counted drop, never a wait). The publisher encodes a batch of frames once and
+//! appends it to each subscriber's own bounded backlog, then writes what each socket accepts
+//! without blocking. A subscriber whose backlog is full loses that batch (counted per
+//! subscriber); one that accepts nothing for `write_timeout` is disconnected. So a slow or dead
+//! subscriber costs only itself, and the loop wakes one thread per frame whatever the number of
+//! subscribers. Nothing a subscriber sends is read: the pose socket is read-only for them.
 
-use std::io::Write;
+use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{Receiver, Sender, bounded};
+use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError, bounded};
 use frond_protocol::{Hello, Pose, ServerMessage, SubscriberStatus, encode_frame};
 use tracing::{debug, info, warn};
 
-use crate::engine::{LoopCommand, MAX_SUBSCRIBERS};
+use crate::engine::MAX_SUBSCRIBERS;
+use crate::stats::LoopStats;
 
-/// What the loop sends to a subscriber's writer.
-pub enum Outbound {
-    /// First message from the loop: the sequence number of the next pose.
-    Start {
-        /// Next pose sequence number.
-        next_seq: u64,
-    },
-    /// A pose.
-    Pose(Pose),
-}
+/// Frames the loop may get ahead of the publisher thread before it drops them.
+pub const PUBLISH_QUEUE_FRAMES: usize = 8192;
+/// Bytes budgeted per frame in a subscriber's backlog (a pose frame encodes to ~230 bytes).
+const BACKLOG_BYTES_PER_FRAME: usize = 256;
+/// Frames the publisher encodes and writes together at most.
+const MAX_BATCH: usize = 256;
 
-/// Per-subscriber counters, shared by the loop, the writer and status.
+/// Per-subscriber counters, shared by the publisher and status.
 #[derive(Default)]
 pub struct SubscriberCounters {
-    /// Frames written to the socket.
+    /// Frames handed to the subscriber's socket.
     pub sent: AtomicU64,
-    /// Frames dropped because the queue was full.
+    /// Frames dropped because its backlog was full.
     pub dropped: AtomicU64,
-    /// Set when the writer has ended.
+    /// Set when the subscriber is gone.
     pub closed: AtomicBool,
-}
-
-/// The loop's handle on one subscriber.
-pub struct SubscriberSlot {
-    /// Connection id.
-    pub id: u64,
-    /// The subscriber's bounded queue.
-    pub tx: Sender<Outbound>,
-    /// Its counters.
-    pub counters: Arc<SubscriberCounters>,
 }
 
 /// Registry entry for status reporting.
@@ -62,7 +52,7 @@ struct Registered {
 pub struct PublisherConfig {
     /// Frames a subscriber may fall behind before its frames are dropped.
     pub queue_frames: usize,
-    /// A write blocked this long disconnects the subscriber.
+    /// A subscriber that accepts nothing for this long is disconnected.
     pub write_timeout: Duration,
     /// Most subscribers at once.
     pub max_subscribers: usize,
@@ -100,12 +90,18 @@ impl SubscriberRegistry {
 /// Source of the `Hello` for new subscribers (the rig can change at runtime).
 pub type HelloSource = Arc<dyn Fn() -> Hello + Send + Sync>;
 
-/// Accepts subscribers on `listener` until `stop` is set.
+/// A connection handed from the acceptor to the publisher.
+pub struct NewSubscriber {
+    id: u64,
+    stream: UnixStream,
+    counters: Arc<SubscriberCounters>,
+}
+
+/// Accepts subscribers on `listener` until `stop` is set and hands them to the publisher.
 pub fn spawn_acceptor(
     listener: UnixListener,
     config: PublisherConfig,
-    hello: HelloSource,
-    commands: Sender<LoopCommand>,
+    subscribers: Sender<NewSubscriber>,
     registry: Arc<SubscriberRegistry>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
@@ -116,7 +112,7 @@ pub fn spawn_acceptor(
         while !stop.load(Relaxed) {
             let stream = match listener.accept() {
                 Ok((stream, _)) => stream,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
                     thread::sleep(Duration::from_millis(20));
                     continue;
                 }
@@ -132,84 +128,187 @@ pub fn spawn_acceptor(
             }
             let id = next_id;
             next_id += 1;
-            let (tx, rx) = bounded(config.queue_frames.max(2));
             let counters = Arc::new(SubscriberCounters::default());
-            let slot = SubscriberSlot { id, tx, counters: counters.clone() };
-            if commands.try_send(LoopCommand::AddSubscriber(slot)).is_err() {
-                warn!(id, "refusing a pose subscriber: the loop's command queue is full");
+            if subscribers
+                .send_timeout(
+                    NewSubscriber { id, stream, counters: counters.clone() },
+                    Duration::from_secs(1),
+                )
+                .is_err()
+            {
+                warn!(id, "refusing a pose subscriber: the publisher is not accepting");
                 continue;
             }
             registry.entries.lock().unwrap_or_else(|e| e.into_inner()).push(Registered {
                 id,
                 since: Instant::now(),
-                counters: counters.clone(),
+                counters,
             });
-            let hello = hello();
-            let spawned = thread::Builder::new()
-                .name(format!("frond-sub-{id}"))
-                .spawn(move || write_subscriber(id, stream, rx, counters, hello, config.write_timeout));
-            if let Err(e) = spawned {
-                warn!(id, error = %e, "could not start a subscriber writer thread");
-            } else {
-                info!(id, "pose subscriber connected");
-            }
+            info!(id, "pose subscriber connected");
         }
     })
 }
 
-/// Writes frames to one subscriber until its socket fails or the daemon stops.
-fn write_subscriber(
+/// One subscriber as the publisher sees it.
+struct Subscriber {
     id: u64,
-    mut stream: UnixStream,
-    rx: Receiver<Outbound>,
+    stream: UnixStream,
     counters: Arc<SubscriberCounters>,
-    mut hello: Hello,
-    write_timeout: Duration,
-) {
-    let _ = stream.set_nonblocking(false);
-    let _ = stream.set_write_timeout(Some(write_timeout));
-    let _ = stream.shutdown(std::net::Shutdown::Read);
-    let mut buf: Vec<u8> = Vec::with_capacity(64 * 1024);
-    let mut reason = "daemon stopping";
-    while let Ok(first) = rx.recv() {
-        buf.clear();
-        let mut poses = 0u64;
-        let mut item = Some(first);
-        // Batch whatever is queued into one write: a subscriber that fell behind catches up with
-        // few system calls.
-        while let Some(msg) = item.take() {
-            match msg {
-                Outbound::Start { next_seq } => {
-                    hello.next_seq = next_seq;
-                    encode_frame(&ServerMessage::Hello(hello.clone()), &mut buf);
-                }
-                Outbound::Pose(p) => {
-                    encode_frame(&ServerMessage::Pose(p), &mut buf);
-                    poses += 1;
-                }
-            }
-            if buf.len() < 48 * 1024 {
-                item = rx.try_recv().ok();
-            }
-        }
-        if let Err(e) = stream.write_all(&buf) {
-            reason = match e.kind() {
-                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => "write timed out (stalled)",
-                std::io::ErrorKind::BrokenPipe | std::io::ErrorKind::ConnectionReset => "disconnected",
-                _ => "write failed",
-            };
-            break;
-        }
-        counters.sent.fetch_add(poses, Relaxed);
+    /// Encoded bytes not yet accepted by the socket (may start mid-frame).
+    backlog: Vec<u8>,
+    written: usize,
+    cap: usize,
+    last_progress: Instant,
+}
+
+impl Subscriber {
+    fn pending(&self) -> usize {
+        self.backlog.len() - self.written
     }
-    counters.closed.store(true, Relaxed);
-    let _ = stream.shutdown(std::net::Shutdown::Both);
-    debug!(
-        id,
-        reason,
-        sent = counters.sent.load(Relaxed),
-        dropped = counters.dropped.load(Relaxed),
-        "subscriber writer ended"
-    );
-    info!(id, reason, "pose subscriber left");
+
+    /// Writes what the socket takes now. `Err` means the subscriber is gone.
+    fn flush(&mut self, now: Instant, timeout: Duration) -> Result<(), &'static str> {
+        while self.written < self.backlog.len() {
+            match self.stream.write(&self.backlog[self.written..]) {
+                Ok(0) => return Err("disconnected"),
+                Ok(n) => {
+                    self.written += n;
+                    self.last_progress = now;
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(e) if matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::ConnectionReset) => {
+                    return Err("disconnected");
+                }
+                Err(_) => return Err("write failed"),
+            }
+        }
+        if self.written == self.backlog.len() {
+            self.backlog.clear();
+            self.written = 0;
+        } else if now.duration_since(self.last_progress) > timeout {
+            return Err("stalled (accepted nothing within the write timeout)");
+        } else if self.written > self.cap / 2 {
+            // Keep the unsent tail at the front so the backlog never grows past its cap.
+            self.backlog.drain(..self.written);
+            self.written = 0;
+        }
+        Ok(())
+    }
+
+    /// Queues an encoded batch of `frames` frames, or drops it if the backlog is full.
+    fn offer(&mut self, batch: &[u8], frames: u64) {
+        if self.pending() + batch.len() > self.cap {
+            self.counters.dropped.fetch_add(frames, Relaxed);
+            return;
+        }
+        if self.written > 0 && self.backlog.len() + batch.len() > self.backlog.capacity() {
+            self.backlog.drain(..self.written);
+            self.written = 0;
+        }
+        self.backlog.extend_from_slice(batch);
+        self.counters.sent.fetch_add(frames, Relaxed);
+    }
+}
+
+/// Runs the publisher until every frame sender is gone (the loop has stopped).
+pub fn spawn_publisher(
+    frames: Receiver<Pose>,
+    joins: Receiver<NewSubscriber>,
+    config: PublisherConfig,
+    hello: HelloSource,
+    stats: Arc<LoopStats>,
+) -> std::io::Result<thread::JoinHandle<()>> {
+    thread::Builder::new().name("frond-publish".into()).spawn(move || {
+        let mut subs: Vec<Subscriber> = Vec::with_capacity(MAX_SUBSCRIBERS);
+        let mut batch: Vec<u8> = Vec::with_capacity(MAX_BATCH * BACKLOG_BYTES_PER_FRAME * 2);
+        let cap = config.queue_frames.max(2) * BACKLOG_BYTES_PER_FRAME;
+        let mut next_seq: Option<u64> = None;
+        loop {
+            let first = match frames.recv_timeout(Duration::from_millis(20)) {
+                Ok(p) => Some(p),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => break,
+            };
+            // New subscribers start at the next frame this thread forwards.
+            while let Ok(new) = joins.try_recv() {
+                let seq = first.map(|p| p.seq).or(next_seq).unwrap_or_else(|| stats.next_seq.load(Relaxed));
+                let mut h = hello();
+                h.next_seq = seq;
+                let mut bytes = Vec::with_capacity(cap + 4096);
+                encode_frame(&ServerMessage::Hello(h), &mut bytes);
+                let _ = new.stream.set_nonblocking(true);
+                let _ = new.stream.shutdown(std::net::Shutdown::Read);
+                subs.push(Subscriber {
+                    id: new.id,
+                    stream: new.stream,
+                    counters: new.counters,
+                    backlog: bytes,
+                    written: 0,
+                    cap,
+                    last_progress: Instant::now(),
+                });
+            }
+            batch.clear();
+            let mut n = 0u64;
+            if let Some(p) = first {
+                encode_frame(&ServerMessage::Pose(p), &mut batch);
+                n = 1;
+                next_seq = Some(p.seq + 1);
+                while (n as usize) < MAX_BATCH {
+                    let Ok(p) = frames.try_recv() else { break };
+                    encode_frame(&ServerMessage::Pose(p), &mut batch);
+                    next_seq = Some(p.seq + 1);
+                    n += 1;
+                }
+            }
+            let now = Instant::now();
+            subs.retain_mut(|s| {
+                if n > 0 {
+                    s.offer(&batch, n);
+                }
+                match s.flush(now, config.write_timeout) {
+                    Ok(()) => true,
+                    Err(reason) => {
+                        s.counters.closed.store(true, Relaxed);
+                        let _ = s.stream.shutdown(std::net::Shutdown::Both);
+                        debug!(
+                            id = s.id,
+                            sent = s.counters.sent.load(Relaxed),
+                            dropped = s.counters.dropped.load(Relaxed),
+                            "subscriber closed"
+                        );
+                        info!(id = s.id, reason, "pose subscriber left");
+                        false
+                    }
+                }
+            });
+        }
+        for s in &subs {
+            s.counters.closed.store(true, Relaxed);
+            let _ = s.stream.shutdown(std::net::Shutdown::Both);
+        }
+    })
+}
+
+/// The loop's end of the publisher queue: one `try_send` per frame, drops counted.
+#[derive(Clone)]
+pub struct PublishQueue {
+    tx: Sender<Pose>,
+}
+
+impl PublishQueue {
+    /// A queue and the publisher's end of it.
+    pub fn new(frames: usize) -> (PublishQueue, Receiver<Pose>) {
+        let (tx, rx) = bounded(frames);
+        (PublishQueue { tx }, rx)
+    }
+
+    /// Offers a frame; `false` when the publisher is behind by a whole queue (frame dropped).
+    pub fn offer(&self, pose: Pose) -> bool {
+        match self.tx.try_send(pose) {
+            Ok(()) => true,
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => false,
+        }
+    }
 }
