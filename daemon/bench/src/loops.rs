@@ -9,13 +9,12 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{Receiver, Sender, bounded};
+use crossbeam_channel::bounded;
 use frond_protocol::{Hello, LatencySummary, PROTOCOL_VERSION};
 use frondd::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
-use frondd::engine::{Engine, EngineLinks, LoopCommand};
-use frondd::publisher::{PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher};
+use frondd::engine::{Engine, EngineEnds};
+use frondd::publisher::{PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher};
 use frondd::realtime::spawn_loop;
-use frondd::recorder::RecorderMsg;
 use frondd::stats::{LatencyHistogram, LoopStats};
 use serde::Serialize;
 
@@ -178,10 +177,7 @@ pub struct FullLoop {
     acceptor: Option<JoinHandle<()>>,
     clients: Vec<JoinHandle<()>>,
     received: Arc<AtomicU64>,
-    _commands: Sender<LoopCommand>,
-    _recorder: Receiver<RecorderMsg>,
-    _reopen: Receiver<Box<dyn frond_device::HandSource>>,
-    _garbage: Receiver<frondd::engine::Garbage>,
+    _ends: EngineEnds,
     registry: Arc<SubscriberRegistry>,
 }
 
@@ -189,26 +185,16 @@ impl FullLoop {
     /// Builds the engine, publisher and `subscribers` connected clients.
     pub fn new(subscribers: usize) -> Result<FullLoop, String> {
         let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir().map_err(|e| e.to_string())?;
-        let (cmd_tx, cmd_rx) = bounded(256);
-        let (rec_tx, rec_rx) = bounded(16);
-        let (reopen_tx, reopen_rx) = bounded(1);
-        let (garbage_tx, garbage_rx) = bounded(64);
-        let (publish, publish_rx) = PublishQueue::new(frondd::publisher::PUBLISH_QUEUE_FRAMES);
-        let (join_tx, join_rx) = bounded(16);
-        let loop_stats = Arc::new(LoopStats::default());
-        let engine = Engine::new(
+        let (engine, mut ends) = Engine::with_channels(
             mapper(),
             Some(Box::new(TickGlove::new())),
             250_000_000,
-            EngineLinks {
-                commands: cmd_rx,
-                publish,
-                recorder: rec_tx,
-                reopen: reopen_tx,
-                garbage: garbage_tx,
-                stats: loop_stats.clone(),
-            },
+            frondd::publisher::PUBLISH_QUEUE_FRAMES,
+            16,
         );
+        let publish_rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
+        let loop_stats = ends.stats.clone();
+        let (join_tx, join_rx) = bounded(16);
         let path = dir.path().join(frond_protocol::POSES_SOCKET);
         let listener = UnixListener::bind(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let stop_all = Arc::new(AtomicBool::new(false));
@@ -247,10 +233,7 @@ impl FullLoop {
             publisher: Some(publisher),
             clients,
             received,
-            _commands: cmd_tx,
-            _recorder: rec_rx,
-            _reopen: reopen_rx,
-            _garbage: garbage_rx,
+            _ends: ends,
             registry,
         };
         // Warm up until every subscriber is registered and receiving.

@@ -2,16 +2,12 @@
 //! per tick.
 
 use std::hint::black_box;
-use std::sync::Arc;
 
-use crossbeam_channel::{Receiver, Sender, bounded};
+use crossbeam_channel::Receiver;
 use frond_motion::HandSample;
 use frond_protocol::{Pose, ServerMessage, encode_frame};
 use frondd::clock::monotonic_ns;
-use frondd::engine::{Engine, EngineLinks, Garbage, LoopCommand};
-use frondd::publisher::PublishQueue;
-use frondd::recorder::RecorderMsg;
-use frondd::stats::LoopStats;
+use frondd::engine::{Engine, EngineEnds};
 use serde_json::json;
 
 use crate::Options;
@@ -50,38 +46,25 @@ fn hand(k: u64) -> HandSample {
     }
 }
 
-/// An engine on the one-report-per-tick glove with 8 subscriber queues drained by the caller,
-/// and the other ends of its channels.
+/// An engine on the one-report-per-tick glove, its publisher queue drained by the caller, and
+/// the other ends of its channels.
 struct TickRig {
     engine: Engine,
     rx: Receiver<Pose>,
-    _commands: Sender<LoopCommand>,
-    _recorder: Receiver<RecorderMsg>,
-    _reopen: Receiver<Box<dyn frond_device::HandSource>>,
-    _garbage: Receiver<Garbage>,
+    _ends: EngineEnds,
 }
 
 fn engine() -> TickRig {
-    let (cmd_tx, cmd_rx) = bounded(64);
-    let (rec_tx, rec_rx) = bounded(16);
-    let (reopen_tx, reopen_rx) = bounded(1);
-    let (garbage_tx, garbage_rx) = bounded(64);
-    let (publish, rx) = PublishQueue::new(1024 * SUBSCRIBERS);
-    let mut engine = Engine::new(
+    let (mut engine, mut ends) = Engine::with_channels(
         mapper(),
         Some(Box::new(TickGlove::new())),
         250_000_000,
-        EngineLinks {
-            commands: cmd_rx,
-            publish,
-            recorder: rec_tx,
-            reopen: reopen_tx,
-            garbage: garbage_tx,
-            stats: Arc::new(LoopStats::default()),
-        },
+        1024 * SUBSCRIBERS,
+        16,
     );
     engine.tick(monotonic_ns());
-    TickRig { engine, rx, _commands: cmd_tx, _recorder: rec_rx, _reopen: reopen_rx, _garbage: garbage_rx }
+    let rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
+    TickRig { engine, rx, _ends: ends }
 }
 
 /// Empties the publisher queue (the loop hands each frame over once, whatever the number of

@@ -83,6 +83,22 @@ pub struct EngineLinks {
     pub stats: Arc<LoopStats>,
 }
 
+/// The far ends of an engine's channels, from [`Engine::with_channels`].
+pub struct EngineEnds {
+    /// Send commands to the loop.
+    pub commands: Sender<LoopCommand>,
+    /// Frames the loop publishes.
+    pub frames: Receiver<Pose>,
+    /// Frames the loop hands to the recorder.
+    pub recorder: Receiver<RecorderMsg>,
+    /// Sources the loop gives up as lost.
+    pub reopen: Receiver<Box<dyn HandSource>>,
+    /// What the loop may not drop itself.
+    pub garbage: Receiver<Garbage>,
+    /// The loop's counters.
+    pub stats: Arc<LoopStats>,
+}
+
 /// The realtime loop's state. Allocates only in [`Engine::new`].
 pub struct Engine {
     mapper: Mapper,
@@ -130,6 +146,40 @@ impl Engine {
             guided: None,
             layer: 0,
         }
+    }
+
+    /// An engine with fresh bounded channels (`publish_frames` and `recorder_frames` deep), for
+    /// driving it tick by tick without the daemon's threads: tests and `frond bench`.
+    pub fn with_channels(
+        mapper: Mapper,
+        source: Option<Box<dyn HandSource>>,
+        stall_after_ns: u64,
+        publish_frames: usize,
+        recorder_frames: usize,
+    ) -> (Engine, EngineEnds) {
+        let (cmd_tx, cmd_rx) = crossbeam_channel::bounded(256);
+        let (publish, frames) = PublishQueue::new(publish_frames);
+        let (rec_tx, rec_rx) = crossbeam_channel::bounded(recorder_frames);
+        let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(1);
+        let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
+        let stats = Arc::new(LoopStats::default());
+        let links = EngineLinks {
+            commands: cmd_rx,
+            publish,
+            recorder: rec_tx,
+            reopen: reopen_tx,
+            garbage: garbage_tx,
+            stats: stats.clone(),
+        };
+        let ends = EngineEnds {
+            commands: cmd_tx,
+            frames,
+            recorder: rec_rx,
+            reopen: reopen_rx,
+            garbage: garbage_rx,
+            stats,
+        };
+        (Engine::new(mapper, source, stall_after_ns, links), ends)
     }
 
     fn discard<T: Send + 'static>(&self, old: Option<Box<T>>) {

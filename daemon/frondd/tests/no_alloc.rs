@@ -10,12 +10,9 @@ use std::cell::Cell;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
-use crossbeam_channel::bounded;
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
-use frondd::engine::{Engine, EngineLinks, LoopCommand};
-use frondd::publisher::PublishQueue;
-use frondd::stats::LoopStats;
+use frondd::engine::{Engine, LoopCommand};
 
 struct Counting;
 
@@ -95,6 +92,10 @@ impl HandSource for Scripted {
     }
 }
 
+fn scripted(pattern: [usize; 8], fail_every: u64) -> Box<dyn HandSource> {
+    Box::new(Scripted { tick: 0, seq: 0, counters: Arc::new(SourceCounters::default()), pattern, fail_every })
+}
+
 #[test]
 fn steady_state_ticks_allocate_nothing() {
     let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
@@ -104,34 +105,12 @@ fn steady_state_ticks_allocate_nothing() {
         cal.params(),
         FilterSpec::OneEuro { min_cutoff: 1.0, beta: 0.01, d_cutoff: 1.0 },
     );
-    let (cmd_tx, cmd_rx) = bounded(64);
-    let (rec_tx, rec_rx) = bounded(100_000);
-    let (reopen_tx, reopen_rx) = bounded(1);
-    let (garbage_tx, _garbage_rx) = bounded(64);
     // A small publisher queue drained by another thread: the loop outruns it, so both the
     // delivered and the dropped path run.
-    let (publish, publish_rx) = PublishQueue::new(256);
-    let stats = Arc::new(LoopStats::default());
-    let source = Scripted {
-        tick: 0,
-        seq: 0,
-        counters: Arc::new(SourceCounters::default()),
-        pattern: [1, 1, 0, 3, 1, 0, 1, 2],
-        fail_every: 0,
-    };
-    let mut engine = Engine::new(
-        mapper,
-        Some(Box::new(source)),
-        250_000_000,
-        EngineLinks {
-            commands: cmd_rx,
-            publish,
-            recorder: rec_tx,
-            reopen: reopen_tx,
-            garbage: garbage_tx,
-            stats: stats.clone(),
-        },
-    );
+    let (mut engine, ends) =
+        Engine::with_channels(mapper, Some(scripted([1, 1, 0, 3, 1, 0, 1, 2], 0)), 250_000_000, 256, 100_000);
+    let (cmd_tx, publish_rx, rec_rx, reopen_rx, stats) =
+        (ends.commands, ends.frames, ends.recorder, ends.reopen, ends.stats);
     let drained = Arc::new(AtomicU64::new(0));
     let drain_count = drained.clone();
     let drain = std::thread::spawn(move || {
@@ -186,32 +165,8 @@ fn device_loss_and_reopen_allocate_nothing_in_the_loop() {
     let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
     let cal = frond_motion::Calibration::neutral_for(&rig);
     let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
-    let (cmd_tx, cmd_rx) = bounded(64);
-    let (rec_tx, _rec_rx) = bounded(16);
-    let (reopen_tx, reopen_rx) = bounded::<Box<dyn HandSource>>(1);
-    let (garbage_tx, _garbage_rx) = bounded(64);
-    let (publish, _publish_rx) = PublishQueue::new(16);
-    let stats = Arc::new(LoopStats::default());
-    let source = Scripted {
-        tick: 0,
-        seq: 0,
-        counters: Arc::new(SourceCounters::default()),
-        pattern: [1; 8],
-        fail_every: 500,
-    };
-    let mut engine = Engine::new(
-        mapper,
-        Some(Box::new(source)),
-        250_000_000,
-        EngineLinks {
-            commands: cmd_rx,
-            publish,
-            recorder: rec_tx,
-            reopen: reopen_tx,
-            garbage: garbage_tx,
-            stats: stats.clone(),
-        },
-    );
+    let (mut engine, ends) = Engine::with_channels(mapper, Some(scripted([1; 8], 500)), 250_000_000, 16, 16);
+    let (cmd_tx, reopen_rx, stats) = (ends.commands, ends.reopen, ends.stats);
     let mut now = 1_000_000_000u64;
     COUNTING.with(|c| c.set(true));
     for _ in 0..5_000 {
@@ -267,32 +222,14 @@ fn live_modes_allocate_nothing_per_tick() {
     let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/flower.toml")).unwrap();
     let cal = frond_motion::Calibration::neutral_for(&rig);
     let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
-    let (cmd_tx, cmd_rx) = bounded(64);
-    let (rec_tx, _rec_rx) = bounded(100_000);
-    let (reopen_tx, _reopen_rx) = bounded(1);
-    let (garbage_tx, garbage_rx) = bounded(64);
-    let (publish, sub_rx) = PublishQueue::new(1 << 20);
-    let stats = Arc::new(LoopStats::default());
-    let source = Scripted {
-        tick: 0,
-        seq: 0,
-        counters: Arc::new(SourceCounters::default()),
-        pattern: [1, 0, 1, 2, 1, 1, 0, 1],
-        fail_every: 0,
-    };
-    let mut engine = Engine::new(
+    let (mut engine, ends) = Engine::with_channels(
         mapper,
-        Some(Box::new(source)),
+        Some(scripted([1, 0, 1, 2, 1, 1, 0, 1], 0)),
         250_000_000,
-        EngineLinks {
-            commands: cmd_rx,
-            publish,
-            recorder: rec_tx,
-            reopen: reopen_tx,
-            garbage: garbage_tx,
-            stats: stats.clone(),
-        },
+        1 << 20,
+        100_000,
     );
+    let (cmd_tx, sub_rx, stats, garbage_rx) = (ends.commands, ends.frames, ends.stats, ends.garbage);
     let bytes = take_bytes();
     let field = make_field(
         &FieldParams {
