@@ -11,17 +11,8 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "$here/../../.." && pwd)"
-venv="$root/tests/python/.venv"
-
-python="${PYTHON:-}"
-if [ -z "$python" ]; then
-    if command -v python3.11 >/dev/null 2>&1; then python=python3.11; else python=python3; fi
-fi
-if [ ! -x "$venv/bin/python" ]; then
-    echo "creating $venv with $($python --version 2>&1)"
-    mkdir -p "$(dirname "$venv")"
-    "$python" -m venv "$venv"
-fi
+# shellcheck source=../../../tests/python/venv.sh
+source "$root/tests/python/venv.sh"
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$here/requirements.txt"
 echo "python-osc installed in $venv"
 
