@@ -322,3 +322,55 @@ fn control_socket_checks_peer_credentials_and_request_size() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("not allowed"), "{err}");
 }
+
+#[test]
+fn a_device_that_stops_sending_without_disappearing_is_flagged_then_resumes() {
+    if !fuse_available() {
+        eprintln!("skipped: no /dev/fuse");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let node = dir.path().join("vhid").join("hidraw-stall");
+    let (_vhid, node, _out) = start_vhid(&[
+        "--sway",
+        "--rate",
+        "500",
+        "--node",
+        node.to_str().unwrap(),
+        "--start-delay-ms",
+        "500",
+        "--stall-at-ms",
+        "1000",
+        "--stall-ms",
+        "1000",
+    ]);
+    let daemon = Daemon::start(dir.path(), &["--device", node.to_str().unwrap()]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    // Phases: fresh frames, then frames flagged device_lost (the stall, detected after
+    // source.stall_ms = 250 ms), then fresh frames again, with no gap in between.
+    let (mut fresh_before, mut lost, mut fresh_after) = (0u32, 0u32, 0u32);
+    let mut last_seq = None;
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while fresh_after < 100 && Instant::now() < deadline {
+        let Event::Pose(p) = sub.next_event().unwrap() else { panic!("unexpected event") };
+        if let Some(prev) = last_seq {
+            assert_eq!(p.seq, prev + 1, "gap in the stream during the stall");
+        }
+        last_seq = Some(p.seq);
+        let is_lost = p.flags.contains(PoseFlags::DEVICE_LOST);
+        let is_fresh = !p.flags.contains(PoseFlags::HELD);
+        match (fresh_before > 0, lost > 0) {
+            (_, false) if is_fresh && !is_lost => fresh_before += 1,
+            (true, _) if is_lost => lost += 1,
+            (true, true) if is_fresh => fresh_after += 1,
+            _ => {}
+        }
+    }
+    assert!(fresh_before > 50, "{fresh_before} frames before the stall");
+    // 1000 ms stall, flagged after 250 ms: about 750 ticks at 1 kHz.
+    assert!((400..1000).contains(&lost), "{lost} frames flagged during the stall");
+    assert_eq!(fresh_after, 100, "reports did not resume");
+    let events = daemon.status().device_events.join("\n");
+    assert!(events.contains("stalled") && events.contains("resumed"), "{events}");
+    assert!(!events.contains("reopened"), "a stall is not a disconnect: {events}");
+}

@@ -71,6 +71,15 @@ struct Args {
     /// Repeat the unplug with this period in milliseconds.
     #[arg(long, value_name = "P", requires = "unplug_at_ms")]
     unplug_every_ms: Option<u64>,
+    /// Stall (stay plugged in, send nothing) this many milliseconds after the first report.
+    #[arg(long, value_name = "T", requires = "stall_ms")]
+    stall_at_ms: Option<u64>,
+    /// How long each stall lasts, milliseconds.
+    #[arg(long, value_name = "N", requires = "stall_at_ms")]
+    stall_ms: Option<u64>,
+    /// Repeat the stall with this period in milliseconds.
+    #[arg(long, value_name = "P", requires = "stall_at_ms")]
+    stall_every_ms: Option<u64>,
     /// Delay each report by a random 0..=J microseconds.
     #[arg(long, value_name = "J", default_value_t = 0)]
     jitter_us: u32,
@@ -135,6 +144,12 @@ fn config(args: &Args) -> Result<VirtualGloveConfig> {
             drop_prob: args.drop_prob,
             corrupt_prob: args.corrupt_prob,
             unplug,
+            stall: match (args.stall_at_ms, args.stall_ms) {
+                (Some(at_ms), Some(duration_ms)) => {
+                    Some(UnplugPlan { at_ms, duration_ms, every_ms: args.stall_every_ms })
+                }
+                _ => None,
+            },
             jitter_us: args.jitter_us,
             seed: args.seed,
         },

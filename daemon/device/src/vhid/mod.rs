@@ -73,6 +73,10 @@ pub struct FaultPlan {
     pub corrupt_prob: f64,
     /// Unplugging schedule.
     pub unplug: Option<UnplugPlan>,
+    /// Stall schedule: the glove stays plugged in but sends nothing in these windows (a
+    /// firmware hang or a tracker that lost the hand), which the daemon must detect without a
+    /// disconnect.
+    pub stall: Option<UnplugPlan>,
     /// Each report is delayed by a uniform random 0..=`jitter_us` microseconds (device time is
     /// not affected: it is when the glove sampled the hand).
     pub jitter_us: u32,
@@ -82,7 +86,7 @@ pub struct FaultPlan {
 
 impl Default for FaultPlan {
     fn default() -> Self {
-        Self { drop_prob: 0.0, corrupt_prob: 0.0, unplug: None, jitter_us: 0, seed: 0x5EED_F20D }
+        Self { drop_prob: 0.0, corrupt_prob: 0.0, unplug: None, stall: None, jitter_us: 0, seed: 0x5EED_F20D }
     }
 }
 
@@ -166,6 +170,8 @@ pub struct VhidStats {
     pub clamped: AtomicU64,
     /// Number of unplug events.
     pub unplugs: AtomicU64,
+    /// Reports not sent during stall windows.
+    pub stalled: AtomicU64,
     /// Set once a non-looping JSONL file has been played to the end.
     pub finished: AtomicBool,
 }
@@ -214,14 +220,15 @@ impl Generator {
                 return Err(VhidError::Config(format!("{name} probability {p} is not within 0..=1")));
             }
         }
-        if let Some(u) = f.unplug {
+        for (name, plan) in [("unplug", f.unplug), ("stall", f.stall)] {
+            let Some(u) = plan else { continue };
             if u.duration_ms == 0 {
-                return Err(VhidError::Config("unplug duration must be > 0 ms".into()));
+                return Err(VhidError::Config(format!("{name} duration must be > 0 ms")));
             }
             if u.every_ms.is_some_and(|e| e <= u.duration_ms) {
-                return Err(VhidError::Config(
-                    "unplug period must be longer than the unplug duration".into(),
-                ));
+                return Err(VhidError::Config(format!(
+                    "{name} period must be longer than the {name} duration"
+                )));
             }
         }
         let prepared = match &config.source {
@@ -310,6 +317,10 @@ impl Generator {
             }
             if !plugged {
                 stats.unplugged_lost.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            if self.faults.stall.is_some_and(|s| s.unplugged_at((offset_s * 1000.0) as u64)) {
+                stats.stalled.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
             if self.faults.drop_prob > 0.0 && rng.random_bool(self.faults.drop_prob) {
