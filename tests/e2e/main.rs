@@ -7,4 +7,5 @@ mod slow_subscriber;
 mod soak;
 mod stage;
 mod systemd;
+mod take_tools;
 mod tap_matches_map;

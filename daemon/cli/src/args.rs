@@ -289,4 +289,8 @@ pub enum TakeCommand {
         /// Take name (or a path to a .take file).
         name: String,
     },
+    /// The motion toolkit (seed 000): import, resample, filter, splice, loop, field, retime,
+    /// guided, align.
+    #[command(flatten)]
+    Tool(crate::take_tools::TakeTool),
 }

@@ -14,6 +14,7 @@ mod map;
 mod signals;
 mod soak;
 mod status;
+mod take_tools;
 mod takes;
 mod tap;
 
@@ -132,6 +133,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             takes::export(g, &name, fps, include_held)
         }
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
+        Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
         Command::Bench(a) => bench::run(&a),
         Command::Soak { duration, json, seed } => soak::run(duration, json, seed),

@@ -1,0 +1,562 @@
+//! `frond take import|resample|filter|splice|loop|field|retime|guided|align`: the seed 000 motion
+//! toolkit on takes on disk (the math is in `frond_motion`; this is argument checking and I/O).
+//!
+//! Commands that write a take put `OUT.take` in the takes directory (`-o OUT`, default
+//! `NAME-<command>`; an existing take is only replaced with `--force`), or with `--jsonl` print
+//! the result's global poses as JSON Lines on stdout instead. Everything works at `--fps`
+//! (default 30, the seed's rate): recorded 1 kHz takes are resampled first.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use anyhow::{Context, anyhow};
+use clap::{Args, Subcommand};
+use frond_motion::align::align;
+use frond_motion::clip::Clip;
+use frond_motion::controls::{Retime, retime};
+use frond_motion::edit::{ImportKind, import_jsonl, post_filter, resample_frames, splice};
+use frond_motion::field::{FieldParams, make_field};
+use frond_motion::guided::{GuidedParams, guided};
+use frond_motion::jsonl::write_pose_line;
+use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
+use frond_motion::looping::{LoopParams, PlaybackParams, find_transitions, loop_clip};
+use frond_motion::rig::DEFAULT_THUMB_RANGE_DEG;
+use frond_motion::{Calibration, FilterSpec, Mapper, TakeFrame, TakeHeader};
+use frond_protocol::paths;
+
+use crate::args::Global;
+use crate::calibrate::write_atomically_bytes;
+use crate::control::load_rig;
+use crate::usage;
+
+/// Where a command's result goes.
+#[derive(Debug, Clone, Args)]
+pub struct Output {
+    /// Name of the take to write [default: NAME-<command>].
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: Option<String>,
+    /// Print the result's poses as JSON Lines on stdout instead of writing a take.
+    #[arg(long)]
+    pub jsonl: bool,
+    /// Replace an existing take of the same name.
+    #[arg(long)]
+    pub force: bool,
+    /// Frame rate to work at.
+    #[arg(long, default_value_t = 30.0, value_name = "FPS")]
+    pub fps: f64,
+}
+
+/// The toolkit's `frond take` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum TakeTool {
+    /// Make a take from a JSONL file: hand samples (mapped with --rig, as `frond map`) or poses
+    /// (as written by `frond take export --jsonl`).
+    Import {
+        /// JSONL file.
+        file: PathBuf,
+        /// Take name to write.
+        name: String,
+        /// Rig file for hand samples (TOML) [default: a blade with unit scales].
+        #[arg(long, value_name = "FILE")]
+        rig: Option<PathBuf>,
+        /// Calibration file for hand samples.
+        #[arg(long, value_name = "FILE")]
+        calibration: Option<PathBuf>,
+        /// Jitter filter for hand samples [default: the rig's].
+        #[arg(long, value_name = "SPEC")]
+        filter: Option<String>,
+        /// What the file holds: auto, hand or pose.
+        #[arg(long, default_value = "auto", value_name = "KIND")]
+        kind: String,
+        /// Print the poses as JSON Lines instead of writing the take.
+        #[arg(long)]
+        jsonl: bool,
+        /// Replace an existing take of the same name.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Resample every layer to --fps (poses and hand samples, linear interpolation).
+    Resample {
+        /// Take name.
+        name: String,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Post-processing low-pass of a layer (zero phase: forwards then backwards).
+    Filter {
+        /// Take name.
+        name: String,
+        /// lowpass, one-euro, or a full spec such as lowpass:cutoff_hz=4.
+        #[arg(long, value_name = "SPEC")]
+        filter: String,
+        /// Layer to filter (global, a layer name or number).
+        #[arg(long, default_value = "global", value_name = "LAYER")]
+        layer: String,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Re-author frames FROM..=TO of BASE with the take NEW, blending N frames at each boundary.
+    /// FROM and TO are frame numbers at --fps or marker labels.
+    Splice {
+        /// Base take.
+        base: String,
+        /// First replaced frame (number or marker label).
+        #[arg(long, value_name = "F0")]
+        from: String,
+        /// Last replaced frame (number or marker label).
+        #[arg(long, value_name = "F1")]
+        to: String,
+        /// The re-authored take.
+        #[arg(long = "with", value_name = "NEW")]
+        with: String,
+        /// Frames blended at each boundary.
+        #[arg(long, default_value_t = 5, value_name = "N")]
+        blend: usize,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Endless animation by looping (seed 000, Eq. 5): transition frames, then seeded playback.
+    Loop {
+        /// Take name.
+        name: String,
+        /// Regions L.
+        #[arg(long, default_value_t = 3, value_name = "L")]
+        regions: usize,
+        /// Transition frames per region P.
+        #[arg(long, default_value_t = 2, value_name = "P")]
+        per_region: usize,
+        /// Comparison window half-width D, frames.
+        #[arg(long, default_value_t = 2, value_name = "D")]
+        window: usize,
+        /// Random seed.
+        #[arg(long, default_value_t = 0, value_name = "S")]
+        seed: u64,
+        /// Length of the output, seconds.
+        #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+        duration: f64,
+        /// Jumps between frames further apart than this (degrees) get interpolated frames.
+        #[arg(long, default_value_t = 8.0, value_name = "DEG")]
+        threshold: f64,
+        /// Print {"pivot":N,"transitions":[...]} on stdout and write nothing.
+        #[arg(long)]
+        explain: bool,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Lay out a field of plants playing the take with propagation delays (Eq. 6-7) and write
+    /// field.json.
+    Field {
+        /// Take name (a looped take, `frond take loop`, long enough for the playback).
+        name: String,
+        /// Grid rows (across the force).
+        #[arg(long, value_name = "R")]
+        rows: usize,
+        /// Grid columns (along the force).
+        #[arg(long, value_name = "C")]
+        cols: usize,
+        /// Cell size, metres.
+        #[arg(long, value_name = "METRES")]
+        cell: f64,
+        /// Propagation speed V_M, m/s.
+        #[arg(long, value_name = "V_M")]
+        speed: f64,
+        /// Force heading, degrees (0 = +X, 90 = -Z).
+        #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_negative_numbers = true)]
+        direction: f64,
+        /// Fraction of cells that get a plant.
+        #[arg(long, default_value_t = 1.0, value_name = "F")]
+        density: f64,
+        /// Random seed.
+        #[arg(long, default_value_t = 0, value_name = "S")]
+        seed: u64,
+        /// Frame rate the take is sampled at.
+        #[arg(long, default_value_t = 30.0, value_name = "FPS")]
+        fps: f64,
+        /// Output file.
+        #[arg(short = 'o', long = "output", value_name = "FILE")]
+        output: PathBuf,
+    },
+    /// Motion speed, scale, bend rotation and rigidity delays (seed 000, section 6.3).
+    Retime {
+        /// Take name.
+        name: String,
+        /// Motion speed K.
+        #[arg(long, default_value_t = 1.0, value_name = "K")]
+        speed: f64,
+        /// Motion scale.
+        #[arg(long, default_value_t = 1.0, value_name = "K", allow_negative_numbers = true)]
+        scale: f32,
+        /// Bend direction rotation, degrees.
+        #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_negative_numbers = true)]
+        rotate: f64,
+        /// Rigidity delays of joints 1..3, seconds.
+        #[arg(long, default_value = "0,0,0", value_name = "D1,D2,D3")]
+        delay: String,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Guided procedural motion (Eq. 8): upper joints follow the root with thumb-controlled delays.
+    Guided {
+        /// Take name.
+        name: String,
+        /// sigma_1..3, seconds.
+        #[arg(long, value_name = "S1,S2,S3")]
+        sigma: String,
+        /// s_g(1..3).
+        #[arg(long, default_value = "1,1,1", value_name = "G1,G2,G3")]
+        sg: String,
+        /// Range of the top thumb joint, degrees [default: the rig's, else 60].
+        #[arg(long, value_name = "DEG")]
+        thumb_range: Option<f32>,
+        /// Rig file giving the thumb range.
+        #[arg(long, value_name = "FILE")]
+        rig: Option<PathBuf>,
+        #[command(flatten)]
+        out: Output,
+    },
+    /// Align a secondary take with a global one (section 6.5); writes a layered take: the
+    /// global layer plus the aligned secondary as layer --layer.
+    Align {
+        /// Global take.
+        global: String,
+        /// Secondary take (its global layer is used).
+        secondary: String,
+        /// Subsequence length, seconds.
+        #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
+        window: f64,
+        /// Random seed.
+        #[arg(long, default_value_t = 0, value_name = "S")]
+        seed: u64,
+        /// Name of the secondary layer in the output.
+        #[arg(long, default_value = "leaf", value_name = "NAME")]
+        layer: String,
+        /// Print the per-subsequence ratios as JSON on stderr.
+        #[arg(long)]
+        explain: bool,
+        #[command(flatten)]
+        out: Output,
+    },
+}
+
+fn read_take(g: &Global, name: &str) -> anyhow::Result<Take> {
+    let path = crate::takes::resolve(g, name)?;
+    let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
+    Take::from_bytes(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+fn check_fps(fps: f64) -> anyhow::Result<()> {
+    if fps.is_finite() && fps > 0.0 && fps <= 1000.0 {
+        Ok(())
+    } else {
+        usage(format!("--fps must be in (0, 1000], got {fps}"))
+    }
+}
+
+fn triple(flag: &str, text: &str) -> anyhow::Result<[f64; 3]> {
+    let v: Result<Vec<f64>, _> = text.split(',').map(|x| x.trim().parse::<f64>()).collect();
+    match v {
+        Ok(v) if v.len() == 3 && v.iter().all(|x| x.is_finite()) => Ok([v[0], v[1], v[2]]),
+        _ => usage(format!("{flag} takes three comma-separated numbers, got {text:?}")),
+    }
+}
+
+fn now_unix_s() -> u64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs())
+}
+
+fn global_clip(take: &Take, fps: f64, what: &str) -> anyhow::Result<Clip> {
+    let c = take.clip(GLOBAL_LAYER, fps);
+    if c.is_empty() {
+        anyhow::bail!("take {what:?} has no global frames");
+    }
+    Ok(c)
+}
+
+/// Writes the result: JSONL of its global layer on stdout, or `OUT.take` in the takes dir.
+fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyhow::Result<()> {
+    if out.jsonl {
+        let stdout = io::stdout();
+        let mut w = io::BufWriter::new(stdout.lock());
+        let mut line = String::with_capacity(256);
+        for f in take.layer(GLOBAL_LAYER, true) {
+            line.clear();
+            write_pose_line(&f.pose, None, &mut line);
+            line.push('\n');
+            w.write_all(line.as_bytes())?;
+        }
+        w.flush()?;
+        return Ok(());
+    }
+    let name = out.output.clone().unwrap_or(default_name);
+    write_take(g, &mut take, &name, out.force)
+}
+
+fn write_take(g: &Global, take: &mut Take, name: &str, force: bool) -> anyhow::Result<()> {
+    if let Err(e) = paths::validate_take_name(name) {
+        return usage(e);
+    }
+    let dir = paths::takes_dir(g.takes_dir.clone());
+    let path = dir.join(format!("{name}.take"));
+    if path.exists() && !force {
+        return usage(format!(
+            "{} exists; use --force to replace it or -o to choose another name",
+            path.display()
+        ));
+    }
+    take.header.name = name.to_string();
+    take.header.created_unix_s = now_unix_s();
+    write_atomically_bytes(&path, &take.to_bytes())?;
+    let frames = take.layer(GLOBAL_LAYER, true).len();
+    println!("wrote {} ({} frames, {} layers)", path.display(), frames, take.layer_ids().len());
+    Ok(())
+}
+
+/// A derived take: `src`'s header and names, the global layer replaced by `clip`.
+fn derived(src: &Take, clip: &Clip, keep_other_layers: bool) -> Take {
+    let mut t = src.clone();
+    t.header.tick_rate_hz = clip.fps.round().max(1.0) as u32;
+    t.markers.clear();
+    if !keep_other_layers {
+        t.frames.clear();
+    }
+    t.set_layer(GLOBAL_LAYER, None, frames_from_clip(clip, GLOBAL_LAYER, 0, None));
+    t
+}
+
+/// Runs one toolkit command.
+pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
+    match cmd {
+        TakeTool::Import { file, name, rig, calibration, filter, kind, jsonl, force } => {
+            let kind = match kind.as_str() {
+                "auto" => ImportKind::Auto,
+                "hand" => ImportKind::Hand,
+                "pose" => ImportKind::Pose,
+                other => return usage(format!("--kind must be auto, hand or pose, got {other:?}")),
+            };
+            let (rig, rig_name) = match &rig {
+                Some(p) => {
+                    let (r, _) = load_rig(p)?;
+                    let n = r.name.clone();
+                    (Some(r), n)
+                }
+                None => (None, "none".to_string()),
+            };
+            let mapping = rig.as_ref().map(|r| r.mapping()).unwrap_or_default();
+            let cal = match (&calibration, &rig) {
+                (Some(p), _) => {
+                    let text =
+                        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+                    Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?
+                }
+                (None, Some(r)) => Calibration::neutral_for(r),
+                (None, None) => Calibration {
+                    id: "none".into(),
+                    neutral_wrist_deg: [0.0; 3],
+                    neutral_thumb_deg: [0.0; 3],
+                    thumb_range_deg: DEFAULT_THUMB_RANGE_DEG,
+                    wrist_range_deg: None,
+                },
+            };
+            let spec = match &filter {
+                Some(s) => {
+                    s.parse::<FilterSpec>().map_err(|e| crate::UsageError(format!("--filter: {e}")))?
+                }
+                None => rig.as_ref().map_or(FilterSpec::None, |r| r.filter),
+            };
+            let mut mapper = Mapper::new(mapping, cal.params(), spec);
+            let text =
+                std::fs::read_to_string(&file).with_context(|| format!("cannot read {}", file.display()))?;
+            let frames =
+                import_jsonl(&text, kind, &mut mapper).map_err(|e| anyhow!("{}: {e}", file.display()))?;
+            let header = TakeHeader {
+                name: name.clone(),
+                rig_name,
+                calibration_id: cal.id.clone(),
+                filter: spec.to_string(),
+                tick_rate_hz: 0,
+                created_unix_s: 0,
+                daemon_version: format!("frond {} (import)", env!("CARGO_PKG_VERSION")),
+                joint_names: rig
+                    .as_ref()
+                    .map_or_else(|| (0..4).map(|i| format!("joint{i}")).collect(), |r| r.joint_names()),
+            };
+            let mut take = Take::new(header);
+            take.set_layer(GLOBAL_LAYER, None, frames);
+            let out = Output { output: Some(name.clone()), jsonl, force, fps: 30.0 };
+            emit(g, take, name, &out)
+        }
+        TakeTool::Resample { name, out } => {
+            check_fps(out.fps)?;
+            let src = read_take(g, &name)?;
+            let mut t = src.clone();
+            t.frames.clear();
+            t.markers.clear();
+            t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
+            for id in src.layer_ids() {
+                let f = resample_frames(&src.layer(id, false), out.fps)
+                    .map_err(|e| crate::UsageError(e.to_string()))?;
+                t.set_layer(id, None, f);
+            }
+            emit(g, t, format!("{name}-resample"), &out)
+        }
+        TakeTool::Filter { name, filter, layer, out } => {
+            check_fps(out.fps)?;
+            let spec =
+                filter.parse::<FilterSpec>().map_err(|e| crate::UsageError(format!("--filter: {e}")))?;
+            let src = read_take(g, &name)?;
+            let Some(id) = src.layer_id(&layer).filter(|id| src.layer_ids().contains(id)) else {
+                return usage(format!(
+                    "take {name:?} has no layer {layer:?} (layers: {:?})",
+                    layer_names(&src)
+                ));
+            };
+            let frames = resample_frames(&src.layer(id, false), out.fps)
+                .map_err(|e| crate::UsageError(e.to_string()))?;
+            let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
+            let filtered =
+                post_filter(&poses, spec).map_err(|e| crate::UsageError(format!("--filter: {e}")))?;
+            let mut t = src.clone();
+            t.markers.clear();
+            t.header.filter = format!("{} + post {spec}", t.header.filter);
+            t.set_layer(
+                id,
+                None,
+                frames.into_iter().zip(filtered).map(|(mut f, p)| {
+                    f.pose = p;
+                    f
+                }),
+            );
+            emit(g, t, format!("{name}-filter"), &out)
+        }
+        TakeTool::Splice { base, from, to, with, blend, out } => {
+            check_fps(out.fps)?;
+            let b = read_take(g, &base)?;
+            let n = read_take(g, &with)?;
+            let frame_of = |flag: &str, v: &str| -> anyhow::Result<usize> {
+                if let Ok(k) = v.parse::<usize>() {
+                    return Ok(k);
+                }
+                match b.marker_time(v) {
+                    Some(t) => Ok((t * out.fps).round() as usize),
+                    None => usage(format!("{flag} {v:?} is neither a frame number nor a marker of {base:?}")),
+                }
+            };
+            let (f0, f1) = (frame_of("--from", &from)?, frame_of("--to", &to)?);
+            let bf = resample_frames(&b.layer(GLOBAL_LAYER, false), out.fps)
+                .map_err(|e| crate::UsageError(e.to_string()))?;
+            let nf = resample_frames(&n.layer(GLOBAL_LAYER, false), out.fps)
+                .map_err(|e| crate::UsageError(e.to_string()))?;
+            let spliced =
+                splice(&bf, f0, f1, &nf, blend, out.fps).map_err(|e| crate::UsageError(e.to_string()))?;
+            let mut t = b.clone();
+            t.frames.clear();
+            t.markers.clear();
+            t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
+            t.set_layer(GLOBAL_LAYER, None, spliced);
+            emit(g, t, format!("{base}-splice"), &out)
+        }
+        TakeTool::Loop { name, regions, per_region, window, seed, duration, threshold, explain, out } => {
+            check_fps(out.fps)?;
+            if !(duration.is_finite() && duration > 0.0 && duration <= 86_400.0) {
+                return usage(format!("--duration must be in (0, 86400] seconds, got {duration}"));
+            }
+            if !(threshold.is_finite() && threshold > 0.0) {
+                return usage(format!("--threshold must be > 0 degrees, got {threshold}"));
+            }
+            let src = read_take(g, &name)?;
+            let clip = global_clip(&src, out.fps, &name)?;
+            let t = find_transitions(&clip, &LoopParams { regions, per_region, window })
+                .map_err(|e| crate::UsageError(format!("{name}: {e}")))?;
+            if explain {
+                println!("{}", t.explain_json());
+                return Ok(());
+            }
+            let count = (duration * out.fps).round() as usize + 1;
+            let (looped, _) = loop_clip(
+                &clip,
+                &t,
+                seed,
+                PlaybackParams { threshold_deg: threshold, max_inserted: 10 },
+                0,
+                count,
+            );
+            emit(g, derived(&src, &looped, false), format!("{name}-loop"), &out)
+        }
+        TakeTool::Field { name, rows, cols, cell, speed, direction, density, seed, fps, output } => {
+            check_fps(fps)?;
+            let src = read_take(g, &name)?;
+            let clip = global_clip(&src, fps, &name)?;
+            let params = FieldParams {
+                rows,
+                cols,
+                cell_m: cell,
+                speed_m_s: speed,
+                direction_deg: direction,
+                density,
+                seed,
+            };
+            let field =
+                make_field(&params, &name, clip.len(), fps).map_err(|e| crate::UsageError(e.to_string()))?;
+            write_atomically_bytes(&output, field.to_json().as_bytes())?;
+            println!("wrote {} ({} plants)", output.display(), field.plants.len());
+            Ok(())
+        }
+        TakeTool::Retime { name, speed, scale, rotate, delay, out } => {
+            check_fps(out.fps)?;
+            let delays_s = triple("--delay", &delay)?;
+            let src = read_take(g, &name)?;
+            let clip = global_clip(&src, out.fps, &name)?;
+            let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
+                .map_err(crate::UsageError)?;
+            emit(g, derived(&src, &r, false), format!("{name}-retime"), &out)
+        }
+        TakeTool::Guided { name, sigma, sg, thumb_range, rig, out } => {
+            check_fps(out.fps)?;
+            let sigma_s = triple("--sigma", &sigma)?;
+            let s_g = triple("--sg", &sg)?;
+            let range = match (thumb_range, &rig) {
+                (Some(r), _) => r,
+                (None, Some(p)) => load_rig(p)?.0.thumb_range_deg[2],
+                (None, None) => DEFAULT_THUMB_RANGE_DEG[2],
+            };
+            let src = read_take(g, &name)?;
+            let layer: Vec<TakeFrame> = src.layer(GLOBAL_LAYER, false);
+            let frames = resample_frames(&layer, out.fps).map_err(|e| crate::UsageError(e.to_string()))?;
+            if frames.is_empty() {
+                anyhow::bail!("take {name:?} has no global frames");
+            }
+            let clip = Clip { fps: out.fps, frames: frames.iter().map(|f| f.pose).collect() };
+            let hands: Vec<_> = frames.iter().map(|f| f.hand).collect();
+            let gp = GuidedParams { sigma_s, s_g, g3_range_deg: range };
+            let result = guided(&clip, &hands, &gp).map_err(crate::UsageError)?;
+            let mut t = derived(&src, &result, false);
+            t.set_layer(GLOBAL_LAYER, None, frames_from_clip(&result, GLOBAL_LAYER, 0, Some(&hands)));
+            emit(g, t, format!("{name}-guided"), &out)
+        }
+        TakeTool::Align { global, secondary, window, seed, layer, explain, out } => {
+            check_fps(out.fps)?;
+            if layer == "global" || layer.parse::<u16>().is_ok() {
+                return usage(format!("--layer must be an element name such as leaf, got {layer:?}"));
+            }
+            let gt = read_take(g, &global)?;
+            let st = read_take(g, &secondary)?;
+            let gc = global_clip(&gt, out.fps, &global)?;
+            let sc = global_clip(&st, out.fps, &secondary)?;
+            let transitions = find_transitions(&sc, &LoopParams::default()).ok();
+            let (aligned, steps) =
+                align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;
+            if explain {
+                eprintln!("{}", serde_json::to_string(&steps)?);
+            }
+            let mut t = derived(&gt, &gc, false);
+            let id = t.layer_id(&layer).unwrap_or(t.element_names.len() as u16 + 1);
+            t.set_layer(id, Some(&layer), frames_from_clip(&aligned, id, 0, None));
+            emit(g, t, format!("{global}-aligned"), &out)
+        }
+    }
+}
+
+fn layer_names(t: &Take) -> Vec<String> {
+    t.layer_ids().into_iter().map(|id| t.layer_name(id)).collect()
+}
