@@ -128,4 +128,16 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     assert!(!daemon.frond().args(["guided", "sigma=1"]).output().unwrap().status.success());
     frond_ok(&daemon, &["guided", "off"]);
     assert!(daemon.status().modes.is_empty());
+
+    // Guided motion as a rig option: a rig with a [guided] table switches it on when applied.
+    let rig = std::fs::read_to_string(frond_e2e::repo_root().join("rig-files/plants/grass.toml")).unwrap();
+    let guided_rig = dir.path().join("grass-guided.toml");
+    std::fs::write(
+        &guided_rig,
+        format!("{rig}\n[guided]\nsigma_s = [0.1, 0.2, 0.4]\ns_g = [1.0, 1.0, 2.0]\n"),
+    )
+    .unwrap();
+    frond_ok(&daemon, &["rig", "set", guided_rig.to_str().unwrap()]);
+    let modes = daemon.status().modes;
+    assert!(modes.iter().any(|m| m.contains("guided motion sigma=0.1,0.2,0.4;sg=1,1,2")), "{modes:?}");
 }

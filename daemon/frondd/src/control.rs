@@ -253,6 +253,12 @@ impl ControlContext {
             state.calibration = Calibration::neutral_for(&rig);
             let _ = self.send_loop(LoopCommand::SetCalibration(state.calibration.params()));
         }
+        let (stage, spec) =
+            crate::live::rig_guided(&rig, state.calibration.thumb_range_deg[2], self.tick_rate_hz).unzip();
+        if let Err(reply) = self.send_loop(LoopCommand::SetGuided(stage)) {
+            return *reply;
+        }
+        state.guided = spec;
         info!(rig = %rig.name, "rig applied");
         state.rig = rig;
         ControlReply::Ok

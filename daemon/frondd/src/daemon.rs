@@ -176,6 +176,11 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, "realtime loop running");
     let realtime = format!("scheduling {scheduling}; memory lock {memory}");
 
+    let (rig_stage, rig_guided_spec) =
+        crate::live::rig_guided(&rig, calibration.thumb_range_deg[2], config.tick_rate_hz).unzip();
+    if rig_stage.is_some() {
+        let _ = cmd_tx.send(LoopCommand::SetGuided(rig_stage));
+    }
     let mut state = DaemonState {
         rig,
         calibration,
@@ -190,7 +195,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         playing: None,
         layer: None,
         field: None,
-        guided: None,
+        guided: rig_guided_spec,
     };
     let first_event = if await_rx.is_empty() { "opened" } else { "not present; waiting for it" };
     state.push_event(started, format!("{} {} {first_event}", opened.kind, opened.path));
@@ -309,7 +314,11 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
         send(LoopCommand::SetMapping(rig.mapping()))?;
         send(LoopCommand::SetCalibration(calibration.params()))?;
         send(LoopCommand::SetFilter(filter))?;
+        let (stage, spec) =
+            crate::live::rig_guided(&rig, calibration.thumb_range_deg[2], ctx.tick_rate_hz).unzip();
+        send(LoopCommand::SetGuided(stage))?;
         let mut state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+        state.guided = spec;
         info!(rig = %rig.name, calibration = %calibration.id, %filter, "configuration reloaded");
         state.rig = rig;
         state.calibration = calibration;

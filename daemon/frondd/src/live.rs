@@ -156,6 +156,22 @@ pub fn parse_guided(spec: &str, g3_range_deg: f32) -> Result<GuidedParams, Strin
     Ok(params)
 }
 
+/// A rig's `[guided]` table as a live stage and its spec text (for status), or `None`.
+pub fn rig_guided(
+    rig: &frond_motion::Rig,
+    g3_range_deg: f32,
+    rate_hz: u32,
+) -> Option<(Box<GuidedLive>, String)> {
+    let g = rig.guided?;
+    let params = GuidedParams { sigma_s: g.sigma_s, s_g: g.s_g, g3_range_deg };
+    params.validate().ok()?;
+    let text = format!(
+        "sigma={},{},{};sg={},{},{} (rig {})",
+        g.sigma_s[0], g.sigma_s[1], g.sigma_s[2], g.s_g[0], g.s_g[1], g.s_g[2], rig.name
+    );
+    Some((Box::new(guided(params, rate_hz)), text))
+}
+
 /// Guided motion for a loop at `rate_hz`.
 pub fn guided(params: GuidedParams, rate_hz: u32) -> GuidedLive {
     GuidedLive::new(params, f64::from(rate_hz))

@@ -38,6 +38,6 @@ pub use filter::{FilterSpec, FilterSpecError, HandFilter, LowPass, OneEuro};
 pub use jsonl::{JsonlError, parse_hand_line, parse_pose_line, write_hand_line, write_pose_line};
 pub use mapping::{Mapper, MappingParams, map_pose};
 pub use problems::{Problem, Problems};
-pub use rig::{ElementSpec, JointSpec, Rig, RigError};
+pub use rig::{ElementSpec, GuidedSpec, JointSpec, Rig, RigError};
 pub use sample::{HandSample, JOINTS, PoseFrame};
 pub use take::{TakeError, TakeFrame, TakeHeader, TakeRecord, TakeScan, resample, scan_take};

@@ -73,6 +73,24 @@ pub struct Rig {
     pub elements: Vec<ElementSpec>,
     /// Where the rig's geometry comes from (`[mesh]` table; default a procedural blade).
     pub mesh: MeshSpec,
+    /// Guided procedural motion applied live (seed 000, section 6.4, Eq. 8; `[guided]` table with
+    /// `sigma_s` seconds and `s_g` gains per upper joint), or none.
+    pub guided: Option<GuidedSpec>,
+}
+
+/// The `[guided]` table of a rig: Eq. 8's `sigma_i` (seconds) and `s_g(i)` for joints 1..3.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GuidedSpec {
+    /// `sigma_1..sigma_3`, seconds.
+    pub sigma_s: [f64; 3],
+    /// `s_g(1)..s_g(3)`.
+    #[serde(default = "unit_gains")]
+    pub s_g: [f64; 3],
+}
+
+fn unit_gains() -> [f64; 3] {
+    [1.0; 3]
 }
 
 /// Procedural plant shapes (see `crate::mesh`).
@@ -252,6 +270,8 @@ struct RawRig {
     elements: Vec<RawElement>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     mesh: Option<RawMesh>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    guided: Option<GuidedSpec>,
 }
 
 fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
@@ -366,6 +386,15 @@ impl RawRig {
         }
 
         let mesh = self.mesh.clone().unwrap_or_default().validate(&mut p, joints[JOINTS - 1].height_m);
+        if let Some(g) = &self.guided {
+            for (key, values) in [("guided.sigma_s", g.sigma_s), ("guided.s_g", g.s_g)] {
+                for (i, v) in values.iter().enumerate() {
+                    if !(v.is_finite() && (0.0..=60.0).contains(v)) {
+                        p.push(&format!("{key}[{i}]"), format!("{v} must be between 0 and 60"));
+                    }
+                }
+            }
+        }
 
         if !p.is_empty() {
             return Err(p);
@@ -379,6 +408,7 @@ impl RawRig {
             filter,
             elements,
             mesh,
+            guided: self.guided,
         })
     }
 }
@@ -422,6 +452,7 @@ impl Rig {
                 })
                 .collect(),
             mesh: Some(RawMesh::from_spec(&self.mesh)),
+            guided: self.guided,
         };
         // Plain strings, integers and f32 values always serialize.
         toml::to_string(&raw).unwrap_or_default()
@@ -441,6 +472,25 @@ impl Rig {
     /// The joint names, root first (for the protocol `Hello` and take headers).
     pub fn joint_names(&self) -> Vec<String> {
         self.joints.iter().map(|j| j.name.clone()).collect()
+    }
+}
+
+#[cfg(test)]
+mod guided_tests {
+    use super::*;
+
+    const BASE: &str = "name = \"g\"\n[[joints]]\nheight_m = 0.0\n[[joints]]\nheight_m = 0.1\n[[joints]]\nheight_m = 0.2\n[[joints]]\nheight_m = 0.3\n";
+
+    #[test]
+    fn guided_table_parses_round_trips_and_is_validated() {
+        let rig = Rig::from_toml_str(&format!("{BASE}[guided]\nsigma_s = [0.1, 0.2, 0.3]\n")).unwrap();
+        assert_eq!(rig.guided, Some(GuidedSpec { sigma_s: [0.1, 0.2, 0.3], s_g: [1.0; 3] }));
+        assert_eq!(Rig::from_toml_str(&rig.to_toml_string()).unwrap().guided, rig.guided);
+        assert_eq!(Rig::from_toml_str(BASE).unwrap().guided, None);
+        let err = Rig::from_toml_str(&format!("{BASE}[guided]\nsigma_s = [0.1, -1, 99]\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("guided.sigma_s[1]") && err.contains("guided.sigma_s[2]"), "{err}");
     }
 }
 
