@@ -390,7 +390,7 @@ impl RawRig {
             for (key, values) in [("guided.sigma_s", g.sigma_s), ("guided.s_g", g.s_g)] {
                 for (i, v) in values.iter().enumerate() {
                     if !(v.is_finite() && (0.0..=60.0).contains(v)) {
-                        p.push(&format!("{key}[{i}]"), format!("{v} must be between 0 and 60"));
+                        p.push(format!("{key}[{i}]"), format!("{v} must be between 0 and 60"));
                     }
                 }
             }
