@@ -100,21 +100,21 @@ impl ControlContext {
             Err(e) => return refuse(ControlErrorKind::Invalid, format!("field of take {take:?}: {e}")),
         };
         let count = field.player.field().plants.len();
-        if let Err(r) = self.send_loop(LoopCommand::SetField(Some(Box::new(field)))) {
-            return *r;
+        let reply = self.field_command(LoopCommand::SetField(Some(Box::new(field))));
+        if reply == ControlReply::Ok {
+            info!(take, plants = count, "field playback started");
+            self.lock().field = Some((take, count));
         }
-        info!(take, plants = count, "field playback started");
-        self.lock().field = Some((take, count));
-        ControlReply::Ok
+        reply
     }
 
     /// Stops field playback.
     pub(crate) fn field_stop(&self) -> ControlReply {
-        if let Err(r) = self.send_loop(LoopCommand::SetField(None)) {
-            return *r;
+        let reply = self.field_command(LoopCommand::SetField(None));
+        if reply == ControlReply::Ok {
+            self.lock().field = None;
         }
-        self.lock().field = None;
-        ControlReply::Ok
+        reply
     }
 
     /// Applies a field control key.
@@ -126,10 +126,21 @@ impl ControlContext {
         if self.lock().field.is_none() {
             return refuse(ControlErrorKind::WrongState, "no field is playing (frond field start ...)");
         }
-        match self.send_loop(LoopCommand::FieldKey(key)) {
-            Ok(()) => ControlReply::Ok,
-            Err(r) => *r,
+        self.field_command(LoopCommand::FieldKey(key))
+    }
+
+    /// Sends a field command and answers once the loop has applied it (within a tick), so a
+    /// status read right after the reply shows the new field state.
+    fn field_command(&self, cmd: LoopCommand) -> ControlReply {
+        let before = self.stats.field_controls.version();
+        if let Err(r) = self.send_loop(cmd) {
+            return *r;
         }
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(1);
+        while self.stats.field_controls.version() == before && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_micros(200));
+        }
+        ControlReply::Ok
     }
 
     /// Switches guided motion on (spec) or off (`None`).

@@ -155,6 +155,7 @@ impl RawSampleCell {
 pub struct FieldControlsCell {
     active: AtomicBool,
     values: [AtomicU64; 7],
+    version: AtomicU64,
 }
 
 impl FieldControlsCell {
@@ -162,6 +163,7 @@ impl FieldControlsCell {
     pub fn store(&self, c: Option<frond_motion::controls::FieldControls>) {
         let Some(c) = c else {
             self.active.store(false, Relaxed);
+            self.version.fetch_add(1, std::sync::atomic::Ordering::Release);
             return;
         };
         let v = [
@@ -177,6 +179,12 @@ impl FieldControlsCell {
             cell.store(x.to_bits(), Relaxed);
         }
         self.active.store(true, Relaxed);
+        self.version.fetch_add(1, std::sync::atomic::Ordering::Release);
+    }
+
+    /// Bumped on every store, so a writer of a change can wait until the loop applied it.
+    pub fn version(&self) -> u64 {
+        self.version.load(std::sync::atomic::Ordering::Acquire)
     }
 
     /// The controls, if a field plays.
