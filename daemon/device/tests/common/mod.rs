@@ -43,7 +43,7 @@ pub fn hand_jsonl(n: usize, rate_hz: f64) -> String {
     s
 }
 
-/// Reads from `src` until `n` samples arrived or `timeout` passed.
+/// Reads exactly `n` samples (fewer only if `timeout` passes first).
 pub fn read_n(
     src: &mut dyn HandSource,
     n: usize,
@@ -53,7 +53,9 @@ pub fn read_n(
     let mut out = Vec::new();
     let mut buf = [DeviceSample::default(); 32];
     while out.len() < n && Instant::now() < deadline {
-        let k = src.read_pending(&mut buf)?;
+        // Ask for no more than is still wanted: the rest stays queued for the next read.
+        let want = (n - out.len()).min(buf.len());
+        let k = src.read_pending(&mut buf[..want])?;
         out.extend_from_slice(&buf[..k]);
         if k == 0 {
             std::thread::sleep(Duration::from_millis(2));
