@@ -25,6 +25,8 @@ fn demo_records_a_take_bakes_a_glb_and_leaves_no_daemon() {
     let glb = std::fs::read(dir.path().join("e2e-demo.glb")).expect("GLB baked");
     assert_eq!(&glb[..4], b"glTF", "not a GLB");
     assert!(stdout.contains("e2e-demo.glb"), "{stdout}");
+    let gif = std::fs::read(dir.path().join("e2e-demo.gif")).expect("warp preview rendered");
+    assert_eq!(&gif[..6], b"GIF89a", "not a GIF");
     // The daemon it started is gone: no frondd has our takes dir on its command line.
     let ours = std::fs::read_dir("/proc")
         .unwrap()

@@ -70,6 +70,10 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
         ),
         Err(e) => eprintln!("frond: warning: no GLB baked: {e:#}"),
     }
+    match warp_preview(&take.path) {
+        Ok(gif) => println!("preview:    {} (grass blown by the take's wind, frond-warp)", gif.display()),
+        Err(e) => eprintln!("frond: warning: no warp preview: {e:#}"),
+    }
     let td = takes_dir.display();
     println!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl");
     println!("at 30 fps:  frond take export {name} --jsonl --fps 30 --takes-dir {td} > {name}-30fps.jsonl");
@@ -219,6 +223,44 @@ pub(crate) fn find_program(name: &str) -> anyhow::Result<PathBuf> {
         "cannot find {name}: not at {} and not on PATH (build it with `cargo build --release --workspace --bins`)",
         beside.display()
     ))
+}
+
+/// Renders a picture of grass blowing in the take's wind with `frond-warp` (seed 001): the sample
+/// pictures are drawn by `frond-warp make-samples`, so the demo needs no files from the source tree.
+fn warp_preview(take_path: &str) -> anyhow::Result<PathBuf> {
+    let warp = find_program("frond-warp")?;
+    let samples = tempfile::Builder::new().prefix("frond-demo-images-").tempdir()?;
+    let run = |args: &[&std::ffi::OsStr]| -> anyhow::Result<()> {
+        let status = Command::new(&warp)
+            .args(args)
+            .stdout(Stdio::null())
+            .status()
+            .with_context(|| format!("cannot run {}", warp.display()))?;
+        if !status.success() {
+            return Err(anyhow!("{} exited with {status}", warp.display()));
+        }
+        Ok(())
+    };
+    run(&["make-samples".as_ref(), samples.path().as_os_str()])?;
+    let out = Path::new(take_path).with_extension("gif");
+    let (image, mask) = (samples.path().join("grass.png"), samples.path().join("grass-mask.png"));
+    run(&[
+        "render".as_ref(),
+        "--quiet".as_ref(),
+        "--image".as_ref(),
+        image.as_os_str(),
+        "--layer".as_ref(),
+        mask.as_os_str(),
+        "--take".as_ref(),
+        take_path.as_ref(),
+        "--frames".as_ref(),
+        "45".as_ref(),
+        "--fps".as_ref(),
+        "30".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ])?;
+    Ok(out)
 }
 
 /// Bakes the demo take into a GLB beside it with `frond-gltf`, so the animator can open it at once.
