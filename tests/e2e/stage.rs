@@ -374,3 +374,23 @@ fn a_device_that_stops_sending_without_disappearing_is_flagged_then_resumes() {
     assert!(events.contains("stalled") && events.contains("resumed"), "{events}");
     assert!(!events.contains("reopened"), "a stall is not a disconnect: {events}");
 }
+
+#[test]
+fn realtime_cpu_pins_the_loop_thread_and_status_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("frondd.toml");
+    std::fs::write(&config, "[realtime]\ncpu = 1\n").unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--config", config.to_str().unwrap()]);
+    let status = daemon.status();
+    assert!(status.realtime.contains("pinned to CPU 1"), "{}", status.realtime);
+    // The kernel's view: the thread named frond-rt may run on CPU 1 only.
+    let pid = daemon.proc.child.id();
+    let rt = std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .find(|e| std::fs::read_to_string(e.path().join("comm")).is_ok_and(|c| c.trim() == "frond-rt"))
+        .expect("the loop thread");
+    let task_status = std::fs::read_to_string(rt.path().join("status")).unwrap();
+    let allowed = task_status.lines().find_map(|l| l.strip_prefix("Cpus_allowed_list:")).unwrap().trim();
+    assert_eq!(allowed, "1");
+}

@@ -66,6 +66,7 @@ struct RawRecorder {
 struct RawRealtime {
     priority: Option<i64>,
     lock_memory: Option<bool>,
+    cpu: Option<i64>,
 }
 
 impl RawConfig {
@@ -97,6 +98,7 @@ impl RawConfig {
         pick(&mut self.recorder.fsync_interval_ms, other.recorder.fsync_interval_ms);
         pick(&mut self.realtime.priority, other.realtime.priority);
         pick(&mut self.realtime.lock_memory, other.realtime.lock_memory);
+        pick(&mut self.realtime.cpu, other.realtime.cpu);
         pick(&mut self.control.allowed_uids, other.control.allowed_uids);
         pick(&mut self.control.allowed_gids, other.control.allowed_gids);
         self
@@ -175,6 +177,8 @@ pub struct Config {
     pub rt_priority: u8,
     /// mlockall.
     pub lock_memory: bool,
+    /// CPU the loop thread is pinned to, if any.
+    pub rt_cpu: Option<usize>,
     /// Users (besides root and the daemon's own user) allowed on the control socket.
     pub allowed_uids: Vec<u32>,
     /// Groups allowed on the control socket (primary or supplementary group of the client).
@@ -264,6 +268,7 @@ impl Config {
             10,
             1000,
         );
+        let rt_cpu = range(&mut errors, "realtime.cpu", raw.realtime.cpu.or(Some(-1)), -1, 1023);
         let rt_priority =
             range(&mut errors, "realtime.priority", raw.realtime.priority.or(Some(0)), 0, 99) as u8;
         let ids = |errors: &mut Vec<String>, key: &str, v: Option<Vec<i64>>| -> Vec<u32> {
@@ -297,6 +302,7 @@ impl Config {
             fsync_interval: Duration::from_millis(fsync_ms as u64),
             rt_priority,
             lock_memory: raw.realtime.lock_memory.unwrap_or(false),
+            rt_cpu: usize::try_from(rt_cpu).ok(),
             allowed_uids,
             allowed_gids,
         })
@@ -344,6 +350,15 @@ mod tests {
     fn unknown_keys_are_refused() {
         let err = RawConfig::parse("tick_rate = 10", "f.toml").unwrap_err();
         assert!(err.contains("f.toml") && err.contains("tick_rate"), "{err}");
+    }
+
+    #[test]
+    fn realtime_cpu_is_optional_and_checked() {
+        assert_eq!(Config::load(None, RawConfig::default()).unwrap().rt_cpu, None);
+        let raw = RawConfig::parse("[realtime]\ncpu = 1\n", "t").unwrap();
+        assert_eq!(Config::validate(raw).unwrap().rt_cpu, Some(1));
+        let raw = RawConfig::parse("[realtime]\ncpu = -2\n", "t").unwrap();
+        assert!(Config::validate(raw).unwrap_err()[0].starts_with("realtime.cpu: -2"));
     }
 
     #[test]

@@ -173,8 +173,9 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     let (rt, rt_report) =
         spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), loop_stop.clone())?;
     let scheduling = rt_report.recv().unwrap_or_else(|_| "unknown".into());
-    info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, "realtime loop running");
-    let realtime = format!("scheduling {scheduling}; memory lock {memory}");
+    let pinning = crate::realtime::pin_thread(&rt, config.rt_cpu);
+    info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, cpu = %pinning, "realtime loop running");
+    let realtime = format!("scheduling {scheduling}; memory lock {memory}; pinned to {pinning}");
 
     let (rig_stage, rig_guided_spec) =
         crate::live::rig_guided(&rig, calibration.thumb_range_deg[2], config.tick_rate_hz).unzip();

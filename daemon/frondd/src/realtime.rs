@@ -42,6 +42,31 @@ pub fn lock_memory(enabled: bool) -> String {
     if rc == 0 { "locked".into() } else { format!("refused: {}", std::io::Error::last_os_error()) }
 }
 
+/// Pins the thread `handle` runs on to `cpu`; reports the outcome.
+pub fn pin_thread<T>(handle: &thread::JoinHandle<T>, cpu: Option<usize>) -> String {
+    use std::os::unix::thread::JoinHandleExt;
+    let Some(cpu) = cpu else { return "none (realtime.cpu = -1)".into() };
+    if cpu >= libc::CPU_SETSIZE as usize {
+        return format!("refused: CPU {cpu} is beyond CPU_SETSIZE");
+    }
+    // SAFETY: cpu_set_t is plain data; CPU_ZERO/CPU_SET only write inside it (cpu < CPU_SETSIZE).
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    // SAFETY: as above.
+    unsafe {
+        libc::CPU_ZERO(&mut set);
+        libc::CPU_SET(cpu, &mut set);
+    }
+    // SAFETY: the pthread handle is alive (we hold its JoinHandle); `set` is a valid cpu_set_t.
+    let rc = unsafe {
+        libc::pthread_setaffinity_np(handle.as_pthread_t(), std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    if rc == 0 {
+        format!("CPU {cpu}")
+    } else {
+        format!("refused for CPU {cpu}: {}", std::io::Error::from_raw_os_error(rc))
+    }
+}
+
 /// Starts the loop thread. It runs until `stop` is set, then returns the engine.
 pub fn spawn_loop(
     mut engine: Engine,
