@@ -3,10 +3,6 @@
 //! Only allocations made by the test's own thread are counted (the harness's threads may
 //! allocate at any time).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
 use frond_motion::clip::{Clip, DelayLine};
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::bench_field_1000;
@@ -14,41 +10,7 @@ use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, find_transitions};
 use frond_motion::{HandSample, PoseFrame};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    // Const-initialised without a destructor: reading it never allocates.
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-fn count() {
-    if COUNTING.with(Cell::get) {
-        ALLOCATIONS.fetch_add(1, Relaxed);
-    }
-}
-
-// SAFETY: forwards every call unchanged to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+mod common;
 
 #[test]
 fn live_building_blocks_do_not_allocate_per_tick() {
@@ -69,29 +31,27 @@ fn live_building_blocks_do_not_allocate_per_tick() {
     let mut controls = FieldControls::default();
     field.frame(0.0, &mut out);
 
-    let before = ALLOCATIONS.load(Relaxed);
-    COUNTING.with(|c| c.set(true));
     let mut sink = 0.0f32;
-    for tick in 0..5000u32 {
-        let ts = tick as f64 / 1000.0;
-        let j = playback.pose_at(ts);
-        let pose = PoseFrame { t: ts, joints_deg: j };
-        line.push(pose);
-        sink += line.at_time(ts - 0.25).unwrap()[0][0];
-        let hand = HandSample { t: ts, wrist_deg: [j[0][0], j[0][1], 0.0], thumb_deg: [0.0, 0.0, 30.0] };
-        sink += guided.apply(&pose, &hand).joints_deg[3][0];
-        if swipe.push(&hand).is_some() {
-            sink += 1.0;
+    let ((), allocations) = common::allocations_in(|| {
+        for tick in 0..5000u32 {
+            let ts = tick as f64 / 1000.0;
+            let j = playback.pose_at(ts);
+            let pose = PoseFrame { t: ts, joints_deg: j };
+            line.push(pose);
+            sink += line.at_time(ts - 0.25).unwrap()[0][0];
+            let hand = HandSample { t: ts, wrist_deg: [j[0][0], j[0][1], 0.0], thumb_deg: [0.0, 0.0, 30.0] };
+            sink += guided.apply(&pose, &hand).joints_deg[3][0];
+            if swipe.push(&hand).is_some() {
+                sink += 1.0;
+            }
+            if tick % 33 == 0 {
+                controls.key(if tick % 2 == 0 { ControlKey::Stronger } else { ControlKey::Weaker });
+                field.set_controls(controls);
+                field.frame(ts, &mut out);
+                sink += out[999][3][0];
+            }
         }
-        if tick % 33 == 0 {
-            controls.key(if tick % 2 == 0 { ControlKey::Stronger } else { ControlKey::Weaker });
-            field.set_controls(controls);
-            field.frame(ts, &mut out);
-            sink += out[999][3][0];
-        }
-    }
-    COUNTING.with(|c| c.set(false));
-    let after = ALLOCATIONS.load(Relaxed);
+    });
     assert!(sink.is_finite());
-    assert_eq!(after - before, 0, "allocations on the live path");
+    assert_eq!(allocations, 0, "allocations on the live path");
 }

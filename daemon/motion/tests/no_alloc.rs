@@ -2,47 +2,10 @@
 //! for every filter kind, and encoding a Frame record into a buffer with room.
 //! Only the test's own thread is counted: the test harness's threads may allocate meanwhile.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
 use frond_motion::take::{TakeFrame, TakeRecord, encode_record};
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-fn count() {
-    if COUNTING.try_with(Cell::get).unwrap_or(false) {
-        ALLOCATIONS.fetch_add(1, Relaxed);
-    }
-}
-
-// SAFETY: forwards every call unchanged to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+mod common;
 
 #[test]
 fn per_tick_work_does_not_allocate() {
@@ -56,19 +19,18 @@ fn per_tick_work_does_not_allocate() {
         *s = HandSample { t: k as f64 * 0.001, wrist_deg: [x, -x, x], thumb_deg: [x.abs(); 3] };
     }
 
-    let before = ALLOCATIONS.load(Relaxed);
-    COUNTING.with(|c| c.set(true));
-    for s in &samples {
-        for m in &mut mappers {
-            let (hand, pose) = m.process(s);
-            let frame = TakeFrame { seq: 1, device_time_us: 2, host_ns: 3, flags: 0, element: 0, pose, hand };
-            encode_record(&TakeRecord::Frame(frame), &mut buf);
+    let ((), allocations) = common::allocations_in(|| {
+        for s in &samples {
+            for m in &mut mappers {
+                let (hand, pose) = m.process(s);
+                let frame =
+                    TakeFrame { seq: 1, device_time_us: 2, host_ns: 3, flags: 0, element: 0, pose, hand };
+                encode_record(&TakeRecord::Frame(frame), &mut buf);
+            }
+            m_set_filter_is_heap_free(&mut mappers[0]);
         }
-        m_set_filter_is_heap_free(&mut mappers[0]);
-    }
-    COUNTING.with(|c| c.set(false));
-    let after = ALLOCATIONS.load(Relaxed);
-    assert_eq!(after - before, 0, "allocations during {} ticks", samples.len());
+    });
+    assert_eq!(allocations, 0, "allocations during {} ticks", samples.len());
     assert!(!buf.is_empty());
 }
 
