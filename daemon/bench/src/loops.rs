@@ -213,9 +213,15 @@ impl FullLoop {
             write_timeout: Duration::from_secs(2),
             max_subscribers: 64,
         };
-        let publisher =
-            spawn_publisher(publish_rx, join_rx, config, Arc::new(move || hello.clone()), loop_stats)
-                .map_err(|e| e.to_string())?;
+        let publisher = spawn_publisher(
+            publish_rx,
+            ends.publish_wake.clone(),
+            join_rx,
+            config,
+            Arc::new(move || hello.clone()),
+            loop_stats,
+        )
+        .map_err(|e| e.to_string())?;
         let acceptor = spawn_acceptor(listener, config, join_tx, registry.clone(), stop_all.clone())
             .map_err(|e| e.to_string())?;
         let received = Arc::new(AtomicU64::new(0));

@@ -51,8 +51,8 @@ pub(crate) fn render(r: &StatusReport) -> String {
     let _ = writeln!(o, "filter       {}", r.filter);
     let _ = writeln!(
         o,
-        "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} publish drops)",
-        r.tick_rate_hz, r.achieved_rate_hz, r.ticks, r.held_ticks, r.publish_drops
+        "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} device wakes, {} publish drops)",
+        r.tick_rate_hz, r.achieved_rate_hz, r.ticks, r.held_ticks, r.device_wakes, r.publish_drops
     );
     let l = &r.lateness;
     let _ = writeln!(
@@ -129,6 +129,7 @@ mod tests {
             achieved_rate_hz: 999.94,
             ticks: 5000,
             held_ticks: 12,
+            device_wakes: 4988,
             publish_drops: 0,
             lateness: LatencySummary {
                 p50_us: 12.5,
@@ -160,7 +161,7 @@ mod tests {
             "rig          grass",
             "calibration  alice",
             "filter       one-euro:min_cutoff=1,beta=0.007,d_cutoff=1",
-            "1000 Hz nominal, 999.9 Hz achieved (5000 ticks, 12 held, 0 publish drops)",
+            "1000 Hz nominal, 999.9 Hz achieved (5000 ticks, 12 held, 4988 device wakes, 0 publish drops)",
             "p50 12.5 us, p99 40.0 us, p99.9 80.3 us, max 120.0 us (1000 samples)",
             "RECORDING take1 -> /d/take1.take (99 frames, 0 dropped)",
             "subscribers  1",

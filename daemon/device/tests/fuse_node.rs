@@ -84,6 +84,42 @@ fn nonblocking_read_returns_nothing_when_empty() {
     assert_eq!(dev.read_timeout(&mut b, 50).unwrap(), 0);
 }
 
+/// The loop waits on [`HandSource::ready_fd`]: it must be hidapi's own descriptor for the node,
+/// quiet while nothing is pending and readable as soon as a report is, and gone after a
+/// disconnect.
+#[test]
+fn ready_fd_is_the_nodes_descriptor_and_polls_readable_when_a_report_is_pending() {
+    if !fuse_available() {
+        return;
+    }
+    let poll = |fd: i32, ms: i32| {
+        let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+        // SAFETY: one valid pollfd.
+        unsafe { libc::poll(&mut pfd, 1, ms) }
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg = VirtualGloveConfig::sway(200.0);
+    cfg.start_delay_ms = 800;
+    cfg.faults.unplug = Some(UnplugPlan { at_ms: 1500, duration_ms: 60_000, every_ms: None });
+    let glove = mount_fuse(&tmp.path().join("mnt"), cfg).unwrap();
+    let profile = DeviceProfile::frond_glove();
+    let mut src = HidSource::open_path(&profile, glove.node_path(), SourceKind::FuseHidraw).unwrap();
+    let fd = src.ready_fd().expect("hidapi's descriptor identified");
+    // An independent check that it is the node: /proc names the file behind the descriptor.
+    let target = std::fs::read_link(format!("/proc/self/fd/{fd}")).unwrap();
+    assert_eq!(target, glove.node_path());
+    // Before the first report: the poll times out.
+    assert_eq!(poll(fd, 100), 0, "readable with nothing pending");
+    // A report arrives: poll wakes (well before its 10 s timeout), and the report is read.
+    assert_eq!(poll(fd, 10_000), 1);
+    let mut buf = [frond_device::DeviceSample::default(); 8];
+    assert!(src.read_pending(&mut buf).unwrap() >= 1);
+    // After the unplug the source reports the loss and offers no descriptor.
+    let e = read_until_disconnect(&mut src, Duration::from_secs(10)).expect("no disconnect");
+    assert!(matches!(e, SourceError::Disconnected { .. }), "{e}");
+    assert_eq!(src.ready_fd(), None);
+}
+
 #[test]
 fn blocking_reads_are_parked_until_a_report_arrives() {
     if !fuse_available() {

@@ -80,3 +80,47 @@ fn faults_are_counted_by_the_parser() {
     assert!(c.checksum + c.wrong_id <= corrupted, "{c:?} vs {corrupted}");
     assert!(got.windows(2).all(|w| w[1].device_seq > w[0].device_seq));
 }
+
+fn poll_readable(fd: i32, timeout_ms: i32) -> bool {
+    let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+    // SAFETY: one valid pollfd.
+    unsafe { libc::poll(&mut pfd, 1, timeout_ms) == 1 }
+}
+
+/// The loop waits on the in-process glove's ready descriptor: quiet until a report is queued,
+/// readable once one is, quiet again once `read_pending` took it, readable at an unplug, and
+/// absent while disconnected.
+#[test]
+fn in_process_glove_rings_its_ready_descriptor_per_report_and_at_unplug() {
+    let cfg = VirtualGloveConfig {
+        source: GloveSource::Sway { rate_hz: 2.0 },
+        faults: FaultPlan {
+            unplug: Some(UnplugPlan { at_ms: 1200, duration_ms: 60_000, every_ms: None }),
+            ..FaultPlan::default()
+        },
+        start_delay_ms: 300,
+        clock: frond_device::DeviceClock::Schedule,
+    };
+    let mut src = InProcessGlove::new(cfg).unwrap();
+    let fd = src.ready_fd().expect("an eventfd");
+    assert!(!poll_readable(fd, 50), "readable before any report");
+    // The first report (at 300 ms) wakes a poll with a far longer timeout.
+    assert!(poll_readable(fd, 10_000));
+    let mut buf = [frond_device::DeviceSample::default(); 4];
+    assert_eq!(src.read_pending(&mut buf).unwrap(), 1);
+    // Taken: quiet until the next report, 500 ms later at 2 Hz.
+    assert!(!poll_readable(fd, 100), "still readable after the report was read");
+    assert!(poll_readable(fd, 10_000));
+    assert_eq!(src.read_pending(&mut buf).unwrap(), 1);
+    // The unplug (at 1200 ms, before the next report) wakes the poll as well.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let err = loop {
+        assert!(poll_readable(fd, 10_000), "neither a report nor the unplug woke the poll");
+        match src.read_pending(&mut buf) {
+            Ok(_) => assert!(std::time::Instant::now() < deadline, "no unplug"),
+            Err(e) => break e,
+        }
+    };
+    assert!(matches!(err, SourceError::Disconnected { .. }), "{err}");
+    assert_eq!(src.ready_fd(), None);
+}

@@ -45,6 +45,7 @@ struct RawSource {
     replay: Option<String>,
     stall_ms: Option<i64>,
     virtual_rate_hz: Option<i64>,
+    virtual_clock: Option<String>,
 }
 
 #[derive(Debug, Default, Clone, Deserialize)]
@@ -92,6 +93,7 @@ impl RawConfig {
         pick(&mut self.source.replay, other.source.replay);
         pick(&mut self.source.stall_ms, other.source.stall_ms);
         pick(&mut self.source.virtual_rate_hz, other.source.virtual_rate_hz);
+        pick(&mut self.source.virtual_clock, other.source.virtual_clock);
         pick(&mut self.publisher.queue_frames, other.publisher.queue_frames);
         pick(&mut self.publisher.max_subscribers, other.publisher.max_subscribers);
         pick(&mut self.publisher.write_timeout_ms, other.publisher.write_timeout_ms);
@@ -165,6 +167,9 @@ pub struct Config {
     pub stall: Duration,
     /// Rate of the built-in sway.
     pub virtual_rate_hz: u32,
+    /// Device clock of the built-in virtual glove (`monotonic` lets subscribers measure
+    /// glove-to-receipt latency).
+    pub virtual_clock: frond_device::DeviceClock,
     /// Subscriber queue length.
     pub queue_frames: usize,
     /// Subscriber limit.
@@ -240,6 +245,14 @@ impl Config {
         let stall_ms = range(&mut errors, "source.stall_ms", raw.source.stall_ms.or(Some(250)), 10, 60_000);
         let virtual_rate_hz =
             range(&mut errors, "source.virtual_rate_hz", raw.source.virtual_rate_hz.or(Some(1000)), 1, 8000);
+        let virtual_clock = match raw.source.virtual_clock.as_deref() {
+            None | Some("schedule") => frond_device::DeviceClock::Schedule,
+            Some("monotonic") => frond_device::DeviceClock::Monotonic,
+            Some(other) => {
+                errors.push(format!("source.virtual_clock: {other:?} is not one of schedule, monotonic"));
+                frond_device::DeviceClock::Schedule
+            }
+        };
         let queue_frames = range(
             &mut errors,
             "publisher.queue_frames",
@@ -296,6 +309,7 @@ impl Config {
             device_path: raw.source.path.map(PathBuf::from),
             stall: Duration::from_millis(stall_ms as u64),
             virtual_rate_hz: virtual_rate_hz as u32,
+            virtual_clock,
             queue_frames: queue_frames as usize,
             max_subscribers: max_subscribers as usize,
             write_timeout: Duration::from_millis(write_timeout_ms as u64),

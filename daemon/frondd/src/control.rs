@@ -450,6 +450,7 @@ impl ControlContext {
             achieved_rate_hz: state.achieved_rate_hz,
             ticks: s.ticks.load(Relaxed),
             held_ticks: s.held_ticks.load(Relaxed),
+            device_wakes: s.device_wakes.load(Relaxed),
             publish_drops: s.publish_drops.load(Relaxed),
             lateness: s.lateness.summary(),
             subscribers: self.registry.snapshot(),
@@ -480,7 +481,11 @@ pub fn spawn_control(
             let stream = match listener.accept() {
                 Ok((s, _)) => s,
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                    thread::sleep(Duration::from_millis(20));
+                    // Woken by a connection, or every 100 ms to look at `stop`.
+                    crate::clock::wait_readable(
+                        std::os::fd::AsFd::as_fd(&listener),
+                        Duration::from_millis(100),
+                    );
                     continue;
                 }
                 Err(e) => {

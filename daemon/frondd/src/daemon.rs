@@ -151,6 +151,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
 
     let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
+    let publish_wake = publish_queue.wake();
     let (join_tx, join_rx) = bounded::<NewSubscriber>(16);
     let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
     let engine = Engine::new(
@@ -238,7 +239,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         write_timeout: config.write_timeout,
         max_subscribers: config.max_subscribers,
     };
-    let publisher_thread = spawn_publisher(publish_rx, join_rx, publisher, hello, stats.clone())?;
+    let publisher_thread =
+        spawn_publisher(publish_rx, publish_wake, join_rx, publisher, hello, stats.clone())?;
     let acceptor =
         spawn_acceptor(pose_listener, publisher, join_tx, ctx.registry.clone(), threads_stop.clone())?;
     let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;

@@ -89,6 +89,8 @@ pub struct EngineEnds {
     pub commands: Sender<LoopCommand>,
     /// Frames the loop publishes.
     pub frames: Receiver<Pose>,
+    /// Wakes whoever waits on `frames` through it (see [`crate::publisher::spawn_publisher`]).
+    pub publish_wake: Arc<crate::publisher::PublisherWake>,
     /// Frames the loop hands to the recorder.
     pub recorder: Receiver<RecorderMsg>,
     /// Sources the loop gives up as lost.
@@ -115,6 +117,8 @@ pub struct Engine {
     field: Option<Box<LiveField>>,
     guided: Option<Box<GuidedLive>>,
     layer: u16,
+    /// Reports published by [`Engine::device_ready`] since the last tick.
+    fresh_since_tick: usize,
 }
 
 impl Engine {
@@ -145,6 +149,7 @@ impl Engine {
             field: None,
             guided: None,
             layer: 0,
+            fresh_since_tick: 0,
         }
     }
 
@@ -163,6 +168,7 @@ impl Engine {
         let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(1);
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
         let stats = Arc::new(LoopStats::default());
+        let publish_wake = publish.wake();
         let links = EngineLinks {
             commands: cmd_rx,
             publish,
@@ -174,6 +180,7 @@ impl Engine {
         let ends = EngineEnds {
             commands: cmd_tx,
             frames,
+            publish_wake,
             recorder: rec_rx,
             reopen: reopen_rx,
             garbage: garbage_rx,
@@ -188,17 +195,58 @@ impl Engine {
         }
     }
 
-    /// Runs one tick at host time `now_ns`. Publishes at least one frame.
-    pub fn tick(&mut self, now_ns: u64) {
+    /// The source's ready descriptor (see [`HandSource::ready_fd`]), if it has one.
+    pub fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
+        self.source.as_ref()?.ready_fd()
+    }
+
+    /// Whether every tick does work of its own (a looped take or a field is playing), so that a
+    /// tick may not be skipped even when a report already covered its period.
+    pub fn needs_every_tick(&self) -> bool {
+        self.playback.is_some() || self.field.is_some()
+    }
+
+    /// Between ticks, when the source's ready descriptor woke the loop: applies pending commands
+    /// and publishes every pending report at once, instead of at the next tick. Returns the
+    /// number of reports published; the next [`Engine::tick`] counts them as fresh, so it
+    /// publishes no held frame for the period they arrived in.
+    pub fn device_ready(&mut self, now_ns: u64) -> usize {
         self.apply_commands(now_ns);
-        self.play_live(now_ns);
         let fresh = self.read_device(now_ns);
+        self.note_fresh(fresh, now_ns);
+        self.fresh_since_tick += fresh;
+        fresh
+    }
+
+    /// The loop's bookkeeping after a [`Engine::device_ready`] that published reports, when
+    /// [`Engine::needs_every_tick`] is false: the reports belong to a period whose tick is
+    /// covered by them, so they must not count for the next tick. `count_tick` when this
+    /// covers the upcoming tick (the loop then skips it and waits for the one after).
+    pub fn cover_tick(&mut self, count_tick: bool) {
+        self.fresh_since_tick = 0;
+        if count_tick {
+            self.links.stats.ticks.fetch_add(1, Relaxed);
+            self.links.stats.covered_ticks.fetch_add(1, Relaxed);
+        }
+    }
+
+    fn note_fresh(&mut self, fresh: usize, now_ns: u64) {
         if fresh > 0 {
             self.last_report_ns = now_ns;
             if self.device_lost {
                 self.set_device_lost(false);
             }
-        } else {
+        }
+    }
+
+    /// Runs one tick at host time `now_ns`. Publishes at least one frame.
+    pub fn tick(&mut self, now_ns: u64) {
+        self.apply_commands(now_ns);
+        self.play_live(now_ns);
+        let read = self.read_device(now_ns);
+        self.note_fresh(read, now_ns);
+        let fresh = read + std::mem::take(&mut self.fresh_since_tick);
+        if fresh == 0 {
             let stalled =
                 self.source.is_some() && now_ns.saturating_sub(self.last_report_ns) > self.stall_after_ns;
             if stalled && !self.device_lost {

@@ -10,12 +10,12 @@
 
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed, Ordering::SeqCst, fence};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError, bounded};
+use crossbeam_channel::{Receiver, Sender, TryRecvError, TrySendError, bounded};
 use frond_protocol::{Hello, Pose, ServerMessage, SubscriberStatus, encode_frame};
 use tracing::{debug, info, warn};
 
@@ -113,7 +113,11 @@ pub fn spawn_acceptor(
             let stream = match listener.accept() {
                 Ok((stream, _)) => stream,
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                    thread::sleep(Duration::from_millis(20));
+                    // Woken by a connection, or every 100 ms to look at `stop`.
+                    crate::clock::wait_readable(
+                        std::os::fd::AsFd::as_fd(&listener),
+                        Duration::from_millis(100),
+                    );
                     continue;
                 }
                 Err(e) => {
@@ -211,9 +215,11 @@ impl Subscriber {
     }
 }
 
-/// Runs the publisher until every frame sender is gone (the loop has stopped).
+/// Runs the publisher until every frame sender is gone (the loop has stopped). `wake` is the
+/// [`PublishQueue::wake`] of the queue `frames` comes from.
 pub fn spawn_publisher(
     frames: Receiver<Pose>,
+    wake: Arc<PublisherWake>,
     joins: Receiver<NewSubscriber>,
     config: PublisherConfig,
     hello: HelloSource,
@@ -225,10 +231,10 @@ pub fn spawn_publisher(
         let cap = config.queue_frames.max(2) * BACKLOG_BYTES_PER_FRAME;
         let mut next_seq: Option<u64> = None;
         loop {
-            let first = match frames.recv_timeout(Duration::from_millis(20)) {
-                Ok(p) => Some(p),
-                Err(RecvTimeoutError::Timeout) => None,
-                Err(RecvTimeoutError::Disconnected) => break,
+            let first = match wake.recv_timeout(&frames, Duration::from_millis(20)) {
+                Ok(p) => p,
+                Err(TryRecvError::Disconnected) => break,
+                Err(TryRecvError::Empty) => None,
             };
             // New subscribers start at the next frame this thread forwards.
             while let Ok(new) = joins.try_recv() {
@@ -291,23 +297,88 @@ pub fn spawn_publisher(
     })
 }
 
+/// How the loop wakes the publisher thread: a flag the publisher raises before it parks, and its
+/// thread handle.
+///
+/// Waiting in crossbeam's `recv_timeout` spins and calls `sched_yield` before it parks; at 1 kHz
+/// that spinning was a tenth of the publisher's CPU in `perf` (issue 9). Here the publisher
+/// parks at once and the loop unparks it only when the flag says it sleeps: one `futex` wake,
+/// no allocation, no lock.
+#[derive(Debug, Default)]
+pub struct PublisherWake {
+    parked: AtomicBool,
+    thread: OnceLock<thread::Thread>,
+}
+
+impl PublisherWake {
+    /// Called by the loop after each frame it queued.
+    fn notify(&self) {
+        // Pairs with the fence in `recv_timeout`: either the publisher's re-check sees the
+        // frame, or we see its flag.
+        fence(SeqCst);
+        if self.parked.load(Relaxed)
+            && self.parked.swap(false, SeqCst)
+            && let Some(t) = self.thread.get()
+        {
+            t.unpark();
+        }
+    }
+
+    /// The publisher's wait: the next frame, `Ok(None)` after `timeout` without one, or
+    /// `Err(Disconnected)` once the loop has gone. Only the publisher thread calls this.
+    pub fn recv_timeout(&self, rx: &Receiver<Pose>, timeout: Duration) -> Result<Option<Pose>, TryRecvError> {
+        match rx.try_recv() {
+            Ok(p) => return Ok(Some(p)),
+            Err(TryRecvError::Disconnected) => return Err(TryRecvError::Disconnected),
+            Err(TryRecvError::Empty) => {}
+        }
+        let _ = self.thread.get_or_init(thread::current);
+        self.parked.store(true, SeqCst);
+        fence(SeqCst);
+        match rx.try_recv() {
+            Ok(p) => {
+                self.parked.store(false, Relaxed);
+                return Ok(Some(p));
+            }
+            Err(TryRecvError::Disconnected) => return Err(TryRecvError::Disconnected),
+            Err(TryRecvError::Empty) => {}
+        }
+        thread::park_timeout(timeout);
+        self.parked.store(false, Relaxed);
+        match rx.try_recv() {
+            Ok(p) => Ok(Some(p)),
+            Err(TryRecvError::Empty) => Ok(None),
+            Err(TryRecvError::Disconnected) => Err(TryRecvError::Disconnected),
+        }
+    }
+}
+
 /// The loop's end of the publisher queue: one `try_send` per frame, drops counted.
 #[derive(Clone)]
 pub struct PublishQueue {
     tx: Sender<Pose>,
+    wake: Arc<PublisherWake>,
 }
 
 impl PublishQueue {
     /// A queue and the publisher's end of it.
     pub fn new(frames: usize) -> (PublishQueue, Receiver<Pose>) {
         let (tx, rx) = bounded(frames);
-        (PublishQueue { tx }, rx)
+        (PublishQueue { tx, wake: Arc::default() }, rx)
+    }
+
+    /// What [`spawn_publisher`] waits on (wakes it when this queue gets a frame).
+    pub fn wake(&self) -> Arc<PublisherWake> {
+        self.wake.clone()
     }
 
     /// Offers a frame; `false` when the publisher is behind by a whole queue (frame dropped).
     pub fn offer(&self, pose: Pose) -> bool {
         match self.tx.try_send(pose) {
-            Ok(()) => true,
+            Ok(()) => {
+                self.wake.notify();
+                true
+            }
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => false,
         }
     }

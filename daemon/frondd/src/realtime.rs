@@ -4,7 +4,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
 
-use crate::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
+use crate::clock::{NS_PER_S, Woke, monotonic_ns, sleep_until_ns, wait_readable_until_ns};
 use crate::engine::Engine;
 use crate::stats::LoopStats;
 
@@ -67,7 +67,22 @@ pub fn pin_thread<T>(handle: &thread::JoinHandle<T>, cpu: Option<usize>) -> Stri
     }
 }
 
+/// Asks for 1 ns timer slack on the calling thread (the default 50 us lets the kernel
+/// coalesce a normal-priority thread's wake-ups that much later; SCHED_FIFO threads have none).
+fn set_timer_slack_1ns() {
+    // SAFETY: PR_SET_TIMERSLACK takes an integer argument and affects only the calling thread.
+    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
+}
+
 /// Starts the loop thread. It runs until `stop` is set, then returns the engine.
+///
+/// The loop wakes at absolute deadlines one period apart (`clock_nanosleep(TIMER_ABSTIME)`, or
+/// `ppoll` with the time left when the source has a ready descriptor) and runs
+/// [`Engine::tick`] there. With a ready descriptor a report also wakes it between deadlines and
+/// is published at once ([`Engine::device_ready`]); a tick whose period such a report already
+/// covered has nothing to do and is skipped (unless a take or a field plays), so a device
+/// reporting at the loop rate costs one wake-up per report, and the stream keeps its meaning:
+/// every report in order, and a `held` frame for each period without one.
 pub fn spawn_loop(
     mut engine: Engine,
     rate_hz: u32,
@@ -79,11 +94,40 @@ pub fn spawn_loop(
     let handle = thread::Builder::new().name("frond-rt".into()).spawn(move || {
         let _ = report_tx.send(set_fifo(priority));
         drop(report_tx);
+        set_timer_slack_1ns();
         let period = NS_PER_S / u64::from(rate_hz.max(1));
         let mut deadline = monotonic_ns() + period;
+        // Set after a device wake that found nothing to read: wait for the deadline alone, so
+        // a descriptor that stays readable (hung up, say) cannot spin the loop.
+        let mut fd_quiet = false;
         while !stop.load(Relaxed) {
-            sleep_until_ns(deadline);
+            let fd = if fd_quiet { None } else { engine.ready_fd() };
+            let woke = match fd {
+                Some(fd) => wait_readable_until_ns(fd, deadline),
+                None => {
+                    sleep_until_ns(deadline);
+                    Woke::Deadline
+                }
+            };
             let now = monotonic_ns();
+            if woke == Woke::Readable {
+                stats.device_wakes.fetch_add(1, Relaxed);
+                if engine.device_ready(now) == 0 {
+                    fd_quiet = true;
+                } else if now < deadline && !engine.needs_every_tick() {
+                    // The report's period ends at the first tick at or after `now`. If that is
+                    // the upcoming tick, the tick would find the report and do nothing else:
+                    // cover it and wait for the next one. (An earlier tick is already covered.)
+                    let tick = deadline - ((deadline - now) / period) * period;
+                    let upcoming = tick == deadline;
+                    engine.cover_tick(upcoming);
+                    if upcoming {
+                        deadline += period;
+                    }
+                }
+                continue;
+            }
+            fd_quiet = false;
             stats.lateness.record(now.saturating_sub(deadline));
             engine.tick(now);
             deadline += period;

@@ -95,7 +95,8 @@ fn awaited(profile: DeviceProfile, path: Option<std::path::PathBuf>, reason: Str
 }
 
 fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<OpenedSource> {
-    let glove = VirtualGloveConfig::sway(f64::from(config.virtual_rate_hz));
+    let mut glove = VirtualGloveConfig::sway(f64::from(config.virtual_rate_hz));
+    glove.clock = config.virtual_clock;
     if allow_fuse && Path::new("/dev/fuse").exists() {
         let dir = socket_dir.join("vhid");
         match frond_device::vhid::mount_fuse(&dir, glove.clone()) {

@@ -171,6 +171,10 @@ pub struct StatusReport {
     pub ticks: u64,
     /// Ticks that republished a held pose (no new report).
     pub held_ticks: u64,
+    /// Times a report woke the loop between ticks (the device's descriptor is polled; 0 for
+    /// sources without one, which are read at the ticks).
+    #[serde(default)]
+    pub device_wakes: u64,
     /// Frames the loop could not hand to the publisher (queue full).
     pub publish_drops: u64,
     /// Wake-up lateness of the loop (actual wake time minus deadline).

@@ -1,6 +1,7 @@
 //! Hand sources: where the realtime loop gets [`DeviceSample`]s from.
 
 use std::fmt;
+use std::os::fd::RawFd;
 use std::sync::Arc;
 
 use crate::report::{DeviceSample, SourceCounters};
@@ -71,6 +72,14 @@ pub trait HandSource: Send {
     /// `out.len()`). Never blocks, never allocates in steady state. Invalid reports are counted
     /// and skipped. `Err(SourceError::Disconnected { .. })` when the device is gone.
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError>;
+    /// A descriptor that polls readable when a report is pending, for the realtime loop to wait
+    /// on with its next deadline as the timeout, so that a report wakes it at once instead of
+    /// waiting up to a period for the next tick. `None` (the default) when the source has none:
+    /// the loop then finds reports at its ticks. Valid while the source stays open; the loop
+    /// asks again before every wait and never reads or closes it.
+    fn ready_fd(&self) -> Option<RawFd> {
+        None
+    }
     /// The source's counters, shared with the status thread.
     fn counters(&self) -> Arc<SourceCounters>;
     /// Slow, may allocate/block: called from a helper thread, never from the realtime loop.

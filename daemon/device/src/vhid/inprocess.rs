@@ -1,7 +1,10 @@
 //! [`InProcessGlove`]: the virtual glove's report generator running inside the process, used
 //! when no device node can be created. The generator thread `try_send`s the same 64-byte reports
 //! into a bounded lock-free queue; the realtime loop parses them with the same [`ReportParser`].
+//! After each report (and at an unplug) it signals an `eventfd`, the source's ready descriptor,
+//! so the loop wakes when a report is queued as it would on a kernel hidraw node.
 
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
@@ -26,15 +29,47 @@ struct Plug {
     overflow: AtomicU64,
 }
 
+/// A non-blocking `eventfd`: written when there is something to read, drained by the reader.
+#[derive(Debug)]
+struct Doorbell(OwnedFd);
+
+impl Doorbell {
+    fn new() -> std::io::Result<Self> {
+        // SAFETY: eventfd has no memory-safety preconditions; a valid result is a new descriptor
+        // we own from here on.
+        let fd = unsafe { libc::eventfd(0, libc::EFD_NONBLOCK | libc::EFD_CLOEXEC) };
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // SAFETY: `fd` was just returned by eventfd and is owned by nobody else.
+        Ok(Doorbell(unsafe { OwnedFd::from_raw_fd(fd) }))
+    }
+
+    fn ring(&self) {
+        let one = 1u64.to_ne_bytes();
+        // SAFETY: writes 8 bytes from a valid buffer to our own eventfd (non-blocking; a full
+        // counter returns EAGAIN and the reader is awake anyway).
+        unsafe { libc::write(self.0.as_raw_fd(), one.as_ptr().cast(), one.len()) };
+    }
+
+    fn drain(&self) {
+        let mut v = [0u8; 8];
+        // SAFETY: reads at most 8 bytes into a valid buffer from our own non-blocking eventfd.
+        unsafe { libc::read(self.0.as_raw_fd(), v.as_mut_ptr().cast(), v.len()) };
+    }
+}
+
 struct QueueSink {
     tx: Sender<[u8; REPORT_LEN]>,
     plug: Arc<Plug>,
+    bell: Arc<Doorbell>,
 }
 
 impl ReportSink for QueueSink {
     fn send(&mut self, report: &[u8; REPORT_LEN]) {
         match self.tx.try_send(*report) {
-            Ok(()) | Err(TrySendError::Disconnected(_)) => {}
+            Ok(()) => self.bell.ring(),
+            Err(TrySendError::Disconnected(_)) => {}
             Err(TrySendError::Full(_)) => {
                 self.plug.overflow.fetch_add(1, Ordering::Relaxed);
             }
@@ -46,6 +81,7 @@ impl ReportSink for QueueSink {
             self.plug.generation.fetch_add(1, Ordering::AcqRel);
         }
         self.plug.plugged.store(plugged, Ordering::Release);
+        self.bell.ring();
     }
 }
 
@@ -54,6 +90,7 @@ pub struct InProcessGlove {
     rx: Receiver<[u8; REPORT_LEN]>,
     plug: Arc<Plug>,
     open_generation: Option<u64>,
+    bell: Arc<Doorbell>,
     parser: ReportParser,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -69,7 +106,8 @@ impl InProcessGlove {
         let plug = Arc::new(Plug { plugged: AtomicBool::new(true), ..Plug::default() });
         let stop = Arc::new(AtomicBool::new(false));
         let stats = Arc::new(VhidStats::default());
-        let sink = Box::new(QueueSink { tx, plug: Arc::clone(&plug) });
+        let bell = Arc::new(Doorbell::new().map_err(VhidError::EventFd)?);
+        let sink = Box::new(QueueSink { tx, plug: Arc::clone(&plug), bell: Arc::clone(&bell) });
         let thread = spawn_generator(generator, sink, Arc::clone(&stop), Arc::clone(&stats))?;
         let describe = match &config.source {
             super::GloveSource::Sway { rate_hz } => format!("virtual glove sway at {rate_hz} Hz"),
@@ -81,6 +119,7 @@ impl InProcessGlove {
             rx,
             plug,
             open_generation: Some(0),
+            bell,
             parser: ReportParser::new(&DeviceProfile::frond_glove()),
             stop,
             thread: Some(thread),
@@ -109,7 +148,14 @@ impl HandSource for InProcessGlove {
         &self.describe
     }
 
+    fn ready_fd(&self) -> Option<RawFd> {
+        self.open_generation.map(|_| self.bell.0.as_raw_fd())
+    }
+
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
+        // Reset the doorbell before looking at the queue: a report queued after this rings it
+        // again, so none waits for the next tick.
+        self.bell.drain();
         let generation = self.plug.generation.load(Ordering::Acquire);
         if self.open_generation != Some(generation) || !self.plug.plugged.load(Ordering::Acquire) {
             self.open_generation = None;

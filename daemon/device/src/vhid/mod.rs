@@ -153,6 +153,8 @@ pub enum VhidError {
     Uhid(String),
     #[error("cannot start the report thread: {0}")]
     Thread(std::io::Error),
+    #[error("cannot create the in-process glove's eventfd: {0}")]
+    EventFd(std::io::Error),
 }
 
 /// What the generator did (shared, readable while it runs).
