@@ -72,8 +72,16 @@ impl Control {
 
     /// Sends `req` and returns the daemon's reply; a refusal becomes an error with its message.
     pub(crate) fn request(&mut self, req: &ControlRequest) -> anyhow::Result<ControlReply> {
-        write_frame(&mut self.stream, &mut self.out, req)
-            .with_context(|| format!("sending a request to {}", self.path.display()))?;
+        if let Err(e) = write_frame(&mut self.stream, &mut self.out, req) {
+            // The daemon answers a client it does not allow at once and closes, possibly before
+            // the request is written: its refusal is still there to read.
+            if let Ok(ControlReply::Error(err)) = read_frame(&mut self.stream, &mut self.scratch) {
+                return Err(anyhow!("the daemon refused: {} ({:?})", err.message, err.kind));
+            }
+            // A message, not the io::Error: a broken *socket* must not pass for a closed stdout
+            // (which `frond` treats as a quiet success).
+            bail!("sending a request to {}: {e}", self.path.display());
+        }
         let reply: ControlReply = read_frame(&mut self.stream, &mut self.scratch).map_err(|e| match e {
             ReadError::Io(io) if matches!(io.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
                 anyhow!("the daemon did not answer within {REPLY_TIMEOUT:?} on {}", self.path.display())

@@ -51,6 +51,7 @@ fn status_report() -> StatusReport {
         achieved_rate_hz: 1000.2,
         ticks: 12500,
         held_ticks: 3,
+        device_wakes: 0,
         publish_drops: 0,
         lateness: LatencySummary { p50_us: 8.0, p99_us: 31.0, p999_us: 52.0, max_us: 70.0, samples: 1000 },
         subscribers: vec![SubscriberStatus { id: 3, connected_s: 2.0, sent: 2000, dropped: 1 }],
@@ -408,4 +409,37 @@ fn calibrate_without_yes_and_no_stdin_asks_for_yes() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(text(&out.stderr).contains("use --yes"), "{}", text(&out.stderr));
+}
+
+/// A daemon that refuses a client on sight (SO_PEERCRED) answers and closes at once, often
+/// before the client has written its request: the client's write then fails with EPIPE. The
+/// refusal must still be reported, never a silent success (EPIPE on stdout is one; on the
+/// control socket it is not).
+#[test]
+fn a_refusal_sent_before_the_request_is_read_is_still_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let listener = UnixListener::bind(dir.path().join("control.sock")).unwrap();
+    const RUNS: usize = 20;
+    let server = thread::spawn(move || {
+        for _ in 0..RUNS {
+            let (mut s, _) = listener.accept().unwrap();
+            let refusal = ControlReply::Error(frond_protocol::ControlError {
+                kind: frond_protocol::ControlErrorKind::PermissionDenied,
+                message: "uid 65534 is not allowed".into(),
+            });
+            write_frame(&mut s, &mut FrameBuf::default(), &refusal).unwrap();
+            drop(s);
+        }
+    });
+    for _ in 0..RUNS {
+        let out = Command::new(env!("CARGO_BIN_EXE_frond"))
+            .args(["status", "--json"])
+            .env("FROND_SOCKET_DIR", dir.path())
+            .output()
+            .unwrap();
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "stdout {:?}, stderr {err:?}", text(&out.stdout));
+        assert!(err.contains("uid 65534 is not allowed (PermissionDenied)"), "{err}");
+    }
+    server.join().unwrap();
 }
