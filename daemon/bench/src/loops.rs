@@ -9,7 +9,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::bounded;
 use frond_protocol::{Hello, LatencySummary, PROTOCOL_VERSION};
 use frondd::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
 use frondd::engine::{Engine, EngineEnds};
@@ -167,8 +166,8 @@ impl Accum {
 }
 
 /// frondd's full loop in this process: the engine (read, calibrate, filter, map, publish) paced
-/// by frondd's own `spawn_loop`, publishing through frondd's publisher (one bounded queue and
-/// writer thread per subscriber) to `subscribers` Unix-socket clients that read every byte.
+/// by frondd's own `spawn_loop`, publishing to `subscribers` Unix-socket clients that read every
+/// byte, on frondd's direct lanes (with its publisher thread behind them for a slow subscriber).
 pub struct FullLoop {
     engine: Option<Engine>,
     publisher: Option<thread::JoinHandle<()>>,
@@ -193,8 +192,7 @@ impl FullLoop {
             16,
         );
         let publish_rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
-        let loop_stats = ends.stats.clone();
-        let (join_tx, join_rx) = bounded(16);
+        let slow_rx = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
         let path = dir.path().join(frond_protocol::POSES_SOCKET);
         let listener = UnixListener::bind(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let stop_all = Arc::new(AtomicBool::new(false));
@@ -213,17 +211,17 @@ impl FullLoop {
             write_timeout: Duration::from_secs(2),
             max_subscribers: 64,
         };
-        let publisher = spawn_publisher(
-            publish_rx,
-            ends.publish_wake.clone(),
-            join_rx,
+        let publisher = spawn_publisher(publish_rx, ends.publish_wake.clone(), slow_rx, config)
+            .map_err(|e| e.to_string())?;
+        let acceptor = spawn_acceptor(
+            listener,
             config,
+            ends.commands.clone(),
             Arc::new(move || hello.clone()),
-            loop_stats,
+            registry.clone(),
+            stop_all.clone(),
         )
         .map_err(|e| e.to_string())?;
-        let acceptor = spawn_acceptor(listener, config, join_tx, registry.clone(), stop_all.clone())
-            .map_err(|e| e.to_string())?;
         let received = Arc::new(AtomicU64::new(0));
         let mut clients = Vec::new();
         for _ in 0..subscribers {

@@ -20,8 +20,7 @@ use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
 use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
 use crate::notify::Notifier;
 use crate::publisher::{
-    NewSubscriber, PUBLISH_QUEUE_FRAMES, PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor,
-    spawn_publisher,
+    PUBLISH_QUEUE_FRAMES, PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
 };
 use crate::realtime::{lock_memory, spawn_loop};
 use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
@@ -152,7 +151,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
 
     let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
     let publish_wake = publish_queue.wake();
-    let (join_tx, join_rx) = bounded::<NewSubscriber>(16);
+    let (slow_tx, slow_rx) = bounded(crate::engine::MAX_SUBSCRIBERS);
     let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
     let engine = Engine::new(
         mapper,
@@ -161,6 +160,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         EngineLinks {
             commands: cmd_rx,
             publish: publish_queue,
+            slow: slow_tx,
             recorder: rec_tx.clone(),
             reopen: reopen_tx,
             garbage: garbage_tx,
@@ -239,10 +239,15 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         write_timeout: config.write_timeout,
         max_subscribers: config.max_subscribers,
     };
-    let publisher_thread =
-        spawn_publisher(publish_rx, publish_wake, join_rx, publisher, hello, stats.clone())?;
-    let acceptor =
-        spawn_acceptor(pose_listener, publisher, join_tx, ctx.registry.clone(), threads_stop.clone())?;
+    let publisher_thread = spawn_publisher(publish_rx, publish_wake, slow_rx, publisher)?;
+    let acceptor = spawn_acceptor(
+        pose_listener,
+        publisher,
+        cmd_tx.clone(),
+        hello,
+        ctx.registry.clone(),
+        threads_stop.clone(),
+    )?;
     let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;
     let control = spawn_control(control_listener, ctx.clone(), threads_stop.clone())?;
     let reopener = spawn_reopener(reopen_rx, await_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;

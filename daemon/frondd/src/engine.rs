@@ -17,6 +17,7 @@ use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingPar
 use frond_protocol::{HandWire, Pose, PoseFlags};
 
 use crate::clock::{NS_PER_S, monotonic_ns};
+use crate::lanes::{Lane, Lanes, NewLane, SlowLane};
 use crate::live::{FIELD_PUBLISH_HZ, LiveField, LivePlayback, MAX_FIELD_PLANTS};
 use crate::publisher::PublishQueue;
 use crate::recorder::RecorderMsg;
@@ -57,6 +58,8 @@ pub enum LoopCommand {
     SetGuided(Option<Box<GuidedLive>>),
     /// Element id of the hand's frames: 0 for the global element, `k + 1` for a secondary layer.
     SetLayer(u16),
+    /// A new pose subscriber, for a direct lane (see [`crate::lanes`]).
+    AddSubscriber(Box<NewLane>),
 }
 
 /// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
@@ -65,6 +68,8 @@ pub enum Garbage {
     Source(Box<dyn HandSource>),
     /// A finished playback, field or guided stage.
     Live(Box<dyn std::any::Any + Send>),
+    /// A subscriber that left its direct lane (hung up, or no room anywhere).
+    Lane(Lane),
 }
 
 /// Channels and shared state the engine talks through.
@@ -73,6 +78,8 @@ pub struct EngineLinks {
     pub commands: Receiver<LoopCommand>,
     /// Frames out, to the publisher thread.
     pub publish: PublishQueue,
+    /// Subscribers moved off their direct lane, to the publisher thread.
+    pub slow: Sender<SlowLane>,
     /// Frames (and nothing else from the loop) to the recorder.
     pub recorder: Sender<RecorderMsg>,
     /// A source that failed, for the reopen thread.
@@ -91,6 +98,8 @@ pub struct EngineEnds {
     pub frames: Receiver<Pose>,
     /// Wakes whoever waits on `frames` through it (see [`crate::publisher::spawn_publisher`]).
     pub publish_wake: Arc<crate::publisher::PublisherWake>,
+    /// Subscribers the loop moved to the slow lane.
+    pub slow: Receiver<SlowLane>,
     /// Frames the loop hands to the recorder.
     pub recorder: Receiver<RecorderMsg>,
     /// Sources the loop gives up as lost.
@@ -106,6 +115,7 @@ pub struct Engine {
     mapper: Mapper,
     source: Option<Box<dyn HandSource>>,
     samples: Box<[DeviceSample]>,
+    lanes: Lanes,
     links: EngineLinks,
     recording: bool,
     seq: u64,
@@ -138,6 +148,7 @@ impl Engine {
             mapper,
             source,
             samples: vec![DeviceSample::default(); SAMPLE_BATCH].into_boxed_slice(),
+            lanes: Lanes::new(links.slow.clone(), links.publish.wake()),
             links,
             recording: false,
             seq: 0,
@@ -167,11 +178,13 @@ impl Engine {
         let (rec_tx, rec_rx) = crossbeam_channel::bounded(recorder_frames);
         let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(1);
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
+        let (slow_tx, slow_rx) = crossbeam_channel::bounded(MAX_SUBSCRIBERS);
         let stats = Arc::new(LoopStats::default());
         let publish_wake = publish.wake();
         let links = EngineLinks {
             commands: cmd_rx,
             publish,
+            slow: slow_tx,
             recorder: rec_tx,
             reopen: reopen_tx,
             garbage: garbage_tx,
@@ -181,6 +194,7 @@ impl Engine {
             commands: cmd_tx,
             frames,
             publish_wake,
+            slow: slow_rx,
             recorder: rec_rx,
             reopen: reopen_rx,
             garbage: garbage_rx,
@@ -295,6 +309,11 @@ impl Engine {
                     self.discard(old);
                 }
                 LoopCommand::SetLayer(layer) => self.layer = layer,
+                LoopCommand::AddSubscriber(mut new) => {
+                    self.lanes.admit(&mut new, self.seq, &self.links.garbage);
+                    // What is left (the encoded Hello) is freed elsewhere.
+                    let _ = self.links.garbage.try_send(Garbage::Live(new));
+                }
                 LoopCommand::Freeze(ms) => {
                     std::thread::sleep(std::time::Duration::from_millis(u64::from(ms)))
                 }
@@ -440,13 +459,15 @@ impl Engine {
         }
     }
 
-    /// Stamps `frame` with the next sequence number and the host time and hands it to the
-    /// publisher thread (a full queue drops it, counted). Returns the stamped frame.
+    /// Stamps `frame` with the next sequence number and the host time, sends it to the direct
+    /// lanes and hands it to the publisher thread (a full queue drops it, counted). Returns the
+    /// stamped frame.
     fn publish(&mut self, mut frame: Pose) -> Pose {
         frame.seq = self.seq;
         frame.host_monotonic_ns = monotonic_ns();
         self.seq += 1;
         self.links.stats.next_seq.store(self.seq, Relaxed);
+        self.lanes.send(&frame, &self.links.garbage);
         if !self.links.publish.offer(frame) {
             self.links.stats.publish_drops.fetch_add(1, Relaxed);
         }
@@ -456,5 +477,10 @@ impl Engine {
     /// Next sequence number.
     pub fn next_seq(&self) -> u64 {
         self.seq
+    }
+
+    /// The direct lanes (for tests and the bench).
+    pub fn lanes(&self) -> &Lanes {
+        &self.lanes
     }
 }

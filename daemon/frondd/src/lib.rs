@@ -1,8 +1,9 @@
 //! frondd, the frond daemon: reads the hand device at a fixed rate, calibrates, filters and maps
 //! the hand onto the plant skeleton (seed 000, Eq. 2-4) and publishes poses to subscribers.
 //!
-//! Threads: `frond-rt` (the realtime loop, [`engine`] paced by [`realtime`]), `frond-accept` and
-//! one writer per subscriber ([`publisher`]), `frond-control` ([`control`]), `frond-recorder`
+//! Threads: `frond-rt` (the realtime loop, [`engine`] paced by [`realtime`], writing to the
+//! subscribers' direct [`lanes`]), `frond-accept` and `frond-publish` (the slow lane,
+//! [`publisher`]), `frond-control` ([`control`]), `frond-recorder`
 //! ([`recorder`]), and housekeeping (status rate, device events, reopening a lost device,
 //! dropping what the loop may not free). Data flows one way: device -> loop -> queues -> sockets.
 
@@ -12,6 +13,7 @@ pub mod control;
 mod control_live;
 pub mod daemon;
 pub mod engine;
+pub mod lanes;
 pub mod live;
 pub mod notify;
 pub mod publisher;

@@ -1,26 +1,28 @@
-//! The pose socket: one publisher thread serves every subscriber.
+//! The pose socket: the acceptor, and the publisher thread's slow lane.
 //!
-//! The realtime loop `try_send`s each frame once into the publisher's bounded queue (a full
-//! queue costs a counted drop, never a wait). The publisher encodes a batch of frames once and
-//! appends it to each subscriber's own bounded backlog, then writes what each socket accepts
-//! without blocking. A subscriber whose backlog is full loses that batch (counted per
-//! subscriber); one that accepts nothing for `write_timeout` is disconnected. So a slow or dead
-//! subscriber costs only itself, and the loop wakes one thread per frame whatever the number of
-//! subscribers. Nothing a subscriber sends is read: the pose socket is read-only for them.
+//! Subscribers start on a direct lane: the realtime loop writes each frame to them itself
+//! ([`crate::lanes`]). One whose socket cannot take a frame moves here, to the publisher
+//! thread, which keeps a bounded backlog per subscriber and writes what each socket accepts
+//! without blocking. A subscriber whose backlog is full loses frames (counted per subscriber);
+//! one that accepts nothing for `write_timeout` is disconnected. So a slow or dead subscriber
+//! costs only itself. The loop also `try_send`s every frame into the publisher's bounded queue
+//! (a full queue is a counted drop, never a wait) but wakes the publisher only while the slow
+//! lane has subscribers; otherwise the publisher drains the queue every 20 ms. Nothing a
+//! subscriber sends is read: the pose socket is read-only for them.
 
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed, Ordering::SeqCst, fence};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed, Ordering::SeqCst, fence};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::thread;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender, TryRecvError, TrySendError, bounded};
-use frond_protocol::{Hello, Pose, ServerMessage, SubscriberStatus, encode_frame};
+use frond_protocol::{Hello, PatchableHello, Pose, ServerMessage, SubscriberStatus, encode_frame};
 use tracing::{debug, info, warn};
 
-use crate::engine::MAX_SUBSCRIBERS;
-use crate::stats::LoopStats;
+use crate::engine::{LoopCommand, MAX_SUBSCRIBERS};
+use crate::lanes::{NewLane, SlowLane};
 
 /// Frames the loop may get ahead of the publisher thread before it drops them.
 pub const PUBLISH_QUEUE_FRAMES: usize = 8192;
@@ -90,18 +92,13 @@ impl SubscriberRegistry {
 /// Source of the `Hello` for new subscribers (the rig can change at runtime).
 pub type HelloSource = Arc<dyn Fn() -> Hello + Send + Sync>;
 
-/// A connection handed from the acceptor to the publisher.
-pub struct NewSubscriber {
-    id: u64,
-    stream: UnixStream,
-    counters: Arc<SubscriberCounters>,
-}
-
-/// Accepts subscribers on `listener` until `stop` is set and hands them to the publisher.
+/// Accepts subscribers on `listener` until `stop` is set and hands them, with their `Hello`
+/// encoded, to the realtime loop (`LoopCommand::AddSubscriber`), which puts them on a lane.
 pub fn spawn_acceptor(
     listener: UnixListener,
     config: PublisherConfig,
-    subscribers: Sender<NewSubscriber>,
+    to_loop: Sender<LoopCommand>,
+    hello: HelloSource,
     registry: Arc<SubscriberRegistry>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
@@ -132,15 +129,20 @@ pub fn spawn_acceptor(
             }
             let id = next_id;
             next_id += 1;
+            // Subscribers only read: anything they send is discarded unread.
+            let _ = stream.shutdown(std::net::Shutdown::Read);
             let counters = Arc::new(SubscriberCounters::default());
-            if subscribers
-                .send_timeout(
-                    NewSubscriber { id, stream, counters: counters.clone() },
-                    Duration::from_secs(1),
-                )
+            let new = NewLane {
+                id,
+                stream: Some(stream),
+                counters: Some(counters.clone()),
+                hello: PatchableHello::new(&hello()),
+            };
+            if to_loop
+                .send_timeout(LoopCommand::AddSubscriber(Box::new(new)), Duration::from_secs(1))
                 .is_err()
             {
-                warn!(id, "refusing a pose subscriber: the publisher is not accepting");
+                warn!(id, "refusing a pose subscriber: the realtime loop is not accepting");
                 continue;
             }
             registry.entries.lock().unwrap_or_else(|e| e.into_inner()).push(Registered {
@@ -163,6 +165,8 @@ struct Subscriber {
     written: usize,
     cap: usize,
     last_progress: Instant,
+    /// Frames before this sequence number are not owed to it (it was on a direct lane then).
+    from_seq: u64,
 }
 
 impl Subscriber {
@@ -216,68 +220,76 @@ impl Subscriber {
 }
 
 /// Runs the publisher until every frame sender is gone (the loop has stopped). `wake` is the
-/// [`PublishQueue::wake`] of the queue `frames` comes from.
+/// [`PublishQueue::wake`] of the queue `frames` comes from; `slow` brings the subscribers the
+/// loop moved off their direct lane.
 pub fn spawn_publisher(
     frames: Receiver<Pose>,
     wake: Arc<PublisherWake>,
-    joins: Receiver<NewSubscriber>,
+    slow: Receiver<SlowLane>,
     config: PublisherConfig,
-    hello: HelloSource,
-    stats: Arc<LoopStats>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-publish".into()).spawn(move || {
         let mut subs: Vec<Subscriber> = Vec::with_capacity(MAX_SUBSCRIBERS);
         let mut batch: Vec<u8> = Vec::with_capacity(MAX_BATCH * BACKLOG_BYTES_PER_FRAME * 2);
+        // (sequence number, offset in `batch`) of each frame of the batch.
+        let mut starts: Vec<(u64, usize)> = Vec::with_capacity(MAX_BATCH);
+        let mut poses: Vec<Pose> = Vec::with_capacity(MAX_BATCH);
         let cap = config.queue_frames.max(2) * BACKLOG_BYTES_PER_FRAME;
-        let mut next_seq: Option<u64> = None;
         loop {
             let first = match wake.recv_timeout(&frames, Duration::from_millis(20)) {
                 Ok(p) => p,
                 Err(TryRecvError::Disconnected) => break,
                 Err(TryRecvError::Empty) => None,
             };
-            // New subscribers start at the next frame this thread forwards.
-            while let Ok(new) = joins.try_recv() {
-                let seq = first.map(|p| p.seq).or(next_seq).unwrap_or_else(|| stats.next_seq.load(Relaxed));
-                let mut h = hello();
-                h.next_seq = seq;
-                let mut bytes = Vec::with_capacity(cap + 4096);
-                encode_frame(&ServerMessage::Hello(h), &mut bytes);
-                let _ = new.stream.set_nonblocking(true);
-                let _ = new.stream.shutdown(std::net::Shutdown::Read);
+            poses.clear();
+            if let Some(p) = first {
+                poses.push(p);
+                while poses.len() < MAX_BATCH {
+                    let Ok(p) = frames.try_recv() else { break };
+                    poses.push(p);
+                }
+            }
+            // After taking the batch: the loop hands a subscriber over before it queues the
+            // first frame owed to it, so every frame of this batch it is owed is covered here.
+            while let Ok(lane) = slow.try_recv() {
+                let _ = lane.stream.set_nonblocking(true);
+                let mut backlog = Vec::with_capacity(cap + 4096);
+                backlog.extend_from_slice(&lane.tail[..lane.tail_len]);
+                debug!(id = lane.id, from_seq = lane.from_seq, "subscriber moved to the slow lane");
                 subs.push(Subscriber {
-                    id: new.id,
-                    stream: new.stream,
-                    counters: new.counters,
-                    backlog: bytes,
+                    id: lane.id,
+                    stream: lane.stream,
+                    counters: lane.counters,
+                    backlog,
                     written: 0,
                     cap,
                     last_progress: Instant::now(),
+                    from_seq: lane.from_seq,
                 });
             }
+            if subs.is_empty() {
+                // Nobody on the slow lane: the frames were for the direct lanes only.
+                continue;
+            }
             batch.clear();
-            let mut n = 0u64;
-            if let Some(p) = first {
-                encode_frame(&ServerMessage::Pose(p), &mut batch);
-                n = 1;
-                next_seq = Some(p.seq + 1);
-                while (n as usize) < MAX_BATCH {
-                    let Ok(p) = frames.try_recv() else { break };
-                    encode_frame(&ServerMessage::Pose(p), &mut batch);
-                    next_seq = Some(p.seq + 1);
-                    n += 1;
-                }
+            starts.clear();
+            for p in &poses {
+                starts.push((p.seq, batch.len()));
+                encode_frame(&ServerMessage::Pose(*p), &mut batch);
             }
             let now = Instant::now();
             subs.retain_mut(|s| {
-                if n > 0 {
-                    s.offer(&batch, n);
+                let owed = starts.iter().position(|&(seq, _)| seq >= s.from_seq);
+                if let Some(i) = owed {
+                    s.offer(&batch[starts[i].1..], (starts.len() - i) as u64);
+                    s.from_seq = 0;
                 }
                 match s.flush(now, config.write_timeout) {
                     Ok(()) => true,
                     Err(reason) => {
                         s.counters.closed.store(true, Relaxed);
                         let _ = s.stream.shutdown(std::net::Shutdown::Both);
+                        wake.remove_slow();
                         debug!(
                             id = s.id,
                             sent = s.counters.sent.load(Relaxed),
@@ -308,11 +320,26 @@ pub fn spawn_publisher(
 pub struct PublisherWake {
     parked: AtomicBool,
     thread: OnceLock<thread::Thread>,
+    /// Subscribers on the slow lane (or on their way to it).
+    slow: AtomicUsize,
 }
 
 impl PublisherWake {
-    /// Called by the loop after each frame it queued.
+    /// One more subscriber on the slow lane: frames wake the publisher from now on.
+    pub fn add_slow(&self) {
+        self.slow.fetch_add(1, SeqCst);
+    }
+
+    /// One subscriber fewer on the slow lane.
+    pub fn remove_slow(&self) {
+        self.slow.fetch_sub(1, SeqCst);
+    }
+
+    /// Called by the loop after each frame it queued: wakes the publisher if it serves anyone.
     fn notify(&self) {
+        if self.slow.load(Relaxed) == 0 {
+            return;
+        }
         // Pairs with the fence in `recv_timeout`: either the publisher's re-check sees the
         // frame, or we see its flag.
         fence(SeqCst);

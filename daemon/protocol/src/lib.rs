@@ -25,7 +25,7 @@ pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,
     encode_frame, read_frame, read_frame_limited, write_frame,
 };
-pub use pose::{FIELD_ELEMENT_BASE, HandWire, Hello, Pose, PoseFlags, ServerMessage};
+pub use pose::{FIELD_ELEMENT_BASE, HandWire, Hello, PatchableHello, Pose, PoseFlags, ServerMessage};
 
 /// Default socket file names inside the socket directory.
 pub const POSES_SOCKET: &str = "poses.sock";

@@ -115,3 +115,58 @@ pub struct Pose {
     /// The calibrated (and filtered) hand sample behind this pose.
     pub hand: HandWire,
 }
+
+/// A `Hello` frame encoded ahead of time whose `next_seq` is filled in at the last moment: the
+/// daemon's realtime loop admits a subscriber between two frames and must not allocate or
+/// serialise, so the acceptor thread encodes the frame and the loop only patches eight bytes.
+///
+/// `next_seq` is the last field of [`Hello`]; encoded as `u64::MAX` it is MessagePack `uint 64`
+/// (`0xcf` and 8 big-endian bytes) at the very end of the frame. Any value written there in that
+/// form is valid MessagePack (decoders accept a wider-than-needed integer).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PatchableHello {
+    bytes: Vec<u8>,
+}
+
+impl PatchableHello {
+    /// Encodes `hello` (its `next_seq` is ignored).
+    pub fn new(hello: &Hello) -> Self {
+        let mut h = hello.clone();
+        h.next_seq = u64::MAX;
+        let mut bytes = Vec::new();
+        crate::encode_frame(&ServerMessage::Hello(h), &mut bytes);
+        debug_assert!(bytes.len() >= 9 && bytes[bytes.len() - 9] == 0xcf);
+        PatchableHello { bytes }
+    }
+
+    /// The frame with `next_seq` set to `seq`.
+    pub fn with_next_seq(&mut self, seq: u64) -> &[u8] {
+        let n = self.bytes.len();
+        self.bytes[n - 8..].copy_from_slice(&seq.to_be_bytes());
+        &self.bytes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn patched_hello_decodes_with_the_patched_next_seq() {
+        let hello = Hello {
+            protocol_version: crate::PROTOCOL_VERSION,
+            daemon_version: "1.2.3".into(),
+            rig_name: "grass".into(),
+            joint_names: vec!["root".into(), "a".into(), "b".into(), "tip".into()],
+            tick_rate_hz: 1000,
+            next_seq: 7,
+        };
+        let mut p = PatchableHello::new(&hello);
+        for seq in [0u64, 1, 127, 128, 65_536, 1 << 40, u64::MAX - 1] {
+            let bytes = p.with_next_seq(seq).to_vec();
+            let (msg, used) = crate::decode_frame::<ServerMessage>(&bytes).unwrap().unwrap();
+            assert_eq!(used, bytes.len());
+            assert_eq!(msg, ServerMessage::Hello(Hello { next_seq: seq, ..hello.clone() }), "seq {seq}");
+        }
+    }
+}
