@@ -46,15 +46,38 @@ fn hand(k: u64) -> HandSample {
     }
 }
 
-/// An engine on the one-report-per-tick glove, its publisher queue drained by the caller, and
-/// the other ends of its channels.
+/// An engine on the one-report-per-tick glove with [`SUBSCRIBERS`] subscribers on its direct
+/// lanes (socket pairs read to the end by their own threads), its publisher queue drained by the
+/// caller, and the other ends of its channels.
 struct TickRig {
     engine: Engine,
     rx: Receiver<Pose>,
     _ends: EngineEnds,
+    _readers: Vec<std::thread::JoinHandle<()>>,
+    /// The daemon ends of the subscriber sockets (clones), to see what the readers have not read.
+    daemon_ends: Vec<std::os::unix::net::UnixStream>,
 }
 
-fn engine() -> TickRig {
+impl TickRig {
+    /// Waits (at most 2 s) until the readers have read everything sent, so the next batch of
+    /// ticks finds room in every socket as a live subscriber's would.
+    fn settle(&self) {
+        use std::os::fd::AsRawFd;
+        let unread = |s: &std::os::unix::net::UnixStream| {
+            let mut n: libc::c_int = 0;
+            // SAFETY: SIOCOUTQ writes one c_int (bytes not yet read by the peer) into `n`.
+            let rc = unsafe { libc::ioctl(s.as_raw_fd(), libc::TIOCOUTQ, &mut n) };
+            if rc == 0 { n } else { 0 }
+        };
+        let deadline = monotonic_ns() + 2_000_000_000;
+        while self.daemon_ends.iter().any(|s| unread(s) > 0) && monotonic_ns() < deadline {
+            std::thread::sleep(std::time::Duration::from_micros(50));
+        }
+    }
+}
+
+fn engine() -> Result<TickRig, String> {
+    use std::io::Read;
     let (mut engine, mut ends) = Engine::with_channels(
         mapper(),
         Some(Box::new(TickGlove::new())),
@@ -62,13 +85,42 @@ fn engine() -> TickRig {
         1024 * SUBSCRIBERS,
         16,
     );
+    let hello = frond_protocol::PatchableHello::new(&frond_protocol::Hello {
+        protocol_version: frond_protocol::PROTOCOL_VERSION,
+        daemon_version: env!("CARGO_PKG_VERSION").into(),
+        rig_name: "grass".into(),
+        joint_names: crate::rig::grass().joint_names(),
+        tick_rate_hz: 1000,
+        next_seq: 0,
+    });
+    let mut readers = Vec::new();
+    let mut daemon_ends = Vec::new();
+    for id in 0..SUBSCRIBERS as u64 {
+        let (daemon_end, mut sub_end) = std::os::unix::net::UnixStream::pair().map_err(|e| e.to_string())?;
+        daemon_ends.push(daemon_end.try_clone().map_err(|e| e.to_string())?);
+        readers.push(std::thread::spawn(move || {
+            let mut buf = [0u8; 16 * 1024];
+            while matches!(sub_end.read(&mut buf), Ok(n) if n > 0) {}
+        }));
+        let lane = frondd::lanes::NewLane {
+            id,
+            stream: Some(daemon_end),
+            counters: Some(Default::default()),
+            hello: hello.clone(),
+        };
+        ends.commands
+            .send(frondd::engine::LoopCommand::AddSubscriber(Box::new(lane)))
+            .map_err(|_| "the engine's command queue is closed")?;
+    }
     engine.tick(monotonic_ns());
+    if engine.lanes().len() != SUBSCRIBERS {
+        return Err(format!("{} of {SUBSCRIBERS} subscribers on direct lanes", engine.lanes().len()));
+    }
     let rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
-    TickRig { engine, rx, _ends: ends }
+    Ok(TickRig { engine, rx, _ends: ends, _readers: readers, daemon_ends })
 }
 
-/// Empties the publisher queue (the loop hands each frame over once, whatever the number of
-/// subscribers: the publisher thread fans out).
+/// Empties the publisher queue (the loop also offers every frame there, for the slow lane).
 fn drain(rx: &Receiver<Pose>) {
     while rx.try_recv().is_ok() {}
 }
@@ -92,9 +144,11 @@ pub fn tick_cost(o: &Options) -> Result<Section, String> {
     });
     let clock_ns = (clock + clock2) / 2.0;
 
-    // A whole engine tick: read one report, calibrate, filter, map, stamp, offer to 8 queues.
-    let mut rig = engine();
-    let tick_batch = 500u64;
+    // A whole engine tick: read one report, calibrate, filter, map, stamp, encode, send to the 8
+    // subscribers' sockets, offer to the publisher queue.
+    let mut rig = engine()?;
+    // 100 frames fit in a socket's send buffer (each ~230-byte frame is accounted as ~1 KiB).
+    let tick_batch = 100u64;
     let mut now = monotonic_ns();
     let mut tick_times = Vec::new();
     for _ in 0..batches * (n as usize / 20_000).max(1) {
@@ -105,7 +159,9 @@ pub fn tick_cost(o: &Options) -> Result<Section, String> {
         }
         tick_times.push((monotonic_ns() - start) as f64 / tick_batch as f64);
         drain(&rig.rx);
+        rig.settle();
     }
+    let lanes_after_ticks = rig.engine.lanes().len();
     let tick_ns = median(&mut tick_times);
 
     let mut measurements = vec![
@@ -131,6 +187,8 @@ pub fn tick_cost(o: &Options) -> Result<Section, String> {
         "batches": batches,
         "calls_per_batch": n,
         "clock_read_ns_before_after": [clock, clock2],
+        "subscribers": SUBSCRIBERS,
+        "subscribers_on_direct_lanes_after_timed_ticks": lanes_after_ticks,
     });
     if counting_installed() {
         let ticks = if o.quick { 20_000u64 } else { 200_000 };
@@ -146,7 +204,9 @@ pub fn tick_cost(o: &Options) -> Result<Section, String> {
             allocations += a;
             done += tick_batch;
             drain(&rig.rx);
+            rig.settle();
         }
+        details["subscribers_on_direct_lanes_after_allocation_ticks"] = json!(rig.engine.lanes().len());
         // Baseline: the same frames published the naive way, encoding each one into a fresh
         // buffer per subscriber (what a loop without preallocated buffers does).
         let pose = Pose::default();

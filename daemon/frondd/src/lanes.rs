@@ -6,7 +6,7 @@
 //! frame once into a preallocated buffer and `send`s it, `MSG_DONTWAIT`, to every subscriber on
 //! a direct lane: one system call each, no allocation, no lock, never a wait.
 //!
-//! A subscriber whose socket cannot take a whole frame (it fell about a second behind and its
+//! A subscriber whose socket cannot take a whole frame (it fell some 200 frames behind and its
 //! socket buffer is full) moves, with the unsent tail of that frame, to the publisher thread's
 //! slow lane ([`SlowLane`], bounded per-subscriber backlog, drops counted, disconnected after
 //! the write timeout) and stays there: a slow subscriber never costs the loop more than one
