@@ -2,18 +2,18 @@
 //! when its socket fills, and its stream stays whole: every frame once, in order, from the
 //! sequence number its `Hello` announced.
 
-use std::os::fd::AsRawFd;
-use std::os::unix::net::UnixStream;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
 use frond_motion::{FilterSpec, HandSample, Mapper, Rig};
-use frond_protocol::{Hello, PatchableHello, ServerMessage, read_frame};
-use frondd::engine::{Engine, LoopCommand};
-use frondd::lanes::NewLane;
+use frond_protocol::{ServerMessage, read_frame};
+use frondd::engine::Engine;
 use frondd::publisher::{PublisherConfig, SubscriberCounters, spawn_publisher};
+
+mod common;
+use common::{new_lane, subscriber_pair};
 
 /// One report per read.
 struct Steady {
@@ -68,19 +68,7 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
     let publisher = spawn_publisher(frames, ends.publish_wake.clone(), slow, config).unwrap();
 
     // The daemon's end gets a small send buffer, so the stall fills it within a few dozen frames.
-    let (daemon_end, mut sub_end) = UnixStream::pair().unwrap();
-    let size: libc::c_int = 4096;
-    // SAFETY: a valid socket and a c_int option value of its size.
-    let rc = unsafe {
-        libc::setsockopt(
-            daemon_end.as_raw_fd(),
-            libc::SOL_SOCKET,
-            libc::SO_SNDBUF,
-            (&size as *const libc::c_int).cast(),
-            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
-    assert_eq!(rc, 0);
+    let (daemon_end, mut sub_end) = subscriber_pair(true);
     let read = Arc::new(AtomicU64::new(0));
     let read_count = read.clone();
     let reader = std::thread::spawn(move || {
@@ -100,14 +88,6 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
         h.next_seq
     });
 
-    let hello = Hello {
-        protocol_version: frond_protocol::PROTOCOL_VERSION,
-        daemon_version: "test".into(),
-        rig_name: "grass".into(),
-        joint_names: rig.joint_names(),
-        tick_rate_hz: 1000,
-        next_seq: 0,
-    };
     let counters = Arc::new(SubscriberCounters::default());
     let mut now = 1_000_000_000u64;
     for _ in 0..50 {
@@ -115,14 +95,7 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
         engine.tick(now);
     }
     let first = engine.next_seq();
-    ends.commands
-        .send(LoopCommand::AddSubscriber(Box::new(NewLane {
-            id: 7,
-            stream: Some(daemon_end),
-            counters: Some(counters.clone()),
-            hello: PatchableHello::new(&hello),
-        })))
-        .unwrap();
+    ends.commands.send(new_lane(7, daemon_end, counters.clone())).unwrap();
     // ~0.6 s of ticks: the stall, the hand-over, and frames through the slow lane after it.
     for _ in 0..3000 {
         now += 1_000_000;

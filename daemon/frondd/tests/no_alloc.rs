@@ -14,6 +14,9 @@ use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, Source
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
 use frondd::engine::{Engine, LoopCommand};
 
+mod common;
+use common::{new_lane, subscriber_pair};
+
 struct Counting;
 
 thread_local! {
@@ -286,46 +289,6 @@ fn live_modes_allocate_nothing_per_tick() {
     drop(garbage_rx);
 }
 
-/// A subscriber socket pair: the daemon's end and the subscriber's end. `small`: a small send
-/// buffer, so a subscriber that does not read fills it within a few dozen frames.
-fn subscriber_pair(small: bool) -> (std::os::unix::net::UnixStream, std::os::unix::net::UnixStream) {
-    use std::os::fd::AsRawFd;
-    let (daemon_end, sub_end) = std::os::unix::net::UnixStream::pair().unwrap();
-    if !small {
-        return (daemon_end, sub_end);
-    }
-    let size: libc::c_int = 4096;
-    // SAFETY: a valid socket and a c_int option value of its size.
-    let rc = unsafe {
-        libc::setsockopt(
-            daemon_end.as_raw_fd(),
-            libc::SOL_SOCKET,
-            libc::SO_SNDBUF,
-            (&size as *const libc::c_int).cast(),
-            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
-    assert_eq!(rc, 0);
-    (daemon_end, sub_end)
-}
-
-fn new_lane(id: u64, stream: std::os::unix::net::UnixStream) -> LoopCommand {
-    let hello = frond_protocol::Hello {
-        protocol_version: frond_protocol::PROTOCOL_VERSION,
-        daemon_version: "test".into(),
-        rig_name: "grass".into(),
-        joint_names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
-        tick_rate_hz: 1000,
-        next_seq: 0,
-    };
-    LoopCommand::AddSubscriber(Box::new(frondd::lanes::NewLane {
-        id,
-        stream: Some(stream),
-        counters: Some(Arc::new(frondd::publisher::SubscriberCounters::default())),
-        hello: frond_protocol::PatchableHello::new(&hello),
-    }))
-}
-
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive
 /// from its Hello on.
 fn read_poses(
@@ -372,7 +335,7 @@ fn direct_lanes_allocate_nothing_admitting_sending_and_demoting() {
         engine.tick(now);
     }
     for (id, s) in [(1, a_daemon), (2, b_daemon), (3, stalled_daemon)] {
-        ends.commands.send(new_lane(id, s)).unwrap();
+        ends.commands.send(new_lane(id, s, Arc::default())).unwrap();
     }
     let before = ALLOCATIONS.load(Relaxed);
     COUNTING.with(|c| c.set(true));
