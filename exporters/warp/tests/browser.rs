@@ -1,7 +1,8 @@
 //! Headless-browser test of `frond-warp serve`: Debian's Chromium driven through chromedriver's
 //! W3C WebDriver HTTP API (a tiny client over `TcpStream`, loopback only). Checks that the page
-//! loads, that frames keep changing, that a control changes the output, and saves a screenshot to
-//! `exporters/warp/screenshot.png` for the README.
+//! loads, that frames keep changing, that a control changes the output, and takes a screenshot:
+//! into the test's temporary directory, or, with `FROND_UPDATE_SCREENSHOT=1`, over
+//! `exporters/warp/screenshot.png` for the README (so a test run leaves the work tree clean).
 //!
 //! Without chromium/chromedriver the test prints why and skips (install them with
 //! `exporters/warp/tests/install-browser.sh`); under `CI=true` or `FROND_REQUIRE_BROWSER=1` a
@@ -301,7 +302,12 @@ fn page_loads_animates_and_controls_change_the_output() {
     std::thread::sleep(Duration::from_millis(1500));
     let png = base64_decode(d.cmd("GET", "/screenshot", None).as_str().unwrap());
     assert_eq!(&png[1..4], b"PNG");
-    let shot = Path::new(env!("CARGO_MANIFEST_DIR")).join("screenshot.png");
+    let shot = if std::env::var_os("FROND_UPDATE_SCREENSHOT").is_some_and(|v| v == "1") {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("screenshot.png")
+    } else {
+        std::env::temp_dir().join(format!("frond-warp-screenshot-{}.png", std::process::id()))
+    };
     std::fs::write(&shot, &png).unwrap();
+    eprintln!("screenshot: {}", shot.display());
     let _ = http(port, "DELETE", &format!("/session/{}", d.session), None);
 }
