@@ -2,6 +2,7 @@
 //! parser, the [`HandSource`](source::HandSource) trait with its hidapi, replay and in-process
 //! implementations, and the virtual glove (`frond-vhid`).
 
+pub mod doorbell;
 pub mod glove;
 pub mod jsonl;
 pub mod profile;

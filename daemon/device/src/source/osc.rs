@@ -20,6 +20,7 @@ use frond_motion::HandSample;
 use rosc::{OscPacket, OscType};
 
 use super::{HandSource, SourceError, SourceKind};
+use crate::doorbell::Doorbell;
 use crate::report::{DeviceSample, SourceCounters};
 
 /// The OSC address of a hand sample.
@@ -130,6 +131,8 @@ pub fn decode_hand_packet(datagram: &[u8]) -> Vec<Result<HandSample, OscHandErro
 /// Hand samples received as OSC over UDP.
 pub struct OscHandSource {
     rx: Receiver<DeviceSample>,
+    /// Rung by the receiver thread per queued sample: the loop's ready descriptor.
+    bell: Arc<Doorbell>,
     counters: Arc<SourceCounters>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -152,14 +155,17 @@ impl OscHandSource {
         let (tx, rx) = crossbeam_channel::bounded(QUEUE_LEN);
         let counters = Arc::new(SourceCounters::default());
         let stop = Arc::new(AtomicBool::new(false));
+        let bell = Arc::new(
+            Doorbell::new().map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?,
+        );
         let thread = {
-            let (counters, stop) = (Arc::clone(&counters), Arc::clone(&stop));
+            let (counters, stop, bell) = (Arc::clone(&counters), Arc::clone(&stop), Arc::clone(&bell));
             std::thread::Builder::new()
                 .name("frond-osc-in".into())
-                .spawn(move || receive(socket, tx, counters, stop))
+                .spawn(move || receive(socket, tx, counters, stop, &bell))
                 .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?
         };
-        Ok(Self { rx, counters, stop, thread: Some(thread), describe: format!("osc://{local}"), local })
+        Ok(Self { rx, bell, counters, stop, thread: Some(thread), describe: format!("osc://{local}"), local })
     }
 
     /// The bound address (useful with port 0).
@@ -173,6 +179,7 @@ fn receive(
     tx: Sender<DeviceSample>,
     counters: Arc<SourceCounters>,
     stop: Arc<AtomicBool>,
+    bell: &Doorbell,
 ) {
     let mut buf = vec![0u8; 65_536];
     let mut seq = 0u32;
@@ -199,6 +206,7 @@ fn receive(
                     match tx.try_send(sample) {
                         Ok(()) => {
                             bump(&counters.reports);
+                            bell.ring();
                         }
                         // The loop drains every tick; a full queue means it is gone or stuck.
                         Err(TrySendError::Full(_)) => {
@@ -230,7 +238,13 @@ impl HandSource for OscHandSource {
         &self.describe
     }
 
+    fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
+        Some(self.bell.fd())
+    }
+
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
+        // Quiet the bell first: a sample queued after this rings it again.
+        self.bell.drain();
         let mut n = 0;
         while n < out.len() {
             match self.rx.try_recv() {
@@ -371,5 +385,32 @@ mod tests {
         }
         let c = src.counters().snapshot();
         assert_eq!((c.reports, c.malformed), (20, 1));
+    }
+
+    /// The loop waits on the OSC source's ready descriptor: quiet with nothing queued, readable
+    /// as soon as a sample is, quiet again once `read_pending` took it.
+    #[test]
+    fn ready_descriptor_wakes_a_poll_per_sample() {
+        let poll = |fd: i32, ms: i32| {
+            let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+            // SAFETY: one valid pollfd.
+            unsafe { libc::poll(&mut pfd, 1, ms) == 1 }
+        };
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let fd = src.ready_fd().expect("a ready descriptor");
+        assert!(!poll(fd, 50));
+        let msg = OscPacket::Message(rosc::OscMessage {
+            addr: OSC_HAND_ADDRESS.into(),
+            args: [0.5f32, 1.0, 2.0, 3.0, 5.0, 5.0, 5.0].into_iter().map(OscType::Float).collect(),
+        });
+        UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .send_to(&rosc::encoder::encode(&msg).unwrap(), src.local_addr())
+            .unwrap();
+        assert!(poll(fd, 10_000), "the sample did not wake the poll");
+        let mut out = [DeviceSample::default(); 4];
+        assert_eq!(src.read_pending(&mut out).unwrap(), 1);
+        assert_eq!(out[0].raw.wrist_deg, [1.0, 2.0, 3.0]);
+        assert!(!poll(fd, 50), "still readable after the sample was taken");
     }
 }

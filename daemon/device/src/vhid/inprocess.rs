@@ -4,7 +4,7 @@
 //! After each report (and at an unplug) it signals an `eventfd`, the source's ready descriptor,
 //! so the loop wakes when a report is queued as it would on a kernel hidraw node.
 
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
+use std::os::fd::RawFd;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
@@ -12,6 +12,7 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 
 use super::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
+use crate::doorbell::Doorbell;
 use crate::glove::REPORT_LEN;
 use crate::profile::DeviceProfile;
 use crate::report::{DeviceSample, ReportParser, SourceCounters};
@@ -27,36 +28,6 @@ struct Plug {
     generation: AtomicU64,
     /// Reports lost because the queue was full.
     overflow: AtomicU64,
-}
-
-/// A non-blocking `eventfd`: written when there is something to read, drained by the reader.
-#[derive(Debug)]
-struct Doorbell(OwnedFd);
-
-impl Doorbell {
-    fn new() -> std::io::Result<Self> {
-        // SAFETY: eventfd has no memory-safety preconditions; a valid result is a new descriptor
-        // we own from here on.
-        let fd = unsafe { libc::eventfd(0, libc::EFD_NONBLOCK | libc::EFD_CLOEXEC) };
-        if fd < 0 {
-            return Err(std::io::Error::last_os_error());
-        }
-        // SAFETY: `fd` was just returned by eventfd and is owned by nobody else.
-        Ok(Doorbell(unsafe { OwnedFd::from_raw_fd(fd) }))
-    }
-
-    fn ring(&self) {
-        let one = 1u64.to_ne_bytes();
-        // SAFETY: writes 8 bytes from a valid buffer to our own eventfd (non-blocking; a full
-        // counter returns EAGAIN and the reader is awake anyway).
-        unsafe { libc::write(self.0.as_raw_fd(), one.as_ptr().cast(), one.len()) };
-    }
-
-    fn drain(&self) {
-        let mut v = [0u8; 8];
-        // SAFETY: reads at most 8 bytes into a valid buffer from our own non-blocking eventfd.
-        unsafe { libc::read(self.0.as_raw_fd(), v.as_mut_ptr().cast(), v.len()) };
-    }
 }
 
 struct QueueSink {
@@ -149,7 +120,7 @@ impl HandSource for InProcessGlove {
     }
 
     fn ready_fd(&self) -> Option<RawFd> {
-        self.open_generation.map(|_| self.bell.0.as_raw_fd())
+        self.open_generation.map(|_| self.bell.fd())
     }
 
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
