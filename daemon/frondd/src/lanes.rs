@@ -99,6 +99,13 @@ fn send_nowait(stream: &UnixStream, bytes: &[u8]) -> Sent {
     }
 }
 
+/// `rest` copied into a fixed tail buffer, or `None` if it is longer than [`TAIL_MAX`].
+fn tail_of(rest: &[u8]) -> Option<([u8; TAIL_MAX], usize)> {
+    let mut tail = [0u8; TAIL_MAX];
+    tail.get_mut(..rest.len())?.copy_from_slice(rest);
+    Some((tail, rest.len()))
+}
+
 /// The loop's direct lanes. Allocates only in [`Lanes::new`].
 pub struct Lanes {
     slots: Box<[Option<Lane>]>,
@@ -106,7 +113,7 @@ pub struct Lanes {
     buf: Vec<u8>,
     slow: Sender<SlowLane>,
     wake: Arc<PublisherWake>,
-    /// Subscribers moved to the slow lane, and ones that left, since start (for tests/status).
+    /// Subscribers moved to the slow lane since start.
     demoted: u64,
 }
 
@@ -154,7 +161,11 @@ impl Lanes {
                 self.slots[slot] = Some(lane);
                 self.live += 1;
             }
-            Sent::Part(n) => self.demote(lane, &hello[n..], next_seq, garbage),
+            Sent::Part(n) => match tail_of(&hello[n..]) {
+                Some((tail, len)) => self.hand_to_slow(lane, tail, len, next_seq, garbage),
+                // Only a Hello longer than TAIL_MAX that a fresh socket refused: let it go.
+                None => self.close(lane, garbage),
+            },
             Sent::Gone => self.close(lane, garbage),
         }
     }
@@ -175,21 +186,22 @@ impl Lanes {
                 Sent::Part(n) => {
                     let Some(lane) = self.slots[i].take() else { continue };
                     self.live -= 1;
-                    if n == 0 {
-                        // Nothing of this frame went out: the slow lane owes it this one too.
-                        self.hand_to_slow(lane, [0u8; TAIL_MAX], 0, pose.seq, garbage);
-                        continue;
-                    }
-                    // Part of the frame went out; the slow lane sends the rest first.
-                    lane.counters.sent.fetch_add(1, Relaxed);
-                    let rest = self.buf.len() - n;
-                    if rest > TAIL_MAX {
-                        self.close(lane, garbage);
-                        continue;
-                    }
-                    let mut tail = [0u8; TAIL_MAX];
-                    tail[..rest].copy_from_slice(&self.buf[n..]);
-                    self.hand_to_slow(lane, tail, rest, pose.seq + 1, garbage);
+                    // The slow lane sends the unsent rest of this frame first, then the frames
+                    // after it; if nothing went out, it owes this frame whole.
+                    let from_seq = if n == 0 { pose.seq } else { pose.seq + 1 };
+                    let (tail, len) = if n == 0 {
+                        ([0u8; TAIL_MAX], 0)
+                    } else {
+                        lane.counters.sent.fetch_add(1, Relaxed);
+                        match tail_of(&self.buf[n..]) {
+                            Some(t) => t,
+                            None => {
+                                self.close(lane, garbage);
+                                continue;
+                            }
+                        }
+                    };
+                    self.hand_to_slow(lane, tail, len, from_seq, garbage);
                 }
                 Sent::Gone => {
                     if let Some(lane) = self.slots[i].take() {
@@ -199,17 +211,6 @@ impl Lanes {
                 }
             }
         }
-    }
-
-    fn demote(&mut self, lane: Lane, rest: &[u8], from_seq: u64, garbage: &Sender<Garbage>) {
-        if rest.len() > TAIL_MAX {
-            // Only a Hello that a fresh socket refused could be this long: let it go.
-            self.close(lane, garbage);
-            return;
-        }
-        let mut tail = [0u8; TAIL_MAX];
-        tail[..rest.len()].copy_from_slice(rest);
-        self.hand_to_slow(lane, tail, rest.len(), from_seq, garbage);
     }
 
     fn hand_to_slow(
@@ -244,5 +245,53 @@ impl Lanes {
     /// Id of the subscriber on each direct lane (for tests).
     pub fn ids(&self) -> impl Iterator<Item = u64> + '_ {
         self.slots.iter().flatten().map(|l| l.id)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tails_up_to_tail_max_are_kept_longer_ones_refused() {
+        let bytes: Vec<u8> = (0..=TAIL_MAX as u32).map(|i| i as u8).collect();
+        let (tail, len) = tail_of(&bytes[..TAIL_MAX]).unwrap();
+        assert_eq!((len, &tail[..]), (TAIL_MAX, &bytes[..TAIL_MAX]));
+        assert_eq!(tail_of(&[]).unwrap().1, 0);
+        assert!(tail_of(&bytes).is_none());
+    }
+
+    #[test]
+    fn a_subscriber_that_hung_up_is_closed_and_handed_to_housekeeping() {
+        let (slow_tx, slow_rx) = crossbeam_channel::bounded(4);
+        let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(4);
+        let mut lanes = Lanes::new(slow_tx, Arc::default());
+        let (daemon_end, sub_end) = UnixStream::pair().unwrap();
+        let counters = Arc::new(SubscriberCounters::default());
+        let hello = frond_protocol::Hello {
+            protocol_version: frond_protocol::PROTOCOL_VERSION,
+            daemon_version: "t".into(),
+            rig_name: "grass".into(),
+            joint_names: vec![],
+            tick_rate_hz: 1000,
+            next_seq: 0,
+        };
+        let mut new = NewLane {
+            id: 9,
+            stream: Some(daemon_end),
+            counters: Some(counters.clone()),
+            hello: PatchableHello::new(&hello),
+        };
+        lanes.admit(&mut new, 5, &garbage_tx);
+        assert_eq!(lanes.ids().collect::<Vec<_>>(), vec![9]);
+        lanes.send(&Pose { seq: 5, ..Pose::default() }, &garbage_tx);
+        assert_eq!(counters.sent.load(Relaxed), 1);
+        drop(sub_end);
+        lanes.send(&Pose { seq: 6, ..Pose::default() }, &garbage_tx);
+        assert!(lanes.is_empty());
+        assert!(counters.closed.load(Relaxed));
+        assert!(matches!(garbage_rx.try_recv(), Ok(Garbage::Lane(_))));
+        assert!(slow_rx.is_empty(), "a hung-up subscriber is not moved to the slow lane");
+        assert_eq!(lanes.demoted(), 0);
     }
 }
