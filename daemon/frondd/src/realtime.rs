@@ -74,6 +74,13 @@ fn set_timer_slack_1ns() {
     unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
 }
 
+/// Whether a report at `now_ns` (before `deadline_ns`) falls in the period that the tick at
+/// `deadline_ns` closes, `(deadline - period, deadline]`; otherwise it falls in an earlier period,
+/// whose tick an earlier report already covered (the deadline was moved past it).
+fn covers_upcoming_tick(now_ns: u64, deadline_ns: u64, period_ns: u64) -> bool {
+    deadline_ns - now_ns < period_ns
+}
+
 /// Starts the loop thread. It runs until `stop` is set, then returns the engine.
 ///
 /// The loop wakes at absolute deadlines one period apart (`clock_nanosleep(TIMER_ABSTIME)`, or
@@ -115,11 +122,10 @@ pub fn spawn_loop(
                 if engine.device_ready(now) == 0 {
                     fd_quiet = true;
                 } else if now < deadline && !engine.needs_every_tick() {
-                    // The report's period ends at the first tick at or after `now`. If that is
-                    // the upcoming tick, the tick would find the report and do nothing else:
-                    // cover it and wait for the next one. (An earlier tick is already covered.)
-                    let tick = deadline - ((deadline - now) / period) * period;
-                    let upcoming = tick == deadline;
+                    // The upcoming tick would find the report and do nothing else: cover it and
+                    // wait for the next one. (A report in an already covered period only must
+                    // not count for the upcoming tick.)
+                    let upcoming = covers_upcoming_tick(now, deadline, period);
                     engine.cover_tick(upcoming);
                     if upcoming {
                         deadline += period;
@@ -143,4 +149,21 @@ pub fn spawn_loop(
         engine
     })?;
     Ok((handle, report_rx))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::covers_upcoming_tick;
+
+    #[test]
+    fn a_report_covers_the_tick_that_closes_its_period() {
+        // Ticks every 1000 ns; the next deadline is at 10_000.
+        assert!(covers_upcoming_tick(9_001, 10_000, 1_000), "just after the previous tick");
+        assert!(covers_upcoming_tick(9_999, 10_000, 1_000), "just before the deadline");
+        // At exactly 9_000 the report belongs to the tick at 9_000 (its period is (8000, 9000]).
+        assert!(!covers_upcoming_tick(9_000, 10_000, 1_000));
+        // The deadline was already moved one period ahead by an earlier report: a second report
+        // in that same earlier period does not cover the tick at 10_000.
+        assert!(!covers_upcoming_tick(8_500, 10_000, 1_000));
+    }
 }
