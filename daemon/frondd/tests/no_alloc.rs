@@ -108,15 +108,21 @@ fn steady_state_ticks_allocate_nothing() {
         cal.params(),
         FilterSpec::OneEuro { min_cutoff: 1.0, beta: 0.01, d_cutoff: 1.0 },
     );
-    // A small publisher queue drained by another thread: the loop outruns it, so both the
-    // delivered and the dropped path run.
+    // A small publisher queue drained by another thread, which starts draining only after the
+    // first 5000 counted ticks: both the dropped path (queue full) and the delivered path run,
+    // whatever the scheduling.
     let (mut engine, ends) =
         Engine::with_channels(mapper, Some(scripted([1, 1, 0, 3, 1, 0, 1, 2], 0)), 250_000_000, 256, 100_000);
     let (cmd_tx, publish_rx, rec_rx, reopen_rx, stats) =
         (ends.commands, ends.frames, ends.recorder, ends.reopen, ends.stats);
     let drained = Arc::new(AtomicU64::new(0));
     let drain_count = drained.clone();
+    let start_draining = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let go = start_draining.clone();
     let drain = std::thread::spawn(move || {
+        while !go.load(Relaxed) {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
         while let Ok(_pose) = publish_rx.recv() {
             drain_count.fetch_add(1, Relaxed);
         }
@@ -140,9 +146,12 @@ fn steady_state_ticks_allocate_nothing() {
     }
     let before_seq = engine.next_seq();
     COUNTING.with(|c| c.set(true));
-    for _ in 0..20_000 {
+    for i in 0..20_000 {
         now += 1_000_000;
         engine.tick(now);
+        if i == 5_000 {
+            start_draining.store(true, Relaxed);
+        }
     }
     COUNTING.with(|c| c.set(false));
     let allocations = ALLOCATIONS.load(Relaxed);
