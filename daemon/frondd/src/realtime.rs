@@ -104,11 +104,13 @@ pub fn spawn_loop(
         set_timer_slack_1ns();
         let period = NS_PER_S / u64::from(rate_hz.max(1));
         let mut deadline = monotonic_ns() + period;
-        // Set after a device wake that found nothing to read: wait for the deadline alone, so
-        // a descriptor that stays readable (hung up, say) cannot spin the loop.
-        let mut fd_quiet = false;
+        // Device wakes in a row that found nothing to read. One can happen (a report rang the
+        // doorbell but was read by the previous call); after a second the loop waits for the
+        // deadline alone this period, so a descriptor that stays readable (hung up, say) cannot
+        // spin it.
+        let mut empty_wakes = 0u8;
         while !stop.load(Relaxed) {
-            let fd = if fd_quiet { None } else { engine.ready_fd() };
+            let fd = if empty_wakes >= 2 { None } else { engine.ready_fd() };
             let woke = match fd {
                 Some(fd) => wait_readable_until_ns(fd, deadline),
                 None => {
@@ -120,20 +122,23 @@ pub fn spawn_loop(
             if woke == Woke::Readable {
                 stats.device_wakes.fetch_add(1, Relaxed);
                 if engine.device_ready(now) == 0 {
-                    fd_quiet = true;
-                } else if now < deadline && !engine.needs_every_tick() {
-                    // The upcoming tick would find the report and do nothing else: cover it and
-                    // wait for the next one. (A report in an already covered period only must
-                    // not count for the upcoming tick.)
-                    let upcoming = covers_upcoming_tick(now, deadline, period);
-                    engine.cover_tick(upcoming);
-                    if upcoming {
-                        deadline += period;
+                    empty_wakes += 1;
+                } else {
+                    empty_wakes = 0;
+                    if now < deadline && !engine.needs_every_tick() {
+                        // The upcoming tick would find the report and do nothing else: cover it
+                        // and wait for the next one. (A report in an already covered period
+                        // only must not count for the upcoming tick.)
+                        let upcoming = covers_upcoming_tick(now, deadline, period);
+                        engine.cover_tick(upcoming);
+                        if upcoming {
+                            deadline += period;
+                        }
                     }
                 }
                 continue;
             }
-            fd_quiet = false;
+            empty_wakes = 0;
             stats.lateness.record(now.saturating_sub(deadline));
             engine.tick(now);
             deadline += period;
