@@ -240,7 +240,6 @@ impl Engine {
         self.fresh_since_tick = 0;
         if count_tick {
             self.links.stats.ticks.fetch_add(1, Relaxed);
-            self.links.stats.covered_ticks.fetch_add(1, Relaxed);
         }
     }
 

@@ -212,9 +212,6 @@ pub struct LoopStats {
     pub held_ticks: AtomicU64,
     /// Times the device's ready descriptor woke the loop between ticks.
     pub device_wakes: AtomicU64,
-    /// Ticks skipped because a report published on a device wake covered their period
-    /// (counted in `ticks` as well).
-    pub covered_ticks: AtomicU64,
     /// Next pose sequence number.
     pub next_seq: AtomicU64,
     /// Frames not handed to a subscriber queue or the recorder because it was full.
