@@ -4,8 +4,8 @@
 //! validation ("every offset + size <= report_len") with hostile profiles.
 
 use frond_device::glove::{GloveReport, REPORT_LEN, encode_report};
-use frond_device::profile::FROND_GLOVE_TOML;
-use frond_device::{DeviceProfile, ProfileError, ReportError, ReportParser};
+use frond_device::profile::{CHANNEL_KEYS, FROND_GLOVE_TOML, PROFILE_KEYS};
+use frond_device::{ChannelId, DeviceProfile, ProfileError, ReportError, ReportParser};
 use frond_fuzz::{Rng, Target, as_text, assert_message, fuzz};
 
 /// Sets the reference glove's checksum byte so the 8-bit sum is 0 (the inputs then reach the
@@ -175,42 +175,29 @@ fn fuzz_device_profiles() {
     for s in seeds {
         DeviceProfile::from_toml_str(s).expect("seed profiles are valid");
     }
-    let dict = [
-        "name",
-        "vendor_id",
-        "product_id",
-        "path",
-        "report_id",
-        "report_len",
-        "sequence",
-        "device_time",
-        "checksum",
-        "status",
-        "[[channel]]",
-        "offset",
-        "type",
-        "scale",
-        "unit",
-        "min",
-        "max",
-        "\"u8\"",
-        "\"i8\"",
-        "\"u16le\"",
-        "\"i16le\"",
-        "\"u32le\"",
-        "\"i32le\"",
-        "\"f32le\"",
-        "\"deg\"",
-        "\"rad\"",
-        "\"us\"",
-        "\"ms\"",
-        "\"sum8\"",
-        "\"wrist_pitch\"",
-        "\"thumb_g3\"",
-        "\"flex_little\"",
-        "0xFFFF",
-        "0x10000",
-    ];
+    // The profile's own key lists and channel names, then the values a profile writes.
+    let mut dict: Vec<String> = PROFILE_KEYS.iter().chain(CHANNEL_KEYS).map(|k| k.to_string()).collect();
+    dict.extend(ChannelId::ALL.iter().map(|c| format!("\"{}\"", c.as_str())));
+    dict.extend(
+        [
+            "[[channel]]",
+            "\"u8\"",
+            "\"i8\"",
+            "\"u16le\"",
+            "\"i16le\"",
+            "\"u32le\"",
+            "\"i32le\"",
+            "\"f32le\"",
+            "\"deg\"",
+            "\"rad\"",
+            "\"us\"",
+            "\"ms\"",
+            "\"sum8\"",
+            "0xFFFF",
+            "0x10000",
+        ]
+        .map(String::from),
+    );
     let report = fuzz(Target::new("device-profile").seeds(seeds).text().dict(dict), |b| {
         match DeviceProfile::from_toml_str(&as_text(b)) {
             Ok(profile) => {

@@ -312,7 +312,11 @@ struct Checker {
     problems: Vec<ProfileProblem>,
 }
 
-const TOP_KEYS: &[&str] = &[
+/// The keys a `[[channel]]` table may have.
+pub const CHANNEL_KEYS: &[&str] = &["name", "offset", "type", "scale", "unit", "min", "max"];
+
+/// The keys a profile's top-level table may have (anything else is reported as unknown).
+pub const PROFILE_KEYS: &[&str] = &[
     "name",
     "vendor_id",
     "product_id",
@@ -449,7 +453,7 @@ impl Checker {
     }
 
     fn profile(mut self, t: &toml::Table) -> Result<DeviceProfile, ProfileError> {
-        self.unknown_keys(t, "", TOP_KEYS);
+        self.unknown_keys(t, "", PROFILE_KEYS);
         let name = self.string(t, "name", "name").map(str::to_owned);
         let name = self.required(name, t, "name", "name");
         let vendor_id = self.int(t, "vendor_id", "vendor_id", 0, 0xFFFF).map(|v| v as u16);
@@ -577,11 +581,7 @@ impl Checker {
                 self.err(format!("channel[{i}]"), "expected a table");
                 continue;
             };
-            self.unknown_keys(
-                c,
-                &format!("channel[{i}]."),
-                &["name", "offset", "type", "scale", "unit", "min", "max"],
-            );
+            self.unknown_keys(c, &format!("channel[{i}]."), CHANNEL_KEYS);
             let id = match self.string(c, "name", &p("name")) {
                 Some(s) => match ChannelId::parse(s) {
                     Some(id) if seen.contains(&id) => {
