@@ -291,3 +291,35 @@ pub fn assert_message<E: std::fmt::Display>(e: &E) {
     let msg = e.to_string();
     assert!(!msg.trim().is_empty(), "error with an empty message");
 }
+
+/// The outcome label for a parser of TOML files: `ok` once `check` has run on the parsed value,
+/// `toml` for a syntax error (`is_syntax`), `invalid` for a file that parsed but did not
+/// validate. Every error must render a message ([`assert_message`]).
+pub fn toml_outcome<T, E: std::fmt::Display>(
+    result: Result<T, E>,
+    is_syntax: impl FnOnce(&E) -> bool,
+    check: impl FnOnce(T),
+) -> &'static str {
+    match result {
+        Ok(value) => {
+            check(value);
+            "ok"
+        }
+        Err(e) => {
+            assert_message(&e);
+            if is_syntax(&e) { "toml" } else { "invalid" }
+        }
+    }
+}
+
+/// Asserts that `text`, written by `what`'s own serialiser from `value`, parses back to an equal
+/// value.
+pub fn assert_round_trip<T: PartialEq + std::fmt::Debug, E: std::fmt::Display>(
+    what: &str,
+    value: &T,
+    text: &str,
+    parse: impl FnOnce(&str) -> Result<T, E>,
+) {
+    let again = parse(text).unwrap_or_else(|e| panic!("a valid {what}'s own TOML is refused: {e}\n{text}"));
+    assert_eq!(&again, value, "{what} changed through to_toml_string");
+}

@@ -6,7 +6,7 @@
 use frond_device::glove::{GloveReport, REPORT_LEN, encode_report};
 use frond_device::profile::{CHANNEL_KEYS, FROND_GLOVE_TOML, PROFILE_KEYS};
 use frond_device::{ChannelId, DeviceProfile, ProfileError, ReportError, ReportParser};
-use frond_fuzz::{Rng, Target, as_text, assert_message, fuzz};
+use frond_fuzz::{Rng, Target, as_text, assert_message, fuzz, toml_outcome};
 
 /// Sets the reference glove's checksum byte so the 8-bit sum is 0 (the inputs then reach the
 /// channel range checks instead of stopping at the checksum).
@@ -199,8 +199,10 @@ fn fuzz_device_profiles() {
         .map(String::from),
     );
     let report = fuzz(Target::new("device-profile").seeds(seeds).text().dict(dict), |b| {
-        match DeviceProfile::from_toml_str(&as_text(b)) {
-            Ok(profile) => {
+        toml_outcome(
+            DeviceProfile::from_toml_str(&as_text(b)),
+            |e| matches!(e, ProfileError::Syntax(_)),
+            |profile| {
                 // A profile that validates must be safe to parse any report with.
                 let mut rng = Rng::new(frond_fuzz::fnv1a(b));
                 let len = profile.report_len;
@@ -211,17 +213,8 @@ fn fuzz_device_profiles() {
                 parse_reports(&profile, &report);
                 parse_reports(&profile, &vec![0xff; len]);
                 parse_reports(&profile, &report[..len - 1]);
-                "ok"
-            }
-            Err(e @ ProfileError::Syntax(_)) => {
-                assert_message(&e);
-                "toml"
-            }
-            Err(e) => {
-                assert_message(&e);
-                "invalid"
-            }
-        }
+            },
+        )
     });
     report.assert_reaches("ok", 50);
     report.assert_reaches("invalid", 50);

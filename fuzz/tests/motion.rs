@@ -2,7 +2,7 @@
 //! and take files. Accepted inputs must survive the format's own writer: writing the parsed value
 //! and parsing it again gives the same value (the writers document this round trip).
 
-use frond_fuzz::{Rng, Target, as_text, assert_message, fuzz};
+use frond_fuzz::{Rng, Target, as_text, assert_message, assert_round_trip, fuzz, toml_outcome};
 use frond_motion::take::{MAGIC, RECORD_HEAD_LEN, encode_file_start, encode_record};
 use frond_motion::{
     Calibration, CalibrationError, FilterSpec, HandSample, JsonlError, PoseFrame, Rig, RigError, TakeError,
@@ -53,23 +53,11 @@ fn fuzz_rigs() {
         Rig::from_toml_str(s).expect("seed rigs are valid");
     }
     let report = fuzz(Target::new("rig").seeds(seeds).text().dict(RIG_TOKENS).max_len(6000), |b| {
-        match Rig::from_toml_str(&as_text(b)) {
-            Ok(rig) => {
-                let text = rig.to_toml_string();
-                let again = Rig::from_toml_str(&text)
-                    .unwrap_or_else(|e| panic!("a valid rig's own TOML is refused: {e}\n{text}"));
-                assert_eq!(again, rig, "rig changed through to_toml_string");
-                "ok"
-            }
-            Err(e @ RigError::Toml(_)) => {
-                assert_message(&e);
-                "toml"
-            }
-            Err(e) => {
-                assert_message(&e);
-                "invalid"
-            }
-        }
+        toml_outcome(
+            Rig::from_toml_str(&as_text(b)),
+            |e| matches!(e, RigError::Toml(_)),
+            |rig| assert_round_trip("rig", &rig, &rig.to_toml_string(), Rig::from_toml_str),
+        )
     });
     report.assert_reaches("ok", 50);
     report.assert_reaches("invalid", 50);
@@ -94,27 +82,13 @@ fn fuzz_calibrations() {
         "[[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]]",
         "[0.0, 0.0, 0.0]",
     ];
-    let report =
-        fuzz(
-            Target::new("calibration").seeds(seeds).text().dict(dict),
-            |b| match Calibration::from_toml_str(&as_text(b)) {
-                Ok(c) => {
-                    let text = c.to_toml_string();
-                    let again = Calibration::from_toml_str(&text)
-                        .unwrap_or_else(|e| panic!("a valid calibration's own TOML is refused: {e}\n{text}"));
-                    assert_eq!(again, c, "calibration changed through to_toml_string");
-                    "ok"
-                }
-                Err(e @ CalibrationError::Toml(_)) => {
-                    assert_message(&e);
-                    "toml"
-                }
-                Err(e) => {
-                    assert_message(&e);
-                    "invalid"
-                }
-            },
-        );
+    let report = fuzz(Target::new("calibration").seeds(seeds).text().dict(dict), |b| {
+        toml_outcome(
+            Calibration::from_toml_str(&as_text(b)),
+            |e| matches!(e, CalibrationError::Toml(_)),
+            |c| assert_round_trip("calibration", &c, &c.to_toml_string(), Calibration::from_toml_str),
+        )
+    });
     report.assert_reaches("ok", 50);
     report.assert_reaches("invalid", 20);
 }
