@@ -10,7 +10,7 @@ use frond_motion::clip::Clip;
 use frond_motion::mesh::PlantModel;
 
 use crate::anim::{Joints, Layers, check_fps, push_joint_quats};
-use crate::doc::{DocBuilder, Placement, PlantAssets, PlantNodes};
+use crate::doc::{AnimationBuilder, DocBuilder, Placement, PlantAssets, PlantNodes};
 use crate::error::BakeError;
 use crate::field::Field;
 use crate::input::{LoadedRig, TakeInput};
@@ -106,14 +106,8 @@ impl Baker {
         let total = (keys * layers.layers.len()) as u64;
         let mut channels = 0;
         for (n, layer) in layers.layers.iter().enumerate() {
-            for joints in targets(&nodes, &assignment, layer.element) {
-                for (j, node) in joints.iter().enumerate() {
-                    self.quats.clear();
-                    push_joint_quats(layer.poses.iter().map(|p| p[j]), &mut self.quats);
-                    doc.rotation_channel(&mut anim, *node, &self.quats);
-                    channels += 1;
-                }
-            }
+            let targets = targets(&nodes, &assignment, layer.element);
+            channels += joint_channels(&mut doc, &mut anim, &targets, &layer.poses, &mut self.quats);
             progress(((n + 1) * keys) as u64, total);
         }
         let extras = take_extras(rig, take, fps, None);
@@ -193,14 +187,7 @@ impl Baker {
                 }
                 self.poses.clear();
                 self.poses.extend(times_s.iter().map(|&t| field.pose_at(i, clip, t)));
-                for joints in targets {
-                    for (j, node) in joints.iter().enumerate() {
-                        self.quats.clear();
-                        push_joint_quats(self.poses.iter().map(|p| p[j]), &mut self.quats);
-                        doc.rotation_channel(&mut anim, *node, &self.quats);
-                        channels += 1;
-                    }
-                }
+                channels += joint_channels(&mut doc, &mut anim, &targets, &self.poses, &mut self.quats);
             }
             progress(((i + 1) * keys) as u64, total);
         }
@@ -222,6 +209,27 @@ fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
 
 fn element_names(rig: &LoadedRig) -> Vec<String> {
     rig.rig.elements.iter().map(|e| e.name.clone()).collect()
+}
+
+/// Writes a rotation channel for each joint of each joint set in `targets`, keyed by `poses`
+/// (one per key time); returns how many. `quats` is scratch space.
+fn joint_channels(
+    doc: &mut DocBuilder,
+    anim: &mut AnimationBuilder,
+    targets: &[[gltf_json::Index<gltf_json::Node>; JOINTS]],
+    poses: &[Joints],
+    quats: &mut Vec<[f32; 4]>,
+) -> usize {
+    let mut channels = 0;
+    for joints in targets {
+        for (j, node) in joints.iter().enumerate() {
+            quats.clear();
+            push_joint_quats(poses.iter().map(|p| p[j]), quats);
+            doc.rotation_channel(anim, *node, quats);
+            channels += 1;
+        }
+    }
+    channels
 }
 
 /// The joint sets a layer animates: the main joints for layer 0, the element instances it was
