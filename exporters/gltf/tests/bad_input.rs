@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use common::*;
 
@@ -18,6 +18,16 @@ fn fails(dir: &Path, args: &[&str]) -> String {
     let after: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(before, after, "files left behind");
     stderr
+}
+
+/// A scratch directory with a grass take named `take_name` and an empty `keep/` directory for
+/// the outputs of failing bakes (which must leave it as it was).
+fn scratch(take_name: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let take = grass_take(dir.path(), take_name);
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    (dir, take, keep)
 }
 
 #[test]
@@ -67,11 +77,8 @@ fn take_names_resolve_in_the_takes_dir_and_env() {
 
 #[test]
 fn damaged_and_empty_takes() {
-    let dir = tempfile::tempdir().unwrap();
-    let take = grass_take(dir.path(), "good");
+    let (dir, take, keep) = scratch("good");
     let mut bytes = std::fs::read(&take).unwrap();
-    let keep = dir.path().join("keep");
-    std::fs::create_dir(&keep).unwrap();
     let out = keep.join("out.glb");
     let o = out.to_str().unwrap();
 
@@ -105,11 +112,8 @@ fn damaged_and_empty_takes() {
 
 #[test]
 fn bad_rigs() {
-    let dir = tempfile::tempdir().unwrap();
-    let take = grass_take(dir.path(), "t");
+    let (dir, take, keep) = scratch("t");
     let t = take.to_str().unwrap();
-    let keep = dir.path().join("keep");
-    std::fs::create_dir(&keep).unwrap();
     let o = keep.join("out.glb");
     let o = o.to_str().unwrap();
 
@@ -141,11 +145,8 @@ fn bad_rigs() {
 
 #[test]
 fn unwritable_outputs_leave_nothing_behind() {
-    let dir = tempfile::tempdir().unwrap();
-    let take = grass_take(dir.path(), "t");
+    let (_dir, take, keep) = scratch("t");
     let t = take.to_str().unwrap();
-    let keep = dir.path().join("keep");
-    std::fs::create_dir(&keep).unwrap();
 
     let o = keep.join("missing/out.glb");
     let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o.to_str().unwrap()]);
@@ -175,11 +176,8 @@ fn unwritable_outputs_leave_nothing_behind() {
 
 #[test]
 fn bad_options_and_fields() {
-    let dir = tempfile::tempdir().unwrap();
-    let take = grass_take(dir.path(), "t");
+    let (dir, take, keep) = scratch("t");
     let t = take.to_str().unwrap();
-    let keep = dir.path().join("keep");
-    std::fs::create_dir(&keep).unwrap();
     let o = keep.join("out.glb");
     let o = o.to_str().unwrap();
 
