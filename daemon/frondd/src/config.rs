@@ -376,6 +376,17 @@ mod tests {
     }
 
     #[test]
+    fn virtual_clock_defaults_to_schedule_and_is_checked() {
+        let c = Config::load(None, RawConfig::default()).unwrap();
+        assert_eq!(c.virtual_clock, frond_device::DeviceClock::Schedule);
+        let raw = RawConfig::parse("[source]\nvirtual_clock = \"monotonic\"\n", "t").unwrap();
+        assert_eq!(Config::validate(raw).unwrap().virtual_clock, frond_device::DeviceClock::Monotonic);
+        let raw = RawConfig::parse("[source]\nvirtual_clock = \"wall\"\n", "t").unwrap();
+        let errors = Config::validate(raw).unwrap_err();
+        assert_eq!(errors, ["source.virtual_clock: \"wall\" is not one of schedule, monotonic"]);
+    }
+
+    #[test]
     fn overrides_win() {
         let c = Config::load(
             None,
