@@ -210,6 +210,7 @@ fn fuzz_server_messages() {
         rig_name: "grass".into(),
         joint_names: ["root", "low", "high", "tip"].map(String::from).to_vec(),
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq: 42,
     });
     let mut stream = frame(&hello);

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
 use frond_motion::field::{FieldParams, make_field};
-use frond_protocol::{FIELD_ELEMENT_BASE, PoseFlags};
+use frond_protocol::{ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 
 fn frond_ok(daemon: &Daemon, args: &[&str]) -> String {
@@ -102,11 +102,14 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
         &["field", "start", "--take", "global", "--field", field_path.to_str().unwrap(), "--plants", "5"],
     );
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
-    let plants: HashSet<u16> = elements(&mut sub, 1500)
-        .into_iter()
-        .filter(|(e, _)| *e >= FIELD_ELEMENT_BASE)
-        .map(|(e, _)| e - FIELD_ELEMENT_BASE)
-        .collect();
+    // Plants are announced elements: their ids come from the table, not from a number range.
+    let table = sub.elements().clone();
+    let plant_of = |id: u16| {
+        let e = table.get(id)?;
+        (e.kind == ElementKind::FieldPlant).then(|| e.name.strip_prefix("plant")?.parse::<u16>().ok())?
+    };
+    let plants: HashSet<u16> =
+        elements(&mut sub, 1500).into_iter().filter_map(|(e, _)| plant_of(e)).collect();
     assert_eq!(plants, (0..5).collect(), "published plants");
     let out = frond_ok(&daemon, &["field", "key", "left"]);
     assert!(out.contains("direction 180"), "{out}");

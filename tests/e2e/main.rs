@@ -3,6 +3,7 @@
 mod demo;
 mod live_modes;
 mod osc_input;
+mod rt_syscalls;
 mod slow_subscriber;
 mod soak;
 mod stage;

@@ -152,7 +152,8 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
     std::fs::write(&config, "rig = \"shrub\"\n").unwrap();
     signal(&daemon, libc::SIGHUP);
     assert!(wait_for(Duration::from_secs(5), || daemon.status().rig_name == "shrub"));
-    // The subscriber is still connected and saw no gap or reconnect.
+    // The subscriber is still connected and saw no gap or reconnect; the element table it was
+    // sent names the new rig (protocol 2 announces it).
     let mut last = None;
     for _ in 0..500 {
         match sub.next_event().unwrap() {
@@ -162,10 +163,13 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
                 }
                 last = Some(p.seq);
             }
+            Event::Elements(_) => {}
             other => panic!("subscriber disturbed by the reload: {other:?}"),
         }
     }
     assert_eq!(sub.stats().reconnects, 0);
+    assert_eq!(sub.elements().rigs[0].name, "shrub");
+    assert_eq!(sub.elements().joint_names(0).unwrap()[0], "base");
     // A broken config is refused and the running one kept.
     std::fs::write(&config, "rig = \"no-such-rig\"\n").unwrap();
     signal(&daemon, libc::SIGHUP);
@@ -285,7 +289,7 @@ fn control_socket_checks_peer_credentials_and_request_size() {
     }
     // Garbage: a typed refusal, and the daemon carries on.
     let mut stream = UnixStream::connect(daemon.socket_dir.join("control.sock")).unwrap();
-    stream.write_all(&[6, 0, 0, 0, 1, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1]).unwrap();
+    stream.write_all(&[6, 0, 0, 0, frond_protocol::PROTOCOL_VERSION, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1]).unwrap();
     let reply: ControlReply = read_frame(&mut stream, &mut Vec::new()).unwrap();
     assert!(
         matches!(reply, ControlReply::Error(ref e) if e.kind == ControlErrorKind::BadRequest),

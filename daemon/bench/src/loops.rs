@@ -204,6 +204,7 @@ impl FullLoop {
             rig_name: "grass".into(),
             joint_names: rig.joint_names(),
             tick_rate_hz: 1000,
+            elements: Default::default(),
             next_seq: 0,
         };
         let config = PublisherConfig {
@@ -211,8 +212,9 @@ impl FullLoop {
             write_timeout: Duration::from_secs(2),
             max_subscribers: 64,
         };
-        let publisher = spawn_publisher(publish_rx, ends.publish_wake.clone(), slow_rx, config)
-            .map_err(|e| e.to_string())?;
+        let publisher =
+            spawn_publisher(publish_rx, ends.publish_wake.clone(), slow_rx, Default::default(), config)
+                .map_err(|e| e.to_string())?;
         let acceptor = spawn_acceptor(
             listener,
             config,

@@ -91,6 +91,7 @@ fn engine() -> Result<TickRig, String> {
         rig_name: "grass".into(),
         joint_names: crate::rig::grass().joint_names(),
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq: 0,
     });
     let mut readers = Vec::new();
@@ -102,12 +103,7 @@ fn engine() -> Result<TickRig, String> {
             let mut buf = [0u8; 16 * 1024];
             while matches!(sub_end.read(&mut buf), Ok(n) if n > 0) {}
         }));
-        let lane = frondd::lanes::NewLane {
-            id,
-            stream: Some(daemon_end),
-            counters: Some(Default::default()),
-            hello: hello.clone(),
-        };
+        let lane = frondd::lanes::NewLane::new(id, daemon_end, Default::default(), hello.clone());
         ends.commands
             .send(frondd::engine::LoopCommand::AddSubscriber(Box::new(lane)))
             .map_err(|_| "the engine's command queue is closed")?;

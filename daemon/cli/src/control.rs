@@ -6,7 +6,7 @@ use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{anyhow, bail};
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
     CONTROL_SOCKET, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus, StatusReport, paths,
@@ -147,8 +147,10 @@ fn unexpected(reply: &ControlReply) -> anyhow::Error {
 }
 
 /// Reads a text file, naming it in the error.
+/// Reads a small regular text file (FIFOs, devices and files over 1 MiB are refused unread).
 pub(crate) fn read_text(path: &Path, what: &str) -> anyhow::Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {what} file {}", path.display()))
+    frond_motion::rig_files::read_small_text(path, frond_motion::rig_files::MAX_RIG_FILE_BYTES)
+        .map_err(|e| anyhow!("cannot read {what} file {}: {}", path.display(), e.reason()))
 }
 
 /// Reads and validates a calibration file.
@@ -158,11 +160,12 @@ pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, Stri
     Ok((cal, text))
 }
 
-/// Reads and validates a rig file.
+/// Reads and validates a rig file (the one rig loader, `frond_motion::rig_files`).
 pub(crate) fn load_rig(path: &Path) -> anyhow::Result<(Rig, String)> {
     let text = read_text(path, "rig")?;
-    let rig = Rig::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    Ok((rig, text))
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let loaded = frond_motion::rig_files::rig_from_text(text, path.display().to_string(), &stem, None)?;
+    Ok((loaded.rig, loaded.text))
 }
 
 /// Parses a filter argument: a full spec, or a bare kind (`lowpass`, `one-euro`) with defaults.

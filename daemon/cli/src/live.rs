@@ -5,7 +5,7 @@ use std::io::{self, BufRead, IsTerminal, Read, Write};
 use std::path::Path;
 
 use anyhow::Context;
-use frond_protocol::{ControlReply, ControlRequest, RecordingStatus};
+use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StageInput, StageKey, StageSpec};
 
 use crate::args::Global;
 use crate::control::{Control, check_take_name};
@@ -18,7 +18,13 @@ pub(crate) fn play(g: &Global, take: Option<String>, stop: bool, seed: u64) -> a
         check_take_name(t)?;
     }
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::PlayLoop { take: take.clone(), seed })?;
+    let req = match &take {
+        Some(t) => {
+            ControlRequest::StageStart { name: None, spec: StageSpec::Playback { take: t.clone(), seed } }
+        }
+        None => ControlRequest::StageStop { name: "playback".into() },
+    };
+    c.expect_ok(&req)?;
     match take {
         Some(t) => println!("looping take {t} on the pose stream (element 0, flagged playback)"),
         None => println!("playback stopped"),
@@ -70,20 +76,31 @@ pub(crate) fn field_start(
     let field_json = std::fs::read_to_string(field)
         .with_context(|| format!("cannot read field file {}", field.display()))?;
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::FieldStart { take: take.into(), field_json, plants, seed })?;
+    let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
+    c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
     println!("field of {take} playing; steer it with `frond control` or a wrist swipe");
     Ok(())
 }
 
 pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
-    Control::from_global(g)?.expect_ok(&ControlRequest::FieldStop)?;
+    Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: "field".into() })?;
     println!("field playback stopped");
     Ok(())
 }
 
+/// The request for field key `key` (a usage error names the keys).
+fn key_request(key: &str) -> anyhow::Result<ControlRequest> {
+    let key: StageKey = match key.parse() {
+        Ok(k) => k,
+        Err(e) => return crate::usage(e),
+    };
+    Ok(ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(key) })
+}
+
 pub(crate) fn field_key(g: &Global, key: &str) -> anyhow::Result<()> {
+    let req = key_request(key)?;
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::FieldKey { key: key.into() })?;
+    c.expect_ok(&req)?;
     print_field_state(&mut c)
 }
 
@@ -98,7 +115,11 @@ fn print_field_state(c: &mut Control) -> anyhow::Result<()> {
 
 pub(crate) fn guided(g: &Global, spec: &str) -> anyhow::Result<()> {
     let spec = (spec != "off").then(|| spec.to_string());
-    Control::from_global(g)?.expect_ok(&ControlRequest::SetGuided { spec: spec.clone() })?;
+    let req = match &spec {
+        Some(s) => ControlRequest::StageStart { name: None, spec: StageSpec::Guided { spec: s.clone() } },
+        None => ControlRequest::StageStop { name: "guided".into() },
+    };
+    Control::from_global(g)?.expect_ok(&req)?;
     match spec {
         Some(s) => println!("guided motion on: {s}"),
         None => println!("guided motion off"),
@@ -169,7 +190,7 @@ fn keys_from_bytes(bytes: &[u8]) -> Vec<&'static str> {
 pub(crate) fn control(g: &Global) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     let send = |c: &mut Control, key: &str| -> anyhow::Result<()> {
-        c.expect_ok(&ControlRequest::FieldKey { key: key.into() })?;
+        c.expect_ok(&key_request(key)?)?;
         print!("\r\x1b[K");
         print_field_state(c)?;
         io::stdout().flush()?;

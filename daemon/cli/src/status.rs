@@ -93,6 +93,17 @@ pub(crate) fn render(r: &StatusReport) -> String {
             );
         }
     }
+    if r.stages.is_empty() {
+        let _ = writeln!(o, "stages       none");
+    } else {
+        let _ = writeln!(o, "stages       {}", r.stages.len());
+        for st in &r.stages {
+            let _ = writeln!(o, "  {} ({}): {}", st.name, st.kind, st.state);
+        }
+    }
+    if !r.elements.is_empty() {
+        let _ = writeln!(o, "elements     {}", element_groups(&r.elements).join("; "));
+    }
     if r.device_events.is_empty() {
         let _ = writeln!(o, "device events: none");
     } else {
@@ -102,6 +113,33 @@ pub(crate) fn render(r: &StatusReport) -> String {
         }
     }
     o
+}
+
+/// Elements in runs of one kind and source: `0 hand grass`, `33-48 field-plant (field, 16)`.
+fn element_groups(elements: &[frond_protocol::ElementInfo]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < elements.len() {
+        let e = &elements[i];
+        let mut j = i + 1;
+        while j < elements.len() && elements[j].kind == e.kind && elements[j].source == e.source {
+            j += 1;
+        }
+        if j - i == 1 {
+            out.push(format!("{} {} {} ({})", e.id, e.kind.as_str(), e.name, e.source));
+        } else {
+            out.push(format!(
+                "{}-{} {} ({}, {})",
+                e.id,
+                elements[j - 1].id,
+                e.kind.as_str(),
+                e.source,
+                j - i
+            ));
+        }
+        i = j;
+    }
+    out
 }
 
 #[cfg(test)]
@@ -149,6 +187,8 @@ mod tests {
             device_events: vec!["connected /tmp/vhid/hidraw0".into()],
             realtime: "normal".into(),
             modes: vec![],
+            stages: vec![],
+            elements: vec![],
         }
     }
 
@@ -172,6 +212,35 @@ mod tests {
         let sub_line = t.lines().find(|l| l.trim_start().starts_with("7 ")).unwrap();
         let cols: Vec<&str> = sub_line.split_whitespace().collect();
         assert_eq!(cols, ["7", "1m", "05s", "4321", "3"]);
+    }
+
+    #[test]
+    fn stages_and_element_runs_are_listed() {
+        use frond_protocol::{ElementInfo, ElementKind, StageStatus};
+        let mut r = report();
+        assert!(render(&r).contains("stages       none"));
+        let e = |id: u16, kind: ElementKind, name: &str, source: &str| ElementInfo {
+            id,
+            name: name.into(),
+            kind,
+            source: source.into(),
+            rig: "grass".into(),
+        };
+        r.elements = vec![
+            e(0, ElementKind::Hand, "grass", "hand"),
+            e(33, ElementKind::FieldPlant, "plant0", "field"),
+            e(34, ElementKind::FieldPlant, "plant1", "field"),
+            e(35, ElementKind::FieldPlant, "plant2", "field"),
+        ];
+        r.stages = vec![StageStatus {
+            name: "field".into(),
+            kind: "field".into(),
+            state: "field of g: 3 plants".into(),
+            elements: vec![33, 34, 35],
+        }];
+        let t = render(&r);
+        assert!(t.contains("stages       1\n  field (field): field of g: 3 plants\n"), "{t}");
+        assert!(t.contains("elements     0 hand grass (hand); 33-35 field-plant (field, 3)\n"), "{t}");
     }
 
     #[test]

@@ -64,6 +64,14 @@ pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: boo
                 eprintln!("frond tap: reconnected (daemon {}, rig {})", h.daemon_version, h.rig_name);
                 names = h.joint_names;
             }
+            Event::Elements(table) => {
+                let list: Vec<String> = table
+                    .elements
+                    .iter()
+                    .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), e.name))
+                    .collect();
+                eprintln!("frond tap: elements now: {}", list.join(", "));
+            }
             Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
         }
     }

@@ -59,6 +59,8 @@ fn status_report() -> StatusReport {
         device_events: vec!["opened virtual glove".into()],
         realtime: "normal".into(),
         modes: vec![],
+        stages: vec![],
+        elements: vec![],
     }
 }
 
@@ -132,6 +134,7 @@ fn hello(next_seq: u64) -> Hello {
         rig_name: "grass".into(),
         joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq,
     }
 }

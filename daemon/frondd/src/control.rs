@@ -16,14 +16,17 @@ use frond_device::SourceCounters;
 use frond_motion::take::TakeHeader;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus,
-    SourceStatus, StatusReport, paths::validate_take_name, read_frame_limited, write_frame,
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, DecodeError, ElementTable, FrameBuf,
+    ReadError, RecordingStatus, SourceStatus, StatusReport, encode_frame_as, paths::validate_take_name,
+    read_frame_limited, write_frame,
 };
 use tracing::{info, warn};
 
+use crate::control_stage::Setup;
 use crate::engine::LoopCommand;
-use crate::publisher::SubscriberRegistry;
+use crate::publisher::{ElementsCell, SubscriberRegistry};
 use crate::recorder::{RecorderCounters, RecorderMsg};
+use crate::stage::registry::StageRegistry;
 use crate::stats::LoopStats;
 
 /// Most control connections at once.
@@ -57,14 +60,12 @@ pub struct DaemonState {
     pub achieved_rate_hz: f64,
     /// Realtime tuning in force.
     pub realtime: String,
-    /// Take looping on the stream.
-    pub playing: Option<String>,
-    /// Secondary layer being recorded, and whether its playback was started with it.
-    pub layer: Option<(String, bool)>,
-    /// Field playing: take name and plant count.
-    pub field: Option<(String, usize)>,
-    /// Guided motion spec in force.
-    pub guided: Option<String>,
+    /// The live stages the loop runs.
+    pub stages: StageRegistry,
+    /// Whether the layer being recorded started the playback it records over.
+    pub layer_playback: bool,
+    /// The element table last announced.
+    pub elements: ElementTable,
 }
 
 impl DaemonState {
@@ -102,6 +103,8 @@ pub struct ControlContext {
     pub access: AccessPolicy,
     /// Whether testing aids (`FreezeLoop`) are enabled (`--test-hooks`).
     pub test_hooks: bool,
+    /// The element table for the publisher's slow lane.
+    pub elements_cell: Arc<ElementsCell>,
 }
 
 /// Who may use the control socket, checked against the peer's credentials (SO_PEERCRED).
@@ -199,19 +202,15 @@ impl ControlContext {
             ControlRequest::SetRig { name, toml } => self.set_rig(name, &toml),
             ControlRequest::SetCalibration { id, toml } => self.set_calibration(id, &toml),
             ControlRequest::SetFilter { spec } => self.set_filter(&spec),
-            ControlRequest::RecordStart { name } => self.record_start(name, 0),
+            ControlRequest::RecordStart { name } => self.record_start(name),
             ControlRequest::RecordStop => self.record_stop(),
             ControlRequest::Mark { label } => self.mark(label),
-            ControlRequest::PlayLoop { take, seed } => self.play_loop(take, seed),
             ControlRequest::RecordLayer { name, layer, global_take, seed } => {
                 self.record_layer(name, layer, global_take, seed)
             }
-            ControlRequest::FieldStart { take, field_json, plants, seed } => {
-                self.field_start(take, &field_json, plants, seed)
-            }
-            ControlRequest::FieldStop => self.field_stop(),
-            ControlRequest::FieldKey { key } => self.field_key(&key),
-            ControlRequest::SetGuided { spec } => self.set_guided(spec),
+            ControlRequest::StageStart { name, spec } => self.stage_start(name, spec),
+            ControlRequest::StageStop { name } => self.stage_stop(&name),
+            ControlRequest::StageInput { name, input } => self.stage_input(&name, input),
             ControlRequest::FreezeLoop { ms } => {
                 if !self.test_hooks {
                     return refuse(
@@ -245,23 +244,21 @@ impl ControlContext {
             rig.name = name;
         }
         let mut state = self.lock();
-        if let Err(reply) = self.send_loop(LoopCommand::SetMapping(rig.mapping())) {
-            return *reply;
-        }
         // Without a user calibration the thumb ranges come from the rig.
-        if state.calibration.id == "none" {
-            state.calibration = Calibration::neutral_for(&rig);
-            let _ = self.send_loop(LoopCommand::SetCalibration(state.calibration.params()));
+        let calibration = if state.calibration.id == "none" {
+            Calibration::neutral_for(&rig)
+        } else {
+            state.calibration.clone()
+        };
+        let rig_name = rig.name.clone();
+        let filter = state.filter;
+        match self.apply_setup(&mut state, Setup { rig, calibration, filter }, true) {
+            Ok(()) => {
+                info!(rig = %rig_name, "rig applied");
+                ControlReply::Ok
+            }
+            Err(reply) => reply,
         }
-        let (stage, spec) =
-            crate::live::rig_guided(&rig, state.calibration.thumb_range_deg[2], self.tick_rate_hz).unzip();
-        if let Err(reply) = self.send_loop(LoopCommand::SetGuided(stage)) {
-            return *reply;
-        }
-        state.guided = spec;
-        info!(rig = %rig.name, "rig applied");
-        state.rig = rig;
-        ControlReply::Ok
     }
 
     fn set_calibration(&self, id: String, text: &str) -> ControlReply {
@@ -273,12 +270,14 @@ impl ControlContext {
             cal.id = id;
         }
         let mut state = self.lock();
-        if let Err(reply) = self.send_loop(LoopCommand::SetCalibration(cal.params())) {
-            return *reply;
+        let (rig, filter, cal_id) = (state.rig.clone(), state.filter, cal.id.clone());
+        match self.apply_setup(&mut state, Setup { rig, calibration: cal, filter }, false) {
+            Ok(()) => {
+                info!(calibration = %cal_id, "calibration applied");
+                ControlReply::Ok
+            }
+            Err(reply) => reply,
         }
-        info!(calibration = %cal.id, "calibration applied");
-        state.calibration = cal;
-        ControlReply::Ok
     }
 
     fn set_filter(&self, spec: &str) -> ControlReply {
@@ -287,16 +286,18 @@ impl ControlContext {
             Err(e) => return refuse(ControlErrorKind::Invalid, format!("filter {spec:?}: {e}")),
         };
         let mut state = self.lock();
-        if let Err(reply) = self.send_loop(LoopCommand::SetFilter(filter)) {
-            return *reply;
+        let (rig, calibration) = (state.rig.clone(), state.calibration.clone());
+        match self.apply_setup(&mut state, Setup { rig, calibration, filter }, false) {
+            Ok(()) => {
+                info!(%filter, "filter applied");
+                ControlReply::Ok
+            }
+            Err(reply) => reply,
         }
-        info!(%filter, "filter applied");
-        state.filter = filter;
-        ControlReply::Ok
     }
 
-    /// Starts a take whose hand frames are element `layer` (0 = the global element).
-    pub(crate) fn record_start(&self, name: String, layer: u16) -> ControlReply {
+    /// Starts a take (the hand's frames are recorded as the element they are published as).
+    pub(crate) fn record_start(&self, name: String) -> ControlReply {
         if let Err(e) = validate_take_name(&name) {
             return refuse(ControlErrorKind::BadName, e);
         }
@@ -341,13 +342,10 @@ impl ControlContext {
             Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
             Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not answer"),
         }
-        if let Err(reply) = self.send_loop(LoopCommand::SetLayer(layer)) {
-            return *reply;
-        }
         if let Err(reply) = self.send_loop(LoopCommand::SetRecording(true)) {
             return *reply;
         }
-        info!(take = %name, path = %path.display(), layer, "recording started");
+        info!(take = %name, path = %path.display(), "recording started");
         state.recording = Some((name.clone(), path.clone()));
         ControlReply::Recording(RecordingStatus {
             name,
@@ -360,16 +358,7 @@ impl ControlContext {
 
     fn record_stop(&self) -> ControlReply {
         let reply = self.record_stop_take();
-        // A layer session ends with its take: the hand is the global element again, and a
-        // playback started for the layer stops.
-        let layer = self.lock().layer.take();
-        if let Some((_, started_playback)) = layer {
-            let _ = self.send_loop(LoopCommand::SetLayer(0));
-            if started_playback {
-                let _ = self.send_loop(LoopCommand::SetPlayback(None));
-                self.lock().playing = None;
-            }
-        }
+        self.end_layer();
         reply
     }
 
@@ -464,6 +453,8 @@ impl ControlContext {
             device_events: state.device_events.iter().cloned().collect(),
             realtime: state.realtime.clone(),
             modes: self.modes(&state),
+            stages: state.stages.status(),
+            elements: state.elements.elements.clone(),
         }
     }
 }
@@ -528,21 +519,39 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
         return;
     }
     loop {
-        let reply =
-            match read_frame_limited::<ControlRequest, _>(&mut stream, &mut scratch, MAX_CONTROL_REQUEST) {
-                Ok(req) => ctx.handle(req),
-                Err(ReadError::Closed) => return,
-                Err(ReadError::Io(e))
-                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
-                {
-                    return;
-                }
-                Err(e) => {
-                    let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
-                    let _ = write_frame(&mut stream, &mut out, &reply);
-                    return;
-                }
-            };
+        let reply = match read_frame_limited::<ControlRequest, _>(
+            &mut stream,
+            &mut scratch,
+            MAX_CONTROL_REQUEST,
+        ) {
+            Ok(req) => ctx.handle(req),
+            Err(ReadError::Closed) => return,
+            Err(ReadError::Io(e))
+                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+            {
+                return;
+            }
+            Err(ReadError::Decode(DecodeError::UnsupportedVersion { got, supported })) => {
+                // An older (or newer) client: answer in its own version, which every frond
+                // version can read for an `Error` reply, so it says what is wrong.
+                let reply = refuse(
+                    ControlErrorKind::BadRequest,
+                    format!(
+                        "this daemon speaks frond protocol version {supported}, the client version {got}; \
+                             use a frond, frondd and exporters of the same release"
+                    ),
+                );
+                let mut bytes = Vec::new();
+                encode_frame_as(got, &reply, &mut bytes);
+                let _ = std::io::Write::write_all(&mut stream, &bytes);
+                return;
+            }
+            Err(e) => {
+                let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
+                let _ = write_frame(&mut stream, &mut out, &reply);
+                return;
+            }
+        };
         if write_frame(&mut stream, &mut out, &reply).is_err() {
             return;
         }

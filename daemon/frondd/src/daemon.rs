@@ -17,6 +17,7 @@ use tracing::{error, info, warn};
 
 use crate::config::Config;
 use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
+use crate::control_stage::Setup;
 use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
 use crate::notify::Notifier;
 use crate::publisher::{
@@ -28,11 +29,7 @@ use crate::source::{SourceFactory, open_source};
 use crate::stats::LoopStats;
 
 /// Rigs built into the binary, by name.
-pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
-    ("grass", include_str!("../../../rig-files/plants/grass.toml")),
-    ("flower", include_str!("../../../rig-files/plants/flower.toml")),
-    ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
-];
+pub use frond_motion::rig_files::EMBEDDED_RIGS;
 
 /// Reloads the configuration on SIGHUP (re-reads the config file with the same overrides).
 pub type ConfigLoader = Box<dyn Fn() -> Result<Config, Vec<String>> + Send>;
@@ -60,33 +57,15 @@ pub struct Dirs {
     pub takes_dir: PathBuf,
 }
 
-/// Loads a rig by embedded name or path.
+/// Loads a rig by embedded name or path (the one rig loader, `frond_motion::rig_files`).
 pub fn load_rig(spec: &str) -> Result<Rig> {
-    if let Some((_, text)) = EMBEDDED_RIGS.iter().find(|(name, _)| *name == spec) {
-        let mut rig = Rig::from_toml_str(text).map_err(|e| anyhow!("embedded rig {spec}: {e}"))?;
-        if rig.name.is_empty() {
-            rig.name = spec.to_string();
-        }
-        return Ok(rig);
-    }
-    let path = Path::new(spec);
-    let text = std::fs::read_to_string(path).with_context(|| {
-        format!(
-            "rig {spec:?} is neither an embedded rig ({}) nor a readable file",
-            EMBEDDED_RIGS.map(|(n, _)| n).join(", ")
-        )
-    })?;
-    let mut rig = Rig::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    if rig.name.is_empty() {
-        rig.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    }
-    Ok(rig)
+    Ok(frond_motion::rig_files::load_rig(spec)?.rig)
 }
 
 fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration> {
     let Some(path) = path else { return Ok(Calibration::neutral_for(rig)) };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read calibration {}", path.display()))?;
+    let text = frond_motion::rig_files::read_small_text(path, frond_motion::rig_files::MAX_RIG_FILE_BYTES)
+        .context("cannot read the calibration")?;
     let mut cal = Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     if cal.id.is_empty() {
         cal.id = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -141,7 +120,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
 
     let stats = Arc::new(LoopStats::default());
     let (cmd_tx, cmd_rx) = bounded::<LoopCommand>(256);
-    let (rec_tx, rec_rx) = bounded::<RecorderMsg>(16_384);
+    let (rec_tx, rec_rx) = bounded::<RecorderMsg>(64);
+    let (frames_tx, frames_rx) = crate::recorder::frame_ring(crate::recorder::RECORDER_RING_FRAMES);
     let (reopen_tx, reopen_rx) = bounded::<Box<dyn HandSource>>(1);
     let (await_tx, await_rx) = bounded::<SourceFactory>(1);
     if let Some(factory) = opened.pending.take() {
@@ -161,7 +141,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
             commands: cmd_rx,
             publish: publish_queue,
             slow: slow_tx,
-            recorder: rec_tx.clone(),
+            recorder: frames_tx,
             reopen: reopen_tx,
             garbage: garbage_tx,
             stats: stats.clone(),
@@ -169,7 +149,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     );
 
     let recorder_counters = Arc::new(RecorderCounters::default());
-    let recorder = spawn_recorder(rec_rx, recorder_counters.clone(), config.fsync_interval)?;
+    let recorder = spawn_recorder(rec_rx, frames_rx, recorder_counters.clone(), config.fsync_interval)?;
     let loop_stop = Arc::new(AtomicBool::new(false));
     let (rt, rt_report) =
         spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), loop_stop.clone())?;
@@ -178,14 +158,9 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, cpu = %pinning, "realtime loop running");
     let realtime = format!("scheduling {scheduling}; memory lock {memory}; pinned to {pinning}");
 
-    let (rig_stage, rig_guided_spec) =
-        crate::live::rig_guided(&rig, calibration.thumb_range_deg[2], config.tick_rate_hz).unzip();
-    if rig_stage.is_some() {
-        let _ = cmd_tx.send(LoopCommand::SetGuided(rig_stage));
-    }
     let mut state = DaemonState {
-        rig,
-        calibration,
+        rig: rig.clone(),
+        calibration: calibration.clone(),
         filter,
         source_kind: opened.kind.clone(),
         source_path: opened.path.clone(),
@@ -194,10 +169,9 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         recording: None,
         achieved_rate_hz: 0.0,
         realtime,
-        playing: None,
-        layer: None,
-        field: None,
-        guided: rig_guided_spec,
+        stages: Default::default(),
+        layer_playback: false,
+        elements: Default::default(),
     };
     let first_event = if await_rx.is_empty() { "opened" } else { "not present; waiting for it" };
     state.push_event(started, format!("{} {} {first_event}", opened.kind, opened.path));
@@ -218,7 +192,14 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
             allowed_gids: config.allowed_gids.clone(),
         },
         test_hooks,
+        elements_cell: Arc::default(),
     });
+    // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
+    {
+        let mut state = ctx.lock();
+        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true)
+            .map_err(|reply| anyhow!("applying the rig at start-up: {reply:?}"))?;
+    }
 
     let threads_stop = Arc::new(AtomicBool::new(false));
     let (pose_listener, pose_path) = bind(&dirs.socket_dir, POSES_SOCKET)?;
@@ -231,6 +212,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
             rig_name: state.rig.name.clone(),
             joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
             tick_rate_hz: hello_ctx.tick_rate_hz,
+            elements: state.elements.clone(),
             next_seq: 0,
         }
     });
@@ -239,7 +221,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
         write_timeout: config.write_timeout,
         max_subscribers: config.max_subscribers,
     };
-    let publisher_thread = spawn_publisher(publish_rx, publish_wake, slow_rx, publisher)?;
+    let publisher_thread =
+        spawn_publisher(publish_rx, publish_wake, slow_rx, ctx.elements_cell.clone(), publisher)?;
     let acceptor = spawn_acceptor(
         pose_listener,
         publisher,
@@ -314,23 +297,15 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
             Some(spec) => spec.parse().map_err(|e| anyhow!("filter {spec:?}: {e}"))?,
             None => rig.filter,
         };
-        let send = |cmd| {
-            ctx.commands
-                .send_timeout(cmd, Duration::from_secs(1))
-                .map_err(|_| anyhow!("the loop is not accepting commands"))
-        };
-        send(LoopCommand::SetMapping(rig.mapping()))?;
-        send(LoopCommand::SetCalibration(calibration.params()))?;
-        send(LoopCommand::SetFilter(filter))?;
-        let (stage, spec) =
-            crate::live::rig_guided(&rig, calibration.thumb_range_deg[2], ctx.tick_rate_hz).unzip();
-        send(LoopCommand::SetGuided(stage))?;
-        let mut state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
-        state.guided = spec;
-        info!(rig = %rig.name, calibration = %calibration.id, %filter, "configuration reloaded");
-        state.rig = rig;
-        state.calibration = calibration;
-        state.filter = filter;
+        let text = format!("rig {}, calibration {}, filter {filter}", rig.name, calibration.id);
+        let mut state = ctx.lock();
+        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true).map_err(
+            |reply| match reply {
+                frond_protocol::ControlReply::Error(e) => anyhow!("{}", e.message),
+                other => anyhow!("{other:?}"),
+            },
+        )?;
+        info!("configuration reloaded: {text}");
         Ok(())
     })();
     if let Err(e) = result {

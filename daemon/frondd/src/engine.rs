@@ -1,30 +1,28 @@
 //! The realtime loop's per-tick work, separate from the thread that paces it so that tests can
 //! drive it tick by tick (the counting-allocator test does).
 //!
-//! One tick: apply pending commands, read every pending device report, and for each report
-//! calibrate -> filter -> map (the same [`Mapper::process`] as `frond map`) and publish a frame;
-//! when no report arrived, republish the last pose flagged `held`. Frames go to the publisher
-//! thread and to the recorder with `try_send` on bounded queues; a full queue costs a frame
-//! (counted), never the loop a wait. Nothing here allocates, locks or blocks.
+//! One tick: apply pending commands, let every live stage publish its own elements
+//! ([`crate::stage`]), read every pending device report, and for each report calibrate -> filter
+//! -> map (the same [`Mapper::process`] as `frond map`), let the stages transform it, and publish
+//! a frame; when no report arrived, republish the last pose flagged `held`. Frames go to the
+//! direct lanes, the publisher's queue and the recorder's wait-free ring; a full queue or ring
+//! costs a frame (counted), never the loop a wait. Nothing here allocates, locks or blocks.
 
 use std::sync::Arc;
-use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::Ordering::{Relaxed, Release};
 
 use crossbeam_channel::{Receiver, Sender};
 use frond_device::{DeviceSample, HandSource};
+use frond_motion::clip::Joints;
 use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, PoseFrame};
 use frond_protocol::{HandWire, Pose, PoseFlags};
 
-use crate::clock::{NS_PER_S, monotonic_ns};
-use crate::lanes::{Lane, Lanes, NewLane, SlowLane};
-use crate::live::{FIELD_PUBLISH_HZ, LiveField, LivePlayback, MAX_FIELD_PLANTS};
+use crate::clock::monotonic_ns;
+use crate::lanes::{ELEMENTS_FRAME_MAX, Lane, Lanes, NewLane, SlowLane};
 use crate::publisher::PublishQueue;
-use crate::recorder::RecorderMsg;
+use crate::stage::{FrameSink, LiveStage, MAX_STAGES, StageAction, StageCommand, TickContext};
 use crate::stats::LoopStats;
-use frond_motion::controls::ControlKey;
-use frond_motion::guided::GuidedLive;
-use frond_protocol::FIELD_ELEMENT_BASE;
 
 /// Most subscribers served at once.
 pub const MAX_SUBSCRIBERS: usize = 64;
@@ -48,16 +46,8 @@ pub enum LoopCommand {
     /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
     /// loop would, so tests can check that the watchdog pings stop.
     Freeze(u32),
-    /// Loop a take on the stream as element 0 (or stop, with `None`).
-    SetPlayback(Option<Box<LivePlayback>>),
-    /// Play a field (or stop, with `None`).
-    SetField(Option<Box<LiveField>>),
-    /// A field control key.
-    FieldKey(ControlKey),
-    /// Guided procedural motion on the live mapping (or off, with `None`).
-    SetGuided(Option<Box<GuidedLive>>),
-    /// Element id of the hand's frames: 0 for the global element, `k + 1` for a secondary layer.
-    SetLayer(u16),
+    /// A live stage installed, removed or given an input, and/or a new element table.
+    Stage(Box<StageCommand>),
     /// A new pose subscriber, for a direct lane (see [`crate::lanes`]).
     AddSubscriber(Box<NewLane>),
 }
@@ -66,8 +56,10 @@ pub enum LoopCommand {
 pub enum Garbage {
     /// A source replaced by a newer one.
     Source(Box<dyn HandSource>),
-    /// A finished playback, field or guided stage.
-    Live(Box<dyn std::any::Any + Send>),
+    /// An applied stage command, holding the stage and the element table it replaced.
+    Stage(Box<StageCommand>),
+    /// What is left of a subscriber once admitted (its encoded Hello).
+    Admitted(Box<NewLane>),
     /// A subscriber that left its direct lane (hung up, or no room anywhere).
     Lane(Lane),
 }
@@ -80,8 +72,8 @@ pub struct EngineLinks {
     pub publish: PublishQueue,
     /// Subscribers moved off their direct lane, to the publisher thread.
     pub slow: Sender<SlowLane>,
-    /// Frames (and nothing else from the loop) to the recorder.
-    pub recorder: Sender<RecorderMsg>,
+    /// Frames to the recorder: a wait-free ring it polls.
+    pub recorder: rtrb::Producer<TakeFrame>,
     /// A source that failed, for the reopen thread.
     pub reopen: Sender<Box<dyn HandSource>>,
     /// Things to drop elsewhere.
@@ -101,7 +93,7 @@ pub struct EngineEnds {
     /// Subscribers the loop moved to the slow lane.
     pub slow: Receiver<SlowLane>,
     /// Frames the loop hands to the recorder.
-    pub recorder: Receiver<RecorderMsg>,
+    pub recorder: rtrb::Consumer<TakeFrame>,
     /// Sources the loop gives up as lost.
     pub reopen: Receiver<Box<dyn HandSource>>,
     /// What the loop may not drop itself.
@@ -110,23 +102,70 @@ pub struct EngineEnds {
     pub stats: Arc<LoopStats>,
 }
 
+/// The loop's outputs: sequence numbers, lanes, queues. Apart from the stages, so that a stage
+/// can publish through it while the engine walks its stages.
+struct Output {
+    lanes: Lanes,
+    links: EngineLinks,
+    seq: u64,
+    recording: bool,
+    /// The element table in force, encoded (sent after a Hello that carries an older one).
+    elements_frame: Vec<u8>,
+    /// Its version.
+    elements_version: u64,
+}
+
+impl Output {
+    /// Stamps `frame` with the next sequence number and the host time, sends it to the direct
+    /// lanes and hands it to the publisher thread (a full queue drops it, counted). Returns the
+    /// stamped frame.
+    fn publish(&mut self, mut frame: Pose) -> Pose {
+        frame.seq = self.seq;
+        frame.host_monotonic_ns = monotonic_ns();
+        self.seq += 1;
+        self.links.stats.next_seq.store(self.seq, Relaxed);
+        self.lanes.send(&frame, &self.links.garbage);
+        if !self.links.publish.offer(frame) {
+            self.links.stats.publish_drops.fetch_add(1, Relaxed);
+        }
+        frame
+    }
+}
+
+/// Where the stages' own frames go: published, flagged `playback`.
+struct StageSink<'a> {
+    out: &'a mut Output,
+    device_time_us: u64,
+}
+
+impl FrameSink for StageSink<'_> {
+    fn emit(&mut self, element: u16, joints_deg: Joints) {
+        let mut flags = PoseFlags::PLAYBACK;
+        flags.set(PoseFlags::RECORDING, self.out.recording);
+        self.out.publish(Pose {
+            element,
+            joints_deg,
+            flags,
+            device_time_us: self.device_time_us,
+            ..Pose::default()
+        });
+    }
+}
+
 /// The realtime loop's state. Allocates only in [`Engine::new`].
 pub struct Engine {
     mapper: Mapper,
     source: Option<Box<dyn HandSource>>,
     samples: Box<[DeviceSample]>,
-    lanes: Lanes,
-    links: EngineLinks,
-    recording: bool,
-    seq: u64,
+    out: Output,
+    stages: Box<[Option<Box<dyn LiveStage>>]>,
+    /// Whether some stage has work at every tick.
+    stages_every_tick: bool,
     last: Pose,
+    last_hand: HandSample,
     last_report_ns: u64,
     stall_after_ns: u64,
     device_lost: bool,
-    playback: Option<Box<LivePlayback>>,
-    field: Option<Box<LiveField>>,
-    guided: Option<Box<GuidedLive>>,
-    layer: u16,
     /// Reports published by [`Engine::device_ready`] since the last tick.
     fresh_since_tick: usize,
 }
@@ -148,18 +187,21 @@ impl Engine {
             mapper,
             source,
             samples: vec![DeviceSample::default(); SAMPLE_BATCH].into_boxed_slice(),
-            lanes: Lanes::new(links.slow.clone(), links.publish.wake()),
-            links,
-            recording: false,
-            seq: 0,
+            out: Output {
+                lanes: Lanes::new(links.slow.clone(), links.publish.wake()),
+                links,
+                seq: 0,
+                recording: false,
+                elements_frame: Vec::with_capacity(ELEMENTS_FRAME_MAX),
+                elements_version: 0,
+            },
+            stages: (0..MAX_STAGES).map(|_| None).collect(),
+            stages_every_tick: false,
             last,
+            last_hand: HandSample::default(),
             last_report_ns: now,
             stall_after_ns,
             device_lost,
-            playback: None,
-            field: None,
-            guided: None,
-            layer: 0,
             fresh_since_tick: 0,
         }
     }
@@ -175,7 +217,7 @@ impl Engine {
     ) -> (Engine, EngineEnds) {
         let (cmd_tx, cmd_rx) = crossbeam_channel::bounded(256);
         let (publish, frames) = PublishQueue::new(publish_frames);
-        let (rec_tx, rec_rx) = crossbeam_channel::bounded(recorder_frames);
+        let (rec_tx, rec_rx) = crate::recorder::frame_ring(recorder_frames);
         let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(1);
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
         let (slow_tx, slow_rx) = crossbeam_channel::bounded(MAX_SUBSCRIBERS);
@@ -203,21 +245,15 @@ impl Engine {
         (Engine::new(mapper, source, stall_after_ns, links), ends)
     }
 
-    fn discard<T: Send + 'static>(&self, old: Option<Box<T>>) {
-        if let Some(old) = old {
-            let _ = self.links.garbage.try_send(Garbage::Live(old));
-        }
-    }
-
     /// The source's ready descriptor (see [`HandSource::ready_fd`]), if it has one.
     pub fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
         self.source.as_ref()?.ready_fd()
     }
 
-    /// Whether every tick does work of its own (a looped take or a field is playing), so that a
-    /// tick may not be skipped even when a report already covered its period.
+    /// Whether every tick does work of its own (a stage publishes at ticks: a looped take, a
+    /// field), so that a tick may not be skipped even when a report already covered its period.
     pub fn needs_every_tick(&self) -> bool {
-        self.playback.is_some() || self.field.is_some()
+        self.stages_every_tick
     }
 
     /// Between ticks, when the source's ready descriptor woke the loop: applies pending commands
@@ -239,7 +275,7 @@ impl Engine {
     pub fn cover_tick(&mut self, count_tick: bool) {
         self.fresh_since_tick = 0;
         if count_tick {
-            self.links.stats.ticks.fetch_add(1, Relaxed);
+            self.out.links.stats.ticks.fetch_add(1, Relaxed);
         }
     }
 
@@ -255,7 +291,7 @@ impl Engine {
     /// Runs one tick at host time `now_ns`. Publishes at least one frame.
     pub fn tick(&mut self, now_ns: u64) {
         self.apply_commands(now_ns);
-        self.play_live(now_ns);
+        self.tick_stages(now_ns);
         let read = self.read_device(now_ns);
         self.note_fresh(read, now_ns);
         let fresh = read + std::mem::take(&mut self.fresh_since_tick);
@@ -263,62 +299,48 @@ impl Engine {
             let stalled =
                 self.source.is_some() && now_ns.saturating_sub(self.last_report_ns) > self.stall_after_ns;
             if stalled && !self.device_lost {
-                self.links.stats.stall_events.fetch_add(1, Relaxed);
+                self.out.links.stats.stall_events.fetch_add(1, Relaxed);
                 self.set_device_lost(true);
             }
-            self.links.stats.held_ticks.fetch_add(1, Relaxed);
+            self.out.links.stats.held_ticks.fetch_add(1, Relaxed);
             let mut held = self.last;
             held.flags.insert(PoseFlags::HELD);
             held.flags.set(PoseFlags::DEVICE_LOST, self.device_lost);
-            held.flags.set(PoseFlags::RECORDING, self.recording);
-            self.publish(held);
+            held.flags.set(PoseFlags::RECORDING, self.out.recording);
+            self.out.publish(held);
         }
-        self.links.stats.ticks.fetch_add(1, Relaxed);
+        self.out.links.stats.ticks.fetch_add(1, Relaxed);
     }
 
     fn apply_commands(&mut self, now_ns: u64) {
-        while let Ok(cmd) = self.links.commands.try_recv() {
+        while let Ok(cmd) = self.out.links.commands.try_recv() {
             match cmd {
                 LoopCommand::SetMapping(m) => self.mapper.set_mapping(m),
                 LoopCommand::SetCalibration(c) => self.mapper.set_calibration(c),
                 LoopCommand::SetFilter(f) => self.mapper.set_filter(f),
                 LoopCommand::SetRecording(on) => {
-                    self.recording = on;
-                    self.links.stats.recording.store(on, Relaxed);
+                    self.out.recording = on;
+                    self.out.links.stats.recording.store(on, Relaxed);
                 }
-                LoopCommand::SetPlayback(p) => {
-                    let old = std::mem::replace(&mut self.playback, p);
-                    self.discard(old);
-                }
-                LoopCommand::SetField(f) => {
-                    let old = std::mem::replace(&mut self.field, f);
-                    self.discard(old);
-                    self.publish_field_controls();
-                }
-                LoopCommand::FieldKey(key) => {
-                    if let Some(f) = self.field.as_mut() {
-                        let mut c = f.player.controls();
-                        c.key(key);
-                        f.player.set_controls(c);
-                    }
-                    self.publish_field_controls();
-                }
-                LoopCommand::SetGuided(g) => {
-                    let old = std::mem::replace(&mut self.guided, g);
-                    self.discard(old);
-                }
-                LoopCommand::SetLayer(layer) => self.layer = layer,
+                LoopCommand::Stage(cmd) => self.apply_stage(cmd),
                 LoopCommand::AddSubscriber(mut new) => {
-                    self.lanes.admit(&mut new, self.seq, &self.links.garbage);
+                    let out = &mut self.out;
+                    // A table changed since the acceptor encoded the Hello follows it.
+                    let table: &[u8] = if new.hello.elements_version() == out.elements_version {
+                        &[]
+                    } else {
+                        &out.elements_frame
+                    };
+                    out.lanes.admit(&mut new, out.seq, table, &out.links.garbage);
                     // What is left (the encoded Hello) is freed elsewhere.
-                    let _ = self.links.garbage.try_send(Garbage::Live(new));
+                    let _ = out.links.garbage.try_send(Garbage::Admitted(new));
                 }
                 LoopCommand::Freeze(ms) => {
                     std::thread::sleep(std::time::Duration::from_millis(u64::from(ms)))
                 }
                 LoopCommand::ReplaceSource(src) => {
                     if let Some(old) = self.source.replace(src) {
-                        let _ = self.links.garbage.try_send(Garbage::Source(old));
+                        let _ = self.out.links.garbage.try_send(Garbage::Source(old));
                     }
                     // Give the reopened device the full stall window before judging it.
                     self.last_report_ns = now_ns;
@@ -327,40 +349,42 @@ impl Engine {
         }
     }
 
-    /// Publishes the looped take's pose (every tick) and field plants (at [`FIELD_PUBLISH_HZ`]).
-    fn play_live(&mut self, now_ns: u64) {
-        let recording = self.recording;
-        let device_time_us = self.last.device_time_us;
-        let frame = |element: u16, joints_deg: [[f32; 3]; 4]| {
-            let mut flags = PoseFlags::PLAYBACK;
-            flags.set(PoseFlags::RECORDING, recording);
-            Pose { element, joints_deg, flags, device_time_us, ..Pose::default() }
-        };
-        if let Some(pb) = self.playback.as_mut() {
-            let t = now_ns.saturating_sub(pb.t0_ns) as f64 / NS_PER_S as f64;
-            let joints = pb.playback.pose_at(t);
-            self.publish(frame(0, joints));
+    /// Installs, removes or steers a stage and sends a new element table, between two frames;
+    /// what it replaces goes back in the command, to housekeeping.
+    fn apply_stage(&mut self, mut cmd: Box<StageCommand>) {
+        let slot = cmd.slot.min(MAX_STAGES - 1);
+        match &mut cmd.action {
+            StageAction::Install(stage) => {
+                std::mem::swap(&mut self.stages[slot], stage);
+                self.stages_every_tick = self.stages.iter().flatten().any(|s| s.every_tick());
+            }
+            StageAction::Input(input) => {
+                if let Some(s) = self.stages[slot].as_mut() {
+                    s.input(*input);
+                }
+            }
+            StageAction::Announce => {}
         }
-        let mut plants = [[[0.0f32; 3]; 4]; MAX_FIELD_PLANTS];
-        let mut n = 0;
-        if let Some(f) = self.field.as_mut()
-            && now_ns >= f.next_ns
-        {
-            let period = NS_PER_S / u64::from(FIELD_PUBLISH_HZ);
-            f.next_ns = (f.next_ns + period).max(now_ns);
-            let t = now_ns.saturating_sub(f.t0_ns) as f64 / NS_PER_S as f64;
-            f.player.frame(t, &mut f.out);
-            n = f.publish;
-            plants[..n].copy_from_slice(&f.out[..n]);
+        if let Some(frame) = cmd.elements_frame.as_mut() {
+            let out = &mut self.out;
+            out.lanes.send_table(frame, cmd.elements_version, out.seq, &out.links.garbage);
+            std::mem::swap(&mut out.elements_frame, frame);
+            out.elements_version = cmd.elements_version;
         }
-        for (i, joints) in plants[..n].iter().enumerate() {
-            self.publish(frame(FIELD_ELEMENT_BASE + i as u16, *joints));
+        cmd.applied.store(true, Release);
+        if let Err(e) = self.out.links.garbage.try_send(Garbage::Stage(cmd)) {
+            // Housekeeping is gone (shutdown): dropping here is all that is left.
+            drop(e.into_inner());
         }
     }
 
-    fn publish_field_controls(&self) {
-        let c = self.field.as_ref().map(|f| f.player.controls());
-        self.links.stats.field_controls.store(c);
+    /// Lets every stage publish its own elements for this tick.
+    fn tick_stages(&mut self, now_ns: u64) {
+        let ctx = TickContext { now_ns, device_time_us: self.last.device_time_us, hand: self.last_hand };
+        let mut sink = StageSink { out: &mut self.out, device_time_us: ctx.device_time_us };
+        for stage in self.stages.iter_mut().flatten() {
+            stage.tick(&ctx, &mut sink);
+        }
     }
 
     /// Reads every pending report and publishes one frame per valid report. Returns the count.
@@ -390,7 +414,7 @@ impl Engine {
 
     fn lose_source(&mut self, _now_ns: u64) {
         if let Some(src) = self.source.take()
-            && let Err(e) = self.links.reopen.try_send(src)
+            && let Err(e) = self.out.links.reopen.try_send(src)
         {
             // The reopen thread is gone (shutdown): keep the source and stay lost.
             self.source = Some(e.into_inner());
@@ -402,84 +426,61 @@ impl Engine {
 
     fn set_device_lost(&mut self, lost: bool) {
         self.device_lost = lost;
-        self.links.stats.device_connected.store(!lost, Relaxed);
+        let stats = &self.out.links.stats;
+        stats.device_connected.store(!lost, Relaxed);
         if lost {
-            self.links.stats.device_lost_events.fetch_add(1, Relaxed);
-            self.links.stats.raw.set_stale();
+            stats.device_lost_events.fetch_add(1, Relaxed);
+            stats.raw.set_stale();
         }
     }
 
     fn publish_sample(&mut self, sample: &DeviceSample) {
-        self.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
+        self.out.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
         let (hand, mut pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
-        if let Some(g) = self.guided.as_mut() {
-            pose = g.apply(&pose, &hand);
-        }
-        if let Some(f) = self.field.as_mut()
-            && let Some(swipe) = f.swipe.push(&hand)
-        {
-            let mut c = f.player.controls();
-            c.swipe(&swipe, f.base_speed_m_s);
-            f.player.set_controls(c);
-            self.links.stats.field_controls.store(Some(c));
+        let mut element = 0u16;
+        for stage in self.stages.iter_mut().flatten() {
+            stage.on_hand(&hand, &mut pose, &mut element);
         }
         let mut flags = PoseFlags::default();
         flags.set(PoseFlags::FILTERED, self.mapper.filter_spec() != FilterSpec::None);
-        flags.set(PoseFlags::RECORDING, self.recording);
+        flags.set(PoseFlags::RECORDING, self.out.recording);
         let frame = Pose {
             seq: 0,
             device_time_us: sample.device_time_us,
             host_monotonic_ns: 0,
             flags,
-            element: self.layer,
+            element,
             joints_deg: pose.joints_deg,
             hand: HandWire { t: hand.t, wrist_deg: hand.wrist_deg, thumb_deg: hand.thumb_deg },
         };
         self.last = frame;
-        let published = self.publish(frame);
-        if self.recording {
+        self.last_hand = hand;
+        let published = self.out.publish(frame);
+        if self.out.recording {
             let take_frame = TakeFrame {
                 seq: published.seq,
                 device_time_us: published.device_time_us,
                 host_ns: published.host_monotonic_ns,
                 flags: published.flags.0,
-                element: self.layer,
+                element,
                 pose,
                 hand,
             };
-            match self.links.recorder.try_send(RecorderMsg::Frame(take_frame)) {
-                Ok(()) => {
-                    self.links.stats.recorded_frames.fetch_add(1, Relaxed);
-                }
-                Err(_) => {
-                    self.links.stats.record_drops.fetch_add(1, Relaxed);
-                }
-            }
+            let stats = &self.out.links.stats;
+            match self.out.links.recorder.push(take_frame) {
+                Ok(()) => stats.recorded_frames.fetch_add(1, Relaxed),
+                Err(_) => stats.record_drops.fetch_add(1, Relaxed),
+            };
         }
-    }
-
-    /// Stamps `frame` with the next sequence number and the host time, sends it to the direct
-    /// lanes and hands it to the publisher thread (a full queue drops it, counted). Returns the
-    /// stamped frame.
-    fn publish(&mut self, mut frame: Pose) -> Pose {
-        frame.seq = self.seq;
-        frame.host_monotonic_ns = monotonic_ns();
-        self.seq += 1;
-        self.links.stats.next_seq.store(self.seq, Relaxed);
-        self.lanes.send(&frame, &self.links.garbage);
-        if !self.links.publish.offer(frame) {
-            self.links.stats.publish_drops.fetch_add(1, Relaxed);
-        }
-        frame
     }
 
     /// Next sequence number.
     pub fn next_seq(&self) -> u64 {
-        self.seq
+        self.out.seq
     }
 
     /// The direct lanes (for tests and the bench).
     pub fn lanes(&self) -> &Lanes {
-        &self.lanes
+        &self.out.lanes
     }
 }

@@ -15,7 +15,8 @@
 //!
 //! New subscribers arrive from the acceptor with their `Hello` already encoded
 //! ([`PatchableHello`]); the loop writes in the sequence number of its next frame, so the
-//! subscriber's stream starts exactly there.
+//! subscriber's stream starts exactly there, and sends the element table in force right after
+//! it. A new element table (the live stages changed) goes to every lane between two frames.
 
 use std::os::fd::AsRawFd;
 use std::os::unix::net::UnixStream;
@@ -28,8 +29,12 @@ use frond_protocol::{PatchableHello, Pose, ServerMessage, encode_frame};
 use crate::engine::{Garbage, MAX_SUBSCRIBERS};
 use crate::publisher::{PublisherWake, SubscriberCounters};
 
-/// Longest unsent tail handed to the slow lane (a pose frame encodes to ~230 bytes).
-pub const TAIL_MAX: usize = 512;
+/// Largest element-table frame the daemon sends (the control side refuses a stage change whose
+/// table would be larger).
+pub const ELEMENTS_FRAME_MAX: usize = 16 * 1024;
+/// Longest unsent tail handed to the slow lane: the rest of a `Hello` (~200 bytes) and a whole
+/// element table, or the rest of one pose frame (~230 bytes).
+pub const TAIL_MAX: usize = 1024 + ELEMENTS_FRAME_MAX;
 /// Bytes reserved for encoding one frame.
 const FRAME_BUF: usize = 4096;
 
@@ -43,6 +48,26 @@ pub struct NewLane {
     pub counters: Option<Arc<SubscriberCounters>>,
     /// Its `Hello`, encoded.
     pub hello: PatchableHello,
+    /// Room for an unsent tail ([`TAIL_MAX`] bytes), allocated here so the loop never has to.
+    pub tail: Option<Box<[u8]>>,
+}
+
+impl NewLane {
+    /// A subscriber on `stream` with its encoded `hello` (allocates its tail buffer).
+    pub fn new(
+        id: u64,
+        stream: UnixStream,
+        counters: Arc<SubscriberCounters>,
+        hello: PatchableHello,
+    ) -> Self {
+        NewLane {
+            id,
+            stream: Some(stream),
+            counters: Some(counters),
+            hello,
+            tail: Some(vec![0u8; TAIL_MAX].into_boxed_slice()),
+        }
+    }
 }
 
 /// A subscriber on its way from the loop to the publisher's slow lane.
@@ -53,12 +78,16 @@ pub struct SlowLane {
     pub stream: UnixStream,
     /// Its counters.
     pub counters: Arc<SubscriberCounters>,
-    /// The part of the last frame its socket did not take (sent first).
-    pub tail: [u8; TAIL_MAX],
+    /// The part of the last frames its socket did not take (sent first), in a buffer of
+    /// [`TAIL_MAX`] bytes.
+    pub tail: Box<[u8]>,
     /// Bytes of `tail` in use.
     pub tail_len: usize,
     /// Sequence number of the first frame the slow lane owes it.
     pub from_seq: u64,
+    /// Version of the last element table it was sent (or has in `tail`): the slow lane sends
+    /// only newer ones.
+    pub elements_version: u64,
 }
 
 /// A subscriber on a direct lane.
@@ -66,6 +95,7 @@ pub struct Lane {
     id: u64,
     stream: UnixStream,
     counters: Arc<SubscriberCounters>,
+    tail: Box<[u8]>,
 }
 
 /// What became of one `send` to a lane.
@@ -99,11 +129,23 @@ fn send_nowait(stream: &UnixStream, bytes: &[u8]) -> Sent {
     }
 }
 
-/// `rest` copied into a fixed tail buffer, or `None` if it is longer than [`TAIL_MAX`].
-fn tail_of(rest: &[u8]) -> Option<([u8; TAIL_MAX], usize)> {
-    let mut tail = [0u8; TAIL_MAX];
-    tail.get_mut(..rest.len())?.copy_from_slice(rest);
-    Some((tail, rest.len()))
+/// `parts` copied one after the other into `tail`; their length, or `None` if they do not fit.
+fn fill_tail(tail: &mut [u8], parts: &[&[u8]]) -> Option<usize> {
+    let mut len = 0;
+    for part in parts {
+        tail.get_mut(len..len + part.len())?.copy_from_slice(part);
+        len += part.len();
+    }
+    Some(len)
+}
+
+/// What a frame sent to every lane is.
+#[derive(Clone, Copy)]
+enum Broadcast {
+    /// Pose number `seq`.
+    Pose { seq: u64 },
+    /// An element table, before pose `next_seq`.
+    Table { next_seq: u64 },
 }
 
 /// The loop's direct lanes. Allocates only in [`Lanes::new`].
@@ -115,6 +157,8 @@ pub struct Lanes {
     wake: Arc<PublisherWake>,
     /// Subscribers moved to the slow lane since start.
     demoted: u64,
+    /// Version of the last element table sent to every lane.
+    elements_version: u64,
 }
 
 impl Lanes {
@@ -127,6 +171,7 @@ impl Lanes {
             slow,
             wake,
             demoted: 0,
+            elements_version: 0,
         }
     }
 
@@ -145,29 +190,46 @@ impl Lanes {
         self.demoted
     }
 
-    /// Admits `new`: writes its `Hello` with `next_seq` and puts it on a lane (or, if its socket
-    /// cannot take the `Hello`, on the slow lane; if every lane is taken, lets it go).
-    pub fn admit(&mut self, new: &mut NewLane, next_seq: u64, garbage: &Sender<Garbage>) {
-        let (Some(stream), Some(counters)) = (new.stream.take(), new.counters.take()) else { return };
-        let lane = Lane { id: new.id, stream, counters };
+    /// Admits `new`: writes its `Hello` with `next_seq` and the element table `elements` (an
+    /// encoded frame) and puts it on a lane (or, if its socket cannot take them, on the slow lane
+    /// with the rest; if every lane is taken, lets it go).
+    pub fn admit(&mut self, new: &mut NewLane, next_seq: u64, elements: &[u8], garbage: &Sender<Garbage>) {
+        let (Some(stream), Some(counters), Some(tail)) =
+            (new.stream.take(), new.counters.take(), new.tail.take())
+        else {
+            return;
+        };
+        let mut lane = Lane { id: new.id, stream, counters, tail };
         let Some(slot) = self.slots.iter().position(Option::is_none) else {
             lane.counters.closed.store(true, Relaxed);
             let _ = garbage.try_send(Garbage::Lane(lane));
             return;
         };
         let hello = new.hello.with_next_seq(next_seq);
-        match send_nowait(&lane.stream, hello) {
-            Sent::All => {
-                self.slots[slot] = Some(lane);
-                self.live += 1;
-            }
-            Sent::Part(n) => match tail_of(&hello[n..]) {
-                Some((tail, len)) => self.hand_to_slow(lane, tail, len, next_seq, garbage),
-                // Only a Hello longer than TAIL_MAX that a fresh socket refused: let it go.
-                None => self.close(lane, garbage),
+        let rest = match send_nowait(&lane.stream, hello) {
+            Sent::All => match send_nowait(&lane.stream, elements) {
+                Sent::All => {
+                    self.slots[slot] = Some(lane);
+                    self.live += 1;
+                    return;
+                }
+                Sent::Part(n) => fill_tail(&mut lane.tail, &[&elements[n..]]),
+                Sent::Gone => None,
             },
-            Sent::Gone => self.close(lane, garbage),
+            Sent::Part(n) => fill_tail(&mut lane.tail, &[&hello[n..], elements]),
+            Sent::Gone => None,
+        };
+        match rest {
+            Some(len) => self.hand_to_slow(lane, len, next_seq, garbage),
+            // Gone, or a Hello and table longer than the tail that a fresh socket refused.
+            None => self.close(lane, garbage),
         }
+    }
+
+    /// Sends the encoded element table `frame` to every direct lane, before pose `next_seq`.
+    pub fn send_table(&mut self, frame: &[u8], version: u64, next_seq: u64, garbage: &Sender<Garbage>) {
+        self.elements_version = version;
+        self.broadcast(frame, Broadcast::Table { next_seq }, garbage);
     }
 
     /// Encodes `pose` once and sends it to every direct lane.
@@ -177,31 +239,38 @@ impl Lanes {
         }
         self.buf.clear();
         encode_frame(&ServerMessage::Pose(*pose), &mut self.buf);
+        let buf = std::mem::take(&mut self.buf);
+        self.broadcast(&buf, Broadcast::Pose { seq: pose.seq }, garbage);
+        self.buf = buf;
+    }
+
+    fn broadcast(&mut self, bytes: &[u8], what: Broadcast, garbage: &Sender<Garbage>) {
         for i in 0..self.slots.len() {
             let Some(lane) = &self.slots[i] else { continue };
-            match send_nowait(&lane.stream, &self.buf) {
+            match send_nowait(&lane.stream, bytes) {
                 Sent::All => {
-                    lane.counters.sent.fetch_add(1, Relaxed);
+                    if matches!(what, Broadcast::Pose { .. }) {
+                        lane.counters.sent.fetch_add(1, Relaxed);
+                    }
                 }
                 Sent::Part(n) => {
-                    let Some(lane) = self.slots[i].take() else { continue };
+                    let Some(mut lane) = self.slots[i].take() else { continue };
                     self.live -= 1;
-                    // The slow lane sends the unsent rest of this frame first, then the frames
-                    // after it; if nothing went out, it owes this frame whole.
-                    let from_seq = if n == 0 { pose.seq } else { pose.seq + 1 };
-                    let (tail, len) = if n == 0 {
-                        ([0u8; TAIL_MAX], 0)
-                    } else {
-                        lane.counters.sent.fetch_add(1, Relaxed);
-                        match tail_of(&self.buf[n..]) {
-                            Some(t) => t,
-                            None => {
-                                self.close(lane, garbage);
-                                continue;
-                            }
+                    // The slow lane sends the unsent rest first, then the frames owed after it.
+                    // A pose nothing of which went out is owed whole (it is in the publisher's
+                    // queue); a table always goes in the tail, whole or its rest.
+                    let (rest, from_seq): (&[u8], u64) = match what {
+                        Broadcast::Pose { seq } if n == 0 => (&[], seq),
+                        Broadcast::Pose { seq } => {
+                            lane.counters.sent.fetch_add(1, Relaxed);
+                            (&bytes[n..], seq + 1)
                         }
+                        Broadcast::Table { next_seq } => (&bytes[n..], next_seq),
                     };
-                    self.hand_to_slow(lane, tail, len, from_seq, garbage);
+                    match fill_tail(&mut lane.tail, &[rest]) {
+                        Some(len) => self.hand_to_slow(lane, len, from_seq, garbage),
+                        None => self.close(lane, garbage),
+                    }
                 }
                 Sent::Gone => {
                     if let Some(lane) = self.slots[i].take() {
@@ -213,24 +282,18 @@ impl Lanes {
         }
     }
 
-    fn hand_to_slow(
-        &mut self,
-        lane: Lane,
-        tail: [u8; TAIL_MAX],
-        tail_len: usize,
-        from_seq: u64,
-        garbage: &Sender<Garbage>,
-    ) {
+    fn hand_to_slow(&mut self, lane: Lane, tail_len: usize, from_seq: u64, garbage: &Sender<Garbage>) {
         self.demoted += 1;
         // Counted before the hand-over, so frames from `from_seq` on wake the publisher.
         self.wake.add_slow();
-        let Lane { id, stream, counters } = lane;
-        let msg = SlowLane { id, stream, counters, tail, tail_len, from_seq };
+        let Lane { id, stream, counters, tail } = lane;
+        let elements_version = self.elements_version;
+        let msg = SlowLane { id, stream, counters, tail, tail_len, from_seq, elements_version };
         if let Err(e) = self.slow.try_send(msg) {
             // The publisher cannot take it (gone, or a burst of slow subscribers): let it go.
             self.wake.remove_slow();
-            let SlowLane { id, stream, counters, .. } = e.into_inner();
-            self.close(Lane { id, stream, counters }, garbage);
+            let SlowLane { id, stream, counters, tail, .. } = e.into_inner();
+            self.close(Lane { id, stream, counters, tail }, garbage);
         }
     }
 
@@ -255,10 +318,12 @@ mod tests {
     #[test]
     fn tails_up_to_tail_max_are_kept_longer_ones_refused() {
         let bytes: Vec<u8> = (0..=TAIL_MAX as u32).map(|i| i as u8).collect();
-        let (tail, len) = tail_of(&bytes[..TAIL_MAX]).unwrap();
+        let mut tail = vec![0u8; TAIL_MAX];
+        let len = fill_tail(&mut tail, &[&bytes[..10], &bytes[10..TAIL_MAX]]).unwrap();
         assert_eq!((len, &tail[..]), (TAIL_MAX, &bytes[..TAIL_MAX]));
-        assert_eq!(tail_of(&[]).unwrap().1, 0);
-        assert!(tail_of(&bytes).is_none());
+        assert_eq!(fill_tail(&mut tail, &[]), Some(0));
+        assert!(fill_tail(&mut tail, &[&bytes]).is_none());
+        assert!(fill_tail(&mut tail, &[&bytes[..TAIL_MAX], &[1]]).is_none());
     }
 
     #[test]
@@ -274,15 +339,11 @@ mod tests {
             rig_name: "grass".into(),
             joint_names: vec![],
             tick_rate_hz: 1000,
+            elements: Default::default(),
             next_seq: 0,
         };
-        let mut new = NewLane {
-            id: 9,
-            stream: Some(daemon_end),
-            counters: Some(counters.clone()),
-            hello: PatchableHello::new(&hello),
-        };
-        lanes.admit(&mut new, 5, &garbage_tx);
+        let mut new = NewLane::new(9, daemon_end, counters.clone(), PatchableHello::new(&hello));
+        lanes.admit(&mut new, 5, &[], &garbage_tx);
         assert_eq!(lanes.ids().collect::<Vec<_>>(), vec![9]);
         lanes.send(&Pose { seq: 5, ..Pose::default() }, &garbage_tx);
         assert_eq!(counters.sent.load(Relaxed), 1);

@@ -10,14 +10,14 @@
 pub mod clock;
 pub mod config;
 pub mod control;
-mod control_live;
+mod control_stage;
 pub mod daemon;
 pub mod engine;
 pub mod lanes;
-pub mod live;
 pub mod notify;
 pub mod publisher;
 pub mod realtime;
 pub mod recorder;
 pub mod source;
+pub mod stage;
 pub mod stats;

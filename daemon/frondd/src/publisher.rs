@@ -132,12 +132,7 @@ pub fn spawn_acceptor(
             // Subscribers only read: anything they send is discarded unread.
             let _ = stream.shutdown(std::net::Shutdown::Read);
             let counters = Arc::new(SubscriberCounters::default());
-            let new = NewLane {
-                id,
-                stream: Some(stream),
-                counters: Some(counters.clone()),
-                hello: PatchableHello::new(&hello()),
-            };
+            let new = NewLane::new(id, stream, counters.clone(), PatchableHello::new(&hello()));
             if to_loop
                 .send_timeout(LoopCommand::AddSubscriber(Box::new(new)), Duration::from_secs(1))
                 .is_err()
@@ -167,6 +162,8 @@ struct Subscriber {
     last_progress: Instant,
     /// Frames before this sequence number are not owed to it (it was on a direct lane then).
     from_seq: u64,
+    /// Version of the last element table it was sent (on its direct lane, or here).
+    table_version: u64,
 }
 
 impl Subscriber {
@@ -204,6 +201,16 @@ impl Subscriber {
         Ok(())
     }
 
+    /// Queues the element table (it is never dropped: a subscriber must know what it gets).
+    fn offer_table(&mut self, table: &[u8], version: u64) {
+        if self.written > 0 && self.backlog.len() + table.len() > self.backlog.capacity() {
+            self.backlog.drain(..self.written);
+            self.written = 0;
+        }
+        self.backlog.extend_from_slice(table);
+        self.table_version = version;
+    }
+
     /// Queues an encoded batch of `frames` frames, or drops it if the backlog is full.
     fn offer(&mut self, batch: &[u8], frames: u64) {
         if self.pending() + batch.len() > self.cap {
@@ -226,6 +233,7 @@ pub fn spawn_publisher(
     frames: Receiver<Pose>,
     wake: Arc<PublisherWake>,
     slow: Receiver<SlowLane>,
+    tables: Arc<ElementsCell>,
     config: PublisherConfig,
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-publish".into()).spawn(move || {
@@ -265,7 +273,10 @@ pub fn spawn_publisher(
                     cap,
                     last_progress: Instant::now(),
                     from_seq: lane.from_seq,
+                    table_version: lane.elements_version,
                 });
+                // The loop's tail buffer goes back to be freed by dropping it here.
+                drop(lane.tail);
             }
             if subs.is_empty() {
                 // Nobody on the slow lane: the frames were for the direct lanes only.
@@ -278,7 +289,11 @@ pub fn spawn_publisher(
                 encode_frame(&ServerMessage::Pose(*p), &mut batch);
             }
             let now = Instant::now();
+            let (table_version, table) = tables.load();
             subs.retain_mut(|s| {
+                if s.table_version < table_version && !table.is_empty() {
+                    s.offer_table(&table, table_version);
+                }
                 let owed = starts.iter().position(|&(seq, _)| seq >= s.from_seq);
                 if let Some(i) = owed {
                     s.offer(&batch[starts[i].1..], (starts.len() - i) as u64);
@@ -307,6 +322,32 @@ pub fn spawn_publisher(
             let _ = s.stream.shutdown(std::net::Shutdown::Both);
         }
     })
+}
+
+/// The element table in force, encoded as a frame, for the slow lane (the loop sends it to the
+/// direct lanes itself). The control thread stores a new one before the loop starts the stages
+/// it describes, so a slow subscriber gets it no later than their first frame.
+#[derive(Default)]
+pub struct ElementsCell {
+    frame: Mutex<Arc<[u8]>>,
+    version: AtomicU64,
+}
+
+impl ElementsCell {
+    /// Stores table `version`, encoded.
+    pub fn store(&self, version: u64, frame: &[u8]) {
+        *self.frame.lock().unwrap_or_else(|e| e.into_inner()) = Arc::from(frame);
+        self.version.store(version, SeqCst);
+    }
+
+    /// The current version and frame (version 0 and no bytes before the first table).
+    pub fn load(&self) -> (u64, Arc<[u8]>) {
+        // Version first: a store between the two reads pairs an old version with the new frame,
+        // which is sent again at the next look (never the other way round, which would skip it).
+        let version = self.version.load(SeqCst);
+        let frame = self.frame.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        (version, frame)
+    }
 }
 
 /// How the loop wakes the publisher thread: a flag the publisher raises before it parks, and its

@@ -5,6 +5,11 @@
 //! Durability policy: every batch is `write`n at once (so `kill -9` of the daemon loses nothing
 //! the loop handed over: the kernel has it), and the file is `fdatasync`ed at least every
 //! `fsync_interval` (1 s by default), bounding what a power loss can take to that window.
+//!
+//! Frames arrive from the realtime loop through a wait-free single-producer ring ([`rtrb`]) that
+//! this thread polls every [`RECORDER_POLL`] while a take is open: the loop never takes a lock
+//! or wakes a thread to hand a frame over (a channel whose receiver parks costs the sender a
+//! futex call per frame). Requests (start, marker, stop) come on a channel from the control side.
 
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -16,12 +21,23 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use rtrb::{Consumer, Producer, RingBuffer};
 use tracing::{error, info, warn};
 
-/// Messages to the recorder. The loop only ever sends `Frame`.
+/// Frames the loop may get ahead of the recorder (16 s at 1 kHz) before it drops them, counted.
+pub const RECORDER_RING_FRAMES: usize = 16_384;
+/// How often the recorder empties the ring while a take is open.
+pub const RECORDER_POLL: Duration = Duration::from_millis(5);
+/// Bytes encoded before they are written out, at most.
+const WRITE_BATCH: usize = 192 * 1024;
+
+/// The loop's end and the recorder's end of the frame ring.
+pub fn frame_ring(frames: usize) -> (Producer<TakeFrame>, Consumer<TakeFrame>) {
+    RingBuffer::new(frames)
+}
+
+/// Requests to the recorder, from the control side.
 pub enum RecorderMsg {
-    /// A frame to append.
-    Frame(TakeFrame),
     /// Open a new take file (never overwrites).
     Start {
         /// Path of the new take.
@@ -66,6 +82,7 @@ struct Open {
 /// Spawns the recorder thread. It ends when every sender is gone, finishing an open take first.
 pub fn spawn_recorder(
     rx: Receiver<RecorderMsg>,
+    mut frames: Consumer<TakeFrame>,
     counters: Arc<RecorderCounters>,
     fsync_interval: Duration,
 ) -> std::io::Result<thread::JoinHandle<()>> {
@@ -73,20 +90,23 @@ pub fn spawn_recorder(
         let mut open: Option<Open> = None;
         let mut buf = Vec::with_capacity(256 * 1024);
         loop {
-            let first = match rx.recv_timeout(fsync_interval) {
+            let wait = if open.is_some() { RECORDER_POLL } else { fsync_interval };
+            let mut next = match rx.recv_timeout(wait) {
                 Ok(m) => Some(m),
                 Err(RecvTimeoutError::Timeout) => None,
                 Err(RecvTimeoutError::Disconnected) => break,
             };
-            let mut next = first;
             while let Some(msg) = next.take() {
+                // Frames the loop handed over before this request belong before it (a marker
+                // after them, a take's end after its last frame).
+                drain(&mut frames, &mut open, &mut buf, &counters, fsync_interval);
                 handle(msg, &mut open, &mut buf, &counters);
-                if buf.len() < 192 * 1024 {
-                    next = rx.try_recv().ok();
-                }
+                next = rx.try_recv().ok();
             }
+            drain(&mut frames, &mut open, &mut buf, &counters, fsync_interval);
             flush(&mut open, &mut buf, &counters, fsync_interval);
         }
+        drain(&mut frames, &mut open, &mut buf, &counters, fsync_interval);
         if let Some(o) = open.take() {
             let path = o.path.clone();
             match finish(o, &mut buf) {
@@ -97,15 +117,29 @@ pub fn spawn_recorder(
     })
 }
 
+/// Moves every frame in the ring into the take's buffer (writing it out when it grows large);
+/// frames with no take open are discarded.
+fn drain(
+    frames: &mut Consumer<TakeFrame>,
+    open: &mut Option<Open>,
+    buf: &mut Vec<u8>,
+    counters: &RecorderCounters,
+    fsync_interval: Duration,
+) {
+    while let Ok(frame) = frames.pop() {
+        if let Some(o) = open.as_mut() {
+            encode_record(&TakeRecord::Frame(frame), buf);
+            o.frames += 1;
+            counters.frames.store(o.frames, Relaxed);
+        }
+        if buf.len() >= WRITE_BATCH {
+            flush(open, buf, counters, fsync_interval);
+        }
+    }
+}
+
 fn handle(msg: RecorderMsg, open: &mut Option<Open>, buf: &mut Vec<u8>, counters: &RecorderCounters) {
     match msg {
-        RecorderMsg::Frame(frame) => {
-            if let Some(o) = open.as_mut() {
-                encode_record(&TakeRecord::Frame(frame), buf);
-                o.frames += 1;
-                counters.frames.store(o.frames, Relaxed);
-            }
-        }
         RecorderMsg::Mark { seq, label } => {
             if open.is_some() {
                 encode_record(&TakeRecord::Marker { seq, label }, buf);

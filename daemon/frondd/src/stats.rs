@@ -148,61 +148,6 @@ impl RawSampleCell {
     }
 }
 
-/// The live field controls, published by the loop for status. Each value is its own atomic: a
-/// reader racing a change may see a mix of old and new values for one refresh, which status
-/// tolerates; nothing acts on it.
-#[derive(Default)]
-pub struct FieldControlsCell {
-    active: AtomicBool,
-    values: [AtomicU64; 7],
-    version: AtomicU64,
-}
-
-impl FieldControlsCell {
-    /// Publishes the controls (or that no field plays).
-    pub fn store(&self, c: Option<frond_motion::controls::FieldControls>) {
-        let Some(c) = c else {
-            self.active.store(false, Relaxed);
-            self.version.fetch_add(1, std::sync::atomic::Ordering::Release);
-            return;
-        };
-        let v = [
-            c.direction_deg,
-            c.speed_m_s,
-            c.time_step,
-            f64::from(c.scale),
-            c.delays_s[0],
-            c.delays_s[1],
-            c.delays_s[2],
-        ];
-        for (cell, x) in self.values.iter().zip(v) {
-            cell.store(x.to_bits(), Relaxed);
-        }
-        self.active.store(true, Relaxed);
-        self.version.fetch_add(1, std::sync::atomic::Ordering::Release);
-    }
-
-    /// Bumped on every store, so a writer of a change can wait until the loop applied it.
-    pub fn version(&self) -> u64 {
-        self.version.load(std::sync::atomic::Ordering::Acquire)
-    }
-
-    /// The controls, if a field plays.
-    pub fn load(&self) -> Option<frond_motion::controls::FieldControls> {
-        if !self.active.load(Relaxed) {
-            return None;
-        }
-        let v: [f64; 7] = std::array::from_fn(|i| f64::from_bits(self.values[i].load(Relaxed)));
-        Some(frond_motion::controls::FieldControls {
-            direction_deg: v[0],
-            speed_m_s: v[1],
-            time_step: v[2],
-            scale: v[3] as f32,
-            delays_s: [v[4], v[5], v[6]],
-        })
-    }
-}
-
 /// Counters shared between the loop (writer) and the status/housekeeping threads (readers).
 #[derive(Default)]
 pub struct LoopStats {
@@ -234,8 +179,6 @@ pub struct LoopStats {
     pub lateness: LatencyHistogram,
     /// Latest raw sample, for calibration.
     pub raw: RawSampleCell,
-    /// Live field controls.
-    pub field_controls: FieldControlsCell,
 }
 
 #[cfg(test)]

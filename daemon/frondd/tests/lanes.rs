@@ -65,7 +65,8 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
     };
     let frames = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
     let slow = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
-    let publisher = spawn_publisher(frames, ends.publish_wake.clone(), slow, config).unwrap();
+    let publisher =
+        spawn_publisher(frames, ends.publish_wake.clone(), slow, Default::default(), config).unwrap();
 
     // The daemon's end gets a small send buffer, so the stall fills it within a few dozen frames.
     let (daemon_end, mut sub_end) = subscriber_pair(true);

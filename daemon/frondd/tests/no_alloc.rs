@@ -227,10 +227,26 @@ fn take_bytes() -> Vec<u8> {
     take.to_bytes()
 }
 
+/// A stage command for `slot`, built before counting (boxing allocates).
+fn stage_command(slot: usize, action: frondd::stage::StageAction, table: Option<Vec<u8>>) -> LoopCommand {
+    LoopCommand::Stage(Box::new(frondd::stage::StageCommand {
+        slot,
+        action,
+        elements_frame: table,
+        elements_version: 2,
+        applied: Arc::default(),
+    }))
+}
+
 #[test]
-fn live_modes_allocate_nothing_per_tick() {
-    use frond_motion::field::{FieldParams, make_field};
-    use frondd::live::{LiveField, LivePlayback, guided, parse_guided};
+fn every_live_stage_allocates_nothing_per_tick() {
+    use frond_motion::field::{Field, FieldParams, make_field};
+    use frond_protocol::{StageInput, StageKey};
+    use frondd::stage::StageAction::{Input, Install};
+    use frondd::stage::field::{FieldReport, FieldStage};
+    use frondd::stage::guided::{GuidedStage, parse_guided};
+    use frondd::stage::layer::LayerStage;
+    use frondd::stage::playback::PlaybackStage;
     let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/flower.toml")).unwrap();
     let cal = frond_motion::Calibration::neutral_for(&rig);
     let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
@@ -241,7 +257,7 @@ fn live_modes_allocate_nothing_per_tick() {
         1 << 20,
         100_000,
     );
-    let (cmd_tx, sub_rx, stats, garbage_rx) = (ends.commands, ends.frames, ends.stats, ends.garbage);
+    let (cmd_tx, sub_rx, garbage_rx) = (ends.commands, ends.frames, ends.garbage);
     let bytes = take_bytes();
     let field = make_field(
         &FieldParams {
@@ -259,43 +275,55 @@ fn live_modes_allocate_nothing_per_tick() {
     )
     .unwrap();
     let t0 = 1_000_000_000u64;
-    let playback = LivePlayback::new("g", &bytes, 5, t0).unwrap();
-    let live_field = LiveField::new(&bytes, &field.to_json(), 16, 5, t0).unwrap();
-    let stage = guided(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000);
-    cmd_tx.send(LoopCommand::SetPlayback(Some(Box::new(playback)))).unwrap();
-    cmd_tx.send(LoopCommand::SetField(Some(Box::new(live_field)))).unwrap();
-    cmd_tx.send(LoopCommand::SetGuided(Some(Box::new(stage)))).unwrap();
-    cmd_tx.send(LoopCommand::SetLayer(1)).unwrap();
+    let ids: Vec<u16> = (40..56).collect();
+    let report = Arc::new(FieldReport::new("g", 100));
+    let field = Field::from_json(&field.to_json()).unwrap();
+    let live_field = FieldStage::new(&bytes, field, &ids, 5, t0, report.clone()).unwrap();
+    let stages: [Box<dyn frondd::stage::LiveStage>; 4] = [
+        Box::new(PlaybackStage::new(&bytes, 5, t0, 0).unwrap()),
+        Box::new(live_field),
+        Box::new(GuidedStage::new(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000)),
+        Box::new(LayerStage::new(1)),
+    ];
+    for (slot, stage) in stages.into_iter().enumerate() {
+        cmd_tx.send(stage_command(slot, Install(Some(stage)), None)).unwrap();
+    }
     cmd_tx.send(LoopCommand::SetRecording(true)).unwrap();
     let mut now = t0;
     for _ in 0..500 {
         now += 1_000_000;
         engine.tick(now);
     }
-    let keys = [frond_motion::controls::ControlKey::Left, frond_motion::controls::ControlKey::Stronger];
-    for k in keys {
-        cmd_tx.send(LoopCommand::FieldKey(k)).unwrap();
-    }
+    // Inputs and a new element table arrive while counting (built here).
+    let mut changes: Vec<LoopCommand> = [StageKey::Left, StageKey::Stronger]
+        .into_iter()
+        .map(|k| stage_command(1, Input(StageInput::Key(k)), None))
+        .collect();
+    changes.push(stage_command(0, frondd::stage::StageAction::Announce, Some(vec![0u8; 300])));
     let before = ALLOCATIONS.load(Relaxed);
     COUNTING.with(|c| c.set(true));
-    for _ in 0..10_000 {
+    for i in 0..10_000 {
         now += 1_000_000;
         engine.tick(now);
+        if i % 1000 == 0
+            && let Some(c) = changes.pop()
+        {
+            cmd_tx.send(c).unwrap();
+        }
     }
     COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCATIONS.load(Relaxed) - before, 0, "allocations in live-mode ticks");
-    // The modes really ran: playback frames (element 0), field plants (0x1000..), leaf frames (1).
+    assert_eq!(ALLOCATIONS.load(Relaxed) - before, 0, "allocations in live-stage ticks");
+    // The stages really ran: playback frames (element 0), field plants (40..56), leaf frames (1).
     let mut elements = std::collections::HashSet::new();
     while let Ok(p) = sub_rx.try_recv() {
         elements.insert(p.element);
     }
     assert!(elements.contains(&0) && elements.contains(&1), "{elements:?}");
-    assert!(
-        elements.contains(&frond_protocol::FIELD_ELEMENT_BASE)
-            && elements.contains(&(frond_protocol::FIELD_ELEMENT_BASE + 15))
-    );
-    assert_eq!(stats.field_controls.load().unwrap().direction_deg, 180.0);
-    drop(garbage_rx);
+    assert!(elements.contains(&40) && elements.contains(&55), "{elements:?}");
+    assert!(!elements.contains(&56), "only the ids given are used");
+    assert_eq!(report.controls.load().unwrap().direction_deg, 180.0, "the keys reached the field");
+    // Every applied command came back to be dropped off the loop.
+    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 7);
 }
 
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive

@@ -1,4 +1,4 @@
-//! Pure motion math for frond (no I/O): hand samples, rigs, calibration, jitter filters, the
+//! Pure motion math for frond (no I/O but [`rig_files`], the one rig loader): hand samples, rigs, calibration, jitter filters, the
 //! hand-to-plant mapping of seed 000 (Eq. 2-4), and the take file codec.
 //!
 //! The path from a raw hand sample to a pose is [`Mapper::process`]: calibrate
@@ -28,6 +28,7 @@ pub mod mapping;
 pub mod mesh;
 pub mod problems;
 pub mod rig;
+pub mod rig_files;
 pub mod rng;
 pub mod sample;
 pub mod skeleton;

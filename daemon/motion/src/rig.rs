@@ -20,6 +20,9 @@ pub const DEFAULT_TAU: u8 = 2;
 pub const DEFAULT_THUMB_RANGE_DEG: [f32; 3] = [60.0, 70.0, 60.0];
 /// Largest `tau`: every joint above the root twists (Eq. 4 keeps `P_roll(0) = 0`).
 pub const MAX_TAU: u8 = 3;
+/// Most secondary elements a rig may have: their element ids are `1..=MAX_RIG_ELEMENTS`, and the
+/// daemon gives the elements of its live stages ids above them.
+pub const MAX_RIG_ELEMENTS: usize = 32;
 
 /// One skeleton joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -351,8 +354,14 @@ impl RawRig {
             };
         }
 
-        let mut elements = Vec::with_capacity(self.elements.len());
-        for (e, raw) in self.elements.iter().enumerate() {
+        if self.elements.len() > MAX_RIG_ELEMENTS {
+            p.push(
+                "elements",
+                format!("{} secondary elements; at most {MAX_RIG_ELEMENTS} are allowed", self.elements.len()),
+            );
+        }
+        let mut elements = Vec::with_capacity(self.elements.len().min(MAX_RIG_ELEMENTS));
+        for (e, raw) in self.elements.iter().enumerate().take(MAX_RIG_ELEMENTS) {
             let path = |f: &str| format!("elements[{e}].{f}");
             if raw.name.trim().is_empty() {
                 p.push(path("name"), "must not be empty");

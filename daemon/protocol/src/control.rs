@@ -45,14 +45,6 @@ pub enum ControlRequest {
     },
     /// Ask for the most recent raw (uncalibrated) hand samples, for `frond calibrate`.
     RawSample,
-    /// Loop a recorded take on the pose stream (element 0, flagged `playback`), as seed 000
-    /// section 5.3 shows the global animation while secondary layers are authored. `None` stops.
-    PlayLoop {
-        /// Take name in the takes directory, or `None` to stop.
-        take: Option<String>,
-        /// Seed of the loop's random jumps.
-        seed: u64,
-    },
     /// Record a secondary layer (`leaf`, `petal`, ...): hand frames are published and recorded as
     /// that element, optionally while `global_take` loops on the stream as element 0.
     RecordLayer {
@@ -65,30 +57,27 @@ pub enum ControlRequest {
         /// Seed of the loop's random jumps.
         seed: u64,
     },
-    /// Play a field (seed 000, section 6.2): `field_json` as written by `frond take field`, of the
-    /// looped `take`; the first `plants` plants are published as elements `0x1000 + plant id`.
-    FieldStart {
-        /// Take name in the takes directory.
-        take: String,
-        /// field.json contents.
-        field_json: String,
-        /// How many plants to publish (at most 64).
-        plants: u16,
-        /// Seed of the loop's random jumps.
-        seed: u64,
+    /// Starts a live stage (seed 000, sections 5.3, 6.2-6.4): something that publishes poses of
+    /// its own or transforms the hand's in the realtime loop. A stage of the same name already
+    /// running is replaced. Answered with [`ControlReply::Ok`] once the loop runs it.
+    StageStart {
+        /// The stage's name, by which it is stopped and steered; `None` names it after its kind
+        /// (`playback`, `field`, `guided`).
+        name: Option<String>,
+        /// What to run.
+        spec: StageSpec,
     },
-    /// Stop field playback.
-    FieldStop,
-    /// A live field control (section 6.3): `left`, `right`, `up`, `down`, `stronger`, `weaker`.
-    FieldKey {
-        /// Key name.
-        key: String,
+    /// Stops the stage `name` (nothing happens if none runs under that name).
+    StageStop {
+        /// Stage name.
+        name: String,
     },
-    /// Guided procedural motion on the live mapping (seed 000, Eq. 8):
-    /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains), or `None` to switch it off.
-    SetGuided {
-        /// Spec text or `None`.
-        spec: Option<String>,
+    /// A typed input to the running stage `name` (a field control key, ...).
+    StageInput {
+        /// Stage name.
+        name: String,
+        /// The input.
+        input: StageInput,
     },
     /// Testing aid: block the realtime loop for `ms` milliseconds (watchdog tests). Refused
     /// unless the daemon was started with `--test-hooks`.
@@ -96,6 +85,94 @@ pub enum ControlRequest {
         /// How long to block the loop.
         ms: u32,
     },
+}
+
+/// What a live stage runs, with its parameters. Every kind of stage is one variant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum StageSpec {
+    /// Loop a recorded take on the pose stream as the global element, flagged `playback`, as
+    /// seed 000 section 5.3 shows the global animation while secondary layers are authored.
+    Playback {
+        /// Take name in the takes directory.
+        take: String,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+    },
+    /// Play a field (seed 000, section 6.2): `field_json` as written by `frond take field`, of the
+    /// looped `take`; the first `plants` plants are published (60 Hz), each an announced
+    /// `field-plant` element. Steered by [`StageInput::Key`] and by wrist swipes (6.3).
+    Field {
+        /// Take name in the takes directory.
+        take: String,
+        /// field.json contents.
+        field_json: String,
+        /// How many plants to publish (1..=64).
+        plants: u16,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+    },
+    /// Guided procedural motion on the live mapping (seed 000, Eq. 8):
+    /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains).
+    Guided {
+        /// Spec text.
+        spec: String,
+    },
+}
+
+impl StageSpec {
+    /// The kind's name, which is also the stage's default name.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            StageSpec::Playback { .. } => "playback",
+            StageSpec::Field { .. } => "field",
+            StageSpec::Guided { .. } => "guided",
+        }
+    }
+}
+
+/// A typed input to a running stage.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum StageInput {
+    /// A field control key (seed 000, section 6.3).
+    Key(StageKey),
+}
+
+/// The keys of the field controls (seed 000, section 6.3): arrows turn the propagation direction
+/// (left/right) and change its speed (up/down); `+`/`-` make the motion stronger or weaker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StageKey {
+    /// Turn the propagation direction left.
+    Left,
+    /// Turn the propagation direction right.
+    Right,
+    /// Faster propagation.
+    Up,
+    /// Slower propagation.
+    Down,
+    /// Stronger motion (`+`).
+    Stronger,
+    /// Weaker motion (`-`).
+    Weaker,
+}
+
+impl std::str::FromStr for StageKey {
+    type Err = String;
+    fn from_str(key: &str) -> Result<Self, String> {
+        Ok(match key {
+            "left" => StageKey::Left,
+            "right" => StageKey::Right,
+            "up" => StageKey::Up,
+            "down" => StageKey::Down,
+            "stronger" | "+" => StageKey::Stronger,
+            "weaker" | "-" => StageKey::Weaker,
+            other => {
+                return Err(format!(
+                    "unknown field key {other:?}: use left, right, up, down, stronger (+), weaker (-)"
+                ));
+            }
+        })
+    }
 }
 
 /// The daemon's answer to one [`ControlRequest`].
@@ -188,10 +265,29 @@ pub struct StatusReport {
     /// Realtime tuning in force (scheduling policy, memory lock), or why not.
     #[serde(default)]
     pub realtime: String,
-    /// Live modes in force: looped playback, layer being recorded, field playback with its
-    /// controls, guided motion.
+    /// Live stages in force, one line each: looped playback, layer being recorded, field
+    /// playback with its controls, guided motion.
     #[serde(default)]
     pub modes: Vec<String>,
+    /// The live stages running, by name.
+    #[serde(default)]
+    pub stages: Vec<StageStatus>,
+    /// The element table subscribers were last sent.
+    #[serde(default)]
+    pub elements: Vec<crate::ElementInfo>,
+}
+
+/// One running live stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageStatus {
+    /// Its name.
+    pub name: String,
+    /// Its kind (`playback`, `layer`, `field`, `guided`).
+    pub kind: String,
+    /// What it is doing, in words (read from its own lock-free cell).
+    pub state: String,
+    /// Ids of the elements it publishes.
+    pub elements: Vec<u16>,
 }
 
 /// The hand source's state.

@@ -15,8 +15,10 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use thiserror::Error;
 
-/// Version byte written in every frame.
-pub const PROTOCOL_VERSION: u8 = 1;
+/// Version byte written in every frame. Version 2 announces elements
+/// ([`crate::ServerMessage::Elements`]) and drives live stages with one family of control
+/// requests (`StageStart`, `StageStop`, `StageInput`); version 1 had a request per live mode.
+pub const PROTOCOL_VERSION: u8 = 2;
 /// Bytes before the body: the `u32` length and the version byte.
 pub const HEADER_LEN: usize = 5;
 /// Largest accepted `len` field. Anything bigger is refused before reading it.
@@ -38,8 +40,8 @@ pub enum DecodeError {
     },
     /// The peer speaks a protocol version this build does not know.
     #[error(
-        "protocol version {got} is not supported (this build speaks version {supported}); \
-         upgrade frond on this side"
+        "frond protocol version {got} is not supported (this build speaks version {supported}); {}",
+        if got > supported { "upgrade frond on this side" } else { "upgrade the peer (frond, frondd and every exporter must speak the same version)" }
     )]
     UnsupportedVersion {
         /// Version byte found.
@@ -105,8 +107,15 @@ impl FrameBuf {
 /// Serialising our own message types into a `Vec` cannot fail; a failure would be a bug in a
 /// `Serialize` impl, so it panics with a clear message rather than sending a broken frame.
 pub fn encode_frame<T: Serialize>(msg: &T, out: &mut Vec<u8>) {
+    encode_frame_as(PROTOCOL_VERSION, msg, out)
+}
+
+/// Like [`encode_frame`], with another version byte: for the one message an older peer must
+/// still be able to read, the refusal that names both versions (a [`crate::ControlReply::Error`]
+/// has the same shape in every version).
+pub fn encode_frame_as<T: Serialize>(version: u8, msg: &T, out: &mut Vec<u8>) {
     let start = out.len();
-    out.extend_from_slice(&[0, 0, 0, 0, PROTOCOL_VERSION]);
+    out.extend_from_slice(&[0, 0, 0, 0, version]);
     let mut ser = rmp_serde::Serializer::new(&mut *out).with_struct_map();
     msg.serialize(&mut ser).expect("frond messages always serialise");
     let len = out.len() - start - 4;

@@ -1,8 +1,9 @@
 //! frond's wire protocol, shared by the daemon, the operator CLI and every exporter.
 //!
 //! Two Unix stream sockets speak it:
-//! - `poses.sock`: the daemon sends one [`ServerMessage::Hello`] on connect, then one
-//!   [`ServerMessage::Pose`] per realtime tick. Nothing a subscriber sends is read as a command.
+//! - `poses.sock`: the daemon sends one [`ServerMessage::Hello`] on connect and the
+//!   [`ServerMessage::Elements`] table, then [`ServerMessage::Pose`]s (at least one per realtime
+//!   tick), and a new table whenever the live stages change. Nothing a subscriber sends is read as a command.
 //! - `control.sock`: a client sends [`ControlRequest`]s, the daemon answers each with one
 //!   [`ControlReply`].
 //!
@@ -19,13 +20,16 @@ pub mod pose;
 
 pub use control::{
     ControlError, ControlErrorKind, ControlReply, ControlRequest, LatencySummary, RecordingStatus,
-    SourceStatus, StatusReport, SubscriberStatus,
+    SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport, SubscriberStatus,
 };
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,
-    encode_frame, read_frame, read_frame_limited, write_frame,
+    encode_frame, encode_frame_as, read_frame, read_frame_limited, write_frame,
 };
-pub use pose::{FIELD_ELEMENT_BASE, HandWire, Hello, PatchableHello, Pose, PoseFlags, ServerMessage};
+pub use pose::{
+    ElementInfo, ElementKind, ElementTable, HandWire, Hello, PatchableHello, Pose, PoseFlags, RigInfo,
+    ServerMessage,
+};
 
 /// Default socket file names inside the socket directory.
 pub const POSES_SOCKET: &str = "poses.sock";

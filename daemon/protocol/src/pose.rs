@@ -9,6 +9,90 @@ pub enum ServerMessage {
     Hello(Hello),
     /// One per realtime tick.
     Pose(Pose),
+    /// A new element table: sent whenever the live stages (or the rig) change, before the first
+    /// frame of any element it adds; and right after a [`Hello`] whose table is already out of
+    /// date. Replaces the table of the [`Hello`] or of the last `Elements`.
+    Elements(ElementTable),
+}
+
+/// Every element the daemon publishes, with what it is. Element ids are assigned by the daemon
+/// and mean nothing by themselves: subscribers look them up here.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ElementTable {
+    /// Increases by one with every change (the first table of a daemon is 1).
+    pub version: u64,
+    /// The skeletons the elements use, by name.
+    pub rigs: Vec<RigInfo>,
+    /// The elements, by id (ids are unique).
+    pub elements: Vec<ElementInfo>,
+}
+
+/// A skeleton elements refer to by name.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RigInfo {
+    /// Rig name (`grass`, `flower`, ...).
+    pub name: String,
+    /// Its joint names, root first (4 of them).
+    pub joint_names: Vec<String>,
+}
+
+impl ElementTable {
+    /// The element with this id, if announced.
+    pub fn get(&self, id: u16) -> Option<&ElementInfo> {
+        self.elements.iter().find(|e| e.id == id)
+    }
+
+    /// Joint names of element `id`'s skeleton, if announced.
+    pub fn joint_names(&self, id: u16) -> Option<&[String]> {
+        let e = self.get(id)?;
+        self.rigs.iter().find(|r| r.name == e.rig).map(|r| r.joint_names.as_slice())
+    }
+
+    /// Elements of one kind, in table order.
+    pub fn of_kind(&self, kind: ElementKind) -> impl Iterator<Item = &ElementInfo> + '_ {
+        self.elements.iter().filter(move |e| e.kind == kind)
+    }
+}
+
+/// What produces an element's frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ElementKind {
+    /// A hand source mapped onto the plant's global element.
+    Hand,
+    /// A hand source recording a secondary layer of the rig (`leaf`, `petal`, ...).
+    Layer,
+    /// A take looping as the plant's global element (seed 000, section 5.3).
+    Playback,
+    /// One plant of a playing field (seed 000, section 6.2).
+    FieldPlant,
+}
+
+impl ElementKind {
+    /// The kind's name on the wire and in status (`hand`, `layer`, `playback`, `field-plant`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ElementKind::Hand => "hand",
+            ElementKind::Layer => "layer",
+            ElementKind::Playback => "playback",
+            ElementKind::FieldPlant => "field-plant",
+        }
+    }
+}
+
+/// One announced element.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ElementInfo {
+    /// The id its [`Pose`] frames carry in [`Pose::element`].
+    pub id: u16,
+    /// A readable name: the rig for the global element, the layer's name, `field/plant3`, ...
+    pub name: String,
+    /// What produces it.
+    pub kind: ElementKind,
+    /// The live stage that publishes it (`playback`, `field`, ...), or the hand source's name.
+    pub source: String,
+    /// Rig whose skeleton the joints belong to (one of [`ElementTable::rigs`]).
+    pub rig: String,
 }
 
 /// Sent once when a subscriber connects (and again if the rig changes).
@@ -24,7 +108,11 @@ pub struct Hello {
     pub joint_names: Vec<String>,
     /// Nominal tick rate of the realtime loop.
     pub tick_rate_hz: u32,
-    /// Sequence number of the next pose this subscriber will receive.
+    /// The elements a subscriber can receive (what each [`Pose::element`] id is).
+    #[serde(default)]
+    pub elements: ElementTable,
+    /// Sequence number of the next pose this subscriber will receive. Keep it the last field:
+    /// [`PatchableHello`] writes it into the encoded frame's last bytes.
     pub next_seq: u64,
 }
 
@@ -92,9 +180,6 @@ pub struct HandWire {
     pub thumb_deg: [f32; 3],
 }
 
-/// Element ids from here on are field plants (`FIELD_ELEMENT_BASE + plant id`).
-pub const FIELD_ELEMENT_BASE: u16 = 0x1000;
-
 /// One realtime tick's output.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pose {
@@ -107,8 +192,9 @@ pub struct Pose {
     pub host_monotonic_ns: u64,
     /// Pose flags (held, device lost, filtered, ...).
     pub flags: PoseFlags,
-    /// Element id: 0 is the plant's global element, 1.. secondary layers (rig elements in order),
-    /// [`FIELD_ELEMENT_BASE`]` + i` plant `i` of a playing field.
+    /// Element id, announced in the [`ElementTable`]: 0 is the plant's global element, 1..
+    /// secondary layers (rig elements in order); stages publish theirs under ids the daemon
+    /// assigns (look them up in the table, never guess from the number).
     pub element: u16,
     /// Joint rotations `[pitch, yaw, roll]` in degrees, joint 0 = root, 3 = top.
     pub joints_deg: [[f32; 3]; 4],
@@ -123,9 +209,10 @@ pub struct Pose {
 /// `next_seq` is the last field of [`Hello`]; encoded as `u64::MAX` it is MessagePack `uint 64`
 /// (`0xcf` and 8 big-endian bytes) at the very end of the frame. Any value written there in that
 /// form is valid MessagePack (decoders accept a wider-than-needed integer).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PatchableHello {
     bytes: Vec<u8>,
+    elements_version: u64,
 }
 
 impl PatchableHello {
@@ -136,7 +223,12 @@ impl PatchableHello {
         let mut bytes = Vec::new();
         crate::encode_frame(&ServerMessage::Hello(h), &mut bytes);
         debug_assert!(bytes.len() >= 9 && bytes[bytes.len() - 9] == 0xcf);
-        PatchableHello { bytes }
+        PatchableHello { bytes, elements_version: hello.elements.version }
+    }
+
+    /// Version of the element table the hello carries.
+    pub fn elements_version(&self) -> u64 {
+        self.elements_version
     }
 
     /// The frame with `next_seq` set to `seq`.
@@ -159,6 +251,17 @@ mod tests {
             rig_name: "grass".into(),
             joint_names: vec!["root".into(), "a".into(), "b".into(), "tip".into()],
             tick_rate_hz: 1000,
+            elements: ElementTable {
+                version: 3,
+                rigs: vec![RigInfo { name: "grass".into(), joint_names: vec!["root".into()] }],
+                elements: vec![ElementInfo {
+                    id: 0,
+                    name: "grass".into(),
+                    kind: ElementKind::Hand,
+                    source: "hand".into(),
+                    rig: "grass".into(),
+                }],
+            },
             next_seq: 7,
         };
         let mut p = PatchableHello::new(&hello);

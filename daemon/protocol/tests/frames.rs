@@ -28,11 +28,12 @@ fn hello_encodes_to_these_exact_bytes() {
         rig_name: "grass".into(),
         joint_names: vec!["j0".into()],
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq: 7,
     });
     let mut body = vec![0x81, 0xa5];
     body.extend_from_slice(b"Hello");
-    body.push(0x86);
+    body.push(0x87);
     body.extend_from_slice(&[0xb0]);
     body.extend_from_slice(b"protocol_version");
     body.push(0x01);
@@ -51,6 +52,19 @@ fn hello_encodes_to_these_exact_bytes() {
     body.push(0xac);
     body.extend_from_slice(b"tick_rate_hz");
     body.extend_from_slice(&[0xcd, 0x03, 0xe8]);
+    // elements: {version: 0, rigs: [], elements: []}
+    body.push(0xa8);
+    body.extend_from_slice(b"elements");
+    body.push(0x83);
+    body.push(0xa7);
+    body.extend_from_slice(b"version");
+    body.push(0x00);
+    body.push(0xa4);
+    body.extend_from_slice(b"rigs");
+    body.push(0x90);
+    body.push(0xa8);
+    body.extend_from_slice(b"elements");
+    body.push(0x90);
     body.push(0xa8);
     body.extend_from_slice(b"next_seq");
     body.push(0x07);

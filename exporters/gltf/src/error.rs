@@ -45,30 +45,9 @@ pub enum BakeError {
         /// Take name.
         name: String,
     },
-    /// A rig name that is neither embedded nor an existing file.
-    #[error("rig `{arg}` not found: not an embedded rig ({embedded}) and no such file")]
-    RigNotFound {
-        /// The `--rig` argument.
-        arg: String,
-        /// The embedded rig names.
-        embedded: String,
-    },
-    /// The rig file could not be read.
-    #[error("cannot read rig {}: {source}", path.display())]
-    RigRead {
-        /// The rig file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The rig file is not a valid rig (no joints, bad heights, ...); lists every problem.
-    #[error("rig {origin}: {source}")]
-    RigInvalid {
-        /// The rig file or embedded name.
-        origin: String,
-        /// Every problem with its path.
-        source: frond_motion::RigError,
-    },
+    /// The rig could not be found, read or validated (every problem with its path).
+    #[error(transparent)]
+    Rig(#[from] frond_motion::rig_files::RigFileError),
     /// The rig's mesh could not be built or loaded.
     #[error("rig {origin}: mesh: {reason}")]
     RigMesh {

@@ -12,11 +12,7 @@ use frond_motion::{Rig, TakeFrame, TakeHeader, scan_take};
 use crate::error::BakeError;
 
 /// The rigs of `rig-files/plants/`, built into the binary: `(name, TOML text)`.
-pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
-    ("grass", include_str!("../../../rig-files/plants/grass.toml")),
-    ("flower", include_str!("../../../rig-files/plants/flower.toml")),
-    ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
-];
+pub use frond_motion::rig_files::EMBEDDED_RIGS;
 
 /// A validated rig and where it came from.
 #[derive(Debug, Clone)]
@@ -29,40 +25,28 @@ pub struct LoadedRig {
     pub dir: Option<PathBuf>,
 }
 
+impl From<frond_motion::rig_files::LoadedRig> for LoadedRig {
+    fn from(l: frond_motion::rig_files::LoadedRig) -> Self {
+        LoadedRig { rig: l.rig, origin: l.origin, dir: l.dir }
+    }
+}
+
 impl LoadedRig {
     /// Parses a rig from TOML text (no I/O). `origin` names it in errors.
     pub fn from_toml(text: &str, origin: impl Into<String>, dir: Option<PathBuf>) -> Result<Self, BakeError> {
         let origin = origin.into();
-        let rig = Rig::from_toml_str(text)
-            .map_err(|source| BakeError::RigInvalid { origin: origin.clone(), source })?;
-        Ok(LoadedRig { rig, origin, dir })
+        Ok(frond_motion::rig_files::rig_from_text(text.to_string(), origin, "", dir)?.into())
     }
 
     /// An embedded rig by name (`grass`, `flower`, `shrub`).
     pub fn embedded(name: &str) -> Option<Result<Self, BakeError>> {
-        EMBEDDED_RIGS
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|(n, text)| Self::from_toml(text, format!("embedded rig `{n}`"), None))
+        frond_motion::rig_files::embedded_rig(name).map(|r| Ok(r?.into()))
     }
 
-    /// `--rig`: an existing file path, else an embedded rig name.
+    /// `--rig`: a file path (with `/` or ending in `.toml`), else an embedded rig name, else a
+    /// file of that name (the one rig loader, `frond_motion::rig_files`).
     pub fn resolve(arg: &str) -> Result<Self, BakeError> {
-        let path = Path::new(arg);
-        if path.is_file() || arg.contains('/') || arg.ends_with(".toml") {
-            let text = std::fs::read_to_string(path)
-                .map_err(|source| BakeError::RigRead { path: path.to_path_buf(), source })?;
-            let dir = path
-                .parent()
-                .map(|d| if d.as_os_str().is_empty() { PathBuf::from(".") } else { d.to_path_buf() });
-            return Self::from_toml(&text, path.display().to_string(), dir);
-        }
-        Self::embedded(arg).unwrap_or_else(|| {
-            Err(BakeError::RigNotFound {
-                arg: arg.to_string(),
-                embedded: EMBEDDED_RIGS.map(|(n, _)| n).join(", "),
-            })
-        })
+        Ok(frond_motion::rig_files::load_rig(arg)?.into())
     }
 
     /// The plant geometry: the procedural shape the rig names, or its glTF/GLB mesh file (read

@@ -186,6 +186,8 @@ pub fn capture(
                 hello = h;
             }
             Ok(Event::Disconnected) => status("daemon disconnected; reconnecting"),
+            // The capture keeps element ids as they come; the rig names its layers.
+            Ok(Event::Elements(_)) => {}
             // Nothing pending: during a drain, everything sent has been read.
             Err(SdkError::Timeout { .. }) if drain_until.is_some() => {
                 status("stopped");
@@ -240,6 +242,7 @@ mod tests {
             rig_name: "grass".into(),
             joint_names: vec![],
             tick_rate_hz: 100,
+            elements: Default::default(),
             next_seq: 0,
         };
         let take = c.into_take("live", &hello);

@@ -21,6 +21,7 @@ fn hello() -> ServerMessage {
         rig_name: "grass".to_string(),
         joint_names: vec!["root".into(), "lower".into(), "middle".into(), "tip".into()],
         tick_rate_hz: 100,
+        elements: Default::default(),
         next_seq: 0,
     })
 }

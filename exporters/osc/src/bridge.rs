@@ -312,6 +312,8 @@ fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters) 
                 counters.missing.fetch_add(got - expected, Ordering::Relaxed);
                 continue;
             }
+            // Element addresses are by id (`/frond/element/N/pose`); names are issue 18's.
+            Ok(Event::Elements(_)) => continue,
             Ok(Event::RigChanged(hello)) => Msg::Hello(hello),
             Ok(Event::Reconnected(hello)) => {
                 counters.reconnects.fetch_add(1, Ordering::Relaxed);

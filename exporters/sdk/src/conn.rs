@@ -45,7 +45,7 @@ impl Conn {
         };
         let hello = match conn.read_message(path, Some(opts.hello_timeout)) {
             ReadOutcome::Message(ServerMessage::Hello(hello)) => hello,
-            ReadOutcome::Message(ServerMessage::Pose(_)) => {
+            ReadOutcome::Message(ServerMessage::Pose(_) | ServerMessage::Elements(_)) => {
                 return Err(SdkError::Protocol {
                     path: path.to_owned(),
                     error: ProtocolError::ExpectedHello,

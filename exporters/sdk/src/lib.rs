@@ -14,7 +14,8 @@
 //! ```
 //!
 //! A [`Subscriber`] connects to `poses.sock` in the daemon's socket directory, reads the daemon's
-//! [`Hello`], then delivers [`Pose`]s. It watches sequence numbers: a pose whose `seq` is past the
+//! [`Hello`] with its [`ElementTable`] (what each element id is: the hand, a layer, a looped take,
+//! a field plant; kept up to date by [`Event::Elements`]), then delivers [`Pose`]s. It watches sequence numbers: a pose whose `seq` is past the
 //! expected one is reported as [`Event::Gap`] (the daemon dropped frames for this subscriber, e.g.
 //! because it read too slowly). When the connection ends it reports [`Event::Disconnected`] and, if
 //! reconnection is enabled (the default), reconnects with exponential backoff; a restarted daemon
@@ -33,7 +34,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 pub use error::{ProtocolError, SdkError};
-pub use frond_protocol::{HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags};
+pub use frond_protocol::{
+    ElementInfo, ElementKind, ElementTable, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags, RigInfo,
+};
 
 use conn::{Conn, ReadOutcome};
 use frond_protocol::ServerMessage;
@@ -53,6 +56,9 @@ pub enum Event {
     },
     /// The daemon sent a new hello on the same connection (its rig changed).
     RigChanged(Hello),
+    /// The daemon announced a new element table (its live stages or rig changed); it applies to
+    /// the poses that follow. [`Subscriber::elements`] has it too.
+    Elements(ElementTable),
     /// A new connection was made after a disconnect; carries the new daemon's hello.
     Reconnected(Hello),
     /// The connection ended (daemon stopped or restarted). With reconnection on, the next call
@@ -155,6 +161,7 @@ pub struct Subscriber {
     opts: SubscriberOptions,
     state: State,
     hello: Hello,
+    elements: ElementTable,
     /// Sequence number due next on the current connection.
     expected_seq: u64,
     pending: VecDeque<Event>,
@@ -195,6 +202,7 @@ impl Subscriber {
         Ok(Subscriber {
             path,
             expected_seq: hello.next_seq,
+            elements: hello.elements.clone(),
             hello,
             opts,
             state: State::Connected(Box::new(conn)),
@@ -207,6 +215,12 @@ impl Subscriber {
     /// The latest hello from the daemon (updated on reconnect and rig change).
     pub fn hello(&self) -> &Hello {
         &self.hello
+    }
+
+    /// The element table in force: what each [`Pose::element`] id is (kind, name, rig, joint
+    /// names). Updated by [`Event::Elements`] and on reconnect.
+    pub fn elements(&self) -> &ElementTable {
+        &self.elements
     }
 
     /// Counters since creation.
@@ -247,9 +261,14 @@ impl Subscriber {
         let State::Connected(conn) = &mut self.state else { unreachable!("checked above") };
         match conn.read_message(&self.path, self.opts.read_timeout) {
             ReadOutcome::Message(ServerMessage::Pose(pose)) => self.on_pose(pose),
+            ReadOutcome::Message(ServerMessage::Elements(table)) => {
+                self.elements = table.clone();
+                Ok(Event::Elements(table))
+            }
             ReadOutcome::Message(ServerMessage::Hello(hello)) => match check_hello(&hello) {
                 Ok(()) => {
                     self.hello = hello.clone();
+                    self.elements = hello.elements.clone();
                     Ok(Event::RigChanged(hello))
                 }
                 Err(error) => Err(self.fail(error)),
@@ -313,6 +332,7 @@ impl Subscriber {
                     self.state = State::Connected(Box::new(conn));
                     self.expected_seq = hello.next_seq;
                     self.hello = hello.clone();
+                    self.elements = hello.elements.clone();
                     self.stats.reconnects += 1;
                     return Ok(Event::Reconnected(hello));
                 }
@@ -359,7 +379,9 @@ impl Iterator for Subscriber {
         loop {
             match self.next_event() {
                 Ok(Event::Pose(pose)) => return Some(Ok(pose)),
-                Ok(Event::Gap { .. } | Event::RigChanged(_) | Event::Reconnected(_)) => continue,
+                Ok(Event::Gap { .. } | Event::RigChanged(_) | Event::Elements(_) | Event::Reconnected(_)) => {
+                    continue;
+                }
                 Ok(Event::Disconnected) if self.opts.reconnect => continue,
                 Ok(Event::Disconnected) | Err(SdkError::Closed) => {
                     self.iter_done = true;

@@ -18,6 +18,7 @@ fn hello(next_seq: u64) -> Hello {
         rig_name: "grass".into(),
         joint_names: ["root", "j1", "j2", "top"].map(String::from).to_vec(),
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq,
     }
 }
@@ -218,7 +219,7 @@ fn a_newer_frame_version_is_refused_clearly() {
     assert!(err.is_fatal());
     let msg = err.to_string();
     assert!(msg.contains(&format!("protocol version {newer}")), "{msg}");
-    assert!(msg.contains("understands version 1"), "{msg}");
+    assert!(msg.contains(&format!("understands version {}", frond_protocol::PROTOCOL_VERSION)), "{msg}");
     server.join().unwrap();
 }
 

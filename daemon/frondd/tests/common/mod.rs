@@ -38,12 +38,13 @@ pub fn new_lane(id: u64, stream: UnixStream, counters: Arc<SubscriberCounters>) 
         rig_name: "grass".into(),
         joint_names: vec!["root".into(), "stem".into(), "upper".into(), "tip".into()],
         tick_rate_hz: 1000,
+        elements: Default::default(),
         next_seq: 0,
     };
-    LoopCommand::AddSubscriber(Box::new(frondd::lanes::NewLane {
+    LoopCommand::AddSubscriber(Box::new(frondd::lanes::NewLane::new(
         id,
-        stream: Some(stream),
-        counters: Some(counters),
-        hello: frond_protocol::PatchableHello::new(&hello),
-    }))
+        stream,
+        counters,
+        frond_protocol::PatchableHello::new(&hello),
+    )))
 }

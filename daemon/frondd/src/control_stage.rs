@@ -1,0 +1,343 @@
+//! Control requests for live stages (seed 000, sections 5.3, 6.2-6.4) and the one path by which a
+//! rig, calibration and filter come into force (start-up, SIGHUP and `SetRig` alike).
+//!
+//! Stages are built here, off the realtime thread, from their [`StageSpec`], installed into the
+//! loop with one [`StageCommand`] that also carries the new element table, and answered only once
+//! the loop has applied them, so a status read right after the reply shows the new state.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering::Acquire};
+use std::time::{Duration, Instant};
+
+use frond_motion::{Calibration, FilterSpec, Rig};
+use frond_protocol::{
+    ControlErrorKind, ControlReply, ElementTable, ServerMessage, StageInput, StageSpec, encode_frame,
+};
+use tracing::info;
+
+use crate::clock::monotonic_ns;
+use crate::control::{ControlContext, DaemonState, refuse};
+use crate::engine::LoopCommand;
+use crate::lanes::ELEMENTS_FRAME_MAX;
+use crate::stage::registry::{Running, validate_stage_name};
+use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
+
+/// Name of the (single) hand source in the element table.
+pub const HAND_SOURCE: &str = "hand";
+/// Stage name of a layer being recorded.
+const LAYER_STAGE: &str = "layer";
+/// How long a control request waits for the loop to apply a stage change.
+const APPLY_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// A rig, calibration and filter to put in force together.
+pub struct Setup {
+    /// The rig.
+    pub rig: Rig,
+    /// The calibration.
+    pub calibration: Calibration,
+    /// The jitter filter.
+    pub filter: FilterSpec,
+}
+
+impl ControlContext {
+    /// Puts `setup` in force: mapping, calibration and filter in the loop; when a rig is applied
+    /// (`rig_applied`: start-up, SIGHUP, `SetRig`), the rig's own `[guided]` table replaces the
+    /// guided-motion stage and the element table is announced again. The one path for start-up,
+    /// SIGHUP, `SetRig`, `SetCalibration` and `SetFilter`; `state` is left unchanged when the
+    /// loop refuses the first change.
+    pub(crate) fn apply_setup(
+        &self,
+        state: &mut DaemonState,
+        setup: Setup,
+        rig_applied: bool,
+    ) -> Result<(), ControlReply> {
+        let Setup { rig, calibration, filter } = setup;
+        let rig_changed = rig_applied || rig != state.rig;
+        if rig_changed {
+            self.send_loop(LoopCommand::SetMapping(rig.mapping())).map_err(|r| *r)?;
+        }
+        if rig_changed || calibration != state.calibration {
+            self.send_loop(LoopCommand::SetCalibration(calibration.params())).map_err(|r| *r)?;
+        }
+        if rig_changed || filter != state.filter {
+            self.send_loop(LoopCommand::SetFilter(filter)).map_err(|r| *r)?;
+        }
+        state.rig = rig;
+        state.calibration = calibration;
+        state.filter = filter;
+        if rig_changed {
+            let now_ns = monotonic_ns();
+            let guided = {
+                let free = state.stages.free_ids(0);
+                let ctx = self.build_context(state, "guided", &free, now_ns);
+                stage::guided::from_rig(&ctx)
+            };
+            if guided.is_some() || state.stages.slot_of("guided").is_some() {
+                self.install(state, "guided", guided)?;
+            } else {
+                self.announce(state)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn build_context<'a>(
+        &'a self,
+        state: &'a DaemonState,
+        name: &'a str,
+        free_ids: &'a [u16],
+        now_ns: u64,
+    ) -> BuildContext<'a> {
+        BuildContext {
+            takes_dir: &self.takes_dir,
+            rig: &state.rig,
+            g3_range_deg: state.calibration.thumb_range_deg[2],
+            tick_rate_hz: self.tick_rate_hz,
+            now_ns,
+            free_ids,
+            name,
+        }
+    }
+
+    /// Starts the stage `spec` under `name` (default: its kind), replacing one of that name.
+    pub(crate) fn stage_start(&self, name: Option<String>, spec: StageSpec) -> ControlReply {
+        let name = name.unwrap_or_else(|| spec.kind().to_string());
+        if let Err(e) = validate_stage_name(&name) {
+            return refuse(ControlErrorKind::BadName, e);
+        }
+        if name == LAYER_STAGE {
+            return refuse(
+                ControlErrorKind::BadName,
+                "the stage name `layer` belongs to layer recording (frond record layer)",
+            );
+        }
+        let mut state = self.lock();
+        let slot = match state.stages.slot_for(&name) {
+            Ok(slot) => slot,
+            Err(e) => return refuse(ControlErrorKind::WrongState, e),
+        };
+        let free = state.stages.free_ids(slot);
+        let built = match stage::build(&spec, &self.build_context(&state, &name, &free, monotonic_ns())) {
+            Ok(b) => b,
+            Err(e) => return refuse(e.kind, e.message),
+        };
+        let kind = built.kind;
+        match self.install(&mut state, &name, Some(built)) {
+            Ok(()) => {
+                info!(stage = %name, kind, "live stage started");
+                ControlReply::Ok
+            }
+            Err(reply) => reply,
+        }
+    }
+
+    /// Stops the stage `name`; nothing to do if none runs.
+    pub(crate) fn stage_stop(&self, name: &str) -> ControlReply {
+        if let Err(e) = validate_stage_name(name) {
+            return refuse(ControlErrorKind::BadName, e);
+        }
+        let mut state = self.lock();
+        if name == LAYER_STAGE && state.stages.slot_of(name).is_some() {
+            return refuse(
+                ControlErrorKind::WrongState,
+                "a layer is being recorded: `frond record stop` ends it",
+            );
+        }
+        match self.install(&mut state, name, None) {
+            Ok(()) => ControlReply::Ok,
+            Err(reply) => reply,
+        }
+    }
+
+    /// Gives the stage `name` an input, answering once the loop applied it.
+    pub(crate) fn stage_input(&self, name: &str, input: StageInput) -> ControlReply {
+        let state = self.lock();
+        let Some(slot) = state.stages.slot_of(name) else {
+            let running: Vec<&str> = state.stages.iter().map(|r| r.name.as_str()).collect();
+            return refuse(
+                ControlErrorKind::WrongState,
+                format!(
+                    "no stage named {name:?} is running (running: {})",
+                    if running.is_empty() { "none".to_string() } else { running.join(", ") }
+                ),
+            );
+        };
+        let running = state.stages.get(name).expect("slot_of found it");
+        if !(running.accepts)(&input) {
+            return refuse(
+                ControlErrorKind::BadRequest,
+                format!("stage {name:?} ({}) takes no input {input:?}", running.kind),
+            );
+        }
+        match self.send_stage_command(slot, StageAction::Input(input), None).and_then(|a| wait_applied(&a)) {
+            Ok(()) => ControlReply::Ok,
+            Err(reply) => reply,
+        }
+    }
+
+    /// Records a secondary layer, optionally over a looped global take.
+    pub(crate) fn record_layer(
+        &self,
+        name: String,
+        layer: String,
+        global_take: Option<String>,
+        seed: u64,
+    ) -> ControlReply {
+        let built = {
+            let state = self.lock();
+            if state.recording.is_some() {
+                return refuse(ControlErrorKind::WrongState, "a take is already being recorded");
+            }
+            match stage::layer::build(&state.rig, &layer, HAND_SOURCE) {
+                Ok(b) => b,
+                Err(e) => return refuse(ControlErrorKind::Invalid, e),
+            }
+        };
+        let started_playback = match &global_take {
+            Some(take) => match self.stage_start(None, StageSpec::Playback { take: take.clone(), seed }) {
+                ControlReply::Ok => true,
+                reply => return reply,
+            },
+            None => false,
+        };
+        let undo_playback = |ctx: &ControlContext| {
+            if started_playback {
+                let _ = ctx.stage_stop("playback");
+            }
+        };
+        {
+            let mut state = self.lock();
+            if let Err(reply) = self.install(&mut state, LAYER_STAGE, Some(built)) {
+                drop(state);
+                undo_playback(self);
+                return reply;
+            }
+            state.layer_playback = started_playback;
+        }
+        let reply = self.record_start(name);
+        if !matches!(reply, ControlReply::Recording(_)) {
+            let mut state = self.lock();
+            let _ = self.install(&mut state, LAYER_STAGE, None);
+            state.layer_playback = false;
+            drop(state);
+            undo_playback(self);
+        }
+        reply
+    }
+
+    /// Ends a layer session with its take: the hand is the global element again, and a playback
+    /// started for the layer stops.
+    pub(crate) fn end_layer(&self) {
+        let mut state = self.lock();
+        if state.stages.slot_of(LAYER_STAGE).is_none() {
+            return;
+        }
+        let _ = self.install(&mut state, LAYER_STAGE, None);
+        if std::mem::take(&mut state.layer_playback) {
+            let _ = self.install(&mut state, "playback", None);
+        }
+    }
+
+    /// Puts `built` (or nothing) in the slot of stage `name` and announces the new element table:
+    /// the one path by which stages come and go.
+    fn install(
+        &self,
+        state: &mut DaemonState,
+        name: &str,
+        built: Option<BuiltStage>,
+    ) -> Result<(), ControlReply> {
+        let slot = match (&built, state.stages.slot_of(name)) {
+            (_, Some(slot)) => slot,
+            (Some(_), None) => {
+                state.stages.slot_for(name).map_err(|e| refuse(ControlErrorKind::WrongState, e))?
+            }
+            (None, None) => return Ok(()),
+        };
+        let running = built.as_ref().map(|b| Running::new(name, b));
+        let previous = state.stages.replace(slot, running);
+        let (table, frame) = match self.encode_table(state) {
+            Ok(t) => t,
+            Err(reply) => {
+                state.stages.replace(slot, previous);
+                return Err(reply);
+            }
+        };
+        let action = StageAction::Install(built.map(|b| b.stage));
+        let applied = match self.send_stage_command(slot, action, Some((table.version, frame))) {
+            Ok(applied) => applied,
+            Err(reply) => {
+                state.stages.replace(slot, previous);
+                return Err(reply);
+            }
+        };
+        // Queued: even if the loop is late to apply it, it will, and the registry says so.
+        state.elements = table;
+        wait_applied(&applied)
+    }
+
+    /// Announces the element table again (the rig changed) without touching a stage.
+    fn announce(&self, state: &mut DaemonState) -> Result<(), ControlReply> {
+        let (table, frame) = self.encode_table(state)?;
+        let applied = self.send_stage_command(0, StageAction::Announce, Some((table.version, frame)))?;
+        state.elements = table;
+        wait_applied(&applied)
+    }
+
+    /// The next element table and its frame, stored for the slow lane.
+    fn encode_table(&self, state: &mut DaemonState) -> Result<(ElementTable, Vec<u8>), ControlReply> {
+        let table = state.stages.next_table(&state.rig, HAND_SOURCE);
+        let mut frame = Vec::new();
+        encode_frame(&ServerMessage::Elements(table.clone()), &mut frame);
+        if frame.len() > ELEMENTS_FRAME_MAX {
+            return Err(refuse(
+                ControlErrorKind::Invalid,
+                format!(
+                    "the element table would take {} bytes (the limit is {ELEMENTS_FRAME_MAX}); run fewer stages or plants",
+                    frame.len()
+                ),
+            ));
+        }
+        self.elements_cell.store(table.version, &frame);
+        Ok((table, frame))
+    }
+
+    /// Sends one stage command; returns the flag the loop raises once it applied it.
+    fn send_stage_command(
+        &self,
+        slot: usize,
+        action: StageAction,
+        table: Option<(u64, Vec<u8>)>,
+    ) -> Result<Arc<AtomicBool>, ControlReply> {
+        let applied = Arc::new(AtomicBool::new(false));
+        let (elements_version, elements_frame) = table.unzip();
+        let cmd = StageCommand {
+            slot,
+            action,
+            elements_frame,
+            elements_version: elements_version.unwrap_or(0),
+            applied: applied.clone(),
+        };
+        self.send_loop(LoopCommand::Stage(Box::new(cmd))).map_err(|r| *r)?;
+        Ok(applied)
+    }
+
+    /// Live stages for status, one line each.
+    pub(crate) fn modes(&self, state: &DaemonState) -> Vec<String> {
+        state.stages.iter().map(|r| r.report.describe()).collect()
+    }
+}
+
+/// Waits until the loop raised `applied`, for at most [`APPLY_TIMEOUT`].
+fn wait_applied(applied: &AtomicBool) -> Result<(), ControlReply> {
+    let deadline = Instant::now() + APPLY_TIMEOUT;
+    while !applied.load(Acquire) {
+        if Instant::now() >= deadline {
+            return Err(refuse(
+                ControlErrorKind::Internal,
+                "the realtime loop did not apply the change within 1 s (it will when it runs again)",
+            ));
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    Ok(())
+}

@@ -1,0 +1,60 @@
+//! Layer recording (seed 000, section 5.3): while it runs, the hand's frames are published and
+//! recorded as one of the rig's secondary elements (`leaf`, `petal`, ...).
+
+use std::sync::Arc;
+
+use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_protocol::{ElementInfo, ElementKind};
+
+use super::{BuiltStage, FixedReport, LiveStage, no_input};
+
+/// Relabels the hand's frames as element `element`.
+pub struct LayerStage {
+    element: u16,
+}
+
+impl LayerStage {
+    /// The hand becomes element `element`.
+    pub fn new(element: u16) -> Self {
+        LayerStage { element }
+    }
+}
+
+impl LiveStage for LayerStage {
+    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, element: &mut u16) {
+        *element = self.element;
+    }
+}
+
+/// The element id of `rig`'s secondary element `layer` (`k + 1` for `rig.elements[k]`), or an
+/// error naming the rig's elements.
+pub fn layer_id(rig: &Rig, layer: &str) -> Result<u16, String> {
+    let names: Vec<&str> = rig.elements.iter().map(|e| e.name.as_str()).collect();
+    match names.iter().position(|n| *n == layer) {
+        Some(i) => Ok((i + 1) as u16),
+        None => Err(format!(
+            "rig {:?} has no secondary element {layer:?} (it has: {})",
+            rig.name,
+            if names.is_empty() { "none".to_string() } else { names.join(", ") }
+        )),
+    }
+}
+
+/// The stage recording `layer` of `rig`, with `hand_source` naming the hand it relabels.
+pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, String> {
+    let id = layer_id(rig, layer)?;
+    Ok(BuiltStage {
+        stage: Box::new(LayerStage::new(id)),
+        kind: "layer",
+        report: Arc::new(FixedReport(format!("recording layer {layer}"))),
+        elements: Vec::new(),
+        hand_element: Some(ElementInfo {
+            id,
+            name: layer.to_string(),
+            kind: ElementKind::Layer,
+            source: hand_source.to_string(),
+            rig: rig.name.clone(),
+        }),
+        accepts: no_input,
+    })
+}

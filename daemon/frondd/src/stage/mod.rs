@@ -1,0 +1,184 @@
+//! Live stages: anything that produces poses in the realtime loop besides the plain hand mapping.
+//!
+//! A stage may transform the hand's pose and the element it is published as ([`LiveStage::on_hand`]:
+//! guided motion, seed 000 Eq. 8; layer recording, section 5.3) or publish elements of its own
+//! every tick ([`LiveStage::tick`]: a looped take, the plants of a field). It takes typed inputs
+//! while it runs ([`LiveStage::input`]: field keys) and reports what it is doing through a
+//! lock-free cell of its own ([`StageReport`]), which `frond status` reads.
+//!
+//! Stages are built off the realtime thread by [`build`] from a protocol [`StageSpec`] (they may
+//! allocate and read files there), moved into one of the loop's [`MAX_STAGES`] preallocated
+//! slots with one [`StageCommand`], and handed back to housekeeping to be dropped. In the loop
+//! they only call allocation-free, lock-free, non-blocking methods.
+//!
+//! Adding a motion source: one file here implementing [`LiveStage`] with a `build` function,
+//! one [`StageSpec`] variant (and its arm in [`build`]), one `frond` subcommand.
+
+pub mod field;
+pub mod guided;
+pub mod layer;
+pub mod playback;
+pub mod registry;
+
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use frond_motion::clip::Joints;
+use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_protocol::{ControlErrorKind, ElementInfo, StageInput, StageSpec};
+
+/// Stage slots in the loop (stages running at once).
+pub const MAX_STAGES: usize = 8;
+
+/// What a stage sees at each tick.
+#[derive(Debug, Clone, Copy)]
+pub struct TickContext {
+    /// Host monotonic time of the tick, nanoseconds.
+    pub now_ns: u64,
+    /// Device time of the latest hand report, microseconds.
+    pub device_time_us: u64,
+    /// The latest calibrated hand sample.
+    pub hand: HandSample,
+}
+
+/// Where a stage puts the frames it publishes.
+pub trait FrameSink {
+    /// Publishes `joints_deg` as element `element` (flagged `playback`).
+    fn emit(&mut self, element: u16, joints_deg: Joints);
+}
+
+/// Anything that produces poses in the realtime loop. Every method runs on the loop thread and
+/// must not allocate, lock, log or block.
+pub trait LiveStage: Send {
+    /// Called for every hand report after mapping, in slot order: may change the hand's pose and
+    /// the element it is published and recorded as.
+    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, _element: &mut u16) {}
+    /// Called once per tick, before the device is read: publishes the stage's own elements.
+    fn tick(&mut self, _ctx: &TickContext, _out: &mut dyn FrameSink) {}
+    /// Whether [`LiveStage::tick`] has work at every tick (the loop then never skips one).
+    fn every_tick(&self) -> bool {
+        false
+    }
+    /// A typed input while it runs. Inputs a stage does not take are ignored (the control side
+    /// refuses them before they get here).
+    fn input(&mut self, _input: StageInput) {}
+}
+
+/// A stage's status, read by `frond status` from any thread while the loop writes it.
+pub trait StageReport: Send + Sync {
+    /// One line: what the stage is doing.
+    fn describe(&self) -> String;
+}
+
+/// A report that never changes.
+pub struct FixedReport(pub String);
+
+impl StageReport for FixedReport {
+    fn describe(&self) -> String {
+        self.0.clone()
+    }
+}
+
+/// A stage ready to go into the loop, with what the control side keeps of it.
+pub struct BuiltStage {
+    /// The stage itself.
+    pub stage: Box<dyn LiveStage>,
+    /// Its kind (`playback`, `layer`, `field`, `guided`).
+    pub kind: &'static str,
+    /// Its status cell.
+    pub report: Arc<dyn StageReport>,
+    /// Elements it publishes itself.
+    pub elements: Vec<ElementInfo>,
+    /// The element the hand is published as while it runs (a layer), if it changes it.
+    pub hand_element: Option<ElementInfo>,
+    /// Which [`StageInput`]s it takes, for the control side to refuse the others by name.
+    pub accepts: fn(&StageInput) -> bool,
+}
+
+/// Takes no input.
+pub fn no_input(_: &StageInput) -> bool {
+    false
+}
+
+/// What building a stage may look at.
+pub struct BuildContext<'a> {
+    /// Where takes are.
+    pub takes_dir: &'a Path,
+    /// The active rig.
+    pub rig: &'a Rig,
+    /// The active calibration's `G_R3` (guided motion normalises `G_3` by it).
+    pub g3_range_deg: f32,
+    /// The loop's rate.
+    pub tick_rate_hz: u32,
+    /// Host time now (the stage's start).
+    pub now_ns: u64,
+    /// Element ids no running stage uses (other than the one being replaced), lowest first.
+    pub free_ids: &'a [u16],
+    /// The stage's name.
+    pub name: &'a str,
+}
+
+/// Why a stage could not be built.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct BuildError {
+    /// Refusal kind for the control reply.
+    pub kind: ControlErrorKind,
+    /// What is wrong, naming the problem.
+    pub message: String,
+}
+
+impl BuildError {
+    /// An `Invalid` refusal.
+    pub fn invalid(message: impl Into<String>) -> Self {
+        BuildError { kind: ControlErrorKind::Invalid, message: message.into() }
+    }
+}
+
+/// Builds the stage `spec` describes (off the realtime thread).
+pub fn build(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
+    match spec {
+        StageSpec::Playback { take, seed } => playback::build(take, *seed, ctx),
+        StageSpec::Field { take, field_json, plants, seed } => {
+            field::build(take, field_json, *plants, *seed, ctx)
+        }
+        StageSpec::Guided { spec } => guided::build(spec, ctx),
+    }
+}
+
+/// What a [`StageCommand`] does to its slot.
+pub enum StageAction {
+    /// Put this stage in the slot (`None` empties it). After the loop applied it, holds the
+    /// stage that was there, to be dropped off the loop.
+    Install(Option<Box<dyn LiveStage>>),
+    /// Give the slot's stage an input.
+    Input(StageInput),
+    /// Only announce a new element table.
+    Announce,
+}
+
+/// One change to the loop's stages, applied between two frames.
+pub struct StageCommand {
+    /// The slot (`< MAX_STAGES`).
+    pub slot: usize,
+    /// What to do.
+    pub action: StageAction,
+    /// A new element table, encoded as a frame, to send to every subscriber before the next
+    /// frame. The loop keeps it for new subscribers whose Hello carries an older one, and
+    /// returns the one it replaces here.
+    pub elements_frame: Option<Vec<u8>>,
+    /// The version of that table.
+    pub elements_version: u64,
+    /// Set by the loop once applied (the control side answers only then).
+    pub applied: Arc<AtomicBool>,
+}
+
+/// Reads a take file from the takes directory (its name validated first).
+pub fn read_take(takes_dir: &Path, name: &str) -> Result<Vec<u8>, BuildError> {
+    frond_protocol::paths::validate_take_name(name)
+        .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: e })?;
+    let path = takes_dir.join(format!("{name}.take"));
+    std::fs::read(&path)
+        .map_err(|e| BuildError::invalid(format!("cannot read take {name:?} at {}: {e}", path.display())))
+}

@@ -1,0 +1,251 @@
+//! The control side's view of the loop's stage slots: which stage runs where, under what name,
+//! which element ids it uses, and the element table that follows from them. Only touched under
+//! the daemon state's lock, never by the loop.
+
+use std::sync::Arc;
+
+use frond_motion::Rig;
+use frond_motion::rig::MAX_RIG_ELEMENTS;
+use frond_protocol::{ElementInfo, ElementKind, ElementTable, RigInfo, StageInput, StageStatus};
+
+use super::{BuiltStage, MAX_STAGES, StageReport};
+
+/// Longest stage name.
+pub const MAX_STAGE_NAME: usize = 32;
+/// Element ids handed to stages come from `FIRST_STAGE_ELEMENT..`, above the rig's layers.
+pub const FIRST_STAGE_ELEMENT: u16 = MAX_RIG_ELEMENTS as u16 + 1;
+/// Free element ids offered to a stage being built, at most.
+const OFFERED_IDS: usize = 256;
+
+/// A stage the loop runs, as the control side knows it.
+pub struct Running {
+    /// Its name.
+    pub name: String,
+    /// Its kind.
+    pub kind: &'static str,
+    /// Its status cell.
+    pub report: Arc<dyn StageReport>,
+    /// Elements it publishes.
+    pub elements: Vec<ElementInfo>,
+    /// The element the hand is published as while it runs, if it changes it.
+    pub hand_element: Option<ElementInfo>,
+    /// Which inputs it takes.
+    pub accepts: fn(&StageInput) -> bool,
+}
+
+impl Running {
+    /// What the control side keeps of `built`, named `name`.
+    pub fn new(name: &str, built: &BuiltStage) -> Self {
+        Running {
+            name: name.to_string(),
+            kind: built.kind,
+            report: built.report.clone(),
+            elements: built.elements.clone(),
+            hand_element: built.hand_element.clone(),
+            accepts: built.accepts,
+        }
+    }
+}
+
+/// The stage slots and the element table's version.
+pub struct StageRegistry {
+    slots: Vec<Option<Running>>,
+    table_version: u64,
+}
+
+impl Default for StageRegistry {
+    fn default() -> Self {
+        StageRegistry { slots: (0..MAX_STAGES).map(|_| None).collect(), table_version: 0 }
+    }
+}
+
+/// Checks a stage name: 1..=32 letters, digits, `-` and `_`.
+pub fn validate_stage_name(name: &str) -> Result<(), String> {
+    let ok = !name.is_empty()
+        && name.len() <= MAX_STAGE_NAME
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if ok {
+        Ok(())
+    } else {
+        let shown: String = name.chars().take(40).collect();
+        Err(format!(
+            "stage name {shown:?} is not valid: use 1 to {MAX_STAGE_NAME} letters, digits, '-' or '_'"
+        ))
+    }
+}
+
+impl StageRegistry {
+    /// The slot of the stage named `name`.
+    pub fn slot_of(&self, name: &str) -> Option<usize> {
+        self.slots.iter().position(|s| s.as_ref().is_some_and(|r| r.name == name))
+    }
+
+    /// The stage named `name`.
+    pub fn get(&self, name: &str) -> Option<&Running> {
+        self.slots.iter().flatten().find(|r| r.name == name)
+    }
+
+    /// The slot a stage named `name` goes into: its own if it runs, else a free one.
+    pub fn slot_for(&self, name: &str) -> Result<usize, String> {
+        self.slot_of(name).or_else(|| self.slots.iter().position(Option::is_none)).ok_or_else(|| {
+            format!(
+                "{MAX_STAGES} stages are running, the most at once; stop one first (frond status lists them)"
+            )
+        })
+    }
+
+    /// Element ids no stage uses except the one in `slot` (which is being replaced), lowest first.
+    pub fn free_ids(&self, slot: usize) -> Vec<u16> {
+        let used: Vec<u16> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != slot)
+            .flat_map(|(_, s)| s.iter().flat_map(|r| r.elements.iter().map(|e| e.id)))
+            .collect();
+        (FIRST_STAGE_ELEMENT..=u16::MAX).filter(|id| !used.contains(id)).take(OFFERED_IDS).collect()
+    }
+
+    /// Records what runs in `slot` (`None`: nothing).
+    pub fn set(&mut self, slot: usize, running: Option<Running>) {
+        self.slots[slot] = running;
+    }
+
+    /// Records what runs in `slot` and returns what ran there.
+    pub fn replace(&mut self, slot: usize, running: Option<Running>) -> Option<Running> {
+        std::mem::replace(&mut self.slots[slot], running)
+    }
+
+    /// The running stages, in slot order.
+    pub fn iter(&self) -> impl Iterator<Item = &Running> + '_ {
+        self.slots.iter().flatten()
+    }
+
+    /// The next element table for `rig`, with the hand source `hand_source` (version bumped).
+    pub fn next_table(&mut self, rig: &Rig, hand_source: &str) -> ElementTable {
+        self.table_version += 1;
+        let mut elements: Vec<ElementInfo> = Vec::new();
+        let hand = self.iter().find_map(|r| r.hand_element.clone()).unwrap_or_else(|| ElementInfo {
+            id: 0,
+            name: rig.name.clone(),
+            kind: ElementKind::Hand,
+            source: hand_source.to_string(),
+            rig: rig.name.clone(),
+        });
+        for r in self.iter() {
+            elements.extend(r.elements.iter().cloned());
+        }
+        // A stage that publishes the hand's own id (a take looping as the global element while
+        // the hand is not on a layer) describes it; the hand's frames there carry no `playback`.
+        if !elements.iter().any(|e| e.id == hand.id) {
+            elements.push(hand);
+        }
+        elements.sort_by_key(|e| e.id);
+        let rigs = vec![RigInfo {
+            name: rig.name.clone(),
+            joint_names: rig.joints.iter().map(|j| j.name.clone()).collect(),
+        }];
+        ElementTable { version: self.table_version, rigs, elements }
+    }
+
+    /// Status of every stage.
+    pub fn status(&self) -> Vec<StageStatus> {
+        self.iter()
+            .map(|r| StageStatus {
+                name: r.name.clone(),
+                kind: r.kind.to_string(),
+                state: r.report.describe(),
+                elements: r.elements.iter().map(|e| e.id).collect(),
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stage::{FixedReport, LiveStage, no_input};
+
+    struct Nothing;
+    impl LiveStage for Nothing {}
+
+    fn built(kind: &'static str, ids: &[u16], hand: Option<u16>) -> BuiltStage {
+        let info = |id: u16, kind: ElementKind| ElementInfo {
+            id,
+            name: format!("e{id}"),
+            kind,
+            source: "s".into(),
+            rig: "grass".into(),
+        };
+        BuiltStage {
+            stage: Box::new(Nothing),
+            kind,
+            report: Arc::new(FixedReport(kind.into())),
+            elements: ids.iter().map(|&id| info(id, ElementKind::FieldPlant)).collect(),
+            hand_element: hand.map(|id| info(id, ElementKind::Layer)),
+            accepts: no_input,
+        }
+    }
+
+    fn grass() -> Rig {
+        Rig::from_toml_str(include_str!("../../../../rig-files/plants/grass.toml")).unwrap()
+    }
+
+    #[test]
+    fn names_are_checked() {
+        assert!(validate_stage_name("field").is_ok());
+        assert!(validate_stage_name("plants_2-b").is_ok());
+        for bad in ["", "a b", "../x", &"x".repeat(33)] {
+            assert!(validate_stage_name(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn slots_are_reused_by_name_and_run_out() {
+        let mut r = StageRegistry::default();
+        let a = built("field", &[], None);
+        let slot = r.slot_for("a").unwrap();
+        r.set(slot, Some(Running::new("a", &a)));
+        assert_eq!(r.slot_for("a").unwrap(), slot, "same name, same slot");
+        for i in 1..MAX_STAGES {
+            let s = r.slot_for(&format!("s{i}")).unwrap();
+            assert_ne!(s, slot);
+            r.set(s, Some(Running::new(&format!("s{i}"), &a)));
+        }
+        assert!(r.slot_for("one-more").unwrap_err().contains("stop one"));
+        assert!(r.slot_for("a").is_ok(), "a running name can still be replaced");
+    }
+
+    #[test]
+    fn free_ids_skip_other_stages_but_not_the_one_replaced() {
+        let mut r = StageRegistry::default();
+        r.set(
+            0,
+            Some(Running::new("f", &built("field", &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None))),
+        );
+        assert_eq!(r.free_ids(1)[..2], [FIRST_STAGE_ELEMENT + 2, FIRST_STAGE_ELEMENT + 3]);
+        assert_eq!(r.free_ids(0)[0], FIRST_STAGE_ELEMENT, "replacing slot 0 frees its ids");
+    }
+
+    #[test]
+    fn the_table_names_the_hand_layers_and_stage_elements() {
+        let rig = grass();
+        let mut r = StageRegistry::default();
+        let t = r.next_table(&rig, "hand");
+        assert_eq!(t.version, 1);
+        assert_eq!(t.elements.len(), 1);
+        assert_eq!((t.elements[0].id, t.elements[0].kind), (0, ElementKind::Hand));
+        assert_eq!(t.joint_names(0).unwrap().len(), 4);
+        // A layer moves the hand to its id; a field adds its plants.
+        r.set(0, Some(Running::new("layer", &built("layer", &[], Some(1)))));
+        r.set(1, Some(Running::new("field", &built("field", &[40, 41], None))));
+        let t = r.next_table(&rig, "hand");
+        assert_eq!(t.version, 2);
+        let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id, e.kind)).collect();
+        assert_eq!(
+            ids,
+            [(1, ElementKind::Layer), (40, ElementKind::FieldPlant), (41, ElementKind::FieldPlant)]
+        );
+        assert_eq!(r.status().len(), 2);
+    }
+}

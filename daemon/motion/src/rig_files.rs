@@ -1,0 +1,275 @@
+//! The one place rigs come from, for the daemon, `frond` and every exporter: the rigs built into
+//! every binary (`rig-files/plants/`), and rig files, read safely. The only I/O in this crate:
+//! it reads one small regular file, and nothing else.
+//!
+//! A rig argument is a path when it contains `/` or ends in `.toml`; otherwise it names an
+//! embedded rig, and if none has that name, a file in the current directory.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+use crate::rig::{Rig, RigError};
+
+/// The rigs of `rig-files/plants/`, built into every binary: `(name, TOML text)`.
+pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
+    ("grass", include_str!("../../../rig-files/plants/grass.toml")),
+    ("flower", include_str!("../../../rig-files/plants/flower.toml")),
+    ("shrub", include_str!("../../../rig-files/plants/shrub.toml")),
+];
+
+/// Largest rig (or calibration) file read, bytes; anything larger is refused before reading.
+pub const MAX_RIG_FILE_BYTES: u64 = 1 << 20;
+
+/// Why a small text file could not be read.
+#[derive(Debug, Error)]
+pub enum FileError {
+    /// Opening or reading failed.
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The path is a FIFO, a device, a directory or a socket.
+    #[error("{} is {what}, not a regular file", path.display())]
+    NotRegular {
+        /// The file.
+        path: PathBuf,
+        /// What it is instead.
+        what: &'static str,
+    },
+    /// The file is larger than the limit.
+    #[error("{} is {bytes} bytes; the limit is {max}", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        max: u64,
+    },
+    /// The file is not UTF-8 text.
+    #[error("{} is not UTF-8 text", path.display())]
+    NotText {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+impl FileError {
+    /// The file.
+    pub fn path(&self) -> &Path {
+        match self {
+            FileError::Read { path, .. }
+            | FileError::NotRegular { path, .. }
+            | FileError::TooLarge { path, .. }
+            | FileError::NotText { path } => path,
+        }
+    }
+
+    /// What is wrong, without the path (for messages that name the file themselves).
+    pub fn reason(&self) -> String {
+        match self {
+            FileError::Read { source, .. } => source.to_string(),
+            FileError::NotRegular { what, .. } => format!("it is {what}, not a regular file"),
+            FileError::TooLarge { bytes, max, .. } => format!("it is {bytes} bytes; the limit is {max}"),
+            FileError::NotText { .. } => "it is not UTF-8 text".to_string(),
+        }
+    }
+}
+
+/// Why a rig could not be loaded.
+#[derive(Debug, Error)]
+pub enum RigFileError {
+    /// The argument names no embedded rig and no file.
+    #[error("rig `{spec}` not found: not an embedded rig ({embedded}) and no such file")]
+    NotFound {
+        /// The argument.
+        spec: String,
+        /// The embedded rigs' names.
+        embedded: String,
+    },
+    /// The file could not be read.
+    #[error("cannot read rig {}: {}", .0.path().display(), .0.reason())]
+    File(#[from] FileError),
+    /// The rig did not validate.
+    #[error("{origin}: {source}")]
+    Invalid {
+        /// `embedded rig grass` or the file path.
+        origin: String,
+        /// Every problem with its field path.
+        #[source]
+        source: RigError,
+    },
+}
+
+/// A validated rig, its text and where it came from.
+#[derive(Debug, Clone)]
+pub struct LoadedRig {
+    /// The rig (named after the file stem or the embedded name when it names itself not).
+    pub rig: Rig,
+    /// Its TOML text (to send to the daemon, which validates it again).
+    pub text: String,
+    /// `embedded rig grass` or the file path, for messages.
+    pub origin: String,
+    /// Directory of the rig file (mesh files are relative to it); `None` when embedded.
+    pub dir: Option<PathBuf>,
+}
+
+/// What a file's type is, in words, unless it is a regular file.
+fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    if ft.is_file() {
+        None
+    } else if ft.is_dir() {
+        Some("a directory")
+    } else if ft.is_fifo() {
+        Some("a FIFO")
+    } else if ft.is_char_device() || ft.is_block_device() {
+        Some("a device")
+    } else if ft.is_socket() {
+        Some("a socket")
+    } else {
+        Some("not a regular file")
+    }
+}
+
+/// Reads a small regular text file: refuses FIFOs, devices and directories without blocking on
+/// them (the file is opened non-blocking and checked before anything is read), and files over
+/// `max` bytes before reading them.
+pub fn read_small_text(path: &Path, max: u64) -> Result<String, FileError> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let read_err = |source| FileError::Read { path: path.to_path_buf(), source };
+    if let Ok(meta) = std::fs::metadata(path)
+        && let Some(what) = not_regular(meta.file_type())
+    {
+        return Err(FileError::NotRegular { path: path.to_path_buf(), what });
+    }
+    // O_NONBLOCK: a FIFO swapped in after the check still cannot block the open.
+    let file =
+        std::fs::OpenOptions::new().read(true).custom_flags(O_NONBLOCK).open(path).map_err(read_err)?;
+    let meta = file.metadata().map_err(read_err)?;
+    if let Some(what) = not_regular(meta.file_type()) {
+        return Err(FileError::NotRegular { path: path.to_path_buf(), what });
+    }
+    if meta.len() > max {
+        return Err(FileError::TooLarge { path: path.to_path_buf(), bytes: meta.len(), max });
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(max + 1).read_to_end(&mut bytes).map_err(read_err)?;
+    if bytes.len() as u64 > max {
+        return Err(FileError::TooLarge { path: path.to_path_buf(), bytes: bytes.len() as u64, max });
+    }
+    String::from_utf8(bytes).map_err(|_| FileError::NotText { path: path.to_path_buf() })
+}
+
+/// `O_NONBLOCK` on Linux (every architecture frond builds for).
+const O_NONBLOCK: i32 = 0o4000;
+
+/// Parses a rig's TOML text; `origin` names it in errors, `default_name` names it when the file
+/// does not.
+pub fn rig_from_text(
+    text: String,
+    origin: String,
+    default_name: &str,
+    dir: Option<PathBuf>,
+) -> Result<LoadedRig, RigFileError> {
+    let mut rig = Rig::from_toml_str(&text)
+        .map_err(|source| RigFileError::Invalid { origin: origin.clone(), source })?;
+    if rig.name.is_empty() {
+        rig.name = default_name.to_string();
+    }
+    Ok(LoadedRig { rig, text, origin, dir })
+}
+
+/// The embedded rig `name`, if there is one.
+pub fn embedded_rig(name: &str) -> Option<Result<LoadedRig, RigFileError>> {
+    EMBEDDED_RIGS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(n, text)| rig_from_text(text.to_string(), format!("embedded rig `{n}`"), n, None))
+}
+
+/// A rig file.
+pub fn rig_file(path: &Path) -> Result<LoadedRig, RigFileError> {
+    let text = read_small_text(path, MAX_RIG_FILE_BYTES)?;
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir =
+        path.parent().map(|d| if d.as_os_str().is_empty() { PathBuf::from(".") } else { d.to_path_buf() });
+    rig_from_text(text, path.display().to_string(), &stem, dir)
+}
+
+/// Loads a rig argument: a path (contains `/` or ends in `.toml`), else an embedded rig name,
+/// else a file of that name.
+pub fn load_rig(spec: &str) -> Result<LoadedRig, RigFileError> {
+    let looks_like_path = spec.contains('/') || spec.ends_with(".toml");
+    if !looks_like_path && let Some(r) = embedded_rig(spec) {
+        return r;
+    }
+    let path = Path::new(spec);
+    if !looks_like_path && std::fs::symlink_metadata(path).is_err() {
+        return Err(RigFileError::NotFound {
+            spec: spec.to_string(),
+            embedded: EMBEDDED_RIGS.map(|(n, _)| n).join(", "),
+        });
+    }
+    rig_file(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_rigs_load_by_name_and_name_themselves() {
+        for (name, _) in EMBEDDED_RIGS {
+            let r = load_rig(name).unwrap();
+            assert!(!r.rig.name.is_empty());
+            assert!(r.origin.contains(name) && r.dir.is_none());
+        }
+        let e = load_rig("fern").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "rig `fern` not found: not an embedded rig (grass, flower, shrub) and no such file"
+        );
+        let e = load_rig("/no/such/rig.toml").unwrap_err();
+        assert!(e.to_string().starts_with("cannot read rig /no/such/rig.toml: "), "{e}");
+    }
+
+    #[test]
+    fn files_load_and_bad_ones_are_refused_by_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("mine.toml");
+        std::fs::write(&good, EMBEDDED_RIGS[0].1).unwrap();
+        let r = load_rig(good.to_str().unwrap()).unwrap();
+        assert_eq!(r.dir.as_deref(), Some(dir.path()));
+        // A directory, a FIFO (refused without blocking), /dev/zero, an oversized file.
+        assert!(matches!(
+            rig_file(dir.path()),
+            Err(RigFileError::File(FileError::NotRegular { what: "a directory", .. }))
+        ));
+        let fifo = dir.path().join("fifo.toml");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        assert!(matches!(
+            rig_file(&fifo),
+            Err(RigFileError::File(FileError::NotRegular { what: "a FIFO", .. }))
+        ));
+        assert!(matches!(
+            rig_file(Path::new("/dev/zero")),
+            Err(RigFileError::File(FileError::NotRegular { what: "a device", .. }))
+        ));
+        let big = dir.path().join("big.toml");
+        std::fs::File::create(&big).unwrap().set_len(MAX_RIG_FILE_BYTES + 1).unwrap();
+        assert!(matches!(rig_file(&big), Err(RigFileError::File(FileError::TooLarge { .. }))));
+        let bad = dir.path().join("bad.toml");
+        std::fs::write(&bad, "name = 3").unwrap();
+        let e = rig_file(&bad).unwrap_err();
+        assert!(matches!(e, RigFileError::Invalid { .. }) && e.to_string().contains("bad.toml"), "{e}");
+    }
+}
