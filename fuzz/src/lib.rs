@@ -19,6 +19,8 @@
 //! `FROND_FUZZ_SEED` (base seed), `FROND_FUZZ_INPUT_TIMEOUT_MS` (per input bound, default 5000),
 //! `FROND_FUZZ_WRITE_SEEDS=1` (also write the built-in seeds into the corpus as `seed-NN`).
 
+#![warn(missing_docs)]
+
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

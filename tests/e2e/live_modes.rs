@@ -10,17 +10,6 @@ use frond_motion::field::{FieldParams, make_field};
 use frond_protocol::{ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 
-fn frond_ok(daemon: &Daemon, args: &[&str]) -> String {
-    let out = daemon.frond().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "frond {args:?} failed: {}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
 /// Elements seen (with their flags) in the next `n` poses.
 fn elements(sub: &mut Subscriber, n: usize) -> Vec<(u16, PoseFlags)> {
     let mut out = Vec::new();
@@ -38,22 +27,22 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "flower"]);
 
     // A 2 s global take.
-    frond_ok(&daemon, &["record", "start", "global"]);
+    daemon.frond_ok(&["record", "start", "global"]);
     std::thread::sleep(Duration::from_secs(2));
-    frond_ok(&daemon, &["record", "stop"]);
+    daemon.frond_ok(&["record", "stop"]);
 
     // Looping it puts element-0 playback frames on the stream beside the hand's.
-    frond_ok(&daemon, &["play", "global"]);
+    daemon.frond_ok(&["play", "global"]);
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     let seen = elements(&mut sub, 400);
     assert!(seen.iter().any(|(e, f)| *e == 0 && f.contains(PoseFlags::PLAYBACK)), "no playback frames");
     assert!(seen.iter().any(|(e, f)| *e == 0 && !f.contains(PoseFlags::PLAYBACK)), "no hand frames");
-    frond_ok(&daemon, &["play", "--stop"]);
+    daemon.frond_ok(&["play", "--stop"]);
 
     // A leaf layer over the looped global take: the hand's frames become element 1 (leaf).
     let rig_elements = daemon.status();
     assert_eq!(rig_elements.rig_name, "flower");
-    frond_ok(&daemon, &["record", "layer", "leaf1", "--layer", "leaf", "--over", "global"]);
+    daemon.frond_ok(&["record", "layer", "leaf1", "--layer", "leaf", "--over", "global"]);
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     let seen = elements(&mut sub, 600);
     assert!(seen.iter().any(|(e, f)| *e == 1 && f.contains(PoseFlags::RECORDING)), "no leaf frames");
@@ -64,7 +53,7 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
         daemon.status().modes
     );
     std::thread::sleep(Duration::from_millis(500));
-    frond_ok(&daemon, &["record", "stop"]);
+    daemon.frond_ok(&["record", "stop"]);
     assert!(daemon.status().modes.is_empty(), "{:?}", daemon.status().modes);
     let bytes = std::fs::read(daemon.takes_dir.join("leaf1.take")).unwrap();
     let take = frond_motion::layers::Take::from_bytes(&bytes).unwrap();
@@ -97,10 +86,16 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     .unwrap();
     let field_path = dir.path().join("field.json");
     std::fs::write(&field_path, field.to_json()).unwrap();
-    frond_ok(
-        &daemon,
-        &["field", "start", "--take", "global", "--field", field_path.to_str().unwrap(), "--plants", "5"],
-    );
+    daemon.frond_ok(&[
+        "field",
+        "start",
+        "--take",
+        "global",
+        "--field",
+        field_path.to_str().unwrap(),
+        "--plants",
+        "5",
+    ]);
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     // Plants are announced elements: their ids come from the table, not from a number range.
     let table = sub.elements().clone();
@@ -111,9 +106,9 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     let plants: HashSet<u16> =
         elements(&mut sub, 1500).into_iter().filter_map(|(e, _)| plant_of(e)).collect();
     assert_eq!(plants, (0..5).collect(), "published plants");
-    let out = frond_ok(&daemon, &["field", "key", "left"]);
+    let out = daemon.frond_ok(&["field", "key", "left"]);
     assert!(out.contains("direction 180"), "{out}");
-    frond_ok(&daemon, &["field", "key", "+"]);
+    daemon.frond_ok(&["field", "key", "+"]);
     assert!(
         wait_for(Duration::from_secs(2), || daemon
             .status()
@@ -123,13 +118,13 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
         "{:?}",
         daemon.status().modes
     );
-    frond_ok(&daemon, &["field", "stop"]);
+    daemon.frond_ok(&["field", "stop"]);
 
     // Guided motion switches on and off, and bad specs are refused.
-    frond_ok(&daemon, &["guided", "sigma=0.1,0.2,0.3;sg=1,1,1"]);
+    daemon.frond_ok(&["guided", "sigma=0.1,0.2,0.3;sg=1,1,1"]);
     assert!(daemon.status().modes.iter().any(|m| m.contains("guided motion")));
     assert!(!daemon.frond().args(["guided", "sigma=1"]).output().unwrap().status.success());
-    frond_ok(&daemon, &["guided", "off"]);
+    daemon.frond_ok(&["guided", "off"]);
     assert!(daemon.status().modes.is_empty());
 
     // Guided motion as a rig option: a rig with a [guided] table switches it on when applied.
@@ -140,7 +135,7 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
         format!("{rig}\n[guided]\nsigma_s = [0.1, 0.2, 0.4]\ns_g = [1.0, 1.0, 2.0]\n"),
     )
     .unwrap();
-    frond_ok(&daemon, &["rig", "set", guided_rig.to_str().unwrap()]);
+    daemon.frond_ok(&["rig", "set", guided_rig.to_str().unwrap()]);
     let modes = daemon.status().modes;
     assert!(modes.iter().any(|m| m.contains("guided motion sigma=0.1,0.2,0.4;sg=1,1,2")), "{modes:?}");
 }

@@ -13,16 +13,6 @@ use frond_e2e::{Daemon, fuse_available};
 use frond_motion::field::{FieldParams, make_field};
 use frond_sdk::Subscriber;
 
-fn frond_ok(daemon: &Daemon, args: &[&str]) {
-    let out = daemon.frond().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "frond {args:?} failed: {}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
 /// The id of `pid`'s thread named `name`.
 fn thread_id(pid: u32, name: &str) -> u32 {
     for entry in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
@@ -55,9 +45,9 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
     let daemon = Daemon::start(dir.path(), &["--source", source, "--rig", "flower", "--rate", "1000"]);
 
     // A short global take to loop and to make a field of.
-    frond_ok(&daemon, &["record", "start", "global"]);
+    daemon.frond_ok(&["record", "start", "global"]);
     std::thread::sleep(Duration::from_millis(1500));
-    frond_ok(&daemon, &["record", "stop"]);
+    daemon.frond_ok(&["record", "stop"]);
     let field = make_field(
         &FieldParams {
             rows: 4,
@@ -75,12 +65,18 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
     .unwrap();
     let field_path = dir.path().join("field.json");
     std::fs::write(&field_path, field.to_json()).unwrap();
-    frond_ok(
-        &daemon,
-        &["field", "start", "--take", "global", "--field", field_path.to_str().unwrap(), "--plants", "16"],
-    );
-    frond_ok(&daemon, &["guided", "sigma=0.1,0.2,0.3"]);
-    frond_ok(&daemon, &["record", "layer", "leafy", "--layer", "leaf", "--over", "global"]);
+    daemon.frond_ok(&[
+        "field",
+        "start",
+        "--take",
+        "global",
+        "--field",
+        field_path.to_str().unwrap(),
+        "--plants",
+        "16",
+    ]);
+    daemon.frond_ok(&["guided", "sigma=0.1,0.2,0.3"]);
+    daemon.frond_ok(&["record", "layer", "leafy", "--layer", "leaf", "--over", "global"]);
     let status = daemon.status();
     let kinds: Vec<&str> = status.stages.iter().map(|s| s.kind.as_str()).collect();
     for kind in ["field", "guided", "layer", "playback"] {
@@ -157,7 +153,7 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
     });
 
     // Still healthy afterwards: the take records and every subscriber is still there.
-    frond_ok(&daemon, &["record", "stop"]);
+    daemon.frond_ok(&["record", "stop"]);
     assert_eq!(daemon.status().subscribers.len(), 4);
     drop(daemon);
     for r in readers {

@@ -400,3 +400,31 @@ fn realtime_cpu_pins_the_loop_thread_and_status_says_so() {
     let allowed = task_status.lines().find_map(|l| l.strip_prefix("Cpus_allowed_list:")).unwrap().trim();
     assert_eq!(allowed, cpu.to_string());
 }
+
+#[test]
+fn a_version_1_client_is_refused_in_its_own_version_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let mut stream = UnixStream::connect(daemon.socket_dir.join("control.sock")).unwrap();
+    stream.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut frame = Vec::new();
+    frond_protocol::encode_frame_as(1, &ControlRequest::Status, &mut frame);
+    stream.write_all(&frame).unwrap();
+    let mut reply = Vec::new();
+    stream.read_to_end(&mut reply).unwrap();
+    // A version-1 frame (a v1 client can read it): length, version byte 1, an Error body.
+    assert!(reply.len() > 5, "{reply:?}");
+    assert_eq!(u32::from_le_bytes(reply[..4].try_into().unwrap()) as usize, reply.len() - 4);
+    assert_eq!(reply[4], 1, "the refusal is framed in the client's version");
+    reply[4] = frond_protocol::PROTOCOL_VERSION;
+    let (msg, _): (ControlReply, usize) = frond_protocol::decode_frame(&reply).unwrap().unwrap();
+    match msg {
+        ControlReply::Error(e) => {
+            assert_eq!(e.kind, ControlErrorKind::BadRequest);
+            assert!(e.message.contains("version 2") && e.message.contains("version 1"), "{}", e.message);
+        }
+        other => panic!("{other:?}"),
+    }
+    // The daemon carries on.
+    assert!(matches!(daemon.control(&ControlRequest::Status), ControlReply::Status(_)));
+}

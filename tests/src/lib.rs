@@ -5,6 +5,8 @@
 //! (`target/<profile>/`), or from `$FROND_BIN_DIR`. `scripts/test` builds them first
 //! (`cargo build --workspace --bins`).
 
+#![warn(missing_docs)]
+
 use std::io::{BufRead, BufReader};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
@@ -152,6 +154,19 @@ impl Daemon {
             ControlReply::Status(s) => *s,
             other => panic!("unexpected status reply {other:?}"),
         }
+    }
+
+    /// Runs `frond ARGS` against this daemon; panics with its output unless it succeeds, and
+    /// returns its stdout.
+    pub fn frond_ok(&self, args: &[&str]) -> String {
+        let out = self.frond().args(args).output().expect("run frond");
+        assert!(
+            out.status.success(),
+            "frond {args:?} failed: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
     }
 
     /// A `frond` command pointed at this daemon.

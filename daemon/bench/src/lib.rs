@@ -6,6 +6,8 @@
 //! [`components::components`] (6). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
+#![warn(missing_docs)]
+
 pub mod alloc;
 pub mod components;
 pub mod latency;

@@ -1,30 +1,31 @@
-//! `frond bench`: runs the measurements of `frond_bench` and prints a table or JSON.
+//! `frond bench`: runs `frond-bench` (the measurements live in their own binary, so that `frond`
+//! links neither the daemon's internals nor a counting allocator) with the same options.
 
-use std::io::Write;
+use std::process::Command;
+
+use anyhow::Context;
 
 use crate::args::BenchArgs;
-use crate::usage;
+use crate::demo::find_program;
 
-/// Runs the selected sections; prints the report on stdout (progress on stderr).
+/// Runs `frond-bench` (beside `frond`, else on `PATH`); its report goes to stdout, progress to
+/// stderr, and its exit status becomes ours.
 pub fn run(a: &BenchArgs) -> anyhow::Result<()> {
-    let unknown = frond_bench::unknown_sections(&a.section);
-    if !unknown.is_empty() {
-        return usage(format!(
-            "--section {}: unknown section (known: {})",
-            unknown.join(", "),
-            frond_bench::SECTIONS.join(", ")
-        ));
+    let program = find_program("frond-bench")?;
+    let mut cmd = Command::new(&program);
+    if a.quick {
+        cmd.arg("--quick");
     }
-    let options =
-        frond_bench::Options { quick: a.quick, sections: a.section.clone(), bin_dir: None, progress: true };
-    let report = frond_bench::run(&options);
-    let mut out = std::io::stdout().lock();
     if a.json {
-        serde_json::to_writer_pretty(&mut out, &report)?;
-        writeln!(out)?;
-    } else {
-        write!(out, "{}", report.to_table())?;
+        cmd.arg("--json");
     }
-    out.flush()?;
-    Ok(())
+    for s in &a.section {
+        cmd.arg("--section").arg(s);
+    }
+    let status = cmd.status().with_context(|| format!("cannot run {}", program.display()))?;
+    match status.code() {
+        Some(0) => Ok(()),
+        Some(code) => Err(crate::ChildFailed(code.clamp(1, 255) as u8).into()),
+        None => Err(anyhow::anyhow!("{} was killed: {status}", program.display())),
+    }
 }

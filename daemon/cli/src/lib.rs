@@ -4,6 +4,8 @@
 //! Errors are printed as `frond: error: ...` on stderr. A closed stdout (`frond tap | head`)
 //! ends the command quietly with status 0.
 
+#![warn(missing_docs)]
+
 pub mod args;
 mod bench;
 mod calibrate;
@@ -43,6 +45,19 @@ impl std::error::Error for UsageError {}
 pub(crate) fn usage<T>(msg: impl Into<String>) -> anyhow::Result<T> {
     Err(UsageError(msg.into()).into())
 }
+
+/// A program `frond` ran for the user (e.g. `frond-bench`) failed and already said why on
+/// stderr: exit with its status, adding nothing.
+#[derive(Debug)]
+pub struct ChildFailed(pub u8);
+
+impl fmt::Display for ChildFailed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "exit status {}", self.0)
+    }
+}
+
+impl std::error::Error for ChildFailed {}
 
 /// The user pressed Ctrl-C (or the command got SIGTERM); exit status 130.
 #[derive(Debug)]
@@ -85,6 +100,9 @@ where
 fn exit_for(e: &anyhow::Error) -> ExitCode {
     if is_broken_pipe(e) {
         return ExitCode::SUCCESS;
+    }
+    if let Some(ChildFailed(code)) = e.downcast_ref::<ChildFailed>() {
+        return ExitCode::from(*code);
     }
     if e.downcast_ref::<Interrupted>().is_some() {
         eprintln!("frond: interrupted");

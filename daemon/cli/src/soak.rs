@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{Context, bail};
 use frond_protocol::POSES_SOCKET;
 use serde::Serialize;
 
@@ -201,17 +201,6 @@ impl Drop for Proc {
     }
 }
 
-fn find_bin(name: &str) -> anyhow::Result<PathBuf> {
-    let exe = std::env::current_exe().context("cannot find the frond executable's path")?;
-    let beside = exe.with_file_name(name);
-    if beside.is_file() {
-        return Ok(beside);
-    }
-    std::env::var_os("PATH")
-        .and_then(|p| std::env::split_paths(&p).map(|d| d.join(name)).find(|c| c.is_file()))
-        .ok_or_else(|| anyhow!("cannot find {name}: not at {} and not on PATH", beside.display()))
-}
-
 fn log_tail(path: &Path) -> String {
     let text = std::fs::read_to_string(path).unwrap_or_default();
     let lines: Vec<&str> = text.lines().collect();
@@ -266,7 +255,7 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     if !Path::new("/dev/fuse").exists() {
         bail!("the soak needs /dev/fuse (and root) for the virtual glove's hidraw node");
     }
-    let (frondd, vhid) = (find_bin("frondd")?, find_bin("frond-vhid")?);
+    let (frondd, vhid) = (crate::demo::find_program("frondd")?, crate::demo::find_program("frond-vhid")?);
     let root = tempfile::Builder::new().prefix("frond-soak-").tempdir().context("temp dir")?;
     let (socket_dir, takes_dir) = (root.path().join("run"), root.path().join("takes"));
     let (vhid_log, daemon_log) = (root.path().join("vhid.log"), root.path().join("frondd.log"));

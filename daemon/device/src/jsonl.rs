@@ -11,12 +11,30 @@ use frond_motion::HandSample;
 /// Why a hand file could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum HandFileError {
+    /// The file could not be read.
     #[error("cannot read hand file {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        /// The hand file.
+        path: PathBuf,
+        /// The underlying read error.
+        source: std::io::Error,
+    },
+    /// A line is not a valid hand sample, or its time is earlier than the previous line's.
     #[error("{path}:{line}: {message}")]
-    Line { path: PathBuf, line: usize, message: String },
+    Line {
+        /// The hand file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the line.
+        message: String,
+    },
+    /// The file has no samples (empty or only blank lines).
     #[error("{path}: no samples")]
-    Empty { path: PathBuf },
+    Empty {
+        /// The hand file.
+        path: PathBuf,
+    },
 }
 
 /// Parses one line of the hand format (the shared parser of `frond_motion`, so the device path

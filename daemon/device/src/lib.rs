@@ -2,6 +2,8 @@
 //! parser, the [`HandSource`](source::HandSource) trait with its hidapi, replay and in-process
 //! implementations, and the virtual glove (`frond-vhid`).
 
+#![warn(missing_docs)]
+
 pub mod doorbell;
 pub mod glove;
 pub mod jsonl;

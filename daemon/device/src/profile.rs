@@ -32,12 +32,19 @@ use std::path::{Path, PathBuf};
 /// A value type inside a report.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FieldType {
+    /// `u8`: unsigned byte.
     U8,
+    /// `i8`: signed byte.
     I8,
+    /// `u16le`: unsigned 16-bit, little-endian.
     U16Le,
+    /// `i16le`: signed 16-bit, little-endian.
     I16Le,
+    /// `u32le`: unsigned 32-bit, little-endian.
     U32Le,
+    /// `i32le`: signed 32-bit, little-endian.
     I32Le,
+    /// `f32le`: IEEE 754 single-precision float, little-endian.
     F32Le,
 }
 
@@ -104,15 +111,25 @@ impl FieldType {
 /// The channels a hand device can report.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ChannelId {
+    /// `wrist_pitch`: wrist pitch angle (required).
     WristPitch,
+    /// `wrist_yaw`: wrist yaw angle (required).
     WristYaw,
+    /// `wrist_roll`: wrist roll angle (required).
     WristRoll,
+    /// `thumb_g1`: bend of the thumb joint nearest the palm (required).
     ThumbG1,
+    /// `thumb_g2`: bend of the middle thumb joint (required).
     ThumbG2,
+    /// `thumb_g3`: bend of the outermost thumb joint (required).
     ThumbG3,
+    /// `flex_index`: index finger flex (optional).
     FlexIndex,
+    /// `flex_middle`: middle finger flex (optional).
     FlexMiddle,
+    /// `flex_ring`: ring finger flex (optional).
     FlexRing,
+    /// `flex_little`: little finger flex (optional).
     FlexLittle,
 }
 
@@ -171,29 +188,38 @@ impl fmt::Display for ChannelId {
 /// Angle unit of a channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AngleUnit {
+    /// `deg`: degrees, used as is.
     Deg,
+    /// `rad`: radians, converted to degrees by the parser.
     Rad,
 }
 
 /// Unit of a device time field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimeUnit {
+    /// `us`: the counter ticks in microseconds.
     Us,
+    /// `ms`: the counter ticks in milliseconds (scaled to microseconds by the parser).
     Ms,
 }
 
 /// A counter field (sequence or device time).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CounterField {
+    /// Byte offset of the counter in the report (report id byte included).
     pub offset: usize,
+    /// Unsigned integer type of the counter; its width sets where the counter wraps.
     pub ty: FieldType,
 }
 
 /// The device time field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TimeField {
+    /// Byte offset of the time counter in the report (report id byte included).
     pub offset: usize,
+    /// Unsigned integer type of the counter; its width sets where the time wraps.
     pub ty: FieldType,
+    /// Tick unit of the counter.
     pub unit: TimeUnit,
 }
 
@@ -207,6 +233,7 @@ pub enum ChecksumKind {
 /// Checksum description.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Checksum {
+    /// How the checksum is computed and checked.
     pub kind: ChecksumKind,
     /// Where the checksum byte sits (documentation and overlap checks; the sum covers all bytes).
     pub offset: usize,
@@ -215,35 +242,49 @@ pub struct Checksum {
 /// One channel of the report.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Channel {
+    /// Which hand value this channel carries.
     pub id: ChannelId,
+    /// Byte offset of the raw value in the report (report id byte included).
     pub offset: usize,
+    /// Type of the raw value.
     pub ty: FieldType,
     /// Physical value = raw * scale (computed as raw / (1 / scale) in `f64`, see `divisor`).
     pub scale: f64,
     /// `1.0 / scale`, precomputed: dividing by 100 rather than multiplying by 0.01 makes
     /// centidegrees land on the same `f32` as parsing the decimal text.
     pub divisor: f64,
+    /// Angle unit of the scaled value (the parser outputs degrees).
     pub unit: AngleUnit,
-    /// Physical range in `unit`.
+    /// Lower end of the physical range in `unit`; smaller values reject the report.
     pub min: f64,
+    /// Upper end of the physical range in `unit`; larger values reject the report.
     pub max: f64,
 }
 
 /// A validated device profile.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeviceProfile {
+    /// Human-readable device name.
     pub name: String,
+    /// USB/HID vendor id to enumerate by (set together with `product_id`).
     pub vendor_id: Option<u16>,
+    /// USB/HID product id to enumerate by (set together with `vendor_id`).
     pub product_id: Option<u16>,
+    /// hidraw node to open directly; wins over vendor/product id when set.
     pub path: Option<PathBuf>,
     /// First byte of every report when the device uses numbered reports.
     pub report_id: Option<u8>,
     /// Report length in bytes, report id included.
     pub report_len: usize,
+    /// Report sequence counter, used to count lost reports; `None`: a local counter is used.
     pub sequence: Option<CounterField>,
+    /// Device clock; `None`: host monotonic time is used instead.
     pub device_time: Option<TimeField>,
+    /// Report checksum; `None`: reports are not checked.
     pub checksum: Option<Checksum>,
+    /// Byte offset of the `u8` status byte (bit 0 = tracking ok); `None`: always tracking.
     pub status_offset: Option<usize>,
+    /// The channels, in profile order; every required channel is present.
     pub channels: Vec<Channel>,
 }
 
@@ -252,6 +293,7 @@ pub struct DeviceProfile {
 pub struct ProfileProblem {
     /// Where: `channel[3].offset`, `vendor_id`, ...
     pub path: String,
+    /// What is wrong with the value at `path`.
     pub message: String,
 }
 
@@ -264,10 +306,18 @@ impl fmt::Display for ProfileProblem {
 /// Why a profile could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
+    /// The profile file could not be read.
     #[error("cannot read device profile {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        /// The profile file.
+        path: PathBuf,
+        /// The underlying read error.
+        source: std::io::Error,
+    },
+    /// The text is not TOML; carries the TOML parser's message.
     #[error("device profile is not valid TOML: {0}")]
     Syntax(String),
+    /// The TOML is well-formed but fails validation; carries every problem found.
     #[error("invalid device profile ({} problem(s)):\n  {}", .0.len(), join_problems(.0))]
     Invalid(Vec<ProfileProblem>),
 }

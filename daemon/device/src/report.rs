@@ -30,14 +30,34 @@ pub struct DeviceSample {
 /// Why a report was rejected. Each kind has its own counter in [`SourceCounters`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum ReportError {
+    /// The first byte is not the profile's report id.
     #[error("report id {got:#04x}, expected {expected:#04x}")]
-    WrongId { got: u8, expected: u8 },
+    WrongId {
+        /// Report id the report carried.
+        got: u8,
+        /// Report id the profile expects.
+        expected: u8,
+    },
+    /// The report is shorter than the profile's `report_len` (or empty).
     #[error("short report: {len} bytes, expected {expected}")]
-    Short { len: usize, expected: usize },
+    Short {
+        /// Length of the report received, in bytes.
+        len: usize,
+        /// The profile's `report_len`, in bytes.
+        expected: usize,
+    },
+    /// The report is longer than the profile's `report_len`.
     #[error("oversized report: {len} bytes, expected {expected}")]
-    Oversized { len: usize, expected: usize },
+    Oversized {
+        /// Length of the report received, in bytes.
+        len: usize,
+        /// The profile's `report_len`, in bytes.
+        expected: usize,
+    },
+    /// The report fails the profile's checksum (corrupted in transport).
     #[error("checksum mismatch")]
     Checksum,
+    /// A channel value lies outside its profile `min..=max` (or is NaN).
     #[error("channel {0} out of its physical range")]
     OutOfRange(ChannelId),
 }
@@ -67,13 +87,21 @@ pub struct SourceCounters {
 /// A plain copy of [`SourceCounters`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct CountersSnapshot {
+    /// Reports accepted.
     pub reports: u64,
+    /// Reports with the wrong report id.
     pub wrong_id: u64,
+    /// Reports shorter than the profile's `report_len`.
     pub short: u64,
+    /// Reports longer than the profile's `report_len`.
     pub oversized: u64,
+    /// Reports whose checksum did not match.
     pub checksum: u64,
+    /// Reports with a channel outside its physical range.
     pub out_of_range: u64,
+    /// Messages that could not be decoded at all (OSC input).
     pub malformed: u64,
+    /// Reports missing between consecutive accepted reports, from the sequence field.
     pub seq_gaps: u64,
 }
 

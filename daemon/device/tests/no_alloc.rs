@@ -4,11 +4,10 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::time::Duration;
 
 use common::*;
+use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_device::glove::{GloveReport, encode_report};
 use frond_device::vhid::mount_fuse;
 use frond_device::{
@@ -16,37 +15,8 @@ use frond_device::{
     SourceKind, VirtualGloveConfig,
 };
 
-struct Counting;
-
-thread_local! {
-    static ALLOCS: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; the counter is a const-initialised thread-local
-// Cell that never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as our caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as our caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as our caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocs() -> u64 {
-    ALLOCS.with(Cell::get)
-}
+static GLOBAL: CountingAlloc = CountingAlloc;
 
 /// Calls `read_pending` until `n` samples arrived; returns the allocations made by those calls.
 fn count_reads(src: &mut dyn HandSource, n: usize) -> u64 {
@@ -56,9 +26,8 @@ fn count_reads(src: &mut dyn HandSource, n: usize) -> u64 {
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     while got < n {
         assert!(std::time::Instant::now() < deadline, "only {got} samples");
-        let before = allocs();
-        let k = src.read_pending(&mut buf).unwrap();
-        total += allocs() - before;
+        let (k, n) = count_allocations(|| src.read_pending(&mut buf).unwrap());
+        total += n;
         got += k;
         if k == 0 {
             std::thread::sleep(Duration::from_millis(1));
@@ -69,9 +38,8 @@ fn count_reads(src: &mut dyn HandSource, n: usize) -> u64 {
 
 #[test]
 fn the_counter_sees_allocations() {
-    let before = allocs();
-    let v = std::hint::black_box(vec![1u8; 16]);
-    assert_eq!(allocs() - before, 1);
+    let (v, n) = count_allocations(|| std::hint::black_box(vec![1u8; 16]));
+    assert_eq!(n, 1);
     drop(v);
 }
 
@@ -88,12 +56,13 @@ fn parsing_allocates_nothing() {
             b
         })
         .collect();
-    let before = allocs();
-    for r in &reports {
-        let _ = p.parse(r);
-        let _ = p.parse(&r[..10]);
-    }
-    assert_eq!(allocs() - before, 0);
+    let ((), n) = count_allocations(|| {
+        for r in &reports {
+            let _ = p.parse(r);
+            let _ = p.parse(&r[..10]);
+        }
+    });
+    assert_eq!(n, 0);
     assert!(p.counters().snapshot().reports > 800);
 }
 

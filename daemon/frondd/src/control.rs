@@ -507,6 +507,24 @@ pub fn spawn_control(
     })
 }
 
+/// Closes a connection whose request was refused unread: the reply is written, then what the
+/// client still sends is read and dropped (at most a request's worth, for at most a second), so
+/// that closing with unread bytes does not reset the connection and lose the reply.
+fn close_after_refusal(mut stream: UnixStream) {
+    use std::io::Read;
+    let _ = stream.shutdown(std::net::Shutdown::Write);
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(200)));
+    let deadline = Instant::now() + Duration::from_secs(1);
+    let mut buf = [0u8; 4096];
+    let mut drained = 0;
+    while drained <= MAX_CONTROL_REQUEST && Instant::now() < deadline {
+        match stream.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => drained += n,
+        }
+    }
+}
+
 fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
     let _ = stream.set_nonblocking(false);
     let _ = stream.set_read_timeout(Some(CONTROL_READ_TIMEOUT));
@@ -544,11 +562,13 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
                 let mut bytes = Vec::new();
                 encode_frame_as(got, &reply, &mut bytes);
                 let _ = std::io::Write::write_all(&mut stream, &bytes);
+                close_after_refusal(stream);
                 return;
             }
             Err(e) => {
                 let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
                 let _ = write_frame(&mut stream, &mut out, &reply);
+                close_after_refusal(stream);
                 return;
             }
         };

@@ -8,7 +8,6 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, anyhow, bail};
 use crossbeam_channel::{Receiver, Sender, bounded};
 use frond_device::HandSource;
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
@@ -19,6 +18,7 @@ use crate::config::Config;
 use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
 use crate::control_stage::Setup;
 use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
+use crate::error::DaemonError;
 use crate::notify::Notifier;
 use crate::publisher::{
     PUBLISH_QUEUE_FRAMES, PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
@@ -58,15 +58,16 @@ pub struct Dirs {
 }
 
 /// Loads a rig by embedded name or path (the one rig loader, `frond_motion::rig_files`).
-pub fn load_rig(spec: &str) -> Result<Rig> {
+pub fn load_rig(spec: &str) -> Result<Rig, DaemonError> {
     Ok(frond_motion::rig_files::load_rig(spec)?.rig)
 }
 
-fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration> {
+fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration, DaemonError> {
     let Some(path) = path else { return Ok(Calibration::neutral_for(rig)) };
     let text = frond_motion::rig_files::read_small_text(path, frond_motion::rig_files::MAX_RIG_FILE_BYTES)
-        .context("cannot read the calibration")?;
-    let mut cal = Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        .map_err(DaemonError::CalibrationFile)?;
+    let mut cal = Calibration::from_toml_str(&text)
+        .map_err(|source| DaemonError::Calibration { path: path.to_path_buf(), source })?;
     if cal.id.is_empty() {
         cal.id = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     }
@@ -74,40 +75,38 @@ fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration> {
 }
 
 /// Creates the socket directory (mode 0750) and refuses to start over a running daemon.
-fn prepare_socket_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create socket directory {}", dir.display()))?;
+fn prepare_socket_dir(dir: &Path) -> Result<(), DaemonError> {
+    std::fs::create_dir_all(dir).map_err(DaemonError::io("cannot create socket directory", dir))?;
     let _ = std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o750));
     let control = dir.join(CONTROL_SOCKET);
     if UnixStream::connect(&control).is_ok() {
-        bail!("another frondd is already running with socket directory {}", dir.display());
+        return Err(DaemonError::AlreadyRunning(dir.to_path_buf()));
     }
     for name in [CONTROL_SOCKET, POSES_SOCKET] {
         let path = dir.join(name);
         if path.exists() {
-            std::fs::remove_file(&path)
-                .with_context(|| format!("cannot remove stale socket {}", path.display()))?;
+            std::fs::remove_file(&path).map_err(DaemonError::io("cannot remove stale socket", &path))?;
         }
     }
     Ok(())
 }
 
-fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf)> {
+fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf), DaemonError> {
     let path = dir.join(name);
-    let listener = UnixListener::bind(&path).with_context(|| format!("cannot bind {}", path.display()))?;
+    let listener = UnixListener::bind(&path).map_err(DaemonError::io("cannot bind", &path))?;
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o660))
-        .with_context(|| format!("cannot set the mode of {}", path.display()))?;
+        .map_err(DaemonError::io("cannot set the mode of", &path))?;
     Ok((listener, path))
 }
 
 /// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`).
-pub fn run(config: Config, options: RunOptions) -> Result<()> {
+pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
     let started = Instant::now();
     let rig = load_rig(&config.rig)?;
     let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
     let filter: FilterSpec = match &config.filter {
-        Some(spec) => spec.parse().map_err(|e| anyhow!("filter {spec:?}: {e}"))?,
+        Some(spec) => spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?,
         None => rig.filter,
     };
     prepare_socket_dir(&dirs.socket_dir)?;
@@ -197,8 +196,9 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
     {
         let mut state = ctx.lock();
-        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true)
-            .map_err(|reply| anyhow!("applying the rig at start-up: {reply:?}"))?;
+        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true).map_err(|reply| {
+            DaemonError::Setup(format!("applying the rig at start-up: {}", reply_text(&reply)))
+        })?;
     }
 
     let threads_stop = Arc::new(AtomicBool::new(false));
@@ -255,7 +255,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     }
     loop_stop.store(true, Relaxed);
     threads_stop.store(true, Relaxed);
-    let engine = rt.join().map_err(|_| anyhow!("the realtime loop panicked"))?;
+    let engine = rt.join().map_err(|_| DaemonError::LoopPanicked)?;
     drop(engine); // closes the publisher's queue, so it ends
     for (name, handle) in
         [("accept", acceptor), ("control", control), ("reopen", reopener), ("publish", publisher_thread)]
@@ -278,6 +278,14 @@ pub fn run(config: Config, options: RunOptions) -> Result<()> {
     Ok(())
 }
 
+/// A control reply's message, for errors outside the control socket.
+fn reply_text(reply: &frond_protocol::ControlReply) -> String {
+    match reply {
+        frond_protocol::ControlReply::Error(e) => e.message.clone(),
+        other => format!("{other:?}"),
+    }
+}
+
 /// SIGHUP: re-reads the configuration and applies rig, calibration and filter live, keeping every
 /// subscriber connected. Settings that need a restart (rate, source, sockets) are reported.
 fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) {
@@ -290,26 +298,24 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
             return;
         }
     };
-    let result = (|| -> Result<()> {
+    let result = (|| -> Result<(), DaemonError> {
         let rig = load_rig(&config.rig)?;
         let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
         let filter: FilterSpec = match &config.filter {
-            Some(spec) => spec.parse().map_err(|e| anyhow!("filter {spec:?}: {e}"))?,
+            Some(spec) => {
+                spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?
+            }
             None => rig.filter,
         };
         let text = format!("rig {}, calibration {}, filter {filter}", rig.name, calibration.id);
         let mut state = ctx.lock();
-        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true).map_err(
-            |reply| match reply {
-                frond_protocol::ControlReply::Error(e) => anyhow!("{}", e.message),
-                other => anyhow!("{other:?}"),
-            },
-        )?;
+        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true)
+            .map_err(|reply| DaemonError::Setup(reply_text(&reply)))?;
         info!("configuration reloaded: {text}");
         Ok(())
     })();
     if let Err(e) = result {
-        error!("reload failed, keeping the running configuration: {e:#}");
+        error!("reload failed, keeping the running configuration: {e}");
         return;
     }
     let restart_needed: Vec<&str> = [

@@ -7,12 +7,15 @@
 //! ([`recorder`]), and housekeeping (status rate, device events, reopening a lost device,
 //! dropping what the loop may not free). Data flows one way: device -> loop -> queues -> sockets.
 
+#![warn(missing_docs)]
+
 pub mod clock;
 pub mod config;
 pub mod control;
 mod control_stage;
 pub mod daemon;
 pub mod engine;
+pub mod error;
 pub mod lanes;
 pub mod notify;
 pub mod publisher;

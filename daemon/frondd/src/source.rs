@@ -10,7 +10,6 @@ use std::os::unix::fs::MetadataExt;
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{Result, anyhow};
 use frond_device::vhid::{InProcessGlove, VirtualGloveConfig};
 use frond_device::{
     DeviceProfile, HandSource, HidSource, OscHandSource, ReplaySource, SourceCounters, SourceKind,
@@ -18,9 +17,16 @@ use frond_device::{
 use tracing::{info, warn};
 
 use crate::config::{Config, SourceChoice};
+use crate::error::DaemonError;
+
+type Result<T> = std::result::Result<T, DaemonError>;
+
+fn source_error(e: impl std::fmt::Display) -> DaemonError {
+    DaemonError::Source(e.to_string())
+}
 
 /// Opens a source that is not there yet; called every 100 ms by the reopen thread.
-pub type SourceFactory = Box<dyn FnMut() -> Result<Box<dyn HandSource>, String> + Send>;
+pub type SourceFactory = Box<dyn FnMut() -> std::result::Result<Box<dyn HandSource>, String> + Send>;
 
 /// An opened source (or one still awaited) and what must live as long as it.
 pub struct OpenedSource {
@@ -51,7 +57,7 @@ fn opened(source: Box<dyn HandSource>, keepalive: Option<Box<dyn Any + Send>>) -
 
 fn load_profile(config: &Config) -> Result<DeviceProfile> {
     match &config.profile {
-        Some(path) => DeviceProfile::load(path).map_err(|e| anyhow!("{e}")),
+        Some(path) => DeviceProfile::load(path).map_err(source_error),
         None => Ok(DeviceProfile::frond_glove()),
     }
 }
@@ -65,7 +71,7 @@ fn kind_of_node(path: &Path) -> SourceKind {
 }
 
 fn open_path(profile: &DeviceProfile, path: &Path) -> Result<OpenedSource> {
-    let src = HidSource::open_path(profile, path, kind_of_node(path)).map_err(|e| anyhow!("{e}"))?;
+    let src = HidSource::open_path(profile, path, kind_of_node(path)).map_err(source_error)?;
     Ok(opened(Box::new(src), None))
 }
 
@@ -113,7 +119,7 @@ fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<
             Err(e) => warn!(error = %e, "cannot mount the virtual glove as a FUSE node; using it in-process"),
         }
     }
-    let glove = InProcessGlove::new(glove).map_err(|e| anyhow!("{e}"))?;
+    let glove = InProcessGlove::new(glove).map_err(source_error)?;
     Ok(opened(Box::new(glove), None))
 }
 
@@ -122,19 +128,19 @@ pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
     let profile = load_profile(config)?;
     match &config.source {
         SourceChoice::Replay(path) => {
-            let src = ReplaySource::load(path).map_err(|e| anyhow!("{e}"))?;
+            let src = ReplaySource::load(path).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::Hid => match &config.device_path {
             Some(path) => Ok(open_path(&profile, path)
-                .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), format!("{e:#}")))),
+                .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string()))),
             None => match HidSource::open(&profile) {
                 Ok(src) => Ok(opened(Box::new(src), None)),
                 Err(e) => Ok(awaited(profile, None, e.to_string())),
             },
         },
         SourceChoice::Osc(addr) => {
-            let src = OscHandSource::bind(addr).map_err(|e| anyhow!("{e}"))?;
+            let src = OscHandSource::bind(addr).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::InProcess => open_virtual(config, socket_dir, false),
@@ -142,7 +148,7 @@ pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
         SourceChoice::Auto => {
             if let Some(path) = &config.device_path {
                 return Ok(open_path(&profile, path)
-                    .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), format!("{e:#}"))));
+                    .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string())));
             }
             match HidSource::open(&profile) {
                 Ok(src) => Ok(opened(Box::new(src), None)),

@@ -1,15 +1,14 @@
 //! The realtime rule, proven: a steady-state loop tick allocates nothing.
 //!
-//! A counting global allocator counts allocations made on the thread that runs the ticks (other
-//! threads, such as the subscriber drain below, are not counted). The engine is driven through
+//! The counting global allocator (`frond-alloc-count`) counts allocations made on the thread
+//! that runs the ticks (other threads, such as the subscriber drain below, are not counted). The engine is driven through
 //! every steady-state path: fresh reports (one and several per tick), held ticks, device loss,
 //! subscribers (draining and full), recording, and live filter/calibration changes.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
+use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
 use frondd::engine::{Engine, LoopCommand};
@@ -17,37 +16,8 @@ use frondd::engine::{Engine, LoopCommand};
 mod common;
 use common::{new_lane, subscriber_pair};
 
-struct Counting;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: delegates every call to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as our caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAlloc = CountingAlloc;
 
 /// A scripted device: `pattern[tick % len]` reports per read, then a disconnect every so often.
 struct Scripted {
@@ -145,16 +115,15 @@ fn steady_state_ticks_allocate_nothing() {
         cmd_tx.send(c).unwrap();
     }
     let before_seq = engine.next_seq();
-    COUNTING.with(|c| c.set(true));
-    for i in 0..20_000 {
-        now += 1_000_000;
-        engine.tick(now);
-        if i == 5_000 {
-            start_draining.store(true, Relaxed);
+    let ((), allocations) = count_allocations(|| {
+        for i in 0..20_000 {
+            now += 1_000_000;
+            engine.tick(now);
+            if i == 5_000 {
+                start_draining.store(true, Relaxed);
+            }
         }
-    }
-    COUNTING.with(|c| c.set(false));
-    let allocations = ALLOCATIONS.load(Relaxed);
+    });
     let published = engine.next_seq() - before_seq;
     let total_published = engine.next_seq();
 
@@ -180,17 +149,17 @@ fn device_loss_and_reopen_allocate_nothing_in_the_loop() {
     let (mut engine, ends) = Engine::with_channels(mapper, Some(scripted([1; 8], 500)), 250_000_000, 16, 16);
     let (cmd_tx, reopen_rx, stats) = (ends.commands, ends.reopen, ends.stats);
     let mut now = 1_000_000_000u64;
-    COUNTING.with(|c| c.set(true));
-    for _ in 0..5_000 {
-        now += 1_000_000;
-        engine.tick(now);
-        // The "reopen thread": hand the source straight back (moving a Box allocates nothing).
-        if let Ok(src) = reopen_rx.try_recv() {
-            cmd_tx.send(LoopCommand::ReplaceSource(src)).unwrap();
+    let ((), allocations) = count_allocations(|| {
+        for _ in 0..5_000 {
+            now += 1_000_000;
+            engine.tick(now);
+            // The "reopen thread": hand the source straight back (moving a Box allocates nothing).
+            if let Ok(src) = reopen_rx.try_recv() {
+                cmd_tx.send(LoopCommand::ReplaceSource(src)).unwrap();
+            }
         }
-    }
-    COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCATIONS.load(Relaxed), 0);
+    });
+    assert_eq!(allocations, 0);
     assert!(stats.device_lost_events.load(Relaxed) >= 9, "{}", stats.device_lost_events.load(Relaxed));
 }
 
@@ -300,19 +269,18 @@ fn every_live_stage_allocates_nothing_per_tick() {
         .map(|k| stage_command(1, Input(StageInput::Key(k)), None))
         .collect();
     changes.push(stage_command(0, frondd::stage::StageAction::Announce, Some(vec![0u8; 300])));
-    let before = ALLOCATIONS.load(Relaxed);
-    COUNTING.with(|c| c.set(true));
-    for i in 0..10_000 {
-        now += 1_000_000;
-        engine.tick(now);
-        if i % 1000 == 0
-            && let Some(c) = changes.pop()
-        {
-            cmd_tx.send(c).unwrap();
+    let ((), allocations) = count_allocations(|| {
+        for i in 0..10_000 {
+            now += 1_000_000;
+            engine.tick(now);
+            if i % 1000 == 0
+                && let Some(c) = changes.pop()
+            {
+                cmd_tx.send(c).unwrap();
+            }
         }
-    }
-    COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCATIONS.load(Relaxed) - before, 0, "allocations in live-stage ticks");
+    });
+    assert_eq!(allocations, 0, "allocations in live-stage ticks");
     // The stages really ran: playback frames (element 0), field plants (40..56), leaf frames (1).
     let mut elements = std::collections::HashSet::new();
     while let Ok(p) = sub_rx.try_recv() {
@@ -374,23 +342,23 @@ fn direct_lanes_allocate_nothing_admitting_sending_and_demoting() {
     for (id, s) in [(1, a_daemon), (2, b_daemon), (3, stalled_daemon)] {
         ends.commands.send(new_lane(id, s, Arc::default())).unwrap();
     }
-    let before = ALLOCATIONS.load(Relaxed);
-    COUNTING.with(|c| c.set(true));
     let first = engine.next_seq();
-    for _ in 0..5_000 {
-        now += 1_000_000;
-        engine.tick(now);
-        // Wait for the readers when they are a few dozen frames behind, so they stay on their
-        // lanes however loaded the machine is (bounded: a failure shows in the asserts below);
-        // sleeping allocates nothing.
-        let mut waited = 0;
-        while counts.iter().any(|c| first + c.load(Relaxed) + 32 < engine.next_seq()) && waited < 100_000 {
-            std::thread::sleep(std::time::Duration::from_micros(50));
-            waited += 1;
+    let ((), allocations) = count_allocations(|| {
+        for _ in 0..5_000 {
+            now += 1_000_000;
+            engine.tick(now);
+            // Wait for the readers when they are a few dozen frames behind, so they stay on
+            // their lanes however loaded the machine is (bounded: a failure shows in the asserts
+            // below); sleeping allocates nothing.
+            let mut waited = 0;
+            while counts.iter().any(|c| first + c.load(Relaxed) + 32 < engine.next_seq()) && waited < 100_000
+            {
+                std::thread::sleep(std::time::Duration::from_micros(50));
+                waited += 1;
+            }
         }
-    }
-    COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCATIONS.load(Relaxed) - before, 0, "allocations while serving direct lanes");
+    });
+    assert_eq!(allocations, 0, "allocations while serving direct lanes");
     assert_eq!(engine.lanes().ids().collect::<Vec<_>>(), vec![1, 2]);
     assert_eq!(engine.lanes().demoted(), 1);
     let slow = ends.slow.try_recv().expect("the stalled subscriber went to the slow lane");

@@ -12,6 +12,8 @@
 //! [`controls`] (section 6.3), [`guided`] (Eq. 8) and [`align`] (section 6.5). Randomness comes
 //! from [`rng::SeededRng`] only.
 
+#![warn(missing_docs)]
+
 pub mod align;
 pub mod calibration;
 pub mod clip;

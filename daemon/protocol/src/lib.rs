@@ -1,9 +1,10 @@
 //! frond's wire protocol, shared by the daemon, the operator CLI and every exporter.
 //!
 //! Two Unix stream sockets speak it:
-//! - `poses.sock`: the daemon sends one [`ServerMessage::Hello`] on connect and the
-//!   [`ServerMessage::Elements`] table, then [`ServerMessage::Pose`]s (at least one per realtime
-//!   tick), and a new table whenever the live stages change. Nothing a subscriber sends is read as a command.
+//! - `poses.sock`: the daemon sends one [`ServerMessage::Hello`] on connect (with the element
+//!   table: what each element id is), then [`ServerMessage::Pose`]s, at least one per realtime
+//!   tick, and a [`ServerMessage::Elements`] table whenever the live stages or the rig change.
+//!   Nothing a subscriber sends is read as a command.
 //! - `control.sock`: a client sends [`ControlRequest`]s, the daemon answers each with one
 //!   [`ControlReply`].
 //!
@@ -11,6 +12,8 @@
 //! followed by a MessagePack body (rmp-serde, structs as maps with field names so that third-party
 //! decoders can read it without our schema). A peer refuses frames of a newer version with
 //! [`DecodeError::UnsupportedVersion`] rather than guessing.
+
+#![warn(missing_docs)]
 
 pub mod control;
 pub mod convention;

@@ -19,6 +19,8 @@
 //! - `asset.generator = "frond <version>"` and extras (take, rig, capture rate, calibration id)
 //!   on the asset and the animation.
 
+#![warn(missing_docs)]
+
 pub mod anim;
 pub mod bake;
 pub mod bench;

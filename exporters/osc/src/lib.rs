@@ -11,6 +11,8 @@
 //! - [`bench`]: daemon-to-receiver latency percentiles with 1 and N targets.
 //! - [`rig`]: the rig-file fields VMC needs (joint names, heights).
 
+#![warn(missing_docs)]
+
 pub mod bench;
 pub mod bridge;
 pub mod encode;

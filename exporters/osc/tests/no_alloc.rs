@@ -2,46 +2,16 @@
 //! at the daemon's rate, 1 kHz by default). A counting global allocator counts the allocations of
 //! the test's own thread only: the test harness's threads may allocate meanwhile.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::net::UdpSocket;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
+use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_osc::encode::{ClockOffset, Datagrams, FrondEncoder, VmcEncoder, VmcRig};
 use frond_osc::resample::Resampler;
 use frond_osc::sender::Sender;
 use frond_protocol::{Pose, PoseFlags};
 
-struct Counting;
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAlloc = CountingAlloc;
 
 #[test]
 fn steady_state_frames_allocate_nothing() {
@@ -69,10 +39,10 @@ fn steady_state_frames_allocate_nothing() {
     for seq in 0..100 {
         frame(seq, &mut out);
     }
-    COUNTING.with(|c| c.set(true));
-    for seq in 100..1100 {
-        frame(seq, &mut out);
-    }
-    COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCS.load(Ordering::SeqCst), 0, "allocations in 1000 steady-state frames");
+    let ((), allocations) = count_allocations(|| {
+        for seq in 100..1100 {
+            frame(seq, &mut out);
+        }
+    });
+    assert_eq!(allocations, 0, "allocations in 1000 steady-state frames");
 }

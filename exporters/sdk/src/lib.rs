@@ -26,6 +26,8 @@
 //! on); a daemon speaking a newer protocol version is refused with
 //! [`ProtocolError::UnsupportedVersion`], which ends the subscription.
 
+#![warn(missing_docs)]
+
 mod conn;
 mod error;
 

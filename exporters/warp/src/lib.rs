@@ -4,6 +4,8 @@
 //! layer [`wave`] (vegetation velocity, Eq. 3-4) -> [`warp`] (grid-based inverse warping, Eq. 5-8)
 //! -> [`compose`] over the background ([`inpaint`]ed when absent).
 
+#![warn(missing_docs)]
+
 pub mod compose;
 pub mod fluid;
 pub mod inpaint;

@@ -53,13 +53,28 @@ impl fmt::Display for SourceKind {
 pub enum SourceError {
     /// The device went away; call [`HandSource::reopen`] from a helper thread.
     #[error("{what}: device disconnected: {reason}")]
-    Disconnected { what: String, reason: String },
+    Disconnected {
+        /// Path or description of the device.
+        what: String,
+        /// Why the device is considered gone.
+        reason: String,
+    },
     /// The device is not there (yet).
     #[error("{what}: device not found{}", if .reason.is_empty() { String::new() } else { format!(": {}", .reason) })]
-    NotFound { what: String, reason: String },
+    NotFound {
+        /// Path or description of the device.
+        what: String,
+        /// Extra detail; empty when there is none.
+        reason: String,
+    },
     /// Opening failed for another reason.
     #[error("{what}: cannot open: {reason}")]
-    Open { what: String, reason: String },
+    Open {
+        /// Path or description of the device (may be empty).
+        what: String,
+        /// Why opening failed.
+        reason: String,
+    },
 }
 
 /// A source of hand samples read by the realtime loop.

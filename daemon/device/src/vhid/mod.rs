@@ -33,9 +33,17 @@ pub const MAX_RATE_HZ: f64 = 8000.0;
 #[derive(Debug, Clone, PartialEq)]
 pub enum GloveSource {
     /// The built-in procedural sway (a plant in the wind) at `rate_hz` reports per second.
-    Sway { rate_hz: f64 },
+    Sway {
+        /// Report rate in hertz, within 1..=[`MAX_RATE_HZ`].
+        rate_hz: f64,
+    },
     /// A JSONL hand file played at its timestamps; `looped` starts over at the end.
-    Jsonl { path: PathBuf, looped: bool },
+    Jsonl {
+        /// The JSONL hand file.
+        path: PathBuf,
+        /// Whether playback starts over at the end of the file.
+        looped: bool,
+    },
 }
 
 /// Periodic or one-off unplugging.
@@ -106,7 +114,9 @@ pub enum DeviceClock {
 /// Virtual glove configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VirtualGloveConfig {
+    /// What the glove plays.
     pub source: GloveSource,
+    /// Faults to inject into the reports.
     pub faults: FaultPlan,
     /// Wait this long after the node is ready before the first report.
     pub start_delay_ms: u64,
@@ -137,22 +147,41 @@ pub fn monotonic_us_u32() -> u32 {
 /// Errors of the virtual glove.
 #[derive(Debug, thiserror::Error)]
 pub enum VhidError {
+    /// The JSONL hand file to play could not be loaded.
     #[error(transparent)]
     HandFile(#[from] HandFileError),
+    /// The configuration is invalid (probability, unplug/stall timing, rate or node path).
     #[error("invalid virtual glove configuration: {0}")]
     Config(String),
+    /// FUSE is unavailable (no `/dev/fuse`, or mounting is not permitted).
     #[error("cannot use FUSE: {0}")]
     NoFuse(String),
+    /// The mount directory has entries that the mount would hide.
     #[error("mount directory {0} is not empty (mounting would hide its contents)")]
     MountDirNotEmpty(PathBuf),
+    /// Creating the mount directory or mounting the FUSE file system failed.
     #[error("cannot mount the virtual glove at {dir}: {source}")]
-    Mount { dir: PathBuf, source: std::io::Error },
+    Mount {
+        /// The mount directory.
+        dir: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// Unmounting the FUSE file system failed.
     #[error("cannot unmount {dir}: {source}")]
-    Unmount { dir: PathBuf, source: std::io::Error },
+    Unmount {
+        /// The mount directory.
+        dir: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// Creating the kernel HID device through `/dev/uhid` failed.
     #[error("uhid: {0}")]
     Uhid(String),
+    /// The report generator thread could not be spawned.
     #[error("cannot start the report thread: {0}")]
     Thread(std::io::Error),
+    /// The in-process glove's eventfd doorbell could not be created.
     #[error("cannot create the in-process glove's eventfd: {0}")]
     EventFd(std::io::Error),
 }
