@@ -1,6 +1,7 @@
 //! Plant rigs (seed 000, section 4): a 4-joint skeleton (joint 0 = root at the ground, 3 = top),
 //! per-joint scaling factors `s_pitch(i)`, `s_yaw(i)`, `s_roll(i)` (Eq. 2-4), the number of
-//! twistable joints `tau` (Eq. 4), default thumb ranges, the jitter filter, and secondary elements
+//! twistable joints `tau` (Eq. 4), default thumb ranges, the desired root bend range a
+//! calibrated wrist is mapped onto (section 5.4), the jitter filter, and secondary elements
 //! such as leaves and petals (section 5.3), each a simple short plant of its own.
 //!
 //! Files are TOML (see `rig-files/plants/*.toml`). They are parsed into a raw form with unknown
@@ -20,6 +21,8 @@ pub const DEFAULT_TAU: u8 = 2;
 pub const DEFAULT_THUMB_RANGE_DEG: [f32; 3] = [60.0, 70.0, 60.0];
 /// Largest `tau`: every joint above the root twists (Eq. 4 keeps `P_roll(0) = 0`).
 pub const MAX_TAU: u8 = 3;
+/// Largest `bend_range_deg`, degrees: a root bend past half a turn is not a bend.
+pub const MAX_BEND_RANGE_DEG: f32 = 180.0;
 
 /// One skeleton joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,6 +70,12 @@ pub struct Rig {
     pub tau: u8,
     /// Default `G_R1..G_R3`, degrees, when no calibration is given.
     pub thumb_range_deg: [f32; 3],
+    /// The root bend `[pitch, yaw]` (degrees, in `(0, 180]`) the plant should reach at a
+    /// performer's comfortable wrist extremes (seed 000, section 5.4). With a calibration that
+    /// measured the wrist (`wrist_range_deg`), it replaces `s_pitch(0)` and `s_yaw(0)` of Eq. 2
+    /// by `bend / reach` on each side of the neutral; otherwise it is unused. `None`: Eq. 2 with
+    /// the joint scales for every performer.
+    pub bend_range_deg: Option<[f32; 2]>,
     /// Jitter filter for this rig.
     pub filter: FilterSpec,
     /// Secondary elements.
@@ -264,6 +273,8 @@ struct RawRig {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     thumb_range_deg: Option<[f32; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    bend_range_deg: Option<[f32; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     filter: Option<String>,
     joints: Vec<RawJoint>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -293,6 +304,17 @@ impl RawRig {
         let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
         for (k, v) in thumb_range_deg.iter().enumerate() {
             p.positive(format!("thumb_range_deg[{k}]"), *v);
+        }
+        for (k, v) in self.bend_range_deg.iter().flatten().enumerate() {
+            if !(v.is_finite() && *v > 0.0 && *v <= MAX_BEND_RANGE_DEG) {
+                p.push(
+                    format!("bend_range_deg[{k}]"),
+                    format!(
+                        "the {} bend range must be above 0 and at most {MAX_BEND_RANGE_DEG} degrees, found {v}",
+                        ["pitch", "yaw"][k]
+                    ),
+                );
+            }
         }
         let filter = match &self.filter {
             None => FilterSpec::None,
@@ -405,6 +427,7 @@ impl RawRig {
             joints,
             tau,
             thumb_range_deg,
+            bend_range_deg: self.bend_range_deg,
             filter,
             elements,
             mesh,
@@ -428,6 +451,7 @@ impl Rig {
             description: self.description.clone(),
             tau: self.tau as i64,
             thumb_range_deg: Some(self.thumb_range_deg),
+            bend_range_deg: self.bend_range_deg,
             filter: Some(self.filter.to_string()),
             joints: self
                 .joints
@@ -458,7 +482,8 @@ impl Rig {
         toml::to_string(&raw).unwrap_or_default()
     }
 
-    /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`.
+    /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`,
+    /// and the desired root bend range (section 5.4).
     pub fn mapping(&self) -> MappingParams {
         MappingParams {
             scale: std::array::from_fn(|i| {
@@ -466,6 +491,7 @@ impl Rig {
                 [j.s_pitch, j.s_yaw, j.s_roll]
             }),
             tau: self.tau,
+            bend_range_deg: self.bend_range_deg,
         }
     }
 
@@ -491,6 +517,29 @@ mod guided_tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("guided.sigma_s[1]") && err.contains("guided.sigma_s[2]"), "{err}");
+    }
+
+    #[test]
+    fn bend_range_parses_round_trips_and_is_validated() {
+        let rig = Rig::from_toml_str(&format!("bend_range_deg = [20.0, 15.5]\n{BASE}")).unwrap();
+        assert_eq!(rig.bend_range_deg, Some([20.0, 15.5]));
+        assert_eq!(rig.mapping().bend_range_deg, Some([20.0, 15.5]));
+        assert_eq!(Rig::from_toml_str(&rig.to_toml_string()).unwrap(), rig);
+        let none = Rig::from_toml_str(BASE).unwrap();
+        assert_eq!(none.bend_range_deg, None);
+        assert!(!none.to_toml_string().contains("bend_range_deg"));
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [0, 181]\n{BASE}")).unwrap_err().to_string();
+        assert!(
+            err.contains(
+                "bend_range_deg[0]: the pitch bend range must be above 0 and at most 180 degrees, found 0"
+            ),
+            "{err}"
+        );
+        assert!(err.contains("bend_range_deg[1]: the yaw bend range") && err.contains("found 181"), "{err}");
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [nan, -3]\n{BASE}")).unwrap_err().to_string();
+        assert!(err.contains("bend_range_deg[0]") && err.contains("found -3"), "{err}");
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [10]\n{BASE}")).unwrap_err().to_string();
+        assert!(err.contains("bend_range_deg"), "{err}");
     }
 }
 
