@@ -219,7 +219,7 @@ pub(crate) fn compute(
         // Pitch and yaw are mapped onto a rig's bend range from the neutral, on each side.
         let n = neutral_wrist_deg[k];
         for (side, reach) in [("below", n - lo), ("above", hi - n)] {
-            if k < 2 && !(reach >= MIN_RANGE_DEG) {
+            if k < 2 && (reach.is_nan() || reach < MIN_RANGE_DEG) {
                 wrist_ok = false;
                 warnings.push(format!(
                     "the wrist {} reached only {reach:.1} degrees {side} its neutral {n:.1} (range {lo:.1} to \
