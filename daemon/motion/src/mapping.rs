@@ -57,12 +57,16 @@ fn usable(v: f32) -> bool {
 ///   `s_yaw(0)`;
 /// - otherwise (either is missing, or a value is not a positive finite number, which a validated
 ///   rig and calibration never have): the rig's `s_pitch(0)` / `s_yaw(0)`, as before.
+///
+/// Another `axis` gets the rig's scale of that axis (roll: `s_roll(0)`), or 0 past it.
 pub fn root_scale(params: &MappingParams, calibration: &CalibrationParams, axis: usize, w_deg: f32) -> f64 {
-    let rig = params.scale[0][axis] as f64;
-    let (Some(bend), Some(reach)) = (params.bend_range_deg, calibration.wrist_reach_deg) else {
+    let rig = params.scale[0].get(axis).map_or(0.0, |&s| s as f64);
+    let bend = params.bend_range_deg.and_then(|b| b.get(axis).copied());
+    let reach = calibration.wrist_reach_deg.and_then(|r| r.get(axis).copied());
+    let (Some(bend), Some(reach)) = (bend, reach) else {
         return rig;
     };
-    let (bend, reach) = (bend[axis], reach[axis][usize::from(w_deg >= 0.0)]);
+    let reach = reach[usize::from(w_deg >= 0.0)];
     if usable(bend) && usable(reach) { bend as f64 / reach as f64 } else { rig }
 }
 
@@ -236,6 +240,9 @@ mod tests {
         assert_eq!(root_scale(&params, &zero, 0, -5.0), 1.0);
         assert_eq!(root_scale(&params, &zero, 0, 5.0), 0.5);
         assert_eq!(root_scale(&params, &zero, 1, 5.0), 1.0);
+        // Not a bend axis: the rig's scale, never a panic.
+        assert_eq!(root_scale(&params, &cal, 2, 5.0), 1.0);
+        assert_eq!(root_scale(&params, &cal, 7, 5.0), 0.0);
     }
 
     #[test]
