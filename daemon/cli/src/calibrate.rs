@@ -7,8 +7,8 @@
 //!   `wrist_range_deg`. A rig with `bend_range_deg` maps the pitch and yaw extremes (their reach
 //!   from the neutral) onto its root bend range (section 5.4: "map the user's comfortable ranges
 //!   ... with his/her desired bending ranges of plant's joints"); roll is recorded only. The
-//!   ranges are stored only when every axis moved at least 5 degrees and pitch and yaw reach at
-//!   least 5 degrees either side of the neutral;
+//!   ranges are stored only when every axis moved at least 5 degrees within +-180 and pitch and
+//!   yaw reach at least 5 degrees either side of the neutral;
 //! - thumb: `G_R_i = max(thumb_i) - neutral_thumb_i` (the comfortable bending range of Eq. 3);
 //!   a range under 5 degrees is refused, since it would blow up `G_i / G_R_i`.
 
@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, anyhow, bail};
 use frond_motion::Calibration;
+use frond_motion::calibration::MAX_WRIST_DEG;
 use frond_protocol::{ControlReply, ControlRequest, paths};
 
 use crate::args::{CalibrateArgs, Global};
@@ -207,6 +208,15 @@ pub(crate) fn compute(
             .map(|r| r.wrist_deg[k])
             .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
         wrist_range[k] = [lo, hi];
+        if lo.abs() > MAX_WRIST_DEG || hi.abs() > MAX_WRIST_DEG {
+            wrist_ok = false;
+            warnings.push(format!(
+                "the wrist {} went from {lo:.1} to {hi:.1} degrees, past +-{MAX_WRIST_DEG}; wrist ranges are \
+                 not stored (check the device profile's units)",
+                AXES[k]
+            ));
+            continue;
+        }
         if hi - lo < MIN_RANGE_DEG {
             wrist_ok = false;
             warnings.push(format!(
@@ -365,6 +375,16 @@ mod tests {
             m.warnings
                 .iter()
                 .any(|w| w.contains("wrist pitch reached only 2.0 degrees below its neutral 2.0")),
+            "{:?}",
+            m.warnings
+        );
+        // Extremes past +-180 (a wrong unit in the device profile) are not stored either.
+        let (n, [p, y, _], t) = steps();
+        let wild = vec![raw([0.0, 0.0, -200.0], [0.0; 3]), raw([0.0, 0.0, 80.0], [0.0; 3])];
+        let m = compute("hal", &n, [&p, &y, &wild], &t).unwrap();
+        assert_eq!(m.calibration.wrist_range_deg, None);
+        assert!(
+            m.warnings.iter().any(|w| w.contains("wrist roll went from -200.0 to 80.0")),
             "{:?}",
             m.warnings
         );
