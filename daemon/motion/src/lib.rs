@@ -28,6 +28,7 @@ pub mod mapping;
 pub mod mesh;
 pub mod problems;
 pub mod rig;
+mod rig_mesh;
 pub mod rng;
 pub mod sample;
 pub mod skeleton;

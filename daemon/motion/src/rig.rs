@@ -13,6 +13,8 @@ use thiserror::Error;
 use crate::filter::FilterSpec;
 use crate::mapping::MappingParams;
 use crate::problems::Problems;
+use crate::rig_mesh::RawMesh;
+pub use crate::rig_mesh::{MeshShape, MeshSpec};
 use crate::sample::JOINTS;
 
 /// Default number of twistable joints (seed 000: "In most of our experiments, we set tau = 2").
@@ -102,54 +104,6 @@ fn unit_gains() -> [f64; 3] {
     [1.0; 3]
 }
 
-/// Procedural plant shapes (see `crate::mesh`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MeshShape {
-    /// A tapered grass blade.
-    Blade,
-    /// A stem with a head; the rig's secondary elements become leaves.
-    Flower,
-    /// A trunk with branches and leaf clusters.
-    Shrub,
-}
-
-impl MeshShape {
-    /// The name used in rig files.
-    pub fn name(self) -> &'static str {
-        match self {
-            MeshShape::Blade => "blade",
-            MeshShape::Flower => "flower",
-            MeshShape::Shrub => "shrub",
-        }
-    }
-}
-
-/// A rig's geometry: procedural, or a glTF/GLB file whose skin weights are used.
-#[derive(Debug, Clone, PartialEq)]
-pub enum MeshSpec {
-    /// Built by `crate::mesh::procedural_model`.
-    Procedural {
-        /// The shape.
-        shape: MeshShape,
-        /// Base width (blade) or stem/trunk diameter, metres (> 0).
-        width_m: f32,
-        /// Total height, metres (> the top joint); default: the top joint plus 3/4 of the top
-        /// segment.
-        height_m: Option<f32>,
-    },
-    /// A glTF/GLB file, relative to the rig file; read with `crate::gltf_mesh`.
-    File {
-        /// Path as written in the rig file.
-        path: String,
-    },
-}
-
-impl Default for MeshSpec {
-    fn default() -> Self {
-        MeshSpec::Procedural { shape: MeshShape::Blade, width_m: 0.012, height_m: None }
-    }
-}
-
 /// Why a rig file was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum RigError {
@@ -197,69 +151,6 @@ fn default_count() -> i64 {
 
 fn default_tau() -> i64 {
     DEFAULT_TAU as i64
-}
-
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawMesh {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    shape: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    width_m: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    height_m: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    file: Option<String>,
-}
-
-impl RawMesh {
-    fn validate(&self, p: &mut Problems, top_joint_m: f32) -> MeshSpec {
-        if let Some(file) = &self.file {
-            if file.trim().is_empty() {
-                p.push("mesh.file", "must not be empty");
-            }
-            for (set, name) in [
-                (self.shape.is_some(), "shape"),
-                (self.width_m.is_some(), "width_m"),
-                (self.height_m.is_some(), "height_m"),
-            ] {
-                if set {
-                    p.push(format!("mesh.{name}"), "cannot be combined with mesh.file");
-                }
-            }
-            return MeshSpec::File { path: file.clone() };
-        }
-        let shape = match self.shape.as_deref() {
-            None | Some("blade") => MeshShape::Blade,
-            Some("flower") => MeshShape::Flower,
-            Some("shrub") => MeshShape::Shrub,
-            Some(other) => {
-                p.push("mesh.shape", format!("unknown shape `{other}` (expected blade, flower or shrub)"));
-                MeshShape::Blade
-            }
-        };
-        let width_m = self.width_m.unwrap_or(0.012);
-        p.positive("mesh.width_m", width_m);
-        if let Some(h) = self.height_m
-            && p.finite("mesh.height_m", h)
-            && h <= top_joint_m
-        {
-            p.push("mesh.height_m", format!("{h} must be above the top joint ({top_joint_m})"));
-        }
-        MeshSpec::Procedural { shape, width_m, height_m: self.height_m }
-    }
-
-    fn from_spec(spec: &MeshSpec) -> Self {
-        match spec {
-            MeshSpec::File { path } => RawMesh { file: Some(path.clone()), ..RawMesh::default() },
-            MeshSpec::Procedural { shape, width_m, height_m } => RawMesh {
-                shape: Some(shape.name().to_string()),
-                width_m: Some(*width_m),
-                height_m: *height_m,
-                file: None,
-            },
-        }
-    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
