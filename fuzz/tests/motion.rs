@@ -21,6 +21,8 @@ const RIG_TOKENS: &[&str] = &[
     "description",
     "tau",
     "thumb_range_deg",
+    "bend_range_deg",
+    "bend_range_deg = [12.0, 12.0]",
     "filter",
     "[[joints]]",
     "height_m",

@@ -1,7 +1,10 @@
 //! The foundation's acceptance test: the virtual glove plays a known hand file through a FUSE
 //! hidraw node, `frondd` opens it through hidapi (the same code path as a physical glove), and
 //! `frond tap` must receive, in order and with no sequence gap, one fresh frame per input sample,
-//! equal to the pose `frond map` computes offline from the same file (filter none).
+//! equal to the pose `frond map` computes offline from the same file (filter none). Once with the
+//! grass and no calibration, once with the shrub (which declares `bend_range_deg`) and a
+//! calibration with measured wrist ranges, so the wrist calibration of seed 000, section 5.4 is
+//! the same live and offline.
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Command, Stdio};
@@ -39,6 +42,15 @@ fn joints_of(v: &Value) -> Vec<u32> {
 
 #[test]
 fn tap_receives_every_sample_as_frond_map_computes_it() {
+    tap_matches_map("grass", None);
+}
+
+#[test]
+fn tap_matches_map_with_a_wrist_calibration_mapped_onto_the_shrub_bend_range() {
+    tap_matches_map("shrub", Some("example-user"));
+}
+
+fn tap_matches_map(rig: &str, calibration: Option<&str>) {
     if !fuse_available() {
         eprintln!("skipped: /dev/fuse is missing, so the virtual glove cannot present a hidraw node");
         return;
@@ -47,13 +59,20 @@ fn tap_receives_every_sample_as_frond_map_computes_it() {
     let dir = tempfile::tempdir().unwrap();
     let hand_path = dir.path().join("hand.jsonl");
     std::fs::write(&hand_path, hand_file(SAMPLES, 100.0)).unwrap();
-    let rig = repo_root().join("rig-files/plants/grass.toml");
+    let rig = repo_root().join(format!("rig-files/plants/{rig}.toml"));
+    let cal_args: Vec<String> = calibration
+        .map(|c| {
+            let path = repo_root().join(format!("rig-files/calibrations/{c}.toml"));
+            vec!["--calibration".to_string(), path.to_str().unwrap().to_string()]
+        })
+        .unwrap_or_default();
 
     // Offline: the expected poses.
     let map = Command::new(bin("frond"))
         .args(["map", "--rig"])
         .arg(&rig)
         .args(["--filter", "none"])
+        .args(&cal_args)
         .stdin(std::fs::File::open(&hand_path).unwrap())
         .output()
         .expect("run frond map");
@@ -74,10 +93,10 @@ fn tap_receives_every_sample_as_frond_map_computes_it() {
         "--linger-ms",
         "3000",
     ]);
-    let daemon = Daemon::start(
-        dir.path(),
-        &["--device", node_path.to_str().unwrap(), "--rig", rig.to_str().unwrap(), "--filter", "none"],
-    );
+    let mut daemon_args = vec!["--device", node_path.to_str().unwrap(), "--rig", rig.to_str().unwrap()];
+    daemon_args.extend(["--filter", "none"]);
+    daemon_args.extend(cal_args.iter().map(String::as_str));
+    let daemon = Daemon::start(dir.path(), &daemon_args);
     let status = daemon.status();
     assert_eq!(status.source.kind, "fuse-hidraw", "{status:?}");
     let mut tap = daemon

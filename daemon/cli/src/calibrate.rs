@@ -3,8 +3,12 @@
 //!
 //! Steps, a few seconds each, polling `RawSample` at about 50 Hz:
 //! - neutral: the mean of every sample is the neutral wrist and thumb;
-//! - wrist pitch, yaw, roll extremes (one step each): `[min, max]` of that axis
-//!   (informational, stored as `wrist_range_deg`);
+//! - wrist pitch, yaw, roll extremes (one step each): `[min, max]` of that axis, stored as
+//!   `wrist_range_deg`. A rig with `bend_range_deg` maps the pitch and yaw extremes (their reach
+//!   from the neutral) onto its root bend range (section 5.4: "map the user's comfortable ranges
+//!   ... with his/her desired bending ranges of plant's joints"); roll is recorded only. The
+//!   ranges are stored only when every axis moved at least 5 degrees within +-180 and pitch and
+//!   yaw reach at least 5 degrees either side of the neutral;
 //! - thumb: `G_R_i = max(thumb_i) - neutral_thumb_i` (the comfortable bending range of Eq. 3);
 //!   a range under 5 degrees is refused, since it would blow up `G_i / G_R_i`.
 
@@ -14,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, anyhow, bail};
 use frond_motion::Calibration;
+use frond_motion::calibration::MAX_WRIST_DEG;
 use frond_protocol::{ControlReply, ControlRequest, paths};
 
 use crate::args::{CalibrateArgs, Global};
@@ -92,6 +97,12 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     );
     write_atomically(&output, &text)?;
     println!("\n{text}\nwrote {}", output.display());
+    if let Some([[pd, pu], [yd, yu]]) = cal.params().wrist_reach_deg {
+        println!(
+            "comfortable wrist reach from neutral: pitch -{pd:.1} / +{pu:.1}, yaw -{yd:.1} / +{yu:.1} degrees \
+             (a rig's bend_range_deg is reached there)"
+        );
+    }
     if a.apply {
         match control.request(&ControlRequest::SetCalibration { id: cal.id.clone(), toml: text })? {
             ControlReply::Ok => println!("applied to the running daemon"),
@@ -197,6 +208,15 @@ pub(crate) fn compute(
             .map(|r| r.wrist_deg[k])
             .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
         wrist_range[k] = [lo, hi];
+        if lo.abs() > MAX_WRIST_DEG || hi.abs() > MAX_WRIST_DEG {
+            wrist_ok = false;
+            warnings.push(format!(
+                "the wrist {} went from {lo:.1} to {hi:.1} degrees, past +-{MAX_WRIST_DEG}; wrist ranges are \
+                 not stored (check the device profile's units)",
+                AXES[k]
+            ));
+            continue;
+        }
         if hi - lo < MIN_RANGE_DEG {
             wrist_ok = false;
             warnings.push(format!(
@@ -204,6 +224,20 @@ pub(crate) fn compute(
                 AXES[k],
                 hi - lo
             ));
+            continue;
+        }
+        // Pitch and yaw are mapped onto a rig's bend range from the neutral, on each side.
+        let n = neutral_wrist_deg[k];
+        for (side, reach) in [("below", n - lo), ("above", hi - n)] {
+            if k < 2 && (reach.is_nan() || reach < MIN_RANGE_DEG) {
+                wrist_ok = false;
+                warnings.push(format!(
+                    "the wrist {} reached only {reach:.1} degrees {side} its neutral {n:.1} (range {lo:.1} to \
+                     {hi:.1}); wrist ranges are not stored, so rigs with bend_range_deg use their s_pitch/s_yaw \
+                     for this user",
+                    AXES[k]
+                ));
+            }
         }
     }
 
@@ -327,6 +361,37 @@ mod tests {
         let m = compute("carol", &n, [&p, &still, &r], &t).unwrap();
         assert_eq!(m.calibration.wrist_range_deg, None);
         assert!(m.warnings.iter().any(|w| w.contains("wrist yaw")), "{:?}", m.warnings);
+    }
+
+    #[test]
+    fn a_wrist_step_on_one_side_of_the_neutral_drops_wrist_ranges() {
+        // Neutral pitch 2; the pitch step only bends up (0..60): 2 degrees below the neutral is
+        // no comfortable range to map onto a rig's bend range.
+        let (n, [_, y, r], t) = steps();
+        let up_only = vec![raw([0.0, 0.0, 0.0], [0.0; 3]), raw([60.0, 0.0, 0.0], [0.0; 3])];
+        let m = compute("fay", &n, [&up_only, &y, &r], &t).unwrap();
+        assert_eq!(m.calibration.wrist_range_deg, None);
+        assert!(
+            m.warnings
+                .iter()
+                .any(|w| w.contains("wrist pitch reached only 2.0 degrees below its neutral 2.0")),
+            "{:?}",
+            m.warnings
+        );
+        // Extremes past +-180 (a wrong unit in the device profile) are not stored either.
+        let (n, [p, y, _], t) = steps();
+        let wild = vec![raw([0.0, 0.0, -200.0], [0.0; 3]), raw([0.0, 0.0, 80.0], [0.0; 3])];
+        let m = compute("hal", &n, [&p, &y, &wild], &t).unwrap();
+        assert_eq!(m.calibration.wrist_range_deg, None);
+        assert!(
+            m.warnings.iter().any(|w| w.contains("wrist roll went from -200.0 to 80.0")),
+            "{:?}",
+            m.warnings
+        );
+        // The measured ranges of `steps()` give the reach the mapping uses.
+        let (n, [p, y, r], t) = steps();
+        let c = compute("gus", &n, [&p, &y, &r], &t).unwrap().calibration;
+        assert_eq!(c.params().wrist_reach_deg, Some([[52.0, 58.0], [17.0, 33.0]]));
     }
 
     #[test]

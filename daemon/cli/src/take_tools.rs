@@ -13,7 +13,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use anyhow::{Context, anyhow};
 use clap::{Args, Subcommand};
 use frond_motion::align::align;
-use frond_motion::clip::Clip;
+use frond_motion::clip::{Clip, frame_count};
 use frond_motion::controls::{Retime, retime};
 use frond_motion::edit::{ImportKind, import_jsonl, post_filter, resample_frames, splice};
 use frond_motion::field::{FieldParams, make_field};
@@ -472,7 +472,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                 println!("{}", t.explain_json());
                 return Ok(());
             }
-            let count = (duration * out.fps).round() as usize + 1;
+            let count = frame_count(duration, out.fps);
             let (looped, _) = loop_clip(
                 &clip,
                 &t,

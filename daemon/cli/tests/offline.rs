@@ -113,6 +113,44 @@ fn map_with_a_calibration_matches_hand_computed_poses() {
 }
 
 #[test]
+fn map_drives_the_shrub_to_its_bend_range_for_two_different_wrists() {
+    // shrub.toml: bend_range_deg = [12, 12], s_pitch = s_yaw = 0.2, 0.4, 0.5, 0.6, tau 1.
+    // Ann: pitch -30..50 around 10 (reach 40 / 40), yaw -25..15 around -5 (20 / 20).
+    // Ben: pitch -75..45 around -15 (60 / 60), yaw -10..50 around 10 (20 / 40).
+    // Each at pitch max, yaw min, thumb bent through its range (G_i / G_R_i = 1):
+    //   P0 = (12, -12), P1 = 0.4 P0, P2 = 0.5 P0, P3 = 0.6 P0; roll at neutral = 0.
+    // Without wrist ranges Ann's +40 would bend 0.2 * 40 = 8 and Ben's +60 12.
+    let dir = tempfile::tempdir().unwrap();
+    let shrub = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rig-files/plants/shrub.toml");
+    let want = [[12.0, -12.0, 0.0], [4.8, -4.8, 0.0], [6.0, -6.0, 0.0], [7.2, -7.2, 0.0]];
+    for (id, neutral, ranges, extreme) in [
+        ("ann", "[10, -5, 0]", "[[-30, 50], [-25, 15], [-60, 60]]", "[50,-25,0]"),
+        ("ben", "[-15, 10, 0]", "[[-75, 45], [-10, 50], [-60, 60]]", "[45,-10,0]"),
+    ] {
+        let cal = dir.path().join(format!("{id}.toml"));
+        std::fs::write(
+            &cal,
+            format!(
+                "id = \"{id}\"\nneutral_wrist_deg = {neutral}\nneutral_thumb_deg = [0, 0, 0]\n\
+                 thumb_range_deg = [50, 60, 70]\nwrist_range_deg = {ranges}\n"
+            ),
+        )
+        .unwrap();
+        let hand = format!("{{\"t\":0.0,\"wrist\":{extreme},\"thumb\":[50,60,70]}}\n");
+        let out = run(
+            frond().args(["map", "--filter", "none", "--rig"]).arg(&shrub).arg("--calibration").arg(&cal),
+            &hand,
+        );
+        assert!(out.status.success(), "{id}: {}", text(&out.stderr));
+        let p = poses(&out.stdout);
+        assert_eq!(p.len(), 1);
+        let close =
+            p[0].joints_deg.iter().flatten().zip(want.iter().flatten()).all(|(a, b)| (a - b).abs() < 1e-4);
+        assert!(close, "{id}: {:?}", p[0].joints_deg);
+    }
+}
+
+#[test]
 fn map_without_calibration_uses_zero_neutral_and_the_rig_ranges() {
     let f = files();
     // Rig ranges (60, 70, 60): G/G_R = (0.5, 0.5, 0.25).

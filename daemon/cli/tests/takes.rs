@@ -270,3 +270,57 @@ fn export_accepts_a_path() {
         .unwrap());
     assert_eq!(out.lines().count(), 101);
 }
+
+/// A take of `n` frames at `fps` whose times carry six decimals, as a recorded take's do.
+fn six_decimal_take(name: &str, n: usize, fps: f64) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    encode_file_start(&mut bytes);
+    encode_record(
+        &TakeRecord::Header(TakeHeader {
+            name: name.into(),
+            rig_name: "grass".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: fps as u32,
+            created_unix_s: 1_700_000_000,
+            daemon_version: "0.1.0".into(),
+            joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
+        }),
+        &mut bytes,
+    );
+    for k in 0..n {
+        let t: f64 = format!("{:.6}", k as f64 / fps).parse().unwrap();
+        encode_record(&TakeRecord::Frame(frame(k as u64, t, PoseFlags::FILTERED)), &mut bytes);
+    }
+    encode_record(&TakeRecord::End { frames: n as u64 }, &mut bytes);
+    bytes
+}
+
+#[test]
+fn identity_resampling_keeps_every_frame_through_export_and_import() {
+    // The case is 200 frames at 30 FPS (last t = 6.633333, which rounds down); the
+    // others round up, land exactly, or are the shortest takes.
+    let (_d, takes) = setup();
+    let run = |args: &[&str]| ok(frond(&takes).args(args).output().unwrap());
+    for (fps, n) in [30, 24, 25, 60]
+        .iter()
+        .flat_map(|&f| [1, 2, 3, 89, 90, 199, 200, 201, 300, 301, 397, 400].map(|n| (f, n)))
+    {
+        let fps_s = fps.to_string();
+        std::fs::write(takes.join("src.take"), six_decimal_take("src", n, fps as f64)).unwrap();
+        let exported = run(&["take", "export", "src", "--jsonl"]);
+        assert_eq!(exported.lines().count(), n);
+        let file = takes.join("src.jsonl");
+        std::fs::write(&file, &exported).unwrap();
+        run(&["take", "import", file.to_str().unwrap(), "imp", "--force"]);
+        for args in [
+            &["take", "export", "imp", "--jsonl", "--fps", &fps_s][..],
+            &["take", "retime", "imp", "--speed", "1", "--fps", &fps_s, "--jsonl"],
+            &["take", "resample", "imp", "--fps", &fps_s, "--jsonl"],
+            &["take", "filter", "imp", "--filter", "lowpass", "--fps", &fps_s, "--jsonl"],
+        ] {
+            let got = run(args).lines().count();
+            assert_eq!(got, n, "{n} frames at {fps} FPS: `frond {}` gives {got}", args.join(" "));
+        }
+    }
+}

@@ -1,5 +1,5 @@
-//! Per-user calibration (seed 000, section 5.4): the neutral wrist and thumb angles, and the
-//! user's comfortable thumb bending ranges `G_R1..G_R3`.
+//! Per-user calibration (seed 000, section 5.4): the neutral wrist and thumb angles, the user's
+//! comfortable thumb bending ranges `G_R1..G_R3`, and optionally the comfortable wrist extremes.
 //!
 //! `W = wrist - neutral_wrist`, `G_i = thumb_i - neutral_thumb_i` (degrees). File form (TOML):
 //!
@@ -10,6 +10,14 @@
 //! thumb_range_deg = [55.0, 65.0, 70.0]   # G_R1..G_R3, > 0
 //! wrist_range_deg = [[-60.0, 70.0], [-20.0, 30.0], [-80.0, 80.0]]  # optional, min/max per axis
 //! ```
+//!
+//! Section 5.4 sets the scales "to map the user's comfortable ranges of bending wrist and thumb
+//! joints with his/her desired bending ranges of plant's joints". The thumb is mapped by Eq. 3's
+//! `G_i / G_R_i`. The wrist is mapped when the rig declares `bend_range_deg`: the pitch and yaw
+//! extremes of `wrist_range_deg`, taken from the neutral ([`CalibrationParams::wrist_reach_deg`]),
+//! then drive the root to exactly the rig's bend range (see `crate::mapping::root_scale`), so
+//! two performers with different wrists reach the same plant extremes. Roll's range is recorded
+//! but not used (twist keeps `s_roll(i) W_roll`, Eq. 4).
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -30,8 +38,10 @@ pub struct Calibration {
     pub neutral_thumb_deg: [f32; 3],
     /// Comfortable thumb bending ranges `G_R1..G_R3` (seed 000, Eq. 3), degrees, > 0.
     pub thumb_range_deg: [f32; 3],
-    /// Comfortable wrist extremes `[min, max]` per axis, degrees, relative to the device zero.
-    /// Informational (recorded by `frond calibrate`); not used by the mapping.
+    /// Comfortable wrist extremes `[min, max]` per axis (pitch, yaw, roll), degrees, relative to
+    /// the device zero, as `frond calibrate` measures them. Within +-180; the pitch and yaw
+    /// ranges must reach at least [`MIN_WRIST_REACH_DEG`] below and above the neutral. Mapped
+    /// onto a rig's `bend_range_deg` (pitch, yaw); roll is informational.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wrist_range_deg: Option<[[f32; 2]; 3]>,
 }
@@ -48,6 +58,12 @@ pub enum CalibrationError {
 }
 
 const AXES: [&str; 3] = ["pitch", "yaw", "roll"];
+
+/// Smallest comfortable wrist reach from the neutral, degrees, on either side of the pitch and
+/// yaw axes: the mapping divides the rig's bend range by it.
+pub const MIN_WRIST_REACH_DEG: f32 = 1.0;
+/// Largest magnitude of a wrist extreme, degrees.
+pub const MAX_WRIST_DEG: f32 = 180.0;
 
 impl Calibration {
     /// The calibration used when none is given: id `none`, zero neutral, the rig's thumb ranges.
@@ -92,12 +108,44 @@ impl Calibration {
         }
         if let Some(r) = &self.wrist_range_deg {
             for (k, [lo, hi]) in r.iter().enumerate() {
-                let a = p.finite(format!("wrist_range_deg[{k}][0]"), *lo);
-                let b = p.finite(format!("wrist_range_deg[{k}][1]"), *hi);
-                if a && b && lo >= hi {
+                let bounded = |p: &mut Problems, end: usize, v: f32| {
+                    let path = format!("wrist_range_deg[{k}][{end}]");
+                    if !p.finite(path.clone(), v) {
+                        return false;
+                    }
+                    if v.abs() > MAX_WRIST_DEG {
+                        p.push(
+                            path,
+                            format!(
+                                "must be between -{MAX_WRIST_DEG} and {MAX_WRIST_DEG} degrees, found {v}"
+                            ),
+                        );
+                        return false;
+                    }
+                    true
+                };
+                let a = bounded(&mut p, 0, *lo);
+                let b = bounded(&mut p, 1, *hi);
+                if !(a && b) {
+                    continue;
+                }
+                if lo >= hi {
                     p.push(
                         format!("wrist_range_deg[{k}]"),
                         format!("{} min {lo} must be below max {hi}", AXES[k]),
+                    );
+                    continue;
+                }
+                let n = self.neutral_wrist_deg[k];
+                if k < 2 && n.is_finite() && !(n - lo >= MIN_WRIST_REACH_DEG && hi - n >= MIN_WRIST_REACH_DEG)
+                {
+                    p.push(
+                        format!("wrist_range_deg[{k}]"),
+                        format!(
+                            "the comfortable {} range [{lo}, {hi}] must reach at least {MIN_WRIST_REACH_DEG} \
+                             degree below and above the neutral {n} (neutral_wrist_deg[{k}])",
+                            AXES[k]
+                        ),
                     );
                 }
             }
@@ -107,10 +155,14 @@ impl Calibration {
 
     /// The `Copy` form used by the realtime loop.
     pub fn params(&self) -> CalibrationParams {
+        let n = self.neutral_wrist_deg;
         CalibrationParams {
-            neutral_wrist_deg: self.neutral_wrist_deg,
+            neutral_wrist_deg: n,
             neutral_thumb_deg: self.neutral_thumb_deg,
             thumb_range_deg: self.thumb_range_deg,
+            wrist_reach_deg: self
+                .wrist_range_deg
+                .map(|r| std::array::from_fn(|k| [n[k] - r[k][0], r[k][1] - n[k]])),
         }
     }
 }
@@ -124,12 +176,22 @@ pub struct CalibrationParams {
     pub neutral_thumb_deg: [f32; 3],
     /// `G_R1..G_R3` (seed 000, Eq. 3), degrees.
     pub thumb_range_deg: [f32; 3],
+    /// The comfortable wrist reach from the neutral, `[below, above]` for pitch and for yaw,
+    /// degrees (`neutral - min` and `max - neutral` of `wrist_range_deg`; at least
+    /// [`MIN_WRIST_REACH_DEG`] when validated), or `None` when the wrist was not measured. The
+    /// mapping scales the root so these reach the rig's `bend_range_deg` (section 5.4).
+    pub wrist_reach_deg: Option<[[f32; 2]; 2]>,
 }
 
 impl CalibrationParams {
-    /// Zero neutral with the given thumb ranges.
+    /// Zero neutral with the given thumb ranges, no wrist reach.
     pub fn neutral(thumb_range_deg: [f32; 3]) -> Self {
-        CalibrationParams { neutral_wrist_deg: [0.0; 3], neutral_thumb_deg: [0.0; 3], thumb_range_deg }
+        CalibrationParams {
+            neutral_wrist_deg: [0.0; 3],
+            neutral_thumb_deg: [0.0; 3],
+            thumb_range_deg,
+            wrist_reach_deg: None,
+        }
     }
 
     /// `W = wrist - neutral`, `G_i = thumb_i - neutral_i`; `t` unchanged. Differences of finite
@@ -207,6 +269,47 @@ wrist_range_deg = [[10, -10], [0, 0], [-1, 1]]
         let msg = p.to_string();
         assert!(msg.contains("thumb_range_deg[1]: must be greater than 0, found -5"), "{msg}");
         assert!(msg.contains("wrist_range_deg[0]: pitch min 10 must be below max -10"), "{msg}");
+    }
+
+    #[test]
+    fn params_carry_the_wrist_reach_from_the_neutral() {
+        // Neutral pitch 2.5 in [-60, 70]: 62.5 below, 67.5 above; yaw -5 in [-20, 30]: 15 / 35.
+        let c = Calibration::from_toml_str(ALICE).unwrap();
+        assert_eq!(c.params().wrist_reach_deg, Some([[62.5, 67.5], [15.0, 35.0]]));
+        let none = Calibration { wrist_range_deg: None, ..c };
+        assert_eq!(none.params().wrist_reach_deg, None);
+    }
+
+    #[test]
+    fn wrist_ranges_must_surround_the_neutral_and_stay_within_180() {
+        let text = r#"
+id = "x"
+neutral_wrist_deg = [2.5, -5, 0]
+neutral_thumb_deg = [0, 0, 0]
+thumb_range_deg = [60, 60, 60]
+wrist_range_deg = [[10, 70], [-5.5, 30], [5, 200]]
+"#;
+        let Err(CalibrationError::Invalid(p)) = Calibration::from_toml_str(text) else {
+            panic!("expected validation errors");
+        };
+        // Pitch: the neutral 2.5 is below the range; yaw: only 0.5 degree below the neutral;
+        // roll: 200 is out of bounds (its neutral is not checked, roll is only recorded).
+        assert_eq!(p.paths(), ["wrist_range_deg[0]", "wrist_range_deg[1]", "wrist_range_deg[2][1]"]);
+        let msg = p.to_string();
+        assert!(
+            msg.contains(
+                "wrist_range_deg[0]: the comfortable pitch range [10, 70] must reach at least 1 degree \
+                 below and above the neutral 2.5 (neutral_wrist_deg[0])"
+            ),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("wrist_range_deg[2][1]: must be between -180 and 180 degrees, found 200"),
+            "{msg}"
+        );
+        // Roll around a neutral outside its range is accepted; 1 degree of reach is enough.
+        let ok = text.replace("[10, 70], [-5.5, 30], [5, 200]", "[1.5, 70], [-6, 30], [5, 80]");
+        assert!(Calibration::from_toml_str(&ok).is_ok());
     }
 
     #[test]

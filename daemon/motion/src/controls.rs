@@ -67,8 +67,7 @@ pub fn retime(clip: &Clip, r: &Retime) -> Result<Clip, String> {
     if let Some(d) = r.delays_s.iter().find(|d| !(d.is_finite() && **d >= 0.0 && **d <= 60.0)) {
         return Err(format!("--delay values must be between 0 and 60 seconds, got {d}"));
     }
-    let count = ((clip.duration_s() / r.speed * clip.fps + 1e-9).floor() as usize + 1)
-        .min(crate::take::MAX_RESAMPLED_FRAMES);
+    let count = crate::clip::frame_count(clip.duration_s() / r.speed, clip.fps);
     let frames = (0..count).map(|k| {
         let t = k as f64 / clip.fps;
         let mut j = [[0.0; 3]; JOINTS];

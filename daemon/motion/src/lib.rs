@@ -31,6 +31,7 @@ pub mod mesh;
 pub mod problems;
 pub mod rig;
 pub mod rig_files;
+mod rig_mesh;
 pub mod rng;
 pub mod sample;
 pub mod skeleton;

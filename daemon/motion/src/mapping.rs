@@ -1,5 +1,6 @@
-//! The hand-to-plant mapping of seed 000 (section 5, Eq. 2-4), and [`Mapper`], the one code path
-//! from a raw hand sample to a pose used by both the daemon's realtime loop and `frond map`.
+//! The hand-to-plant mapping of seed 000 (section 5, Eq. 2-4, with the wrist calibration of
+//! section 5.4), and [`Mapper`], the one code path from a raw hand sample to a pose used by both
+//! the daemon's realtime loop and `frond map`.
 //!
 //! Degrees in, degrees out. Joint 0 is the root, joint 3 the top.
 
@@ -14,12 +15,15 @@ pub struct MappingParams {
     pub scale: [[f32; 3]; JOINTS],
     /// Number of twistable joints `tau` (seed 000, Eq. 4), 0..=3; the top `tau` joints twist.
     pub tau: u8,
+    /// The rig's desired root bend `[pitch, yaw]`, degrees (> 0), at a performer's comfortable
+    /// wrist extremes (seed 000, section 5.4; see [`root_scale`]), or `None`.
+    pub bend_range_deg: Option<[f32; 2]>,
 }
 
 impl Default for MappingParams {
-    /// All scales 1, `tau = 2` (the seed's usual setting).
+    /// All scales 1, `tau = 2` (the seed's usual setting), no bend range.
     fn default() -> Self {
-        MappingParams { scale: [[1.0; 3]; JOINTS], tau: 2 }
+        MappingParams { scale: [[1.0; 3]; JOINTS], tau: 2, bend_range_deg: None }
     }
 }
 
@@ -36,15 +40,49 @@ fn bend_ratio(g_deg: f32, range_deg: f32) -> f64 {
     if range_deg > 0.0 && range_deg.is_finite() { g_deg as f64 / range_deg as f64 } else { 0.0 }
 }
 
+fn usable(v: f32) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// Eq. 2's root scale for wrist axis `axis` (0 = pitch, 1 = yaw) at the calibrated deflection
+/// `w_deg`, calibrated per performer as seed 000, section 5.4 asks ("we also set s_i for
+/// calibrating the bending of wrist and thumb in order to map the user's comfortable ranges ...
+/// with his/her desired bending ranges of plant's joints"):
+///
+/// - when the rig declares `bend_range_deg` and the calibration measured the wrist
+///   (`wrist_reach_deg`): `bend / reach`, with the reach on `w`'s side of the neutral (`max -
+///   neutral` for `w >= 0`, `neutral - min` below), so the comfortable extremes map exactly to
+///   `+bend` and `-bend` whoever performs; past them the bend keeps growing linearly (as Eq. 3's
+///   `G_i / G_R_i` does past the thumb's range). This replaces the rig's `s_pitch(0)` /
+///   `s_yaw(0)`;
+/// - otherwise (either is missing, or a value is not a positive finite number, which a validated
+///   rig and calibration never have): the rig's `s_pitch(0)` / `s_yaw(0)`, as before.
+///
+/// Another `axis` gets the rig's scale of that axis (roll: `s_roll(0)`), or 0 past it.
+pub fn root_scale(params: &MappingParams, calibration: &CalibrationParams, axis: usize, w_deg: f32) -> f64 {
+    let rig = params.scale[0].get(axis).map_or(0.0, |&s| s as f64);
+    let bend = params.bend_range_deg.and_then(|b| b.get(axis).copied());
+    let reach = calibration.wrist_reach_deg.and_then(|r| r.get(axis).copied());
+    let (Some(bend), Some(reach)) = (bend, reach) else {
+        return rig;
+    };
+    let reach = reach[usize::from(w_deg >= 0.0)];
+    if usable(bend) && usable(reach) { bend as f64 / reach as f64 } else { rig }
+}
+
 /// Whether joint `i` twists: seed 000, Eq. 4, `P_roll(i) = 0` for `i = 0..=3 - tau`, so the top
 /// `tau` joints twist. `tau >= 4` would make every joint twist (rigs refuse it).
 pub fn is_twistable(i: usize, tau: u8) -> bool {
     i + tau as usize > JOINTS - 1
 }
 
-/// Maps one calibrated hand sample (`W` = wrist, `G_i` = thumb, seed 000 notation) to a pose.
+/// Maps one calibrated hand sample (`W` = wrist, `G_i` = thumb, seed 000 notation; the neutral is
+/// already subtracted) to a pose. From the calibration it takes the thumb ranges `G_R_i` and the
+/// wrist reach.
 ///
-/// - Seed 000, Eq. 2: `P_pitch(0) = s_pitch(0) * W_pitch`, `P_yaw(0) = s_yaw(0) * W_yaw`.
+/// - Seed 000, Eq. 2: `P_pitch(0) = s_pitch(0) * W_pitch`, `P_yaw(0) = s_yaw(0) * W_yaw`, with
+///   the root scales of [`root_scale`] (the rig's, or its bend range over the performer's
+///   comfortable wrist reach, section 5.4).
 /// - Seed 000, Eq. 3: for `i = 1..=3`, `P_pitch(i) = s_pitch(i) * P_pitch(0) * G_i / G_R_i`, and
 ///   the same for yaw. `G_i` is `hand.thumb_deg[i - 1]`, `G_R_i` is `thumb_range_deg[i - 1]`.
 ///   The upper joints follow the root's bending direction and scale with its magnitude.
@@ -54,12 +92,13 @@ pub fn is_twistable(i: usize, tau: u8) -> bool {
 ///
 /// Output `t` is `hand.t`. Pure, no allocation, no panic for any input; finite input gives a
 /// finite pose (huge values saturate at `±f32::MAX`).
-pub fn map_pose(params: &MappingParams, thumb_range_deg: [f32; 3], hand: &HandSample) -> PoseFrame {
+pub fn map_pose(params: &MappingParams, calibration: &CalibrationParams, hand: &HandSample) -> PoseFrame {
     let s = &params.scale;
     let w = hand.wrist_deg;
+    let thumb_range_deg = calibration.thumb_range_deg;
     // Eq. 2, kept in f64 for Eq. 3.
-    let root_pitch = s[0][0] as f64 * w[0] as f64;
-    let root_yaw = s[0][1] as f64 * w[1] as f64;
+    let root_pitch = root_scale(params, calibration, 0, w[0]) * w[0] as f64;
+    let root_yaw = root_scale(params, calibration, 1, w[1]) * w[1] as f64;
     let roll = w[2] as f64;
 
     let mut joints_deg = [[0.0f32; 3]; JOINTS];
@@ -136,7 +175,7 @@ impl Mapper {
     pub fn process(&mut self, raw: &HandSample) -> (HandSample, PoseFrame) {
         let calibrated = self.calibration.apply(raw);
         let filtered = self.filter.apply(&calibrated);
-        let pose = map_pose(&self.mapping, self.calibration.thumb_range_deg, &filtered);
+        let pose = map_pose(&self.mapping, &self.calibration, &filtered);
         (filtered, pose)
     }
 }
@@ -166,7 +205,7 @@ mod tests {
         // Eq. 4 (tau 2): roll 0, 0, 30, 30.
         let p = map_pose(
             &MappingParams::default(),
-            [60.0, 70.0, 60.0],
+            &CalibrationParams::neutral([60.0, 70.0, 60.0]),
             &hand([20.0, -10.0, 30.0], [30.0, 35.0, 15.0]),
         );
         assert_eq!(p.t, 0.5);
@@ -177,8 +216,42 @@ mod tests {
     }
 
     #[test]
+    fn root_scale_maps_the_comfortable_reach_onto_the_bend_range() {
+        // Reach below/above neutral: pitch 40 / 60, yaw 20 / 30. Bend range: pitch 30, yaw 15.
+        let params = MappingParams { bend_range_deg: Some([30.0, 15.0]), ..MappingParams::default() };
+        let cal = CalibrationParams {
+            wrist_reach_deg: Some([[40.0, 60.0], [20.0, 30.0]]),
+            ..CalibrationParams::neutral([60.0; 3])
+        };
+        assert_eq!(root_scale(&params, &cal, 0, 60.0), 0.5); // +60 -> +30
+        assert_eq!(root_scale(&params, &cal, 0, -40.0), 0.75); // -40 -> -30
+        assert_eq!(root_scale(&params, &cal, 1, 30.0), 0.5); // +30 -> +15
+        assert_eq!(root_scale(&params, &cal, 1, -20.0), 0.75); // -20 -> -15
+        assert_eq!(root_scale(&params, &cal, 0, 0.0), 0.5);
+        // Past the comfortable extreme the bend keeps growing linearly: +120 -> +60.
+        let p = map_pose(&params, &cal, &hand([120.0, -20.0, 0.0], [0.0; 3]));
+        assert_eq!(p.joints_deg[0], [60.0, -15.0, 0.0]);
+        // Without a bend range, or without a measured wrist, the rig's s(0) (here 1).
+        let plain = MappingParams::default();
+        assert_eq!(root_scale(&plain, &cal, 0, 60.0), 1.0);
+        assert_eq!(root_scale(&params, &CalibrationParams::neutral([60.0; 3]), 0, 60.0), 1.0);
+        // Unusable values (never validated) fall back instead of dividing by zero.
+        let zero = CalibrationParams { wrist_reach_deg: Some([[0.0, 60.0], [20.0, f32::NAN]]), ..cal };
+        assert_eq!(root_scale(&params, &zero, 0, -5.0), 1.0);
+        assert_eq!(root_scale(&params, &zero, 0, 5.0), 0.5);
+        assert_eq!(root_scale(&params, &zero, 1, 5.0), 1.0);
+        // Not a bend axis: the rig's scale, never a panic.
+        assert_eq!(root_scale(&params, &cal, 2, 5.0), 1.0);
+        assert_eq!(root_scale(&params, &cal, 7, 5.0), 0.0);
+    }
+
+    #[test]
     fn zero_range_does_not_make_nan() {
-        let p = map_pose(&MappingParams::default(), [0.0, f32::NAN, -1.0], &hand([10.0; 3], [5.0; 3]));
+        let p = map_pose(
+            &MappingParams::default(),
+            &CalibrationParams::neutral([0.0, f32::NAN, -1.0]),
+            &hand([10.0; 3], [5.0; 3]),
+        );
         for j in &p.joints_deg[1..] {
             assert_eq!(j[0], 0.0);
             assert_eq!(j[1], 0.0);

@@ -6,7 +6,8 @@
 //! secondary element instance on its own 4-joint skeleton, section 5.3), or a shrub (trunk,
 //! fanned branches, leaf clusters). The stem geometry is given in the rest (bind) pose, Y up,
 //! ground at y = 0, and skinned to the rig's four joints with [`procedural_weights`]
-//! (seed 000, Appendix); vertices start a little below the ground, which the weights give to
+//! (seed 000, Appendix) at each vertex's rest height once it is placed (a shrub's leaf clusters
+//! take the weights of the branch tips they sit on, not of their own length); vertices start a little below the ground, which the weights give to
 //! joint 0. Weights are stored per rig joint (`weights[v][i]` for joint `i`), so a glTF writer
 //! uses `JOINTS_0 = [0, 1, 2, 3]` for every vertex.
 
@@ -181,15 +182,21 @@ pub enum MeshError {
     },
 }
 
-/// A profile point of a two-sided strip: height and half width.
+/// A two-sided strip from profile rows `(height, half width)` in the strip's own frame, placed by
+/// `frame` (the strip's frame in the skeleton's rest space). Each vertex is weighted by its
+/// height after placement (seed 000, Appendix: the weights follow the vertex's height in the
+/// rest pose), not by its height along the strip: a leaf hung at a branch tip gets the weights
+/// of the branch tip, so it moves with it.
 fn two_sided_strip(mesh: &mut SkinnedMesh, skel: &Skeleton, rows: &[(f32, f32)], frame: Mat4) {
+    let placed = |mesh: &mut SkinnedMesh, x: f32, y: f32| {
+        let p = frame.transform_point3(Vec3::new(x, y, 0.0));
+        mesh.vertex(p, skel.weights_at(p.y))
+    };
     for side in [1.0f32, -1.0] {
         let mut prev: Option<(u32, u32)> = None;
         for &(y, half) in rows {
-            let w = skel.weights_at(y);
-            let l = mesh.vertex(frame.transform_point3(Vec3::new(-half, y, 0.0)), w);
-            let r =
-                if half > 0.0 { mesh.vertex(frame.transform_point3(Vec3::new(half, y, 0.0)), w) } else { l };
+            let l = placed(mesh, -half, y);
+            let r = if half > 0.0 { placed(mesh, half, y) } else { l };
             if let Some((pl, pr)) = prev {
                 // Front (+Z) faces counter-clockwise; the back side reverses the winding.
                 let mut quad = |a, b, c| if side > 0.0 { mesh.tri(a, b, c) } else { mesh.tri(a, c, b) };

@@ -1,6 +1,7 @@
 //! Plant rigs (seed 000, section 4): a 4-joint skeleton (joint 0 = root at the ground, 3 = top),
 //! per-joint scaling factors `s_pitch(i)`, `s_yaw(i)`, `s_roll(i)` (Eq. 2-4), the number of
-//! twistable joints `tau` (Eq. 4), default thumb ranges, the jitter filter, and secondary elements
+//! twistable joints `tau` (Eq. 4), default thumb ranges, the desired root bend range a
+//! calibrated wrist is mapped onto (section 5.4), the jitter filter, and secondary elements
 //! such as leaves and petals (section 5.3), each a simple short plant of its own.
 //!
 //! Files are TOML (see `rig-files/plants/*.toml`). They are parsed into a raw form with unknown
@@ -12,6 +13,8 @@ use thiserror::Error;
 use crate::filter::FilterSpec;
 use crate::mapping::MappingParams;
 use crate::problems::Problems;
+use crate::rig_mesh::RawMesh;
+pub use crate::rig_mesh::{MeshShape, MeshSpec};
 use crate::sample::JOINTS;
 
 /// Default number of twistable joints (seed 000: "In most of our experiments, we set tau = 2").
@@ -23,6 +26,8 @@ pub const MAX_TAU: u8 = 3;
 /// Most secondary elements a rig may have: their element ids are `1..=MAX_RIG_ELEMENTS`, and the
 /// daemon gives the elements of its live stages ids above them.
 pub const MAX_RIG_ELEMENTS: usize = 32;
+/// Largest `bend_range_deg`, degrees: a root bend past half a turn is not a bend.
+pub const MAX_BEND_RANGE_DEG: f32 = 180.0;
 
 /// One skeleton joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,6 +75,12 @@ pub struct Rig {
     pub tau: u8,
     /// Default `G_R1..G_R3`, degrees, when no calibration is given.
     pub thumb_range_deg: [f32; 3],
+    /// The root bend `[pitch, yaw]` (degrees, in `(0, 180]`) the plant should reach at a
+    /// performer's comfortable wrist extremes (seed 000, section 5.4). With a calibration that
+    /// measured the wrist (`wrist_range_deg`), it replaces `s_pitch(0)` and `s_yaw(0)` of Eq. 2
+    /// by `bend / reach` on each side of the neutral; otherwise it is unused. `None`: Eq. 2 with
+    /// the joint scales for every performer.
+    pub bend_range_deg: Option<[f32; 2]>,
     /// Jitter filter for this rig.
     pub filter: FilterSpec,
     /// Secondary elements.
@@ -94,54 +105,6 @@ pub struct GuidedSpec {
 
 fn unit_gains() -> [f64; 3] {
     [1.0; 3]
-}
-
-/// Procedural plant shapes (see `crate::mesh`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MeshShape {
-    /// A tapered grass blade.
-    Blade,
-    /// A stem with a head; the rig's secondary elements become leaves.
-    Flower,
-    /// A trunk with branches and leaf clusters.
-    Shrub,
-}
-
-impl MeshShape {
-    /// The name used in rig files.
-    pub fn name(self) -> &'static str {
-        match self {
-            MeshShape::Blade => "blade",
-            MeshShape::Flower => "flower",
-            MeshShape::Shrub => "shrub",
-        }
-    }
-}
-
-/// A rig's geometry: procedural, or a glTF/GLB file whose skin weights are used.
-#[derive(Debug, Clone, PartialEq)]
-pub enum MeshSpec {
-    /// Built by `crate::mesh::procedural_model`.
-    Procedural {
-        /// The shape.
-        shape: MeshShape,
-        /// Base width (blade) or stem/trunk diameter, metres (> 0).
-        width_m: f32,
-        /// Total height, metres (> the top joint); default: the top joint plus 3/4 of the top
-        /// segment.
-        height_m: Option<f32>,
-    },
-    /// A glTF/GLB file, relative to the rig file; read with `crate::gltf_mesh`.
-    File {
-        /// Path as written in the rig file.
-        path: String,
-    },
-}
-
-impl Default for MeshSpec {
-    fn default() -> Self {
-        MeshSpec::Procedural { shape: MeshShape::Blade, width_m: 0.012, height_m: None }
-    }
 }
 
 /// Why a rig file was refused.
@@ -193,69 +156,6 @@ fn default_tau() -> i64 {
     DEFAULT_TAU as i64
 }
 
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawMesh {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    shape: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    width_m: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    height_m: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    file: Option<String>,
-}
-
-impl RawMesh {
-    fn validate(&self, p: &mut Problems, top_joint_m: f32) -> MeshSpec {
-        if let Some(file) = &self.file {
-            if file.trim().is_empty() {
-                p.push("mesh.file", "must not be empty");
-            }
-            for (set, name) in [
-                (self.shape.is_some(), "shape"),
-                (self.width_m.is_some(), "width_m"),
-                (self.height_m.is_some(), "height_m"),
-            ] {
-                if set {
-                    p.push(format!("mesh.{name}"), "cannot be combined with mesh.file");
-                }
-            }
-            return MeshSpec::File { path: file.clone() };
-        }
-        let shape = match self.shape.as_deref() {
-            None | Some("blade") => MeshShape::Blade,
-            Some("flower") => MeshShape::Flower,
-            Some("shrub") => MeshShape::Shrub,
-            Some(other) => {
-                p.push("mesh.shape", format!("unknown shape `{other}` (expected blade, flower or shrub)"));
-                MeshShape::Blade
-            }
-        };
-        let width_m = self.width_m.unwrap_or(0.012);
-        p.positive("mesh.width_m", width_m);
-        if let Some(h) = self.height_m
-            && p.finite("mesh.height_m", h)
-            && h <= top_joint_m
-        {
-            p.push("mesh.height_m", format!("{h} must be above the top joint ({top_joint_m})"));
-        }
-        MeshSpec::Procedural { shape, width_m, height_m: self.height_m }
-    }
-
-    fn from_spec(spec: &MeshSpec) -> Self {
-        match spec {
-            MeshSpec::File { path } => RawMesh { file: Some(path.clone()), ..RawMesh::default() },
-            MeshSpec::Procedural { shape, width_m, height_m } => RawMesh {
-                shape: Some(shape.name().to_string()),
-                width_m: Some(*width_m),
-                height_m: *height_m,
-                file: None,
-            },
-        }
-    }
-}
-
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawRig {
@@ -266,6 +166,8 @@ struct RawRig {
     tau: i64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     thumb_range_deg: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    bend_range_deg: Option<[f32; 2]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     filter: Option<String>,
     joints: Vec<RawJoint>,
@@ -296,6 +198,17 @@ impl RawRig {
         let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
         for (k, v) in thumb_range_deg.iter().enumerate() {
             p.positive(format!("thumb_range_deg[{k}]"), *v);
+        }
+        for (k, v) in self.bend_range_deg.iter().flatten().enumerate() {
+            if !(v.is_finite() && *v > 0.0 && *v <= MAX_BEND_RANGE_DEG) {
+                p.push(
+                    format!("bend_range_deg[{k}]"),
+                    format!(
+                        "the {} bend range must be above 0 and at most {MAX_BEND_RANGE_DEG} degrees, found {v}",
+                        ["pitch", "yaw"][k]
+                    ),
+                );
+            }
         }
         let filter = match &self.filter {
             None => FilterSpec::None,
@@ -414,6 +327,7 @@ impl RawRig {
             joints,
             tau,
             thumb_range_deg,
+            bend_range_deg: self.bend_range_deg,
             filter,
             elements,
             mesh,
@@ -437,6 +351,7 @@ impl Rig {
             description: self.description.clone(),
             tau: self.tau as i64,
             thumb_range_deg: Some(self.thumb_range_deg),
+            bend_range_deg: self.bend_range_deg,
             filter: Some(self.filter.to_string()),
             joints: self
                 .joints
@@ -467,7 +382,8 @@ impl Rig {
         toml::to_string(&raw).unwrap_or_default()
     }
 
-    /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`.
+    /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`,
+    /// and the desired root bend range (section 5.4).
     pub fn mapping(&self) -> MappingParams {
         MappingParams {
             scale: std::array::from_fn(|i| {
@@ -475,6 +391,7 @@ impl Rig {
                 [j.s_pitch, j.s_yaw, j.s_roll]
             }),
             tau: self.tau,
+            bend_range_deg: self.bend_range_deg,
         }
     }
 
@@ -500,6 +417,29 @@ mod guided_tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("guided.sigma_s[1]") && err.contains("guided.sigma_s[2]"), "{err}");
+    }
+
+    #[test]
+    fn bend_range_parses_round_trips_and_is_validated() {
+        let rig = Rig::from_toml_str(&format!("bend_range_deg = [20.0, 15.5]\n{BASE}")).unwrap();
+        assert_eq!(rig.bend_range_deg, Some([20.0, 15.5]));
+        assert_eq!(rig.mapping().bend_range_deg, Some([20.0, 15.5]));
+        assert_eq!(Rig::from_toml_str(&rig.to_toml_string()).unwrap(), rig);
+        let none = Rig::from_toml_str(BASE).unwrap();
+        assert_eq!(none.bend_range_deg, None);
+        assert!(!none.to_toml_string().contains("bend_range_deg"));
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [0, 181]\n{BASE}")).unwrap_err().to_string();
+        assert!(
+            err.contains(
+                "bend_range_deg[0]: the pitch bend range must be above 0 and at most 180 degrees, found 0"
+            ),
+            "{err}"
+        );
+        assert!(err.contains("bend_range_deg[1]: the yaw bend range") && err.contains("found 181"), "{err}");
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [nan, -3]\n{BASE}")).unwrap_err().to_string();
+        assert!(err.contains("bend_range_deg[0]") && err.contains("found -3"), "{err}");
+        let err = Rig::from_toml_str(&format!("bend_range_deg = [10]\n{BASE}")).unwrap_err().to_string();
+        assert!(err.contains("bend_range_deg"), "{err}");
     }
 }
 

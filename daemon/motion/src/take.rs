@@ -447,7 +447,9 @@ pub fn scan_take(bytes: &[u8]) -> Result<TakeScan, TakeError> {
 /// Resamples poses at a fixed rate by linear interpolation of every angle.
 ///
 /// Output frame `k` has `t = k / fps`, relative to the first input frame, for every
-/// `k / fps <= duration` (so the take's whole duration is covered and the output starts at 0).
+/// `k / fps <= duration` up to a twentieth of a frame (the one rule of
+/// [`crate::clip::frame_count`]), so the take's whole duration is covered, the output starts at
+/// 0, and `n` frames at `fps` with rounded time stamps resample to `n` frames.
 /// Input times must be non-decreasing (as recorded); a frame whose time is not after the
 /// previous one is skipped. Empty input gives empty output; one frame gives one frame at `t = 0`;
 /// a non-positive or non-finite `fps` gives empty output. At most [`MAX_RESAMPLED_FRAMES`].
@@ -460,13 +462,7 @@ pub fn resample(frames: &[PoseFrame], fps: f64) -> Vec<PoseFrame> {
     }
     let t0 = first.t;
     let duration = frames.last().map_or(0.0, |l| l.t - t0);
-    let count = if duration.is_finite() && duration > 0.0 {
-        // A tolerance so that a duration of exactly k/fps (up to rounding) includes frame k.
-        ((duration * fps + 1e-9).floor() as usize).saturating_add(1)
-    } else {
-        1
-    };
-    let count = count.min(MAX_RESAMPLED_FRAMES);
+    let count = crate::clip::frame_count(duration, fps);
     let mut out = Vec::with_capacity(count);
     let mut j = 0; // frames[j] is the last frame at or before the target time
     for k in 0..count {

@@ -53,11 +53,18 @@ proptest! {
         neutral_w in [finite(), finite(), finite()],
         neutral_g in [finite(), finite(), finite()],
         range in [positive(), positive(), positive()],
+        bend in prop::option::of([positive(), positive()]),
+        reach in prop::option::of([[positive(), positive()], [positive(), positive()]]),
         filter in spec(),
         samples in prop::collection::vec(sample(), 1..40),
     ) {
-        let cal = CalibrationParams { neutral_wrist_deg: neutral_w, neutral_thumb_deg: neutral_g, thumb_range_deg: range };
-        let mut m = Mapper::new(MappingParams { scale, tau }, cal, filter);
+        let cal = CalibrationParams {
+            neutral_wrist_deg: neutral_w,
+            neutral_thumb_deg: neutral_g,
+            thumb_range_deg: range,
+            wrist_reach_deg: reach,
+        };
+        let mut m = Mapper::new(MappingParams { scale, tau, bend_range_deg: bend }, cal, filter);
         for s in &samples {
             let (c, p) = m.process(s);
             prop_assert!(all_finite(&c, &p), "{s:?} -> {c:?} {p:?}");

@@ -164,7 +164,7 @@ impl Baker {
                 layers.times_s.len()
             ));
         }
-        let keys = (duration_s * fps + 1e-9).floor() as usize + 1;
+        let keys = frond_motion::clip::frame_count(duration_s, fps);
         let times_s: Vec<f64> = (0..keys).map(|k| k as f64 / fps).collect();
 
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
