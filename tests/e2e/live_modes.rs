@@ -6,7 +6,7 @@ use std::collections::HashSet;
 use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
-use frond_motion::field::{FieldParams, make_field};
+use frond_motion::field::FieldParams;
 use frond_protocol::{ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 
@@ -69,7 +69,8 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     );
 
     // A 3x4 field of the global take, steered by keys.
-    let field = make_field(
+    daemon.start_field(
+        "global",
         &FieldParams {
             rows: 3,
             cols: 4,
@@ -79,23 +80,9 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
             density: 1.0,
             seed: 7,
         },
-        "global",
         60,
-        30.0,
-    )
-    .unwrap();
-    let field_path = dir.path().join("field.json");
-    std::fs::write(&field_path, field.to_json()).unwrap();
-    daemon.frond_ok(&[
-        "field",
-        "start",
-        "--take",
-        "global",
-        "--field",
-        field_path.to_str().unwrap(),
-        "--plants",
-        "5",
-    ]);
+        5,
+    );
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     // Plants are announced elements: their ids come from the table, not from a number range.
     let table = sub.elements().clone();

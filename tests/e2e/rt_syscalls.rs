@@ -10,7 +10,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use frond_e2e::{Daemon, fuse_available};
-use frond_motion::field::{FieldParams, make_field};
+use frond_motion::field::FieldParams;
 use frond_sdk::Subscriber;
 
 /// The id of `pid`'s thread named `name`.
@@ -48,7 +48,8 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
     daemon.frond_ok(&["record", "start", "global"]);
     std::thread::sleep(Duration::from_millis(1500));
     daemon.frond_ok(&["record", "stop"]);
-    let field = make_field(
+    daemon.start_field(
+        "global",
         &FieldParams {
             rows: 4,
             cols: 4,
@@ -58,23 +59,9 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
             density: 1.0,
             seed: 1,
         },
-        "global",
         45,
-        30.0,
-    )
-    .unwrap();
-    let field_path = dir.path().join("field.json");
-    std::fs::write(&field_path, field.to_json()).unwrap();
-    daemon.frond_ok(&[
-        "field",
-        "start",
-        "--take",
-        "global",
-        "--field",
-        field_path.to_str().unwrap(),
-        "--plants",
-        "16",
-    ]);
+        16,
+    );
     daemon.frond_ok(&["guided", "sigma=0.1,0.2,0.3"]);
     daemon.frond_ok(&["record", "layer", "leafy", "--layer", "leaf", "--over", "global"]);
     let status = daemon.status();

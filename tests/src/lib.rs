@@ -169,6 +169,31 @@ impl Daemon {
         String::from_utf8_lossy(&out.stdout).into_owned()
     }
 
+    /// Writes a field of take `take` (`frames` frames at 30 FPS) made with `params` into the
+    /// daemon's directory and starts it with `frond field start`, publishing `plants` plants.
+    pub fn start_field(
+        &self,
+        take: &str,
+        params: &frond_motion::field::FieldParams,
+        frames: usize,
+        plants: u16,
+    ) {
+        let field = frond_motion::field::make_field(params, take, frames, 30.0).expect("make the field");
+        let path = self.takes_dir.with_file_name("field.json");
+        std::fs::write(&path, field.to_json()).expect("write field.json");
+        let plants = plants.to_string();
+        self.frond_ok(&[
+            "field",
+            "start",
+            "--take",
+            take,
+            "--field",
+            path.to_str().unwrap(),
+            "--plants",
+            &plants,
+        ]);
+    }
+
     /// A `frond` command pointed at this daemon.
     pub fn frond(&self) -> Command {
         let mut cmd = Command::new(bin("frond"));

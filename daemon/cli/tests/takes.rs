@@ -42,9 +42,8 @@ fn frame(seq: u64, t: f64, flags: PoseFlags) -> TakeFrame {
     }
 }
 
-/// 101 samples at 100 Hz from t = 2 s to 3 s, each followed by a held repeat (the daemon at
-/// 200 Hz), one marker, and an End record when `end`.
-fn build_take(name: &str, end: bool) -> (Vec<u8>, Vec<TakeFrame>) {
+/// The file start and header record of a grass take named `name`, recorded at `tick_rate_hz`.
+fn take_start(name: &str, tick_rate_hz: u32) -> Vec<u8> {
     let mut bytes = Vec::new();
     encode_file_start(&mut bytes);
     encode_record(
@@ -53,13 +52,20 @@ fn build_take(name: &str, end: bool) -> (Vec<u8>, Vec<TakeFrame>) {
             rig_name: "grass".into(),
             calibration_id: "none".into(),
             filter: "none".into(),
-            tick_rate_hz: 200,
+            tick_rate_hz,
             created_unix_s: 1_700_000_000,
             daemon_version: "0.1.0".into(),
             joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
         }),
         &mut bytes,
     );
+    bytes
+}
+
+/// 101 samples at 100 Hz from t = 2 s to 3 s, each followed by a held repeat (the daemon at
+/// 200 Hz), one marker, and an End record when `end`.
+fn build_take(name: &str, end: bool) -> (Vec<u8>, Vec<TakeFrame>) {
+    let mut bytes = take_start(name, 200);
     let mut frames = Vec::new();
     for i in 0..=100u64 {
         let t = 2.0 + i as f64 / 100.0;
@@ -273,21 +279,7 @@ fn export_accepts_a_path() {
 
 /// A take of `n` frames at `fps` whose times carry six decimals, as a recorded take's do.
 fn six_decimal_take(name: &str, n: usize, fps: f64) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    encode_file_start(&mut bytes);
-    encode_record(
-        &TakeRecord::Header(TakeHeader {
-            name: name.into(),
-            rig_name: "grass".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz: fps as u32,
-            created_unix_s: 1_700_000_000,
-            daemon_version: "0.1.0".into(),
-            joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
-        }),
-        &mut bytes,
-    );
+    let mut bytes = take_start(name, fps as u32);
     for k in 0..n {
         let t: f64 = format!("{:.6}", k as f64 / fps).parse().unwrap();
         encode_record(&TakeRecord::Frame(frame(k as u64, t, PoseFlags::FILTERED)), &mut bytes);
