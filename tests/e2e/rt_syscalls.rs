@@ -122,11 +122,11 @@ fn the_loop_thread_makes_no_futex_call_with_every_stage_running() {
         }
         counts
     }
-    // The trace saw the loop at work: it sends to subscribers and waits for deadlines or reports
-    // (fewer waits than ticks: under ptrace every call is slow and the loop runs behind).
+    // The trace saw the loop at work: it sends to subscribers and reads the device. (It may
+    // hardly wait at all: under ptrace every call is slow and the loop runs behind.)
     let sends = rt_calls.iter().filter(|c| c.starts_with("send")).count();
-    let waits = rt_calls.iter().filter(|c| ["ppoll", "clock_nanosleep"].contains(&c.as_str())).count();
-    assert!(sends > 1000 && waits > 50, "the trace of frond-rt saw {:?}", count(&rt_calls));
+    let reads = rt_calls.iter().filter(|c| ["read", "recvfrom", "ioctl"].contains(&c.as_str())).count();
+    assert!(sends > 1000 && reads > 100, "the trace of frond-rt saw {:?}", count(&rt_calls));
     // The control: the recorder parks between polls, and the trace shows it.
     assert!(
         recorder_calls.iter().any(|c| c == "futex"),

@@ -92,3 +92,49 @@ fn in_process_and_replay_reads_allocate_nothing() {
     count_reads(&mut replay, 1);
     assert_eq!(count_reads(&mut replay, 199), 0);
 }
+
+/// The OSC source is read and decoded by the loop itself: single messages and bundles (some
+/// larger than the caller's buffer, the rest kept for the next call) allocate nothing.
+#[test]
+fn osc_reads_and_decodes_allocate_nothing() {
+    use rosc::{OscBundle, OscMessage, OscPacket, OscTime, OscType};
+    let mut src = frond_device::OscHandSource::bind("127.0.0.1:0").unwrap();
+    let to = src.local_addr();
+    let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let hand = |k: usize| {
+        OscPacket::Message(OscMessage {
+            addr: frond_device::source::OSC_HAND_ADDRESS.into(),
+            args: [k as f32 * 0.001, k as f32 % 90.0, 0.0, 0.0, 5.0, 5.0, 5.0]
+                .into_iter()
+                .map(OscType::Float)
+                .collect(),
+        })
+    };
+    let mut k = 0;
+    let mut send = |n_in_bundle: usize| {
+        let packet = if n_in_bundle == 0 {
+            k += 1;
+            hand(k)
+        } else {
+            let content = (0..n_in_bundle)
+                .map(|_| {
+                    k += 1;
+                    hand(k)
+                })
+                .collect();
+            OscPacket::Bundle(OscBundle { timetag: OscTime::from((0, 1)), content })
+        };
+        tx.send_to(&rosc::encoder::encode(&packet).unwrap(), to).unwrap();
+    };
+    send(0);
+    count_reads(&mut src, 1);
+    // 100 single messages and 5 bundles of 40 (the 16-sample read buffer overflows each time).
+    for _ in 0..100 {
+        send(0);
+    }
+    for _ in 0..5 {
+        send(40);
+    }
+    assert_eq!(count_reads(&mut src, 300), 0);
+    assert_eq!(src.counters().snapshot().reports, 301);
+}

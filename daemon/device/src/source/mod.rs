@@ -8,6 +8,7 @@ use crate::report::{DeviceSample, SourceCounters};
 
 mod hid;
 mod osc;
+mod osc_wire;
 mod replay;
 
 pub use hid::HidSource;

@@ -6,28 +6,29 @@
 //! and dropped: undecodable datagrams and wrong argument lists as `malformed`, other addresses as
 //! `wrong_id`, non-finite or beyond +-360 degree values as `out_of_range`.
 //!
-//! Decoding OSC allocates (rosc builds owned messages), so it runs on a receiver thread; the
-//! realtime loop only `try_recv`s finished [`DeviceSample`]s from a bounded queue.
+//! The realtime loop polls the UDP socket itself (its ready descriptor) and decodes each datagram
+//! in place with the allocation-free [`super::osc_wire`] decoder: one hop from the tracker to the
+//! subscribers, no receiver thread. [`decode_hand_packet`] (rosc, allocating) is the reference
+//! the in-place decoder is tested against, and what the fuzzer drives.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
-use std::time::Duration;
+use std::sync::atomic::Ordering;
 
-use crossbeam_channel::{Receiver, Sender, TrySendError};
 use frond_motion::HandSample;
 use rosc::{OscPacket, OscType};
 
+use super::osc_wire::{MAX_ABS_DEG, MAX_BUNDLE_DEPTH, Reject, for_each_hand};
 use super::{HandSource, SourceError, SourceKind};
-use crate::doorbell::Doorbell;
 use crate::report::{DeviceSample, SourceCounters};
 
 /// The OSC address of a hand sample.
 pub const OSC_HAND_ADDRESS: &str = "/frond/hand";
-/// Largest accepted angle magnitude, degrees.
-const MAX_ABS_DEG: f64 = 360.0;
-const QUEUE_LEN: usize = 1024;
+/// Largest UDP datagram.
+const DATAGRAM_MAX: usize = 65_536;
+/// Samples one datagram can hold at most (a `/frond/hand` message takes 52 bytes in a bundle):
+/// what does not fit the caller's buffer waits here for the next `read_pending`.
+const PENDING_MAX: usize = DATAGRAM_MAX / 48 + 1;
 
 /// Why one OSC message was dropped.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -84,10 +85,8 @@ fn collect(packet: &OscPacket, out: &mut Vec<Result<HandSample, OscHandError>>) 
     }
 }
 
-/// Deepest bundle nesting accepted. rosc decodes nested bundles recursively, so one datagram of
-/// a few thousand nested bundles (64 KiB holds over 3000) would overflow the receiver thread's
-/// stack and abort the daemon; trackers send flat bundles.
-const MAX_BUNDLE_DEPTH: usize = 16;
+// MAX_BUNDLE_DEPTH: rosc decodes nested bundles recursively, so one datagram of a few thousand
+// nested bundles (64 KiB holds over 3000) would overflow the stack and abort the daemon.
 
 /// How deep bundles nest in `datagram` (0 for a message), walking the element size fields
 /// without recursion; stops counting once past `limit`.
@@ -128,104 +127,82 @@ pub fn decode_hand_packet(datagram: &[u8]) -> Vec<Result<HandSample, OscHandErro
     }
 }
 
-/// Hand samples received as OSC over UDP.
+/// Hand samples received as OSC over UDP, read and decoded by the loop itself.
 pub struct OscHandSource {
-    rx: Receiver<DeviceSample>,
-    /// Rung by the receiver thread per queued sample: the loop's ready descriptor.
-    bell: Arc<Doorbell>,
+    socket: UdpSocket,
+    buf: Box<[u8]>,
+    /// Samples of the last datagram that did not fit the caller's buffer, in order.
+    pending: Box<[DeviceSample]>,
+    pending_at: usize,
+    pending_len: usize,
+    seq: u32,
     counters: Arc<SourceCounters>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
     describe: String,
     local: SocketAddr,
 }
 
 impl OscHandSource {
-    /// Binds `addr` (e.g. `127.0.0.1:9001`) and starts the receiver thread.
+    /// Binds `addr` (e.g. `127.0.0.1:9001`), non-blocking.
     pub fn bind(addr: &str) -> Result<Self, SourceError> {
         let what = format!("osc://{addr}");
-        let socket = UdpSocket::bind(addr)
-            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
-        socket
-            .set_read_timeout(Some(Duration::from_millis(100)))
-            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
-        let local = socket
-            .local_addr()
-            .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?;
-        let (tx, rx) = crossbeam_channel::bounded(QUEUE_LEN);
-        let counters = Arc::new(SourceCounters::default());
-        let stop = Arc::new(AtomicBool::new(false));
-        let bell = Arc::new(
-            Doorbell::new().map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?,
-        );
-        let thread = {
-            let (counters, stop, bell) = (Arc::clone(&counters), Arc::clone(&stop), Arc::clone(&bell));
-            std::thread::Builder::new()
-                .name("frond-osc-in".into())
-                .spawn(move || receive(socket, tx, counters, stop, &bell))
-                .map_err(|e| SourceError::Open { what: what.clone(), reason: e.to_string() })?
-        };
-        Ok(Self { rx, bell, counters, stop, thread: Some(thread), describe: format!("osc://{local}"), local })
+        let open_err = |e: std::io::Error| SourceError::Open { what: what.clone(), reason: e.to_string() };
+        let socket = UdpSocket::bind(addr).map_err(open_err)?;
+        socket.set_nonblocking(true).map_err(open_err)?;
+        let local = socket.local_addr().map_err(open_err)?;
+        Ok(Self {
+            socket,
+            buf: vec![0u8; DATAGRAM_MAX].into_boxed_slice(),
+            pending: vec![DeviceSample::default(); PENDING_MAX].into_boxed_slice(),
+            pending_at: 0,
+            pending_len: 0,
+            seq: 0,
+            counters: Arc::new(SourceCounters::default()),
+            describe: format!("osc://{local}"),
+            local,
+        })
     }
 
     /// The bound address (useful with port 0).
     pub fn local_addr(&self) -> SocketAddr {
         self.local
     }
-}
 
-fn receive(
-    socket: UdpSocket,
-    tx: Sender<DeviceSample>,
-    counters: Arc<SourceCounters>,
-    stop: Arc<AtomicBool>,
-    bell: &Doorbell,
-) {
-    let mut buf = vec![0u8; 65_536];
-    let mut seq = 0u32;
-    let bump = |c: &std::sync::atomic::AtomicU64| c.fetch_add(1, Ordering::Relaxed);
-    while !stop.load(Ordering::Relaxed) {
-        let n = match socket.recv(&mut buf) {
-            Ok(n) => n,
-            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
-                continue;
-            }
-            Err(_) => continue,
-        };
-        for item in decode_hand_packet(&buf[..n]) {
-            match item {
-                Ok(hand) => {
-                    seq = seq.wrapping_add(1);
-                    let sample = DeviceSample {
-                        device_seq: seq,
-                        device_time_us: (hand.t * 1e6).round() as u64,
-                        raw: hand,
-                        flex_deg: [0.0; 4],
-                        status: 1,
-                    };
-                    match tx.try_send(sample) {
-                        Ok(()) => {
-                            bump(&counters.reports);
-                            bell.ring();
-                        }
-                        // The loop drains every tick; a full queue means it is gone or stuck.
-                        Err(TrySendError::Full(_)) => {
-                            bump(&counters.seq_gaps);
-                        }
-                        Err(TrySendError::Disconnected(_)) => return,
-                    }
-                }
-                Err(OscHandError::Malformed(_)) => {
-                    bump(&counters.malformed);
-                }
-                Err(OscHandError::OtherAddress(_)) => {
-                    bump(&counters.wrong_id);
-                }
-                Err(OscHandError::OutOfRange(_)) => {
-                    bump(&counters.out_of_range);
+    /// Decodes the datagram in `buf[..len]`: samples into `out[n..]`, the rest into `pending`.
+    fn decode(&mut self, len: usize, out: &mut [DeviceSample], n: &mut usize) {
+        let Self { buf, pending, pending_len, seq, counters, .. } = self;
+        let bump = |c: &std::sync::atomic::AtomicU64| c.fetch_add(1, Ordering::Relaxed);
+        for_each_hand(&buf[..len], &mut |item| match item {
+            Ok(hand) => {
+                *seq = seq.wrapping_add(1);
+                let sample = DeviceSample {
+                    device_seq: *seq,
+                    device_time_us: (hand.t * 1e6).round() as u64,
+                    raw: hand,
+                    flex_deg: [0.0; 4],
+                    status: 1,
+                };
+                bump(&counters.reports);
+                if *n < out.len() {
+                    out[*n] = sample;
+                    *n += 1;
+                } else if *pending_len < pending.len() {
+                    pending[*pending_len] = sample;
+                    *pending_len += 1;
+                } else {
+                    // Cannot happen: a datagram holds at most PENDING_MAX messages.
+                    bump(&counters.seq_gaps);
                 }
             }
-        }
+            Err(Reject::Malformed) => {
+                bump(&counters.malformed);
+            }
+            Err(Reject::OtherAddress) => {
+                bump(&counters.wrong_id);
+            }
+            Err(Reject::OutOfRange) => {
+                bump(&counters.out_of_range);
+            }
+        });
     }
 }
 
@@ -239,19 +216,29 @@ impl HandSource for OscHandSource {
     }
 
     fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
-        Some(self.bell.fd())
+        Some(std::os::fd::AsRawFd::as_raw_fd(&self.socket))
     }
 
+    /// Takes what the last datagram left, then every datagram waiting on the socket until `out`
+    /// is full; never blocks, never allocates.
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
-        // Quiet the bell first: a sample queued after this rings it again.
-        self.bell.drain();
         let mut n = 0;
+        while n < out.len() && self.pending_at < self.pending_len {
+            out[n] = self.pending[self.pending_at];
+            self.pending_at += 1;
+            n += 1;
+        }
+        if self.pending_at == self.pending_len {
+            (self.pending_at, self.pending_len) = (0, 0);
+        } else {
+            return Ok(n);
+        }
         while n < out.len() {
-            match self.rx.try_recv() {
-                Ok(s) => {
-                    out[n] = s;
-                    n += 1;
-                }
+            match self.socket.recv(&mut self.buf) {
+                Ok(len) => self.decode(len, out, &mut n),
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                // WouldBlock: nothing more; anything else (an ICMP error on a UDP socket) is
+                // not a lost source either.
                 Err(_) => break,
             }
         }
@@ -268,17 +255,10 @@ impl HandSource for OscHandSource {
     }
 }
 
-impl Drop for OscHandSource {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use std::time::Duration;
+
     use super::*;
 
     /// One hand message inside `depth` nested bundles, each level's size field covering the rest.
@@ -308,6 +288,12 @@ mod tests {
         assert!(matches!(&ok[..], [Ok(_)]), "{ok:?}");
         assert_eq!(bundle_depth(&hand_bytes(), MAX_BUNDLE_DEPTH), 0);
         assert_eq!(bundle_depth(&nested_bundles(3), MAX_BUNDLE_DEPTH), 3);
+        // The loop's own decoder refuses it too (without recursing into 3200 levels).
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        src.buf[..deep.len()].copy_from_slice(&deep);
+        let (mut out, mut n) = ([DeviceSample::default(); 4], 0);
+        src.decode(deep.len(), &mut out, &mut n);
+        assert_eq!((n, src.counters().snapshot().malformed), (0, 1));
     }
 
     /// `/frond/hand ,fffffff` with t = 0.5, wrist 10 -20 30, thumb 1 2 3, encoded by hand.
