@@ -3,7 +3,8 @@
 //!
 //! Sections (issue 9): [`timing::loop_timing`] (1), [`latency::glove_latency`] (2),
 //! [`tick::tick_cost`] (3), [`timing::max_rate`] (4), [`resources::daemon_resources`] (5) and
-//! [`components::components`] (6). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! [`components::components`] (6), [`osc_latency::osc_latency`] (7: the OSC source against a
+//! do-nothing relay, `frond-relay`). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
@@ -12,6 +13,7 @@ pub mod alloc;
 pub mod components;
 pub mod latency;
 pub mod loops;
+pub mod osc_latency;
 pub mod procs;
 pub mod report;
 pub mod resources;
@@ -25,8 +27,15 @@ use std::time::Instant;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
-pub const SECTIONS: [&str; 6] =
-    ["loop_timing", "glove_latency", "tick_cost", "max_rate", "daemon_resources", "components"];
+pub const SECTIONS: [&str; 7] = [
+    "loop_timing",
+    "glove_latency",
+    "tick_cost",
+    "max_rate",
+    "daemon_resources",
+    "components",
+    "osc_latency",
+];
 
 /// What to run.
 #[derive(Debug, Clone, Default)]
@@ -54,6 +63,7 @@ fn title(name: &str) -> &'static str {
         "tick_cost" => "per-tick cost and allocations",
         "max_rate" => "highest sustainable tick rate with 8 subscribers",
         "daemon_resources" => "frondd CPU and memory at 1 kHz with 4 subscribers",
+        "osc_latency" => "OSC hand sample -> subscriber receipt vs a do-nothing relay",
         _ => "motion toolkit and exporters",
     }
 }
@@ -82,6 +92,7 @@ pub fn run(options: &Options) -> Report {
             "tick_cost" => tick::tick_cost(options),
             "max_rate" => timing::max_rate(options, priority),
             "daemon_resources" => resources::daemon_resources(options),
+            "osc_latency" => osc_latency::osc_latency(options),
             _ => Ok(components::components(options)),
         };
         let mut section =

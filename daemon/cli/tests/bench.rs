@@ -10,8 +10,15 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const SECTIONS: [&str; 6] =
-    ["loop_timing", "glove_latency", "tick_cost", "max_rate", "daemon_resources", "components"];
+const SECTIONS: [&str; 7] = [
+    "loop_timing",
+    "glove_latency",
+    "tick_cost",
+    "max_rate",
+    "daemon_resources",
+    "components",
+    "osc_latency",
+];
 const PARTS: [&str; 5] = ["field_playback", "loop_synthesis", "gltf_bake", "warp", "osc"];
 
 fn frond() -> Command {
@@ -34,7 +41,7 @@ fn bench_json(sections: &[&str]) -> (Value, String) {
 
 fn bins_present() -> bool {
     let dir = Path::new(env!("CARGO_BIN_EXE_frond")).parent().unwrap();
-    dir.join("frondd").is_file() && dir.join("frond-vhid").is_file()
+    dir.join("frondd").is_file() && dir.join("frond-vhid").is_file() && dir.join("frond-relay").is_file()
 }
 
 /// Every measurement of a section and its parts, as (path, measurement).
@@ -100,6 +107,7 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
     let mut must_be_ok = vec!["loop_timing", "tick_cost", "max_rate", "components"];
     if bins_present() {
         must_be_ok.push("daemon_resources");
+        must_be_ok.push("osc_latency");
         if Path::new("/dev/fuse").exists() {
             must_be_ok.push("glove_latency");
         }
