@@ -373,7 +373,7 @@ impl ControlContext {
         // Wait until the loop has stopped forwarding frames, so that every frame it sent is
         // queued before the Stop message and lands in the take.
         let deadline = Instant::now() + Duration::from_secs(2);
-        while self.stats.recording.load(Relaxed) && Instant::now() < deadline {
+        while self.stats.recording.load(std::sync::atomic::Ordering::Acquire) && Instant::now() < deadline {
             thread::sleep(Duration::from_millis(1));
         }
         let (tx, rx) = bounded(1);

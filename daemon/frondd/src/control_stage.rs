@@ -137,7 +137,7 @@ impl ControlContext {
             return refuse(ControlErrorKind::BadName, e);
         }
         let mut state = self.lock();
-        if name == LAYER_STAGE && state.stages.slot_of(name).is_some() {
+        if name == LAYER_STAGE && state.stages.slot_of(name).is_some() && state.recording.is_some() {
             return refuse(
                 ControlErrorKind::WrongState,
                 "a layer is being recorded: `frond record stop` ends it",
@@ -253,6 +253,12 @@ impl ControlContext {
             }
             (None, None) => return Ok(()),
         };
+        if let Some((id, other)) = built.as_ref().and_then(|b| state.stages.collision(slot, b)) {
+            return Err(refuse(
+                ControlErrorKind::WrongState,
+                format!("stage {other:?} already publishes element {id}; stop it first"),
+            ));
+        }
         let running = built.as_ref().map(|b| Running::new(name, b));
         let previous = state.stages.replace(slot, running);
         let (table, frame) = match self.encode_table(state) {

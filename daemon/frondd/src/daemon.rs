@@ -132,6 +132,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let publish_wake = publish_queue.wake();
     let (slow_tx, slow_rx) = bounded(crate::engine::MAX_SUBSCRIBERS);
     let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
+    let elements_cell = Arc::new(crate::publisher::ElementsCell::default());
     let engine = Engine::new(
         mapper,
         opened.source.take(),
@@ -144,6 +145,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             reopen: reopen_tx,
             garbage: garbage_tx,
             stats: stats.clone(),
+            elements: elements_cell.clone(),
         },
     );
 
@@ -191,7 +193,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             allowed_gids: config.allowed_gids.clone(),
         },
         test_hooks,
-        elements_cell: Arc::default(),
+        elements_cell,
     });
     // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
     {

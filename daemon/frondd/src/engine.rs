@@ -80,6 +80,8 @@ pub struct EngineLinks {
     pub garbage: Sender<Garbage>,
     /// Counters read by status.
     pub stats: Arc<LoopStats>,
+    /// The element table for the slow lane; the loop marks each table applied in it.
+    pub elements: Arc<crate::publisher::ElementsCell>,
 }
 
 /// The far ends of an engine's channels, from [`Engine::with_channels`].
@@ -100,6 +102,8 @@ pub struct EngineEnds {
     pub garbage: Receiver<Garbage>,
     /// The loop's counters.
     pub stats: Arc<LoopStats>,
+    /// The element table cell the loop marks applied tables in.
+    pub elements: Arc<crate::publisher::ElementsCell>,
 }
 
 /// The loop's outputs: sequence numbers, lanes, queues. Apart from the stages, so that a stage
@@ -161,6 +165,8 @@ pub struct Engine {
     stages: Box<[Option<Box<dyn LiveStage>>]>,
     /// Whether some stage has work at every tick.
     stages_every_tick: bool,
+    /// The element the hand is published as (0, or a layer's while one records).
+    hand_element: u16,
     last: Pose,
     last_hand: HandSample,
     last_report_ns: u64,
@@ -197,6 +203,7 @@ impl Engine {
             },
             stages: (0..MAX_STAGES).map(|_| None).collect(),
             stages_every_tick: false,
+            hand_element: 0,
             last,
             last_hand: HandSample::default(),
             last_report_ns: now,
@@ -222,6 +229,7 @@ impl Engine {
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
         let (slow_tx, slow_rx) = crossbeam_channel::bounded(MAX_SUBSCRIBERS);
         let stats = Arc::new(LoopStats::default());
+        let elements = Arc::new(crate::publisher::ElementsCell::default());
         let publish_wake = publish.wake();
         let links = EngineLinks {
             commands: cmd_rx,
@@ -231,6 +239,7 @@ impl Engine {
             reopen: reopen_tx,
             garbage: garbage_tx,
             stats: stats.clone(),
+            elements: elements.clone(),
         };
         let ends = EngineEnds {
             commands: cmd_tx,
@@ -241,6 +250,7 @@ impl Engine {
             reopen: reopen_rx,
             garbage: garbage_rx,
             stats,
+            elements,
         };
         (Engine::new(mapper, source, stall_after_ns, links), ends)
     }
@@ -307,6 +317,7 @@ impl Engine {
             held.flags.insert(PoseFlags::HELD);
             held.flags.set(PoseFlags::DEVICE_LOST, self.device_lost);
             held.flags.set(PoseFlags::RECORDING, self.out.recording);
+            held.element = self.hand_element;
             self.out.publish(held);
         }
         self.out.links.stats.ticks.fetch_add(1, Relaxed);
@@ -320,7 +331,9 @@ impl Engine {
                 LoopCommand::SetFilter(f) => self.mapper.set_filter(f),
                 LoopCommand::SetRecording(on) => {
                     self.out.recording = on;
-                    self.out.links.stats.recording.store(on, Relaxed);
+                    // Release: the recorder's stop, seeing `false`, also sees every frame
+                    // pushed before it.
+                    self.out.links.stats.recording.store(on, Release);
                 }
                 LoopCommand::Stage(cmd) => self.apply_stage(cmd),
                 LoopCommand::AddSubscriber(mut new) => {
@@ -357,6 +370,7 @@ impl Engine {
             StageAction::Install(stage) => {
                 std::mem::swap(&mut self.stages[slot], stage);
                 self.stages_every_tick = self.stages.iter().flatten().any(|s| s.every_tick());
+                self.hand_element = self.stages.iter().flatten().find_map(|s| s.hand_element()).unwrap_or(0);
             }
             StageAction::Input(input) => {
                 if let Some(s) = self.stages[slot].as_mut() {
@@ -370,6 +384,8 @@ impl Engine {
             out.lanes.send_table(frame, cmd.elements_version, out.seq, &out.links.garbage);
             std::mem::swap(&mut out.elements_frame, frame);
             out.elements_version = cmd.elements_version;
+            // The slow lane sends it before this frame number too.
+            out.links.elements.applied(cmd.elements_version, out.seq);
         }
         cmd.applied.store(true, Release);
         if let Err(e) = self.out.links.garbage.try_send(Garbage::Stage(cmd)) {
@@ -437,7 +453,7 @@ impl Engine {
     fn publish_sample(&mut self, sample: &DeviceSample) {
         self.out.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
         let (hand, mut pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
-        let mut element = 0u16;
+        let mut element = self.hand_element;
         for stage in self.stages.iter_mut().flatten() {
             stage.on_hand(&hand, &mut pose, &mut element);
         }

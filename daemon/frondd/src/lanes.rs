@@ -32,9 +32,9 @@ use crate::publisher::{PublisherWake, SubscriberCounters};
 /// Largest element-table frame the daemon sends (the control side refuses a stage change whose
 /// table would be larger).
 pub const ELEMENTS_FRAME_MAX: usize = 16 * 1024;
-/// Longest unsent tail handed to the slow lane: the rest of a `Hello` (~200 bytes) and a whole
-/// element table, or the rest of one pose frame (~230 bytes).
-pub const TAIL_MAX: usize = 1024 + ELEMENTS_FRAME_MAX;
+/// Longest unsent tail handed to the slow lane: the rest of a `Hello` (which carries an element
+/// table) and a newer whole element table, or the rest of one pose frame (~230 bytes).
+pub const TAIL_MAX: usize = 1024 + 2 * ELEMENTS_FRAME_MAX;
 /// Bytes reserved for encoding one frame.
 const FRAME_BUF: usize = 4096;
 

@@ -289,14 +289,29 @@ pub fn spawn_publisher(
                 encode_frame(&ServerMessage::Pose(*p), &mut batch);
             }
             let now = Instant::now();
-            let (table_version, table) = tables.load();
+            // After taking the batch: the loop marks a table applied before it queues the first
+            // frame of the new table, so a frame at or after `table_from` in this batch is seen
+            // with its table.
+            let table = tables.load();
             subs.retain_mut(|s| {
-                if s.table_version < table_version && !table.is_empty() {
-                    s.offer_table(&table, table_version);
-                }
                 let owed = starts.iter().position(|&(seq, _)| seq >= s.from_seq);
                 if let Some(i) = owed {
-                    s.offer(&batch[starts[i].1..], (starts.len() - i) as u64);
+                    // A newer table goes right before the first frame published under it.
+                    let split = (s.table_version < table.version && table.from_seq != u64::MAX)
+                        .then(|| {
+                            starts[i..].iter().position(|&(seq, _)| seq >= table.from_seq).map(|k| i + k)
+                        })
+                        .flatten();
+                    match split {
+                        Some(j) => {
+                            if j > i {
+                                s.offer(&batch[starts[i].1..starts[j].1], (j - i) as u64);
+                            }
+                            s.offer_table(&table.frame, table.version);
+                            s.offer(&batch[starts[j].1..], (starts.len() - j) as u64);
+                        }
+                        None => s.offer(&batch[starts[i].1..], (starts.len() - i) as u64),
+                    }
                     s.from_seq = 0;
                 }
                 match s.flush(now, config.write_timeout) {
@@ -325,28 +340,60 @@ pub fn spawn_publisher(
 }
 
 /// The element table in force, encoded as a frame, for the slow lane (the loop sends it to the
-/// direct lanes itself). The control thread stores a new one before the loop starts the stages
-/// it describes, so a slow subscriber gets it no later than their first frame.
-#[derive(Default)]
+/// direct lanes itself). The control thread stores a new one before it sends the stage change;
+/// the loop marks it applied with the sequence number of the first frame published under it;
+/// the publisher sends it to a slow subscriber right before that frame, and never a table the
+/// loop did not apply.
 pub struct ElementsCell {
     frame: Mutex<Arc<[u8]>>,
     version: AtomicU64,
+    from_seq: AtomicU64,
+}
+
+impl Default for ElementsCell {
+    fn default() -> Self {
+        ElementsCell {
+            frame: Mutex::default(),
+            version: AtomicU64::new(0),
+            from_seq: AtomicU64::new(u64::MAX),
+        }
+    }
+}
+
+/// What [`ElementsCell::load`] returns.
+pub struct ElementsSnapshot {
+    /// Table version (0 before the first).
+    pub version: u64,
+    /// First frame published under it, or `u64::MAX` while the loop has not applied it.
+    pub from_seq: u64,
+    /// The encoded frame.
+    pub frame: Arc<[u8]>,
 }
 
 impl ElementsCell {
-    /// Stores table `version`, encoded.
+    /// Stores table `version`, encoded, not yet applied (control side).
     pub fn store(&self, version: u64, frame: &[u8]) {
-        *self.frame.lock().unwrap_or_else(|e| e.into_inner()) = Arc::from(frame);
+        let mut f = self.frame.lock().unwrap_or_else(|e| e.into_inner());
+        *f = Arc::from(frame);
+        self.from_seq.store(u64::MAX, SeqCst);
         self.version.store(version, SeqCst);
     }
 
-    /// The current version and frame (version 0 and no bytes before the first table).
-    pub fn load(&self) -> (u64, Arc<[u8]>) {
-        // Version first: a store between the two reads pairs an old version with the new frame,
-        // which is sent again at the next look (never the other way round, which would skip it).
+    /// The loop applied table `version` before frame `from_seq` (no lock, no allocation).
+    pub fn applied(&self, version: u64, from_seq: u64) {
+        if self.version.load(SeqCst) == version {
+            self.from_seq.store(from_seq, SeqCst);
+        }
+    }
+
+    /// The current table, consistent: version, where it applies from, and its frame.
+    pub fn load(&self) -> ElementsSnapshot {
+        let f = self.frame.lock().unwrap_or_else(|e| e.into_inner());
+        // Under the lock: a store cannot change the frame between these reads; `applied` only
+        // ever sets `from_seq` of the version it names.
         let version = self.version.load(SeqCst);
-        let frame = self.frame.lock().unwrap_or_else(|e| e.into_inner()).clone();
-        (version, frame)
+        let from_seq = self.from_seq.load(SeqCst);
+        ElementsSnapshot { version, from_seq, frame: f.clone() }
     }
 }
 

@@ -117,3 +117,131 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
     publisher.join().unwrap();
     assert_eq!(reader.join().unwrap(), first, "the Hello announced the first frame it got");
 }
+
+/// Publishes element 40 at every tick (a stand-in for a stage with elements of its own).
+struct Forty;
+
+impl frondd::stage::LiveStage for Forty {
+    fn tick(&mut self, _ctx: &frondd::stage::TickContext, out: &mut dyn frondd::stage::FrameSink) {
+        out.emit(40, [[1.0; 3]; 4]);
+    }
+    fn every_tick(&self) -> bool {
+        true
+    }
+}
+
+/// A subscriber on the slow lane gets a new element table exactly before the first frame
+/// published under it: never before (while frames of the old table still come), never after a
+/// frame of an element it announces.
+#[test]
+fn the_slow_lane_sends_a_new_table_right_before_its_first_frame() {
+    use frond_protocol::{ElementInfo, ElementKind, ElementTable};
+    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
+    let cal = frond_motion::Calibration::neutral_for(&rig);
+    let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
+    let source = Box::new(Steady { seq: 0, counters: Arc::default() });
+    let (mut engine, mut ends) = Engine::with_channels(mapper, Some(source), 250_000_000, 1 << 16, 16);
+    let config = PublisherConfig {
+        queue_frames: 100_000,
+        write_timeout: Duration::from_secs(30),
+        max_subscribers: 64,
+    };
+    let frames = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
+    let slow = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
+    let publisher =
+        spawn_publisher(frames, ends.publish_wake.clone(), slow, ends.elements.clone(), config).unwrap();
+    let (daemon_end, mut sub_end) = subscriber_pair(true);
+    // The reader waits, so the subscriber moves to the slow lane; then it reads everything.
+    let last_seq = Arc::new(AtomicU64::new(0));
+    let last = last_seq.clone();
+    let go = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let start = go.clone();
+    let reader = std::thread::spawn(move || {
+        while !start.load(Relaxed) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let mut buf = Vec::new();
+        let mut seen = Vec::new();
+        while let Ok(msg) = read_frame::<ServerMessage, _>(&mut sub_end, &mut buf) {
+            if let ServerMessage::Pose(p) = &msg {
+                last.store(p.seq, Relaxed);
+            }
+            seen.push(msg);
+        }
+        seen
+    });
+    let mut now = 1_000_000_000u64;
+    ends.commands.send(new_lane(7, daemon_end, Arc::new(SubscriberCounters::default()))).unwrap();
+    for _ in 0..200 {
+        now += 1_000_000;
+        engine.tick(now);
+    }
+    assert_eq!(engine.lanes().demoted(), 1, "the subscriber is on the slow lane");
+    // As the control side does: the cell first, then the command that installs the stage.
+    let table = ElementTable {
+        version: 2,
+        rigs: vec![],
+        elements: vec![ElementInfo {
+            id: 40,
+            name: "forty".into(),
+            kind: ElementKind::FieldPlant,
+            source: "test".into(),
+            rig: "grass".into(),
+        }],
+    };
+    let mut frame = Vec::new();
+    frond_protocol::encode_frame(&ServerMessage::Elements(table.clone()), &mut frame);
+    ends.elements.store(2, &frame);
+    // Frames published after the store but before the loop applies it are of the old table.
+    for _ in 0..50 {
+        now += 1_000_000;
+        engine.tick(now);
+        std::thread::sleep(Duration::from_micros(300));
+    }
+    ends.commands
+        .send(frondd::engine::LoopCommand::Stage(Box::new(frondd::stage::StageCommand {
+            slot: 0,
+            action: frondd::stage::StageAction::Install(Some(Box::new(Forty))),
+            elements_frame: Some(frame),
+            elements_version: 2,
+            applied: Arc::default(),
+        })))
+        .unwrap();
+    for _ in 0..200 {
+        now += 1_000_000;
+        engine.tick(now);
+        std::thread::sleep(Duration::from_micros(300));
+    }
+    let from_seq = ends.elements.load().from_seq;
+    assert!(from_seq < engine.next_seq(), "the loop marked the table applied");
+    // Let the reader catch up before the publisher (and its backlog) goes away.
+    go.store(true, Relaxed);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while last_seq.load(Relaxed) + 1 < engine.next_seq() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    drop(engine);
+    publisher.join().unwrap();
+    let seen = reader.join().unwrap();
+    let kinds: Vec<String> = seen
+        .iter()
+        .map(|m| match m {
+            ServerMessage::Pose(p) => format!("{}:{}", p.seq, p.element),
+            other => format!("{other:?}").chars().take(20).collect(),
+        })
+        .collect();
+    let at = seen
+        .iter()
+        .position(|m| matches!(m, ServerMessage::Elements(_)))
+        .unwrap_or_else(|| panic!("no table; it applies from {from_seq}: {kinds:?}"));
+    assert_eq!(seen.iter().filter(|m| matches!(m, ServerMessage::Elements(_))).count(), 1);
+    assert_eq!(seen[at], ServerMessage::Elements(table));
+    for m in &seen[..at] {
+        if let ServerMessage::Pose(p) = m {
+            assert!(p.seq < from_seq && p.element == 0, "{p:?} came before its table");
+        }
+    }
+    let ServerMessage::Pose(next) = &seen[at + 1] else { panic!("a pose follows the table") };
+    assert_eq!(next.seq, from_seq, "the table comes right before the first frame under it");
+    assert!(seen[at..].iter().any(|m| matches!(m, ServerMessage::Pose(p) if p.element == 40)));
+}

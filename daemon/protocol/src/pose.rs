@@ -19,7 +19,8 @@ pub enum ServerMessage {
 /// and mean nothing by themselves: subscribers look them up here.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ElementTable {
-    /// Increases by one with every change (the first table of a daemon is 1).
+    /// Increases with every change (a daemon's first table is 1); a newer table replaces an
+    /// older one whole.
     pub version: u64,
     /// The skeletons the elements use, by name.
     pub rigs: Vec<RigInfo>,

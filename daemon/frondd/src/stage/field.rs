@@ -247,5 +247,6 @@ pub fn build(
         elements,
         hand_element: None,
         accepts: takes_keys,
+        rig: super::rig_info(ctx.rig),
     })
 }

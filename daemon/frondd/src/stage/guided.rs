@@ -61,6 +61,7 @@ fn built(params: GuidedParams, text: String, ctx: &BuildContext) -> BuiltStage {
         elements: Vec::new(),
         hand_element: None,
         accepts: no_input,
+        rig: super::rig_info(ctx.rig),
     }
 }
 

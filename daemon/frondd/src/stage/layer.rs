@@ -24,6 +24,10 @@ impl LiveStage for LayerStage {
     fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, element: &mut u16) {
         *element = self.element;
     }
+
+    fn hand_element(&self) -> Option<u16> {
+        Some(self.element)
+    }
 }
 
 /// The element id of `rig`'s secondary element `layer` (`k + 1` for `rig.elements[k]`), or an
@@ -56,5 +60,6 @@ pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, St
             rig: rig.name.clone(),
         }),
         accepts: no_input,
+        rig: super::rig_info(rig),
     })
 }

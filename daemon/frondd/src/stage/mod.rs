@@ -26,7 +26,7 @@ use std::sync::atomic::AtomicBool;
 
 use frond_motion::clip::Joints;
 use frond_motion::{HandSample, PoseFrame, Rig};
-use frond_protocol::{ControlErrorKind, ElementInfo, StageInput, StageSpec};
+use frond_protocol::{ControlErrorKind, ElementInfo, RigInfo, StageInput, StageSpec};
 
 /// Stage slots in the loop (stages running at once).
 pub const MAX_STAGES: usize = 8;
@@ -54,6 +54,11 @@ pub trait LiveStage: Send {
     /// Called for every hand report after mapping, in slot order: may change the hand's pose and
     /// the element it is published and recorded as.
     fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, _element: &mut u16) {}
+    /// The element the hand is published as while this stage runs, if it changes it (a layer):
+    /// also what the loop stamps on held frames.
+    fn hand_element(&self) -> Option<u16> {
+        None
+    }
     /// Called once per tick, before the device is read: publishes the stage's own elements.
     fn tick(&mut self, _ctx: &TickContext, _out: &mut dyn FrameSink) {}
     /// Whether [`LiveStage::tick`] has work at every tick (the loop then never skips one).
@@ -94,6 +99,13 @@ pub struct BuiltStage {
     pub hand_element: Option<ElementInfo>,
     /// Which [`StageInput`]s it takes, for the control side to refuse the others by name.
     pub accepts: fn(&StageInput) -> bool,
+    /// The skeleton its elements use (the rig in force when it was built).
+    pub rig: RigInfo,
+}
+
+/// A rig as the element table describes it.
+pub fn rig_info(rig: &Rig) -> RigInfo {
+    RigInfo { name: rig.name.clone(), joint_names: rig.joints.iter().map(|j| j.name.clone()).collect() }
 }
 
 /// Takes no input.

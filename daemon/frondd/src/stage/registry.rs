@@ -31,6 +31,8 @@ pub struct Running {
     pub hand_element: Option<ElementInfo>,
     /// Which inputs it takes.
     pub accepts: fn(&StageInput) -> bool,
+    /// The skeleton its elements use.
+    pub rig: RigInfo,
 }
 
 impl Running {
@@ -43,6 +45,7 @@ impl Running {
             elements: built.elements.clone(),
             hand_element: built.hand_element.clone(),
             accepts: built.accepts,
+            rig: built.rig.clone(),
         }
     }
 }
@@ -106,6 +109,21 @@ impl StageRegistry {
         (FIRST_STAGE_ELEMENT..=u16::MAX).filter(|id| !used.contains(id)).take(OFFERED_IDS).collect()
     }
 
+    /// An element id `built` would publish that a stage in another slot than `slot` already
+    /// publishes (ids are unique in the table), with that stage's name.
+    pub fn collision(&self, slot: usize, built: &BuiltStage) -> Option<(u16, String)> {
+        let ids = built.elements.iter().chain(built.hand_element.iter()).map(|e| e.id);
+        for id in ids {
+            for (i, r) in self.slots.iter().enumerate() {
+                let Some(r) = r.as_ref().filter(|_| i != slot) else { continue };
+                if r.elements.iter().chain(r.hand_element.iter()).any(|e| e.id == id) {
+                    return Some((id, r.name.clone()));
+                }
+            }
+        }
+        None
+    }
+
     /// Records what runs in `slot` (`None`: nothing).
     pub fn set(&mut self, slot: usize, running: Option<Running>) {
         self.slots[slot] = running;
@@ -141,10 +159,13 @@ impl StageRegistry {
             elements.push(hand);
         }
         elements.sort_by_key(|e| e.id);
-        let rigs = vec![RigInfo {
-            name: rig.name.clone(),
-            joint_names: rig.joints.iter().map(|j| j.name.clone()).collect(),
-        }];
+        // The rig in force, and every other rig a running stage's elements were built on.
+        let mut rigs = vec![super::rig_info(rig)];
+        for r in self.iter() {
+            if !rigs.iter().any(|known| known.name == r.rig.name) {
+                rigs.push(r.rig.clone());
+            }
+        }
         ElementTable { version: self.table_version, rigs, elements }
     }
 
@@ -184,6 +205,7 @@ mod tests {
             elements: ids.iter().map(|&id| info(id, ElementKind::FieldPlant)).collect(),
             hand_element: hand.map(|id| info(id, ElementKind::Layer)),
             accepts: no_input,
+            rig: RigInfo { name: "grass".into(), joint_names: vec!["root".into(); 4] },
         }
     }
 
@@ -225,6 +247,16 @@ mod tests {
         );
         assert_eq!(r.free_ids(1)[..2], [FIRST_STAGE_ELEMENT + 2, FIRST_STAGE_ELEMENT + 3]);
         assert_eq!(r.free_ids(0)[0], FIRST_STAGE_ELEMENT, "replacing slot 0 frees its ids");
+    }
+
+    #[test]
+    fn a_stage_may_not_publish_an_id_another_stage_publishes() {
+        let mut r = StageRegistry::default();
+        r.set(0, Some(Running::new("a", &built("playback", &[0], None))));
+        assert_eq!(r.collision(1, &built("playback", &[0], None)), Some((0, "a".to_string())));
+        assert_eq!(r.collision(0, &built("playback", &[0], None)), None, "replacing itself is fine");
+        assert_eq!(r.collision(1, &built("field", &[40], None)), None);
+        assert_eq!(r.collision(1, &built("layer", &[], Some(0))), Some((0, "a".to_string())));
     }
 
     #[test]
