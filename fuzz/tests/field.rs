@@ -62,22 +62,19 @@ fn fuzz_field_files() {
                     assert!(p.source < f.plants.len());
                     assert!(p.delay_s.is_finite() && p.delay_s >= 0.0);
                 }
-                // Known gap (reported to the lead, not fixed here: not a panic or hang): from_json
-                // accepts `position_m`/`scale` numbers beyond f32 (1e39 becomes inf), which
-                // to_json then writes as null and from_json refuses. Input:
-                // corpus/field/crash-22ef80b4111d7194. Such fields are counted, not round-tripped.
-                let finite = f
-                    .plants
-                    .iter()
-                    .all(|p| p.scale.is_finite() && p.position_m.iter().all(|v| v.is_finite()));
-                if !finite {
-                    return "accepted with non-finite f32";
-                }
+                // `position_m` / `scale` beyond f32 (1e39 reads as inf, corpus/field/
+                // crash-22ef80b4111d7194) used to be accepted; `Field::check` refuses them now.
+                assert!(
+                    f.plants
+                        .iter()
+                        .all(|p| p.scale.is_finite() && p.position_m.iter().all(|v| v.is_finite()))
+                );
+                assert!(f.check().is_ok());
                 let again = Field::from_json(&f.to_json()).expect("a field's own JSON reads back");
                 assert_eq!(again.plants.len(), f.plants.len());
                 "ok"
             }
-            Err(e @ FieldError::Json(_)) | Err(e @ FieldError::Invalid(_)) => {
+            Err(e @ (FieldError::Json(_) | FieldError::Invalid(_) | FieldError::OutOfRange { .. })) => {
                 assert_message(&e);
                 "refused"
             }

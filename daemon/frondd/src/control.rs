@@ -6,7 +6,8 @@
 
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::Ordering::{AcqRel, Acquire, Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicUsize};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
@@ -31,8 +32,13 @@ use crate::stats::LoopStats;
 
 /// Most control connections at once.
 pub const MAX_CONTROL_CLIENTS: usize = 16;
-/// Idle time after which a control connection is closed.
+/// Idle time between two requests after which a control connection is closed.
 pub const CONTROL_READ_TIMEOUT: Duration = Duration::from_secs(30);
+/// Time a whole request may take to arrive, from its first byte to its last: a client that
+/// trickles a request (slow-loris) is answered `BadRequest` and cut off at this deadline, so it
+/// holds a connection slot for at most this long past its first byte. A full 256 KiB request
+/// over a local socket takes well under a millisecond.
+pub const CONTROL_REQUEST_DEADLINE: Duration = Duration::from_secs(5);
 /// Largest control request accepted, bytes.
 pub const MAX_CONTROL_REQUEST: usize = 256 * 1024;
 /// Device events kept for status.
@@ -195,6 +201,28 @@ impl ControlContext {
         })
     }
 
+    /// Answers one request; a panic while handling it (a bug) is caught, logged and answered
+    /// `Internal`, so no panic reaches a client or ends its connection thread unanswered.
+    pub fn handle_catching(&self, req: ControlRequest) -> ControlReply {
+        // The state lock recovers from poisoning (`lock`), and nothing else a request touches
+        // is left half-changed in a way a later request could trip over: unwind safety holds.
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.handle(req))) {
+            Ok(reply) => reply,
+            Err(payload) => {
+                let what = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".to_string());
+                tracing::error!(panic = %what, "a control request panicked (a bug); answered Internal");
+                refuse(
+                    ControlErrorKind::Internal,
+                    format!("internal error while handling the request (a bug; frondd logged it): {what}"),
+                )
+            }
+        }
+    }
+
     /// Answers one request.
     pub fn handle(&self, req: ControlRequest) -> ControlReply {
         match req {
@@ -223,6 +251,16 @@ impl ControlContext {
                     Ok(()) => ControlReply::Ok,
                     Err(reply) => *reply,
                 }
+            }
+            ControlRequest::PanicForTest => {
+                if !self.test_hooks {
+                    return refuse(
+                        ControlErrorKind::PermissionDenied,
+                        "PanicForTest needs frondd --test-hooks",
+                    );
+                }
+                warn!("panicking a control thread on request (test hook)");
+                panic!("PanicForTest: a control thread panics on request (test hook)");
             }
             ControlRequest::RawSample => match self.stats.raw.load() {
                 Some((t, wrist_deg, thumb_deg, fresh)) => {
@@ -485,26 +523,116 @@ pub fn spawn_control(
                     continue;
                 }
             };
-            if clients.load(Relaxed) >= MAX_CONTROL_CLIENTS {
+            let Some(slot) = ClientSlot::take(&clients) else {
                 let mut stream = stream;
                 let _ = write_frame(
                     &mut stream,
                     &mut FrameBuf::default(),
                     &refuse(ControlErrorKind::Internal, "too many control connections; try again"),
                 );
+                drain_queued(&mut stream);
                 continue;
-            }
-            clients.fetch_add(1, Relaxed);
-            let (ctx, clients) = (ctx.clone(), clients.clone());
+            };
+            let ctx = ctx.clone();
+            // The slot moves into the thread and is given back when it is dropped: when the
+            // connection ends, when the thread unwinds, or here if the thread never starts.
             let spawned = thread::Builder::new().name("frond-control-conn".into()).spawn(move || {
+                let _slot = slot;
                 serve_connection(stream, &ctx);
-                clients.fetch_sub(1, Relaxed);
             });
             if let Err(e) = spawned {
                 warn!(error = %e, "could not start a control connection thread");
             }
         }
     })
+}
+
+/// One of the [`MAX_CONTROL_CLIENTS`] connection slots, held by a connection's thread and given
+/// back when dropped, however the thread ends (return, panic, or never started).
+#[derive(Debug)]
+pub struct ClientSlot(Arc<AtomicUsize>);
+
+impl ClientSlot {
+    /// A slot of `clients` (the count of slots held), or `None` when all are taken.
+    pub fn take(clients: &Arc<AtomicUsize>) -> Option<ClientSlot> {
+        clients
+            .fetch_update(AcqRel, Acquire, |n| (n < MAX_CONTROL_CLIENTS).then_some(n + 1))
+            .ok()
+            .map(|_| ClientSlot(clients.clone()))
+    }
+}
+
+impl Drop for ClientSlot {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, AcqRel);
+    }
+}
+
+/// Reads one request at a time from a control connection with two limits: at most
+/// [`CONTROL_READ_TIMEOUT`] idle before a request's first byte, and the whole request within
+/// [`CONTROL_REQUEST_DEADLINE`] of that byte (the socket's read timeout is set to what is left
+/// before each read, so a client that sends a byte now and then cannot stretch it).
+struct RequestReader<'a> {
+    stream: &'a UnixStream,
+    /// Deadline of the request being read; `None` until its first byte.
+    deadline: Option<Instant>,
+    /// Set when a read failed because the deadline passed.
+    expired: bool,
+}
+
+impl RequestReader<'_> {
+    /// Ready for the next request (idle timeout again).
+    fn next_request(&mut self) {
+        self.deadline = None;
+        self.expired = false;
+    }
+}
+
+impl std::io::Read for RequestReader<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let timeout = match self.deadline {
+            None => CONTROL_READ_TIMEOUT,
+            Some(deadline) => {
+                let left = deadline.saturating_duration_since(Instant::now());
+                if left.is_zero() {
+                    self.expired = true;
+                    return Err(std::io::ErrorKind::TimedOut.into());
+                }
+                left
+            }
+        };
+        self.stream.set_read_timeout(Some(timeout))?;
+        let result = (&mut &*self.stream).read(buf);
+        match &result {
+            Ok(n) if *n > 0 && self.deadline.is_none() => {
+                self.deadline = Some(Instant::now() + CONTROL_REQUEST_DEADLINE);
+            }
+            Err(e)
+                if self.deadline.is_some()
+                    && matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+            {
+                self.expired = true;
+            }
+            _ => {}
+        }
+        result
+    }
+}
+
+/// Reads and drops what a client already sent, without waiting (the stream is non-blocking,
+/// as accepted): closing a Unix socket with unread bytes resets it, and the client would lose
+/// the reply just written. What arrives later may still reset it; the acceptor must not wait.
+fn drain_queued(stream: &mut UnixStream) {
+    use std::io::Read;
+    let _ = stream.set_nonblocking(true);
+    let mut buf = [0u8; 4096];
+    let mut drained = 0;
+    while drained <= MAX_CONTROL_REQUEST {
+        match stream.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => drained += n,
+        }
+    }
 }
 
 /// Closes a connection whose request was refused unread: the reply is written, then what the
@@ -527,7 +655,6 @@ fn close_after_refusal(mut stream: UnixStream) {
 
 fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
     let _ = stream.set_nonblocking(false);
-    let _ = stream.set_read_timeout(Some(CONTROL_READ_TIMEOUT));
     let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
     let mut scratch = Vec::new();
     let mut out = FrameBuf::default();
@@ -536,14 +663,29 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
         let _ = write_frame(&mut stream, &mut out, &refuse(ControlErrorKind::PermissionDenied, why));
         return;
     }
+    let reader_stream = stream.try_clone();
+    let Ok(reader_stream) = reader_stream else { return };
+    let mut reader = RequestReader { stream: &reader_stream, deadline: None, expired: false };
     loop {
+        reader.next_request();
         let reply = match read_frame_limited::<ControlRequest, _>(
-            &mut stream,
+            &mut reader,
             &mut scratch,
             MAX_CONTROL_REQUEST,
         ) {
-            Ok(req) => ctx.handle(req),
+            Ok(req) => ctx.handle_catching(req),
             Err(ReadError::Closed) => return,
+            Err(ReadError::Io(_)) if reader.expired => {
+                let reply = refuse(
+                    ControlErrorKind::BadRequest,
+                    format!(
+                        "the request did not arrive within {} s of its first byte; closing the connection",
+                        CONTROL_REQUEST_DEADLINE.as_secs()
+                    ),
+                );
+                let _ = write_frame(&mut stream, &mut out, &reply);
+                return;
+            }
             Err(ReadError::Io(e))
                 if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
             {

@@ -131,6 +131,13 @@ impl Clip {
     }
 }
 
+/// Most frames a [`DelayLine`] holds (2^22 frames, about 235 MB of poses: 70 minutes at 1 kHz,
+/// 39 hours at 30 FPS). Callers size their history from quantities that come from outside
+/// (delays, start frames) and must refuse those beyond their own documented limits before
+/// asking for a line; this cap is the last guard, so that no request can make a line overflow
+/// a `Vec`'s capacity or take the machine's memory.
+pub const MAX_DELAY_LINE_FRAMES: usize = 1 << 22;
+
 /// A fixed-capacity history of live poses (a ring buffer), for delayed lookups on the realtime
 /// loop: [`DelayLine::push`] each tick, [`DelayLine::at_time`] for `P(t - delay)`. Allocates only
 /// in [`DelayLine::new`]; push and lookup never allocate.
@@ -143,16 +150,30 @@ pub struct DelayLine {
 }
 
 impl DelayLine {
-    /// A history holding the last `capacity` frames (at least 2). For a delay up to `D` seconds
-    /// at a tick rate `R` Hz, use `ceil(D * R) + 2`.
+    /// A history holding the last `capacity` frames, clamped to `2..=`[`MAX_DELAY_LINE_FRAMES`].
+    /// For a delay up to `D` seconds at a tick rate `R` Hz, use `ceil(D * R) + 2`
+    /// ([`DelayLine::capacity_for`]).
     pub fn new(capacity: usize) -> Self {
-        DelayLine { buf: vec![PoseFrame::default(); capacity.max(2)], start: 0, len: 0 }
+        let capacity = capacity.clamp(2, MAX_DELAY_LINE_FRAMES);
+        DelayLine { buf: vec![PoseFrame::default(); capacity], start: 0, len: 0 }
     }
 
-    /// The capacity for `max_delay_s` of history at `rate_hz` ticks a second.
+    /// The capacity for `max_delay_s` of history at `rate_hz` ticks a second, at most
+    /// [`MAX_DELAY_LINE_FRAMES`].
     pub fn capacity_for(max_delay_s: f64, rate_hz: f64) -> usize {
         let n = (max_delay_s.max(0.0) * rate_hz.max(0.0)).ceil();
-        if n.is_finite() { (n as usize).saturating_add(2) } else { 2 }
+        if n.is_finite() && n < MAX_DELAY_LINE_FRAMES as f64 {
+            (n as usize + 2).min(MAX_DELAY_LINE_FRAMES)
+        } else if n.is_finite() {
+            MAX_DELAY_LINE_FRAMES
+        } else {
+            2
+        }
+    }
+
+    /// Frames this line can hold.
+    pub fn capacity(&self) -> usize {
+        self.buf.len()
     }
 
     /// Forgets everything.
@@ -318,5 +339,9 @@ mod tests {
         assert_eq!(d.len(), 1);
         assert_eq!(d.at_time(3.0), Some(j(7.0)));
         assert_eq!(DelayLine::capacity_for(0.5, 1000.0), 502);
+        // Absurd histories are capped rather than overflowing a Vec's capacity.
+        assert_eq!(DelayLine::capacity_for(9.3e18, 30.0), 1 << 22);
+        assert_eq!(DelayLine::capacity_for(f64::INFINITY, 30.0), 2);
+        assert_eq!(DelayLine::capacity_for(f64::NAN, 30.0), 2);
     }
 }

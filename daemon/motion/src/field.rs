@@ -42,6 +42,23 @@ pub const FIELD_VERSION: u32 = 1;
 /// Plant size factors are drawn uniformly from this range.
 pub const PLANT_SCALE_RANGE: (f64, f64) = (0.85, 1.15);
 
+/// Most grid cells (`rows x cols`) of a field; `rows` and `cols` are each at least 1, so each
+/// is at most this too. Every cell holds at most one plant, and a live field keeps one value
+/// per row, so this bounds what a field's numbers can make anyone allocate.
+pub const MAX_FIELD_CELLS: usize = 1_000_000;
+/// Most plants of a field: one per cell.
+pub const MAX_FIELD_PLANTS: usize = MAX_FIELD_CELLS;
+/// Longest take a field may play, frames at its `fps`: one hour at 30 FPS. Start frames lie
+/// below it, and a live field keeps `FIELD_HISTORY_S` plus its largest start offset of
+/// history (at most about 6 MB at 30 FPS), so this bounds that history and the frames a live
+/// field computes ahead.
+pub const MAX_FIELD_FRAMES: usize = 108_000;
+/// Highest frame rate of a field's take.
+pub const MAX_FIELD_FPS: f64 = 1000.0;
+/// Longest propagation delay `delay_s` of a plant, seconds (an hour: far beyond any take a
+/// field may play, [`MAX_FIELD_FRAMES`]).
+pub const MAX_FIELD_DELAY_S: f64 = 3600.0;
+
 /// One plant of a field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -124,6 +141,21 @@ pub enum FieldError {
     /// `field.json` is malformed.
     #[error("field.json: {0}")]
     Json(String),
+    /// A quantity that sizes memory or a loop is beyond its documented limit (refused before
+    /// anything is allocated for it).
+    #[error("field.json: {field} is {value}, outside the limit {limit}")]
+    OutOfRange {
+        /// The field's path in `field.json`: `rows`, `plants[3].start_frame`, ...
+        field: String,
+        /// The value found.
+        value: String,
+        /// The limit, e.g. `1..=1000000`.
+        limit: String,
+    },
+}
+
+fn out_of_range(field: impl Into<String>, value: impl ToString, limit: impl Into<String>) -> FieldError {
+    FieldError::OutOfRange { field: field.into(), value: value.to_string(), limit: limit.into() }
 }
 
 /// Unit vector of a heading on the ground, `[x, z]`.
@@ -140,9 +172,9 @@ fn distance(a: [f32; 2], b: [f32; 2]) -> f64 {
 /// Lays out a field over a take of `frames` frames at `fps` (see the module docs).
 pub fn make_field(p: &FieldParams, take: &str, frames: usize, fps: f64) -> Result<Field, FieldError> {
     let bad = |m: String| Err(FieldError::Invalid(m));
-    if p.rows == 0 || p.cols == 0 || p.rows.saturating_mul(p.cols) > 1_000_000 {
+    if p.rows == 0 || p.cols == 0 || p.rows.saturating_mul(p.cols) > MAX_FIELD_CELLS {
         return bad(format!(
-            "--rows and --cols must be at least 1 with at most 1000000 cells, got {} x {}",
+            "--rows and --cols must be at least 1 with at most {MAX_FIELD_CELLS} cells, got {} x {}",
             p.rows, p.cols
         ));
     }
@@ -160,6 +192,12 @@ pub fn make_field(p: &FieldParams, take: &str, frames: usize, fps: f64) -> Resul
     }
     if frames == 0 || !(fps.is_finite() && fps > 0.0) {
         return bad("the take has no frames".to_string());
+    }
+    if frames > MAX_FIELD_FRAMES || fps > MAX_FIELD_FPS {
+        return bad(format!(
+            "a field plays at most {MAX_FIELD_FRAMES} frames at up to {MAX_FIELD_FPS} FPS; the take has \
+             {frames} frames at {fps} FPS"
+        ));
     }
     let mut rng = SeededRng::new(p.seed);
     let along = heading_vector(p.direction_deg);
@@ -205,7 +243,7 @@ pub fn make_field(p: &FieldParams, take: &str, frames: usize, fps: f64) -> Resul
             b.start_frame = start;
         }
     }
-    Ok(Field {
+    let field = Field {
         version: FIELD_VERSION,
         take: take.to_string(),
         fps,
@@ -219,7 +257,12 @@ pub fn make_field(p: &FieldParams, take: &str, frames: usize, fps: f64) -> Resul
         density: p.density,
         seed: p.seed,
         plants,
-    })
+    };
+    // The only limit the parameters above do not settle: a long row with a slow propagation.
+    field
+        .check()
+        .map_err(|e| FieldError::Invalid(format!("--speed is too low for the field's size: {e}")))?;
+    Ok(field)
 }
 
 impl Field {
@@ -230,7 +273,7 @@ impl Field {
         s
     }
 
-    /// Reads and checks `field.json`.
+    /// Reads and checks `field.json` ([`Field::check`]).
     pub fn from_json(text: &str) -> Result<Field, FieldError> {
         let f: Field = serde_json::from_str(text).map_err(|e| FieldError::Json(e.to_string()))?;
         if f.version != FIELD_VERSION {
@@ -239,12 +282,78 @@ impl Field {
                 f.version
             )));
         }
-        for (i, p) in f.plants.iter().enumerate() {
-            if p.id != i || p.source >= f.plants.len() || !p.delay_s.is_finite() || p.delay_s < 0.0 {
-                return Err(FieldError::Json(format!("plants[{i}] is inconsistent (id, source or delay_s)")));
+        f.check()?;
+        Ok(f)
+    }
+
+    /// Checks every quantity that sizes memory or a loop against its limit
+    /// ([`MAX_FIELD_CELLS`], [`MAX_FIELD_PLANTS`], [`MAX_FIELD_FRAMES`], [`MAX_FIELD_FPS`],
+    /// [`MAX_FIELD_DELAY_S`]) and that the plants are consistent with the grid: a typed
+    /// [`FieldError::OutOfRange`] names the first field out of range. Allocates nothing.
+    pub fn check(&self) -> Result<(), FieldError> {
+        if !(1..=MAX_FIELD_CELLS).contains(&self.rows) {
+            return Err(out_of_range("rows", self.rows, format!("1..={MAX_FIELD_CELLS}")));
+        }
+        if !(1..=MAX_FIELD_CELLS).contains(&self.cols) {
+            return Err(out_of_range("cols", self.cols, format!("1..={MAX_FIELD_CELLS}")));
+        }
+        if self.rows * self.cols > MAX_FIELD_CELLS {
+            return Err(out_of_range(
+                "rows x cols",
+                format!("{} x {}", self.rows, self.cols),
+                format!("at most {MAX_FIELD_CELLS} cells"),
+            ));
+        }
+        if !(self.fps.is_finite() && self.fps > 0.0 && self.fps <= MAX_FIELD_FPS) {
+            return Err(out_of_range("fps", self.fps, format!("(0, {MAX_FIELD_FPS}]")));
+        }
+        if !(1..=MAX_FIELD_FRAMES).contains(&self.frames) {
+            return Err(out_of_range("frames", self.frames, format!("1..={MAX_FIELD_FRAMES}")));
+        }
+        let n = self.plants.len();
+        if n > MAX_FIELD_PLANTS.min(self.rows * self.cols) {
+            return Err(out_of_range(
+                "plants",
+                format!("{n} plants"),
+                format!("one per cell, at most {}", MAX_FIELD_PLANTS.min(self.rows * self.cols)),
+            ));
+        }
+        for (i, p) in self.plants.iter().enumerate() {
+            if p.id != i || p.source >= n {
+                return Err(FieldError::Json(format!("plants[{i}] is inconsistent (id or source)")));
+            }
+            if p.row >= self.rows {
+                return Err(out_of_range(format!("plants[{i}].row"), p.row, format!("0..{}", self.rows)));
+            }
+            if p.col >= self.cols {
+                return Err(out_of_range(format!("plants[{i}].col"), p.col, format!("0..{}", self.cols)));
+            }
+            if p.start_frame >= self.frames {
+                return Err(out_of_range(
+                    format!("plants[{i}].start_frame"),
+                    p.start_frame,
+                    format!("0..{} (the take's frames)", self.frames),
+                ));
+            }
+            if !(p.delay_s.is_finite() && (0.0..=MAX_FIELD_DELAY_S).contains(&p.delay_s)) {
+                return Err(out_of_range(
+                    format!("plants[{i}].delay_s"),
+                    p.delay_s,
+                    format!("[0, {MAX_FIELD_DELAY_S}] s"),
+                ));
+            }
+            if !p.scale.is_finite() {
+                return Err(out_of_range(format!("plants[{i}].scale"), p.scale, "a finite factor"));
+            }
+            if !p.position_m.iter().all(|x| x.is_finite()) {
+                return Err(out_of_range(
+                    format!("plants[{i}].position_m"),
+                    format!("{:?}", p.position_m),
+                    "finite metres",
+                ));
             }
         }
-        Ok(f)
+        Ok(())
     }
 
     /// Plant `id`'s pose at `t_s` from the take's clip (Eq. 6-7 with the bend rotated to the
@@ -286,7 +395,28 @@ pub struct FieldPlayer {
 pub const FIELD_HISTORY_S: f64 = 60.0;
 
 impl FieldPlayer {
-    /// A player for `field` looping `clip` (the take at `field.fps`) over `transitions`.
+    /// A player for `field` looping `clip` (the take at `field.fps`) over `transitions`, after
+    /// [`Field::check`]: a field out of its limits is refused before anything is allocated for
+    /// it. The one constructor for fields from outside.
+    pub fn try_new(
+        field: Field,
+        clip: Clip,
+        transitions: &Transitions,
+        seed: u64,
+        controls: FieldControls,
+    ) -> Result<Self, FieldError> {
+        field.check()?;
+        if !(clip.fps.is_finite() && clip.fps > 0.0 && clip.fps <= MAX_FIELD_FPS) {
+            return Err(out_of_range("the take's fps", clip.fps, format!("(0, {MAX_FIELD_FPS}]")));
+        }
+        Ok(Self::new(field, clip, transitions, seed, controls))
+    }
+
+    /// [`FieldPlayer::try_new`] for a field made in code ([`make_field`], the bench fixture).
+    ///
+    /// # Panics
+    /// If `field` breaks [`Field::check`]'s limits (a plant's row beyond `rows`); fields from
+    /// outside go through [`FieldPlayer::try_new`].
     pub fn new(
         field: Field,
         clip: Clip,
@@ -319,6 +449,11 @@ impl FieldPlayer {
     /// The field.
     pub fn field(&self) -> &Field {
         &self.field
+    }
+
+    /// Frames of stream history this player keeps (sized once, in the constructor).
+    pub fn history_capacity(&self) -> usize {
+        self.line.capacity()
     }
 
     /// The controls in force.

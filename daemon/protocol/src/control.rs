@@ -85,6 +85,10 @@ pub enum ControlRequest {
         /// How long to block the loop.
         ms: u32,
     },
+    /// Testing aid: panic in the control thread that handles it, to prove that a panicking
+    /// request is answered `Internal` and gives its connection slot back. Refused unless the
+    /// daemon was started with `--test-hooks`.
+    PanicForTest,
 }
 
 /// What a live stage runs, with its parameters. Every kind of stage is one variant.

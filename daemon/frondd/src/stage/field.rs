@@ -128,7 +128,8 @@ impl FieldStage {
             speed_m_s: base_speed_m_s,
             ..FieldControls::default()
         };
-        let player = FieldPlayer::new(field, clip, &transitions, seed, controls);
+        let player =
+            FieldPlayer::try_new(field, clip, &transitions, seed, controls).map_err(|e| e.to_string())?;
         report.controls.store(controls);
         let publish = ids.len().min(n).min(MAX_FIELD_PLANTS);
         let mut id_table = [0u16; MAX_FIELD_PLANTS];
