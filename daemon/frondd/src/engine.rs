@@ -289,10 +289,12 @@ impl Engine {
         }
     }
 
+    /// Reports arrived: the device is there again, unless the same read lost it (reports, then
+    /// an error, in one call of `read_device`): then it stays lost until it is handed back.
     fn note_fresh(&mut self, fresh: usize, now_ns: u64) {
         if fresh > 0 {
             self.last_report_ns = now_ns;
-            if self.device_lost {
+            if self.device_lost && self.source.is_some() {
                 self.set_device_lost(false);
             }
         }
