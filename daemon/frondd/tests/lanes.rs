@@ -51,13 +51,14 @@ impl HandSource for Steady {
     }
 }
 
-#[test]
-fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame() {
+/// An engine on the grass rig with a steady source, and the publisher thread serving its slow
+/// lane (with the engine's element table cell).
+fn engine_with_publisher() -> (Engine, frondd::engine::EngineEnds, std::thread::JoinHandle<()>) {
     let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
     let cal = frond_motion::Calibration::neutral_for(&rig);
     let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
     let source = Box::new(Steady { seq: 0, counters: Arc::default() });
-    let (mut engine, mut ends) = Engine::with_channels(mapper, Some(source), 250_000_000, 1 << 16, 16);
+    let (engine, mut ends) = Engine::with_channels(mapper, Some(source), 250_000_000, 1 << 16, 16);
     let config = PublisherConfig {
         queue_frames: 100_000,
         write_timeout: Duration::from_secs(30),
@@ -66,7 +67,13 @@ fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame(
     let frames = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
     let slow = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
     let publisher =
-        spawn_publisher(frames, ends.publish_wake.clone(), slow, Default::default(), config).unwrap();
+        spawn_publisher(frames, ends.publish_wake.clone(), slow, ends.elements.clone(), config).unwrap();
+    (engine, ends, publisher)
+}
+
+#[test]
+fn a_subscriber_that_falls_behind_moves_to_the_slow_lane_without_losing_a_frame() {
+    let (mut engine, ends, publisher) = engine_with_publisher();
 
     // The daemon's end gets a small send buffer, so the stall fills it within a few dozen frames.
     let (daemon_end, mut sub_end) = subscriber_pair(true);
@@ -136,20 +143,7 @@ impl frondd::stage::LiveStage for Forty {
 #[test]
 fn the_slow_lane_sends_a_new_table_right_before_its_first_frame() {
     use frond_protocol::{ElementInfo, ElementKind, ElementTable};
-    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
-    let cal = frond_motion::Calibration::neutral_for(&rig);
-    let mapper = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
-    let source = Box::new(Steady { seq: 0, counters: Arc::default() });
-    let (mut engine, mut ends) = Engine::with_channels(mapper, Some(source), 250_000_000, 1 << 16, 16);
-    let config = PublisherConfig {
-        queue_frames: 100_000,
-        write_timeout: Duration::from_secs(30),
-        max_subscribers: 64,
-    };
-    let frames = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
-    let slow = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
-    let publisher =
-        spawn_publisher(frames, ends.publish_wake.clone(), slow, ends.elements.clone(), config).unwrap();
+    let (mut engine, ends, publisher) = engine_with_publisher();
     let (daemon_end, mut sub_end) = subscriber_pair(true);
     // The reader waits, so the subscriber moves to the slow lane; then it reads everything.
     let last_seq = Arc::new(AtomicU64::new(0));
