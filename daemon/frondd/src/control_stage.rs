@@ -121,7 +121,7 @@ impl ControlContext {
             Ok(b) => b,
             Err(e) => return refuse(e.kind, e.message),
         };
-        let kind = built.kind;
+        let kind = built.info.kind;
         match self.install(&mut state, &name, Some(built)) {
             Ok(()) => {
                 info!(stage = %name, kind, "live stage started");
@@ -163,10 +163,10 @@ impl ControlContext {
             );
         };
         let running = state.stages.get(name).expect("slot_of found it");
-        if !(running.accepts)(&input) {
+        if !(running.info.accepts)(&input) {
             return refuse(
                 ControlErrorKind::BadRequest,
-                format!("stage {name:?} ({}) takes no input {input:?}", running.kind),
+                format!("stage {name:?} ({}) takes no input {input:?}", running.info.kind),
             );
         }
         match self.send_stage_command(slot, StageAction::Input(input), None).and_then(|a| wait_applied(&a)) {
@@ -253,13 +253,16 @@ impl ControlContext {
             }
             (None, None) => return Ok(()),
         };
-        if let Some((id, other)) = built.as_ref().and_then(|b| state.stages.collision(slot, b)) {
+        if let Some((id, other)) = built.as_ref().and_then(|b| state.stages.collision(slot, &b.info)) {
             return Err(refuse(
                 ControlErrorKind::WrongState,
                 format!("stage {other:?} already publishes element {id}; stop it first"),
             ));
         }
-        let running = built.as_ref().map(|b| Running::new(name, b));
+        let (stage, running) = match built {
+            Some(b) => (Some(b.stage), Some(Running::new(name, b.info))),
+            None => (None, None),
+        };
         let previous = state.stages.replace(slot, running);
         let (table, frame) = match self.encode_table(state) {
             Ok(t) => t,
@@ -268,7 +271,7 @@ impl ControlContext {
                 return Err(reply);
             }
         };
-        let action = StageAction::Install(built.map(|b| b.stage));
+        let action = StageAction::Install(stage);
         let applied = match self.send_stage_command(slot, action, Some((table.version, frame))) {
             Ok(applied) => applied,
             Err(reply) => {
@@ -329,7 +332,7 @@ impl ControlContext {
 
     /// Live stages for status, one line each.
     pub(crate) fn modes(&self, state: &DaemonState) -> Vec<String> {
-        state.stages.iter().map(|r| r.report.describe()).collect()
+        state.stages.iter().map(|r| r.info.report.describe()).collect()
     }
 }
 

@@ -12,7 +12,9 @@ use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::{ElementInfo, ElementKind, StageInput, StageKey};
 
 use super::playback::looped_clip;
-use super::{BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageReport, TickContext};
+use super::{
+    BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
+};
 use crate::clock::NS_PER_S;
 
 /// Most field plants published per field frame.
@@ -243,11 +245,13 @@ pub fn build(
         .collect();
     Ok(BuiltStage {
         stage: Box::new(stage),
-        kind: "field",
-        report,
-        elements,
-        hand_element: None,
-        accepts: takes_keys,
-        rig: super::rig_info(ctx.rig),
+        info: StageInfo {
+            kind: "field",
+            report,
+            elements,
+            hand_element: None,
+            accepts: takes_keys,
+            rig: super::rig_info(ctx.rig),
+        },
     })
 }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::{HandSample, PoseFrame};
 
-use super::{BuildContext, BuildError, BuiltStage, FixedReport, LiveStage, no_input};
+use super::{BuildContext, BuildError, BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Eq. 8 applied to every hand pose.
 pub struct GuidedStage {
@@ -56,12 +56,14 @@ pub fn parse_guided(spec: &str, g3_range_deg: f32) -> Result<GuidedParams, Strin
 fn built(params: GuidedParams, text: String, ctx: &BuildContext) -> BuiltStage {
     BuiltStage {
         stage: Box::new(GuidedStage::new(params, ctx.tick_rate_hz)),
-        kind: "guided",
-        report: Arc::new(FixedReport(format!("guided motion {text}"))),
-        elements: Vec::new(),
-        hand_element: None,
-        accepts: no_input,
-        rig: super::rig_info(ctx.rig),
+        info: StageInfo {
+            kind: "guided",
+            report: Arc::new(FixedReport(format!("guided motion {text}"))),
+            elements: Vec::new(),
+            hand_element: None,
+            accepts: no_input,
+            rig: super::rig_info(ctx.rig),
+        },
     }
 }
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::{ElementInfo, ElementKind};
 
-use super::{BuiltStage, FixedReport, LiveStage, no_input};
+use super::{BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Relabels the hand's frames as element `element`.
 pub struct LayerStage {
@@ -49,17 +49,19 @@ pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, St
     let id = layer_id(rig, layer)?;
     Ok(BuiltStage {
         stage: Box::new(LayerStage::new(id)),
-        kind: "layer",
-        report: Arc::new(FixedReport(format!("recording layer {layer}"))),
-        elements: Vec::new(),
-        hand_element: Some(ElementInfo {
-            id,
-            name: layer.to_string(),
-            kind: ElementKind::Layer,
-            source: hand_source.to_string(),
-            rig: rig.name.clone(),
-        }),
-        accepts: no_input,
-        rig: super::rig_info(rig),
+        info: StageInfo {
+            kind: "layer",
+            report: Arc::new(FixedReport(format!("recording layer {layer}"))),
+            elements: Vec::new(),
+            hand_element: Some(ElementInfo {
+                id,
+                name: layer.to_string(),
+                kind: ElementKind::Layer,
+                source: hand_source.to_string(),
+                rig: rig.name.clone(),
+            }),
+            accepts: no_input,
+            rig: super::rig_info(rig),
+        },
     })
 }

@@ -87,8 +87,15 @@ impl StageReport for FixedReport {
 
 /// A stage ready to go into the loop, with what the control side keeps of it.
 pub struct BuiltStage {
-    /// The stage itself.
+    /// The stage itself, for the loop.
     pub stage: Box<dyn LiveStage>,
+    /// What the control side keeps.
+    pub info: StageInfo,
+}
+
+/// What the control side knows of a stage: its kind, status cell, elements and inputs.
+#[derive(Clone)]
+pub struct StageInfo {
     /// Its kind (`playback`, `layer`, `field`, `guided`).
     pub kind: &'static str,
     /// Its status cell.
@@ -101,6 +108,13 @@ pub struct BuiltStage {
     pub accepts: fn(&StageInput) -> bool,
     /// The skeleton its elements use (the rig in force when it was built).
     pub rig: RigInfo,
+}
+
+impl StageInfo {
+    /// Every element id it publishes or puts the hand on.
+    pub fn element_ids(&self) -> impl Iterator<Item = u16> + '_ {
+        self.elements.iter().chain(&self.hand_element).map(|e| e.id)
+    }
 }
 
 /// A rig as the element table describes it.

@@ -8,7 +8,9 @@ use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};
 use frond_protocol::{ElementInfo, ElementKind};
 
-use super::{BuildContext, BuildError, BuiltStage, FixedReport, FrameSink, LiveStage, TickContext, no_input};
+use super::{
+    BuildContext, BuildError, BuiltStage, FixedReport, FrameSink, LiveStage, StageInfo, TickContext, no_input,
+};
 use crate::clock::NS_PER_S;
 
 /// Frame rate takes are looped at (seed 000 records at 30 FPS).
@@ -65,17 +67,19 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
         .map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
     Ok(BuiltStage {
         stage: Box::new(stage),
-        kind: "playback",
-        report: Arc::new(FixedReport(format!("looping take {take} as the global element"))),
-        elements: vec![ElementInfo {
-            id: 0,
-            name: take.to_string(),
-            kind: ElementKind::Playback,
-            source: ctx.name.to_string(),
-            rig: ctx.rig.name.clone(),
-        }],
-        hand_element: None,
-        accepts: no_input,
-        rig: super::rig_info(ctx.rig),
+        info: StageInfo {
+            kind: "playback",
+            report: Arc::new(FixedReport(format!("looping take {take} as the global element"))),
+            elements: vec![ElementInfo {
+                id: 0,
+                name: take.to_string(),
+                kind: ElementKind::Playback,
+                source: ctx.name.to_string(),
+                rig: ctx.rig.name.clone(),
+            }],
+            hand_element: None,
+            accepts: no_input,
+            rig: super::rig_info(ctx.rig),
+        },
     })
 }

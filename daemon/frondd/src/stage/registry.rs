@@ -2,13 +2,11 @@
 //! which element ids it uses, and the element table that follows from them. Only touched under
 //! the daemon state's lock, never by the loop.
 
-use std::sync::Arc;
-
 use frond_motion::Rig;
 use frond_motion::rig::MAX_RIG_ELEMENTS;
-use frond_protocol::{ElementInfo, ElementKind, ElementTable, RigInfo, StageInput, StageStatus};
+use frond_protocol::{ElementInfo, ElementKind, ElementTable, StageStatus};
 
-use super::{BuiltStage, MAX_STAGES, StageReport};
+use super::{MAX_STAGES, StageInfo};
 
 /// Longest stage name.
 pub const MAX_STAGE_NAME: usize = 32;
@@ -21,32 +19,14 @@ const OFFERED_IDS: usize = 256;
 pub struct Running {
     /// Its name.
     pub name: String,
-    /// Its kind.
-    pub kind: &'static str,
-    /// Its status cell.
-    pub report: Arc<dyn StageReport>,
-    /// Elements it publishes.
-    pub elements: Vec<ElementInfo>,
-    /// The element the hand is published as while it runs, if it changes it.
-    pub hand_element: Option<ElementInfo>,
-    /// Which inputs it takes.
-    pub accepts: fn(&StageInput) -> bool,
-    /// The skeleton its elements use.
-    pub rig: RigInfo,
+    /// Its kind, status cell, elements and inputs.
+    pub info: StageInfo,
 }
 
 impl Running {
-    /// What the control side keeps of `built`, named `name`.
-    pub fn new(name: &str, built: &BuiltStage) -> Self {
-        Running {
-            name: name.to_string(),
-            kind: built.kind,
-            report: built.report.clone(),
-            elements: built.elements.clone(),
-            hand_element: built.hand_element.clone(),
-            accepts: built.accepts,
-            rig: built.rig.clone(),
-        }
+    /// Stage `name` described by `info`.
+    pub fn new(name: &str, info: StageInfo) -> Self {
+        Running { name: name.to_string(), info }
     }
 }
 
@@ -97,36 +77,27 @@ impl StageRegistry {
         })
     }
 
-    /// Element ids no stage uses except the one in `slot` (which is being replaced), lowest first.
-    pub fn free_ids(&self, slot: usize) -> Vec<u16> {
-        let used: Vec<u16> = self
-            .slots
+    /// The element ids the stages in slots other than `slot` use, with the stage's name.
+    fn ids_besides(&self, slot: usize) -> impl Iterator<Item = (u16, &str)> + '_ {
+        self.slots
             .iter()
             .enumerate()
-            .filter(|(i, _)| *i != slot)
-            .flat_map(|(_, s)| s.iter().flat_map(|r| r.elements.iter().map(|e| e.id)))
-            .collect();
+            .filter(move |(i, _)| *i != slot)
+            .flat_map(|(_, r)| r.iter())
+            .flat_map(|r| r.info.element_ids().map(move |id| (id, r.name.as_str())))
+    }
+
+    /// Element ids no stage uses except the one in `slot` (which is being replaced), lowest first.
+    pub fn free_ids(&self, slot: usize) -> Vec<u16> {
+        let used: Vec<u16> = self.ids_besides(slot).map(|(id, _)| id).collect();
         (FIRST_STAGE_ELEMENT..=u16::MAX).filter(|id| !used.contains(id)).take(OFFERED_IDS).collect()
     }
 
-    /// An element id `built` would publish that a stage in another slot than `slot` already
-    /// publishes (ids are unique in the table), with that stage's name.
-    pub fn collision(&self, slot: usize, built: &BuiltStage) -> Option<(u16, String)> {
-        let ids = built.elements.iter().chain(built.hand_element.iter()).map(|e| e.id);
-        for id in ids {
-            for (i, r) in self.slots.iter().enumerate() {
-                let Some(r) = r.as_ref().filter(|_| i != slot) else { continue };
-                if r.elements.iter().chain(r.hand_element.iter()).any(|e| e.id == id) {
-                    return Some((id, r.name.clone()));
-                }
-            }
-        }
-        None
-    }
-
-    /// Records what runs in `slot` (`None`: nothing).
-    pub fn set(&mut self, slot: usize, running: Option<Running>) {
-        self.slots[slot] = running;
+    /// An element id `info` would use that a stage in another slot than `slot` already uses
+    /// (ids are unique in the table), with that stage's name.
+    pub fn collision(&self, slot: usize, info: &StageInfo) -> Option<(u16, String)> {
+        let mine: Vec<u16> = info.element_ids().collect();
+        self.ids_besides(slot).find(|(id, _)| mine.contains(id)).map(|(id, name)| (id, name.to_string()))
     }
 
     /// Records what runs in `slot` and returns what ran there.
@@ -143,7 +114,7 @@ impl StageRegistry {
     pub fn next_table(&mut self, rig: &Rig, hand_source: &str) -> ElementTable {
         self.table_version += 1;
         let mut elements: Vec<ElementInfo> = Vec::new();
-        let hand = self.iter().find_map(|r| r.hand_element.clone()).unwrap_or_else(|| ElementInfo {
+        let hand = self.iter().find_map(|r| r.info.hand_element.clone()).unwrap_or_else(|| ElementInfo {
             id: 0,
             name: rig.name.clone(),
             kind: ElementKind::Hand,
@@ -151,7 +122,7 @@ impl StageRegistry {
             rig: rig.name.clone(),
         });
         for r in self.iter() {
-            elements.extend(r.elements.iter().cloned());
+            elements.extend(r.info.elements.iter().cloned());
         }
         // A stage that publishes the hand's own id (a take looping as the global element while
         // the hand is not on a layer) describes it; the hand's frames there carry no `playback`.
@@ -162,8 +133,8 @@ impl StageRegistry {
         // The rig in force, and every other rig a running stage's elements were built on.
         let mut rigs = vec![super::rig_info(rig)];
         for r in self.iter() {
-            if !rigs.iter().any(|known| known.name == r.rig.name) {
-                rigs.push(r.rig.clone());
+            if !rigs.iter().any(|known| known.name == r.info.rig.name) {
+                rigs.push(r.info.rig.clone());
             }
         }
         ElementTable { version: self.table_version, rigs, elements }
@@ -174,9 +145,9 @@ impl StageRegistry {
         self.iter()
             .map(|r| StageStatus {
                 name: r.name.clone(),
-                kind: r.kind.to_string(),
-                state: r.report.describe(),
-                elements: r.elements.iter().map(|e| e.id).collect(),
+                kind: r.info.kind.to_string(),
+                state: r.info.report.describe(),
+                elements: r.info.elements.iter().map(|e| e.id).collect(),
             })
             .collect()
     }
@@ -184,13 +155,14 @@ impl StageRegistry {
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
+    use frond_protocol::RigInfo;
+
     use super::*;
-    use crate::stage::{FixedReport, LiveStage, no_input};
+    use crate::stage::{FixedReport, no_input};
 
-    struct Nothing;
-    impl LiveStage for Nothing {}
-
-    fn built(kind: &'static str, ids: &[u16], hand: Option<u16>) -> BuiltStage {
+    fn built(kind: &'static str, ids: &[u16], hand: Option<u16>) -> StageInfo {
         let info = |id: u16, kind: ElementKind| ElementInfo {
             id,
             name: format!("e{id}"),
@@ -198,8 +170,7 @@ mod tests {
             source: "s".into(),
             rig: "grass".into(),
         };
-        BuiltStage {
-            stage: Box::new(Nothing),
+        StageInfo {
             kind,
             report: Arc::new(FixedReport(kind.into())),
             elements: ids.iter().map(|&id| info(id, ElementKind::FieldPlant)).collect(),
@@ -227,12 +198,12 @@ mod tests {
         let mut r = StageRegistry::default();
         let a = built("field", &[], None);
         let slot = r.slot_for("a").unwrap();
-        r.set(slot, Some(Running::new("a", &a)));
+        r.replace(slot, Some(Running::new("a", a.clone())));
         assert_eq!(r.slot_for("a").unwrap(), slot, "same name, same slot");
         for i in 1..MAX_STAGES {
             let s = r.slot_for(&format!("s{i}")).unwrap();
             assert_ne!(s, slot);
-            r.set(s, Some(Running::new(&format!("s{i}"), &a)));
+            r.replace(s, Some(Running::new(&format!("s{i}"), a.clone())));
         }
         assert!(r.slot_for("one-more").unwrap_err().contains("stop one"));
         assert!(r.slot_for("a").is_ok(), "a running name can still be replaced");
@@ -241,9 +212,9 @@ mod tests {
     #[test]
     fn free_ids_skip_other_stages_but_not_the_one_replaced() {
         let mut r = StageRegistry::default();
-        r.set(
+        r.replace(
             0,
-            Some(Running::new("f", &built("field", &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None))),
+            Some(Running::new("f", built("field", &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None))),
         );
         assert_eq!(r.free_ids(1)[..2], [FIRST_STAGE_ELEMENT + 2, FIRST_STAGE_ELEMENT + 3]);
         assert_eq!(r.free_ids(0)[0], FIRST_STAGE_ELEMENT, "replacing slot 0 frees its ids");
@@ -252,7 +223,7 @@ mod tests {
     #[test]
     fn a_stage_may_not_publish_an_id_another_stage_publishes() {
         let mut r = StageRegistry::default();
-        r.set(0, Some(Running::new("a", &built("playback", &[0], None))));
+        r.replace(0, Some(Running::new("a", built("playback", &[0], None))));
         assert_eq!(r.collision(1, &built("playback", &[0], None)), Some((0, "a".to_string())));
         assert_eq!(r.collision(0, &built("playback", &[0], None)), None, "replacing itself is fine");
         assert_eq!(r.collision(1, &built("field", &[40], None)), None);
@@ -269,8 +240,8 @@ mod tests {
         assert_eq!((t.elements[0].id, t.elements[0].kind), (0, ElementKind::Hand));
         assert_eq!(t.joint_names(0).unwrap().len(), 4);
         // A layer moves the hand to its id; a field adds its plants.
-        r.set(0, Some(Running::new("layer", &built("layer", &[], Some(1)))));
-        r.set(1, Some(Running::new("field", &built("field", &[40, 41], None))));
+        r.replace(0, Some(Running::new("layer", built("layer", &[], Some(1)))));
+        r.replace(1, Some(Running::new("field", built("field", &[40, 41], None))));
         let t = r.next_table(&rig, "hand");
         assert_eq!(t.version, 2);
         let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id, e.kind)).collect();
