@@ -256,13 +256,13 @@ impl HandSource for OscHandSource {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use std::time::Duration;
 
     use super::*;
 
     /// One hand message inside `depth` nested bundles, each level's size field covering the rest.
-    fn nested_bundles(depth: usize) -> Vec<u8> {
+    pub(crate) fn nested_bundles(depth: usize) -> Vec<u8> {
         let mut out = hand_bytes();
         for _ in 0..depth {
             let mut b = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
@@ -297,7 +297,7 @@ mod tests {
     }
 
     /// `/frond/hand ,fffffff` with t = 0.5, wrist 10 -20 30, thumb 1 2 3, encoded by hand.
-    fn hand_bytes() -> Vec<u8> {
+    pub(crate) fn hand_bytes() -> Vec<u8> {
         let mut b = b"/frond/hand\0".to_vec(); // 11 chars + NUL = 12, aligned
         b.extend_from_slice(b",fffffff\0\0\0\0"); // 8 chars + NUL padded to 12
         for v in [0.5f32, 10.0, -20.0, 30.0, 1.0, 2.0, 3.0] {

@@ -128,6 +128,7 @@ fn visit_bundle(bundle: &[u8], f: &mut dyn FnMut(Result<HandSample, Reject>)) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::osc::tests::{hand_bytes, nested_bundles};
     use super::super::osc::{OscHandError, decode_hand_packet};
     use super::*;
     use proptest::prelude::*;
@@ -152,16 +153,6 @@ mod tests {
             .collect()
     }
 
-    /// `/frond/hand ,fffffff` with t = 0.5, wrist 10 -20 30, thumb 1 2 3, encoded by hand.
-    fn hand_bytes() -> Vec<u8> {
-        let mut b = b"/frond/hand\0".to_vec();
-        b.extend_from_slice(b",fffffff\0\0\0\0");
-        for v in [0.5f32, 10.0, -20.0, 30.0, 1.0, 2.0, 3.0] {
-            b.extend_from_slice(&v.to_be_bytes());
-        }
-        b
-    }
-
     #[test]
     fn a_hand_written_message_and_bundle() {
         let want = HandSample { t: 0.5, wrist_deg: [10.0, -20.0, 30.0], thumb_deg: [1.0, 2.0, 3.0] };
@@ -182,19 +173,9 @@ mod tests {
 
     #[test]
     fn nesting_deeper_than_the_limit_is_malformed() {
-        let nested = |depth: usize| {
-            let mut out = hand_bytes();
-            for _ in 0..depth {
-                let mut b = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
-                b.extend_from_slice(&(out.len() as u32).to_be_bytes());
-                b.extend_from_slice(&out);
-                out = b;
-            }
-            out
-        };
-        assert!(matches!(&ours(&nested(MAX_BUNDLE_DEPTH))[..], [Ok(_)]));
-        assert_eq!(ours(&nested(MAX_BUNDLE_DEPTH + 1)), [Err(Reject::Malformed)]);
-        assert_eq!(ours(&nested(3000)), [Err(Reject::Malformed)]);
+        assert!(matches!(&ours(&nested_bundles(MAX_BUNDLE_DEPTH))[..], [Ok(_)]));
+        assert_eq!(ours(&nested_bundles(MAX_BUNDLE_DEPTH + 1)), [Err(Reject::Malformed)]);
+        assert_eq!(ours(&nested_bundles(3000)), [Err(Reject::Malformed)]);
     }
 
     fn arg() -> impl Strategy<Value = OscType> {
