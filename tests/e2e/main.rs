@@ -1,6 +1,7 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
 mod demo;
+mod hands;
 mod hostile;
 mod live_modes;
 mod osc_input;

@@ -36,16 +36,39 @@ pub(crate) fn render(r: &StatusReport) -> String {
     let mut o = String::new();
     let src = &r.source;
     let _ = writeln!(o, "daemon       frondd {}, up {}", r.daemon_version, human_duration(r.uptime_s));
-    let _ = writeln!(
-        o,
-        "source       {} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
-        src.kind,
-        src.path,
-        if src.connected { "connected" } else { "NOT CONNECTED" },
-        src.reports,
-        src.rejected,
-        src.device_seq_gaps
-    );
+    let source_line = |s: &frond_protocol::SourceStatus| {
+        format!(
+            "{} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
+            s.kind,
+            s.path,
+            if s.connected { "connected" } else { "NOT CONNECTED" },
+            s.reports,
+            s.rejected,
+            s.device_seq_gaps
+        )
+    };
+    if r.hands.len() > 1 {
+        let _ = writeln!(o, "hands        {}", r.hands.len());
+        for h in &r.hands {
+            let _ = writeln!(o, "  {}: {}", h.name, source_line(&h.source));
+            let _ = writeln!(
+                o,
+                "  {:w$}  -> element {} {} (rig {}, calibration {}); {} frames, {} held, {} stalls, {} lost",
+                "",
+                h.element,
+                h.element_name,
+                h.rig_name,
+                h.calibration_id,
+                h.frames,
+                h.held_frames,
+                h.stalls,
+                h.lost_events,
+                w = h.name.len()
+            );
+        }
+    } else {
+        let _ = writeln!(o, "source       {}", source_line(src));
+    }
     let _ = writeln!(o, "rig          {}", r.rig_name);
     let _ = writeln!(o, "calibration  {}", r.calibration_id);
     let _ = writeln!(o, "filter       {}", r.filter);
@@ -189,6 +212,7 @@ mod tests {
             modes: vec![],
             stages: vec![],
             elements: vec![],
+            hands: vec![],
         }
     }
 
@@ -241,6 +265,44 @@ mod tests {
         let t = render(&r);
         assert!(t.contains("stages       1\n  field (field): field of g: 3 plants\n"), "{t}");
         assert!(t.contains("elements     0 hand grass (hand); 33-35 field-plant (field, 3)\n"), "{t}");
+    }
+
+    #[test]
+    fn several_hands_get_a_line_each() {
+        use frond_protocol::HandStatus;
+        let mut r = report();
+        let hand = |name: &str, connected: bool, element: u16, element_name: &str| HandStatus {
+            name: name.into(),
+            source: SourceStatus {
+                kind: "fuse-hidraw".into(),
+                path: format!("/tmp/{name}"),
+                connected,
+                reports: 10,
+                rejected: 0,
+                device_seq_gaps: 0,
+            },
+            element,
+            element_name: element_name.into(),
+            rig_name: "flower".into(),
+            calibration_id: "none".into(),
+            frames: 10,
+            held_frames: 2,
+            stalls: 0,
+            lost_events: u64::from(!connected),
+            events: vec![],
+        };
+        r.hands = vec![hand("left", true, 0, "flower"), hand("right", false, 1, "leaf")];
+        let t = render(&r);
+        assert!(!t.contains("\nsource "), "one source line is replaced by the hands:\n{t}");
+        assert!(t.contains("hands        2\n"), "{t}");
+        assert!(t.contains("  left: fuse-hidraw /tmp/left (connected; 10 reports"), "{t}");
+        assert!(t.contains("  right: fuse-hidraw /tmp/right (NOT CONNECTED; 10 reports"), "{t}");
+        assert!(
+            t.contains(
+                "-> element 1 leaf (rig flower, calibration none); 10 frames, 2 held, 0 stalls, 1 lost"
+            ),
+            "{t}"
+        );
     }
 
     #[test]

@@ -41,20 +41,30 @@ fn timespec_ns(ns: u64) -> libc::timespec {
 }
 
 /// Waits until `fd` is readable or the absolute `CLOCK_MONOTONIC` time `deadline_ns`, whichever
-/// comes first, retrying on signals. The realtime loop's wait when its device has a descriptor:
-/// a report wakes it at once instead of waiting for the next tick, and the deadline stays
-/// absolute (the remaining time is recomputed on every retry, so a signal cannot stretch it).
-/// `ppoll` takes a relative timeout, so this costs one `clock_gettime` (vDSO) per wait.
+/// comes first, retrying on signals: [`wait_any_readable_until_ns`] with one descriptor.
 pub fn wait_readable_until_ns(fd: std::os::fd::RawFd, deadline_ns: u64) -> Woke {
+    let mut fds = [libc::pollfd { fd, events: libc::POLLIN, revents: 0 }];
+    wait_any_readable_until_ns(&mut fds, deadline_ns)
+}
+
+/// Waits until one of `fds` is readable or the absolute `CLOCK_MONOTONIC` time `deadline_ns`,
+/// whichever comes first, retrying on signals. The realtime loop's wait when its hand sources
+/// have descriptors: a report on any of them wakes it at once instead of waiting for the next
+/// tick, and the deadline stays absolute (the remaining time is recomputed on every retry, so a
+/// signal cannot stretch it). `ppoll` takes a relative timeout, so this costs one
+/// `clock_gettime` (vDSO) per wait. Each entry's `events` should be `POLLIN`; `revents` is
+/// overwritten. Never allocates.
+pub fn wait_any_readable_until_ns(fds: &mut [libc::pollfd], deadline_ns: u64) -> Woke {
     loop {
         let now = monotonic_ns();
         if now >= deadline_ns {
             return Woke::Deadline;
         }
         let timeout = timespec_ns(deadline_ns - now);
-        let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
-        // SAFETY: one valid pollfd; `timeout` is a valid timespec; no signal mask is changed.
-        let rc = unsafe { libc::ppoll(&mut pfd, 1, &timeout, std::ptr::null()) };
+        // SAFETY: `fds` is a valid, exclusively borrowed array of `fds.len()` pollfds; `timeout`
+        // is a valid timespec; no signal mask is changed.
+        let rc =
+            unsafe { libc::ppoll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, &timeout, std::ptr::null()) };
         match rc {
             0 => return Woke::Deadline,
             n if n > 0 => return Woke::Readable,

@@ -27,6 +27,63 @@ pub struct RawConfig {
     realtime: RawRealtime,
     #[serde(default)]
     control: RawControl,
+    /// Several hand sources; absent = the one of `[source]`.
+    hands: Option<Vec<RawHand>>,
+}
+
+/// One `[[hands]]` table (or one `--hand` flag).
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawHand {
+    name: Option<String>,
+    kind: Option<String>,
+    profile: Option<String>,
+    path: Option<String>,
+    replay: Option<String>,
+    rig: Option<String>,
+    calibration: Option<String>,
+    element: Option<String>,
+}
+
+impl RawHand {
+    /// Parses a `--hand` flag: `NAME=KIND[,key=value...]`, where KIND is a source kind
+    /// (`auto`, `virtual`, `in-process`, `hid`, `hid:PATH`, `replay:PATH`, `osc://IP:PORT`) and
+    /// the keys are `element`, `rig`, `calibration`, `profile` and `path`.
+    pub fn parse_flag(flag: &str) -> Result<RawHand, String> {
+        let (name, rest) = flag.split_once('=').ok_or_else(|| {
+            format!("{flag:?}: expected NAME=KIND[,key=value...], e.g. right=hid:/dev/hidraw4,element=leaf")
+        })?;
+        let mut parts = rest.split(',');
+        let kind = parts.next().unwrap_or_default();
+        let mut hand = RawHand { name: Some(name.to_string()), ..Default::default() };
+        if let Some(path) = kind.strip_prefix("hid:") {
+            hand.kind = Some("hid".into());
+            hand.path = Some(path.to_string());
+        } else if let Some(path) = kind.strip_prefix("replay:") {
+            hand.kind = Some("replay".into());
+            hand.replay = Some(path.to_string());
+        } else {
+            hand.kind = Some(kind.to_string());
+        }
+        for part in parts {
+            let (key, value) =
+                part.split_once('=').ok_or_else(|| format!("{flag:?}: {part:?} is not key=value"))?;
+            let slot = match key {
+                "element" => &mut hand.element,
+                "rig" => &mut hand.rig,
+                "calibration" => &mut hand.calibration,
+                "profile" => &mut hand.profile,
+                "path" => &mut hand.path,
+                other => {
+                    return Err(format!(
+                        "{flag:?}: unknown key {other:?} (expected element, rig, calibration, profile, path)"
+                    ));
+                }
+            };
+            *slot = Some(value.to_string());
+        }
+        Ok(hand)
+    }
 }
 
 #[derive(Debug, Default, Clone, Deserialize)]
@@ -103,6 +160,7 @@ impl RawConfig {
         pick(&mut self.realtime.cpu, other.realtime.cpu);
         pick(&mut self.control.allowed_uids, other.control.allowed_uids);
         pick(&mut self.control.allowed_gids, other.control.allowed_gids);
+        pick(&mut self.hands, other.hands);
         self
     }
 
@@ -126,6 +184,14 @@ impl RawConfig {
             source: RawSource { kind: source, profile, path: device, replay, ..Default::default() },
             ..Default::default()
         }
+    }
+
+    /// The hands of `--hand` flags (replacing any `[[hands]]`), if any were given.
+    pub fn with_hands(mut self, hands: Vec<RawHand>) -> RawConfig {
+        if !hands.is_empty() {
+            self.hands = Some(hands);
+        }
+        self
     }
 }
 
@@ -157,12 +223,9 @@ pub struct Config {
     pub calibration: Option<PathBuf>,
     /// Filter spec overriding the rig's.
     pub filter: Option<String>,
-    /// Hand source.
-    pub source: SourceChoice,
-    /// Device profile file (None = embedded reference glove).
-    pub profile: Option<PathBuf>,
-    /// Device node path.
-    pub device_path: Option<PathBuf>,
+    /// The hand sources, at least one and at most [`MAX_HANDS`]: the one of `[source]`
+    /// (named `hand`) unless `[[hands]]` or `--hand` lists several.
+    pub hands: Vec<HandConfig>,
     /// Stall detection window.
     pub stall: Duration,
     /// Rate of the built-in sway.
@@ -190,6 +253,148 @@ pub struct Config {
     pub allowed_gids: Vec<u32>,
 }
 
+/// Most hand sources (the engine's limit).
+pub use crate::engine::MAX_HANDS;
+
+/// Name of the hand when only `[source]` configures one.
+pub const SINGLE_HAND: &str = "hand";
+
+/// One hand source, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandConfig {
+    /// Its name (in status, the element table and logs).
+    pub name: String,
+    /// Where its reports come from.
+    pub source: SourceChoice,
+    /// Device profile file (None = embedded reference glove).
+    pub profile: Option<PathBuf>,
+    /// Device node path.
+    pub device_path: Option<PathBuf>,
+    /// A rig of its own (embedded name or path); `None` = the daemon's rig, which `frond rig set`
+    /// and SIGHUP change for it too.
+    pub rig: Option<String>,
+    /// A calibration of its own; `None` = the daemon's (or, with a rig of its own, neutral).
+    pub calibration: Option<PathBuf>,
+    /// The rig element it drives: a secondary element's name (`leaf`), or `None` for the
+    /// global element.
+    pub element: Option<String>,
+}
+
+impl HandConfig {
+    /// Whether the daemon's rig, calibration and filter apply to it.
+    pub fn follows_setup(&self) -> bool {
+        self.rig.is_none() && self.calibration.is_none()
+    }
+}
+
+/// Parses a source kind (`key` names it in errors).
+fn source_choice(
+    errors: &mut Vec<String>,
+    key: &str,
+    kind: &str,
+    replay: Option<&str>,
+    replay_key: &str,
+) -> SourceChoice {
+    match kind {
+        "auto" => SourceChoice::Auto,
+        "virtual" => SourceChoice::Virtual,
+        "in-process" => SourceChoice::InProcess,
+        "hid" => SourceChoice::Hid,
+        "replay" => match replay {
+            Some(p) => SourceChoice::Replay(PathBuf::from(p)),
+            None => {
+                errors.push(format!("{replay_key}: required when {key} = \"replay\""));
+                SourceChoice::Auto
+            }
+        },
+        osc if osc.starts_with("osc://") => {
+            let addr = &osc["osc://".len()..];
+            if addr.parse::<std::net::SocketAddr>().is_err() {
+                errors.push(format!("{key}: {osc:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001"));
+            }
+            SourceChoice::Osc(addr.to_string())
+        }
+        other => {
+            errors.push(format!(
+                "{key}: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT"
+            ));
+            SourceChoice::Auto
+        }
+    }
+}
+
+/// Validates the `[[hands]]` list: names, kinds, and no two hands on one device or address.
+fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig> {
+    if raw.is_empty() {
+        errors.push("hands: lists no hand (remove it to use [source])".into());
+    }
+    if raw.len() > MAX_HANDS {
+        errors.push(format!("hands: {} hands; the limit is {MAX_HANDS}", raw.len()));
+    }
+    let mut hands: Vec<HandConfig> = Vec::new();
+    // Whether each hand's kind parsed (only those are compared for shared devices).
+    let mut valid_kind: Vec<bool> = Vec::new();
+    for (i, h) in raw.into_iter().take(MAX_HANDS).enumerate() {
+        let key = |k: &str| format!("hands[{i}].{k}");
+        let name = h.name.unwrap_or_default();
+        let name_ok = !name.is_empty()
+            && name.len() <= 32
+            && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+        if !name_ok {
+            errors.push(format!("{}: {name:?}: 1 to 32 letters, digits, '_' or '-'", key("name")));
+        } else if let Some(j) = hands.iter().position(|o| o.name == name) {
+            errors.push(format!("{}: {name:?} is also the name of hands[{j}]", key("name")));
+        }
+        let errors_before = errors.len();
+        let source = match h.kind.as_deref() {
+            Some(kind) => source_choice(errors, &key("kind"), kind, h.replay.as_deref(), &key("replay")),
+            None => {
+                errors.push(format!(
+                    "{}: required (auto, virtual, in-process, hid, replay, osc://IP:PORT)",
+                    key("kind")
+                ));
+                SourceChoice::Auto
+            }
+        };
+        if matches!(h.element.as_deref(), Some("")) {
+            errors.push(format!(
+                "{}: must name a secondary element of the rig, or be left out for the global element",
+                key("element")
+            ));
+        }
+        let hand = HandConfig {
+            name,
+            source,
+            profile: h.profile.map(PathBuf::from),
+            device_path: h.path.map(PathBuf::from),
+            rig: h.rig,
+            calibration: h.calibration.map(PathBuf::from),
+            element: h.element.filter(|e| e != "global"),
+        };
+        let kind_ok = errors.len() == errors_before;
+        valid_kind.push(kind_ok);
+        let comparable = hands.iter().enumerate().filter(|&(j, _)| kind_ok && valid_kind[j]);
+        for (j, other) in comparable {
+            let same_device = hand.device_path.is_some() && hand.device_path == other.device_path;
+            let same_address = matches!((&hand.source, &other.source), (SourceChoice::Osc(a), SourceChoice::Osc(b)) if a == b);
+            let both_search = matches!(hand.source, SourceChoice::Auto | SourceChoice::Hid)
+                && matches!(other.source, SourceChoice::Auto | SourceChoice::Hid)
+                && hand.device_path.is_none()
+                && other.device_path.is_none();
+            if same_device || same_address || both_search {
+                errors.push(format!(
+                    "{}: hands[{j}] ({:?}) reads the same device or address; give each hand its own `path` or address",
+                    key("kind"),
+                    other.name
+                ));
+                break;
+            }
+        }
+        hands.push(hand);
+    }
+    hands
+}
+
 fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
     let v = v.unwrap_or(lo);
     if v < lo || v > hi {
@@ -208,33 +413,26 @@ impl Config {
         if rig.trim().is_empty() {
             errors.push("rig: must name an embedded rig or a file".into());
         }
-        let kind = raw.source.kind.unwrap_or_else(|| "auto".into());
-        let source = match kind.as_str() {
-            "auto" => SourceChoice::Auto,
-            "virtual" => SourceChoice::Virtual,
-            "in-process" => SourceChoice::InProcess,
-            "hid" => SourceChoice::Hid,
-            "replay" => match &raw.source.replay {
-                Some(p) => SourceChoice::Replay(PathBuf::from(p)),
-                None => {
-                    errors.push("source.replay: required when source.kind = \"replay\"".into());
-                    SourceChoice::Auto
-                }
-            },
-            osc if osc.starts_with("osc://") => {
-                let addr = &osc["osc://".len()..];
-                if addr.parse::<std::net::SocketAddr>().is_err() {
-                    errors.push(format!(
-                        "source.kind: {osc:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001"
-                    ));
-                }
-                SourceChoice::Osc(addr.to_string())
-            }
-            other => {
-                errors.push(format!(
-                    "source.kind: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT"
-                ));
-                SourceChoice::Auto
+        let hands = match raw.hands {
+            Some(list) => validate_hands(&mut errors, list),
+            None => {
+                let kind = raw.source.kind.unwrap_or_else(|| "auto".into());
+                let source = source_choice(
+                    &mut errors,
+                    "source.kind",
+                    &kind,
+                    raw.source.replay.as_deref(),
+                    "source.replay",
+                );
+                vec![HandConfig {
+                    name: SINGLE_HAND.into(),
+                    source,
+                    profile: raw.source.profile.map(PathBuf::from),
+                    device_path: raw.source.path.map(PathBuf::from),
+                    rig: None,
+                    calibration: None,
+                    element: None,
+                }]
             }
         };
         if let Some(filter) = &raw.filter
@@ -304,9 +502,7 @@ impl Config {
             rig,
             calibration: raw.calibration.map(PathBuf::from),
             filter: raw.filter,
-            source,
-            profile: raw.source.profile.map(PathBuf::from),
-            device_path: raw.source.path.map(PathBuf::from),
+            hands,
             stall: Duration::from_millis(stall_ms as u64),
             virtual_rate_hz: virtual_rate_hz as u32,
             virtual_clock,
@@ -342,7 +538,9 @@ mod tests {
     fn embedded_default_is_valid() {
         let c = Config::load(None, RawConfig::default()).expect("default config validates");
         assert_eq!(c.tick_rate_hz, 1000);
-        assert_eq!(c.source, SourceChoice::Auto);
+        assert_eq!(c.hands.len(), 1);
+        assert_eq!(c.hands[0].source, SourceChoice::Auto);
+        assert_eq!(c.hands[0].name, "hand");
         assert_eq!(c.rig, "grass");
     }
 
@@ -384,6 +582,74 @@ mod tests {
         let raw = RawConfig::parse("[source]\nvirtual_clock = \"wall\"\n", "t").unwrap();
         let errors = Config::validate(raw).unwrap_err();
         assert_eq!(errors, ["source.virtual_clock: \"wall\" is not one of schedule, monotonic"]);
+    }
+
+    #[test]
+    fn hands_are_listed_validated_and_named_in_errors() {
+        let raw = RawConfig::parse(
+            "[[hands]]\nname = \"left\"\nkind = \"hid\"\npath = \"/dev/hidraw3\"\n\
+             [[hands]]\nname = \"right\"\nkind = \"osc://127.0.0.1:9001\"\nelement = \"leaf\"\nrig = \"flower\"\n",
+            "t",
+        )
+        .unwrap();
+        let c = Config::validate(raw).unwrap();
+        assert_eq!(c.hands.len(), 2);
+        assert_eq!((c.hands[0].name.as_str(), &c.hands[0].source), ("left", &SourceChoice::Hid));
+        assert_eq!(c.hands[0].device_path.as_deref(), Some(Path::new("/dev/hidraw3")));
+        assert!(c.hands[0].follows_setup());
+        assert_eq!(c.hands[1].source, SourceChoice::Osc("127.0.0.1:9001".into()));
+        assert_eq!(c.hands[1].element.as_deref(), Some("leaf"));
+        assert!(!c.hands[1].follows_setup(), "a rig of its own");
+
+        let raw = RawConfig::parse(
+            "[[hands]]\nname = \"a b\"\nkind = \"hid\"\n\
+             [[hands]]\nname = \"x\"\n\
+             [[hands]]\nname = \"x\"\nkind = \"usb\"\n\
+             [[hands]]\nname = \"y\"\nkind = \"auto\"\n",
+            "t",
+        )
+        .unwrap();
+        let errors = Config::validate(raw).unwrap_err();
+        assert_eq!(
+            errors,
+            [
+                "hands[0].name: \"a b\": 1 to 32 letters, digits, '_' or '-'",
+                "hands[1].kind: required (auto, virtual, in-process, hid, replay, osc://IP:PORT)",
+                "hands[2].name: \"x\" is also the name of hands[1]",
+                "hands[2].kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT",
+                "hands[3].kind: hands[0] (\"a b\") reads the same device or address; give each hand its own `path` or address",
+            ],
+        );
+        let nine: String =
+            (0..9).map(|i| format!("[[hands]]\nname = \"h{i}\"\nkind = \"virtual\"\n")).collect();
+        let errors = Config::validate(RawConfig::parse(&nine, "t").unwrap()).unwrap_err();
+        assert_eq!(errors, ["hands: 9 hands; the limit is 8"]);
+    }
+
+    #[test]
+    fn hand_flags_parse_into_the_same_tables() {
+        let h = RawHand::parse_flag("right=hid:/dev/hidraw4,element=leaf,calibration=/c.toml").unwrap();
+        let c = Config::validate(RawConfig::default().with_hands(vec![h])).unwrap();
+        let hand = &c.hands[0];
+        assert_eq!((hand.name.as_str(), &hand.source), ("right", &SourceChoice::Hid));
+        assert_eq!(hand.device_path.as_deref(), Some(Path::new("/dev/hidraw4")));
+        assert_eq!(hand.element.as_deref(), Some("leaf"));
+        assert_eq!(hand.calibration.as_deref(), Some(Path::new("/c.toml")));
+        let h = RawHand::parse_flag("left=replay:/r.jsonl,element=global").unwrap();
+        let c = Config::validate(RawConfig::default().with_hands(vec![h])).unwrap();
+        assert_eq!(c.hands[0].source, SourceChoice::Replay("/r.jsonl".into()));
+        assert_eq!(c.hands[0].element, None, "global is the default element");
+        for (bad, why) in [
+            ("left", "expected NAME=KIND"),
+            ("left=hid,leaf", "\"leaf\" is not key=value"),
+            ("left=hid,colour=red", "unknown key \"colour\""),
+        ] {
+            let e = RawHand::parse_flag(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        // No `--hand`: the one hand of [source] stays.
+        let c = Config::validate(RawConfig::default().with_hands(vec![])).unwrap();
+        assert_eq!(c.hands.len(), 1);
     }
 
     #[test]

@@ -18,8 +18,8 @@ use frond_motion::take::TakeHeader;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
     ControlError, ControlErrorKind, ControlReply, ControlRequest, DecodeError, ElementTable, FrameBuf,
-    ReadError, RecordingStatus, SourceStatus, StatusReport, encode_frame_as, paths::validate_take_name,
-    read_frame_limited, write_frame,
+    HandStatus, ReadError, RecordingStatus, SourceStatus, StatusReport, encode_frame_as,
+    paths::validate_take_name, read_frame_limited, write_frame,
 };
 use tracing::{info, warn};
 
@@ -52,13 +52,10 @@ pub struct DaemonState {
     pub calibration: Calibration,
     /// Active filter.
     pub filter: FilterSpec,
-    /// Source kind (`hidraw`, `fuse-hidraw`, `in-process`, `replay`).
-    pub source_kind: String,
-    /// Source path or description.
-    pub source_path: String,
-    /// The source's counters.
-    pub source_counters: Arc<SourceCounters>,
-    /// Device history, oldest first.
+    /// The hand sources, in configuration order (at least one).
+    pub hands: Vec<HandState>,
+    /// Device history of every hand, oldest first (prefixed by the hand's name when there are
+    /// several).
     pub device_events: std::collections::VecDeque<String>,
     /// Current take: name and path.
     pub recording: Option<(String, PathBuf)>,
@@ -74,15 +71,57 @@ pub struct DaemonState {
     pub elements: ElementTable,
 }
 
-impl DaemonState {
-    /// Adds a device event (timestamped) and logs it.
-    pub fn push_event(&mut self, started: Instant, text: String) {
-        let line = format!("+{:.3}s {text}", started.elapsed().as_secs_f64());
-        if self.device_events.len() == DEVICE_EVENTS_KEPT {
-            self.device_events.pop_front();
-        }
-        self.device_events.push_back(line);
+/// One hand source, as control and status see it.
+pub struct HandState {
+    /// Its name.
+    pub name: String,
+    /// Source kind (`hidraw`, `fuse-hidraw`, `in-process`, `replay`, `osc`).
+    pub kind: String,
+    /// Source path or description.
+    pub path: String,
+    /// The source's counters.
+    pub counters: Arc<SourceCounters>,
+    /// Its device history, oldest first.
+    pub events: std::collections::VecDeque<String>,
+    /// The secondary element of its rig it drives (`None`: the global element).
+    pub layer: Option<String>,
+    /// The element id it is published as.
+    pub element: u16,
+    /// Its own rig, calibration and filter; `None` when it follows the daemon's.
+    pub own: Option<Setup>,
+}
+
+impl HandState {
+    /// The rig this hand is mapped by: its own, or the daemon's.
+    pub fn rig<'a>(&'a self, state_rig: &'a Rig) -> &'a Rig {
+        self.own.as_ref().map_or(state_rig, |s| &s.rig)
     }
+}
+
+impl DaemonState {
+    /// Adds a device event of hand `hand` (timestamped) to its history and the daemon's.
+    pub fn push_event(&mut self, started: Instant, hand: usize, text: String) {
+        let line = format!("+{:.3}s {text}", started.elapsed().as_secs_f64());
+        let several = self.hands.len() > 1;
+        if let Some(h) = self.hands.get_mut(hand) {
+            push_bounded(&mut h.events, line.clone());
+            let line = if several { format!("{}: {line}", h.name) } else { line };
+            push_bounded(&mut self.device_events, line);
+        }
+    }
+
+    /// The hand stages act on: the first that drives the global element, else the first (the
+    /// loop's rule, `engine::primary_of`).
+    pub fn primary_hand(&self) -> usize {
+        self.hands.iter().position(|h| h.element == 0).unwrap_or(0)
+    }
+}
+
+fn push_bounded(events: &mut std::collections::VecDeque<String>, line: String) {
+    if events.len() == DEVICE_EVENTS_KEPT {
+        events.pop_front();
+    }
+    events.push_back(line);
 }
 
 /// Everything the control threads share.
@@ -262,7 +301,8 @@ impl ControlContext {
                 warn!("panicking a control thread on request (test hook)");
                 panic!("PanicForTest: a control thread panics on request (test hook)");
             }
-            ControlRequest::RawSample => match self.stats.raw.load() {
+            // `frond calibrate` calibrates the primary hand (the one on the global element).
+            ControlRequest::RawSample => match self.stats.hands[self.lock().primary_hand()].raw.load() {
                 Some((t, wrist_deg, thumb_deg, fresh)) => {
                     ControlReply::RawSample { t, wrist_deg, thumb_deg, fresh }
                 }
@@ -455,21 +495,42 @@ impl ControlContext {
     /// Builds a status report.
     pub fn status(&self) -> StatusReport {
         let state = self.lock();
-        let c = &state.source_counters;
         let s = &self.stats;
-        let counters = c.snapshot();
-        let rejected = counters.rejected();
+        let hands: Vec<HandStatus> = state
+            .hands
+            .iter()
+            .enumerate()
+            .map(|(i, h)| {
+                let counters = h.counters.snapshot();
+                let hs = &s.hands[i];
+                let rig = h.rig(&state.rig);
+                let calibration = h.own.as_ref().map_or(&state.calibration, |o| &o.calibration);
+                HandStatus {
+                    name: h.name.clone(),
+                    source: SourceStatus {
+                        kind: h.kind.clone(),
+                        path: h.path.clone(),
+                        connected: hs.connected.load(Relaxed),
+                        reports: counters.reports,
+                        rejected: counters.rejected(),
+                        device_seq_gaps: counters.seq_gaps,
+                    },
+                    element: h.element,
+                    element_name: h.layer.clone().unwrap_or_else(|| rig.name.clone()),
+                    rig_name: rig.name.clone(),
+                    calibration_id: calibration.id.clone(),
+                    frames: hs.frames.load(Relaxed),
+                    held_frames: hs.held_frames.load(Relaxed),
+                    stalls: hs.stall_events.load(Relaxed),
+                    lost_events: hs.lost_events.load(Relaxed),
+                    events: h.events.iter().cloned().collect(),
+                }
+            })
+            .collect();
         StatusReport {
             daemon_version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),
-            source: SourceStatus {
-                kind: state.source_kind.clone(),
-                path: state.source_path.clone(),
-                connected: s.device_connected.load(Relaxed),
-                reports: counters.reports,
-                rejected,
-                device_seq_gaps: counters.seq_gaps,
-            },
+            source: hands[0].source.clone(),
             rig_name: state.rig.name.clone(),
             calibration_id: state.calibration.id.clone(),
             filter: state.filter.to_string(),
@@ -493,6 +554,7 @@ impl ControlContext {
             modes: self.modes(&state),
             stages: state.stages.status(),
             elements: state.elements.elements.clone(),
+            hands,
         }
     }
 }

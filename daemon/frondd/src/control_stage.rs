@@ -19,11 +19,9 @@ use crate::clock::monotonic_ns;
 use crate::control::{ControlContext, DaemonState, refuse};
 use crate::engine::LoopCommand;
 use crate::lanes::ELEMENTS_FRAME_MAX;
-use crate::stage::registry::{Running, validate_stage_name};
+use crate::stage::registry::{HandElement, Running, validate_stage_name};
 use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
 
-/// Name of the (single) hand source in the element table.
-pub const HAND_SOURCE: &str = "hand";
 /// Stage name of a layer being recorded.
 const LAYER_STAGE: &str = "layer";
 /// How long a control request waits for the loop to apply a stage change.
@@ -53,6 +51,23 @@ impl ControlContext {
     ) -> Result<(), ControlReply> {
         let Setup { rig, calibration, filter } = setup;
         let rig_changed = rig_applied || rig != state.rig;
+        // Hands that follow the daemon's rig and drive one of its layers: the new rig must have
+        // that layer (checked before anything changes), and its id may move.
+        let mut moved: Vec<(usize, u16)> = Vec::new();
+        if rig_changed {
+            for (i, hand) in state.hands.iter().enumerate().filter(|(_, h)| h.own.is_none()) {
+                let Some(layer) = &hand.layer else { continue };
+                let id = stage::layer::layer_id(&rig, layer).map_err(|e| {
+                    refuse(
+                        ControlErrorKind::Invalid,
+                        format!("hand {:?} drives layer {layer:?}: {e}", hand.name),
+                    )
+                })?;
+                if id != hand.element {
+                    moved.push((i, id));
+                }
+            }
+        }
         if rig_changed {
             self.send_loop(LoopCommand::SetMapping(rig.mapping())).map_err(|r| *r)?;
         }
@@ -61,6 +76,10 @@ impl ControlContext {
         }
         if rig_changed || filter != state.filter {
             self.send_loop(LoopCommand::SetFilter(filter)).map_err(|r| *r)?;
+        }
+        for &(hand, element) in &moved {
+            self.send_loop(LoopCommand::SetHandElement { hand, element }).map_err(|r| *r)?;
+            state.hands[hand].element = element;
         }
         state.rig = rig;
         state.calibration = calibration;
@@ -188,10 +207,21 @@ impl ControlContext {
             if state.recording.is_some() {
                 return refuse(ControlErrorKind::WrongState, "a take is already being recorded");
             }
-            match stage::layer::build(&state.rig, &layer, HAND_SOURCE) {
+            let primary_index = state.primary_hand();
+            let primary = &state.hands[primary_index];
+            let built = match stage::layer::build(primary.rig(&state.rig), &layer, &primary.name) {
                 Ok(b) => b,
                 Err(e) => return refuse(ControlErrorKind::Invalid, e),
+            };
+            let id = built.info.hand_element.as_ref().map_or(0, |e| e.id);
+            let mut others = state.hands.iter().enumerate().filter(|&(i, _)| i != primary_index);
+            if let Some((_, other)) = others.find(|(_, h)| h.element == id) {
+                return refuse(
+                    ControlErrorKind::WrongState,
+                    format!("hand {:?} drives layer {layer:?} already; record it from that hand", other.name),
+                );
             }
+            built
         };
         let started_playback = match &global_take {
             Some(take) => match self.stage_start(None, StageSpec::Playback { take: take.clone(), seed }) {
@@ -294,7 +324,10 @@ impl ControlContext {
 
     /// The next element table and its frame, stored for the slow lane.
     fn encode_table(&self, state: &mut DaemonState) -> Result<(ElementTable, Vec<u8>), ControlReply> {
-        let table = state.stages.next_table(&state.rig, HAND_SOURCE);
+        let hands: Vec<HandElement> =
+            state.hands.iter().map(|h| HandElement::new(&h.name, h.rig(&state.rig), h.element)).collect();
+        let primary = state.primary_hand();
+        let table = state.stages.next_table(&state.rig, &hands, primary);
         let mut frame = Vec::new();
         encode_frame(&ServerMessage::Elements(table.clone()), &mut frame);
         if frame.len() > ELEMENTS_FRAME_MAX {

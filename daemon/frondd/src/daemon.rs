@@ -15,9 +15,9 @@ use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION};
 use tracing::{error, info, warn};
 
 use crate::config::Config;
-use crate::control::{AccessPolicy, ControlContext, DaemonState, spawn_control};
+use crate::control::{AccessPolicy, ControlContext, DaemonState, HandState, spawn_control};
 use crate::control_stage::Setup;
-use crate::engine::{Engine, EngineLinks, Garbage, LoopCommand};
+use crate::engine::{Engine, EngineLinks, Garbage, HandInput, LoopCommand, LostSource, MAX_HANDS};
 use crate::error::DaemonError;
 use crate::notify::Notifier;
 use crate::publisher::{
@@ -99,6 +99,57 @@ fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf), DaemonError> 
     Ok((listener, path))
 }
 
+/// A configured hand, resolved against the rigs: its element and, when it has a rig or
+/// calibration of its own, that setup.
+struct ResolvedHand {
+    name: String,
+    layer: Option<String>,
+    element: u16,
+    own: Option<Setup>,
+}
+
+/// Loads every hand's own rig and calibration and resolves the element each drives; refuses two
+/// hands on one element.
+fn set_up_hands(config: &Config, rig: &Rig) -> Result<Vec<ResolvedHand>, DaemonError> {
+    let mut out: Vec<ResolvedHand> = Vec::with_capacity(config.hands.len());
+    for hand in &config.hands {
+        let own = if hand.follows_setup() {
+            None
+        } else {
+            let own_rig = match &hand.rig {
+                Some(spec) => load_rig(spec)?,
+                None => rig.clone(),
+            };
+            let calibration = load_calibration(hand.calibration.as_deref(), &own_rig)?;
+            let filter = match &config.filter {
+                Some(spec) => {
+                    spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?
+                }
+                None => own_rig.filter,
+            };
+            Some(Setup { rig: own_rig, calibration, filter })
+        };
+        let hand_rig = own.as_ref().map_or(rig, |o| &o.rig);
+        let element = match &hand.element {
+            Some(layer) => crate::stage::layer::layer_id(hand_rig, layer)
+                .map_err(|message| DaemonError::Hand { hand: hand.name.clone(), message })?,
+            None => 0,
+        };
+        if let Some(other) = out.iter().find(|o| o.element == element) {
+            return Err(DaemonError::Hand {
+                hand: hand.name.clone(),
+                message: format!(
+                    "drives element {element} ({}), as hand {:?} does: give each hand its own element",
+                    hand.element.as_deref().unwrap_or("global"),
+                    other.name
+                ),
+            });
+        }
+        out.push(ResolvedHand { name: hand.name.clone(), layer: hand.element.clone(), element, own });
+    }
+    Ok(out)
+}
+
 /// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`).
 pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
@@ -112,30 +163,54 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
 
-    let mut opened = open_source(&config, &dirs.socket_dir)?;
-    if opened.source.is_some() {
-        info!(kind = %opened.kind, path = %opened.path, "hand source ready");
+    let hands = set_up_hands(&config, &rig)?;
+    let mut opened = Vec::with_capacity(config.hands.len());
+    for (i, hand) in config.hands.iter().enumerate() {
+        let source = open_source(&config, i, hand, &dirs.socket_dir)?;
+        if source.source.is_some() {
+            info!(hand = %hand.name, kind = %source.kind, path = %source.path, "hand source ready");
+        }
+        opened.push(source);
     }
 
     let stats = Arc::new(LoopStats::default());
     let (cmd_tx, cmd_rx) = bounded::<LoopCommand>(256);
     let (rec_tx, rec_rx) = bounded::<RecorderMsg>(64);
     let (frames_tx, frames_rx) = crate::recorder::frame_ring(crate::recorder::RECORDER_RING_FRAMES);
-    let (reopen_tx, reopen_rx) = bounded::<Box<dyn HandSource>>(1);
-    let (await_tx, await_rx) = bounded::<SourceFactory>(1);
-    if let Some(factory) = opened.pending.take() {
-        let _ = await_tx.send(factory);
+    let (reopen_tx, reopen_rx) = bounded::<LostSource>(MAX_HANDS);
+    let (await_tx, await_rx) = bounded::<(usize, SourceFactory)>(MAX_HANDS);
+    let mut awaited = Vec::new();
+    for (i, o) in opened.iter_mut().enumerate() {
+        if let Some(factory) = o.pending.take() {
+            let _ = await_tx.send((i, factory));
+            awaited.push(i);
+        }
     }
+    drop(await_tx);
     let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
 
     let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
     let publish_wake = publish_queue.wake();
     let (slow_tx, slow_rx) = bounded(crate::engine::MAX_SUBSCRIBERS);
-    let mapper = Mapper::new(rig.mapping(), calibration.params(), filter);
+    let inputs: Vec<HandInput> = hands
+        .iter()
+        .zip(opened.iter_mut())
+        .map(|(hand, o)| {
+            let mapper = match &hand.own {
+                Some(own) => Mapper::new(own.rig.mapping(), own.calibration.params(), own.filter),
+                None => Mapper::new(rig.mapping(), calibration.params(), filter),
+            };
+            HandInput {
+                mapper,
+                source: o.source.take(),
+                element: hand.element,
+                follows_setup: hand.own.is_none(),
+            }
+        })
+        .collect();
     let elements_cell = Arc::new(crate::publisher::ElementsCell::default());
-    let engine = Engine::new(
-        mapper,
-        opened.source.take(),
+    let engine = Engine::with_hands(
+        inputs,
         config.stall.as_nanos() as u64,
         EngineLinks {
             commands: cmd_rx,
@@ -163,9 +238,20 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         rig: rig.clone(),
         calibration: calibration.clone(),
         filter,
-        source_kind: opened.kind.clone(),
-        source_path: opened.path.clone(),
-        source_counters: opened.counters.clone(),
+        hands: hands
+            .into_iter()
+            .zip(&opened)
+            .map(|(hand, o)| HandState {
+                name: hand.name,
+                kind: o.kind.clone(),
+                path: o.path.clone(),
+                counters: o.counters.clone(),
+                events: Default::default(),
+                layer: hand.layer,
+                element: hand.element,
+                own: hand.own,
+            })
+            .collect(),
         device_events: Default::default(),
         recording: None,
         achieved_rate_hz: 0.0,
@@ -174,8 +260,10 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         layer_playback: false,
         elements: Default::default(),
     };
-    let first_event = if await_rx.is_empty() { "opened" } else { "not present; waiting for it" };
-    state.push_event(started, format!("{} {} {first_event}", opened.kind, opened.path));
+    for (i, o) in opened.iter().enumerate() {
+        let first_event = if awaited.contains(&i) { "not present; waiting for it" } else { "opened" };
+        state.push_event(started, i, format!("{} {} {first_event}", o.kind, o.path));
+    }
     let ctx = Arc::new(ControlContext {
         state: Mutex::new(state),
         stats: stats.clone(),
@@ -275,7 +363,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     for path in [pose_path, control_path] {
         let _ = std::fs::remove_file(path);
     }
-    drop(opened.keepalive); // unmounts the virtual glove node, if any
+    drop(opened); // unmounts the virtual glove nodes, if any
     info!("stopped");
     Ok(())
 }
@@ -322,8 +410,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
     }
     let restart_needed: Vec<&str> = [
         (config.tick_rate_hz != running.tick_rate_hz, "tick_rate_hz"),
-        (config.source != running.source || config.device_path != running.device_path, "source"),
-        (config.profile != running.profile, "source.profile"),
+        (config.hands != running.hands, "source / hands (sources, their rigs, calibrations and elements)"),
         (config.queue_frames != running.queue_frames, "publisher.queue_frames"),
     ]
     .into_iter()
@@ -344,10 +431,11 @@ fn housekeeping(
     reload_fn: &dyn Fn(&ControlContext),
 ) {
     let stats = &ctx.stats;
+    let hands = ctx.lock().hands.len();
     let mut last_ticks = stats.ticks.load(Relaxed);
     let mut last_rate_at = Instant::now();
-    let mut connected = stats.device_connected.load(Relaxed);
-    let mut stalls = stats.stall_events.load(Relaxed);
+    let mut connected: Vec<bool> = stats.hands[..hands].iter().map(|h| h.connected.load(Relaxed)).collect();
+    let mut stalls: Vec<u64> = stats.hands[..hands].iter().map(|h| h.stall_events.load(Relaxed)).collect();
     let watchdog = notifier.watchdog_interval().map(|d| d / 2);
     let mut last_ping = Instant::now();
     let mut ticks_at_ping = last_ticks;
@@ -359,30 +447,36 @@ fn housekeeping(
             notifier.notify("READY=1");
         }
         while garbage.try_recv().is_ok() {}
-        let now_connected = stats.device_connected.load(Relaxed);
-        if now_connected != connected {
-            connected = now_connected;
-            let new_stalls = stats.stall_events.load(Relaxed);
-            let what = if connected {
+        for i in 0..hands {
+            let hand = &stats.hands[i];
+            let now_connected = hand.connected.load(Relaxed);
+            if now_connected == connected[i] {
+                continue;
+            }
+            connected[i] = now_connected;
+            let new_stalls = hand.stall_events.load(Relaxed);
+            let what = if now_connected {
                 "device reports resumed"
-            } else if new_stalls != stalls {
+            } else if new_stalls != stalls[i] {
                 "device stalled (no reports)"
             } else {
                 "device lost"
             };
-            stalls = new_stalls;
-            if connected {
-                info!("{what}")
+            stalls[i] = new_stalls;
+            let mut state = ctx.lock();
+            let name = state.hands[i].name.clone();
+            if now_connected {
+                info!(hand = %name, "{what}")
             } else {
-                warn!("{what}")
+                warn!(hand = %name, "{what}")
             }
-            ctx.state.lock().unwrap_or_else(|e| e.into_inner()).push_event(ctx.started, what.to_string());
+            state.push_event(ctx.started, i, what.to_string());
         }
         let elapsed = last_rate_at.elapsed();
         if elapsed >= Duration::from_secs(1) {
             let ticks = stats.ticks.load(Relaxed);
             let rate = (ticks - last_ticks) as f64 / elapsed.as_secs_f64();
-            ctx.state.lock().unwrap_or_else(|e| e.into_inner()).achieved_rate_hz = rate;
+            ctx.lock().achieved_rate_hz = rate;
             last_ticks = ticks;
             last_rate_at = Instant::now();
         }
@@ -398,83 +492,92 @@ fn housekeeping(
     }
 }
 
-/// Opens an awaited device (one that was absent at start-up), retrying every 100 ms.
-fn await_device(
-    mut factory: SourceFactory,
+/// A hand source the reopen thread is trying to (re)open.
+enum Pending {
+    /// Absent at start-up: opened by its factory.
+    Awaited { hand: usize, factory: SourceFactory, since: Instant },
+    /// Lost by the loop: reopened in place.
+    Lost { hand: usize, source: Box<dyn HandSource>, since: Instant, attempts: u64 },
+}
+
+/// Hands a (re)opened source to the loop and records the event.
+fn hand_back(
     commands: &Sender<LoopCommand>,
     ctx: &ControlContext,
-    stop: &AtomicBool,
+    hand: usize,
+    source: Box<dyn HandSource>,
+    text: String,
 ) {
-    let waiting_since = Instant::now();
-    while !stop.load(Relaxed) {
-        match factory() {
-            Ok(source) => {
-                let text = format!(
-                    "{} {} appeared after {:.1} s",
-                    source.kind(),
-                    source.describe(),
-                    waiting_since.elapsed().as_secs_f64()
-                );
-                info!("{text}");
-                {
-                    let mut state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
-                    state.source_counters = source.counters();
-                    state.source_kind = source.kind().to_string();
-                    state.source_path = source.describe().to_string();
-                    state.push_event(ctx.started, text);
-                }
-                if commands.send_timeout(LoopCommand::ReplaceSource(source), Duration::from_secs(1)).is_err()
-                {
-                    warn!("the loop did not take the device");
-                }
-                return;
-            }
-            Err(_) => thread::sleep(Duration::from_millis(100)),
+    {
+        let mut state = ctx.lock();
+        let name = state.hands.get(hand).map(|h| h.name.clone()).unwrap_or_default();
+        info!(hand = %name, "{text}");
+        if let Some(h) = state.hands.get_mut(hand) {
+            h.counters = source.counters();
+            h.kind = source.kind().to_string();
+            h.path = source.describe().to_string();
         }
+        state.push_event(ctx.started, hand, text);
+    }
+    if commands.send_timeout(LoopCommand::ReplaceSource(hand, source), Duration::from_secs(1)).is_err() {
+        warn!(hand, "the loop did not take the device");
     }
 }
 
-/// Reopens a lost source off the realtime thread, every 100 ms, and hands it back to the loop;
-/// also opens a device that was absent at start-up.
+/// Reopens lost sources off the realtime thread, each every 100 ms, and hands them back to the
+/// loop; also opens devices that were absent at start-up. Several hands are retried side by
+/// side: one that stays away never delays another's return.
 fn spawn_reopener(
-    rx: Receiver<Box<dyn HandSource>>,
-    awaited: Receiver<SourceFactory>,
+    rx: Receiver<LostSource>,
+    awaited: Receiver<(usize, SourceFactory)>,
     commands: Sender<LoopCommand>,
     ctx: Arc<ControlContext>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-reopen".into()).spawn(move || {
-        if let Ok(factory) = awaited.try_recv() {
-            await_device(factory, &commands, &ctx, &stop);
-        }
+        let mut pending: Vec<Pending> = awaited
+            .try_iter()
+            .map(|(hand, factory)| Pending::Awaited { hand, factory, since: Instant::now() })
+            .collect();
         while !stop.load(Relaxed) {
-            let Ok(mut source) = rx.recv_timeout(Duration::from_millis(100)) else { continue };
-            let lost_at = Instant::now();
-            let mut attempts = 0u64;
-            loop {
-                if stop.load(Relaxed) {
-                    return;
-                }
-                attempts += 1;
-                match source.reopen() {
-                    Ok(()) => {
-                        let text = format!(
-                            "device reopened after {:.0} ms ({attempts} attempts)",
-                            lost_at.elapsed().as_secs_f64() * 1000.0
-                        );
-                        info!("{text}");
-                        ctx.state.lock().unwrap_or_else(|e| e.into_inner()).push_event(ctx.started, text);
-                        if commands
-                            .send_timeout(LoopCommand::ReplaceSource(source), Duration::from_secs(1))
-                            .is_err()
-                        {
-                            warn!("the loop did not take the reopened device");
+            // Wait for a newly lost source, or 100 ms before the next attempt.
+            if let Ok(lost) = rx.recv_timeout(Duration::from_millis(100)) {
+                pending.push(Pending::Lost {
+                    hand: lost.hand,
+                    source: lost.source,
+                    since: Instant::now(),
+                    attempts: 0,
+                });
+            }
+            let mut still = Vec::with_capacity(pending.len());
+            for p in pending.drain(..) {
+                match p {
+                    Pending::Awaited { hand, mut factory, since } => match factory() {
+                        Ok(source) => {
+                            let text = format!(
+                                "{} {} appeared after {:.1} s",
+                                source.kind(),
+                                source.describe(),
+                                since.elapsed().as_secs_f64()
+                            );
+                            hand_back(&commands, &ctx, hand, source, text);
                         }
-                        break;
-                    }
-                    Err(_) => thread::sleep(Duration::from_millis(100)),
+                        Err(_) => still.push(Pending::Awaited { hand, factory, since }),
+                    },
+                    Pending::Lost { hand, mut source, since, attempts } => match source.reopen() {
+                        Ok(()) => {
+                            let text = format!(
+                                "device reopened after {:.0} ms ({} attempts)",
+                                since.elapsed().as_secs_f64() * 1000.0,
+                                attempts + 1
+                            );
+                            hand_back(&commands, &ctx, hand, source, text);
+                        }
+                        Err(_) => still.push(Pending::Lost { hand, source, since, attempts: attempts + 1 }),
+                    },
                 }
             }
+            pending = still;
         }
     })
 }

@@ -2,9 +2,11 @@
 //! drive it tick by tick (the counting-allocator test does).
 //!
 //! One tick: apply pending commands, let every live stage publish its own elements
-//! ([`crate::stage`]), read every pending device report, and for each report calibrate -> filter
-//! -> map (the same [`Mapper::process`] as `frond map`), let the stages transform it, and publish
-//! a frame; when no report arrived, republish the last pose flagged `held`. Frames go to the
+//! ([`crate::stage`]), read every pending report of every hand source (up to [`MAX_HANDS`], each
+//! with its own rig, calibration, filter and element), and for each report calibrate -> filter
+//! -> map (the same [`Mapper::process`] as `frond map`), let the stages transform it (the primary
+//! hand's only), and publish a frame; for a hand with no report this period, republish its last
+//! pose flagged `held`. One hand lost or stalled never holds up the others. Frames go to the
 //! direct lanes, the publisher's queue and the recorder's wait-free ring; a full queue or ring
 //! costs a frame (counted), never the loop a wait. Nothing here allocates, locks or blocks.
 
@@ -26,6 +28,8 @@ use crate::stats::LoopStats;
 
 /// Most subscribers served at once.
 pub const MAX_SUBSCRIBERS: usize = 64;
+/// Most hand sources read at once (two hands of one tracker, two gloves on one stage, ...).
+pub const MAX_HANDS: usize = 8;
 /// Reports read from the device per `read_pending` call.
 const SAMPLE_BATCH: usize = 64;
 /// `read_pending` calls per tick at most (a burst beyond this waits for the next tick).
@@ -33,16 +37,24 @@ const MAX_READS_PER_TICK: usize = 16;
 
 /// Requests to the loop from the control and housekeeping threads.
 pub enum LoopCommand {
-    /// New mapping scales and tau (from a rig).
+    /// New mapping scales and tau (from the daemon's rig), for every hand that follows it.
     SetMapping(MappingParams),
-    /// New calibration.
+    /// New calibration, for every hand that follows the daemon's.
     SetCalibration(CalibrationParams),
-    /// New jitter filter (state is reset).
+    /// New jitter filter (state is reset), for every hand that follows the daemon's.
     SetFilter(FilterSpec),
+    /// Hand `hand` is published as element `element` from now on (its layer's id changed with
+    /// the rig).
+    SetHandElement {
+        /// Index of the hand.
+        hand: usize,
+        /// Its element id.
+        element: u16,
+    },
     /// Start or stop forwarding frames to the recorder.
     SetRecording(bool),
-    /// A (re)opened hand source.
-    ReplaceSource(Box<dyn HandSource>),
+    /// A (re)opened source for hand `.0`.
+    ReplaceSource(usize, Box<dyn HandSource>),
     /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
     /// loop would, so tests can check that the watchdog pings stop.
     Freeze(u32),
@@ -64,6 +76,35 @@ pub enum Garbage {
     Lane(Lane),
 }
 
+/// A hand's source the loop lost (a read failed), for the reopen thread to hand back with
+/// [`LoopCommand::ReplaceSource`].
+pub struct LostSource {
+    /// Index of the hand.
+    pub hand: usize,
+    /// The source, to reopen.
+    pub source: Box<dyn HandSource>,
+}
+
+/// One hand as the engine is given it: its mapper (rig, calibration, filter), source and element.
+pub struct HandInput {
+    /// Calibrate -> filter -> map, with this hand's rig and calibration.
+    pub mapper: Mapper,
+    /// Its source; `None` while the device is awaited.
+    pub source: Option<Box<dyn HandSource>>,
+    /// The element it is published as (0: the global element; `k + 1`: the rig's layer `k`).
+    pub element: u16,
+    /// Whether the daemon's rig, calibration and filter apply to it ([`LoopCommand::SetMapping`]
+    /// and its kin); a hand with a rig of its own keeps it.
+    pub follows_setup: bool,
+}
+
+impl HandInput {
+    /// The one hand of a single-source daemon: element 0, following the daemon's setup.
+    pub fn single(mapper: Mapper, source: Option<Box<dyn HandSource>>) -> Self {
+        HandInput { mapper, source, element: 0, follows_setup: true }
+    }
+}
+
 /// Channels and shared state the engine talks through.
 pub struct EngineLinks {
     /// Commands in.
@@ -75,7 +116,7 @@ pub struct EngineLinks {
     /// Frames to the recorder: a wait-free ring it polls.
     pub recorder: rtrb::Producer<TakeFrame>,
     /// A source that failed, for the reopen thread.
-    pub reopen: Sender<Box<dyn HandSource>>,
+    pub reopen: Sender<LostSource>,
     /// Things to drop elsewhere.
     pub garbage: Sender<Garbage>,
     /// Counters read by status.
@@ -97,7 +138,7 @@ pub struct EngineEnds {
     /// Frames the loop hands to the recorder.
     pub recorder: rtrb::Consumer<TakeFrame>,
     /// Sources the loop gives up as lost.
-    pub reopen: Receiver<Box<dyn HandSource>>,
+    pub reopen: Receiver<LostSource>,
     /// What the loop may not drop itself.
     pub garbage: Receiver<Garbage>,
     /// The loop's counters.
@@ -156,42 +197,83 @@ impl FrameSink for StageSink<'_> {
     }
 }
 
-/// The realtime loop's state. Allocates only in [`Engine::new`].
-pub struct Engine {
+/// One hand's state in the loop.
+struct Hand {
     mapper: Mapper,
     source: Option<Box<dyn HandSource>>,
+    element: u16,
+    follows_setup: bool,
+    last: Pose,
+    last_hand: HandSample,
+    last_report_ns: u64,
+    lost: bool,
+    /// Reports published by [`Engine::device_ready`] since the last tick.
+    fresh_since_tick: usize,
+}
+
+/// The realtime loop's state. Allocates only in [`Engine::new`].
+pub struct Engine {
+    hands: Box<[Hand]>,
+    /// The hand stages act on (`on_hand`, a layer's relabelling): the first that drives the
+    /// global element, else the first.
+    primary: usize,
+    /// Descriptors of the hands' sources, for the loop's `ppoll` (filled by [`Engine::ready_fds`]).
+    pollfds: [libc::pollfd; MAX_HANDS],
     samples: Box<[DeviceSample]>,
     out: Output,
     stages: Box<[Option<Box<dyn LiveStage>>]>,
     /// Whether some stage has work at every tick.
     stages_every_tick: bool,
-    /// The element the hand is published as (0, or a layer's while one records).
-    hand_element: u16,
-    last: Pose,
-    last_hand: HandSample,
-    last_report_ns: u64,
+    /// The element the primary hand is published as while a stage relabels it (a layer).
+    stage_hand_element: Option<u16>,
     stall_after_ns: u64,
-    device_lost: bool,
-    /// Reports published by [`Engine::device_ready`] since the last tick.
-    fresh_since_tick: usize,
 }
 
 impl Engine {
-    /// A new engine with the given mapper and (optional) source.
+    /// A new engine with one hand: the given mapper and (optional) source.
     pub fn new(
         mapper: Mapper,
         source: Option<Box<dyn HandSource>>,
         stall_after_ns: u64,
         links: EngineLinks,
     ) -> Self {
+        Self::with_hands(vec![HandInput::single(mapper, source)], stall_after_ns, links)
+    }
+
+    /// A new engine reading every hand of `hands` (beyond [`MAX_HANDS`] are ignored; the
+    /// configuration refuses more).
+    ///
+    /// # Panics
+    /// If `hands` is empty (a caller's bug: every configuration has at least one hand).
+    pub fn with_hands(hands: Vec<HandInput>, stall_after_ns: u64, links: EngineLinks) -> Self {
+        assert!(!hands.is_empty(), "an engine needs at least one hand");
         let now = monotonic_ns();
-        let device_lost = source.is_none();
-        links.stats.device_connected.store(!device_lost, Relaxed);
-        let mut last = Pose::default();
-        last.flags.set(PoseFlags::DEVICE_LOST, device_lost);
+        let hands: Box<[Hand]> = hands
+            .into_iter()
+            .take(MAX_HANDS)
+            .enumerate()
+            .map(|(i, h)| {
+                let lost = h.source.is_none();
+                links.stats.hands[i].connected.store(!lost, Relaxed);
+                let mut last = Pose { element: h.element, ..Pose::default() };
+                last.flags.set(PoseFlags::DEVICE_LOST, lost);
+                Hand {
+                    mapper: h.mapper,
+                    source: h.source,
+                    element: h.element,
+                    follows_setup: h.follows_setup,
+                    last,
+                    last_hand: HandSample::default(),
+                    last_report_ns: now,
+                    lost,
+                    fresh_since_tick: 0,
+                }
+            })
+            .collect();
         Engine {
-            mapper,
-            source,
+            primary: primary_of(&hands),
+            hands,
+            pollfds: [libc::pollfd { fd: -1, events: libc::POLLIN, revents: 0 }; MAX_HANDS],
             samples: vec![DeviceSample::default(); SAMPLE_BATCH].into_boxed_slice(),
             out: Output {
                 lanes: Lanes::new(links.slow.clone(), links.publish.wake()),
@@ -203,13 +285,8 @@ impl Engine {
             },
             stages: (0..MAX_STAGES).map(|_| None).collect(),
             stages_every_tick: false,
-            hand_element: 0,
-            last,
-            last_hand: HandSample::default(),
-            last_report_ns: now,
+            stage_hand_element: None,
             stall_after_ns,
-            device_lost,
-            fresh_since_tick: 0,
         }
     }
 
@@ -222,10 +299,25 @@ impl Engine {
         publish_frames: usize,
         recorder_frames: usize,
     ) -> (Engine, EngineEnds) {
+        Self::with_hands_and_channels(
+            vec![HandInput::single(mapper, source)],
+            stall_after_ns,
+            publish_frames,
+            recorder_frames,
+        )
+    }
+
+    /// [`Engine::with_channels`] for several hands.
+    pub fn with_hands_and_channels(
+        hands: Vec<HandInput>,
+        stall_after_ns: u64,
+        publish_frames: usize,
+        recorder_frames: usize,
+    ) -> (Engine, EngineEnds) {
         let (cmd_tx, cmd_rx) = crossbeam_channel::bounded(256);
         let (publish, frames) = PublishQueue::new(publish_frames);
         let (rec_tx, rec_rx) = crate::recorder::frame_ring(recorder_frames);
-        let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(1);
+        let (reopen_tx, reopen_rx) = crossbeam_channel::bounded(MAX_HANDS);
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
         let (slow_tx, slow_rx) = crossbeam_channel::bounded(MAX_SUBSCRIBERS);
         let stats = Arc::new(LoopStats::default());
@@ -252,30 +344,48 @@ impl Engine {
             stats,
             elements,
         };
-        (Engine::new(mapper, source, stall_after_ns, links), ends)
+        (Engine::with_hands(hands, stall_after_ns, links), ends)
     }
 
-    /// The source's ready descriptor (see [`HandSource::ready_fd`]), if it has one.
+    /// The first hand's ready descriptor (see [`HandSource::ready_fd`]), if it has one.
     pub fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
-        self.source.as_ref()?.ready_fd()
+        self.hands[0].source.as_ref()?.ready_fd()
     }
 
-    /// Whether every tick does work of its own (a stage publishes at ticks: a looped take, a
-    /// field), so that a tick may not be skipped even when a report already covered its period.
+    /// The ready descriptors of every hand source that has one, for `ppoll` (the array is the
+    /// engine's own: nothing is allocated). Empty when no source has one.
+    pub fn ready_fds(&mut self) -> &mut [libc::pollfd] {
+        let mut n = 0;
+        for hand in self.hands.iter() {
+            if let Some(fd) = hand.source.as_ref().and_then(|s| s.ready_fd()) {
+                self.pollfds[n] = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+                n += 1;
+            }
+        }
+        &mut self.pollfds[..n]
+    }
+
+    /// Whether every tick does work of its own, so that a tick may not be skipped even when a
+    /// report already covered its period: a stage publishes at ticks (a looped take, a field),
+    /// or several hands are read (a report of one does not cover the others' held frames).
     pub fn needs_every_tick(&self) -> bool {
-        self.stages_every_tick
+        self.stages_every_tick || self.hands.len() > 1
     }
 
-    /// Between ticks, when the source's ready descriptor woke the loop: applies pending commands
-    /// and publishes every pending report at once, instead of at the next tick. Returns the
-    /// number of reports published; the next [`Engine::tick`] counts them as fresh, so it
-    /// publishes no held frame for the period they arrived in.
+    /// Between ticks, when a source's ready descriptor woke the loop: applies pending commands
+    /// and publishes every pending report of every hand at once, instead of at the next tick.
+    /// Returns the number of reports published; the next [`Engine::tick`] counts them as
+    /// fresh, so it publishes no held frame for the period they arrived in.
     pub fn device_ready(&mut self, now_ns: u64) -> usize {
         self.apply_commands(now_ns);
-        let fresh = self.read_device(now_ns);
-        self.note_fresh(fresh, now_ns);
-        self.fresh_since_tick += fresh;
-        fresh
+        let mut total = 0;
+        for i in 0..self.hands.len() {
+            let fresh = self.read_device(i, now_ns);
+            self.note_fresh(i, fresh, now_ns);
+            self.hands[i].fresh_since_tick += fresh;
+            total += fresh;
+        }
+        total
     }
 
     /// The loop's bookkeeping after a [`Engine::device_ready`] that published reports, when
@@ -283,7 +393,9 @@ impl Engine {
     /// covered by them, so they must not count for the next tick. `count_tick` when this
     /// covers the upcoming tick (the loop then skips it and waits for the one after).
     pub fn cover_tick(&mut self, count_tick: bool) {
-        self.fresh_since_tick = 0;
+        for hand in self.hands.iter_mut() {
+            hand.fresh_since_tick = 0;
+        }
         if count_tick {
             self.out.links.stats.ticks.fetch_add(1, Relaxed);
         }
@@ -291,46 +403,87 @@ impl Engine {
 
     /// Reports arrived: the device is there again, unless the same read lost it (reports, then
     /// an error, in one call of `read_device`): then it stays lost until it is handed back.
-    fn note_fresh(&mut self, fresh: usize, now_ns: u64) {
+    fn note_fresh(&mut self, i: usize, fresh: usize, now_ns: u64) {
         if fresh > 0 {
-            self.last_report_ns = now_ns;
-            if self.device_lost && self.source.is_some() {
-                self.set_device_lost(false);
+            self.hands[i].last_report_ns = now_ns;
+            if self.hands[i].lost && self.hands[i].source.is_some() {
+                self.set_device_lost(i, false);
             }
         }
     }
 
-    /// Runs one tick at host time `now_ns`. Publishes at least one frame.
+    /// Runs one tick at host time `now_ns`. Publishes at least one frame per hand.
     pub fn tick(&mut self, now_ns: u64) {
         self.apply_commands(now_ns);
         self.tick_stages(now_ns);
-        let read = self.read_device(now_ns);
-        self.note_fresh(read, now_ns);
-        let fresh = read + std::mem::take(&mut self.fresh_since_tick);
-        if fresh == 0 {
-            let stalled =
-                self.source.is_some() && now_ns.saturating_sub(self.last_report_ns) > self.stall_after_ns;
-            if stalled && !self.device_lost {
-                self.out.links.stats.stall_events.fetch_add(1, Relaxed);
-                self.set_device_lost(true);
+        let mut held_any = false;
+        for i in 0..self.hands.len() {
+            let read = self.read_device(i, now_ns);
+            self.note_fresh(i, read, now_ns);
+            let fresh = read + std::mem::take(&mut self.hands[i].fresh_since_tick);
+            if fresh == 0 {
+                self.publish_held(i, now_ns);
+                held_any = true;
             }
+        }
+        if held_any {
             self.out.links.stats.held_ticks.fetch_add(1, Relaxed);
-            let mut held = self.last;
-            held.flags.insert(PoseFlags::HELD);
-            held.flags.set(PoseFlags::DEVICE_LOST, self.device_lost);
-            held.flags.set(PoseFlags::RECORDING, self.out.recording);
-            held.element = self.hand_element;
-            self.out.publish(held);
         }
         self.out.links.stats.ticks.fetch_add(1, Relaxed);
+    }
+
+    /// Republishes hand `i`'s last pose flagged `held` (and `device_lost` once it stalled).
+    fn publish_held(&mut self, i: usize, now_ns: u64) {
+        let hand = &self.hands[i];
+        let stalled =
+            hand.source.is_some() && now_ns.saturating_sub(hand.last_report_ns) > self.stall_after_ns;
+        if stalled && !hand.lost {
+            self.out.links.stats.hands[i].stall_events.fetch_add(1, Relaxed);
+            self.set_device_lost(i, true);
+        }
+        let hand = &self.hands[i];
+        let mut held = hand.last;
+        held.flags.insert(PoseFlags::HELD);
+        held.flags.set(PoseFlags::DEVICE_LOST, hand.lost);
+        held.flags.set(PoseFlags::RECORDING, self.out.recording);
+        held.element = self.element_of(i);
+        self.out.links.stats.hands[i].held_frames.fetch_add(1, Relaxed);
+        self.out.publish(held);
+    }
+
+    /// The element hand `i` is published as now.
+    fn element_of(&self, i: usize) -> u16 {
+        match self.stage_hand_element {
+            Some(element) if i == self.primary => element,
+            _ => self.hands[i].element,
+        }
     }
 
     fn apply_commands(&mut self, now_ns: u64) {
         while let Ok(cmd) = self.out.links.commands.try_recv() {
             match cmd {
-                LoopCommand::SetMapping(m) => self.mapper.set_mapping(m),
-                LoopCommand::SetCalibration(c) => self.mapper.set_calibration(c),
-                LoopCommand::SetFilter(f) => self.mapper.set_filter(f),
+                LoopCommand::SetMapping(m) => {
+                    for hand in self.hands.iter_mut().filter(|h| h.follows_setup) {
+                        hand.mapper.set_mapping(m);
+                    }
+                }
+                LoopCommand::SetCalibration(c) => {
+                    for hand in self.hands.iter_mut().filter(|h| h.follows_setup) {
+                        hand.mapper.set_calibration(c);
+                    }
+                }
+                LoopCommand::SetFilter(f) => {
+                    for hand in self.hands.iter_mut().filter(|h| h.follows_setup) {
+                        hand.mapper.set_filter(f);
+                    }
+                }
+                LoopCommand::SetHandElement { hand, element } => {
+                    if let Some(h) = self.hands.get_mut(hand) {
+                        h.element = element;
+                        h.last.element = element;
+                    }
+                    self.primary = primary_of(&self.hands);
+                }
                 LoopCommand::SetRecording(on) => {
                     self.out.recording = on;
                     // Release: the recorder's stop, seeing `false`, also sees every frame
@@ -353,12 +506,16 @@ impl Engine {
                 LoopCommand::Freeze(ms) => {
                     std::thread::sleep(std::time::Duration::from_millis(u64::from(ms)))
                 }
-                LoopCommand::ReplaceSource(src) => {
-                    if let Some(old) = self.source.replace(src) {
+                LoopCommand::ReplaceSource(i, src) => {
+                    let Some(hand) = self.hands.get_mut(i) else {
+                        let _ = self.out.links.garbage.try_send(Garbage::Source(src));
+                        continue;
+                    };
+                    if let Some(old) = hand.source.replace(src) {
                         let _ = self.out.links.garbage.try_send(Garbage::Source(old));
                     }
                     // Give the reopened device the full stall window before judging it.
-                    self.last_report_ns = now_ns;
+                    hand.last_report_ns = now_ns;
                 }
             }
         }
@@ -372,7 +529,7 @@ impl Engine {
             StageAction::Install(stage) => {
                 std::mem::swap(&mut self.stages[slot], stage);
                 self.stages_every_tick = self.stages.iter().flatten().any(|s| s.every_tick());
-                self.hand_element = self.stages.iter().flatten().find_map(|s| s.hand_element()).unwrap_or(0);
+                self.stage_hand_element = self.stages.iter().flatten().find_map(|s| s.hand_element());
             }
             StageAction::Input(input) => {
                 if let Some(s) = self.stages[slot].as_mut() {
@@ -398,23 +555,26 @@ impl Engine {
 
     /// Lets every stage publish its own elements for this tick.
     fn tick_stages(&mut self, now_ns: u64) {
-        let ctx = TickContext { now_ns, device_time_us: self.last.device_time_us, hand: self.last_hand };
+        let primary = &self.hands[self.primary];
+        let ctx =
+            TickContext { now_ns, device_time_us: primary.last.device_time_us, hand: primary.last_hand };
         let mut sink = StageSink { out: &mut self.out, device_time_us: ctx.device_time_us };
         for stage in self.stages.iter_mut().flatten() {
             stage.tick(&ctx, &mut sink);
         }
     }
 
-    /// Reads every pending report and publishes one frame per valid report. Returns the count.
-    fn read_device(&mut self, now_ns: u64) -> usize {
+    /// Reads every pending report of hand `i` and publishes one frame per valid report.
+    /// Returns the count.
+    fn read_device(&mut self, i: usize, now_ns: u64) -> usize {
         let mut fresh = 0;
         for _ in 0..MAX_READS_PER_TICK {
-            let Some(source) = self.source.as_mut() else { break };
+            let Some(source) = self.hands[i].source.as_mut() else { break };
             match source.read_pending(&mut self.samples) {
                 Ok(n) => {
-                    for i in 0..n {
-                        let sample = self.samples[i];
-                        self.publish_sample(&sample);
+                    for k in 0..n {
+                        let sample = self.samples[k];
+                        self.publish_sample(i, &sample);
                     }
                     fresh += n;
                     if n < self.samples.len() {
@@ -422,7 +582,7 @@ impl Engine {
                     }
                 }
                 Err(_) => {
-                    self.lose_source(now_ns);
+                    self.lose_source(i, now_ns);
                     break;
                 }
             }
@@ -430,37 +590,43 @@ impl Engine {
         fresh
     }
 
-    fn lose_source(&mut self, _now_ns: u64) {
-        if let Some(src) = self.source.take()
-            && let Err(e) = self.out.links.reopen.try_send(src)
+    fn lose_source(&mut self, i: usize, _now_ns: u64) {
+        if let Some(source) = self.hands[i].source.take()
+            && let Err(e) = self.out.links.reopen.try_send(LostSource { hand: i, source })
         {
             // The reopen thread is gone (shutdown): keep the source and stay lost.
-            self.source = Some(e.into_inner());
+            self.hands[i].source = Some(e.into_inner().source);
         }
-        if !self.device_lost {
-            self.set_device_lost(true);
+        if !self.hands[i].lost {
+            self.set_device_lost(i, true);
         }
     }
 
-    fn set_device_lost(&mut self, lost: bool) {
-        self.device_lost = lost;
-        let stats = &self.out.links.stats;
-        stats.device_connected.store(!lost, Relaxed);
+    fn set_device_lost(&mut self, i: usize, lost: bool) {
+        self.hands[i].lost = lost;
+        let stats = &self.out.links.stats.hands[i];
+        stats.connected.store(!lost, Relaxed);
         if lost {
-            stats.device_lost_events.fetch_add(1, Relaxed);
+            stats.lost_events.fetch_add(1, Relaxed);
             stats.raw.set_stale();
         }
     }
 
-    fn publish_sample(&mut self, sample: &DeviceSample) {
-        self.out.links.stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
-        let (hand, mut pose): (HandSample, PoseFrame) = self.mapper.process(&sample.raw);
-        let mut element = self.hand_element;
-        for stage in self.stages.iter_mut().flatten() {
-            stage.on_hand(&hand, &mut pose, &mut element);
+    fn publish_sample(&mut self, i: usize, sample: &DeviceSample) {
+        let hand_stats = &self.out.links.stats.hands[i];
+        hand_stats.raw.store(sample.raw.t, sample.raw.wrist_deg, sample.raw.thumb_deg);
+        hand_stats.frames.fetch_add(1, Relaxed);
+        let mut element = self.element_of(i);
+        let hand_state = &mut self.hands[i];
+        let (hand, mut pose): (HandSample, PoseFrame) = hand_state.mapper.process(&sample.raw);
+        let filtered = hand_state.mapper.filter_spec() != FilterSpec::None;
+        if i == self.primary {
+            for stage in self.stages.iter_mut().flatten() {
+                stage.on_hand(&hand, &mut pose, &mut element);
+            }
         }
         let mut flags = PoseFlags::default();
-        flags.set(PoseFlags::FILTERED, self.mapper.filter_spec() != FilterSpec::None);
+        flags.set(PoseFlags::FILTERED, filtered);
         flags.set(PoseFlags::RECORDING, self.out.recording);
         let frame = Pose {
             seq: 0,
@@ -471,8 +637,8 @@ impl Engine {
             joints_deg: pose.joints_deg,
             hand: HandWire { t: hand.t, wrist_deg: hand.wrist_deg, thumb_deg: hand.thumb_deg },
         };
-        self.last = frame;
-        self.last_hand = hand;
+        self.hands[i].last = frame;
+        self.hands[i].last_hand = hand;
         let published = self.out.publish(frame);
         if self.out.recording {
             let take_frame = TakeFrame {
@@ -501,4 +667,9 @@ impl Engine {
     pub fn lanes(&self) -> &Lanes {
         &self.out.lanes
     }
+}
+
+/// The hand stages act on: the first that drives the global element (0), else the first.
+fn primary_of(hands: &[Hand]) -> usize {
+    hands.iter().position(|h| h.element == 0).unwrap_or(0)
 }

@@ -49,6 +49,14 @@ pub enum DaemonError {
     /// The hand source could not be opened.
     #[error("{0}")]
     Source(String),
+    /// A hand of the configuration cannot be set up (its element, its rig).
+    #[error("hand {hand:?}: {message}")]
+    Hand {
+        /// The hand's name.
+        hand: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A daemon thread could not be started.
     #[error("cannot start a daemon thread: {0}")]
     Thread(#[from] std::io::Error),

@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
 use frond_protocol::paths;
-use frondd::config::{Config, DEFAULT_CONFIG, RawConfig};
+use frondd::config::{Config, DEFAULT_CONFIG, RawConfig, RawHand};
 use frondd::daemon::{ConfigLoader, Dirs, RunOptions, run};
 
 /// frond daemon: reads a hand device at a fixed rate and publishes plant poses.
@@ -47,6 +47,12 @@ struct Args {
     /// JSONL hand recording to replay (implies --source replay).
     #[arg(long)]
     replay: Option<String>,
+    /// A hand source of several (repeat, at most 8; replaces the config's `[[hands]]` and
+    /// `--source`): NAME=KIND[,element=LAYER][,rig=RIG][,calibration=FILE][,profile=FILE], KIND one
+    /// of auto, virtual, in-process, hid, hid:PATH, replay:PATH, osc://IP:PORT. E.g.
+    /// `--hand left=hid:/dev/hidraw3 --hand right=hid:/dev/hidraw4,element=leaf`.
+    #[arg(long = "hand", value_name = "NAME=KIND[,key=value...]")]
+    hands: Vec<String>,
     /// Log level or filter (error, warn, info, debug, trace, or a tracing filter).
     #[arg(long, env = "FROND_LOG", default_value = "info")]
     log_level: String,
@@ -87,6 +93,22 @@ fn main() -> ExitCode {
             None
         }
     });
+    let mut hands = Vec::new();
+    for (i, flag) in args.hands.iter().enumerate() {
+        match RawHand::parse_flag(flag) {
+            Ok(hand) => hands.push(hand),
+            Err(e) => {
+                eprintln!("frondd: error: --hand (#{}): {e}", i + 1);
+                return ExitCode::from(2);
+            }
+        }
+    }
+    if !hands.is_empty() && (source.is_some() || args.profile.is_some()) {
+        eprintln!(
+            "frondd: error: --hand replaces --source, --device, --replay and --profile; give each hand its own"
+        );
+        return ExitCode::from(2);
+    }
     let overrides = RawConfig::from_overrides(
         args.rate,
         args.rig,
@@ -96,7 +118,8 @@ fn main() -> ExitCode {
         args.profile,
         args.device,
         args.replay,
-    );
+    )
+    .with_hands(hands);
     let config_path = args.config.clone();
     let reload_overrides = overrides.clone();
     let loader: ConfigLoader =

@@ -4,7 +4,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
 
-use crate::clock::{NS_PER_S, Woke, monotonic_ns, sleep_until_ns, wait_readable_until_ns};
+use crate::clock::{NS_PER_S, Woke, monotonic_ns, sleep_until_ns, wait_any_readable_until_ns};
 use crate::engine::Engine;
 use crate::stats::LoopStats;
 
@@ -84,7 +84,7 @@ fn covers_upcoming_tick(now_ns: u64, deadline_ns: u64, period_ns: u64) -> bool {
 /// Starts the loop thread. It runs until `stop` is set, then returns the engine.
 ///
 /// The loop wakes at absolute deadlines one period apart (`clock_nanosleep(TIMER_ABSTIME)`, or
-/// `ppoll` with the time left when the source has a ready descriptor) and runs
+/// `ppoll` on every hand source's ready descriptor with the time left) and runs
 /// [`Engine::tick`] there. With a ready descriptor a report also wakes it between deadlines and
 /// is published at once ([`Engine::device_ready`]); a tick whose period such a report already
 /// covered has nothing to do and is skipped (unless a take or a field plays), so a device
@@ -110,13 +110,12 @@ pub fn spawn_loop(
         // spin it.
         let mut empty_wakes = 0u8;
         while !stop.load(Relaxed) {
-            let fd = if empty_wakes >= 2 { None } else { engine.ready_fd() };
-            let woke = match fd {
-                Some(fd) => wait_readable_until_ns(fd, deadline),
-                None => {
-                    sleep_until_ns(deadline);
-                    Woke::Deadline
-                }
+            let fds: &mut [libc::pollfd] = if empty_wakes >= 2 { &mut [] } else { engine.ready_fds() };
+            let woke = if fds.is_empty() {
+                sleep_until_ns(deadline);
+                Woke::Deadline
+            } else {
+                wait_any_readable_until_ns(fds, deadline)
             };
             let now = monotonic_ns();
             if woke == Woke::Readable {

@@ -16,7 +16,7 @@ use frond_device::{
 };
 use tracing::{info, warn};
 
-use crate::config::{Config, SourceChoice};
+use crate::config::{Config, HandConfig, SourceChoice};
 use crate::error::DaemonError;
 
 type Result<T> = std::result::Result<T, DaemonError>;
@@ -55,8 +55,8 @@ fn opened(source: Box<dyn HandSource>, keepalive: Option<Box<dyn Any + Send>>) -
     }
 }
 
-fn load_profile(config: &Config) -> Result<DeviceProfile> {
-    match &config.profile {
+fn load_profile(hand: &HandConfig) -> Result<DeviceProfile> {
+    match &hand.profile {
         Some(path) => DeviceProfile::load(path).map_err(source_error),
         None => Ok(DeviceProfile::frond_glove()),
     }
@@ -100,11 +100,19 @@ fn awaited(profile: DeviceProfile, path: Option<std::path::PathBuf>, reason: Str
     }
 }
 
-fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<OpenedSource> {
+fn open_virtual(
+    config: &Config,
+    index: usize,
+    hand: &HandConfig,
+    socket_dir: &Path,
+    allow_fuse: bool,
+) -> Result<OpenedSource> {
     let mut glove = VirtualGloveConfig::sway(f64::from(config.virtual_rate_hz));
     glove.clock = config.virtual_clock;
     if allow_fuse && Path::new("/dev/fuse").exists() {
-        let dir = socket_dir.join("vhid");
+        // The first hand's node where it always was; the others beside it, by name.
+        let dir =
+            if index == 0 { socket_dir.join("vhid") } else { socket_dir.join(format!("vhid-{}", hand.name)) };
         match frond_device::vhid::mount_fuse(&dir, glove.clone()) {
             Ok(handle) => {
                 let node = handle.node_path().to_path_buf();
@@ -123,15 +131,20 @@ fn open_virtual(config: &Config, socket_dir: &Path, allow_fuse: bool) -> Result<
     Ok(opened(Box::new(glove), None))
 }
 
-/// Opens the source the configuration asks for.
-pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
-    let profile = load_profile(config)?;
-    match &config.source {
+/// Opens the source of hand `index` of the configuration, `hand`.
+pub fn open_source(
+    config: &Config,
+    index: usize,
+    hand: &HandConfig,
+    socket_dir: &Path,
+) -> Result<OpenedSource> {
+    let profile = load_profile(hand)?;
+    match &hand.source {
         SourceChoice::Replay(path) => {
             let src = ReplaySource::load(path).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
-        SourceChoice::Hid => match &config.device_path {
+        SourceChoice::Hid => match &hand.device_path {
             Some(path) => Ok(open_path(&profile, path)
                 .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string()))),
             None => match HidSource::open(&profile) {
@@ -143,18 +156,18 @@ pub fn open_source(config: &Config, socket_dir: &Path) -> Result<OpenedSource> {
             let src = OscHandSource::bind(addr).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
-        SourceChoice::InProcess => open_virtual(config, socket_dir, false),
-        SourceChoice::Virtual => open_virtual(config, socket_dir, true),
+        SourceChoice::InProcess => open_virtual(config, index, hand, socket_dir, false),
+        SourceChoice::Virtual => open_virtual(config, index, hand, socket_dir, true),
         SourceChoice::Auto => {
-            if let Some(path) = &config.device_path {
+            if let Some(path) = &hand.device_path {
                 return Ok(open_path(&profile, path)
                     .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string())));
             }
             match HidSource::open(&profile) {
                 Ok(src) => Ok(opened(Box::new(src), None)),
                 Err(e) => {
-                    info!(reason = %e, "no glove found; starting the built-in virtual glove");
-                    open_virtual(config, socket_dir, true)
+                    info!(hand = %hand.name, reason = %e, "no glove found; starting the built-in virtual glove");
+                    open_virtual(config, index, hand, socket_dir, true)
                 }
             }
         }

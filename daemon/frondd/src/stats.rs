@@ -167,16 +167,28 @@ pub struct LoopStats {
     pub recorded_frames: AtomicU64,
     /// Ticks where the loop woke more than one period late and skipped deadlines.
     pub overruns: AtomicU64,
-    /// True while the device delivers reports.
-    pub device_connected: AtomicBool,
-    /// Times the device was declared lost.
-    pub device_lost_events: AtomicU64,
-    /// Times the device stalled (open, but no reports).
-    pub stall_events: AtomicU64,
     /// True while the loop forwards frames to the recorder.
     pub recording: AtomicBool,
     /// Wake-up lateness.
     pub lateness: LatencyHistogram,
+    /// Each hand source's own counters, by its index in the configuration (only the first
+    /// `hands` configured are used).
+    pub hands: [HandStats; crate::engine::MAX_HANDS],
+}
+
+/// One hand source's counters, written by the loop.
+#[derive(Default)]
+pub struct HandStats {
+    /// True while the source delivers reports.
+    pub connected: AtomicBool,
+    /// Times the source was declared lost.
+    pub lost_events: AtomicU64,
+    /// Times the source stalled (open, but no reports).
+    pub stall_events: AtomicU64,
+    /// Frames published from its reports.
+    pub frames: AtomicU64,
+    /// Held frames published for it (a period without a report).
+    pub held_frames: AtomicU64,
     /// Latest raw sample, for calibration.
     pub raw: RawSampleCell,
 }

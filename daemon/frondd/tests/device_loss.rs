@@ -60,9 +60,11 @@ fn reports_then_an_error_in_one_tick_leave_the_device_lost() {
     let mut now = 1_000_000_000u64;
     now += 1_000_000;
     engine.tick(now); // 64 reports, then the error, in one tick
-    assert!(!ends.stats.device_connected.load(Relaxed), "the device is lost after its failed read");
-    assert_eq!(ends.stats.device_lost_events.load(Relaxed), 1);
-    let mut src = ends.reopen.try_recv().expect("handed to the reopen thread");
+    assert!(!ends.stats.hands[0].connected.load(Relaxed), "the device is lost after its failed read");
+    assert_eq!(ends.stats.hands[0].lost_events.load(Relaxed), 1);
+    let lost = ends.reopen.try_recv().expect("handed to the reopen thread");
+    assert_eq!(lost.hand, 0);
+    let mut src = lost.source;
     for _ in 0..5 {
         now += 1_000_000;
         engine.tick(now);
@@ -72,8 +74,8 @@ fn reports_then_an_error_in_one_tick_leave_the_device_lost() {
     assert!(frames[64..].iter().all(|p| p.flags.contains(PoseFlags::DEVICE_LOST | PoseFlags::HELD)));
     // Handed back, it reports again and is connected.
     src.reopen().unwrap();
-    ends.commands.send(LoopCommand::ReplaceSource(src)).unwrap();
+    ends.commands.send(LoopCommand::ReplaceSource(0, src)).unwrap();
     now += 1_000_000;
     engine.tick(now);
-    assert!(ends.stats.device_connected.load(Relaxed));
+    assert!(ends.stats.hands[0].connected.load(Relaxed));
 }

@@ -154,13 +154,13 @@ fn device_loss_and_reopen_allocate_nothing_in_the_loop() {
             now += 1_000_000;
             engine.tick(now);
             // The "reopen thread": hand the source straight back (moving a Box allocates nothing).
-            if let Ok(src) = reopen_rx.try_recv() {
-                cmd_tx.send(LoopCommand::ReplaceSource(src)).unwrap();
+            if let Ok(lost) = reopen_rx.try_recv() {
+                cmd_tx.send(LoopCommand::ReplaceSource(lost.hand, lost.source)).unwrap();
             }
         }
     });
     assert_eq!(allocations, 0);
-    assert!(stats.device_lost_events.load(Relaxed) >= 9, "{}", stats.device_lost_events.load(Relaxed));
+    assert!(stats.hands[0].lost_events.load(Relaxed) >= 9, "{}", stats.hands[0].lost_events.load(Relaxed));
 }
 
 /// A 3 s take (1 kHz frames) as bytes, for the live modes.
@@ -371,4 +371,57 @@ fn direct_lanes_allocate_nothing_admitting_sending_and_demoting() {
         assert!(in_order, "a reader saw a gap or a bad frame");
         assert_eq!(n, published, "a reader got {n} of {published} frames");
     }
+}
+
+#[test]
+fn two_hands_one_lost_allocate_nothing_and_the_other_keeps_flowing() {
+    use frond_protocol::PoseFlags;
+    use frondd::engine::HandInput;
+    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
+    let cal = frond_motion::Calibration::neutral_for(&rig);
+    let mapper = || Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
+    // The left hand reports once per tick for ever; the right one fails at its 50th read and is
+    // never handed back (its reopen thread keeps failing).
+    let hands = vec![
+        HandInput { mapper: mapper(), source: Some(scripted([1; 8], 0)), element: 0, follows_setup: true },
+        HandInput { mapper: mapper(), source: Some(scripted([1; 8], 50)), element: 1, follows_setup: false },
+    ];
+    let (mut engine, ends) = Engine::with_hands_and_channels(hands, 250_000_000, 1 << 16, 16);
+    let mut now = 1_000_000_000u64;
+    let ticks = 2_000u64;
+    let ((), allocations) = count_allocations(|| {
+        for _ in 0..ticks {
+            now += 1_000_000;
+            engine.tick(now);
+        }
+    });
+    assert_eq!(allocations, 0);
+    let lost = ends.reopen.try_recv().expect("the right hand's source went to the reopen thread");
+    assert_eq!(lost.hand, 1);
+    assert!(engine.needs_every_tick(), "two hands: every tick holds the other's frame");
+    let frames: Vec<_> = ends.frames.try_iter().collect();
+    // One frame per hand per tick, numbered without a gap.
+    assert_eq!(frames.len() as u64, 2 * ticks);
+    assert!(frames.windows(2).all(|w| w[1].seq == w[0].seq + 1), "a gap in the sequence");
+    let (left, right): (Vec<&frond_protocol::Pose>, Vec<_>) = frames.iter().partition(|p| p.element == 0);
+    assert_eq!(left.len() as u64, ticks);
+    assert!(
+        left.iter().all(|p| !p.flags.contains(PoseFlags::HELD) && !p.flags.contains(PoseFlags::DEVICE_LOST)),
+        "the left hand kept flowing: every frame fresh"
+    );
+    assert!(left.windows(2).all(|w| w[1].device_time_us == w[0].device_time_us + 1000));
+    assert!(right.iter().all(|p| p.element == 1));
+    assert_eq!(
+        right.iter().filter(|p| !p.flags.contains(PoseFlags::HELD)).count(),
+        49,
+        "49 reads before the 50th failed"
+    );
+    assert!(right[49..].iter().all(|p| p.flags.contains(PoseFlags::HELD | PoseFlags::DEVICE_LOST)));
+    let stats = &ends.stats;
+    assert!(stats.hands[0].connected.load(Relaxed));
+    assert!(!stats.hands[1].connected.load(Relaxed));
+    assert_eq!(stats.hands[1].lost_events.load(Relaxed), 1);
+    assert_eq!(stats.hands[0].lost_events.load(Relaxed), 0);
+    assert_eq!(stats.hands[0].frames.load(Relaxed), ticks);
+    assert_eq!(stats.hands[1].held_frames.load(Relaxed), ticks - 49);
 }

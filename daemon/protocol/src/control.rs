@@ -279,6 +279,36 @@ pub struct StatusReport {
     /// The element table subscribers were last sent.
     #[serde(default)]
     pub elements: Vec<crate::ElementInfo>,
+    /// Every hand source, in configuration order (`source` is the first's).
+    #[serde(default)]
+    pub hands: Vec<HandStatus>,
+}
+
+/// One hand source: where it reads, what it drives, and its own counters and history.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HandStatus {
+    /// Its name (`hand` when only one is configured).
+    pub name: String,
+    /// Its device.
+    pub source: SourceStatus,
+    /// The element id it is published as.
+    pub element: u16,
+    /// That element's name (the rig's name for the global element, else the layer's).
+    pub element_name: String,
+    /// The rig it is mapped by.
+    pub rig_name: String,
+    /// Its calibration's id.
+    pub calibration_id: String,
+    /// Frames published from its reports.
+    pub frames: u64,
+    /// Held frames published for it (periods without a report).
+    pub held_frames: u64,
+    /// Times it stalled (open, but no reports).
+    pub stalls: u64,
+    /// Times it was declared lost.
+    pub lost_events: u64,
+    /// Its device events (connect, lost, reopened), oldest first, at most the last 32.
+    pub events: Vec<String>,
 }
 
 /// One running live stage.

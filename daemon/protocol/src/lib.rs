@@ -22,8 +22,9 @@ pub mod paths;
 pub mod pose;
 
 pub use control::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, LatencySummary, RecordingStatus,
-    SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport, SubscriberStatus,
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, HandStatus, LatencySummary,
+    RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport,
+    SubscriberStatus,
 };
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,

@@ -15,6 +15,30 @@ pub const FIRST_STAGE_ELEMENT: u16 = MAX_RIG_ELEMENTS as u16 + 1;
 /// Free element ids offered to a stage being built, at most.
 const OFFERED_IDS: usize = 256;
 
+/// The element a hand source drives, and the rig that maps it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandElement {
+    /// The element (`kind` hand or layer, `source` the hand's name).
+    pub info: ElementInfo,
+    /// Its rig.
+    pub rig: frond_protocol::RigInfo,
+}
+
+impl HandElement {
+    /// Hand `source` driving `rig`'s element `id` (0: the global element, named after the rig;
+    /// else the secondary element `rig.elements[id - 1]`).
+    pub fn new(source: &str, rig: &Rig, id: u16) -> Self {
+        let (name, kind) = match id.checked_sub(1).and_then(|k| rig.elements.get(usize::from(k))) {
+            Some(layer) => (layer.name.clone(), ElementKind::Layer),
+            None => (rig.name.clone(), ElementKind::Hand),
+        };
+        HandElement {
+            info: ElementInfo { id, name, kind, source: source.to_string(), rig: rig.name.clone() },
+            rig: super::rig_info(rig),
+        }
+    }
+}
+
 /// A stage the loop runs, as the control side knows it.
 pub struct Running {
     /// Its name.
@@ -110,31 +134,35 @@ impl StageRegistry {
         self.slots.iter().flatten()
     }
 
-    /// The next element table for `rig`, with the hand source `hand_source` (version bumped).
-    pub fn next_table(&mut self, rig: &Rig, hand_source: &str) -> ElementTable {
+    /// The next element table (version bumped): the elements the hand sources drive (`hands`,
+    /// each with the rig it is mapped by; a layer being recorded relabels hand `primary`), the
+    /// running stages' own elements, and every rig they use, the daemon's `rig` first.
+    pub fn next_table(&mut self, rig: &Rig, hands: &[HandElement], primary: usize) -> ElementTable {
         self.table_version += 1;
         let mut elements: Vec<ElementInfo> = Vec::new();
-        let hand = self.iter().find_map(|r| r.info.hand_element.clone()).unwrap_or_else(|| ElementInfo {
-            id: 0,
-            name: rig.name.clone(),
-            kind: ElementKind::Hand,
-            source: hand_source.to_string(),
-            rig: rig.name.clone(),
-        });
         for r in self.iter() {
             elements.extend(r.info.elements.iter().cloned());
         }
-        // A stage that publishes the hand's own id (a take looping as the global element while
-        // the hand is not on a layer) describes it; the hand's frames there carry no `playback`.
-        if !elements.iter().any(|e| e.id == hand.id) {
-            elements.push(hand);
+        let relabel = self.iter().find_map(|r| r.info.hand_element.clone());
+        for (i, hand) in hands.iter().enumerate() {
+            let info = match &relabel {
+                Some(layer) if i == primary => layer.clone(),
+                _ => hand.info.clone(),
+            };
+            // A stage that publishes a hand's own id (a take looping as the global element while
+            // the hand is not on a layer) describes it; the hand's frames there carry no
+            // `playback`.
+            if !elements.iter().any(|e| e.id == info.id) {
+                elements.push(info);
+            }
         }
         elements.sort_by_key(|e| e.id);
-        // The rig in force, and every other rig a running stage's elements were built on.
+        // The rig in force, every hand's own rig, and every rig a running stage was built on.
         let mut rigs = vec![super::rig_info(rig)];
-        for r in self.iter() {
-            if !rigs.iter().any(|known| known.name == r.info.rig.name) {
-                rigs.push(r.info.rig.clone());
+        let others = hands.iter().map(|h| &h.rig).chain(self.iter().map(|r| &r.info.rig));
+        for other in others {
+            if !rigs.iter().any(|known| known.name == other.name) {
+                rigs.push(other.clone());
             }
         }
         ElementTable { version: self.table_version, rigs, elements }
@@ -234,7 +262,8 @@ mod tests {
     fn the_table_names_the_hand_layers_and_stage_elements() {
         let rig = grass();
         let mut r = StageRegistry::default();
-        let t = r.next_table(&rig, "hand");
+        let hands = [HandElement::new("hand", &rig, 0)];
+        let t = r.next_table(&rig, &hands, 0);
         assert_eq!(t.version, 1);
         assert_eq!(t.elements.len(), 1);
         assert_eq!((t.elements[0].id, t.elements[0].kind), (0, ElementKind::Hand));
@@ -242,7 +271,7 @@ mod tests {
         // A layer moves the hand to its id; a field adds its plants.
         r.replace(0, Some(Running::new("layer", built("layer", &[], Some(1)))));
         r.replace(1, Some(Running::new("field", built("field", &[40, 41], None))));
-        let t = r.next_table(&rig, "hand");
+        let t = r.next_table(&rig, &hands, 0);
         assert_eq!(t.version, 2);
         let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id, e.kind)).collect();
         assert_eq!(
@@ -250,5 +279,27 @@ mod tests {
             [(1, ElementKind::Layer), (40, ElementKind::FieldPlant), (41, ElementKind::FieldPlant)]
         );
         assert_eq!(r.status().len(), 2);
+    }
+
+    #[test]
+    fn two_hands_are_two_elements_and_a_layer_relabels_only_the_primary() {
+        let flower = Rig::from_toml_str(include_str!("../../../../rig-files/plants/flower.toml")).unwrap();
+        let mut r = StageRegistry::default();
+        let hands = [HandElement::new("left", &flower, 0), HandElement::new("right", &flower, 1)];
+        let t = r.next_table(&flower, &hands, 0);
+        let got: Vec<(u16, &str, ElementKind, &str)> =
+            t.elements.iter().map(|e| (e.id, e.name.as_str(), e.kind, e.source.as_str())).collect();
+        assert_eq!(got, [(0, "flower", ElementKind::Hand, "left"), (1, "leaf", ElementKind::Layer, "right")]);
+        assert_eq!(t.rigs.len(), 1, "one rig, named once");
+        // A stage relabelling the primary hand onto a field-plant-free id 2 leaves the right hand.
+        r.replace(0, Some(Running::new("layer", built("layer", &[], Some(2)))));
+        let t = r.next_table(&flower, &hands, 0);
+        let ids: Vec<u16> = t.elements.iter().map(|e| e.id).collect();
+        assert_eq!(ids, [1, 2]);
+        // A hand on a rig of its own brings that rig into the table.
+        let hands = [HandElement::new("left", &flower, 0), HandElement::new("right", &grass(), 1)];
+        let t = r.next_table(&flower, &hands, 0);
+        let rigs: Vec<&str> = t.rigs.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(rigs, ["flower", "grass"]);
     }
 }
