@@ -6,6 +6,24 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
+/// Largest configuration file read, bytes.
+pub const MAX_CONFIG_FILE_BYTES: u64 = 1 << 20;
+
+/// Every problem found in a configuration, each naming its key path (`source.kind: ...`) or its
+/// origin (the file, the flag), so that all of them can be fixed in one go.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}", .problems.join("; "))]
+pub struct ConfigError {
+    /// One line per problem.
+    pub problems: Vec<String>,
+}
+
+impl ConfigError {
+    fn one(problem: String) -> Self {
+        ConfigError { problems: vec![problem] }
+    }
+}
+
 /// The embedded default configuration (documented, shipped in the binary).
 pub const DEFAULT_CONFIG: &str = include_str!("default-config.toml");
 
@@ -49,7 +67,11 @@ impl RawHand {
     /// Parses a `--hand` flag: `NAME=KIND[,key=value...]`, where KIND is a source kind
     /// (`auto`, `virtual`, `in-process`, `hid`, `hid:PATH`, `replay:PATH`, `osc://IP:PORT`) and
     /// the keys are `element`, `rig`, `calibration`, `profile` and `path`.
-    pub fn parse_flag(flag: &str) -> Result<RawHand, String> {
+    pub fn parse_flag(flag: &str) -> Result<RawHand, ConfigError> {
+        Self::parse_flag_text(flag).map_err(ConfigError::one)
+    }
+
+    fn parse_flag_text(flag: &str) -> Result<RawHand, String> {
         let (name, rest) = flag.split_once('=').ok_or_else(|| {
             format!("{flag:?}: expected NAME=KIND[,key=value...], e.g. right=hid:/dev/hidraw4,element=leaf")
         })?;
@@ -129,8 +151,8 @@ struct RawRealtime {
 
 impl RawConfig {
     /// Parses one TOML document; `origin` names it in errors.
-    pub fn parse(text: &str, origin: &str) -> Result<RawConfig, String> {
-        toml::from_str(text).map_err(|e| format!("{origin}: {e}"))
+    pub fn parse(text: &str, origin: &str) -> Result<RawConfig, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::one(format!("{origin}: {e}")))
     }
 
     /// Overlays `other` onto `self`: every key `other` sets wins.
@@ -406,7 +428,7 @@ fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) 
 
 impl Config {
     /// Validates a merged raw configuration, reporting every problem at once.
-    pub fn validate(raw: RawConfig) -> Result<Config, Vec<String>> {
+    pub fn validate(raw: RawConfig) -> Result<Config, ConfigError> {
         let mut errors = Vec::new();
         let tick_rate_hz = range(&mut errors, "tick_rate_hz", raw.tick_rate_hz, 30, 8000) as u32;
         let rig = raw.rig.unwrap_or_else(|| "grass".into());
@@ -495,7 +517,7 @@ impl Config {
         let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids);
         let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids);
         if !errors.is_empty() {
-            return Err(errors);
+            return Err(ConfigError { problems: errors });
         }
         Ok(Config {
             tick_rate_hz,
@@ -519,12 +541,13 @@ impl Config {
     }
 
     /// Loads embedded defaults, then `file` if given, then `overrides`.
-    pub fn load(file: Option<&Path>, overrides: RawConfig) -> Result<Config, Vec<String>> {
-        let mut raw = RawConfig::parse(DEFAULT_CONFIG, "embedded default config").map_err(|e| vec![e])?;
+    /// The file is read only if it is a regular file of at most [`MAX_CONFIG_FILE_BYTES`].
+    pub fn load(file: Option<&Path>, overrides: RawConfig) -> Result<Config, ConfigError> {
+        let mut raw = RawConfig::parse(DEFAULT_CONFIG, "embedded default config")?;
         if let Some(path) = file {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| vec![format!("{}: cannot read config: {e}", path.display())])?;
-            raw = raw.overlay(RawConfig::parse(&text, &path.display().to_string()).map_err(|e| vec![e])?);
+            let text = frond_motion::rig_files::read_small_text(path, MAX_CONFIG_FILE_BYTES)
+                .map_err(|e| ConfigError::one(format!("cannot read the config: {e}")))?;
+            raw = raw.overlay(RawConfig::parse(&text, &path.display().to_string())?);
         }
         Config::validate(raw.overlay(overrides))
     }
@@ -551,7 +574,7 @@ mod tests {
             "test",
         )
         .unwrap();
-        let errors = Config::validate(raw).unwrap_err();
+        let errors = Config::validate(raw).unwrap_err().problems;
         assert_eq!(errors.len(), 3, "{errors:?}");
         assert!(errors[0].starts_with("tick_rate_hz: 9000"), "{errors:?}");
         assert!(errors[1].starts_with("source.kind: \"usb\""), "{errors:?}");
@@ -560,7 +583,7 @@ mod tests {
 
     #[test]
     fn unknown_keys_are_refused() {
-        let err = RawConfig::parse("tick_rate = 10", "f.toml").unwrap_err();
+        let err = RawConfig::parse("tick_rate = 10", "f.toml").unwrap_err().to_string();
         assert!(err.contains("f.toml") && err.contains("tick_rate"), "{err}");
     }
 
@@ -570,7 +593,7 @@ mod tests {
         let raw = RawConfig::parse("[realtime]\ncpu = 1\n", "t").unwrap();
         assert_eq!(Config::validate(raw).unwrap().rt_cpu, Some(1));
         let raw = RawConfig::parse("[realtime]\ncpu = -2\n", "t").unwrap();
-        assert!(Config::validate(raw).unwrap_err()[0].starts_with("realtime.cpu: -2"));
+        assert!(Config::validate(raw).unwrap_err().problems[0].starts_with("realtime.cpu: -2"));
     }
 
     #[test]
@@ -580,7 +603,7 @@ mod tests {
         let raw = RawConfig::parse("[source]\nvirtual_clock = \"monotonic\"\n", "t").unwrap();
         assert_eq!(Config::validate(raw).unwrap().virtual_clock, frond_device::DeviceClock::Monotonic);
         let raw = RawConfig::parse("[source]\nvirtual_clock = \"wall\"\n", "t").unwrap();
-        let errors = Config::validate(raw).unwrap_err();
+        let errors = Config::validate(raw).unwrap_err().problems;
         assert_eq!(errors, ["source.virtual_clock: \"wall\" is not one of schedule, monotonic"]);
     }
 
@@ -609,7 +632,7 @@ mod tests {
             "t",
         )
         .unwrap();
-        let errors = Config::validate(raw).unwrap_err();
+        let errors = Config::validate(raw).unwrap_err().problems;
         assert_eq!(
             errors,
             [
@@ -622,7 +645,7 @@ mod tests {
         );
         let nine: String =
             (0..9).map(|i| format!("[[hands]]\nname = \"h{i}\"\nkind = \"virtual\"\n")).collect();
-        let errors = Config::validate(RawConfig::parse(&nine, "t").unwrap()).unwrap_err();
+        let errors = Config::validate(RawConfig::parse(&nine, "t").unwrap()).unwrap_err().problems;
         assert_eq!(errors, ["hands: 9 hands; the limit is 8"]);
     }
 
@@ -644,7 +667,7 @@ mod tests {
             ("left=hid,leaf", "\"leaf\" is not key=value"),
             ("left=hid,colour=red", "unknown key \"colour\""),
         ] {
-            let e = RawHand::parse_flag(bad).unwrap_err();
+            let e = RawHand::parse_flag(bad).unwrap_err().to_string();
             assert!(e.contains(why), "{bad}: {e}");
         }
         // No `--hand`: the one hand of [source] stays.

@@ -204,9 +204,28 @@ fn supplementary_groups(pid: i32) -> Vec<u32> {
         .unwrap_or_default()
 }
 
+/// Why a client may not use the control socket.
+#[derive(Debug, thiserror::Error)]
+pub enum AccessError {
+    /// `SO_PEERCRED` failed.
+    #[error("cannot read the client's credentials: {0}")]
+    Credentials(#[source] std::io::Error),
+    /// Neither the client's user nor any of its groups is allowed.
+    #[error(
+        "uid {uid} (gid {gid}) is not allowed on the control socket; add it to control.allowed_uids or \
+         one of its groups to control.allowed_gids in the daemon's config"
+    )]
+    NotAllowed {
+        /// The client's uid.
+        uid: u32,
+        /// The client's primary gid.
+        gid: u32,
+    },
+}
+
 impl AccessPolicy {
     /// Whether `peer` may use the control socket; `Err` says why not.
-    pub fn check(&self, peer: &PeerCred) -> Result<(), String> {
+    pub fn check(&self, peer: &PeerCred) -> Result<(), AccessError> {
         if peer.uid == 0 || peer.uid == self.own_uid || self.allowed_uids.contains(&peer.uid) {
             return Ok(());
         }
@@ -215,11 +234,7 @@ impl AccessPolicy {
         {
             return Ok(());
         }
-        Err(format!(
-            "uid {} (gid {}) is not allowed on the control socket; add it to control.allowed_uids or \
-             one of its groups to control.allowed_gids in the daemon's config",
-            peer.uid, peer.gid
-        ))
+        Err(AccessError::NotAllowed { uid: peer.uid, gid: peer.gid })
     }
 }
 
@@ -720,9 +735,10 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
     let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
     let mut scratch = Vec::new();
     let mut out = FrameBuf::default();
-    let allowed = peer_cred(&stream).map_err(|e| format!("cannot read the client's credentials: {e}"));
+    let allowed = peer_cred(&stream).map_err(AccessError::Credentials);
     if let Err(why) = allowed.and_then(|peer| ctx.access.check(&peer)) {
-        let _ = write_frame(&mut stream, &mut out, &refuse(ControlErrorKind::PermissionDenied, why));
+        let _ =
+            write_frame(&mut stream, &mut out, &refuse(ControlErrorKind::PermissionDenied, why.to_string()));
         return;
     }
     let reader_stream = stream.try_clone();

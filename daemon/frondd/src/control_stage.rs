@@ -122,7 +122,7 @@ impl ControlContext {
     pub(crate) fn stage_start(&self, name: Option<String>, spec: StageSpec) -> ControlReply {
         let name = name.unwrap_or_else(|| spec.kind().to_string());
         if let Err(e) = validate_stage_name(&name) {
-            return refuse(ControlErrorKind::BadName, e);
+            return refuse(ControlErrorKind::BadName, e.to_string());
         }
         if name == LAYER_STAGE {
             return refuse(
@@ -133,7 +133,7 @@ impl ControlContext {
         let mut state = self.lock();
         let slot = match state.stages.slot_for(&name) {
             Ok(slot) => slot,
-            Err(e) => return refuse(ControlErrorKind::WrongState, e),
+            Err(e) => return refuse(ControlErrorKind::WrongState, e.to_string()),
         };
         let free = state.stages.free_ids(slot);
         let built = match stage::build(&spec, &self.build_context(&state, &name, &free, monotonic_ns())) {
@@ -153,7 +153,7 @@ impl ControlContext {
     /// Stops the stage `name`; nothing to do if none runs.
     pub(crate) fn stage_stop(&self, name: &str) -> ControlReply {
         if let Err(e) = validate_stage_name(name) {
-            return refuse(ControlErrorKind::BadName, e);
+            return refuse(ControlErrorKind::BadName, e.to_string());
         }
         let mut state = self.lock();
         if name == LAYER_STAGE && state.stages.slot_of(name).is_some() && state.recording.is_some() {
@@ -211,7 +211,7 @@ impl ControlContext {
             let primary = &state.hands[primary_index];
             let built = match stage::layer::build(primary.rig(&state.rig), &layer, &primary.name) {
                 Ok(b) => b,
-                Err(e) => return refuse(ControlErrorKind::Invalid, e),
+                Err(e) => return refuse(ControlErrorKind::Invalid, e.to_string()),
             };
             let id = built.info.hand_element.as_ref().map_or(0, |e| e.id);
             let mut others = state.hands.iter().enumerate().filter(|&(i, _)| i != primary_index);
@@ -278,9 +278,10 @@ impl ControlContext {
     ) -> Result<(), ControlReply> {
         let slot = match (&built, state.stages.slot_of(name)) {
             (_, Some(slot)) => slot,
-            (Some(_), None) => {
-                state.stages.slot_for(name).map_err(|e| refuse(ControlErrorKind::WrongState, e))?
-            }
+            (Some(_), None) => state
+                .stages
+                .slot_for(name)
+                .map_err(|e| refuse(ControlErrorKind::WrongState, e.to_string()))?,
             (None, None) => return Ok(()),
         };
         if let Some((id, other)) = built.as_ref().and_then(|b| state.stages.collision(slot, &b.info)) {

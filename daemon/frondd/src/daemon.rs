@@ -32,7 +32,7 @@ use crate::stats::LoopStats;
 pub use frond_motion::rig_files::EMBEDDED_RIGS;
 
 /// Reloads the configuration on SIGHUP (re-reads the config file with the same overrides).
-pub type ConfigLoader = Box<dyn Fn() -> Result<Config, Vec<String>> + Send>;
+pub type ConfigLoader = Box<dyn Fn() -> Result<Config, crate::config::ConfigError> + Send>;
 
 /// How the daemon was started, besides its configuration.
 pub struct RunOptions {
@@ -131,8 +131,9 @@ fn set_up_hands(config: &Config, rig: &Rig) -> Result<Vec<ResolvedHand>, DaemonE
         };
         let hand_rig = own.as_ref().map_or(rig, |o| &o.rig);
         let element = match &hand.element {
-            Some(layer) => crate::stage::layer::layer_id(hand_rig, layer)
-                .map_err(|message| DaemonError::Hand { hand: hand.name.clone(), message })?,
+            Some(layer) => crate::stage::layer::layer_id(hand_rig, layer).map_err(|message| {
+                DaemonError::Hand { hand: hand.name.clone(), message: message.to_string() }
+            })?,
             None => 0,
         };
         if let Some(other) = out.iter().find(|o| o.element == element) {
@@ -382,7 +383,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
     let config = match loader() {
         Ok(c) => c,
         Err(errors) => {
-            for e in &errors {
+            for e in &errors.problems {
                 error!("reload refused: {e}");
             }
             return;

@@ -127,7 +127,7 @@ fn main() -> ExitCode {
     let config = match Config::load(args.config.as_deref(), overrides) {
         Ok(c) => c,
         Err(errors) => {
-            for e in errors {
+            for e in errors.problems {
                 eprintln!("frondd: error: {e}");
             }
             return ExitCode::from(2);

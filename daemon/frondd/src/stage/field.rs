@@ -11,6 +11,7 @@ use frond_motion::field::{Field, FieldPlayer};
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::{ElementInfo, ElementKind, StageInput, StageKey};
 
+use super::error::StageError;
 use super::playback::looped_clip;
 use super::{
     BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
@@ -118,11 +119,11 @@ impl FieldStage {
         seed: u64,
         t0_ns: u64,
         report: Arc<FieldReport>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, StageError> {
         let (clip, transitions) = looped_clip(take_bytes)?;
         let n = field.plants.len();
         if n == 0 {
-            return Err("the field has no plants".into());
+            return Err(StageError::EmptyField);
         }
         let base_speed_m_s = field.speed_m_s.max(0.05);
         let controls = FieldControls {
@@ -130,8 +131,7 @@ impl FieldStage {
             speed_m_s: base_speed_m_s,
             ..FieldControls::default()
         };
-        let player =
-            FieldPlayer::try_new(field, clip, &transitions, seed, controls).map_err(|e| e.to_string())?;
+        let player = FieldPlayer::try_new(field, clip, &transitions, seed, controls)?;
         report.controls.store(controls);
         let publish = ids.len().min(n).min(MAX_FIELD_PLANTS);
         let mut id_table = [0u16; MAX_FIELD_PLANTS];

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::{HandSample, PoseFrame};
 
+use super::error::StageError;
 use super::{BuildContext, BuildError, BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Eq. 8 applied to every hand pose.
@@ -27,29 +28,31 @@ impl LiveStage for GuidedStage {
 }
 
 /// Parses `sigma=S1,S2,S3;sg=G1,G2,G3` into guided-motion parameters (seed 000, Eq. 8).
-pub fn parse_guided(spec: &str, g3_range_deg: f32) -> Result<GuidedParams, String> {
+pub fn parse_guided(spec: &str, g3_range_deg: f32) -> Result<GuidedParams, StageError> {
+    let bad = StageError::Guided;
     let mut sigma = None;
     let mut sg = None;
     for part in spec.split(';').map(str::trim).filter(|p| !p.is_empty()) {
-        let (key, values) = part.split_once('=').ok_or_else(|| format!("{part:?}: expected key=v1,v2,v3"))?;
+        let (key, values) =
+            part.split_once('=').ok_or_else(|| bad(format!("{part:?}: expected key=v1,v2,v3")))?;
         let v: Vec<f64> = values
             .split(',')
-            .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{key}: {x:?} is not a number")))
+            .map(|x| x.trim().parse::<f64>().map_err(|_| bad(format!("{key}: {x:?} is not a number"))))
             .collect::<Result<_, _>>()?;
         let v: [f64; 3] =
-            v.try_into().map_err(|v: Vec<f64>| format!("{key}: needs 3 values, got {}", v.len()))?;
+            v.try_into().map_err(|v: Vec<f64>| bad(format!("{key}: needs 3 values, got {}", v.len())))?;
         match key.trim() {
             "sigma" => sigma = Some(v),
             "sg" => sg = Some(v),
-            other => return Err(format!("unknown guided-motion key {other:?}: use sigma and sg")),
+            other => return Err(bad(format!("unknown guided-motion key {other:?}: use sigma and sg"))),
         }
     }
     let params = GuidedParams {
-        sigma_s: sigma.ok_or("guided motion needs sigma=S1,S2,S3 (seconds)")?,
+        sigma_s: sigma.ok_or_else(|| bad("guided motion needs sigma=S1,S2,S3 (seconds)".into()))?,
         s_g: sg.unwrap_or([1.0; 3]),
         g3_range_deg,
     };
-    params.validate()?;
+    params.validate().map_err(|e| bad(e.to_string()))?;
     Ok(params)
 }
 
@@ -98,10 +101,10 @@ mod tests {
         assert_eq!(p.sigma_s, [0.1, 0.2, 0.3]);
         assert_eq!(p.s_g, [1.0, 2.0, 3.0]);
         assert_eq!(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap().s_g, [1.0; 3]);
-        assert!(parse_guided("sg=1,1,1", 60.0).unwrap_err().contains("sigma"));
-        assert!(parse_guided("sigma=1,2", 60.0).unwrap_err().contains("3 values"));
-        assert!(parse_guided("sigma=a,1,1", 60.0).unwrap_err().contains("not a number"));
+        assert!(parse_guided("sg=1,1,1", 60.0).unwrap_err().to_string().contains("sigma"));
+        assert!(parse_guided("sigma=1,2", 60.0).unwrap_err().to_string().contains("3 values"));
+        assert!(parse_guided("sigma=a,1,1", 60.0).unwrap_err().to_string().contains("not a number"));
         assert!(parse_guided("sigma=-1,1,1", 60.0).is_err());
-        assert!(parse_guided("tau=1,1,1", 60.0).unwrap_err().contains("unknown"));
+        assert!(parse_guided("tau=1,1,1", 60.0).unwrap_err().to_string().contains("unknown"));
     }
 }

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::{ElementInfo, ElementKind};
 
+use super::error::StageError;
 use super::{BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Relabels the hand's frames as element `element`.
@@ -32,20 +33,20 @@ impl LiveStage for LayerStage {
 
 /// The element id of `rig`'s secondary element `layer` (`k + 1` for `rig.elements[k]`), or an
 /// error naming the rig's elements.
-pub fn layer_id(rig: &Rig, layer: &str) -> Result<u16, String> {
+pub fn layer_id(rig: &Rig, layer: &str) -> Result<u16, StageError> {
     let names: Vec<&str> = rig.elements.iter().map(|e| e.name.as_str()).collect();
     match names.iter().position(|n| *n == layer) {
         Some(i) => Ok((i + 1) as u16),
-        None => Err(format!(
-            "rig {:?} has no secondary element {layer:?} (it has: {})",
-            rig.name,
-            if names.is_empty() { "none".to_string() } else { names.join(", ") }
-        )),
+        None => Err(StageError::NoSuchLayer {
+            rig: rig.name.clone(),
+            layer: layer.to_string(),
+            has: if names.is_empty() { "none".to_string() } else { names.join(", ") },
+        }),
     }
 }
 
 /// The stage recording `layer` of `rig`, with `hand_source` naming the hand it relabels.
-pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, String> {
+pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, StageError> {
     let id = layer_id(rig, layer)?;
     Ok(BuiltStage {
         stage: Box::new(LayerStage::new(id)),

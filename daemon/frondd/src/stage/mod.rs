@@ -14,6 +14,7 @@
 //! Adding a motion source: one file here implementing [`LiveStage`] with a `build` function,
 //! one [`StageSpec`] variant (and its arm in [`build`]), one `frond` subcommand.
 
+pub mod error;
 pub mod field;
 pub mod guided;
 pub mod layer;

@@ -8,6 +8,7 @@ use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};
 use frond_protocol::{ElementInfo, ElementKind};
 
+use super::error::StageError;
 use super::{
     BuildContext, BuildError, BuiltStage, FixedReport, FrameSink, LiveStage, StageInfo, TickContext, no_input,
 };
@@ -17,19 +18,16 @@ use crate::clock::NS_PER_S;
 pub const LOOP_FPS: f64 = 30.0;
 
 /// The global layer of `take_bytes` as a 30 FPS clip with its loop transitions (seed 000, Eq. 5).
-pub fn looped_clip(take_bytes: &[u8]) -> Result<(Clip, Transitions), String> {
-    let take = Take::from_bytes(take_bytes).map_err(|e| e.to_string())?;
+pub fn looped_clip(take_bytes: &[u8]) -> Result<(Clip, Transitions), StageError> {
+    let take = Take::from_bytes(take_bytes)?;
     let clip = take.clip(0, LOOP_FPS);
     if clip.len() < 8 {
-        return Err(format!(
-            "the take's global layer has {} frames at 30 FPS; at least 8 are needed to loop",
-            clip.len()
-        ));
+        return Err(StageError::TooShortToLoop { frames: clip.len() });
     }
     // Small takes get a smaller comparison window so Eq. 5 still finds candidates.
     let mut params = LoopParams::default();
     params.window = params.window.min((clip.len() - 2) / 4);
-    let transitions = find_transitions(&clip, &params).map_err(|e| e.to_string())?;
+    let transitions = find_transitions(&clip, &params)?;
     Ok((clip, transitions))
 }
 
@@ -42,7 +40,7 @@ pub struct PlaybackStage {
 
 impl PlaybackStage {
     /// Loops the global layer of `take_bytes` from host time `t0_ns`, published as `element`.
-    pub fn new(take_bytes: &[u8], seed: u64, t0_ns: u64, element: u16) -> Result<Self, String> {
+    pub fn new(take_bytes: &[u8], seed: u64, t0_ns: u64, element: u16) -> Result<Self, StageError> {
         let (clip, transitions) = looped_clip(take_bytes)?;
         let playback = Playback::new(clip, &transitions, seed, PlaybackParams::default(), 0);
         Ok(PlaybackStage { playback, t0_ns, element })

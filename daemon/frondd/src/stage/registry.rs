@@ -6,6 +6,7 @@ use frond_motion::Rig;
 use frond_motion::rig::MAX_RIG_ELEMENTS;
 use frond_protocol::{ElementInfo, ElementKind, ElementTable, StageStatus};
 
+use super::error::StageError;
 use super::{MAX_STAGES, StageInfo};
 
 /// Longest stage name.
@@ -67,18 +68,11 @@ impl Default for StageRegistry {
 }
 
 /// Checks a stage name: 1..=32 letters, digits, `-` and `_`.
-pub fn validate_stage_name(name: &str) -> Result<(), String> {
+pub fn validate_stage_name(name: &str) -> Result<(), StageError> {
     let ok = !name.is_empty()
         && name.len() <= MAX_STAGE_NAME
         && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
-    if ok {
-        Ok(())
-    } else {
-        let shown: String = name.chars().take(40).collect();
-        Err(format!(
-            "stage name {shown:?} is not valid: use 1 to {MAX_STAGE_NAME} letters, digits, '-' or '_'"
-        ))
-    }
+    if ok { Ok(()) } else { Err(StageError::BadName(name.chars().take(40).collect())) }
 }
 
 impl StageRegistry {
@@ -93,12 +87,10 @@ impl StageRegistry {
     }
 
     /// The slot a stage named `name` goes into: its own if it runs, else a free one.
-    pub fn slot_for(&self, name: &str) -> Result<usize, String> {
-        self.slot_of(name).or_else(|| self.slots.iter().position(Option::is_none)).ok_or_else(|| {
-            format!(
-                "{MAX_STAGES} stages are running, the most at once; stop one first (frond status lists them)"
-            )
-        })
+    pub fn slot_for(&self, name: &str) -> Result<usize, StageError> {
+        self.slot_of(name)
+            .or_else(|| self.slots.iter().position(Option::is_none))
+            .ok_or(StageError::SlotsFull)
     }
 
     /// The element ids the stages in slots other than `slot` use, with the stage's name.
@@ -233,7 +225,7 @@ mod tests {
             assert_ne!(s, slot);
             r.replace(s, Some(Running::new(&format!("s{i}"), a.clone())));
         }
-        assert!(r.slot_for("one-more").unwrap_err().contains("stop one"));
+        assert!(r.slot_for("one-more").unwrap_err().to_string().contains("stop one"));
         assert!(r.slot_for("a").is_ok(), "a running name can still be replaced");
     }
 
