@@ -46,6 +46,11 @@ fn fuzz_daemon_config() {
         "\"hid\"",
         "\"replay\"",
         "[0, 1000, -1]",
+        "[[hands]]",
+        "name",
+        "element",
+        "\"leaf\"",
+        "\"osc://127.0.0.1:9001\"",
     ];
     let report = fuzz(Target::new("daemon-config").seeds(seeds).text().dict(dict), |b| {
         let text = as_text(b);
@@ -54,8 +59,8 @@ fn fuzz_daemon_config() {
                 let label = match Config::validate(raw) {
                     Ok(_) => "ok",
                     Err(errors) => {
-                        assert!(!errors.is_empty(), "refused without a reason");
-                        errors.iter().for_each(assert_message);
+                        assert!(!errors.problems.is_empty(), "refused without a reason");
+                        errors.problems.iter().for_each(assert_message);
                         "invalid"
                     }
                 };
@@ -63,11 +68,12 @@ fn fuzz_daemon_config() {
                 let overlaid =
                     base.overlay(RawConfig::parse(&text, "fuzz.toml").expect("parsed once already"));
                 if let Err(errors) = Config::validate(overlaid) {
-                    assert!(!errors.is_empty(), "refused without a reason");
+                    assert!(!errors.problems.is_empty(), "refused without a reason");
                 }
                 label
             }
             Err(e) => {
+                let e = e.to_string();
                 assert!(e.starts_with("fuzz.toml"), "the error does not name the file: {e}");
                 assert_message(&e);
                 "toml"

@@ -126,3 +126,32 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     let modes = daemon.status().modes;
     assert!(modes.iter().any(|m| m.contains("guided motion sigma=0.1,0.2,0.4;sg=1,1,2")), "{modes:?}");
 }
+
+#[test]
+fn a_rig_set_live_reaches_a_subscriber_as_a_rig_change_with_the_new_joint_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    assert_eq!(sub.hello().rig_name, "grass");
+    daemon.frond_ok(&["rig", "set", "shrub"]);
+    // The joint names of rig-files/plants/shrub.toml, read from the file, not from frond.
+    let shrub = std::fs::read_to_string(frond_e2e::repo_root().join("rig-files/plants/shrub.toml")).unwrap();
+    let expected: Vec<String> = shrub
+        .lines()
+        .skip_while(|l| !l.starts_with("[[joints]]"))
+        .filter_map(|l| l.strip_prefix("name = \""))
+        .map(|n| n.trim_end_matches('"').to_string())
+        .collect();
+    assert_eq!(expected.len(), 4, "{expected:?}");
+    let mut changed = None;
+    for _ in 0..20_000 {
+        if let Event::RigChanged(h) = sub.next_event().unwrap() {
+            changed = Some(h);
+            break;
+        }
+    }
+    let hello = changed.expect("no RigChanged after frond rig set");
+    assert_eq!(hello.rig_name, "shrub");
+    assert_eq!(hello.joint_names, expected);
+    assert_eq!(sub.hello().joint_names, expected);
+}

@@ -164,6 +164,8 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
                 last = Some(p.seq);
             }
             Event::Elements(_) => {}
+            // The reload is announced as the rig change it is (no gap, no reconnect).
+            Event::RigChanged(h) => assert_eq!(h.rig_name, "shrub"),
             other => panic!("subscriber disturbed by the reload: {other:?}"),
         }
     }

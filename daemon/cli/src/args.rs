@@ -196,9 +196,9 @@ pub enum CalibrationCommand {
 /// `frond rig ...`
 #[derive(Debug, Subcommand)]
 pub enum RigCommand {
-    /// Send a rig file to the daemon, which switches to it live.
+    /// Send a rig to the daemon, which switches to it live (subscribers are told).
     Set {
-        /// Rig file (TOML).
+        /// Rig: an embedded name (grass, flower, shrub) or a rig file (TOML).
         file: PathBuf,
     },
 }

@@ -185,11 +185,16 @@ pub(crate) fn apply_calibration(g: &Global, file: &Path) -> anyhow::Result<()> {
 }
 
 pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
-    let (_rig, text) = load_rig(file)?;
-    let name = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "rig".into());
+    // An embedded name or a file, as `frondd --rig` takes it (the one rig loader).
+    let loaded = frond_motion::rig_files::load_rig(&file.to_string_lossy())?;
+    // A file names the rig by its stem where the rig names itself not (the daemon's rule).
+    let name = match &loaded.dir {
+        Some(_) => file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "rig".into()),
+        None => loaded.rig.name.clone(),
+    };
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: text })?;
-    println!("rig set to {name} ({})", file.display());
+    c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: loaded.text })?;
+    println!("rig set to {name} ({})", loaded.origin);
     Ok(())
 }
 

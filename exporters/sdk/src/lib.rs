@@ -56,7 +56,9 @@ pub enum Event {
         /// The sequence number that arrived.
         got: u64,
     },
-    /// The daemon sent a new hello on the same connection (its rig changed).
+    /// The daemon's rig changed: it sent a new hello on the same connection, or an element table
+    /// whose first rig (the daemon's) differs from the hello's. Carries the hello brought up to
+    /// date (rig name, joint names, elements); an [`Event::Elements`] with the table follows.
     RigChanged(Hello),
     /// The daemon announced a new element table (its live stages or rig changed); it applies to
     /// the poses that follow. [`Subscriber::elements`] has it too.
@@ -265,7 +267,20 @@ impl Subscriber {
             ReadOutcome::Message(ServerMessage::Pose(pose)) => self.on_pose(pose),
             ReadOutcome::Message(ServerMessage::Elements(table)) => {
                 self.elements = table.clone();
-                Ok(Event::Elements(table))
+                // The table names the daemon's rig first: a different one is a rig change
+                // (`frond rig set`, SIGHUP), reported as one with the hello brought up to date.
+                match table.rigs.first() {
+                    Some(rig)
+                        if rig.name != self.hello.rig_name || rig.joint_names != self.hello.joint_names =>
+                    {
+                        self.hello.rig_name = rig.name.clone();
+                        self.hello.joint_names = rig.joint_names.clone();
+                        self.hello.elements = table.clone();
+                        self.pending.push_back(Event::Elements(table));
+                        Ok(Event::RigChanged(self.hello.clone()))
+                    }
+                    _ => Ok(Event::Elements(table)),
+                }
             }
             ReadOutcome::Message(ServerMessage::Hello(hello)) => match check_hello(&hello) {
                 Ok(()) => {

@@ -386,6 +386,40 @@ fn a_sequence_going_backwards_is_a_protocol_error() {
 }
 
 #[test]
+fn a_table_naming_another_rig_first_is_a_rig_change() {
+    use frond_protocol::{ElementTable, RigInfo};
+    let (_guard, dir) = tempdir();
+    let flower = RigInfo { name: "flower".into(), joint_names: vec!["a".into(), "b".into()] };
+    let table = ElementTable { version: 7, rigs: vec![flower.clone()], elements: vec![] };
+    let same = ElementTable { version: 8, rigs: vec![flower], elements: vec![] };
+    let (t1, t2) = (table.clone(), same.clone());
+    let server = serve_once(&dir, move |mut s| {
+        let mut bytes = frame(&ServerMessage::Hello(hello(1)));
+        bytes.extend(pose_frame(1));
+        bytes.extend(frame(&ServerMessage::Elements(t1)));
+        bytes.extend(frame(&ServerMessage::Elements(t2)));
+        bytes.extend(pose_frame(2));
+        s.write_all(&bytes).unwrap();
+    });
+    let mut sub = quick().reconnect(false).connect(&dir).unwrap();
+    assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(1)));
+    match sub.next_event().unwrap() {
+        Event::RigChanged(h) => {
+            assert_eq!(h.rig_name, "flower");
+            assert_eq!(h.joint_names, ["a", "b"]);
+            assert_eq!(h.elements, table);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(sub.next_event().unwrap(), Event::Elements(table));
+    assert_eq!(sub.hello().rig_name, "flower");
+    // The same rig again is only a new table.
+    assert_eq!(sub.next_event().unwrap(), Event::Elements(same));
+    assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(2)));
+    server.join().unwrap();
+}
+
+#[test]
 fn a_second_hello_is_a_rig_change() {
     let (_guard, dir) = tempdir();
     let server = serve_once(&dir, |mut s| {
