@@ -150,6 +150,10 @@ pub struct ControlContext {
     pub test_hooks: bool,
     /// The element table for the publisher's slow lane.
     pub elements_cell: Arc<ElementsCell>,
+    /// Held across a whole `record start` / `record layer` / `record stop`, which take and drop
+    /// the state lock several times: two clients' sessions cannot interleave (one's failed start
+    /// undoing the other's layer, say).
+    pub recording_session: Mutex<()>,
 }
 
 /// Who may use the control socket, checked against the peer's credentials (SO_PEERCRED).
@@ -277,6 +281,10 @@ impl ControlContext {
         }
     }
 
+    fn recording_session(&self) -> std::sync::MutexGuard<'_, ()> {
+        self.recording_session.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
     /// Answers one request.
     pub fn handle(&self, req: ControlRequest) -> ControlReply {
         match req {
@@ -284,10 +292,17 @@ impl ControlContext {
             ControlRequest::SetRig { name, toml } => self.set_rig(name, &toml),
             ControlRequest::SetCalibration { id, toml } => self.set_calibration(id, &toml),
             ControlRequest::SetFilter { spec } => self.set_filter(&spec),
-            ControlRequest::RecordStart { name } => self.record_start(name),
-            ControlRequest::RecordStop => self.record_stop(),
+            ControlRequest::RecordStart { name } => {
+                let _session = self.recording_session();
+                self.record_start(name)
+            }
+            ControlRequest::RecordStop => {
+                let _session = self.recording_session();
+                self.record_stop()
+            }
             ControlRequest::Mark { label } => self.mark(label),
             ControlRequest::RecordLayer { name, layer, global_take, seed } => {
+                let _session = self.recording_session();
                 self.record_layer(name, layer, global_take, seed)
             }
             ControlRequest::StageStart { name, spec } => self.stage_start(name, spec),

@@ -283,6 +283,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         },
         test_hooks,
         elements_cell,
+        recording_session: Mutex::new(()),
     });
     // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
     {
