@@ -3,6 +3,7 @@
 mod demo;
 mod hands;
 mod hostile;
+mod hostile_files;
 mod live_modes;
 mod osc_input;
 mod rt_syscalls;

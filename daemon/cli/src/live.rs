@@ -4,7 +4,6 @@
 use std::io::{self, BufRead, IsTerminal, Read, Write};
 use std::path::Path;
 
-use anyhow::Context;
 use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StageInput, StageKey, StageSpec};
 
 use crate::args::Global;
@@ -73,8 +72,10 @@ pub(crate) fn field_start(
     if !(1..=64).contains(&plants) {
         return crate::usage(format!("--plants must be 1..=64, got {plants}"));
     }
-    let field_json = std::fs::read_to_string(field)
-        .with_context(|| format!("cannot read field file {}", field.display()))?;
+    // The daemon takes it in one control request: no larger than that.
+    let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
+    let field_json = frond_motion::rig_files::read_small_text(field, max)
+        .map_err(|e| anyhow::anyhow!("cannot read field file {}: {}", field.display(), e.reason()))?;
     let mut c = Control::from_global(g)?;
     let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
     c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;

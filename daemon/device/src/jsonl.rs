@@ -19,6 +19,9 @@ pub enum HandFileError {
         /// The underlying read error.
         source: std::io::Error,
     },
+    /// The file is not a regular file, too large, or not text.
+    #[error("cannot read hand file {}: {}", .0.path().display(), .0.reason())]
+    File(frond_motion::rig_files::FileError),
     /// A line is not a valid hand sample, or its time is earlier than the previous line's.
     #[error("{path}:{line}: {message}")]
     Line {
@@ -69,10 +72,14 @@ pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandF
     Ok(out)
 }
 
-/// Loads a hand file into memory.
+/// Largest hand file loaded, bytes (about an hour of 1 kHz samples).
+pub const MAX_HAND_FILE_BYTES: u64 = 512 << 20;
+
+/// Loads a hand file into memory: a regular file of at most [`MAX_HAND_FILE_BYTES`] (a FIFO or
+/// a device is refused without blocking).
 pub fn load_hand_file(path: &Path) -> Result<Vec<HandSample>, HandFileError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| HandFileError::Io { path: path.to_owned(), source })?;
+    let text =
+        frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(HandFileError::File)?;
     parse_hand_text(path, &text)
 }
 

@@ -303,6 +303,9 @@ impl fmt::Display for ProfileProblem {
     }
 }
 
+/// Largest device profile read, bytes.
+pub const MAX_PROFILE_FILE_BYTES: u64 = 1 << 20;
+
 /// Why a profile could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
@@ -314,6 +317,9 @@ pub enum ProfileError {
         /// The underlying read error.
         source: std::io::Error,
     },
+    /// The file is not a regular file, too large, or not text.
+    #[error("cannot read device profile {}: {}", .0.path().display(), .0.reason())]
+    File(frond_motion::rig_files::FileError),
     /// The text is not TOML; carries the TOML parser's message.
     #[error("device profile is not valid TOML: {0}")]
     Syntax(String),
@@ -336,10 +342,10 @@ impl DeviceProfile {
         Checker::default().profile(&table)
     }
 
-    /// Loads a profile file.
+    /// Loads a profile file (a regular file of at most [`MAX_PROFILE_FILE_BYTES`]).
     pub fn load(path: &Path) -> Result<Self, ProfileError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ProfileError::Io { path: path.to_owned(), source })?;
+        let text = frond_motion::rig_files::read_small_text(path, MAX_PROFILE_FILE_BYTES)
+            .map_err(ProfileError::File)?;
         Self::from_toml_str(&text)
     }
 

@@ -40,7 +40,7 @@ pub const CONTROL_READ_TIMEOUT: Duration = Duration::from_secs(30);
 /// over a local socket takes well under a millisecond.
 pub const CONTROL_REQUEST_DEADLINE: Duration = Duration::from_secs(5);
 /// Largest control request accepted, bytes.
-pub const MAX_CONTROL_REQUEST: usize = 256 * 1024;
+pub use frond_protocol::MAX_CONTROL_REQUEST;
 /// Device events kept for status.
 pub const DEVICE_EVENTS_KEPT: usize = 32;
 

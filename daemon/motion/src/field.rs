@@ -46,6 +46,8 @@ pub const PLANT_SCALE_RANGE: (f64, f64) = (0.85, 1.15);
 /// is at most this too. Every cell holds at most one plant, and a live field keeps one value
 /// per row, so this bounds what a field's numbers can make anyone allocate.
 pub const MAX_FIELD_CELLS: usize = 1_000_000;
+/// Largest field file (JSON) read, bytes.
+pub const MAX_FIELD_FILE_BYTES: u64 = 64 << 20;
 /// Most plants of a field: one per cell.
 pub const MAX_FIELD_PLANTS: usize = MAX_FIELD_CELLS;
 /// Longest take a field may play, frames at its `fps`: one hour at 30 FPS. Start frames lie

@@ -138,10 +138,17 @@ fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
     }
 }
 
-/// Reads a small regular text file: refuses FIFOs, devices and directories without blocking on
-/// them (the file is opened non-blocking and checked before anything is read), and files over
-/// `max` bytes before reading them.
+/// Reads a small regular text file: [`read_small_file`], then UTF-8.
 pub fn read_small_text(path: &Path, max: u64) -> Result<String, FileError> {
+    let bytes = read_small_file(path, max)?;
+    String::from_utf8(bytes).map_err(|_| FileError::NotText { path: path.to_path_buf() })
+}
+
+/// Reads a regular file of at most `max` bytes: refuses FIFOs, devices and directories without
+/// blocking on them (the file is opened non-blocking and checked before anything is read), and
+/// files over `max` bytes before reading them (and if one grows past `max` while read). The
+/// one way every frond command and the daemon read a file they are given.
+pub fn read_small_file(path: &Path, max: u64) -> Result<Vec<u8>, FileError> {
     use std::os::unix::fs::OpenOptionsExt;
     let read_err = |source| FileError::Read { path: path.to_path_buf(), source };
     if let Ok(meta) = std::fs::metadata(path)
@@ -164,7 +171,7 @@ pub fn read_small_text(path: &Path, max: u64) -> Result<String, FileError> {
     if bytes.len() as u64 > max {
         return Err(FileError::TooLarge { path: path.to_path_buf(), bytes: bytes.len() as u64, max });
     }
-    String::from_utf8(bytes).map_err(|_| FileError::NotText { path: path.to_path_buf() })
+    Ok(bytes)
 }
 
 /// `O_NONBLOCK` on Linux (every architecture frond builds for).

@@ -23,6 +23,9 @@ pub const PROTOCOL_VERSION: u8 = 2;
 pub const HEADER_LEN: usize = 5;
 /// Largest accepted `len` field. Anything bigger is refused before reading it.
 pub const MAX_FRAME_LEN: usize = 1 << 20;
+/// Largest control request a daemon accepts, bytes (a rig, a field, a calibration travel in
+/// one request, so a client can check its file against this before sending it).
+pub const MAX_CONTROL_REQUEST: usize = 256 * 1024;
 
 /// Why a byte string is not a valid frame.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]

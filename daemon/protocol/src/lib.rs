@@ -27,8 +27,8 @@ pub use control::{
     SubscriberStatus,
 };
 pub use frame::{
-    DecodeError, FrameBuf, HEADER_LEN, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError, decode_frame,
-    encode_frame, encode_frame_as, read_frame, read_frame_limited, write_frame,
+    DecodeError, FrameBuf, HEADER_LEN, MAX_CONTROL_REQUEST, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError,
+    decode_frame, encode_frame, encode_frame_as, read_frame, read_frame_limited, write_frame,
 };
 pub use pose::{
     ElementInfo, ElementKind, ElementTable, HandWire, Hello, PatchableHello, Pose, PoseFlags, RigInfo,
