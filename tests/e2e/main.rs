@@ -9,6 +9,7 @@ mod osc_input;
 mod rt_syscalls;
 mod slow_subscriber;
 mod soak;
+mod socket_dir;
 mod stage;
 mod systemd;
 mod take_tools;

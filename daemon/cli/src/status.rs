@@ -36,6 +36,9 @@ pub(crate) fn render(r: &StatusReport) -> String {
     let mut o = String::new();
     let src = &r.source;
     let _ = writeln!(o, "daemon       frondd {}, up {}", r.daemon_version, human_duration(r.uptime_s));
+    for p in &r.problems {
+        let _ = writeln!(o, "PROBLEM      {p}");
+    }
     let source_line = |s: &frond_protocol::SourceStatus| {
         format!(
             "{} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
@@ -213,6 +216,7 @@ mod tests {
             stages: vec![],
             elements: vec![],
             hands: vec![],
+            problems: vec![],
         }
     }
 

@@ -62,6 +62,7 @@ fn status_report() -> StatusReport {
         stages: vec![],
         elements: vec![],
         hands: vec![],
+        problems: vec![],
     }
 }
 

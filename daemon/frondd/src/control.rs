@@ -57,6 +57,8 @@ pub struct DaemonState {
     /// Device history of every hand, oldest first (prefixed by the hand's name when there are
     /// several).
     pub device_events: std::collections::VecDeque<String>,
+    /// What is wrong now and needs the operator (a removed socket, ...), one line each.
+    pub problems: Vec<String>,
     /// Current take: name and path.
     pub recording: Option<(String, PathBuf)>,
     /// Ticks per second over the last second.
@@ -585,6 +587,7 @@ impl ControlContext {
             stages: state.stages.status(),
             elements: state.elements.elements.clone(),
             hands,
+            problems: state.problems.clone(),
         }
     }
 }

@@ -91,12 +91,40 @@ fn prepare_socket_dir(dir: &Path) -> Result<(), DaemonError> {
     Ok(())
 }
 
-fn bind(dir: &Path, name: &str) -> Result<(UnixListener, PathBuf), DaemonError> {
+/// A socket file this daemon created, known by its inode: the daemon removes it at the end only
+/// if it is still that file (a daemon started since in a re-created directory keeps its own).
+pub struct OwnedSocket {
+    /// Its path.
+    pub path: PathBuf,
+    dev: u64,
+    ino: u64,
+}
+
+impl OwnedSocket {
+    fn new(path: PathBuf) -> Result<Self, DaemonError> {
+        use std::os::unix::fs::MetadataExt;
+        let meta = std::fs::symlink_metadata(&path).map_err(DaemonError::io("cannot stat", &path))?;
+        Ok(OwnedSocket { path, dev: meta.dev(), ino: meta.ino() })
+    }
+
+    /// Whether the path still is the socket this daemon bound.
+    pub fn still_ours(&self) -> bool {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::symlink_metadata(&self.path).is_ok_and(|m| m.dev() == self.dev && m.ino() == self.ino)
+    }
+
+    /// Removes the socket file if it still is ours; says what it did.
+    pub fn remove_if_ours(&self) -> bool {
+        self.still_ours() && std::fs::remove_file(&self.path).is_ok()
+    }
+}
+
+fn bind(dir: &Path, name: &str) -> Result<(UnixListener, OwnedSocket), DaemonError> {
     let path = dir.join(name);
     let listener = UnixListener::bind(&path).map_err(DaemonError::io("cannot bind", &path))?;
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o660))
         .map_err(DaemonError::io("cannot set the mode of", &path))?;
-    Ok((listener, path))
+    Ok((listener, OwnedSocket::new(path)?))
 }
 
 /// A configured hand, resolved against the rigs: its element and, when it has a rig or
@@ -254,6 +282,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             })
             .collect(),
         device_events: Default::default(),
+        problems: Vec::new(),
         recording: None,
         achieved_rate_hz: 0.0,
         realtime,
@@ -332,7 +361,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     info!(socket_dir = %dirs.socket_dir.display(), takes_dir = %dirs.takes_dir.display(), "frondd ready");
 
     let reload_fn = |ctx: &ControlContext| reload_config(ctx, &loader, &config);
-    housekeeping(&ctx, &garbage_rx, &notifier, &stop, &reload, &reload_fn);
+    let sockets = [&pose_path, &control_path];
+    housekeeping(&ctx, &garbage_rx, &notifier, &stop, &reload, &reload_fn, &sockets);
 
     // Shutdown: finish the take first, so every frame the loop produced is in it.
     notifier.notify("STOPPING=1");
@@ -362,8 +392,10 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     if recorder.join().is_err() {
         error!("recorder thread panicked");
     }
-    for path in [pose_path, control_path] {
-        let _ = std::fs::remove_file(path);
+    for socket in [&pose_path, &control_path] {
+        if !socket.remove_if_ours() {
+            warn!(path = %socket.path.display(), "left the socket alone: it is no longer the one this daemon created");
+        }
     }
     drop(opened); // unmounts the virtual glove nodes, if any
     info!("stopped");
@@ -431,8 +463,11 @@ fn housekeeping(
     stop: &AtomicBool,
     reload: &AtomicBool,
     reload_fn: &dyn Fn(&ControlContext),
+    sockets: &[&OwnedSocket],
 ) {
     let stats = &ctx.stats;
+    let mut sockets_checked_at = Instant::now();
+    let mut sockets_gone = false;
     let hands = ctx.lock().hands.len();
     let mut last_ticks = stats.ticks.load(Relaxed);
     let mut last_rate_at = Instant::now();
@@ -473,6 +508,29 @@ fn housekeeping(
                 warn!(hand = %name, "{what}")
             }
             state.push_event(ctx.started, i, what.to_string());
+        }
+        if sockets_checked_at.elapsed() >= Duration::from_secs(1) {
+            sockets_checked_at = Instant::now();
+            let gone = sockets.iter().find(|s| !s.still_ours());
+            match (gone, sockets_gone) {
+                (Some(s), false) => {
+                    sockets_gone = true;
+                    error!(
+                        path = %s.path.display(),
+                        "this daemon's socket was removed or replaced (its directory deleted?): new clients cannot reach it; restart frondd"
+                    );
+                    ctx.lock().problems.push(format!(
+                        "socket {} was removed or replaced: new clients cannot connect; restart frondd",
+                        s.path.display()
+                    ));
+                }
+                (None, true) => {
+                    sockets_gone = false;
+                    info!("this daemon's sockets are back in place");
+                    ctx.lock().problems.retain(|p| !p.starts_with("socket "));
+                }
+                _ => {}
+            }
         }
         let elapsed = last_rate_at.elapsed();
         if elapsed >= Duration::from_secs(1) {

@@ -282,6 +282,9 @@ pub struct StatusReport {
     /// Every hand source, in configuration order (`source` is the first's).
     #[serde(default)]
     pub hands: Vec<HandStatus>,
+    /// What is wrong now and needs the operator, one line each (empty when all is well).
+    #[serde(default)]
+    pub problems: Vec<String>,
 }
 
 /// One hand source: where it reads, what it drives, and its own counters and history.
