@@ -49,7 +49,7 @@ pub fn parse_guided(spec: &str, g3_range_deg: f32) -> Result<GuidedParams, Strin
         s_g: sg.unwrap_or([1.0; 3]),
         g3_range_deg,
     };
-    params.validate()?;
+    params.validate().map_err(|e| e.to_string())?;
     Ok(params)
 }
 
