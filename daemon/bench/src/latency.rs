@@ -34,6 +34,12 @@ pub struct PhaseHists {
     pub glove_to_publish: LatencyHistogram,
 }
 
+/// Whether a read on a socket with a read timeout only timed out (nothing arrived): the reader
+/// checks whether it is to stop and reads again.
+pub fn timed_out(e: &std::io::Error) -> bool {
+    matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut)
+}
+
 /// Subscribers reading poses.sock on their own threads, recording into the active phase.
 pub struct Subscribers {
     phase: Arc<AtomicUsize>,
@@ -68,14 +74,7 @@ impl Subscribers {
                 while !stop.load(Relaxed) {
                     let msg = match read_frame::<ServerMessage, _>(&mut stream, &mut buf) {
                         Ok(m) => m,
-                        Err(frond_protocol::ReadError::Io(e))
-                            if matches!(
-                                e.kind(),
-                                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                            ) =>
-                        {
-                            continue;
-                        }
+                        Err(frond_protocol::ReadError::Io(e)) if timed_out(&e) => continue,
                         Err(_) => return,
                     };
                     let (now_us, now_ns) = (monotonic_us_u32(), monotonic_ns());

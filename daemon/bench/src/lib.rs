@@ -4,17 +4,20 @@
 //! Sections (issue 9): [`timing::loop_timing`] (1), [`latency::glove_latency`] (2),
 //! [`tick::tick_cost`] (3), [`timing::max_rate`] (4), [`resources::daemon_resources`] (5) and
 //! [`components::components`] (6), [`osc_latency::osc_latency`] (7: the OSC source against a
-//! do-nothing relay, `frond-relay`). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! do-nothing relay, `frond-relay`, see [`relay`]) and [`hidraw_latency::hidraw_latency`] (8: a
+//! hidraw node's reports through frondd against the same relay reading the node). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
 
 pub mod alloc;
 pub mod components;
+pub mod hidraw_latency;
 pub mod latency;
 pub mod loops;
 pub mod osc_latency;
 pub mod procs;
+pub mod relay;
 pub mod report;
 pub mod resources;
 pub mod rig;
@@ -27,7 +30,7 @@ use std::time::Instant;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
-pub const SECTIONS: [&str; 7] = [
+pub const SECTIONS: [&str; 8] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -35,6 +38,7 @@ pub const SECTIONS: [&str; 7] = [
     "daemon_resources",
     "components",
     "osc_latency",
+    "hidraw_latency",
 ];
 
 /// What to run.
@@ -64,6 +68,7 @@ fn title(name: &str) -> &'static str {
         "max_rate" => "highest sustainable tick rate with 8 subscribers",
         "daemon_resources" => "frondd CPU and memory at 1 kHz with 4 subscribers",
         "osc_latency" => "OSC hand sample -> subscriber receipt vs a do-nothing relay",
+        "hidraw_latency" => "hidraw report -> subscriber receipt vs a do-nothing relay",
         _ => "motion toolkit and exporters",
     }
 }
@@ -93,6 +98,7 @@ pub fn run(options: &Options) -> Report {
             "max_rate" => timing::max_rate(options, priority),
             "daemon_resources" => resources::daemon_resources(options),
             "osc_latency" => osc_latency::osc_latency(options),
+            "hidraw_latency" => hidraw_latency::hidraw_latency(options),
             _ => Ok(components::components(options)),
         };
         let mut section =

@@ -7,23 +7,19 @@
 //! `frondd` carries it as the pose's device time, the relay's readers read it from the datagram,
 //! so both latencies are receipt time minus send time on one clock.
 
-use std::io::{BufRead, BufReader, Read};
 use std::net::UdpSocket;
-use std::os::unix::net::UnixStream;
-use std::process::{Command, Stdio};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
 use std::time::Duration;
 
+use frond_protocol::LatencySummary;
 use frondd::clock::{monotonic_ns, sleep_until_ns};
-use frondd::stats::LatencyHistogram;
 use serde_json::json;
 
 use crate::Options;
 use crate::latency::Subscribers;
-use crate::procs::{Daemon, Proc, find_bin};
-use crate::report::{Bound, Measurement, Section};
+use crate::procs::Daemon;
+use crate::relay::{Relay, against_relay};
+use crate::report::Section;
 
 /// Byte offset of `t` (the first double) in [`hand_datagram`]: the 12-byte address and the
 /// 12-byte type tag string come first.
@@ -41,7 +37,7 @@ fn hand_datagram(t_s: f64) -> [u8; 80] {
 }
 
 /// Sends a sample to `to` every millisecond for `dur`, stamped with the send time.
-fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, String> {
+pub fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, String> {
     let socket = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
     let period = 1_000_000;
     let end = monotonic_ns() + dur.as_nanos() as u64;
@@ -58,77 +54,28 @@ fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, String> {
 }
 
 /// A free UDP port on loopback (bound, read, released).
-fn free_port() -> Result<u16, String> {
+pub fn free_port() -> Result<u16, String> {
     let s = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
     Ok(s.local_addr().map_err(|e| e.to_string())?.port())
 }
 
+/// The relay readers' [`crate::relay::Stamp`] of a forwarded [`hand_datagram`]: receipt time
+/// minus the `t` it carries.
+pub fn osc_stamp(datagram: &[u8]) -> Option<u64> {
+    let now = monotonic_ns();
+    let t = f64::from_be_bytes(datagram.get(T_OFFSET..T_OFFSET + 8)?.try_into().ok()?);
+    Some(now.saturating_sub((t * 1e9) as u64))
+}
+
 /// Runs `frond-relay` with `n` readers for `dur` of samples; the readers' latencies.
-fn relay_run(o: &Options, n: usize, dur: Duration) -> Result<LatencyHistogram, String> {
-    let dir = tempfile::Builder::new().prefix("frond-bench-relay-").tempdir().map_err(|e| e.to_string())?;
-    let path = dir.path().join("relay.sock");
+fn relay_run(o: &Options, n: usize, dur: Duration) -> Result<LatencySummary, String> {
     let port = free_port()?;
     let addr = format!("127.0.0.1:{port}");
-    let mut child = Command::new(find_bin(o, "frond-relay")?)
-        .args([&addr, &path.to_string_lossy().into_owned(), &n.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .map_err(|e| format!("cannot start frond-relay: {e}"))?;
-    let mut out = BufReader::new(child.stdout.take().ok_or("frond-relay has no stdout")?);
-    let _relay = Proc { child };
-    let mut line = String::new();
-    out.read_line(&mut line).map_err(|e| e.to_string())?;
-    if line.trim() != "listening" {
-        return Err(format!("frond-relay said {line:?} instead of listening"));
-    }
-    let hist = Arc::new(LatencyHistogram::new());
-    let stop = Arc::new(AtomicBool::new(false));
-    let mut readers = Vec::new();
-    for _ in 0..n {
-        let mut s = UnixStream::connect(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        s.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| e.to_string())?;
-        let (hist, stop) = (hist.clone(), stop.clone());
-        readers.push(thread::spawn(move || {
-            let mut buf = vec![0u8; 65_536];
-            while !stop.load(Relaxed) {
-                let mut len = [0u8; 4];
-                match s.read_exact(&mut len) {
-                    Ok(()) => {}
-                    Err(e)
-                        if matches!(
-                            e.kind(),
-                            std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                        ) =>
-                    {
-                        continue;
-                    }
-                    Err(_) => return,
-                }
-                let len = (u32::from_le_bytes(len) as usize).min(buf.len());
-                if s.read_exact(&mut buf[..len]).is_err() {
-                    return;
-                }
-                let now = monotonic_ns();
-                if let Some(t) = buf.get(T_OFFSET..T_OFFSET + 8) {
-                    let sent = (f64::from_be_bytes(t.try_into().unwrap_or_default()) * 1e9) as u64;
-                    hist.record(now.saturating_sub(sent));
-                }
-            }
-        }));
-    }
-    line.clear();
-    out.read_line(&mut line).map_err(|e| e.to_string())?;
-    if line.trim() != "ready" {
-        return Err(format!("frond-relay said {line:?} instead of ready"));
-    }
+    let relay = Relay::start(o, &format!("udp:{addr}"), n, osc_stamp)?;
+    relay.record(true);
     send_for(addr.parse().map_err(|_| "bad relay address")?, dur)?;
     thread::sleep(Duration::from_millis(50));
-    stop.store(true, Relaxed);
-    for r in readers {
-        let _ = r.join();
-    }
-    Arc::try_unwrap(hist).map_err(|_| "a relay reader is still running".to_string())
+    Ok(relay.finish())
 }
 
 /// Section 7.
@@ -150,27 +97,9 @@ pub fn osc_latency(o: &Options) -> Result<Section, String> {
         let sent = send_for(to, dur)?;
         thread::sleep(Duration::from_millis(50));
         subs.record(None);
-        let relay = relay_run(o, n, dur)?;
-        let (f, r) = (subs.hists(i).glove_to_receipt.summary(), relay.summary());
-        if f.samples == 0 || r.samples == 0 {
-            return Err(format!("no samples with {n} readers (frondd {}, relay {})", f.samples, r.samples));
-        }
-        for (q, fv, rv, limit) in [("p50", f.p50_us, r.p50_us, 1.3), ("p99", f.p99_us, r.p99_us, 2.0)] {
-            measurements.push(
-                Measurement::new(
-                    format!("osc_to_subscriber_{q}_{n}_subscribers"),
-                    "us",
-                    fv,
-                    format!("frond-relay to {n} readers, {q}"),
-                    rv,
-                )
-                .with_target(
-                    format!("OSC-to-subscriber {q} <= {limit}x the relay's, {n} subscribers"),
-                    Bound::MaxRatio,
-                    limit,
-                ),
-            );
-        }
+        let r = relay_run(o, n, dur)?;
+        let f = subs.hists(i).glove_to_receipt.summary();
+        measurements.extend(against_relay("osc_to_subscriber", "OSC-to-subscriber", n, &f, &r)?);
         details.insert(format!("{n}_subscribers"), json!({ "frondd": f, "relay": r, "sent": sent }));
     }
     let status = daemon.status().ok();

@@ -49,7 +49,7 @@ const STEPS: [(&str, &str); 5] = [
 
 pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     if let Err(e) = paths::validate_take_name(&a.user) {
-        return usage(format!("--user: {}", e.replace("take name", "user name")));
+        return usage(format!("--user: {}", e.to_string().replace("take name", "user name")));
     }
     if !(a.seconds_per_step.is_finite() && (0.2..=120.0).contains(&a.seconds_per_step)) {
         return usage(format!("--seconds-per-step must be between 0.2 and 120, got {}", a.seconds_per_step));

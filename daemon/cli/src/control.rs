@@ -217,7 +217,7 @@ pub(crate) fn mark(g: &Global, label: &str) -> anyhow::Result<()> {
 }
 
 pub(crate) fn check_take_name(name: &str) -> anyhow::Result<()> {
-    paths::validate_take_name(name).or_else(usage)
+    paths::validate_take_name(name).or_else(|e| usage(e.to_string()))
 }
 
 pub(crate) fn record_start(g: &Global, name: &str) -> anyhow::Result<()> {

@@ -93,7 +93,7 @@ pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
 fn key_request(key: &str) -> anyhow::Result<ControlRequest> {
     let key: StageKey = match key.parse() {
         Ok(k) => k,
-        Err(e) => return crate::usage(e),
+        Err(e) => return crate::usage(e.to_string()),
     };
     Ok(ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(key) })
 }

@@ -294,7 +294,7 @@ fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyho
 
 fn write_take(g: &Global, take: &mut Take, name: &str, force: bool) -> anyhow::Result<()> {
     if let Err(e) = paths::validate_take_name(name) {
-        return usage(e);
+        return usage(e.to_string());
     }
     let dir = paths::takes_dir(g.takes_dir.clone());
     let path = dir.join(format!("{name}.take"));
@@ -508,7 +508,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             let src = read_take(g, &name)?;
             let clip = global_clip(&src, out.fps, &name)?;
             let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
-                .map_err(crate::UsageError)?;
+                .map_err(|e| crate::UsageError(e.to_string()))?;
             emit(g, derived(&src, &r, false), format!("{name}-retime"), &out)
         }
         TakeTool::Guided { name, sigma, sg, thumb_range, rig, out } => {
@@ -529,7 +529,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             let clip = Clip { fps: out.fps, frames: frames.iter().map(|f| f.pose).collect() };
             let hands: Vec<_> = frames.iter().map(|f| f.hand).collect();
             let gp = GuidedParams { sigma_s, s_g, g3_range_deg: range };
-            let result = guided(&clip, &hands, &gp).map_err(crate::UsageError)?;
+            let result = guided(&clip, &hands, &gp).map_err(|e| crate::UsageError(e.to_string()))?;
             let mut t = derived(&src, &result, false);
             t.set_layer(GLOBAL_LAYER, None, frames_from_clip(&result, GLOBAL_LAYER, 0, Some(&hands)));
             emit(g, t, format!("{name}-guided"), &out)

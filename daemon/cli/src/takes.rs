@@ -31,7 +31,7 @@ pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
         return Ok(as_path.to_owned());
     }
     if let Err(e) = paths::validate_take_name(name) {
-        return usage(e);
+        return usage(e.to_string());
     }
     let dir = paths::takes_dir(g.takes_dir.clone());
     let path = dir.join(format!("{name}.take"));

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use frond_motion::HandSample;
+use frond_motion::{HandSample, JsonlError};
 
 /// Why a hand file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -23,14 +23,14 @@ pub enum HandFileError {
     #[error("cannot read hand file {}: {}", .0.path().display(), .0.reason())]
     File(frond_motion::rig_files::FileError),
     /// A line is not a valid hand sample, or its time is earlier than the previous line's.
-    #[error("{path}:{line}: {message}")]
+    #[error("{path}:{line}: {error}")]
     Line {
         /// The hand file.
         path: PathBuf,
         /// 1-based line number.
         line: usize,
         /// What is wrong with the line.
-        message: String,
+        error: HandLineError,
     },
     /// The file has no samples (empty or only blank lines).
     #[error("{path}: no samples")]
@@ -40,12 +40,31 @@ pub enum HandFileError {
     },
 }
 
+/// Why one line of a hand file is not a sample playback can use.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HandLineError {
+    /// The line is not a hand sample (the shared parser's error).
+    #[error(transparent)]
+    Parse(#[from] JsonlError),
+    /// `t` is not a finite number.
+    #[error("t is not a finite number")]
+    NonFiniteTime,
+    /// `t` is earlier than the previous line's.
+    #[error("t {t} is earlier than the previous line's {previous}")]
+    Earlier {
+        /// This line's time, seconds.
+        t: f64,
+        /// The previous line's time, seconds.
+        previous: f64,
+    },
+}
+
 /// Parses one line of the hand format (the shared parser of `frond_motion`, so the device path
 /// and `frond map` read files identically).
-pub fn parse_hand_line(line: &str) -> Result<HandSample, String> {
-    let s = frond_motion::jsonl::parse_hand_line(line).map_err(|e| e.to_string())?;
+pub fn parse_hand_line(line: &str) -> Result<HandSample, HandLineError> {
+    let s = frond_motion::jsonl::parse_hand_line(line)?;
     if !s.t.is_finite() {
-        return Err("t is not a finite number".into());
+        return Err(HandLineError::NonFiniteTime);
     }
     Ok(s)
 }
@@ -57,12 +76,12 @@ pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandF
         if line.trim().is_empty() {
             continue;
         }
-        let err = |message: String| HandFileError::Line { path: path.to_owned(), line: i + 1, message };
+        let err = |error: HandLineError| HandFileError::Line { path: path.to_owned(), line: i + 1, error };
         let s = parse_hand_line(line).map_err(err)?;
         if let Some(prev) = out.last()
             && s.t < prev.t
         {
-            return Err(err(format!("t {} is earlier than the previous line's {}", s.t, prev.t)));
+            return Err(err(HandLineError::Earlier { t: s.t, previous: prev.t }));
         }
         out.push(s);
     }
@@ -92,6 +111,10 @@ mod tests {
         let text = "{\"t\":0,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}\n\n{\"t\":0.1,\"wrist\":[1,2]}\n";
         let e = parse_hand_text(Path::new("x.jsonl"), text).unwrap_err();
         assert!(e.to_string().starts_with("x.jsonl:3: "), "{e}");
+        let HandFileError::Line { line: 3, error: HandLineError::Parse(parse), .. } = &e else {
+            panic!("{e:?}");
+        };
+        assert_eq!(e.to_string(), format!("x.jsonl:3: {parse}"), "the parser's own message, unchanged");
     }
 
     #[test]

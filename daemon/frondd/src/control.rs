@@ -409,7 +409,7 @@ impl ControlContext {
     /// Starts a take (the hand's frames are recorded as the element they are published as).
     pub(crate) fn record_start(&self, name: String) -> ControlReply {
         if let Err(e) = validate_take_name(&name) {
-            return refuse(ControlErrorKind::BadName, e);
+            return refuse(ControlErrorKind::BadName, e.to_string());
         }
         let mut state = self.lock();
         if let Some((current, _)) = &state.recording {

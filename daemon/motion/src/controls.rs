@@ -51,21 +51,38 @@ impl Default for Retime {
     }
 }
 
+/// A [`Retime`] parameter out of its range (named by its `frond take retime` option).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum RetimeError {
+    /// The motion speed is not in `(0, 100]`.
+    #[error("--speed must be in (0, 100], got {0}")]
+    Speed(f64),
+    /// The motion scale is not a finite number within +-100.
+    #[error("--scale must be a finite number within +-100, got {0}")]
+    Scale(f32),
+    /// The bend rotation is not finite.
+    #[error("--rotate must be finite, got {0}")]
+    Rotate(f64),
+    /// A rigidity delay is not between 0 and 60 seconds.
+    #[error("--delay values must be between 0 and 60 seconds, got {0}")]
+    Delay(f64),
+}
+
 /// Applies [`Retime`] to a clip: output frame `k` (at the same fps, `t = k / fps`) has joint `i`
 /// from the source at time `K (t - delta_i)` (`delta_0 = 0`; before the start the first frame),
 /// scaled and rotated. The output lasts `duration / K`. Errors name the bad parameter.
-pub fn retime(clip: &Clip, r: &Retime) -> Result<Clip, String> {
+pub fn retime(clip: &Clip, r: &Retime) -> Result<Clip, RetimeError> {
     if !(r.speed.is_finite() && r.speed > 0.0 && r.speed <= 100.0) {
-        return Err(format!("--speed must be in (0, 100], got {}", r.speed));
+        return Err(RetimeError::Speed(r.speed));
     }
     if !(r.scale.is_finite() && r.scale.abs() <= 100.0) {
-        return Err(format!("--scale must be a finite number within +-100, got {}", r.scale));
+        return Err(RetimeError::Scale(r.scale));
     }
     if !r.rotate_deg.is_finite() {
-        return Err(format!("--rotate must be finite, got {}", r.rotate_deg));
+        return Err(RetimeError::Rotate(r.rotate_deg));
     }
-    if let Some(d) = r.delays_s.iter().find(|d| !(d.is_finite() && **d >= 0.0 && **d <= 60.0)) {
-        return Err(format!("--delay values must be between 0 and 60 seconds, got {d}"));
+    if let Some(&d) = r.delays_s.iter().find(|d| !(d.is_finite() && **d >= 0.0 && **d <= 60.0)) {
+        return Err(RetimeError::Delay(d));
     }
     let count = crate::clip::frame_count(clip.duration_s() / r.speed, clip.fps);
     let frames = (0..count).map(|k| {
@@ -308,14 +325,12 @@ mod tests {
         let c = retime(&ramp(), &Retime { rotate_deg: 180.0, ..Default::default() }).unwrap();
         let f = c.frames[4].joints_deg[1];
         assert!((f[0] + 4.0).abs() < 1e-5 && (f[1] + 4.0).abs() < 1e-5 && f[2] == 4.0, "{f:?}");
-        assert!(
-            retime(&ramp(), &Retime { speed: 0.0, ..Default::default() }).unwrap_err().contains("--speed")
-        );
-        assert!(
-            retime(&ramp(), &Retime { delays_s: [0.0, -1.0, 0.0], ..Default::default() })
-                .unwrap_err()
-                .contains("--delay")
-        );
+        let e = retime(&ramp(), &Retime { speed: 0.0, ..Default::default() }).unwrap_err();
+        assert_eq!(e, RetimeError::Speed(0.0));
+        assert_eq!(e.to_string(), "--speed must be in (0, 100], got 0");
+        let e = retime(&ramp(), &Retime { delays_s: [0.0, -1.0, 0.0], ..Default::default() }).unwrap_err();
+        assert_eq!(e, RetimeError::Delay(-1.0));
+        assert!(e.to_string().contains("--delay"), "{e}");
     }
 
     #[test]

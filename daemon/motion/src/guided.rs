@@ -22,16 +22,33 @@ pub struct GuidedParams {
     pub g3_range_deg: f32,
 }
 
+/// A [`GuidedParams`] value out of its range.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum GuidedParamsError {
+    /// A `sigma_i` or `s_g(i)` is not between 0 and 60; `option` names the list (`--sigma`,
+    /// `--sg`).
+    #[error("{option} values must be between 0 and 60, got {value}")]
+    OutOfRange {
+        /// The option of the list: `--sigma` or `--sg`.
+        option: &'static str,
+        /// The value out of range.
+        value: f64,
+    },
+    /// The top thumb joint's range is not a positive number of degrees.
+    #[error("the thumb range must be > 0 degrees, got {0}")]
+    ThumbRange(f32),
+}
+
 impl GuidedParams {
     /// Checks the parameters, naming the bad one.
-    pub fn validate(&self) -> Result<(), String> {
-        for (name, v) in [("--sigma", self.sigma_s), ("--sg", self.s_g)] {
-            if let Some(x) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0 && **x <= 60.0)) {
-                return Err(format!("{name} values must be between 0 and 60, got {x}"));
+    pub fn validate(&self) -> Result<(), GuidedParamsError> {
+        for (option, v) in [("--sigma", self.sigma_s), ("--sg", self.s_g)] {
+            if let Some(&value) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0 && **x <= 60.0)) {
+                return Err(GuidedParamsError::OutOfRange { option, value });
             }
         }
         if !(self.g3_range_deg.is_finite() && self.g3_range_deg > 0.0) {
-            return Err(format!("the thumb range must be > 0 degrees, got {}", self.g3_range_deg));
+            return Err(GuidedParamsError::ThumbRange(self.g3_range_deg));
         }
         Ok(())
     }
@@ -51,7 +68,7 @@ impl GuidedParams {
 
 /// Eq. 8 over a clip with its hand samples (same rate, `hands[k]` for frame `k`; missing samples
 /// count as an open thumb, `G_3 = 0`).
-pub fn guided(clip: &Clip, hands: &[HandSample], p: &GuidedParams) -> Result<Clip, String> {
+pub fn guided(clip: &Clip, hands: &[HandSample], p: &GuidedParams) -> Result<Clip, GuidedParamsError> {
     p.validate()?;
     let frames = clip.frames.iter().enumerate().map(|(k, f)| {
         let d = hands.get(k).map_or([0.0; 3], |h| p.delays_s(h));
@@ -140,11 +157,11 @@ mod tests {
         // G_3 beyond its range is clamped to 1: delays 0.2, 0.4, 0.6 -> P_3 = P_0(0.4) = 40.
         let f = guided(&c, &vec![hand(90.0); c.len()], &p).unwrap().frames[10].joints_deg;
         assert!((f[3][0] - 40.0).abs() < 1e-4);
-        assert!(
-            guided(&c, &[], &GuidedParams { sigma_s: [-1.0, 0.0, 0.0], ..p })
-                .unwrap_err()
-                .contains("--sigma")
-        );
+        let e = guided(&c, &[], &GuidedParams { sigma_s: [-1.0, 0.0, 0.0], ..p }).unwrap_err();
+        assert_eq!(e, GuidedParamsError::OutOfRange { option: "--sigma", value: -1.0 });
+        assert_eq!(e.to_string(), "--sigma values must be between 0 and 60, got -1");
+        let e = GuidedParams { g3_range_deg: 0.0, ..p }.validate().unwrap_err();
+        assert_eq!(e.to_string(), "the thumb range must be > 0 degrees, got 0");
     }
 
     #[test]

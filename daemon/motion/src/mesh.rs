@@ -77,35 +77,80 @@ impl SkinnedMesh {
         (p, n)
     }
 
-    /// Checks the invariants every consumer relies on; returns what is wrong.
-    pub fn check(&self) -> Result<(), String> {
+    /// Checks the invariants every consumer relies on; returns the first that does not hold.
+    pub fn check(&self) -> Result<(), MeshCheckError> {
         let n = self.positions.len();
         if self.normals.len() != n || self.weights.len() != n {
-            return Err(format!(
-                "{n} positions but {} normals and {} weights",
-                self.normals.len(),
-                self.weights.len()
-            ));
+            return Err(MeshCheckError::Lengths {
+                positions: n,
+                normals: self.normals.len(),
+                weights: self.weights.len(),
+            });
         }
         if !self.indices.len().is_multiple_of(3) {
-            return Err(format!("{} indices is not a whole number of triangles", self.indices.len()));
+            return Err(MeshCheckError::PartialTriangle(self.indices.len()));
         }
-        if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
-            return Err(format!("index {i} out of range for {n} vertices"));
+        if let Some(&index) = self.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(MeshCheckError::IndexOutOfRange { index, vertices: n });
         }
         for (v, ((p, nor), w)) in self.positions.iter().zip(&self.normals).zip(&self.weights).enumerate() {
             if !p.iter().chain(nor).chain(w).all(|x| x.is_finite()) {
-                return Err(format!("vertex {v} has a non-finite value"));
+                return Err(MeshCheckError::NonFinite(v));
             }
             if (Vec3::from(*nor).length() - 1.0).abs() > 1e-3 {
-                return Err(format!("vertex {v} normal {nor:?} is not unit length"));
+                return Err(MeshCheckError::NormalNotUnit { vertex: v, normal: *nor });
             }
             if w.iter().any(|&x| x < 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 1e-4 {
-                return Err(format!("vertex {v} weights {w:?} are not non-negative with sum 1"));
+                return Err(MeshCheckError::Weights { vertex: v, weights: *w });
             }
         }
         Ok(())
     }
+}
+
+/// An invariant of [`SkinnedMesh`] that does not hold ([`SkinnedMesh::check`]).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum MeshCheckError {
+    /// Positions, normals and weights differ in number.
+    #[error("{positions} positions but {normals} normals and {weights} weights")]
+    Lengths {
+        /// Number of positions.
+        positions: usize,
+        /// Number of normals.
+        normals: usize,
+        /// Number of weight rows.
+        weights: usize,
+    },
+    /// The index count is not a multiple of 3.
+    #[error("{0} indices is not a whole number of triangles")]
+    PartialTriangle(usize),
+    /// A triangle index names no vertex.
+    #[error("index {index} out of range for {vertices} vertices")]
+    IndexOutOfRange {
+        /// The index.
+        index: u32,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// A position, normal or weight of this vertex is NaN or infinite.
+    #[error("vertex {0} has a non-finite value")]
+    NonFinite(usize),
+    /// This vertex's normal is not of unit length.
+    #[error("vertex {vertex} normal {normal:?} is not unit length")]
+    NormalNotUnit {
+        /// The vertex.
+        vertex: usize,
+        /// Its normal.
+        normal: [f32; 3],
+    },
+    /// This vertex's weights are negative or do not sum to 1.
+    #[error("vertex {vertex} weights {weights:?} are not non-negative with sum 1")]
+    Weights {
+        /// The vertex.
+        vertex: usize,
+        /// Its weights, one per joint.
+        weights: [f32; JOINTS],
+    },
 }
 
 /// One secondary element (leaf, petal) of a plant: its own skeleton and mesh, hung from a joint
@@ -403,6 +448,35 @@ mod tests {
             assert!(!below.is_empty(), "{shape}");
             assert!(below.iter().all(|(_, w)| **w == [1.0, 0.0, 0.0, 0.0]));
         }
+    }
+
+    #[test]
+    fn check_names_the_broken_invariant() {
+        let ok = SkinnedMesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            indices: vec![0, 1, 2],
+            weights: vec![[1.0, 0.0, 0.0, 0.0]; 3],
+        };
+        assert_eq!(ok.check(), Ok(()));
+        let broken = |f: fn(&mut SkinnedMesh)| {
+            let mut m = ok.clone();
+            f(&mut m);
+            m.check().unwrap_err()
+        };
+        let e = broken(|m| {
+            m.normals.pop();
+        });
+        assert_eq!(e, MeshCheckError::Lengths { positions: 3, normals: 2, weights: 3 });
+        assert_eq!(e.to_string(), "3 positions but 2 normals and 3 weights");
+        assert_eq!(broken(|m| m.indices.push(0)), MeshCheckError::PartialTriangle(4));
+        let e = broken(|m| m.indices[2] = 3);
+        assert_eq!(e.to_string(), "index 3 out of range for 3 vertices");
+        assert_eq!(broken(|m| m.positions[1][0] = f32::NAN), MeshCheckError::NonFinite(1));
+        let e = broken(|m| m.normals[2] = [0.0, 0.0, 2.0]);
+        assert_eq!(e, MeshCheckError::NormalNotUnit { vertex: 2, normal: [0.0, 0.0, 2.0] });
+        let e = broken(|m| m.weights[0] = [0.5, 0.0, 0.0, 0.0]);
+        assert_eq!(e.to_string(), "vertex 0 weights [0.5, 0.0, 0.0, 0.0] are not non-negative with sum 1");
     }
 
     #[test]

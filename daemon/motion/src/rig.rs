@@ -2,7 +2,8 @@
 //! per-joint scaling factors `s_pitch(i)`, `s_yaw(i)`, `s_roll(i)` (Eq. 2-4), the number of
 //! twistable joints `tau` (Eq. 4), default thumb ranges, the desired root bend range a
 //! calibrated wrist is mapped onto (section 5.4), the jitter filter, and secondary elements
-//! such as leaves and petals (section 5.3), each a simple short plant of its own.
+//! such as leaves and petals (section 5.3), each a simple short plant of its own; optionally the
+//! bone names a VMC receiver is sent for the four joints (`[vmc] bones`, used by `frond-osc`).
 //!
 //! Files are TOML (see `rig-files/plants/*.toml`). They are parsed into a raw form with unknown
 //! fields refused, then validated into [`Rig`], reporting every problem with its path.
@@ -28,6 +29,8 @@ pub const MAX_TAU: u8 = 3;
 pub const MAX_RIG_ELEMENTS: usize = 32;
 /// Largest `bend_range_deg`, degrees: a root bend past half a turn is not a bend.
 pub const MAX_BEND_RANGE_DEG: f32 = 180.0;
+/// Longest VMC bone name, bytes (what `frond-osc` sends as an OSC string).
+pub const MAX_VMC_BONE_NAME_BYTES: usize = 255;
 
 /// One skeleton joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,6 +93,9 @@ pub struct Rig {
     /// Guided procedural motion applied live (seed 000, section 6.4, Eq. 8; `[guided]` table with
     /// `sigma_s` seconds and `s_g` gains per upper joint), or none.
     pub guided: Option<GuidedSpec>,
+    /// Bone names sent for the joints, root first, by a VMC exporter (`[vmc] bones`, for
+    /// receivers that accept only humanoid bone names); `None`: the joint names.
+    pub vmc_bones: Option<[String; JOINTS]>,
 }
 
 /// The `[guided]` table of a rig: Eq. 8's `sigma_i` (seconds) and `s_g(i)` for joints 1..3.
@@ -148,6 +154,12 @@ struct RawElement {
     tau: i64,
 }
 
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawVmc {
+    bones: Vec<String>,
+}
+
 fn default_count() -> i64 {
     1
 }
@@ -177,6 +189,8 @@ struct RawRig {
     mesh: Option<RawMesh>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     guided: Option<GuidedSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    vmc: Option<RawVmc>,
 }
 
 fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
@@ -318,9 +332,24 @@ impl RawRig {
             }
         }
 
+        if let Some(vmc) = &self.vmc {
+            if vmc.bones.len() != JOINTS {
+                p.push("vmc.bones", format!("expected {JOINTS} names, found {}", vmc.bones.len()));
+            }
+            for (i, b) in vmc.bones.iter().enumerate() {
+                if b.is_empty() || b.len() > MAX_VMC_BONE_NAME_BYTES {
+                    p.push(
+                        format!("vmc.bones[{i}]"),
+                        format!("must be 1 to {MAX_VMC_BONE_NAME_BYTES} bytes"),
+                    );
+                }
+            }
+        }
+
         if !p.is_empty() {
             return Err(p);
         }
+        let vmc_bones = self.vmc.map(|v| std::array::from_fn(|i| v.bones[i].clone()));
         Ok(Rig {
             name: self.name,
             description: self.description,
@@ -332,6 +361,7 @@ impl RawRig {
             elements,
             mesh,
             guided: self.guided,
+            vmc_bones,
         })
     }
 }
@@ -377,6 +407,7 @@ impl Rig {
                 .collect(),
             mesh: Some(RawMesh::from_spec(&self.mesh)),
             guided: self.guided,
+            vmc: self.vmc_bones.as_ref().map(|b| RawVmc { bones: b.to_vec() }),
         };
         // Plain strings, integers and f32 values always serialize.
         toml::to_string(&raw).unwrap_or_default()
@@ -406,6 +437,27 @@ mod guided_tests {
     use super::*;
 
     const BASE: &str = "name = \"g\"\n[[joints]]\nheight_m = 0.0\n[[joints]]\nheight_m = 0.1\n[[joints]]\nheight_m = 0.2\n[[joints]]\nheight_m = 0.3\n";
+
+    #[test]
+    fn vmc_table_names_the_bones_round_trips_and_is_validated() {
+        let rig =
+            Rig::from_toml_str(&format!("{BASE}[vmc]\nbones = [\"Hips\", \"Spine\", \"Chest\", \"Head\"]\n"))
+                .unwrap();
+        assert_eq!(rig.vmc_bones, Some(["Hips", "Spine", "Chest", "Head"].map(String::from)));
+        assert_eq!(rig.joint_names(), ["joint0", "joint1", "joint2", "joint3"], "joint names unchanged");
+        assert_eq!(Rig::from_toml_str(&rig.to_toml_string()).unwrap(), rig);
+        assert_eq!(Rig::from_toml_str(BASE).unwrap().vmc_bones, None);
+        let long = "x".repeat(256);
+        let err = Rig::from_toml_str(&format!("{BASE}[vmc]\nbones = [\"a\", \"\", \"{long}\"]\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("vmc.bones: expected 4 names, found 3"), "{err}");
+        assert!(err.contains("vmc.bones[1]: must be 1 to 255 bytes"), "{err}");
+        assert!(err.contains("vmc.bones[2]: must be 1 to 255 bytes"), "{err}");
+        assert!(!err.contains("vmc.bones[0]"), "{err}");
+        let err = Rig::from_toml_str(&format!("{BASE}[vmc]\nbone = []\n")).unwrap_err().to_string();
+        assert!(err.contains("unknown field `bone`"), "{err}");
+    }
 
     #[test]
     fn guided_table_parses_round_trips_and_is_validated() {

@@ -160,9 +160,14 @@ pub enum StageKey {
     Weaker,
 }
 
+/// A field key name that is none of [`StageKey`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown field key {0:?}: use left, right, up, down, stronger (+), weaker (-)")]
+pub struct UnknownStageKey(pub String);
+
 impl std::str::FromStr for StageKey {
-    type Err = String;
-    fn from_str(key: &str) -> Result<Self, String> {
+    type Err = UnknownStageKey;
+    fn from_str(key: &str) -> Result<Self, UnknownStageKey> {
         Ok(match key {
             "left" => StageKey::Left,
             "right" => StageKey::Right,
@@ -170,11 +175,7 @@ impl std::str::FromStr for StageKey {
             "down" => StageKey::Down,
             "stronger" | "+" => StageKey::Stronger,
             "weaker" | "-" => StageKey::Weaker,
-            other => {
-                return Err(format!(
-                    "unknown field key {other:?}: use left, right, up, down, stronger (+), weaker (-)"
-                ));
-            }
+            other => return Err(UnknownStageKey(other.into())),
         })
     }
 }

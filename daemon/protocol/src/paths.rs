@@ -60,17 +60,36 @@ pub fn takes_dir(explicit: Option<PathBuf>) -> PathBuf {
     explicit.unwrap_or_else(default_takes_dir)
 }
 
+/// Why a take name is refused ([`validate_take_name`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TakeNameError {
+    /// Empty or longer than 128 bytes; the length found.
+    #[error("take name must be 1 to 128 characters, got {0}")]
+    Length(usize),
+    /// Starts with `.` (hidden, or `..`).
+    #[error("take name {0:?} must not start with '.'")]
+    LeadingDot(String),
+    /// Holds a character other than ASCII letters, digits, `-`, `_` and `.`.
+    #[error("take name {name:?} contains {found:?}; use letters, digits, '-', '_' and '.' only")]
+    Character {
+        /// The name.
+        name: String,
+        /// The first character refused.
+        found: char,
+    },
+}
+
 /// Checks a take name: 1-128 bytes of ASCII letters, digits, `-`, `_`, `.`, not starting with
 /// `.`, so a name can never escape the takes directory (`../`, `/`, NUL are all refused).
-pub fn validate_take_name(name: &str) -> Result<(), String> {
+pub fn validate_take_name(name: &str) -> Result<(), TakeNameError> {
     if name.is_empty() || name.len() > 128 {
-        return Err(format!("take name must be 1 to 128 characters, got {}", name.len()));
+        return Err(TakeNameError::Length(name.len()));
     }
     if name.starts_with('.') {
-        return Err(format!("take name {name:?} must not start with '.'"));
+        return Err(TakeNameError::LeadingDot(name.into()));
     }
-    if let Some(c) = name.chars().find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))) {
-        return Err(format!("take name {name:?} contains {c:?}; use letters, digits, '-', '_' and '.' only"));
+    if let Some(found) = name.chars().find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))) {
+        return Err(TakeNameError::Character { name: name.into(), found });
     }
     Ok(())
 }
@@ -87,5 +106,15 @@ mod tests {
         for good in ["take1", "wind-gust_02", "a.b"] {
             assert!(validate_take_name(good).is_ok(), "{good:?} refused");
         }
+        assert_eq!(validate_take_name(""), Err(TakeNameError::Length(0)));
+        assert_eq!(validate_take_name(&"a".repeat(129)), Err(TakeNameError::Length(129)));
+        assert_eq!(
+            validate_take_name("../x").unwrap_err().to_string(),
+            r#"take name "../x" must not start with '.'"#
+        );
+        assert_eq!(
+            validate_take_name("a/b").unwrap_err().to_string(),
+            r#"take name "a/b" contains '/'; use letters, digits, '-', '_' and '.' only"#
+        );
     }
 }

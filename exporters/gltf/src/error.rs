@@ -21,7 +21,7 @@ pub enum BakeError {
         /// The `--take` argument.
         arg: String,
         /// What is wrong with it.
-        reason: String,
+        reason: frond_protocol::paths::TakeNameError,
     },
     /// The take file could not be read.
     #[error("cannot read take {}: {source}", path.display())]

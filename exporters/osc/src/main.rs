@@ -45,10 +45,11 @@ struct Args {
     /// The daemon's socket directory.
     #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
     socket_dir: Option<PathBuf>,
-    /// Rig file (rig-files/plants/*.toml) for VMC joint offsets and, if it has a [vmc] table, bone
-    /// names. Default: the grass rig's heights and the daemon's joint names.
-    #[arg(long, value_name = "FILE")]
-    rig: Option<PathBuf>,
+    /// Rig for VMC joint offsets and, if it has a [vmc] table, bone names: an embedded rig
+    /// (grass, flower, shrub) or a rig file (rig-files/plants/*.toml). Default: the grass rig's
+    /// heights and the daemon's joint names.
+    #[arg(long, value_name = "RIG|FILE")]
+    rig: Option<String>,
     /// VMC bone names: `humanoid` (Hips,Spine,Chest,Neck) or four comma-separated names.
     #[arg(long, value_name = "NAMES")]
     vmc_bones: Option<String>,

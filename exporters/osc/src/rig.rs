@@ -1,111 +1,75 @@
-//! The few fields of a rig file (`rig-files/plants/*.toml`) that VMC needs: joint names and rest
-//! heights, and an optional `[vmc] bones = ["Hips", ...]` table naming the bones sent for the
-//! joints (for receivers that only accept humanoid bone names). Parsed here rather than with
-//! `frond_motion` so that the exporter depends only on the SDK and the protocol.
+//! What VMC needs from a rig: joint rest heights and the bone names sent for the joints (the
+//! rig's `[vmc] bones` table when it has one, for receivers that only accept humanoid bone names;
+//! else its joint names). The rig itself comes from the one rig loader,
+//! [`frond_motion::rig_files::load_rig`]: an embedded rig by name or a rig file, validated as the
+//! daemon validates it.
 
-use std::path::Path;
-
-use serde::Deserialize;
+use frond_motion::Rig;
+use frond_motion::rig::MAX_VMC_BONE_NAME_BYTES;
+use frond_motion::rig_files::{LoadedRig, load_rig};
 use thiserror::Error;
 
 use crate::encode::VmcRig;
 
-/// Why a rig file could not be used.
+/// Why a rig cannot be used for VMC.
 #[derive(Debug, Error)]
 pub enum RigFileError {
-    /// The file could not be read.
-    #[error("cannot read rig file {path}: {source}")]
-    Read {
-        /// The file.
-        path: String,
-        /// The error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The file is not valid TOML or lacks the fields.
-    #[error("rig file {path}: {message}")]
-    Invalid {
-        /// The file.
-        path: String,
-        /// Every problem found, `; `-separated, each naming its field.
-        message: String,
+    /// The rig could not be loaded (not found, unreadable, or invalid: every problem named).
+    #[error(transparent)]
+    Load(#[from] frond_motion::rig_files::RigFileError),
+    /// A joint name to be sent as a bone name is longer than an OSC bone name may be.
+    #[error(
+        "{origin}: joints[{joint}].name is {bytes} bytes; VMC bone names are 1 to {MAX_VMC_BONE_NAME_BYTES} bytes (give the rig a [vmc] bones table)"
+    )]
+    LongJointName {
+        /// `embedded rig grass` or the file path.
+        origin: String,
+        /// The joint.
+        joint: usize,
+        /// Its name's length.
+        bytes: usize,
     },
 }
 
-#[derive(Deserialize)]
-struct RawRig {
-    name: Option<String>,
-    joints: Vec<RawJoint>,
-    vmc: Option<RawVmc>,
-}
-
-#[derive(Deserialize)]
-struct RawJoint {
-    name: String,
-    height_m: f64,
-}
-
-#[derive(Deserialize)]
-struct RawVmc {
-    bones: Vec<String>,
-}
-
-/// A rig file read for VMC.
+/// A rig read for VMC.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RigFile {
-    /// The rig's `name`, if any.
-    pub name: Option<String>,
+    /// The rig's name.
+    pub name: String,
     /// Joint names and heights, with bone names from `[vmc] bones` when present.
     pub vmc: VmcRig,
     /// True when the bone names came from a `[vmc] bones` table.
     pub has_vmc_bones: bool,
 }
 
-/// Reads `path`.
-pub fn load(path: &Path) -> Result<RigFile, RigFileError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| RigFileError::Read { path: path.display().to_string(), source })?;
-    parse(&text).map_err(|message| RigFileError::Invalid { path: path.display().to_string(), message })
+/// Loads `--rig SPEC` (an embedded rig name, or a path) with [`load_rig`].
+pub fn load(spec: &str) -> Result<RigFile, RigFileError> {
+    from_loaded(&load_rig(spec)?)
 }
 
-/// Parses rig TOML; the error lists every problem with its field path.
-pub fn parse(text: &str) -> Result<RigFile, String> {
-    let raw: RawRig = toml::from_str(text).map_err(|e| e.message().to_string())?;
-    let mut problems = Vec::new();
-    if raw.joints.len() != 4 {
-        problems.push(format!("joints: expected 4 joints, found {}", raw.joints.len()));
-    }
-    for (i, j) in raw.joints.iter().enumerate() {
-        if !j.height_m.is_finite() || j.height_m < 0.0 {
-            problems.push(format!("joints[{i}].height_m: {} is not a finite height >= 0", j.height_m));
-        } else if i > 0 && j.height_m <= raw.joints[i - 1].height_m {
-            problems.push(format!("joints[{i}].height_m: {} is not above the joint below", j.height_m));
-        }
-        if j.name.is_empty() || j.name.len() > 255 {
-            problems.push(format!("joints[{i}].name: must be 1 to 255 bytes"));
-        }
-    }
-    if let Some(vmc) = &raw.vmc {
-        if vmc.bones.len() != 4 {
-            problems.push(format!("vmc.bones: expected 4 names, found {}", vmc.bones.len()));
-        }
-        for (i, b) in vmc.bones.iter().enumerate() {
-            if b.is_empty() || b.len() > 255 {
-                problems.push(format!("vmc.bones[{i}]: must be 1 to 255 bytes"));
+/// What VMC needs from a loaded rig.
+pub fn from_loaded(loaded: &LoadedRig) -> Result<RigFile, RigFileError> {
+    let rig: &Rig = &loaded.rig;
+    let names = match &rig.vmc_bones {
+        Some(bones) => bones.clone(),
+        None => {
+            let names: [String; 4] = std::array::from_fn(|i| rig.joints[i].name.clone());
+            if let Some((joint, n)) =
+                names.iter().enumerate().find(|(_, n)| n.len() > MAX_VMC_BONE_NAME_BYTES)
+            {
+                return Err(RigFileError::LongJointName {
+                    origin: loaded.origin.clone(),
+                    joint,
+                    bytes: n.len(),
+                });
             }
+            names
         }
-    }
-    if !problems.is_empty() {
-        return Err(problems.join("; "));
-    }
-    let names: [String; 4] = match &raw.vmc {
-        Some(vmc) => std::array::from_fn(|i| vmc.bones[i].clone()),
-        None => std::array::from_fn(|i| raw.joints[i].name.clone()),
     };
     Ok(RigFile {
-        name: raw.name,
-        vmc: VmcRig { bone_names: names, heights_m: std::array::from_fn(|i| raw.joints[i].height_m as f32) },
-        has_vmc_bones: raw.vmc.is_some(),
+        name: rig.name.clone(),
+        vmc: VmcRig { bone_names: names, heights_m: std::array::from_fn(|i| rig.joints[i].height_m) },
+        has_vmc_bones: rig.vmc_bones.is_some(),
     })
 }
 
@@ -125,24 +89,36 @@ pub fn parse_bone_names(spec: &str) -> Result<[String; 4], String> {
 
 #[cfg(test)]
 mod tests {
+    use std::path::Path;
+
     use super::*;
+
+    fn parse(text: &str) -> Result<RigFile, RigFileError> {
+        let loaded =
+            frond_motion::rig_files::rig_from_text(text.to_string(), "test rig".into(), "test", None)?;
+        from_loaded(&loaded)
+    }
 
     #[test]
     fn reads_the_shipped_rigs() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rig-files/plants");
-        let flower = load(&root.join("flower.toml")).unwrap();
-        assert_eq!(flower.name.as_deref(), Some("flower"));
+        let flower = load(&root.join("flower.toml").to_string_lossy()).unwrap();
+        assert_eq!(flower.name, "flower");
         assert_eq!(flower.vmc.bone_names, ["root", "stem_low", "stem_high", "head"].map(String::from));
         assert_eq!(flower.vmc.heights_m, [0.0, 0.12, 0.25, 0.36]);
         assert!((flower.vmc.local_offset_m(2)[1] - 0.13).abs() < 1e-6);
         assert!(!flower.has_vmc_bones);
-        let grass = load(&root.join("grass.toml")).unwrap();
+        let grass = load(&root.join("grass.toml").to_string_lossy()).unwrap();
         assert_eq!(grass.vmc.heights_m, crate::encode::DEFAULT_HEIGHTS_M);
+        // The embedded rigs by name are the files' rigs.
+        assert_eq!(load("flower").unwrap().vmc, flower.vmc);
+        assert_eq!(load("grass").unwrap().vmc, grass.vmc);
     }
 
     #[test]
     fn vmc_table_overrides_names() {
         let text = r#"
+            name = "v"
             [[joints]]
             name = "a"
             height_m = 0.0
@@ -161,11 +137,18 @@ mod tests {
         let rig = parse(text).unwrap();
         assert_eq!(rig.vmc.bone_names, ["Hips", "Spine", "Chest", "Head"].map(String::from));
         assert!(rig.has_vmc_bones);
+        let long = text.replace("name = \"d\"", &format!("name = \"{}\"", "d".repeat(256)));
+        assert_eq!(parse(&long).unwrap().vmc.bone_names[0], "Hips", "a [vmc] table names the bones");
+        let long =
+            long.replace("[vmc]\n", "").replace("bones = [\"Hips\", \"Spine\", \"Chest\", \"Head\"]", "");
+        let err = parse(&long).unwrap_err().to_string();
+        assert!(err.contains("test rig: joints[3].name is 256 bytes"), "{err}");
     }
 
     #[test]
     fn bad_rigs_name_every_problem() {
         let text = r#"
+            name = "bad"
             [[joints]]
             name = "a"
             height_m = 0.2
@@ -175,16 +158,16 @@ mod tests {
             [vmc]
             bones = ["x"]
         "#;
-        let err = parse(text).unwrap_err();
+        let err = parse(text).unwrap_err().to_string();
+        assert!(err.starts_with("test rig: "), "{err}");
         assert!(err.contains("joints: expected 4 joints, found 2"), "{err}");
-        assert!(err.contains("joints[1].height_m: 0.1 is not above the joint below"), "{err}");
+        assert!(err.contains("joints[1].height_m: 0.1 must be above joints[0].height_m (0.2)"), "{err}");
         assert!(err.contains("joints[1].name"), "{err}");
         assert!(err.contains("vmc.bones: expected 4 names, found 1"), "{err}");
-        assert!(
-            parse("joints = 3").unwrap_err().contains("invalid type"),
-            "{}",
-            parse("joints = 3").unwrap_err()
-        );
+        let err = parse("joints = 3").unwrap_err().to_string();
+        assert!(err.contains("invalid type"), "{err}");
+        let err = load("no-such-rig").unwrap_err().to_string();
+        assert!(err.contains("rig `no-such-rig` not found"), "{err}");
     }
 
     #[test]

@@ -204,7 +204,7 @@ pub struct StageCommand {
 /// Reads a take file from the takes directory (its name validated first).
 pub fn read_take(takes_dir: &Path, name: &str) -> Result<Vec<u8>, BuildError> {
     frond_protocol::paths::validate_take_name(name)
-        .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: e })?;
+        .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: e.to_string() })?;
     let path = takes_dir.join(format!("{name}.take"));
     std::fs::read(&path)
         .map_err(|e| BuildError::invalid(format!("cannot read take {name:?} at {}: {e}", path.display())))

@@ -1,0 +1,118 @@
+//! Section 8: a glove report written to a hidraw node -> subscriber receipt through `frondd`,
+//! against `frond-relay` reading the same node (`poll` for `POLLIN`, one `read` per report) and
+//! writing each report unchanged to as many readers over Unix sockets, with 1, 8 and 32 readers.
+//!
+//! The node is the virtual glove's FUSE node (`frond-vhid --clock monotonic --backend fuse`, in
+//! its own process, as the `fuse_*` rows of `glove_latency` use), so it needs `/dev/fuse`. The
+//! glove stamps each report's `u32` device time (bytes 5..9, [`frond_device::glove::TIME_OFFSET`])
+//! with the host's `CLOCK_MONOTONIC` microseconds at the write; `frondd` carries it as the pose's
+//! device time, the relay's readers read it from the forwarded report, so both latencies are
+//! receipt time minus write time on one clock. Every open handle of the node has its own report
+//! queue; `frondd` and the relay take turns (one stopped before the other starts), so neither
+//! runs while the other is measured.
+
+use std::path::Path;
+use std::thread;
+use std::time::Duration;
+
+use frond_device::glove::TIME_OFFSET;
+use frond_device::vhid::monotonic_us_u32;
+use serde_json::json;
+
+use crate::Options;
+use crate::latency::Subscribers;
+use crate::procs::{Daemon, start_vhid};
+use crate::relay::{Relay, against_relay};
+use crate::report::{Section, Status};
+
+const TITLE: &str = "glove report written to a hidraw node (frond-vhid's FUSE node) -> subscriber receipt through frondd (1 kHz) vs frond-relay reading the same node, to as many Unix socket readers";
+
+/// The relay readers' [`crate::relay::Stamp`] of a forwarded glove report: receipt time minus
+/// the report's device time, in the wrapping `u32` microseconds of the glove's counter.
+pub fn hidraw_stamp(report: &[u8]) -> Option<u64> {
+    let now_us = monotonic_us_u32();
+    let t = u32::from_le_bytes(report.get(TIME_OFFSET..TIME_OFFSET + 4)?.try_into().ok()?);
+    Some(u64::from(now_us.wrapping_sub(t)) * 1000)
+}
+
+/// Section 8.
+pub fn hidraw_latency(o: &Options) -> Result<Section, String> {
+    if !Path::new("/dev/fuse").exists() {
+        return Ok(Section::unavailable(
+            "hidraw_latency",
+            TITLE,
+            Status::NotAvailable,
+            "/dev/fuse is absent, so the glove cannot be served as a hidraw node",
+        ));
+    }
+    let (warm, dur) = if o.quick {
+        (Duration::from_millis(200), Duration::from_millis(800))
+    } else {
+        (Duration::from_secs(1), Duration::from_secs(5))
+    };
+    let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir().map_err(|e| e.to_string())?;
+    let node = dir.path().join("glove").join(frond_device::vhid::NODE_NAME);
+    let node_arg = node.to_string_lossy().into_owned();
+    let (_vhid, node, _out) = start_vhid(
+        o,
+        &["--sway", "--rate", "1000", "--clock", "monotonic", "--backend", "fuse", "--node", &node_arg],
+    )?;
+    let node = node.to_string_lossy().into_owned();
+    let mut measurements = Vec::new();
+    let mut details = serde_json::Map::new();
+    for n in [1usize, 8, 32] {
+        let daemon = Daemon::start(o, &["--device", &node, "--rate", "1000"])?;
+        let mut subs = Subscribers::new(1);
+        subs.grow_to(&daemon.poses_socket(), n)?;
+        thread::sleep(warm);
+        subs.record(Some(0));
+        thread::sleep(dur);
+        subs.record(None);
+        let f = subs.hists(0).glove_to_receipt.summary();
+        let status = daemon.status().ok();
+        drop(subs);
+        drop(daemon);
+
+        let relay = Relay::start(o, &format!("hidraw:{node}"), n, hidraw_stamp)?;
+        relay.wait_flowing(Duration::from_secs(10))?;
+        thread::sleep(warm);
+        relay.record(true);
+        thread::sleep(dur);
+        relay.record(false);
+        let r = relay.finish();
+        measurements.extend(against_relay("hidraw_to_subscriber", "hidraw-to-subscriber", n, &f, &r)?);
+        details.insert(
+            format!("{n}_subscribers"),
+            json!({
+                "frondd": f,
+                "relay": r,
+                "frondd_source": status.as_ref().map(|s| format!("{:?}", s.source)),
+                "frondd_device_wakes": status.as_ref().map(|s| s.device_wakes),
+            }),
+        );
+    }
+    details.insert("glove_rate_hz".into(), json!(1000));
+    details.insert("daemon_rate_hz".into(), json!(1000));
+    details.insert(
+        "node".into(),
+        json!("frond-vhid --clock monotonic --backend fuse: every poll and read is a round trip to the glove's process, for frondd (through hidapi) and the relay alike"),
+    );
+    Ok(Section::ok("hidraw_latency", TITLE, measurements, serde_json::Value::Object(details)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use frond_device::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
+
+    #[test]
+    fn the_stamp_is_receipt_minus_the_reports_device_time() {
+        let hand = frond_motion::HandSample { t: 0.0, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] };
+        let written = monotonic_us_u32().wrapping_sub(1500);
+        let (report, _) = GloveReport::from_degrees(7, written, &hand, [0.0; 4], STATUS_TRACKING_OK);
+        let bytes = encode_report(&report);
+        let ns = hidraw_stamp(&bytes).unwrap();
+        assert!((1_500_000..1_500_000 + 1_000_000_000).contains(&ns), "{ns} ns");
+        assert_eq!(hidraw_stamp(&bytes[..TIME_OFFSET + 3]), None, "a report too short to carry a time");
+    }
+}
