@@ -14,3 +14,4 @@ mod stage;
 mod systemd;
 mod take_tools;
 mod tap_matches_map;
+mod untrusted_time;

@@ -5,6 +5,7 @@
 //! line is mapped and written, and the command then fails (status 1) if any line was bad, so a
 //! script notices while a person still gets all the usable output. Blank lines are ignored.
 
+use frond_motion::mapping::MAX_TIME_STEP_S;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
 
@@ -40,6 +41,12 @@ pub(crate) fn run(
     let mut out = io::BufWriter::new(stdout.lock());
     let summary = map_stream(BufReader::new(reader), &mut out, &mut mapper, &mut io::stderr())?;
     out.flush()?;
+    if summary.discontinuities > DISCONTINUITIES_LISTED {
+        eprintln!(
+            "frond map: {} time discontinuities in all ({} listed above)",
+            summary.discontinuities, DISCONTINUITIES_LISTED
+        );
+    }
     if summary.bad > 0 {
         bail!(
             "{} of {} input lines were malformed (listed above); the other {} were mapped",
@@ -58,7 +65,12 @@ pub(crate) struct MapSummary {
     pub good: u64,
     /// Lines reported as malformed.
     pub bad: u64,
+    /// Lines whose time broke the timeline (the filter was reset there, as live).
+    pub discontinuities: u64,
 }
+
+/// Time discontinuities reported line by line; past this, only counted.
+const DISCONTINUITIES_LISTED: u64 = 10;
 
 /// Maps every hand line of `input` to a pose line on `out`; reports bad lines on `errors`.
 /// Fails only on I/O errors.
@@ -92,6 +104,16 @@ pub(crate) fn map_stream(
         match parse_hand_line(text) {
             Ok(sample) => {
                 let (_, pose) = mapper.process(&sample);
+                if mapper.discontinuity() {
+                    summary.discontinuities += 1;
+                    if summary.discontinuities <= DISCONTINUITIES_LISTED {
+                        writeln!(
+                            errors,
+                            "line {n}: t = {} does not follow the previous line's time (it jumps over {MAX_TIME_STEP_S} s, goes back or repeats): the filter starts afresh here",
+                            sample.t
+                        )?;
+                    }
+                }
                 line_out.clear();
                 write_pose_line(&pose, None, &mut line_out);
                 line_out.push('\n');
@@ -133,7 +155,7 @@ mod tests {
         let mut out = Vec::new();
         let mut err = Vec::new();
         let s = map_stream(input.as_bytes(), &mut out, &mut mapper(), &mut err).unwrap();
-        assert_eq!(s, MapSummary { good: 2, bad: 2 });
+        assert_eq!(s, MapSummary { good: 2, bad: 2, discontinuities: 0 });
         let out = String::from_utf8(out).unwrap();
         // Unit scales, tau 2, G/G_R = 0.5, 0.5, 0.25 (see the motion crate's hand computation).
         assert_eq!(
@@ -154,7 +176,7 @@ mod tests {
         input.extend_from_slice(b"{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n");
         let (mut out, mut err) = (Vec::new(), Vec::new());
         let s = map_stream(&input[..], &mut out, &mut mapper(), &mut err).unwrap();
-        assert_eq!(s, MapSummary { good: 1, bad: 1 });
+        assert_eq!(s, MapSummary { good: 1, bad: 1, discontinuities: 0 });
         assert!(String::from_utf8(err).unwrap().starts_with("line 1: not UTF-8"));
     }
 }

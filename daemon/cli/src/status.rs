@@ -293,6 +293,8 @@ mod tests {
             held_frames: 2,
             stalls: 0,
             lost_events: u64::from(!connected),
+            discontinuities: 0,
+            stale_skipped: 0,
             events: vec![],
         };
         r.hands = vec![hand("left", true, 0, "flower"), hand("right", false, 1, "leaf")];

@@ -97,8 +97,10 @@ pub const MAX_HAND_FILE_BYTES: u64 = 512 << 20;
 /// Loads a hand file into memory: a regular file of at most [`MAX_HAND_FILE_BYTES`] (a FIFO or
 /// a device is refused without blocking).
 pub fn load_hand_file(path: &Path) -> Result<Vec<HandSample>, HandFileError> {
-    let text =
-        frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(HandFileError::File)?;
+    let text = frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(|e| match e {
+        frond_motion::rig_files::FileError::Read { path, source } => HandFileError::Io { path, source },
+        other => HandFileError::File(other),
+    })?;
     parse_hand_text(path, &text)
 }
 

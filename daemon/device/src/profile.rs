@@ -344,8 +344,13 @@ impl DeviceProfile {
 
     /// Loads a profile file (a regular file of at most [`MAX_PROFILE_FILE_BYTES`]).
     pub fn load(path: &Path) -> Result<Self, ProfileError> {
-        let text = frond_motion::rig_files::read_small_text(path, MAX_PROFILE_FILE_BYTES)
-            .map_err(ProfileError::File)?;
+        let text =
+            frond_motion::rig_files::read_small_text(path, MAX_PROFILE_FILE_BYTES).map_err(|e| match e {
+                frond_motion::rig_files::FileError::Read { path, source } => {
+                    ProfileError::Io { path, source }
+                }
+                other => ProfileError::File(other),
+            })?;
         Self::from_toml_str(&text)
     }
 

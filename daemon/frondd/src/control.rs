@@ -555,6 +555,8 @@ impl ControlContext {
                     held_frames: hs.held_frames.load(Relaxed),
                     stalls: hs.stall_events.load(Relaxed),
                     lost_events: hs.lost_events.load(Relaxed),
+                    discontinuities: hs.discontinuities.load(Relaxed),
+                    stale_skipped: hs.stale_skipped.load(Relaxed),
                     events: h.events.iter().cloned().collect(),
                 }
             })

@@ -473,6 +473,8 @@ fn housekeeping(
     let mut last_rate_at = Instant::now();
     let mut connected: Vec<bool> = stats.hands[..hands].iter().map(|h| h.connected.load(Relaxed)).collect();
     let mut stalls: Vec<u64> = stats.hands[..hands].iter().map(|h| h.stall_events.load(Relaxed)).collect();
+    // Time faults already told, per hand, and when last: one line, then at most one per 10 s.
+    let mut time_told: Vec<(u64, u64, Option<Instant>)> = vec![(0, 0, None); hands];
     let watchdog = notifier.watchdog_interval().map(|d| d / 2);
     let mut last_ping = Instant::now();
     let mut ticks_at_ping = last_ticks;
@@ -530,6 +532,21 @@ fn housekeeping(
                     ctx.lock().problems.retain(|p| !p.starts_with("socket "));
                 }
                 _ => {}
+            }
+        }
+        for (i, told) in time_told.iter_mut().enumerate() {
+            let hand = &stats.hands[i];
+            let now = (hand.discontinuities.load(Relaxed), hand.stale_skipped.load(Relaxed));
+            let due = told.2.is_none_or(|at| at.elapsed() >= Duration::from_secs(10));
+            if (now.0, now.1) != (told.0, told.1) && due {
+                let text = format!(
+                    "device time discontinuous {} times (jumped, went back or repeated; filter reset), {} stale reports skipped after pauses",
+                    now.0, now.1
+                );
+                let mut state = ctx.lock();
+                warn!(hand = %state.hands[i].name, "{text}");
+                state.push_event(ctx.started, i, text);
+                *told = (now.0, now.1, Some(Instant::now()));
             }
         }
         let elapsed = last_rate_at.elapsed();

@@ -227,6 +227,8 @@ pub struct Engine {
     /// The element the primary hand is published as while a stage relabels it (a layer).
     stage_hand_element: Option<u16>,
     stall_after_ns: u64,
+    /// When the loop last ran (a tick or a device wake), host ns; 0 before the first.
+    last_run_ns: u64,
 }
 
 impl Engine {
@@ -287,6 +289,7 @@ impl Engine {
             stages_every_tick: false,
             stage_hand_element: None,
             stall_after_ns,
+            last_run_ns: 0,
         }
     }
 
@@ -378,6 +381,7 @@ impl Engine {
     /// fresh, so it publishes no held frame for the period they arrived in.
     pub fn device_ready(&mut self, now_ns: u64) -> usize {
         self.apply_commands(now_ns);
+        self.resume_after_pause(now_ns);
         let mut total = 0;
         for i in 0..self.hands.len() {
             let fresh = self.read_device(i, now_ns);
@@ -415,6 +419,7 @@ impl Engine {
     /// Runs one tick at host time `now_ns`. Publishes at least one frame per hand.
     pub fn tick(&mut self, now_ns: u64) {
         self.apply_commands(now_ns);
+        self.resume_after_pause(now_ns);
         self.tick_stages(now_ns);
         let mut held_any = false;
         for i in 0..self.hands.len() {
@@ -430,6 +435,41 @@ impl Engine {
             self.out.links.stats.held_ticks.fetch_add(1, Relaxed);
         }
         self.out.links.stats.ticks.fetch_add(1, Relaxed);
+    }
+
+    /// After the loop itself was paused for longer than the stall window (SIGSTOP, an
+    /// overloaded host), what the sources queued meanwhile is stale: it is skipped (counted), so
+    /// the stream resumes at the present instead of bursting through old reports, and each
+    /// hand's next report starts a new timeline (flagged `discontinuity`, filter reset).
+    fn resume_after_pause(&mut self, now_ns: u64) {
+        let paused = self.last_run_ns != 0 && now_ns.saturating_sub(self.last_run_ns) > self.stall_after_ns;
+        self.last_run_ns = now_ns;
+        if !paused {
+            return;
+        }
+        for i in 0..self.hands.len() {
+            let mut skipped = 0;
+            for _ in 0..MAX_READS_PER_TICK {
+                let Some(source) = self.hands[i].source.as_mut() else { break };
+                match source.read_pending(&mut self.samples) {
+                    Ok(n) => {
+                        skipped += n;
+                        if n < self.samples.len() {
+                            break;
+                        }
+                    }
+                    Err(_) => {
+                        self.lose_source(i, now_ns);
+                        break;
+                    }
+                }
+            }
+            let hand = &mut self.hands[i];
+            hand.mapper.break_timeline();
+            // The stall window restarts now: the source had no chance to report while paused.
+            hand.last_report_ns = now_ns;
+            self.out.links.stats.hands[i].stale_skipped.fetch_add(skipped as u64, Relaxed);
+        }
     }
 
     /// Republishes hand `i`'s last pose flagged `held` (and `device_lost` once it stalled).
@@ -620,6 +660,10 @@ impl Engine {
         let hand_state = &mut self.hands[i];
         let (hand, mut pose): (HandSample, PoseFrame) = hand_state.mapper.process(&sample.raw);
         let filtered = hand_state.mapper.filter_spec() != FilterSpec::None;
+        let discontinuity = hand_state.mapper.discontinuity();
+        if discontinuity {
+            hand_stats.discontinuities.fetch_add(1, Relaxed);
+        }
         if i == self.primary {
             for stage in self.stages.iter_mut().flatten() {
                 stage.on_hand(&hand, &mut pose, &mut element);
@@ -627,6 +671,7 @@ impl Engine {
         }
         let mut flags = PoseFlags::default();
         flags.set(PoseFlags::FILTERED, filtered);
+        flags.set(PoseFlags::DISCONTINUITY, discontinuity);
         flags.set(PoseFlags::RECORDING, self.out.recording);
         let frame = Pose {
             seq: 0,

@@ -189,6 +189,10 @@ pub struct HandStats {
     pub frames: AtomicU64,
     /// Held frames published for it (a period without a report).
     pub held_frames: AtomicU64,
+    /// Reports whose time broke the timeline (jumped, went back, repeated): filter reset.
+    pub discontinuities: AtomicU64,
+    /// Stale reports skipped when the loop resumed after a pause (SIGSTOP, an overloaded host).
+    pub stale_skipped: AtomicU64,
     /// Latest raw sample, for calibration.
     pub raw: RawSampleCell,
 }

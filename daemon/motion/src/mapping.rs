@@ -125,12 +125,39 @@ pub struct Mapper {
     mapping: MappingParams,
     calibration: CalibrationParams,
     filter: HandFilter,
+    /// The previous sample's time, seconds (`None` before the first).
+    last_t: Option<f64>,
+    /// Whether the last processed sample broke the timeline.
+    discontinuity: bool,
+    /// Samples that broke the timeline so far.
+    discontinuities: u64,
+    /// The next sample breaks the timeline whatever its time.
+    force_break: bool,
+}
+
+/// Largest forward step between two samples' times that is still one timeline, seconds: a
+/// longer gap (a tracker paused or restarted with a new clock) is a discontinuity.
+pub const MAX_TIME_STEP_S: f64 = 1.0;
+
+/// How a sample's time follows the previous one's.
+fn breaks_timeline(last_t: Option<f64>, t: f64) -> bool {
+    let Some(last) = last_t else { return false };
+    let dt = t - last;
+    !(dt.is_finite() && dt > 0.0 && dt <= MAX_TIME_STEP_S)
 }
 
 impl Mapper {
     /// A mapper with a fresh filter.
     pub fn new(mapping: MappingParams, calibration: CalibrationParams, filter: FilterSpec) -> Self {
-        Mapper { mapping, calibration, filter: HandFilter::new(filter) }
+        Mapper {
+            mapping,
+            calibration,
+            filter: HandFilter::new(filter),
+            last_t: None,
+            discontinuity: false,
+            discontinuities: 0,
+            force_break: false,
+        }
     }
 
     /// Replaces the rig's mapping parameters (filter state kept).
@@ -169,10 +196,38 @@ impl Mapper {
         self.filter.reset();
     }
 
+    /// Whether the sample last processed broke the timeline (see [`Mapper::process`]).
+    pub fn discontinuity(&self) -> bool {
+        self.discontinuity
+    }
+
+    /// Samples that broke the timeline since this mapper was made.
+    pub fn discontinuities(&self) -> u64 {
+        self.discontinuities
+    }
+
+    /// Marks the next sample as a discontinuity whatever its time (the loop resumed after a
+    /// pause and skipped stale reports): the filter starts afresh there.
+    pub fn break_timeline(&mut self) {
+        self.force_break = true;
+    }
+
     /// Processes one raw sample: calibrate (`W = wrist - neutral`, `G_i = thumb_i - neutral_i`),
     /// filter, then map (seed 000, Eq. 2-4). Returns the calibrated-and-filtered sample and the
     /// pose. Never allocates, never panics; finite input gives finite output.
+    ///
+    /// Time is untrusted input: a sample whose time goes backwards, repeats, is not finite or
+    /// jumps forward by more than [`MAX_TIME_STEP_S`] starts a new timeline. The filter is
+    /// reset there (the sample passes through), so one absurd timestamp or a tracker that
+    /// restarts its clock cannot freeze the filter; [`Mapper::discontinuity`] says so and
+    /// [`Mapper::discontinuities`] counts it. The live loop and `frond map` share this rule.
     pub fn process(&mut self, raw: &HandSample) -> (HandSample, PoseFrame) {
+        self.discontinuity = std::mem::take(&mut self.force_break) || breaks_timeline(self.last_t, raw.t);
+        if self.discontinuity {
+            self.discontinuities += 1;
+            self.filter.reset();
+        }
+        self.last_t = Some(raw.t);
         let calibrated = self.calibration.apply(raw);
         let filtered = self.filter.apply(&calibrated);
         let pose = map_pose(&self.mapping, &self.calibration, &filtered);
@@ -186,6 +241,43 @@ mod tests {
 
     fn hand(wrist: [f32; 3], thumb: [f32; 3]) -> HandSample {
         HandSample { t: 0.5, wrist_deg: wrist, thumb_deg: thumb }
+    }
+
+    #[test]
+    fn a_time_that_jumps_goes_back_or_repeats_resets_the_filter_instead_of_freezing_it() {
+        let params = MappingParams::default();
+        let cal = CalibrationParams::neutral([60.0, 70.0, 60.0]);
+        let mut m = Mapper::new(params, cal, FilterSpec::LowPass { cutoff_hz: 1.0 });
+        let at = |t: f64, w: f32| HandSample { t, wrist_deg: [w, 0.0, 0.0], thumb_deg: [0.0; 3] };
+        // A steady 10 deg at 100 Hz, then one absurd timestamp carrying 50 deg.
+        for i in 0..100 {
+            m.process(&at(f64::from(i) * 0.01, 10.0));
+            assert!(!m.discontinuity());
+        }
+        let (h, _) = m.process(&at(1e9, 50.0));
+        assert!(m.discontinuity(), "a jump of 1e9 s is a new timeline");
+        assert_eq!(h.wrist_deg[0], 50.0, "the filter was reset: the sample passes through");
+        // The tracker's clock is back near 1 s: backwards, so a new timeline again, and the
+        // filter follows the hand from there (before the fix it held 50 deg for ever).
+        let (h, _) = m.process(&at(1.01, 20.0));
+        assert!(m.discontinuity());
+        assert_eq!(h.wrist_deg[0], 20.0);
+        let (h, _) = m.process(&at(1.02, 20.0));
+        assert!(!m.discontinuity());
+        assert_eq!(h.wrist_deg[0], 20.0);
+        // A repeated time and a NaN time break it too; a forward step of exactly 1 s does not.
+        m.process(&at(1.02, 20.0));
+        assert!(m.discontinuity());
+        m.process(&at(f64::NAN, 20.0));
+        assert!(m.discontinuity());
+        m.process(&at(5.0, 20.0));
+        assert!(m.discontinuity(), "after NaN the next time starts a timeline");
+        m.process(&at(6.0, 20.0));
+        assert!(!m.discontinuity());
+        assert_eq!(m.discontinuities(), 5);
+        m.break_timeline();
+        m.process(&at(6.01, 20.0));
+        assert!(m.discontinuity(), "a forced break");
     }
 
     #[test]

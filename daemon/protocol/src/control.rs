@@ -311,6 +311,13 @@ pub struct HandStatus {
     pub stalls: u64,
     /// Times it was declared lost.
     pub lost_events: u64,
+    /// Reports whose time jumped forward, went back or repeated (each starts a new timeline,
+    /// flagged `discontinuity`, the filter reset).
+    #[serde(default)]
+    pub discontinuities: u64,
+    /// Stale reports skipped when the daemon resumed after a pause (SIGSTOP, overload).
+    #[serde(default)]
+    pub stale_skipped: u64,
     /// Its device events (connect, lost, reopened), oldest first, at most the last 32.
     pub events: Vec<String>,
 }

@@ -133,6 +133,10 @@ impl PoseFlags {
     pub const RECORDING: PoseFlags = PoseFlags(1 << 3);
     /// The pose comes from looped playback of a take, not from the hand.
     pub const PLAYBACK: PoseFlags = PoseFlags(1 << 4);
+    /// The hand's time is discontinuous here: its timestamp jumped forward by more than a
+    /// second, went backwards or repeated (a tracker restarted, a host paused), or the daemon
+    /// resumed after a pause and skipped stale reports. The filter was reset at this pose.
+    pub const DISCONTINUITY: PoseFlags = PoseFlags(1 << 5);
 
     /// True when every bit of `other` is set in `self`.
     pub const fn contains(self, other: PoseFlags) -> bool {

@@ -203,6 +203,10 @@ pub struct VhidStats {
     pub unplugs: AtomicU64,
     /// Reports not sent during stall windows.
     pub stalled: AtomicU64,
+    /// Reports not sent because they were already stale when their time came (the glove was
+    /// paused, SIGSTOP, an overloaded host): a glove samples the present, so it skips them and
+    /// resumes at the present (the device sequence numbers show the gap).
+    pub late_skipped: AtomicU64,
     /// Set once a non-looping JSONL file has been played to the end.
     pub finished: AtomicBool,
 }
@@ -335,6 +339,11 @@ impl Generator {
                 return;
             }
             let this_seq = seq;
+            if Instant::now().saturating_duration_since(due) > LATE_LIMIT {
+                seq = seq.wrapping_add(1);
+                stats.late_skipped.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
             seq = seq.wrapping_add(1);
             if let Some(u) = self.faults.unplug {
                 let now_unplugged = u.unplugged_at((offset_s * 1000.0) as u64);
@@ -382,6 +391,10 @@ impl Generator {
         stats.finished.store(true, Ordering::Release);
     }
 }
+
+/// How late a report may be sent: later than this it is stale and skipped (no burst of old
+/// reports after a pause).
+const LATE_LIMIT: Duration = Duration::from_millis(100);
 
 /// Sleeps until `due`, waking at least every 20 ms to check `stop`. Returns false if stopped.
 fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {

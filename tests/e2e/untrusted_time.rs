@@ -1,0 +1,143 @@
+//! Issue 14, points 6 and 12: time is untrusted input. One OSC sample stamped `t = 1e9` (or a
+//! tracker restarting its clock) starts a new timeline instead of freezing the live filter, live
+//! and in `frond map` alike; a daemon paused with SIGSTOP resumes at the present, flagged, with
+//! no burst of stale reports and no gap for a healthy subscriber.
+
+use std::io::Write;
+use std::net::UdpSocket;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use frond_e2e::{Daemon, bin, repo_root, wait_for};
+use frond_protocol::PoseFlags;
+use frond_sdk::{Event, Subscriber};
+use rosc::{OscMessage, OscPacket, OscType};
+
+#[test]
+fn a_timestamp_that_jumps_or_goes_back_resets_the_filter_live_and_offline() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let rig = repo_root().join("rig-files/plants/grass.toml");
+    let source = format!("osc://127.0.0.1:{port}");
+    let filter = "lowpass:cutoff_hz=1";
+    let daemon =
+        Daemon::start(dir.path(), &["--source", &source, "--rig", rig.to_str().unwrap(), "--filter", filter]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    // 20 samples at 10 deg, one absurd `t = 1e9` at 50 deg, then the tracker's clock is back
+    // (restarted) with 20 samples at 20 deg.
+    let mut samples: Vec<(f64, f32)> = (0..20).map(|k| (f64::from(k) * 0.005, 10.0)).collect();
+    samples.push((1e9, 50.0));
+    samples.extend((0..20).map(|k| (0.2 + f64::from(k) * 0.005, 20.0)));
+    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for &(t, pitch) in &samples {
+        let mut args = vec![OscType::Double(t), OscType::Float(pitch)];
+        args.extend([0.0f32; 5].map(OscType::Float));
+        let packet = OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args });
+        tx.send_to(&rosc::encoder::encode(&packet).unwrap(), ("127.0.0.1", port)).unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut fresh = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while fresh.len() < samples.len() && Instant::now() < deadline {
+        if let Event::Pose(p) = sub.next_event().unwrap()
+            && !p.flags.contains(PoseFlags::HELD)
+        {
+            fresh.push(p);
+        }
+    }
+    assert_eq!(fresh.len(), samples.len(), "every sample published");
+    let flagged: Vec<usize> =
+        (0..fresh.len()).filter(|&i| fresh[i].flags.contains(PoseFlags::DISCONTINUITY)).collect();
+    assert_eq!(flagged, [20, 21], "the jump to 1e9 and the step back are the two discontinuities");
+    assert_eq!(fresh[20].hand.wrist_deg[0], 50.0, "the filter was reset: the sample passes through");
+    // Before the fix the filter held 50 deg for ever (every later step went backwards).
+    for p in &fresh[21..] {
+        assert_eq!(p.hand.wrist_deg[0], 20.0, "{p:?}");
+    }
+    let status = daemon.status();
+    assert_eq!(status.hands[0].discontinuities, 2, "{:?}", status.hands[0]);
+    assert!(wait_for(Duration::from_secs(2), || daemon
+        .status()
+        .device_events
+        .iter()
+        .any(|e| e.contains("device time discontinuous"))));
+
+    // `frond map` maps the same lines the same way and says where the time broke.
+    let jsonl: String = samples
+        .iter()
+        .map(|(t, p)| format!("{{\"t\":{t},\"wrist\":[{p},0,0],\"thumb\":[0,0,0]}}\n"))
+        .collect();
+    let mut map = Command::new(bin("frond"))
+        .args(["map", "--filter", filter, "--rig"])
+        .arg(&rig)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    map.stdin.take().unwrap().write_all(jsonl.as_bytes()).unwrap();
+    let out = map.wait_with_output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let lines: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    for (line, pose) in lines.iter().zip(&fresh) {
+        for (j, joint) in pose.joints_deg.iter().enumerate() {
+            let offline = line["joints"][j][0].as_f64().unwrap();
+            assert!((offline - f64::from(joint[0])).abs() < 1e-4, "{line} vs {pose:?}");
+        }
+    }
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("line 21: t = 1000000000") && err.contains("line 22: t = 0.2"), "{err}");
+}
+
+#[test]
+fn after_sigstop_the_daemon_resumes_at_the_present_without_a_burst_or_a_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let mut last_seq = None;
+    let mut next_pose = |sub: &mut Subscriber| loop {
+        match sub.next_event().unwrap() {
+            Event::Pose(p) => {
+                if let Some(prev) = last_seq {
+                    assert_eq!(p.seq, prev + 1, "a gap in the pose stream");
+                }
+                last_seq = Some(p.seq);
+                return p;
+            }
+            Event::Elements(_) => {}
+            other => panic!("unexpected {other:?}"),
+        }
+    };
+    let mut before = None;
+    for _ in 0..500 {
+        let p = next_pose(&mut sub);
+        if !p.flags.contains(PoseFlags::HELD) {
+            before = Some(p.device_time_us);
+        }
+    }
+    let pid = daemon.proc.child.id() as i32;
+    // SAFETY: kill(2) on our own child.
+    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    std::thread::sleep(Duration::from_secs(2));
+    // SAFETY: as above.
+    unsafe { libc::kill(pid, libc::SIGCONT) };
+    // The first fresh report after the pause is about 2 s of device time later (the glove
+    // samples the present), flagged as a discontinuity; none of the 2000 missed ones is replayed.
+    let first_after = loop {
+        let p = next_pose(&mut sub);
+        if !p.flags.contains(PoseFlags::HELD) {
+            break p;
+        }
+    };
+    let jump_ms = (first_after.device_time_us - before.unwrap()) as f64 / 1000.0;
+    assert!(jump_ms > 1500.0, "stale reports were replayed: the next one is only {jump_ms} ms later");
+    assert!(first_after.flags.contains(PoseFlags::DISCONTINUITY), "{first_after:?}");
+    // The stream goes on at the loop's rate with no gap for this healthy subscriber.
+    for _ in 0..2000 {
+        next_pose(&mut sub);
+    }
+    assert_eq!(sub.stats().gaps, 0);
+    let status = daemon.status();
+    assert!(status.hands[0].discontinuities >= 1, "{:?}", status.hands[0]);
+}
