@@ -2,6 +2,7 @@
 
 mod demo;
 mod hostile;
+mod hostile_takes;
 mod live_modes;
 mod osc_input;
 mod rt_syscalls;

@@ -79,6 +79,9 @@ pub(crate) fn render(r: &StatusReport) -> String {
             let _ = writeln!(o, "recording    no");
         }
     }
+    if let Some(e) = &r.recorder_error {
+        let _ = writeln!(o, "recorder     ERROR: {e}");
+    }
     let _ = writeln!(o, "subscribers  {}", r.subscribers.len());
     if !r.subscribers.is_empty() {
         let _ = writeln!(o, "  {:>6} {:>12} {:>12} {:>10}", "id", "connected", "sent", "dropped");
@@ -189,6 +192,7 @@ mod tests {
             modes: vec![],
             stages: vec![],
             elements: vec![],
+            recorder_error: None,
         }
     }
 
@@ -212,6 +216,11 @@ mod tests {
         let sub_line = t.lines().find(|l| l.trim_start().starts_with("7 ")).unwrap();
         let cols: Vec<&str> = sub_line.split_whitespace().collect();
         assert_eq!(cols, ["7", "1m", "05s", "4321", "3"]);
+        assert!(!t.contains("recorder"), "{t}");
+        let mut r = report();
+        r.recorder_error = Some("writing take /d/take1.take failed: writing: No space left".into());
+        let t = render(&r);
+        assert!(t.contains("recorder     ERROR: writing take /d/take1.take failed"), "{t}");
     }
 
     #[test]

@@ -61,6 +61,7 @@ fn status_report() -> StatusReport {
         modes: vec![],
         stages: vec![],
         elements: vec![],
+        recorder_error: None,
     }
 }
 

@@ -279,6 +279,9 @@ pub struct StatusReport {
     /// The element table subscribers were last sent.
     #[serde(default)]
     pub elements: Vec<crate::ElementInfo>,
+    /// The current take's write fault (path, error, frames kept and lost), until `record stop`.
+    #[serde(default)]
+    pub recorder_error: Option<String>,
 }
 
 /// One running live stage.
