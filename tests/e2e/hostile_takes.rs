@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+use crate::hostile::rss_kib;
 use frond_e2e::{Daemon, bin, wait_for};
 use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
@@ -101,10 +102,15 @@ fn write_take(dir: &Path, name: &str, frames: &[(f64, f32)]) -> PathBuf {
     path
 }
 
-fn rss_kib(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
-    let line = status.lines().find(|l| l.starts_with("VmRSS:")).expect("VmRSS");
-    line.split_whitespace().nth(1).unwrap().parse().unwrap()
+/// `frond-gltf bake` of the take at `take` on the grass rig into `glb`.
+fn bake(take: &Path, glb: &Path) -> std::process::Output {
+    Command::new(bin("frond-gltf"))
+        .args(["bake", "--take"])
+        .arg(take)
+        .args(["--rig", "grass", "-o"])
+        .arg(glb)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -215,13 +221,7 @@ fn a_flipped_bit_in_a_recorded_take_costs_only_the_record_it_hits() {
     assert_eq!(v[0]["frames"], want.len() as u64, "{list}");
 
     let glb = dir.path().join("flip.glb");
-    let out = Command::new(bin("frond-gltf"))
-        .args(["bake", "--take"])
-        .arg(&path)
-        .args(["--rig", "grass", "-o"])
-        .arg(&glb)
-        .output()
-        .unwrap();
+    let out = bake(&path, &glb);
     let note = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{note}");
     assert!(note.contains("is damaged: 1 damaged stretch skipped"), "{note}");
@@ -254,13 +254,7 @@ fn a_take_spanning_1e9_seconds_costs_frames_not_gigabytes() {
 
     let glb = dir.path().join("two.glb");
     let path = daemon.takes_dir.join("two.take");
-    let out = Command::new(bin("frond-gltf"))
-        .args(["bake", "--take"])
-        .arg(&path)
-        .args(["--rig", "grass", "-o"])
-        .arg(&glb)
-        .output()
-        .unwrap();
+    let out = bake(&path, &glb);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let size = std::fs::metadata(&glb).unwrap().len();
     assert!(size < 1 << 20, "the GLB of two frames is {size} bytes");
