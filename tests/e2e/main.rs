@@ -4,6 +4,7 @@ mod demo;
 mod hands;
 mod hostile;
 mod hostile_files;
+mod hostile_takes;
 mod live_modes;
 mod osc_input;
 mod rt_syscalls;

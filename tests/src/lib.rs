@@ -110,6 +110,11 @@ impl Daemon {
     /// Starts `frondd` with `args` (plus private socket and takes dirs under `root`) and waits
     /// until the control socket answers.
     pub fn start(root: &Path, args: &[&str]) -> Daemon {
+        Self::start_with_stderr(root, args, Stdio::inherit())
+    }
+
+    /// [`Daemon::start`] with the daemon's log (stderr) going to `stderr`, e.g. a file to read.
+    pub fn start_with_stderr(root: &Path, args: &[&str], stderr: Stdio) -> Daemon {
         let socket_dir = root.join("run");
         let takes_dir = root.join("takes");
         let child = Command::new(bin("frondd"))
@@ -119,7 +124,7 @@ impl Daemon {
             .arg(&takes_dir)
             .args(args)
             .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
+            .stderr(stderr)
             .spawn()
             .expect("start frondd");
         let mut daemon = Daemon { proc: Proc { child, name: "frondd".into() }, socket_dir, takes_dir };

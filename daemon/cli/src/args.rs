@@ -282,6 +282,9 @@ pub enum TakeCommand {
         /// Also print held frames (every recorded tick); ignored with --fps.
         #[arg(long)]
         include_held: bool,
+        /// Resample past the export limit (1,080,000 frames); never past 16,777,216.
+        #[arg(long)]
+        force: bool,
     },
     /// Cut a torn tail off a take (after a crash) and close it, keeping every complete frame.
     /// Refuses takes modified in the last few seconds, which may still be recording.

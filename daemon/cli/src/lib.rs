@@ -147,8 +147,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Control => live::control(g),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
-        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held }) => {
-            takes::export(g, &name, fps, include_held)
+        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held, force }) => {
+            takes::export(g, &name, fps, include_held, force)
         }
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),

@@ -105,6 +105,9 @@ pub(crate) fn render(r: &StatusReport) -> String {
             let _ = writeln!(o, "recording    no");
         }
     }
+    if let Some(e) = &r.recorder_error {
+        let _ = writeln!(o, "recorder     ERROR: {e}");
+    }
     let _ = writeln!(o, "subscribers  {}", r.subscribers.len());
     if !r.subscribers.is_empty() {
         let _ = writeln!(o, "  {:>6} {:>12} {:>12} {:>10}", "id", "connected", "sent", "dropped");
@@ -217,6 +220,7 @@ mod tests {
             elements: vec![],
             hands: vec![],
             problems: vec![],
+            recorder_error: None,
         }
     }
 
@@ -240,6 +244,11 @@ mod tests {
         let sub_line = t.lines().find(|l| l.trim_start().starts_with("7 ")).unwrap();
         let cols: Vec<&str> = sub_line.split_whitespace().collect();
         assert_eq!(cols, ["7", "1m", "05s", "4321", "3"]);
+        assert!(!t.contains("recorder"), "{t}");
+        let mut r = report();
+        r.recorder_error = Some("writing take /d/take1.take failed: writing: No space left".into());
+        let t = render(&r);
+        assert!(t.contains("recorder     ERROR: writing take /d/take1.take failed"), "{t}");
     }
 
     #[test]

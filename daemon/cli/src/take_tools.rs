@@ -242,7 +242,11 @@ pub enum TakeTool {
 fn read_take(g: &Global, name: &str) -> anyhow::Result<Take> {
     let path = crate::takes::resolve(g, name)?;
     let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
-    Take::from_bytes(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))
+    let take = Take::from_bytes(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    if let Ok(scan) = frond_motion::scan_take(&bytes) {
+        crate::takes::warn_damage(&path, &scan);
+    }
+    Ok(take)
 }
 
 fn check_fps(fps: f64) -> anyhow::Result<()> {

@@ -2,8 +2,13 @@
 //!
 //! States: `complete` (closed with an End record), `open` (no End record and no torn bytes:
 //! still recording, or the recorder stopped between records), `torn` (a partial record at the
-//! end: a crash mid-write, or a write in progress), `corrupt` (damage in the middle; not
-//! repairable by cutting the tail).
+//! end: a crash mid-write, or a write in progress), `damaged` (damaged records in the middle,
+//! skipped by the reader: everything else reads, and `repair` rewrites the take without them),
+//! `empty` (0 bytes: nothing was ever written), `corrupt` (unreadable: not a take, or a
+//! checksummed record this version cannot read, or a non-finite value; the error says which).
+//!
+//! Readers resynchronise after damage (`frond_motion::take`): `export` and the toolkit work on
+//! what is readable and say, on stderr, what they skipped.
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -11,8 +16,8 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, anyhow, bail};
 use frond_motion::jsonl::write_pose_line;
-use frond_motion::take::{TakeRecord, encode_record};
-use frond_motion::{PoseFrame, TakeScan, resample, scan_take};
+use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES, RecordAt, TakeRecord, encode_record};
+use frond_motion::{PoseFrame, Skipped, TakeScan, resample, resample_plan, scan_take, scan_take_salvaging};
 use frond_protocol::{PoseFlags, paths};
 use serde::Serialize;
 
@@ -20,8 +25,12 @@ use crate::args::Global;
 use crate::calibrate::write_atomically_bytes;
 use crate::usage;
 
-/// A take modified more recently than this may still be recording; `repair` leaves it alone.
+/// A take without an End record modified more recently than this may still be recording;
+/// `repair` leaves it alone.
 const RECENT: Duration = Duration::from_secs(5);
+/// `take export --fps` and the baker refuse to resample to more frames than this unless
+/// `--force` (10 hours at 30 FPS); [`MAX_RESAMPLED_FRAMES`] is the limit even with `--force`.
+pub(crate) const MAX_EXPORT_FRAMES: u64 = 1_080_000;
 
 /// Finds a take: a path to an existing file (containing `/` or ending in `.take`), else
 /// `NAME.take` in the takes directory.
@@ -47,6 +56,17 @@ fn read_scan(path: &Path) -> anyhow::Result<(TakeScan, u64)> {
     Ok((scan, bytes.len() as u64))
 }
 
+/// Warns on stderr that `path` is damaged and only its readable part is used.
+pub(crate) fn warn_damage(path: &Path, scan: &TakeScan) {
+    if let Some(d) = scan.damage() {
+        eprintln!(
+            "frond: warning: {}: {d}; using the {} readable frames (`frond take repair` rewrites the take without the damage)",
+            path.display(),
+            scan.frames.len()
+        );
+    }
+}
+
 /// One row of `take list`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub(crate) struct TakeInfo {
@@ -57,9 +77,14 @@ pub(crate) struct TakeInfo {
     /// Time from the first to the last main-skeleton pose, seconds.
     pub duration_s: f64,
     pub size_bytes: u64,
-    /// `complete`, `open`, `torn` or `corrupt`.
+    /// `complete`, `open`, `torn`, `damaged`, `empty` or `corrupt`.
     pub state: &'static str,
     pub torn_bytes: u64,
+    /// Bytes of damaged records the reader skipped.
+    pub skipped_bytes: u64,
+    /// What was skipped, in words (for `damaged`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub damage: Option<String>,
     pub markers: u64,
     pub rig: Option<String>,
     /// Why a corrupt take could not be read.
@@ -77,6 +102,8 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
         size_bytes: 0,
         state: "corrupt",
         torn_bytes: 0,
+        skipped_bytes: 0,
+        damage: None,
         markers: 0,
         rig: None,
         error: None,
@@ -91,9 +118,11 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
             };
             info.size_bytes = size;
             info.torn_bytes = scan.torn_bytes;
+            info.skipped_bytes = scan.skipped_bytes();
+            info.damage = scan.damage();
             info.markers = scan.markers.len() as u64;
+            info.state = state(&scan, size);
             info.rig = scan.header.map(|h| h.rig_name);
-            info.state = state(scan.ended, scan.torn_bytes);
         }
         Err(e) => {
             info.size_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
@@ -103,11 +132,17 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
     info
 }
 
-fn state(ended: bool, torn_bytes: u64) -> &'static str {
-    match (ended, torn_bytes) {
-        (_, 1..) => "torn",
-        (true, 0) => "complete",
-        (false, 0) => "open",
+fn state(scan: &TakeScan, size: u64) -> &'static str {
+    if size == 0 {
+        "empty"
+    } else if !scan.skipped.is_empty() {
+        "damaged"
+    } else if scan.torn_bytes > 0 {
+        "torn"
+    } else if scan.ended {
+        "complete"
+    } else {
+        "open"
     }
 }
 
@@ -152,6 +187,11 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
     for i in &infos {
         let state = match (i.state, &i.error) {
             ("torn", _) => format!("torn ({} bytes; `frond take repair {}`)", i.torn_bytes, i.name),
+            ("damaged", _) => format!(
+                "damaged: {}; `frond take repair {}`",
+                i.damage.as_deref().unwrap_or("records skipped"),
+                i.name
+            ),
             (_, Some(e)) => format!("corrupt: {e}"),
             (s, None) => s.to_string(),
         };
@@ -169,22 +209,56 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
-/// when `fps` is given.
-pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool) -> Vec<PoseFrame> {
-    let poses: Vec<PoseFrame> = scan
-        .frames
+/// The main-skeleton poses `export` prints, held frames dropped unless asked for.
+fn export_source(scan: &TakeScan, include_held: bool) -> Vec<PoseFrame> {
+    scan.frames
         .iter()
         .filter(|f| f.element == 0 && (include_held || !PoseFlags(f.flags).contains(PoseFlags::HELD)))
         .map(|f| f.pose)
-        .collect();
+        .collect()
+}
+
+/// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
+/// when `fps` is given.
+#[cfg(test)]
+pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool) -> Vec<PoseFrame> {
+    let poses = export_source(scan, include_held);
     match fps {
         Some(fps) => resample(&poses, fps),
         None => poses,
     }
 }
 
-pub(crate) fn export(g: &Global, name: &str, fps: Option<f64>, include_held: bool) -> anyhow::Result<()> {
+/// Checks a resampling before it is done: refuses past [`MAX_EXPORT_FRAMES`] unless `force`
+/// (never past [`MAX_RESAMPLED_FRAMES`]) and warns about time discontinuities.
+pub(crate) fn check_resample(what: &str, poses: &[PoseFrame], fps: f64, force: bool) -> anyhow::Result<()> {
+    let plan = resample_plan(poses, fps);
+    if let Some(i) = plan.first_discontinuity {
+        eprintln!(
+            "frond: warning: {what}: {} step{} in time longer than {MAX_INTERPOLATED_GAP_S} s or backwards \
+             (the first before pose {i}, the largest forward {:.3} s): each is a discontinuity, \
+             not interpolated",
+            plan.discontinuities,
+            if plan.discontinuities == 1 { "" } else { "s" },
+            plan.largest_gap_s
+        );
+    }
+    plan.check(fps, MAX_RESAMPLED_FRAMES as u64).map_err(|e| anyhow!("{what}: {e} (the hard limit)"))?;
+    if !force {
+        plan.check(fps, MAX_EXPORT_FRAMES).map_err(|e| {
+            anyhow!("{what}: {e} ({:.1} s of output); pass --force to go past it", plan.duration_s)
+        })?;
+    }
+    Ok(())
+}
+
+pub(crate) fn export(
+    g: &Global,
+    name: &str,
+    fps: Option<f64>,
+    include_held: bool,
+    force: bool,
+) -> anyhow::Result<()> {
     if let Some(fps) = fps
         && !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0)
     {
@@ -192,6 +266,7 @@ pub(crate) fn export(g: &Global, name: &str, fps: Option<f64>, include_held: boo
     }
     let path = resolve(g, name)?;
     let (scan, _) = read_scan(&path)?;
+    warn_damage(&path, &scan);
     if scan.torn_bytes > 0 {
         eprintln!(
             "frond: warning: {} ends with a torn record ({} bytes); exporting the {} complete frames",
@@ -205,7 +280,11 @@ pub(crate) fn export(g: &Global, name: &str, fps: Option<f64>, include_held: boo
             path.display()
         );
     }
-    let poses = export_poses(&scan, fps, include_held);
+    let mut poses = export_source(&scan, include_held);
+    if let Some(fps) = fps {
+        check_resample(&path.display().to_string(), &poses, fps, force)?;
+        poses = resample(&poses, fps);
+    }
     let stdout = io::stdout();
     let mut out = io::BufWriter::new(stdout.lock());
     let mut line = String::with_capacity(256);
@@ -220,47 +299,108 @@ pub(crate) fn export(g: &Global, name: &str, fps: Option<f64>, include_held: boo
 }
 
 /// What `repair` did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Repaired {
+    /// Torn bytes cut from the end.
     pub dropped_bytes: u64,
+    /// Damaged stretches and non-finite frames left out.
+    pub skipped: Vec<Skipped>,
+    /// Frames lost: non-finite frames left out, plus those the End record counted that could not
+    /// be read.
+    pub lost_frames: u64,
+    /// Frames kept.
     pub frames: u64,
+    /// Whether an End record was added to a take that had none.
     pub closed: bool,
 }
 
-/// The repaired bytes: the valid prefix, plus an End record if the take was not closed.
+/// The repaired bytes: the readable records, byte for byte, without damaged stretches,
+/// non-finite frames and the torn tail, closed with an End record counting what is kept.
 /// `None` when there is nothing to repair.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
-    let scan = scan_take(bytes).map_err(|e| {
-        anyhow!("{e}; only a torn tail can be repaired (the damage here is in the middle of the take)")
-    })?;
-    if scan.torn_bytes == 0 && scan.ended {
+    if bytes.is_empty() {
+        bail!("the take is empty (0 bytes): nothing was ever written, there is nothing to keep; delete it");
+    }
+    let scan = scan_take_salvaging(bytes).map_err(|e| anyhow!("{e}; this cannot be repaired"))?;
+    if scan.torn_bytes == 0 && scan.ended && scan.skipped.is_empty() {
         return Ok(None);
     }
     if scan.valid_len < frond_motion::take::MAGIC.len() as u64 {
         bail!("the take is too short to hold even its 8-byte signature; nothing can be kept");
     }
-    let mut out = bytes[..scan.valid_len as usize].to_vec();
-    let frames = scan.frames.len() as u64;
-    if !scan.ended {
-        encode_record(&TakeRecord::End { frames }, &mut out);
+    // The readable part, without the old End record (its count no longer holds).
+    let mut keep_until = scan.valid_len as usize;
+    if scan.ended {
+        let end_at = keep_until - frond_motion::take::RECORD_HEAD_LEN - 9;
+        match frond_motion::take::read_record_at(bytes, end_at) {
+            Ok(RecordAt::Record { record: TakeRecord::End { .. }, next }) if next == keep_until => {
+                keep_until = end_at
+            }
+            _ => bail!("internal error: the take's End record is not where the reader ended"),
+        }
     }
-    // The result must read back as a complete take with the same frames.
+    let mut out = Vec::with_capacity(keep_until);
+    let mut at = 0usize;
+    for s in &scan.skipped {
+        out.extend_from_slice(&bytes[at..s.offset as usize]);
+        at = (s.offset + s.len) as usize;
+    }
+    out.extend_from_slice(&bytes[at..keep_until]);
+    let frames = scan.frames.len() as u64;
+    encode_record(&TakeRecord::End { frames }, &mut out);
+    // The result must read back as a complete, sound take with the same frames.
     let check =
         scan_take(&out).map_err(|e| anyhow!("internal error: the repaired take does not read back: {e}"))?;
-    if !check.ended || check.torn_bytes != 0 || check.frames != scan.frames {
+    if !check.ended || check.torn_bytes != 0 || !check.skipped.is_empty() || check.frames != scan.frames {
         bail!("internal error: the repaired take does not read back identically");
     }
-    Ok(Some((out, Repaired { dropped_bytes: scan.torn_bytes, frames, closed: !scan.ended })))
+    let repaired = Repaired {
+        dropped_bytes: scan.torn_bytes,
+        lost_frames: scan.lost_frames() + scan.missing_frames(),
+        skipped: scan.skipped,
+        frames,
+        closed: !scan.ended,
+    };
+    Ok(Some((out, repaired)))
+}
+
+/// `repair`'s report: exactly what was dropped.
+pub(crate) fn repair_report(path: &Path, r: &Repaired) -> String {
+    let mut dropped = Vec::new();
+    for s in &r.skipped {
+        dropped.push(format!("{s}"));
+    }
+    if r.dropped_bytes > 0 {
+        dropped.push(format!("{} torn bytes at the end", r.dropped_bytes));
+    }
+    let lost = if r.lost_frames > 0 || !r.skipped.is_empty() {
+        format!("; {} frame{} lost", r.lost_frames, if r.lost_frames == 1 { "" } else { "s" })
+    } else {
+        String::new()
+    };
+    format!(
+        "repaired {}: dropped {}{lost}; kept {} frames{}",
+        path.display(),
+        dropped.join(", "),
+        r.frames,
+        if r.closed { ", closed with an End record" } else { "" }
+    )
 }
 
 pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
     let path = resolve(g, name)?;
+    let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
+    let Some((fixed, r)) = repaired_bytes(&bytes).map_err(|e| anyhow!("{}: {e:#}", path.display()))? else {
+        println!("{} is complete; nothing to repair", path.display());
+        return Ok(());
+    };
+    // A take closed with an End record is not being recorded, however recent; one without may be.
     let age = std::fs::metadata(&path)
         .and_then(|m| m.modified())
         .ok()
         .and_then(|m| SystemTime::now().duration_since(m).ok())
         .unwrap_or(Duration::MAX);
-    if age < RECENT {
+    if !r.closed_before() && age < RECENT {
         bail!(
             "{} was modified {:.1} s ago and may still be recording; stop the recording \
              (`frond record stop`) or wait a few seconds, then repair",
@@ -268,20 +408,16 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
             age.as_secs_f64()
         );
     }
-    let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
-    let Some((fixed, r)) = repaired_bytes(&bytes).map_err(|e| anyhow!("{}: {e:#}", path.display()))? else {
-        println!("{} is complete; nothing to repair", path.display());
-        return Ok(());
-    };
     write_atomically_bytes(&path, &fixed)?;
-    println!(
-        "repaired {}: dropped {} torn bytes, kept {} frames{}",
-        path.display(),
-        r.dropped_bytes,
-        r.frames,
-        if r.closed { ", closed with an End record" } else { "" }
-    );
+    println!("{}", repair_report(&path, &r));
     Ok(())
+}
+
+impl Repaired {
+    /// Whether the take had its End record already (so no recorder is appending to it).
+    fn closed_before(&self) -> bool {
+        !self.closed
+    }
 }
 
 #[cfg(test)]
@@ -317,9 +453,18 @@ mod tests {
 
     #[test]
     fn states() {
-        assert_eq!(state(true, 0), "complete");
-        assert_eq!(state(false, 0), "open");
-        assert_eq!(state(false, 3), "torn");
+        let frames = [frame(0, 0.0, PoseFlags::default()), frame(1, 0.1, PoseFlags::default())];
+        let st = |b: &[u8]| state(&scan_take(b).unwrap(), b.len() as u64);
+        assert_eq!(st(&take(&frames, true)), "complete");
+        assert_eq!(st(&take(&frames, false)), "open");
+        let mut torn = take(&frames, false);
+        torn.extend_from_slice(&[9, 0, 0]);
+        assert_eq!(st(&torn), "torn");
+        let mut damaged = take(&frames, true);
+        damaged[30] ^= 0x10;
+        assert_eq!(st(&damaged), "damaged");
+        // Nothing was ever written: not a take still recording.
+        assert_eq!(st(b""), "empty");
     }
 
     #[test]
@@ -345,19 +490,50 @@ mod tests {
         let mut bytes = take(&frames, false);
         bytes.extend_from_slice(&[50, 0, 0, 0, 1, 2]); // half a record
         let (fixed, r) = repaired_bytes(&bytes).unwrap().unwrap();
-        assert_eq!(r, Repaired { dropped_bytes: 6, frames: 2, closed: true });
+        assert_eq!(
+            r,
+            Repaired { dropped_bytes: 6, skipped: vec![], lost_frames: 0, frames: 2, closed: true }
+        );
         assert_eq!(fixed, take(&frames, true));
         assert!(repaired_bytes(&fixed).unwrap().is_none());
+        let report = repair_report(Path::new("t.take"), &r);
+        assert_eq!(
+            report,
+            "repaired t.take: dropped 6 torn bytes at the end; kept 2 frames, closed with an End record"
+        );
     }
 
     #[test]
-    fn repair_refuses_damage_in_the_middle() {
+    fn repair_drops_damage_in_the_middle_and_says_what() {
         let frames: Vec<TakeFrame> = (0..4).map(|i| frame(i, i as f64, PoseFlags::default())).collect();
         let mut bytes = take(&frames, true);
-        bytes[30] ^= 0xff; // inside the first frame record's payload
-        let err = repaired_bytes(&bytes).unwrap_err().to_string();
-        assert!(err.contains("corrupt record at offset 8"), "{err}");
-        assert!(err.contains("only a torn tail can be repaired"), "{err}");
+        // Frame records are 127 bytes from offset 8: damage the second one's payload.
+        bytes[8 + 127 + 40] ^= 0xff;
+        let (fixed, r) = repaired_bytes(&bytes).unwrap().unwrap();
+        let kept = [frames[0], frames[2], frames[3]];
+        assert_eq!(fixed, take(&kept, true));
+        assert_eq!(r.lost_frames, 1);
+        assert_eq!(r.skipped.len(), 1);
+        assert_eq!(
+            repair_report(Path::new("t.take"), &r),
+            "repaired t.take: dropped 127 bytes at offset 135 (checksum mismatch); 1 frame lost; kept 3 frames"
+        );
+        assert!(repaired_bytes(&fixed).unwrap().is_none());
+
+        // A non-finite frame with a good checksum is dropped too, named.
+        let mut bad = frames.clone();
+        bad[1].pose.joints_deg[3][2] = f32::NAN;
+        let (fixed, r) = repaired_bytes(&take(&bad, true)).unwrap().unwrap();
+        assert_eq!(fixed, take(&kept, true));
+        let report = repair_report(Path::new("t.take"), &r);
+        assert!(report.contains("frame 1 (seq 1) holds NaN in pose joint 3"), "{report}");
+        assert!(report.contains("1 frame lost"), "{report}");
+    }
+
+    #[test]
+    fn an_empty_take_is_not_repaired_into_anything() {
+        let err = repaired_bytes(b"").unwrap_err().to_string();
+        assert!(err.contains("empty (0 bytes)"), "{err}");
     }
 
     #[test]

@@ -63,6 +63,7 @@ fn status_report() -> StatusReport {
         elements: vec![],
         hands: vec![],
         problems: vec![],
+        recorder_error: None,
     }
 }
 

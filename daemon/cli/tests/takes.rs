@@ -147,7 +147,7 @@ fn export_at_30_fps_interpolates_from_zero() {
 }
 
 #[test]
-fn list_shows_complete_open_torn_and_corrupt_takes() {
+fn list_shows_complete_open_torn_damaged_empty_and_corrupt_takes() {
     let (_d, takes) = setup();
     let (done, _) = build_take("a-done", true);
     std::fs::write(takes.join("a-done.take"), &done).unwrap();
@@ -156,31 +156,40 @@ fn list_shows_complete_open_torn_and_corrupt_takes() {
     let mut torn = open.clone();
     torn.extend_from_slice(&[200, 0, 0, 0, 9, 9, 9]);
     std::fs::write(takes.join("c-torn.take"), &torn).unwrap();
-    let mut corrupt = done.clone();
-    corrupt[200] ^= 0x55;
-    std::fs::write(takes.join("d-corrupt.take"), &corrupt).unwrap();
+    let mut damaged = done.clone();
+    damaged[take_start("a-done", 200).len() + 127 * 10 + 60] ^= 0x55;
+    std::fs::write(takes.join("d-damaged.take"), &damaged).unwrap();
+    std::fs::write(takes.join("e-empty.take"), "").unwrap();
+    std::fs::write(takes.join("f-corrupt.take"), "not a take at all").unwrap();
     std::fs::write(takes.join("notes.txt"), "not a take").unwrap();
 
     let json = ok(frond(&takes).args(["take", "list", "--json"]).output().unwrap());
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let rows = v.as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["a-done", "b-open", "c-torn", "d-corrupt"]);
+    assert_eq!(names, ["a-done", "b-open", "c-torn", "d-damaged", "e-empty", "f-corrupt"]);
     let states: Vec<&str> = rows.iter().map(|r| r["state"].as_str().unwrap()).collect();
-    assert_eq!(states, ["complete", "open", "torn", "corrupt"]);
+    assert_eq!(states, ["complete", "open", "torn", "damaged", "empty", "corrupt"]);
     assert_eq!(rows[0]["frames"], 202);
     assert_eq!(rows[0]["duration_s"].as_f64().unwrap(), 1.0);
     assert_eq!(rows[0]["size_bytes"], done.len() as u64);
     assert_eq!(rows[0]["markers"], 1);
     assert_eq!(rows[0]["rig"], "grass");
     assert_eq!(rows[2]["torn_bytes"], 7);
-    assert!(rows[3]["error"].as_str().unwrap().contains("corrupt record at offset"), "{json}");
+    // One frame record (127 bytes) is lost; the other 201 frames are listed.
+    assert_eq!(rows[3]["frames"], 201);
+    assert_eq!(rows[3]["skipped_bytes"], 127);
+    assert!(rows[3]["damage"].as_str().unwrap().contains("1 frame lost"), "{json}");
+    assert_eq!(rows[4]["frames"], 0);
+    assert!(rows[5]["error"].as_str().unwrap().contains("not a frond take"), "{json}");
 
     let table = ok(frond(&takes).args(["take", "list"]).output().unwrap());
     let line = table.lines().find(|l| l.starts_with("a-done")).unwrap();
     let cols: Vec<&str> = line.split_whitespace().collect();
     assert_eq!(cols[..3], ["a-done", "202", "1.00s"], "{table}");
     assert!(table.contains("torn (7 bytes; `frond take repair c-torn`)"), "{table}");
+    assert!(table.contains("damaged: 1 damaged stretch skipped"), "{table}");
+    assert!(table.contains("`frond take repair d-damaged`"), "{table}");
 }
 
 #[test]
@@ -215,36 +224,71 @@ fn repair_cuts_a_torn_tail_then_the_take_is_complete() {
 
     age(&path);
     let msg = ok(frond(&takes).args(["take", "repair", "gust"]).output().unwrap());
-    assert!(msg.contains("dropped 9 torn bytes, kept 202 frames, closed with an End record"), "{msg}");
+    assert!(
+        msg.contains("dropped 9 torn bytes at the end; kept 202 frames, closed with an End record"),
+        "{msg}"
+    );
     let mut want = open;
     encode_record(&TakeRecord::End { frames: frames.len() as u64 }, &mut want);
     assert_eq!(std::fs::read(&path).unwrap(), want);
     // No temporary files left behind.
     assert_eq!(std::fs::read_dir(&takes).unwrap().count(), 1);
 
-    age(&path);
+    // Right after (the file was just written): a closed take is not "still recording".
     let msg = ok(frond(&takes).args(["take", "repair", "gust"]).output().unwrap());
     assert!(msg.contains("nothing to repair"), "{msg}");
 }
 
 #[test]
-fn corrupt_or_missing_takes_fail_with_their_name() {
+fn damaged_takes_are_read_around_the_damage_and_repaired_without_it() {
     let (_d, takes) = setup();
-    let (mut bytes, _) = build_take("bad", true);
-    bytes[200] ^= 0x55;
+    let (bytes, frames) = build_take("bad", true);
+    // Frame records are 127 bytes after the header: flip a bit in frame 10 (seq 10, a sample).
+    let at = take_start("bad", 200).len() + 127 * 10;
+    let mut damaged = bytes.clone();
+    damaged[at + 60] ^= 0x04;
     let path = takes.join("bad.take");
-    std::fs::write(&path, &bytes).unwrap();
-    age(&path);
-    for cmd in [&["take", "export", "bad", "--jsonl"][..], &["take", "repair", "bad"]] {
-        let out = frond(&takes).args(cmd).output().unwrap();
-        assert_eq!(out.status.code(), Some(1), "{cmd:?}");
-        let err = text(&out.stderr);
-        assert!(
-            err.contains(&path.display().to_string()) && err.contains("corrupt record at offset"),
-            "{err}"
-        );
+    std::fs::write(&path, &damaged).unwrap();
+
+    let out = frond(&takes).args(["take", "export", "bad", "--jsonl"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(err.contains(&format!("127 bytes at offset {at} (checksum mismatch)")), "{err}");
+    assert!(err.contains("1 frame lost"), "{err}");
+    let want: Vec<String> = frames
+        .iter()
+        .filter(|f| f.flags & PoseFlags::HELD.0 == 0 && f.seq != 10)
+        .map(|f| {
+            let mut s = String::new();
+            write_pose_line(&f.pose, None, &mut s);
+            s
+        })
+        .collect();
+    assert_eq!(text(&out.stdout).lines().collect::<Vec<_>>(), want);
+
+    // Freshly written but closed with an End record: repaired at once, saying what it dropped.
+    let msg = ok(frond(&takes).args(["take", "repair", "bad"]).output().unwrap());
+    assert!(
+        msg.contains(&format!(
+            "dropped 127 bytes at offset {at} (checksum mismatch); 1 frame lost; kept 201 frames"
+        )),
+        "{msg}"
+    );
+    let mut repaired = take_start("bad", 200);
+    for f in frames.iter().filter(|f| f.seq != 10) {
+        encode_record(&TakeRecord::Frame(*f), &mut repaired);
     }
-    assert_eq!(std::fs::read(&path).unwrap(), bytes, "a failed repair must not touch the file");
+    encode_record(&TakeRecord::Marker { seq: 40, label: "gust".into() }, &mut repaired);
+    encode_record(&TakeRecord::End { frames: 201 }, &mut repaired);
+    assert_eq!(std::fs::read(&path).unwrap(), repaired);
+    let msg = ok(frond(&takes).args(["take", "repair", "bad"]).output().unwrap());
+    assert!(msg.contains("nothing to repair"), "{msg}");
+
+    std::fs::write(&path, "").unwrap();
+    let out = frond(&takes).args(["take", "repair", "bad"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("empty (0 bytes)"), "{}", text(&out.stderr));
 
     let out = frond(&takes).args(["take", "export", "nope", "--jsonl"]).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
@@ -253,6 +297,7 @@ fn corrupt_or_missing_takes_fail_with_their_name() {
     let out = frond(&takes).args(["take", "export", "../etc/passwd"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
 
+    std::fs::write(&path, &bytes).unwrap();
     let out = frond(&takes).args(["take", "export", "bad", "--fps", "0"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
 
@@ -314,5 +359,77 @@ fn identity_resampling_keeps_every_frame_through_export_and_import() {
             let got = run(args).lines().count();
             assert_eq!(got, n, "{n} frames at {fps} FPS: `frond {}` gives {got}", args.join(" "));
         }
+    }
+}
+
+#[test]
+fn a_gap_in_time_is_a_discontinuity_and_resampling_is_bounded() {
+    let (_d, takes) = setup();
+    // Two frames at t = 0 and t = 1e9 (issue 14, point 7: was 16.7 million lines).
+    let mut bytes = take_start("jump", 30);
+    encode_record(&TakeRecord::Frame(frame(0, 0.0, PoseFlags::FILTERED)), &mut bytes);
+    encode_record(&TakeRecord::Frame(frame(1, 1e9, PoseFlags::FILTERED)), &mut bytes);
+    encode_record(&TakeRecord::End { frames: 2 }, &mut bytes);
+    std::fs::write(takes.join("jump.take"), &bytes).unwrap();
+    let out = frond(&takes).args(["take", "export", "jump", "--fps", "30"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let lines: Vec<PoseFrame> = text(&out.stdout).lines().map(|l| parse_pose_line(l).unwrap()).collect();
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0].joints_deg, frame(0, 0.0, PoseFlags::FILTERED).pose.joints_deg);
+    assert_eq!(lines[1].joints_deg, frame(1, 1e9, PoseFlags::FILTERED).pose.joints_deg);
+    assert!((lines[1].t - 1.0 / 30.0).abs() < 1e-9);
+    let err = text(&out.stderr);
+    assert!(err.contains("1 step in time longer than 1 s") && err.contains("discontinuity"), "{err}");
+
+    // 121 frames a second apart (no discontinuity) at 10000 FPS: 1,200,001 frames, past the
+    // export limit of 1,080,000: refused before anything is resampled, unless --force.
+    let mut bytes = take_start("long", 1);
+    for k in 0..=120u64 {
+        encode_record(&TakeRecord::Frame(frame(k, k as f64, PoseFlags::FILTERED)), &mut bytes);
+    }
+    std::fs::write(takes.join("long.take"), &bytes).unwrap();
+    let out = frond(&takes).args(["take", "export", "long", "--fps", "10000"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(out.stdout.is_empty());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("1200001 frames, more than the limit of 1080000") && err.contains("--force"),
+        "{err}"
+    );
+    let status = frond(&takes)
+        .args(["take", "export", "long", "--fps", "10000", "--force"])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+#[test]
+fn non_finite_values_are_refused_by_frame() {
+    let (_d, takes) = setup();
+    for (bad, name) in [(f32::NAN, "nan"), (f32::INFINITY, "inf")] {
+        let mut bytes = take_start(name, 100);
+        for k in 0..5u64 {
+            let mut f = frame(k, 2.0 + k as f64 / 100.0, PoseFlags::FILTERED);
+            if k == 3 {
+                f.pose.joints_deg[1][0] = bad;
+            }
+            encode_record(&TakeRecord::Frame(f), &mut bytes);
+        }
+        encode_record(&TakeRecord::End { frames: 5 }, &mut bytes);
+        std::fs::write(takes.join(format!("{name}.take")), &bytes).unwrap();
+        let out = frond(&takes).args(["take", "export", name]).output().unwrap();
+        assert_eq!(out.status.code(), Some(1), "{name}: {}", text(&out.stdout));
+        assert!(out.stdout.is_empty());
+        let err = text(&out.stderr);
+        assert!(err.contains("frame 3 (seq 3") && err.contains("pose joint 1"), "{err}");
+        // Repair drops exactly that frame, then the take exports.
+        let msg = ok(frond(&takes).args(["take", "repair", name]).output().unwrap());
+        assert!(
+            msg.contains("frame 3 (seq 3) holds") && msg.contains("1 frame lost; kept 4 frames"),
+            "{msg}"
+        );
+        let lines = ok(frond(&takes).args(["take", "export", name]).output().unwrap());
+        assert_eq!(lines.lines().count(), 4);
     }
 }

@@ -492,7 +492,11 @@ impl ControlContext {
         }
         let frames = match rx.recv_timeout(Duration::from_secs(10)) {
             Ok(Ok(frames)) => frames,
-            Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
+            Ok(Err(e)) => {
+                // The recorder has let the take go (closed, or left for `take repair`): so must we.
+                state.recording = None;
+                return refuse(ControlErrorKind::Internal, e);
+            }
             Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not finish the take"),
         };
         state.recording = None;
@@ -590,6 +594,7 @@ impl ControlContext {
             elements: state.elements.elements.clone(),
             hands,
             problems: state.problems.clone(),
+            recorder_error: self.recorder_counters.fault(),
         }
     }
 }

@@ -44,4 +44,7 @@ pub use mapping::{Mapper, MappingParams, map_pose};
 pub use problems::{Problem, Problems};
 pub use rig::{ElementSpec, GuidedSpec, JointSpec, Rig, RigError};
 pub use sample::{HandSample, JOINTS, PoseFrame};
-pub use take::{TakeError, TakeFrame, TakeHeader, TakeRecord, TakeScan, resample, scan_take};
+pub use take::{
+    ResamplePlan, Skipped, TakeError, TakeFrame, TakeHeader, TakeRecord, TakeScan, TooManyFrames, resample,
+    resample_across_gaps, resample_plan, scan_take, scan_take_salvaging,
+};

@@ -19,9 +19,18 @@
 //!
 //! Reading ([`scan_take`]): a record that is incomplete, or damaged with nothing valid after it,
 //! ends the scan as a torn tail (a crash mid-write, or a writer still appending): not an error,
-//! reported in `torn_bytes`. A damaged record followed by valid-looking data means the middle of
-//! the file is corrupt, and that is an error naming the byte offset, as are a bad magic, an
-//! unknown record kind and records that break the file's structure.
+//! reported in `torn_bytes`. A damaged record followed by valid data (a flipped bit, a torn write
+//! in the middle) is skipped: the reader resynchronises at the next offset where a record's length
+//! and checksum agree, and lists what it skipped in [`TakeScan::skipped`], so every record before
+//! and after the damage is still read. Errors, naming the byte offset, are a bad magic, a
+//! checksummed record of an unknown kind or with a malformed payload, records that break the
+//! file's structure, and a frame holding a non-finite number (NaN or infinite), named by frame
+//! ([`scan_take_salvaging`] skips those frames instead, for repair).
+//!
+//! Time ([`resample`]): a step between two frames of more than [`MAX_INTERPOLATED_GAP_S`], or
+//! backwards, is a discontinuity: the resampled frames jump across it (the frame after the gap
+//! follows one output frame later) instead of interpolating hours of frames. [`resample_plan`]
+//! counts the output before anything is allocated, so callers can refuse past a budget.
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -38,6 +47,9 @@ pub const MAX_RECORD_LEN: u32 = 1 << 20;
 pub const FRAME_PAYLOAD_LEN: usize = 8 + 8 + 8 + 4 + 2 + 8 + 4 * 3 * JOINTS + 8 + 4 * 3 + 4 * 3;
 /// Upper bound on the number of frames [`resample`] produces (about 6 days at 30 FPS).
 pub const MAX_RESAMPLED_FRAMES: usize = 1 << 24;
+/// The longest step between two frames that [`resample`] interpolates across, seconds; a longer
+/// (or backwards) step is a discontinuity.
+pub const MAX_INTERPOLATED_GAP_S: f64 = 1.0;
 
 const KIND_HEADER: u8 = 1;
 const KIND_FRAME: u8 = 2;
@@ -141,6 +153,23 @@ pub enum TakeError {
         kind: &'static str,
         /// What is wrong.
         reason: String,
+    },
+    /// A checksummed frame holding NaN or an infinite value.
+    #[error(
+        "frame {frame} (seq {seq}, record at offset {offset}) holds a non-finite value ({value}) in \
+         {field}; `frond take repair` drops such frames"
+    )]
+    NonFinite {
+        /// Index of the frame among the take's frames, from 0.
+        frame: u64,
+        /// Its sequence number.
+        seq: u64,
+        /// Record offset.
+        offset: u64,
+        /// Which value (`pose.t`, `pose joint 2`, `hand.wrist_deg`, ...).
+        field: &'static str,
+        /// The value, as text (`NaN`, `inf`, `-inf`).
+        value: String,
     },
     /// A record in a place the format does not allow it.
     #[error("misplaced record at offset {offset}: {reason}")]
@@ -380,6 +409,30 @@ pub struct TakeScan {
     pub valid_len: u64,
     /// Bytes after `valid_len` that do not form a whole record (torn or still being written).
     pub torn_bytes: u64,
+    /// Damaged stretches skipped in the middle of the file, in file order (empty for a sound take).
+    pub skipped: Vec<Skipped>,
+    /// The frame count of the End record, when there is one.
+    pub end_frames: Option<u64>,
+}
+
+/// A stretch of a take the reader could not use and skipped.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Skipped {
+    /// Where it starts (byte offset from the start of the file).
+    pub offset: u64,
+    /// Its length in bytes; the next record starts at `offset + len`.
+    pub len: u64,
+    /// Why (`checksum mismatch`, `implausible record length 99999999`, a non-finite value).
+    pub reason: String,
+    /// Frames known to be lost with it: 1 for a non-finite frame dropped by
+    /// [`scan_take_salvaging`], 0 for damaged bytes (whose content cannot be told).
+    pub frames: u64,
+}
+
+impl std::fmt::Display for Skipped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} bytes at offset {} ({})", self.len, self.offset, self.reason)
+    }
 }
 
 impl TakeScan {
@@ -389,9 +442,40 @@ impl TakeScan {
     }
 }
 
-/// Reads a whole take (or the part written so far). See the module docs for what is an error
-/// and what is a torn tail.
+/// Reads a whole take (or the part written so far), skipping damaged records (listed in
+/// [`TakeScan::skipped`]). See the module docs for what is an error and what is a torn tail.
 pub fn scan_take(bytes: &[u8]) -> Result<TakeScan, TakeError> {
+    scan(bytes, false)
+}
+
+/// Like [`scan_take`], but a frame holding a non-finite value is skipped (listed in
+/// [`TakeScan::skipped`] with `frames: 1`) instead of refused: what `take repair` keeps.
+pub fn scan_take_salvaging(bytes: &[u8]) -> Result<TakeScan, TakeError> {
+    scan(bytes, true)
+}
+
+/// The first non-finite value of a frame: which one, and its text.
+fn non_finite(f: &TakeFrame) -> Option<(&'static str, String)> {
+    const JOINT: [&str; JOINTS] = ["pose joint 0", "pose joint 1", "pose joint 2", "pose joint 3"];
+    let bad = |x: f64| (!x.is_finite()).then(|| x.to_string());
+    if let Some(v) = bad(f.pose.t) {
+        return Some(("pose.t", v));
+    }
+    for (name, j) in JOINT.iter().zip(&f.pose.joints_deg) {
+        if let Some(v) = j.iter().find_map(|&x| bad(x as f64)) {
+            return Some((name, v));
+        }
+    }
+    if let Some(v) = bad(f.hand.t) {
+        return Some(("hand.t", v));
+    }
+    if let Some(v) = f.hand.wrist_deg.iter().find_map(|&x| bad(x as f64)) {
+        return Some(("hand.wrist_deg", v));
+    }
+    f.hand.thumb_deg.iter().find_map(|&x| bad(x as f64)).map(|v| ("hand.thumb_deg", v))
+}
+
+fn scan(bytes: &[u8], skip_non_finite: bool) -> Result<TakeScan, TakeError> {
     let mut scan = TakeScan::default();
     let head = &bytes[..bytes.len().min(MAGIC.len())];
     if head != &MAGIC[..head.len()] {
@@ -403,14 +487,20 @@ pub fn scan_take(bytes: &[u8]) -> Result<TakeScan, TakeError> {
     }
     let mut at = MAGIC.len();
     let mut end_at: Option<usize> = None;
+    // Frame records read, skipped non-finite ones included (the index errors name).
+    let mut frame_index = 0u64;
     while at < bytes.len() {
         let (record, next) = match read_record_at(bytes, at)? {
             RecordAt::Record { record, next } => (record, next),
             RecordAt::Invalid { reason } => {
-                if let Some(p) = (at + 1..bytes.len()).find(|&p| looks_valid(bytes, p)) {
-                    return Err(TakeError::Corrupt { offset: at as u64, reason, resumes_at: p as u64 });
-                }
-                break;
+                // Resynchronise: the next offset where a whole record's length and checksum
+                // agree. Nothing valid after it: a torn tail.
+                let Some(p) = (at + 1..bytes.len()).find(|&p| looks_valid(bytes, p)) else {
+                    break;
+                };
+                scan.skipped.push(Skipped { offset: at as u64, len: (p - at) as u64, reason, frames: 0 });
+                at = p;
+                continue;
             }
         };
         let structure = |reason: String| TakeError::Structure { offset: at as u64, reason };
@@ -419,21 +509,49 @@ pub fn scan_take(bytes: &[u8]) -> Result<TakeScan, TakeError> {
         }
         match record {
             TakeRecord::Header(h) => {
-                if at != MAGIC.len() {
+                // The first record read (damage may have come before it).
+                if scan.header.is_some() || frame_index > 0 || !scan.markers.is_empty() {
                     return Err(structure("a Header may only be the first record".to_string()));
                 }
                 scan.header = Some(h);
             }
-            TakeRecord::Frame(f) => scan.frames.push(f),
+            TakeRecord::Frame(f) => {
+                let index = frame_index;
+                frame_index += 1;
+                if let Some((field, value)) = non_finite(&f) {
+                    if !skip_non_finite {
+                        return Err(TakeError::NonFinite {
+                            frame: index,
+                            seq: f.seq,
+                            offset: at as u64,
+                            field,
+                            value,
+                        });
+                    }
+                    scan.skipped.push(Skipped {
+                        offset: at as u64,
+                        len: (next - at) as u64,
+                        reason: format!("frame {index} (seq {}) holds {value} in {field}", f.seq),
+                        frames: 1,
+                    });
+                } else {
+                    scan.frames.push(f);
+                }
+            }
             TakeRecord::Marker { seq, label } => scan.markers.push((seq, label)),
             TakeRecord::End { frames } => {
-                if frames != scan.frames.len() as u64 {
-                    return Err(structure(format!(
-                        "End record says {frames} frames, the take has {}",
-                        scan.frames.len()
-                    )));
+                // Frames in skipped stretches were counted by the writer but not read here.
+                let read = scan.frames.len() as u64;
+                let fits = if scan.skipped.is_empty() {
+                    frames == read
+                } else {
+                    frames >= read + scan.lost_frames()
+                };
+                if !fits {
+                    return Err(structure(format!("End record says {frames} frames, the take has {read}")));
                 }
                 scan.ended = true;
+                scan.end_frames = Some(frames);
                 end_at = Some(at);
             }
         }
@@ -444,37 +562,161 @@ pub fn scan_take(bytes: &[u8]) -> Result<TakeScan, TakeError> {
     Ok(scan)
 }
 
+impl TakeScan {
+    /// Frames known to be lost in skipped stretches (non-finite frames dropped).
+    pub fn lost_frames(&self) -> u64 {
+        self.skipped.iter().map(|s| s.frames).sum()
+    }
+
+    /// Bytes in skipped stretches.
+    pub fn skipped_bytes(&self) -> u64 {
+        self.skipped.iter().map(|s| s.len).sum()
+    }
+
+    /// What was skipped, in words: `3 damaged stretches skipped (381 bytes; the first 127 bytes at
+    /// offset 1016 (checksum mismatch)), 3 frames lost`; `None` for a sound take.
+    pub fn damage(&self) -> Option<String> {
+        let first = self.skipped.first()?;
+        let n = self.skipped.len();
+        let lost = self.missing_frames() + self.lost_frames();
+        // Without an End record the frames in damaged bytes cannot be counted.
+        let lost = if self.ended || lost > 0 {
+            format!(", {lost} frame{} lost", if lost == 1 { "" } else { "s" })
+        } else {
+            String::new()
+        };
+        Some(format!(
+            "{n} damaged stretch{} skipped ({} bytes; {}{first}){lost}",
+            if n == 1 { "" } else { "es" },
+            self.skipped_bytes(),
+            if n == 1 { "" } else { "the first " },
+        ))
+    }
+
+    /// Frames the End record counts that this scan neither read nor skipped as non-finite
+    /// (lost in damaged stretches; 0 without an End record: unknown).
+    pub fn missing_frames(&self) -> u64 {
+        self.end_frames.map_or(0, |n| n.saturating_sub(self.frames.len() as u64 + self.lost_frames()))
+    }
+}
+
+/// What [`resample`] will produce, counted without allocating.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ResamplePlan {
+    /// Output frames (not capped at [`MAX_RESAMPLED_FRAMES`]; saturating).
+    pub frames: u64,
+    /// Output duration, seconds, discontinuities collapsed.
+    pub duration_s: f64,
+    /// Steps treated as discontinuities (longer than [`MAX_INTERPOLATED_GAP_S`], or backwards).
+    pub discontinuities: u64,
+    /// Index of the input frame after the first discontinuity.
+    pub first_discontinuity: Option<usize>,
+    /// The largest forward step between two input frames, seconds.
+    pub largest_gap_s: f64,
+}
+
+/// A resampling budget that was exceeded.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("resampling at {fps} FPS gives {frames} frames, more than the limit of {limit}")]
+pub struct TooManyFrames {
+    /// Frames the resampling would give.
+    pub frames: u64,
+    /// The rate asked for.
+    pub fps: f64,
+    /// The limit.
+    pub limit: u64,
+}
+
+impl ResamplePlan {
+    /// `Err` when the output would be more than `limit` frames.
+    pub fn check(&self, fps: f64, limit: u64) -> Result<(), TooManyFrames> {
+        if self.frames > limit { Err(TooManyFrames { frames: self.frames, fps, limit }) } else { Ok(()) }
+    }
+}
+
+/// The step between two input times that [`resample`] uses: the real one, or one output frame
+/// (`1 / fps`) across a discontinuity. 0 for a repeated time.
+fn effective_step(prev: f64, t: f64, fps: f64, max_gap_s: f64) -> (f64, bool) {
+    let dt = t - prev;
+    if dt.is_finite() && (0.0..=max_gap_s).contains(&dt) { (dt, false) } else { (1.0 / fps, true) }
+}
+
+/// Counts what [`resample`] of `frames` at `fps` gives, before anything is allocated.
+pub fn resample_plan(frames: &[PoseFrame], fps: f64) -> ResamplePlan {
+    let mut plan = ResamplePlan::default();
+    if frames.is_empty() || !(fps.is_finite() && fps > 0.0) {
+        return plan;
+    }
+    for (i, w) in frames.windows(2).enumerate() {
+        let dt = w[1].t - w[0].t;
+        if dt.is_finite() && dt > plan.largest_gap_s {
+            plan.largest_gap_s = dt;
+        }
+        let (step, jump) = effective_step(w[0].t, w[1].t, fps, MAX_INTERPOLATED_GAP_S);
+        plan.duration_s += step;
+        if jump {
+            plan.discontinuities += 1;
+            plan.first_discontinuity.get_or_insert(i + 1);
+        }
+    }
+    let last = (plan.duration_s * fps + crate::clip::FRAME_TOLERANCE).floor();
+    plan.frames = if plan.duration_s > 0.0 && last.is_finite() {
+        if last >= u64::MAX as f64 { u64::MAX } else { last as u64 + 1 }
+    } else {
+        1
+    };
+    plan
+}
+
 /// Resamples poses at a fixed rate by linear interpolation of every angle.
 ///
 /// Output frame `k` has `t = k / fps`, relative to the first input frame, for every
 /// `k / fps <= duration` up to a twentieth of a frame (the one rule of
 /// [`crate::clip::frame_count`]), so the take's whole duration is covered, the output starts at
 /// 0, and `n` frames at `fps` with rounded time stamps resample to `n` frames.
-/// Input times must be non-decreasing (as recorded); a frame whose time is not after the
-/// previous one is skipped. Empty input gives empty output; one frame gives one frame at `t = 0`;
-/// a non-positive or non-finite `fps` gives empty output. At most [`MAX_RESAMPLED_FRAMES`].
+/// A frame whose time repeats the previous one replaces it. A step of more than
+/// [`MAX_INTERPOLATED_GAP_S`], or backwards (a tracker that restarted), is a discontinuity: the
+/// output jumps from the frame before it to the frame after it in one output frame, so a gap
+/// of hours costs one frame, not hours of interpolated ones. Empty input gives empty output; one
+/// frame gives one frame at `t = 0`; a non-positive or non-finite `fps` gives empty output. At
+/// most [`MAX_RESAMPLED_FRAMES`] (see [`resample_plan`] to refuse before that).
 pub fn resample(frames: &[PoseFrame], fps: f64) -> Vec<PoseFrame> {
-    let Some(first) = frames.first() else {
-        return Vec::new();
-    };
-    if !(fps.is_finite() && fps > 0.0) {
+    resample_with_gap(frames, fps, MAX_INTERPOLATED_GAP_S)
+}
+
+/// [`resample`] interpolating across every forward gap, however long: for callers that have
+/// already collapsed discontinuities on a time line several layers share (a layer that starts
+/// late holds its first pose until then). Backwards steps are still discontinuities. The
+/// caller bounds the output (`frame_count` of the span) before calling.
+pub fn resample_across_gaps(frames: &[PoseFrame], fps: f64) -> Vec<PoseFrame> {
+    resample_with_gap(frames, fps, f64::INFINITY)
+}
+
+fn resample_with_gap(frames: &[PoseFrame], fps: f64, max_gap_s: f64) -> Vec<PoseFrame> {
+    if frames.is_empty() || !(fps.is_finite() && fps > 0.0) {
         return Vec::new();
     }
-    let t0 = first.t;
-    let duration = frames.last().map_or(0.0, |l| l.t - t0);
+    // Each input frame's time on the output's time line (discontinuities collapsed).
+    let mut te = Vec::with_capacity(frames.len());
+    te.push(0.0);
+    for w in frames.windows(2) {
+        let prev = te[te.len() - 1];
+        te.push(prev + effective_step(w[0].t, w[1].t, fps, max_gap_s).0);
+    }
+    let duration = te[te.len() - 1];
     let count = crate::clip::frame_count(duration, fps);
     let mut out = Vec::with_capacity(count);
     let mut j = 0; // frames[j] is the last frame at or before the target time
     for k in 0..count {
         let t = k as f64 / fps;
-        while j + 1 < frames.len() && frames[j + 1].t - t0 <= t {
+        while j + 1 < frames.len() && te[j + 1] <= t {
             j += 1;
         }
         let a = &frames[j];
         let mut joints_deg = a.joints_deg;
-        if let Some(b) = frames[j + 1..].iter().find(|b| b.t > a.t) {
-            let u = ((t - (a.t - t0)) / (b.t - a.t)).clamp(0.0, 1.0);
-            for (o, (pa, pb)) in joints_deg.iter_mut().zip(a.joints_deg.iter().zip(&b.joints_deg)) {
+        if let Some(b) = (j + 1..frames.len()).find(|&b| te[b] > te[j]) {
+            let u = ((t - te[j]) / (te[b] - te[j])).clamp(0.0, 1.0);
+            for (o, (pa, pb)) in joints_deg.iter_mut().zip(a.joints_deg.iter().zip(&frames[b].joints_deg)) {
                 for c in 0..3 {
                     let (x, y) = (pa[c] as f64, pb[c] as f64);
                     o[c] = (x + u * (y - x)) as f32;
@@ -583,5 +825,48 @@ mod tests {
         for (a, b) in v.iter().zip([1.0, 1.5, 3.0, 3.5, 4.0]) {
             assert!((a - b).abs() < 1e-6, "{v:?}");
         }
+    }
+
+    #[test]
+    fn a_gap_in_time_is_a_discontinuity_not_interpolated_frames() {
+        // Two frames at t = 0 and t = 1e9 (a tracker clock that jumped): at 30 FPS they are two
+        // frames, the second one output frame after the first, each exactly an input pose.
+        let frames = [pose(0.0, 1.0), pose(1e9, 5.0)];
+        let plan = resample_plan(&frames, 30.0);
+        assert_eq!(plan.frames, 2);
+        assert_eq!(plan.discontinuities, 1);
+        assert_eq!(plan.first_discontinuity, Some(1));
+        assert_eq!(plan.largest_gap_s, 1e9);
+        let out = resample(&frames, 30.0);
+        assert_eq!(out, vec![pose(0.0, 1.0), pose(1.0 / 30.0, 5.0)]);
+        // Backwards (a restarted clock) too; steps up to the limit are interpolated as before.
+        let back = [pose(100.0, 1.0), pose(100.5, 2.0), pose(3.0, 7.0), pose(3.5, 9.0)];
+        let plan = resample_plan(&back, 10.0);
+        assert_eq!((plan.discontinuities, plan.first_discontinuity), (1, Some(2)));
+        // 0.5 s + one frame (0.1 s) + 0.5 s = 1.1 s at 10 FPS: 12 frames.
+        assert_eq!(plan.frames, 12);
+        let out = resample(&back, 10.0);
+        assert_eq!(out.len(), 12);
+        let v: Vec<f32> = out.iter().map(|p| p.joints_deg[0][0]).collect();
+        assert!((v[5] - 2.0).abs() < 1e-6 && (v[6] - 7.0).abs() < 1e-6, "{v:?}");
+        assert!((v[11] - 9.0).abs() < 1e-6, "{v:?}");
+        let exactly = [pose(0.0, 0.0), pose(MAX_INTERPOLATED_GAP_S, 10.0)];
+        assert_eq!(resample_plan(&exactly, 10.0).discontinuities, 0);
+        assert_eq!(resample(&exactly, 10.0).len(), 11);
+    }
+
+    #[test]
+    fn the_plan_counts_before_allocating_and_checks_a_budget() {
+        // 0..3600 s in steps of 1 s at 1000 FPS: 3.6 million frames and a bit.
+        let frames: Vec<PoseFrame> = (0..=3600).map(|i| pose(i as f64, 0.0)).collect();
+        let plan = resample_plan(&frames, 1000.0);
+        assert_eq!(plan.frames, 3_600_001);
+        assert_eq!(plan.discontinuities, 0);
+        let err = plan.check(1000.0, 1_000_000).unwrap_err();
+        assert_eq!(err, TooManyFrames { frames: 3_600_001, fps: 1000.0, limit: 1_000_000 });
+        assert!(err.to_string().contains("limit of 1000000"), "{err}");
+        assert!(plan.check(1000.0, 3_600_001).is_ok());
+        assert_eq!(resample_plan(&[], 30.0).frames, 0);
+        assert_eq!(resample_plan(&frames[..1], 30.0).frames, 1);
     }
 }

@@ -2,8 +2,8 @@
 //! every prefix of valid files.
 
 use frond_motion::take::{
-    MAGIC, RECORD_HEAD_LEN, TakeError, TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record,
-    scan_take,
+    MAGIC, RECORD_HEAD_LEN, Skipped, TakeError, TakeFrame, TakeHeader, TakeRecord, encode_file_start,
+    encode_record, scan_take, scan_take_salvaging,
 };
 use frond_motion::{HandSample, PoseFrame};
 use proptest::prelude::*;
@@ -123,27 +123,76 @@ fn damaged_last_record_is_a_torn_tail() {
 }
 
 #[test]
-fn corruption_in_the_middle_names_the_offset() {
+fn damage_in_the_middle_is_skipped_and_reported() {
     let (mut bytes, ends) = encode(&sample_records(6, true));
     // Records: header, f0, f1, f2, marker, f3, f4, f5, end. Damage f1's payload.
     let f1_start = ends[1];
     bytes[f1_start + RECORD_HEAD_LEN + 20] ^= 0x01;
-    let err = scan_take(&bytes).unwrap_err();
+    let scan = scan_take(&bytes).unwrap();
+    let seqs: Vec<u64> = scan.frames.iter().map(|f| f.seq).collect();
+    assert_eq!(seqs, [0, 2, 3, 4, 5]);
     assert_eq!(
-        err,
-        TakeError::Corrupt {
+        scan.skipped,
+        [Skipped {
             offset: f1_start as u64,
+            len: (ends[2] - ends[1]) as u64,
             reason: "checksum mismatch".into(),
-            resumes_at: ends[2] as u64,
-        }
+            frames: 0
+        }]
     );
-    assert!(err.to_string().contains(&format!("offset {f1_start}")), "{err}");
+    assert!(scan.ended && scan.header.is_some());
+    assert_eq!(scan.markers.len(), 1);
+    assert_eq!((scan.end_frames, scan.missing_frames()), (Some(6), 1));
+    assert_eq!(
+        scan.damage().unwrap(),
+        format!(
+            "1 damaged stretch skipped (127 bytes; 127 bytes at offset {f1_start} (checksum mismatch)), 1 frame lost"
+        )
+    );
+    assert_eq!(scan.valid_len, bytes.len() as u64);
 
-    // A damaged length field is caught too.
+    // A damaged length field is caught too, and the reader resumes at the next record.
     let (mut bytes, ends) = encode(&sample_records(6, true));
     bytes[ends[3] + 3] = 0x7f;
-    let err = scan_take(&bytes).unwrap_err();
-    assert!(matches!(err, TakeError::Corrupt { offset, .. } if offset == ends[3] as u64), "{err}");
+    let scan = scan_take(&bytes).unwrap();
+    assert_eq!(scan.skipped.len(), 1, "{:?}", scan.skipped);
+    assert_eq!(scan.skipped[0].offset, ends[3] as u64);
+    assert_eq!(scan.skipped[0].offset + scan.skipped[0].len, ends[4] as u64);
+    assert!(scan.skipped[0].reason.contains("implausible record length"), "{:?}", scan.skipped);
+    assert!(scan.markers.is_empty(), "the marker was the damaged record");
+    assert_eq!(scan.frames.len(), 6);
+}
+
+#[test]
+fn non_finite_frames_are_refused_by_frame_and_skipped_when_salvaging() {
+    for (bad, field, value) in [
+        (f32::NAN, "pose joint 2", "NaN"),
+        (f32::INFINITY, "pose joint 2", "inf"),
+        (f32::NEG_INFINITY, "pose joint 2", "-inf"),
+    ] {
+        let mut records = sample_records(4, true);
+        // Records: header, f0, f1, f2, marker, f3, end: frame 3 is records[5].
+        let TakeRecord::Frame(f) = &mut records[5] else { panic!() };
+        f.pose.joints_deg[2][1] = bad;
+        let (bytes, ends) = encode(&records);
+        let err = scan_take(&bytes).unwrap_err();
+        assert_eq!(
+            err,
+            TakeError::NonFinite { frame: 3, seq: 3, offset: ends[4] as u64, field, value: value.into() }
+        );
+        assert!(err.to_string().starts_with("frame 3 (seq 3"), "{err}");
+        let scan = scan_take_salvaging(&bytes).unwrap();
+        assert_eq!(scan.frames.iter().map(|f| f.seq).collect::<Vec<_>>(), [0, 1, 2]);
+        assert_eq!(scan.skipped.len(), 1);
+        assert_eq!((scan.skipped[0].offset, scan.skipped[0].frames), (ends[4] as u64, 1));
+        assert!(scan.ended);
+    }
+    // The hand sample and the times are checked too.
+    let mut records = sample_records(1, false);
+    let TakeRecord::Frame(f) = &mut records[1] else { panic!() };
+    f.hand.t = f64::INFINITY;
+    let err = scan_take(&encode(&records).0).unwrap_err().to_string();
+    assert!(err.contains("frame 0 (seq 0") && err.contains("hand.t"), "{err}");
 }
 
 #[test]
@@ -220,9 +269,9 @@ fn arb_frame() -> impl Strategy<Value = TakeFrame> {
         any::<u64>(),
         any::<u32>(),
         any::<u16>(),
-        any::<[f32; 12]>(),
-        any::<[f32; 6]>(),
-        any::<f64>(),
+        prop::array::uniform12(-1e30f32..1e30),
+        prop::array::uniform6(-1e30f32..1e30),
+        -1e12f64..1e12,
     )
         .prop_map(|(seq, dev, host, flags, element, j, h, t)| TakeFrame {
             seq,
@@ -327,16 +376,57 @@ proptest! {
     }
 
     #[test]
-    fn flipped_bytes_never_panic(records in arb_records(), at in any::<prop::sample::Index>(), bit in 0u8..8) {
-        let (mut bytes, _) = encode(&records);
+    fn a_flipped_bit_costs_at_most_the_record_it_hits(
+        records in arb_records(), at in any::<prop::sample::Index>(), bit in 0u8..8,
+    ) {
+        let (mut bytes, ends) = encode(&records);
         let i = at.index(bytes.len());
         bytes[i] ^= 1 << bit;
-        if let Ok(scan) = scan_take(&bytes) {
-            // Whatever is accepted is a prefix of the original frames (a flip can only shorten).
-            let all = frames_of(&records);
-            let got: Vec<Vec<u8>> = scan.frames.iter().map(frame_bits).collect();
-            prop_assert!(got.len() <= all.len());
-            prop_assert_eq!(&got[..], &all[..got.len()]);
+        if i < MAGIC.len() {
+            let bad_magic = matches!(scan_take(&bytes), Err(TakeError::BadMagic { .. }));
+            prop_assert!(bad_magic);
+            return Ok(());
         }
+        // The record the flip landed in (CRC-32 catches every single-bit error).
+        let hit = ends.iter().position(|&e| i < e).unwrap();
+        let scan = scan_take(&bytes).unwrap();
+        let mut want = records.clone();
+        want.remove(hit);
+        prop_assert_eq!(scan.frames.iter().map(frame_bits).collect::<Vec<_>>(), frames_of(&want));
+        let start = if hit == 0 { MAGIC.len() } else { ends[hit - 1] };
+        if hit + 1 == records.len() {
+            // The last record: a torn tail, nothing after it to resynchronise on.
+            prop_assert!(scan.skipped.is_empty());
+            prop_assert_eq!(scan.valid_len, start as u64);
+        } else {
+            prop_assert_eq!(scan.skipped.len(), 1);
+            prop_assert_eq!(scan.skipped[0].offset, start as u64);
+            prop_assert_eq!(scan.skipped[0].len, (ends[hit] - start) as u64);
+            prop_assert_eq!(scan.valid_len, bytes.len() as u64);
+        }
+    }
+
+    #[test]
+    fn the_reader_resynchronises_after_garbage(
+        records in arb_records(),
+        at in any::<prop::sample::Index>(),
+        garbage in prop::collection::vec(any::<u8>(), 1..300),
+    ) {
+        // Garbage inserted between two records (a torn write in the middle, a stray block):
+        // every record is still read and the garbage is reported exactly.
+        let (bytes, ends) = encode(&records);
+        // Before any record but the last (the header included).
+        let starts: Vec<usize> = std::iter::once(MAGIC.len()).chain(ends[..ends.len() - 1].iter().copied()).collect();
+        let cut = starts[at.index(starts.len())];
+        let mut damaged = bytes[..cut].to_vec();
+        damaged.extend_from_slice(&garbage);
+        damaged.extend_from_slice(&bytes[cut..]);
+        let scan = scan_take(&damaged).unwrap();
+        prop_assert_eq!(scan.frames.iter().map(frame_bits).collect::<Vec<_>>(), frames_of(&records));
+        prop_assert!(scan.header.is_some());
+        // Garbage could only pass for a whole record by a 2^-32 checksum accident.
+        prop_assert_eq!(scan.skipped.len(), 1);
+        prop_assert_eq!(scan.skipped[0].offset, cut as u64);
+        prop_assert_eq!(scan.skipped_bytes(), garbage.len() as u64);
     }
 }

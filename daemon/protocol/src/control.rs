@@ -286,6 +286,9 @@ pub struct StatusReport {
     /// What is wrong now and needs the operator, one line each (empty when all is well).
     #[serde(default)]
     pub problems: Vec<String>,
+    /// The current take's write fault (path, error, frames kept and lost), until `record stop`.
+    #[serde(default)]
+    pub recorder_error: Option<String>,
 }
 
 /// One hand source: where it reads, what it drives, and its own counters and history.

@@ -2,7 +2,8 @@
 //! of the rig), resampled to a fixed rate on one shared time base starting at 0, and joint
 //! rotations as unit quaternions on a consistent hemisphere.
 
-use frond_motion::{JOINTS, PoseFrame, TakeFrame, resample};
+use frond_motion::take::MAX_INTERPOLATED_GAP_S;
+use frond_motion::{JOINTS, PoseFrame, TakeFrame, resample_across_gaps};
 use frond_protocol::PoseFlags;
 use frond_protocol::convention::joint_quat;
 
@@ -36,8 +37,10 @@ impl Layers {
     /// Resamples a take's frames to `fps`. Held frames (no new device report: the daemon
     /// repeats the last pose) are skipped, as `frond take export` does. Every layer shares the
     /// take's time base: time 0 is the first kept frame of any layer, and each layer holds its
-    /// first pose before it starts and its last after it ends. `None` when no element-0 frame
-    /// remains.
+    /// first pose before it starts and its last after it ends. A step in the shared time base
+    /// longer than `MAX_INTERPOLATED_GAP_S` is a discontinuity (one key, not hours of
+    /// interpolated ones), as in `frond_motion::resample`. `None` when no element-0 frame remains.
+    /// [`Layers::plan`] counts the keys first.
     pub fn from_frames(frames: &[TakeFrame], fps: f64) -> Option<Layers> {
         let kept = || {
             frames.iter().filter(|f| !PoseFlags(f.flags).contains(PoseFlags::HELD) && f.pose.t.is_finite())
@@ -45,8 +48,8 @@ impl Layers {
         if !kept().any(|f| f.element == 0) {
             return None;
         }
-        let t0 = kept().map(|f| f.pose.t).fold(f64::INFINITY, f64::min);
-        let t_end = kept().map(|f| f.pose.t).fold(f64::NEG_INFINITY, f64::max);
+        let timeline = TimeLine::new(kept().map(|f| f.pose.t), fps);
+        let t_end = timeline.end();
         let mut ids: Vec<u16> = kept().map(|f| f.element).collect();
         ids.sort_unstable();
         ids.dedup();
@@ -56,25 +59,37 @@ impl Layers {
             let mut poses: Vec<PoseFrame> = Vec::new();
             for f in kept().filter(|f| f.element == id) {
                 // Out-of-order frames (never from the recorder) would confuse the resampler.
-                if poses.last().is_none_or(|p| f.pose.t >= p.t) {
-                    poses.push(f.pose);
+                let t = timeline.map(f.pose.t);
+                if poses.last().is_none_or(|p| t >= p.t) {
+                    poses.push(PoseFrame { t, ..f.pose });
                 }
             }
             let first = poses[0];
             let last = poses[poses.len() - 1];
-            if first.t > t0 {
-                poses.insert(0, PoseFrame { t: t0, ..first });
+            if first.t > 0.0 {
+                poses.insert(0, PoseFrame { t: 0.0, ..first });
             }
             if last.t < t_end {
                 poses.push(PoseFrame { t: t_end, ..last });
             }
-            let resampled = resample(&poses, fps);
+            let resampled = resample_across_gaps(&poses, fps);
             if times_s.is_empty() {
                 times_s = resampled.iter().map(|p| p.t).collect();
             }
             layers.push(Layer { element: id, poses: resampled.iter().map(|p| p.joints_deg).collect() });
         }
         Some(Layers { fps, times_s, layers })
+    }
+
+    /// Keys [`Layers::from_frames`] would make and the time discontinuities it would collapse,
+    /// counted without allocating the keys.
+    pub fn plan(frames: &[TakeFrame], fps: f64) -> (u64, u64) {
+        let kept =
+            frames.iter().filter(|f| !PoseFlags(f.flags).contains(PoseFlags::HELD) && f.pose.t.is_finite());
+        let timeline = TimeLine::new(kept.map(|f| f.pose.t), fps);
+        let keys = (timeline.end() * fps + frond_motion::clip::FRAME_TOLERANCE).floor();
+        let keys = if keys.is_finite() && keys < u64::MAX as f64 { keys as u64 + 1 } else { u64::MAX };
+        (keys, timeline.discontinuities)
     }
 
     /// The plant's own layer (element 0).
@@ -128,6 +143,56 @@ pub fn check_fps(fps: f64) -> Result<f64, String> {
     }
 }
 
+/// The take's times on the bake's time line: from 0 at the first kept frame, with every step
+/// between two successive distinct times longer than `MAX_INTERPOLATED_GAP_S` shortened to one
+/// key (`1 / fps`).
+struct TimeLine {
+    /// Distinct input times, ascending.
+    times: Vec<f64>,
+    /// Their times on the bake's time line.
+    mapped: Vec<f64>,
+    discontinuities: u64,
+}
+
+impl TimeLine {
+    fn new(times: impl Iterator<Item = f64>, fps: f64) -> TimeLine {
+        let mut times: Vec<f64> = times.collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let mut mapped = Vec::with_capacity(times.len());
+        let mut discontinuities = 0;
+        for (i, &t) in times.iter().enumerate() {
+            let m = match i {
+                0 => 0.0,
+                _ => {
+                    let dt = t - times[i - 1];
+                    let step = if dt <= MAX_INTERPOLATED_GAP_S {
+                        dt
+                    } else {
+                        discontinuities += 1;
+                        1.0 / fps
+                    };
+                    mapped[i - 1] + step
+                }
+            };
+            mapped.push(m);
+        }
+        TimeLine { times, mapped, discontinuities }
+    }
+
+    /// The time line's time of input time `t` (one of the times it was built from).
+    fn map(&self, t: f64) -> f64 {
+        match self.times.binary_search_by(|x| x.total_cmp(&t)) {
+            Ok(i) => self.mapped[i],
+            Err(i) => self.mapped.get(i.saturating_sub(1)).copied().unwrap_or(0.0),
+        }
+    }
+
+    fn end(&self) -> f64 {
+        self.mapped.last().copied().unwrap_or(0.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,6 +222,32 @@ mod tests {
         assert_eq!(pitch(&l.layers[0]), [0.0, 2.5, 5.0, 7.5, 10.0]);
         // Held before its start and after its end.
         assert_eq!(pitch(&l.layers[1]), [100.0, 100.0, 100.0, 200.0, 200.0]);
+    }
+
+    #[test]
+    fn a_gap_in_time_is_one_key_and_late_layers_stay_aligned() {
+        // Two frames at t = 0 and t = 1e9: two keys, not 30 billion.
+        let frames = [frame(0, 0.0, 1.0, 0), frame(0, 1e9, 5.0, 0)];
+        assert_eq!(Layers::plan(&frames, 30.0), (2, 1));
+        let l = Layers::from_frames(&frames, 30.0).unwrap();
+        assert_eq!(l.times_s, [0.0, 1.0 / 30.0]);
+        assert_eq!(l.main().poses.iter().map(|p| p[0][0]).collect::<Vec<_>>(), [1.0, 5.0]);
+        // Main every 0.5 s over 0 .. 3 s, then a 1000 s gap, then 3 s more; a leaf only from
+        // 2 s: the leaf holds its first pose until 2 s on the shared time line, and the gap
+        // costs one key (at 2 FPS, 0.5 s) in both layers.
+        let mut frames: Vec<TakeFrame> = (0..=6).map(|i| frame(0, i as f64 * 0.5, i as f32, 0)).collect();
+        frames.push(frame(1, 2.0, 50.0, 0));
+        frames.push(frame(1, 2.5, 60.0, 0));
+        frames.extend((0..=6).map(|i| frame(0, 1003.0 + i as f64 * 0.5, 10.0 + i as f32, 0)));
+        assert_eq!(Layers::plan(&frames, 2.0), (14, 1));
+        let l = Layers::from_frames(&frames, 2.0).unwrap();
+        assert_eq!(l.times_s.len(), 14);
+        let pitch = |layer: &Layer| layer.poses.iter().map(|p| p[0][0]).collect::<Vec<_>>();
+        let main: Vec<f32> = (0..=6).map(|i| i as f32).chain((0..=6).map(|i| 10.0 + i as f32)).collect();
+        assert_eq!(pitch(&l.layers[0]), main);
+        let mut leaf = vec![50.0; 5];
+        leaf.extend([60.0; 9]);
+        assert_eq!(pitch(&l.layers[1]), leaf);
     }
 
     #[test]

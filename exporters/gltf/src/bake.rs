@@ -23,13 +23,18 @@ pub struct BakeOptions {
     pub fps: f64,
     /// Seed of the random assignment of secondary layers to similar element instances.
     pub seed: u64,
+    /// Bake past [`MAX_BAKE_KEYS`] (never past `frond_motion::take::MAX_RESAMPLED_FRAMES`).
+    pub force: bool,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { fps: 30.0, seed: 0 }
+        BakeOptions { fps: 30.0, seed: 0, force: false }
     }
 }
+
+/// Keys a take bake may have without `--force` (10 hours at 30 FPS, as `frond take export`).
+pub const MAX_BAKE_KEYS: u64 = 1_080_000;
 
 /// Counts describing a bake.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -93,9 +98,26 @@ impl Baker {
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
         let fps = check_fps(opts.fps).map_err(|reason| BakeError::Option { option: "--fps", reason })?;
+        // The budget is checked before any key is allocated.
+        let (keys, discontinuities) = Layers::plan(&take.frames, fps);
+        let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
+        let limit = if opts.force { hard } else { MAX_BAKE_KEYS };
+        if keys > limit {
+            let hint = if opts.force { " (the hard limit)" } else { "; pass --force to go past it" };
+            return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
+        }
         let layers = Layers::from_frames(&take.frames, fps)
             .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
         let mut notes = take_notes(rig, take);
+        if discontinuities > 0 {
+            notes.push(format!(
+                "take `{}` has {discontinuities} step{} in time longer than {} s: each is one key, \
+                 not interpolated",
+                take.name,
+                if discontinuities == 1 { "" } else { "s" },
+                frond_motion::take::MAX_INTERPOLATED_GAP_S
+            ));
+        }
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
         let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
         let assignment = assign(rig, take, &layers, opts.seed, &assets, &mut notes);
@@ -290,6 +312,9 @@ fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
             "take `{}` was recorded with rig `{}`; baking it on rig `{}`",
             take.name, h.rig_name, rig.rig.name
         ));
+    }
+    if let Some(damage) = &take.damage {
+        notes.push(format!("take `{}` is damaged: {damage}; baked the readable frames", take.name));
     }
     if take.torn_bytes > 0 {
         notes.push(format!(

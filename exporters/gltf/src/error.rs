@@ -39,6 +39,20 @@ pub enum BakeError {
         /// What the take reader found.
         source: frond_motion::TakeError,
     },
+    /// The bake would have more keys than the limit.
+    #[error("take `{name}` at {fps} FPS would be {keys} keys, more than the limit of {limit}{hint}")]
+    TooManyKeys {
+        /// Take name.
+        name: String,
+        /// Keys the bake would have.
+        keys: u64,
+        /// Key rate.
+        fps: f64,
+        /// The limit in force.
+        limit: u64,
+        /// What to do about it (`; pass --force to go past it`, or that it is the hard limit).
+        hint: &'static str,
+    },
     /// The take holds no usable frames of the main skeleton.
     #[error("take `{name}` has no frames of the main skeleton (element 0) to bake")]
     TakeEmpty {

@@ -87,6 +87,8 @@ pub struct TakeInput {
     pub torn_bytes: u64,
     /// True when the take has its End record.
     pub ended: bool,
+    /// What the reader skipped in a damaged take, in words (`None` when sound).
+    pub damage: Option<String>,
 }
 
 impl TakeInput {
@@ -95,6 +97,7 @@ impl TakeInput {
     pub fn from_bytes(bytes: &[u8], name: &str, origin: &str) -> Result<Self, BakeError> {
         let scan = scan_take(bytes)
             .map_err(|source| BakeError::TakeDamaged { origin: origin.to_string(), source })?;
+        let damage = scan.damage();
         let name = scan
             .header
             .as_ref()
@@ -108,6 +111,7 @@ impl TakeInput {
             frames: scan.frames,
             torn_bytes: scan.torn_bytes,
             ended: scan.ended,
+            damage,
         })
     }
 

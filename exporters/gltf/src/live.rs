@@ -117,6 +117,7 @@ impl LiveCapture {
             frames: self.frames,
             torn_bytes: 0,
             ended: true,
+            damage: None,
         }
     }
 }

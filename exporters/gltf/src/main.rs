@@ -52,6 +52,9 @@ struct Common {
     /// No progress bar and no summary (errors are still printed).
     #[arg(short, long)]
     quiet: bool,
+    /// Bake a take past 1,080,000 keys (never past 16,777,216).
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -107,7 +110,7 @@ fn options(c: &Common) -> anyhow::Result<(BakeOptions, Format)> {
         bail!("--fps {reason}");
     }
     let format = if c.gltf { Format::Gltf } else { Format::Glb };
-    Ok((BakeOptions { fps: c.fps, seed: c.seed }, format))
+    Ok((BakeOptions { fps: c.fps, seed: c.seed, force: c.force }, format))
 }
 
 fn progress_bar(quiet: bool) -> ProgressBar {

@@ -82,13 +82,16 @@ fn damaged_and_empty_takes() {
     let out = keep.join("out.glb");
     let o = out.to_str().unwrap();
 
-    // A flipped byte in the middle: corrupt, with valid records after it.
+    // A flipped byte in the middle: the reader skips the damaged record and the rest is baked,
+    // with a note saying what was skipped.
     let mid = bytes.len() / 2;
     bytes[mid] ^= 0xff;
     let bad = dir.path().join("corrupt.take");
     std::fs::write(&bad, &bytes).unwrap();
-    let e = fails(&keep, &["bake", "--take", bad.to_str().unwrap(), "--rig", "grass", "-o", o]);
-    assert!(e.contains("corrupt.take is damaged: corrupt record at offset"), "{e}");
+    let stderr = run_ok(&["bake", "--take", bad.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(stderr.contains("take `good` is damaged: 1 damaged stretch skipped"), "{stderr}");
+    assert!(stderr.contains("1 frame lost; baked the readable frames"), "{stderr}");
+    std::fs::remove_file(&out).unwrap();
 
     // Not a take at all.
     let junk = dir.path().join("junk.take");
@@ -209,4 +212,31 @@ fn bad_options_and_fields() {
     assert_eq!(out.status.code(), Some(2));
     let out = run(&["bake", "--take", t, "--rig", "grass", "--duration", "3", "-o", o]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn time_gaps_are_discontinuities_and_the_key_budget_is_checked_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let keep = dir.path().join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    let out = keep.join("out.glb");
+    let o = out.to_str().unwrap();
+    // Two frames at t = 0 and t = 1e9 (issue 14, point 7: was a 1.1 GB GLB): two keys.
+    let mut two = frames(0, 0.0, 0.0, 30.0, 0.0);
+    two.extend(frames(0, 1e9, 0.0, 30.0, 0.5));
+    assert_eq!(two.len(), 2);
+    let take = write_take(dir.path(), "jump", "grass", two, &[]);
+    let stderr = run_ok(&["bake", "--take", take.to_str().unwrap(), "--rig", "grass", "-o", o]);
+    assert!(stderr.contains("1 step in time longer than 1 s: each is one key"), "{stderr}");
+    assert!(stderr.contains("x 2 keys"), "{stderr}");
+    let size = std::fs::metadata(&out).unwrap().len();
+    assert!(size < 1 << 20, "a two-key bake is {size} bytes");
+    std::fs::remove_file(&out).unwrap();
+
+    // One frame a second for 1081 s at 1000 FPS: 1,081,001 keys, past the 1,080,000 limit.
+    let long = frames(0, 0.0, 1081.0, 1.0, 0.0);
+    let take = write_take(dir.path(), "long", "grass", long, &[]);
+    let t = take.to_str().unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--fps", "1000", "-o", o]);
+    assert!(e.contains("1081001 keys, more than the limit of 1080000; pass --force"), "{e}");
 }
