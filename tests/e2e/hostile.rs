@@ -173,3 +173,30 @@ fn clients_that_trickle_a_request_cannot_lock_out_a_17th() {
         }
     }
 }
+
+#[test]
+fn a_client_cannot_flood_the_log_with_refusals_or_quote_a_huge_name_into_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("frondd.log");
+    let daemon = Daemon::start_with_stderr(
+        dir.path(),
+        &["--source", "in-process"],
+        std::fs::File::create(&log).unwrap().into(),
+    );
+    let huge = "x".repeat(200_000);
+    for _ in 0..300 {
+        let reply = daemon.control(&ControlRequest::StageStop { name: huge.clone() });
+        assert!(
+            matches!(reply, ControlReply::Error(ref e) if e.kind == ControlErrorKind::BadName),
+            "{reply:?}"
+        );
+    }
+    // The next window says how many were held back.
+    std::thread::sleep(Duration::from_secs(10));
+    let _ = daemon.control(&ControlRequest::StageStop { name: huge.clone() });
+    let text = std::fs::read_to_string(&log).unwrap();
+    let refused = text.lines().filter(|l| l.contains("control request refused")).count();
+    assert_eq!(refused, 11, "10 in the first window, 1 in the next:\n{text}");
+    assert!(text.contains("count=290") && text.contains("control refusals not logged"), "{text}");
+    assert!(text.len() < 20_000, "the log grew by {} bytes", text.len());
+}

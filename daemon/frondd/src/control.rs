@@ -245,8 +245,16 @@ impl AccessPolicy {
 }
 
 pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
+    static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
     let message = message.into();
-    warn!(?kind, %message, "control request refused");
+    // A client decides how often and with what text this runs: rate-limited and cut.
+    let verdict = REFUSALS.check(Instant::now());
+    if verdict.held_back_before > 0 {
+        warn!(count = verdict.held_back_before, "control refusals not logged (more than 10 in 10 s)");
+    }
+    if verdict.log {
+        warn!(?kind, message = %crate::log_limit::cut(&message), "control request refused");
+    }
     ControlReply::Error(ControlError { kind, message })
 }
 

@@ -17,6 +17,7 @@ pub mod daemon;
 pub mod engine;
 pub mod error;
 pub mod lanes;
+pub mod log_limit;
 pub mod notify;
 pub mod publisher;
 pub mod realtime;
