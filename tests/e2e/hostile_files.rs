@@ -52,6 +52,9 @@ fn fifos_devices_and_directories_are_refused_without_blocking() {
         (vec!["--source", "hid", "--profile", "/dev/zero"], "/dev/zero", "a device, not a regular file"),
         (vec!["--config", &fifo], &fifo, "a FIFO, not a regular file"),
         (vec!["--source", "in-process", "--config", &dir_path], &dir_path, "a directory, not a regular file"),
+        // Issue 14, point 13: a node that is no hidraw node is refused, not waited for.
+        (vec!["--device", "/dev/null"], "/dev/null", "not a hidraw node"),
+        (vec!["--device", &dir_path], &dir_path, "not a hidraw node (it is a directory)"),
     ];
     for (args, path, what) in cases {
         let out = frondd(&args);

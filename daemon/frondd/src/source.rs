@@ -70,6 +70,43 @@ fn kind_of_node(path: &Path) -> SourceKind {
     }
 }
 
+/// A node that is there but cannot be a glove: a character device outside the hidraw
+/// subsystem (`/dev/null`), a directory, a FIFO. Refused at start instead of "waited for" for
+/// ever. A missing path is fine (the device may appear); a FUSE node has no device number.
+fn check_node(path: &Path) -> Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    let Ok(meta) = std::fs::metadata(path) else { return Ok(()) };
+    let ft = meta.file_type();
+    if ft.is_char_device() {
+        let (major, minor) = (libc::major(meta.rdev()), libc::minor(meta.rdev()));
+        let subsystem = std::fs::read_link(format!("/sys/dev/char/{major}:{minor}/subsystem"));
+        let is_hidraw = subsystem.as_ref().is_ok_and(|l| l.file_name().is_some_and(|n| n == "hidraw"));
+        if !is_hidraw && subsystem.is_ok() {
+            return Err(DaemonError::Source(format!(
+                "{} is a character device ({major}:{minor}) but not a hidraw node; give the glove's /dev/hidrawN",
+                path.display()
+            )));
+        }
+        return Ok(());
+    }
+    if ft.is_file() {
+        return Ok(()); // a FUSE-served node (the virtual glove) or a test double
+    }
+    Err(DaemonError::Source(format!(
+        "{} is not a hidraw node (it is {}); give the glove's /dev/hidrawN",
+        path.display(),
+        if ft.is_dir() {
+            "a directory"
+        } else if ft.is_fifo() {
+            "a FIFO"
+        } else if ft.is_socket() {
+            "a socket"
+        } else {
+            "not a device"
+        }
+    )))
+}
+
 fn open_path(profile: &DeviceProfile, path: &Path) -> Result<OpenedSource> {
     let src = HidSource::open_path(profile, path, kind_of_node(path)).map_err(source_error)?;
     Ok(opened(Box::new(src), None))
@@ -145,8 +182,11 @@ pub fn open_source(
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::Hid => match &hand.device_path {
-            Some(path) => Ok(open_path(&profile, path)
-                .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string()))),
+            Some(path) => {
+                check_node(path)?;
+                Ok(open_path(&profile, path)
+                    .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string())))
+            }
             None => match HidSource::open(&profile) {
                 Ok(src) => Ok(opened(Box::new(src), None)),
                 Err(e) => Ok(awaited(profile, None, e.to_string())),
@@ -160,6 +200,7 @@ pub fn open_source(
         SourceChoice::Virtual => open_virtual(config, index, hand, socket_dir, true),
         SourceChoice::Auto => {
             if let Some(path) = &hand.device_path {
+                check_node(path)?;
                 return Ok(open_path(&profile, path)
                     .unwrap_or_else(|e| awaited(profile.clone(), Some(path.clone()), e.to_string())));
             }
