@@ -109,6 +109,12 @@ fn after_sigstop_the_daemon_resumes_at_the_present_without_a_burst_or_a_gap() {
             other => panic!("unexpected {other:?}"),
         }
     };
+    let monotonic_ns = || {
+        let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: a valid timespec to write into.
+        unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+        ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+    };
     let mut before = None;
     for _ in 0..500 {
         let p = next_pose(&mut sub);
@@ -117,16 +123,25 @@ fn after_sigstop_the_daemon_resumes_at_the_present_without_a_burst_or_a_gap() {
         }
     }
     let pid = daemon.proc.child.id() as i32;
+    let stopped_at = monotonic_ns();
     // SAFETY: kill(2) on our own child.
     unsafe { libc::kill(pid, libc::SIGSTOP) };
     std::thread::sleep(Duration::from_secs(2));
+    let continued_at = monotonic_ns();
     // SAFETY: as above.
     unsafe { libc::kill(pid, libc::SIGCONT) };
-    // The first fresh report after the pause is about 2 s of device time later (the glove
-    // samples the present), flagged as a discontinuity; none of the 2000 missed ones is replayed.
+    // Frames published before the stop may still be in the socket: judge by publish time. The
+    // first fresh report published after the pause is about 2 s of device time after the last
+    // one before it (the glove samples the present), flagged as a discontinuity; none of the
+    // 2000 missed ones is replayed.
     let first_after = loop {
         let p = next_pose(&mut sub);
-        if !p.flags.contains(PoseFlags::HELD) {
+        if p.flags.contains(PoseFlags::HELD) {
+            continue;
+        }
+        if p.host_monotonic_ns < stopped_at {
+            before = Some(p.device_time_us);
+        } else if p.host_monotonic_ns > continued_at {
             break p;
         }
     };
