@@ -27,7 +27,7 @@ pub fn sleep_until_ns(deadline_ns: u64) {
     }
 }
 
-/// What ended a [`wait_readable_until_ns`].
+/// What ended a [`wait_any_readable_until_ns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Woke {
     /// The deadline passed.
@@ -38,13 +38,6 @@ pub enum Woke {
 
 fn timespec_ns(ns: u64) -> libc::timespec {
     libc::timespec { tv_sec: (ns / NS_PER_S) as libc::time_t, tv_nsec: (ns % NS_PER_S) as libc::c_long }
-}
-
-/// Waits until `fd` is readable or the absolute `CLOCK_MONOTONIC` time `deadline_ns`, whichever
-/// comes first, retrying on signals: [`wait_any_readable_until_ns`] with one descriptor.
-pub fn wait_readable_until_ns(fd: std::os::fd::RawFd, deadline_ns: u64) -> Woke {
-    let mut fds = [libc::pollfd { fd, events: libc::POLLIN, revents: 0 }];
-    wait_any_readable_until_ns(&mut fds, deadline_ns)
 }
 
 /// Waits until one of `fds` is readable or the absolute `CLOCK_MONOTONIC` time `deadline_ns`,
@@ -89,6 +82,10 @@ pub fn wait_readable(fd: std::os::fd::BorrowedFd<'_>, timeout: std::time::Durati
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn wait_readable_until_ns(fd: std::os::fd::RawFd, deadline_ns: u64) -> Woke {
+        wait_any_readable_until_ns(&mut [libc::pollfd { fd, events: libc::POLLIN, revents: 0 }], deadline_ns)
+    }
 
     #[test]
     fn sleep_until_never_returns_early() {

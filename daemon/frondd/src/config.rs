@@ -359,10 +359,7 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
     for (i, h) in raw.into_iter().take(MAX_HANDS).enumerate() {
         let key = |k: &str| format!("hands[{i}].{k}");
         let name = h.name.unwrap_or_default();
-        let name_ok = !name.is_empty()
-            && name.len() <= 32
-            && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
-        if !name_ok {
+        if !crate::stage::registry::is_plain_name(&name) {
             errors.push(format!("{}: {name:?}: 1 to 32 letters, digits, '_' or '-'", key("name")));
         } else if let Some(j) = hands.iter().position(|o| o.name == name) {
             errors.push(format!("{}: {name:?} is also the name of hands[{j}]", key("name")));

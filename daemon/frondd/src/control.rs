@@ -112,10 +112,9 @@ impl DaemonState {
         }
     }
 
-    /// The hand stages act on: the first that drives the global element, else the first (the
-    /// loop's rule, `engine::primary_of`).
+    /// The hand stages act on ([`crate::engine::primary_hand`], the loop's rule).
     pub fn primary_hand(&self) -> usize {
-        self.hands.iter().position(|h| h.element == 0).unwrap_or(0)
+        crate::engine::primary_hand(self.hands.iter().map(|h| h.element))
     }
 }
 

@@ -127,6 +127,14 @@ fn bind(dir: &Path, name: &str) -> Result<(UnixListener, OwnedSocket), DaemonErr
     Ok((listener, OwnedSocket::new(path)?))
 }
 
+/// The filter in force with `rig`: the configuration's override, else the rig's own.
+fn filter_for(config: &Config, rig: &Rig) -> Result<FilterSpec, DaemonError> {
+    match &config.filter {
+        Some(spec) => spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source }),
+        None => Ok(rig.filter),
+    }
+}
+
 /// A configured hand, resolved against the rigs: its element and, when it has a rig or
 /// calibration of its own, that setup.
 struct ResolvedHand {
@@ -149,12 +157,7 @@ fn set_up_hands(config: &Config, rig: &Rig) -> Result<Vec<ResolvedHand>, DaemonE
                 None => rig.clone(),
             };
             let calibration = load_calibration(hand.calibration.as_deref(), &own_rig)?;
-            let filter = match &config.filter {
-                Some(spec) => {
-                    spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?
-                }
-                None => own_rig.filter,
-            };
+            let filter = filter_for(config, &own_rig)?;
             Some(Setup { rig: own_rig, calibration, filter })
         };
         let hand_rig = own.as_ref().map_or(rig, |o| &o.rig);
@@ -185,10 +188,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let started = Instant::now();
     let rig = load_rig(&config.rig)?;
     let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
-    let filter: FilterSpec = match &config.filter {
-        Some(spec) => spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?,
-        None => rig.filter,
-    };
+    let filter = filter_for(&config, &rig)?;
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
 
@@ -425,12 +425,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
     let result = (|| -> Result<(), DaemonError> {
         let rig = load_rig(&config.rig)?;
         let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
-        let filter: FilterSpec = match &config.filter {
-            Some(spec) => {
-                spec.parse().map_err(|source| DaemonError::Filter { spec: spec.clone(), source })?
-            }
-            None => rig.filter,
-        };
+        let filter = filter_for(&config, &rig)?;
         let text = format!("rig {}, calibration {}, filter {filter}", rig.name, calibration.id);
         let mut state = ctx.lock();
         ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true)

@@ -350,11 +350,6 @@ impl Engine {
         (Engine::with_hands(hands, stall_after_ns, links), ends)
     }
 
-    /// The first hand's ready descriptor (see [`HandSource::ready_fd`]), if it has one.
-    pub fn ready_fd(&self) -> Option<std::os::fd::RawFd> {
-        self.hands[0].source.as_ref()?.ready_fd()
-    }
-
     /// The ready descriptors of every hand source that has one, for `ppoll` (the array is the
     /// engine's own: nothing is allocated). Empty when no source has one.
     pub fn ready_fds(&mut self) -> &mut [libc::pollfd] {
@@ -384,7 +379,7 @@ impl Engine {
         self.resume_after_pause(now_ns);
         let mut total = 0;
         for i in 0..self.hands.len() {
-            let fresh = self.read_device(i, now_ns);
+            let fresh = self.read_device(i, now_ns, Reports::Publish);
             self.note_fresh(i, fresh, now_ns);
             self.hands[i].fresh_since_tick += fresh;
             total += fresh;
@@ -423,7 +418,7 @@ impl Engine {
         self.tick_stages(now_ns);
         let mut held_any = false;
         for i in 0..self.hands.len() {
-            let read = self.read_device(i, now_ns);
+            let read = self.read_device(i, now_ns, Reports::Publish);
             self.note_fresh(i, read, now_ns);
             let fresh = read + std::mem::take(&mut self.hands[i].fresh_since_tick);
             if fresh == 0 {
@@ -448,22 +443,7 @@ impl Engine {
             return;
         }
         for i in 0..self.hands.len() {
-            let mut skipped = 0;
-            for _ in 0..MAX_READS_PER_TICK {
-                let Some(source) = self.hands[i].source.as_mut() else { break };
-                match source.read_pending(&mut self.samples) {
-                    Ok(n) => {
-                        skipped += n;
-                        if n < self.samples.len() {
-                            break;
-                        }
-                    }
-                    Err(_) => {
-                        self.lose_source(i, now_ns);
-                        break;
-                    }
-                }
-            }
+            let skipped = self.read_device(i, now_ns, Reports::Skip);
             let hand = &mut self.hands[i];
             hand.mapper.break_timeline();
             // The stall window restarts now: the source had no chance to report while paused.
@@ -604,17 +584,19 @@ impl Engine {
         }
     }
 
-    /// Reads every pending report of hand `i` and publishes one frame per valid report.
-    /// Returns the count.
-    fn read_device(&mut self, i: usize, now_ns: u64) -> usize {
+    /// Reads every pending report of hand `i` and publishes one frame per valid report (or,
+    /// with [`Reports::Skip`], drops them). Returns the count.
+    fn read_device(&mut self, i: usize, now_ns: u64, reports: Reports) -> usize {
         let mut fresh = 0;
         for _ in 0..MAX_READS_PER_TICK {
             let Some(source) = self.hands[i].source.as_mut() else { break };
             match source.read_pending(&mut self.samples) {
                 Ok(n) => {
-                    for k in 0..n {
-                        let sample = self.samples[k];
-                        self.publish_sample(i, &sample);
+                    if reports == Reports::Publish {
+                        for k in 0..n {
+                            let sample = self.samples[k];
+                            self.publish_sample(i, &sample);
+                        }
                     }
                     fresh += n;
                     if n < self.samples.len() {
@@ -714,7 +696,21 @@ impl Engine {
     }
 }
 
-/// The hand stages act on: the first that drives the global element (0), else the first.
+/// What [`Engine::read_device`] does with the reports it reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reports {
+    /// Publish one frame per report.
+    Publish,
+    /// Drop them (stale after a pause).
+    Skip,
+}
+
 fn primary_of(hands: &[Hand]) -> usize {
-    hands.iter().position(|h| h.element == 0).unwrap_or(0)
+    primary_hand(hands.iter().map(|h| h.element))
+}
+
+/// The hand stages act on, given each hand's element in order: the first that drives the
+/// global element (0), else the first. The loop and the control side share this rule.
+pub fn primary_hand(elements: impl IntoIterator<Item = u16>) -> usize {
+    elements.into_iter().position(|e| e == 0).unwrap_or(0)
 }

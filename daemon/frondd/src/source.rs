@@ -89,22 +89,14 @@ fn check_node(path: &Path) -> Result<()> {
         }
         return Ok(());
     }
-    if ft.is_file() {
-        return Ok(()); // a FUSE-served node (the virtual glove) or a test double
+    // A regular file is a FUSE-served node (the virtual glove) or a test double.
+    match frond_motion::rig_files::not_regular(ft) {
+        None => Ok(()),
+        Some(what) => Err(DaemonError::Source(format!(
+            "{} is not a hidraw node (it is {what}); give the glove's /dev/hidrawN",
+            path.display()
+        ))),
     }
-    Err(DaemonError::Source(format!(
-        "{} is not a hidraw node (it is {}); give the glove's /dev/hidrawN",
-        path.display(),
-        if ft.is_dir() {
-            "a directory"
-        } else if ft.is_fifo() {
-            "a FIFO"
-        } else if ft.is_socket() {
-            "a socket"
-        } else {
-            "not a device"
-        }
-    )))
 }
 
 fn open_path(profile: &DeviceProfile, path: &Path) -> Result<OpenedSource> {

@@ -120,8 +120,8 @@ pub struct LoadedRig {
     pub dir: Option<PathBuf>,
 }
 
-/// What a file's type is, in words, unless it is a regular file.
-fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
+/// What a file's type is, in words (`a FIFO`, `a directory`, ...), unless it is a regular file.
+pub fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
     use std::os::unix::fs::FileTypeExt;
     if ft.is_file() {
         None

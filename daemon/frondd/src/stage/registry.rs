@@ -69,10 +69,15 @@ impl Default for StageRegistry {
 
 /// Checks a stage name: 1..=32 letters, digits, `-` and `_`.
 pub fn validate_stage_name(name: &str) -> Result<(), StageError> {
-    let ok = !name.is_empty()
+    if is_plain_name(name) { Ok(()) } else { Err(StageError::BadName(name.chars().take(40).collect())) }
+}
+
+/// Whether `name` is 1..=32 ASCII letters, digits, `-` and `_`: the rule for stage and hand
+/// names, which appear in status, logs and the element table.
+pub fn is_plain_name(name: &str) -> bool {
+    !name.is_empty()
         && name.len() <= MAX_STAGE_NAME
-        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
-    if ok { Ok(()) } else { Err(StageError::BadName(name.chars().take(40).collect())) }
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
 impl StageRegistry {
