@@ -142,8 +142,8 @@ name = "wrist_roll"
 offset = 5
 type = "f32le"
 unit = "deg"
-min = -1e30
-max = 1e30
+min = -360
+max = 360
 [[channel]]
 name = "thumb_g1"
 offset = 9
@@ -165,8 +165,8 @@ offset = 12
 type = "i16le"
 unit = "deg"
 scale = -0.5
-min = -20000
-max = 20000
+min = -360
+max = 360
 "#;
 
 #[test]

@@ -7,6 +7,7 @@ mod hostile_files;
 mod hostile_takes;
 mod live_modes;
 mod osc_input;
+mod plausible;
 mod rt_syscalls;
 mod slow_subscriber;
 mod soak;

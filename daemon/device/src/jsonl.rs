@@ -46,9 +46,6 @@ pub enum HandLineError {
     /// The line is not a hand sample (the shared parser's error).
     #[error(transparent)]
     Parse(#[from] JsonlError),
-    /// `t` is not a finite number.
-    #[error("t is not a finite number")]
-    NonFiniteTime,
     /// `t` is earlier than the previous line's.
     #[error("t {t} is earlier than the previous line's {previous}")]
     Earlier {
@@ -62,11 +59,7 @@ pub enum HandLineError {
 /// Parses one line of the hand format (the shared parser of `frond_motion`, so the device path
 /// and `frond map` read files identically).
 pub fn parse_hand_line(line: &str) -> Result<HandSample, HandLineError> {
-    let s = frond_motion::jsonl::parse_hand_line(line)?;
-    if !s.t.is_finite() {
-        return Err(HandLineError::NonFiniteTime);
-    }
-    Ok(s)
+    Ok(frond_motion::jsonl::parse_hand_line(line)?)
 }
 
 /// Parses a whole hand file; blank lines are skipped; times must not decrease.
@@ -91,8 +84,7 @@ pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandF
     Ok(out)
 }
 
-/// Largest hand file loaded, bytes (about an hour of 1 kHz samples).
-pub const MAX_HAND_FILE_BYTES: u64 = 512 << 20;
+pub use frond_motion::jsonl::MAX_HAND_FILE_BYTES;
 
 /// Loads a hand file into memory: a regular file of at most [`MAX_HAND_FILE_BYTES`] (a FIFO or
 /// a device is refused without blocking).

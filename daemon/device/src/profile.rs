@@ -175,6 +175,12 @@ impl ChannelId {
 
     /// Whether every profile must define this channel.
     pub const fn required(self) -> bool {
+        self.is_hand_angle()
+    }
+
+    /// True for the wrist and thumb angles (the first six), which the hand plausibility limits
+    /// of `frond_motion::plausible` bound; the flex channels are not hand angles.
+    pub const fn is_hand_angle(self) -> bool {
         self.slot() < 6
     }
 }
@@ -702,6 +708,25 @@ impl Checker {
             {
                 self.err(p("max"), format!("{hi} must be greater than min {lo}"));
             }
+            // A wrist or thumb channel may not let through what no hand source accepts.
+            if let (Some(id), Some(unit)) = (id, unit)
+                && id.is_hand_angle()
+            {
+                let limit = frond_motion::plausible::MAX_HAND_ANGLE_DEG as f64;
+                for (key, v) in [("min", min), ("max", max)] {
+                    let Some(v) = v else { continue };
+                    let (deg, name) = match unit {
+                        AngleUnit::Deg => (v, "degrees"),
+                        AngleUnit::Rad => (v.to_degrees(), "radians"),
+                    };
+                    if deg.is_nan() || deg.abs() > limit {
+                        self.err(
+                            p(key),
+                            format!("{v} {name} is beyond the hand angle limit of ±{limit} degrees"),
+                        );
+                    }
+                }
+            }
             if let (Some(id), Some(offset), Some(ty), Some(scale), Some(unit), Some(min), Some(max)) =
                 (id, offset, ty, scale, unit, min, max)
             {
@@ -735,5 +760,33 @@ mod tests {
         assert_eq!(p.channel(ChannelId::FlexLittle).unwrap().offset, 27);
         assert_eq!(p.status_offset, Some(29));
         assert_eq!(p.checksum, Some(Checksum { kind: ChecksumKind::Sum8, offset: 63 }));
+    }
+
+    /// Issue 14, point 11: a wrist or thumb channel may not pass angles that no hand source
+    /// accepts (`frond_motion::plausible::MAX_HAND_ANGLE_DEG`); a flex channel is no hand angle.
+    #[test]
+    fn hand_angle_channels_stay_within_the_hand_limits() {
+        let wide = FROND_GLOVE_TOML.replacen("min = -180.0", "min = -1000.0", 1).replacen(
+            "unit = \"deg\"\nmin = -180.0\nmax = 180.0",
+            "unit = \"rad\"\nmin = -3.0\nmax = 7.0",
+            1,
+        );
+        let e = DeviceProfile::from_toml_str(&wide).unwrap_err().to_string();
+        assert!(
+            e.contains("channel[0].min: -1000 degrees is beyond the hand angle limit of ±360 degrees"),
+            "{e}"
+        );
+        assert!(
+            e.contains("channel[1].max: 7 radians is beyond the hand angle limit of ±360 degrees"),
+            "{e}"
+        );
+        assert!(!e.contains("channel[1].min"), "-3 rad is within 360 degrees: {e}");
+        // The flex channels (from channel[6]) are not bounded by the hand limits.
+        let flex = FROND_GLOVE_TOML.replace(
+            "min = -180.0\nmax = 180.0\n\n[[channel]]\nname = \"flex_middle\"",
+            "min = -1000.0\nmax = 180.0\n\n[[channel]]\nname = \"flex_middle\"",
+        );
+        assert_ne!(flex, FROND_GLOVE_TOML);
+        assert!(DeviceProfile::from_toml_str(&flex).is_ok());
     }
 }

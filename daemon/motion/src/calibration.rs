@@ -36,7 +36,8 @@ pub struct Calibration {
     pub neutral_wrist_deg: [f32; 3],
     /// Thumb `[g1, g2, g3]` at rest, degrees.
     pub neutral_thumb_deg: [f32; 3],
-    /// Comfortable thumb bending ranges `G_R1..G_R3` (seed 000, Eq. 3), degrees, > 0.
+    /// Comfortable thumb bending ranges `G_R1..G_R3` (seed 000, Eq. 3), degrees, within
+    /// [`crate::plausible::MIN_THUMB_RANGE_DEG`]..=[`crate::plausible::MAX_THUMB_RANGE_DEG`].
     pub thumb_range_deg: [f32; 3],
     /// Comfortable wrist extremes `[min, max]` per axis (pitch, yaw, roll), degrees, relative to
     /// the device zero, as `frond calibrate` measures them. Within +-180; the pitch and yaw
@@ -97,14 +98,15 @@ impl Calibration {
         if self.id.trim().is_empty() {
             p.push("id", "must not be empty");
         }
+        // The limits of `crate::plausible`, shared with rigs and every hand source.
         for (k, v) in self.neutral_wrist_deg.iter().enumerate() {
-            p.finite(format!("neutral_wrist_deg[{k}]"), *v);
+            p.hand_angle(format!("neutral_wrist_deg[{k}]"), *v);
         }
         for (k, v) in self.neutral_thumb_deg.iter().enumerate() {
-            p.finite(format!("neutral_thumb_deg[{k}]"), *v);
+            p.hand_angle(format!("neutral_thumb_deg[{k}]"), *v);
         }
         for (k, v) in self.thumb_range_deg.iter().enumerate() {
-            p.positive(format!("thumb_range_deg[{k}]"), *v);
+            p.thumb_range(format!("thumb_range_deg[{k}]"), *v);
         }
         if let Some(r) = &self.wrist_range_deg {
             for (k, [lo, hi]) in r.iter().enumerate() {
@@ -267,8 +269,31 @@ wrist_range_deg = [[10, -10], [0, 0], [-1, 1]]
             ]
         );
         let msg = p.to_string();
-        assert!(msg.contains("thumb_range_deg[1]: must be greater than 0, found -5"), "{msg}");
+        assert!(
+            msg.contains("thumb_range_deg[1]: a thumb range (degrees) must be between 1 and 360, found -5"),
+            "{msg}"
+        );
         assert!(msg.contains("wrist_range_deg[0]: pitch min 10 must be below max -10"), "{msg}");
+    }
+
+    /// Issue 14, point 11: well-formed but absurd values are refused with the limits every hand
+    /// source applies (`crate::plausible`), at the boundary and just past it.
+    #[test]
+    fn implausible_neutrals_and_thumb_ranges_are_refused() {
+        let with = |neutral: f32, range: f32| {
+            format!(
+                "id = \"x\"\nneutral_wrist_deg = [{neutral:?}, 0, 0]\nneutral_thumb_deg = [0, {neutral:?}, 0]\n\
+                 thumb_range_deg = [{range:?}, 60, 60]\n"
+            )
+        };
+        assert!(Calibration::from_toml_str(&with(-360.0, 1.0)).is_ok());
+        assert!(Calibration::from_toml_str(&with(360.0, 360.0)).is_ok());
+        for (neutral, range) in [(1e30, 1e-45), (360.5, 0.99), (-361.0, 361.0)] {
+            let Err(CalibrationError::Invalid(p)) = Calibration::from_toml_str(&with(neutral, range)) else {
+                panic!("{neutral} / {range} accepted");
+            };
+            assert_eq!(p.paths(), ["neutral_wrist_deg[0]", "neutral_thumb_deg[1]", "thumb_range_deg[0]"]);
+        }
     }
 
     #[test]

@@ -64,6 +64,9 @@ pub enum JsonlError {
         /// What was expected, e.g. "a finite 32-bit float".
         expected: &'static str,
     },
+    /// A hand sample outside the plausibility limits every hand source applies.
+    #[error(transparent)]
+    Implausible(#[from] crate::plausible::Implausible),
 }
 
 fn type_name(v: &Value) -> &'static str {
@@ -133,13 +136,21 @@ fn time(obj: &Map<String, Value>) -> Result<f64, JsonlError> {
     number(field(obj, "t")?, || "t".to_string())
 }
 
-/// Parses one hand line `{"t":..,"wrist":[pitch,yaw,roll],"thumb":[g1,g2,g3]}`.
+/// Largest hand file loaded whole (`--replay`, `frond take import`), bytes: about an hour of
+/// 1 kHz samples.
+pub const MAX_HAND_FILE_BYTES: u64 = 512 << 20;
+
+/// Parses one hand line `{"t":..,"wrist":[pitch,yaw,roll],"thumb":[g1,g2,g3]}`, refusing a
+/// sample no live source would accept ([`HandSample::check_plausible`]).
 pub fn parse_hand_line(line: &str) -> Result<HandSample, JsonlError> {
     let obj = parse_object(line)?;
     let t = time(&obj)?;
     let wrist_deg = vec3(field(&obj, "wrist")?, "wrist")?;
     let thumb_deg = vec3(field(&obj, "thumb")?, "thumb")?;
-    Ok(HandSample { t, wrist_deg, thumb_deg })
+    let hand = HandSample { t, wrist_deg, thumb_deg };
+    // The limits every live source applies (`crate::plausible`).
+    hand.check_plausible()?;
+    Ok(hand)
 }
 
 /// Parses one pose line `{"seq":N,"t":..,"joints":[[p,y,r],x4]}`, returning the optional `seq`.
@@ -266,6 +277,19 @@ mod tests {
             ),
             (r#"{"t":"0","wrist":[0,0,0],"thumb":[0,0,0]}"#, "field `t`: expected a number, found a string"),
             (r#"{"t":0,"wrist":null,"thumb":[0,0,0]}"#, "field `wrist`: expected an array, found null"),
+            // The limits every live source applies (issue 14, point 11).
+            (
+                r#"{"t":0,"wrist":[400,0,0],"thumb":[0,0,0]}"#,
+                "`wrist[0]`: 400 degrees is not a hand angle (finite, within ±360)",
+            ),
+            (
+                r#"{"t":0,"wrist":[0,0,0],"thumb":[0,0,-1e30]}"#,
+                "`thumb[2]`: -1000000000000000000000000000000 degrees is not a hand angle",
+            ),
+            (
+                r#"{"t":-0.5,"wrist":[0,0,0],"thumb":[0,0,0]}"#,
+                "`t`: -0.5 is not a finite time at or after 0 s",
+            ),
         ];
         for (line, want) in cases {
             let e = parse_hand_line(line).unwrap_err().to_string();

@@ -13,6 +13,7 @@ use thiserror::Error;
 
 use crate::filter::FilterSpec;
 use crate::mapping::MappingParams;
+use crate::plausible::{MAX_ELEMENT_COUNT, MAX_RIG_SIZE_M};
 use crate::problems::Problems;
 use crate::rig_mesh::RawMesh;
 pub use crate::rig_mesh::{MeshShape, MeshSpec};
@@ -211,7 +212,7 @@ impl RawRig {
         let tau = check_tau(&mut p, "tau", self.tau);
         let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
         for (k, v) in thumb_range_deg.iter().enumerate() {
-            p.positive(format!("thumb_range_deg[{k}]"), *v);
+            p.thumb_range(format!("thumb_range_deg[{k}]"), *v);
         }
         for (k, v) in self.bend_range_deg.iter().flatten().enumerate() {
             if !(v.is_finite() && *v > 0.0 && *v <= MAX_BEND_RANGE_DEG) {
@@ -251,7 +252,8 @@ impl RawRig {
             } else if let Some(j) = joints[..i].iter().position(|j| j.name == name) {
                 p.push(path("name"), format!("`{name}` is already the name of joints[{j}]"));
             }
-            if p.finite(path("height_m"), raw.height_m) {
+            if p.within(path("height_m"), raw.height_m, -MAX_RIG_SIZE_M, MAX_RIG_SIZE_M, "a height (metres)")
+            {
                 if i == 0 && raw.height_m < 0.0 {
                     p.push(
                         path("height_m"),
@@ -269,9 +271,9 @@ impl RawRig {
             } else {
                 prev_height = None;
             }
-            p.finite(path("s_pitch"), raw.s_pitch);
-            p.finite(path("s_yaw"), raw.s_yaw);
-            p.finite(path("s_roll"), raw.s_roll);
+            p.joint_scale(path("s_pitch"), raw.s_pitch);
+            p.joint_scale(path("s_yaw"), raw.s_yaw);
+            p.joint_scale(path("s_roll"), raw.s_roll);
             joints[i] = JointSpec {
                 name,
                 height_m: raw.height_m,
@@ -304,13 +306,18 @@ impl RawRig {
                 );
                 0
             };
-            let count = if (1..=u32::MAX as i64).contains(&raw.count) {
+            let count = if (1..=i64::from(MAX_ELEMENT_COUNT)).contains(&raw.count) {
                 raw.count as u32
             } else {
-                p.push(path("count"), format!("{} must be at least 1", raw.count));
+                p.push(path("count"), format!("{} must be between 1 and {MAX_ELEMENT_COUNT}", raw.count));
                 1
             };
-            p.positive(path("length_m"), raw.length_m);
+            if p.positive(path("length_m"), raw.length_m) && raw.length_m > MAX_RIG_SIZE_M {
+                p.push(
+                    path("length_m"),
+                    format!("must be at most {MAX_RIG_SIZE_M} metres, found {}", raw.length_m),
+                );
+            }
             let tau = check_tau(&mut p, &path("tau"), raw.tau);
             elements.push(ElementSpec {
                 name: raw.name.clone(),
@@ -581,8 +588,8 @@ length_m = 0.05
         let want = [
             "name: must not be empty",
             "tau: 4 is out of range 0..=3",
-            "thumb_range_deg[1]: must be greater than 0, found 0",
-            "thumb_range_deg[2]: must be greater than 0, found -1",
+            "thumb_range_deg[1]: a thumb range (degrees) must be between 1 and 360, found 0",
+            "thumb_range_deg[2]: a thumb range (degrees) must be between 1 and 360, found -1",
             "filter: parameter `cutoff_hz`: -2 must be a finite number > 0",
             "joints[0].height_m: the root must not be below ground, found -0.1",
             "joints[0].s_pitch: must be a finite number, found inf",
@@ -592,7 +599,7 @@ length_m = 0.05
             "joints[3].name: must not be empty",
             "joints[3].height_m: 0.2 must be above joints[2].height_m (0.3)",
             "elements[0].attach_joint: 4 is out of range 0..=3",
-            "elements[0].count: 0 must be at least 1",
+            "elements[0].count: 0 must be between 1 and 256",
             "elements[0].length_m: must be greater than 0, found 0",
             "elements[0].tau: -1 is out of range 0..=3",
             "elements[1].name: `leaf` is already the name of elements[0]",
@@ -600,6 +607,38 @@ length_m = 0.05
         let got: Vec<String> = p.0.iter().map(|x| x.to_string()).collect();
         assert_eq!(got, want, "{msg}");
         assert!(msg.starts_with("17 problems:"), "{msg}");
+    }
+
+    /// Issue 14, point 11: well-formed but absurd sizes and scales are refused with the limits
+    /// of `crate::plausible`; the limits themselves are accepted.
+    #[test]
+    fn implausible_scales_sizes_and_counts_are_refused() {
+        let rig = |scale: &str, top_m: &str, count: &str, length_m: &str, range: &str| {
+            format!(
+                "name = \"x\"\nthumb_range_deg = [{range}, 60, 60]\njoints = [\n\
+                 {{ height_m = 0.0, s_pitch = {scale} }}, {{ height_m = 0.1 }}, {{ height_m = 0.2 }}, \
+                 {{ height_m = {top_m}, s_roll = -{scale} }},\n]\n\
+                 [[elements]]\nname = \"leaf\"\nattach_joint = 1\ncount = {count}\nlength_m = {length_m}\n"
+            )
+        };
+        assert!(Rig::from_toml_str(&rig("20", "1000", "256", "1000", "1")).is_ok());
+        let Err(RigError::Invalid(p)) = Rig::from_toml_str(&rig("1e30", "1001", "1000000", "2000", "1e-45"))
+        else {
+            panic!("absurd rig accepted");
+        };
+        let got: Vec<String> = p.0.iter().map(|x| x.to_string()).collect();
+        assert_eq!(
+            got,
+            [
+                "thumb_range_deg[0]: a thumb range (degrees) must be between 1 and 360, found \
+                 0.000000000000000000000000000000000000000000001",
+                "joints[0].s_pitch: a joint scale must be between -20 and 20, found 1000000000000000000000000000000",
+                "joints[3].height_m: a height (metres) must be between -1000 and 1000, found 1001",
+                "joints[3].s_roll: a joint scale must be between -20 and 20, found -1000000000000000000000000000000",
+                "elements[0].count: 1000000 must be between 1 and 256",
+                "elements[0].length_m: must be at most 1000 metres, found 2000",
+            ]
+        );
     }
 
     #[test]
@@ -617,7 +656,7 @@ length_m = 0.05
 name = "flower"
 description = "stem with \"leaves\""
 tau = 1
-thumb_range_deg = [55.5, 0.1, 80]
+thumb_range_deg = [55.5, 1.5, 80]
 filter = "one-euro:beta=0.01"
 joints = [
   { name = "root", height_m = 0.0, s_pitch = 0.3, s_yaw = 0.3, s_roll = 0.7 },

@@ -18,7 +18,7 @@ use std::sync::atomic::Ordering;
 use frond_motion::HandSample;
 use rosc::{OscPacket, OscType};
 
-use super::osc_wire::{MAX_ABS_DEG, MAX_BUNDLE_DEPTH, Reject, for_each_hand};
+use super::osc_wire::{MAX_BUNDLE_DEPTH, Reject, for_each_hand};
 use super::{HandSource, SourceError, SourceKind};
 use crate::report::{DeviceSample, SourceCounters};
 
@@ -65,17 +65,13 @@ fn decode_message(msg: &rosc::OscMessage) -> Result<HandSample, OscHandError> {
         v[i] = number(arg)
             .ok_or_else(|| OscHandError::Malformed(format!("argument {i} is {arg:?}, not a number")))?;
     }
-    if !v[0].is_finite() || v[0] < 0.0 {
-        return Err(OscHandError::OutOfRange(format!("t = {} s", v[0])));
-    }
-    if let Some((i, a)) = v[1..].iter().enumerate().find(|(_, a)| !a.is_finite() || a.abs() > MAX_ABS_DEG) {
-        return Err(OscHandError::OutOfRange(format!("angle {i} = {a} degrees")));
-    }
-    Ok(HandSample {
+    let hand = HandSample {
         t: v[0],
         wrist_deg: [v[1] as f32, v[2] as f32, v[3] as f32],
         thumb_deg: [v[4] as f32, v[5] as f32, v[6] as f32],
-    })
+    };
+    hand.check_plausible().map_err(|e| OscHandError::OutOfRange(e.to_string()))?;
+    Ok(hand)
 }
 
 fn collect(packet: &OscPacket, out: &mut Vec<Result<HandSample, OscHandError>>) {
@@ -367,10 +363,45 @@ pub(super) mod tests {
         }
         let deadline = std::time::Instant::now() + Duration::from_secs(5);
         while src.counters().snapshot().malformed == 0 && std::time::Instant::now() < deadline {
+            assert_eq!(src.read_pending(&mut out).unwrap(), 0);
             std::thread::sleep(Duration::from_millis(5));
         }
         let c = src.counters().snapshot();
         assert_eq!((c.reports, c.malformed), (20, 1));
+    }
+
+    /// Issue 14, point 13: a bundle holding far more samples than one read takes loses none.
+    /// The rest of the datagram waits in the source and comes out, in order, on the next reads.
+    #[test]
+    fn a_bundle_larger_than_a_read_loses_nothing() {
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let content = (0..1000)
+            .map(|k| {
+                OscPacket::Message(rosc::OscMessage {
+                    addr: OSC_HAND_ADDRESS.into(),
+                    args: [k as f32 * 1e-3, (k % 300) as f32, 0.0, 0.0, 0.0, 0.0, 0.0]
+                        .into_iter()
+                        .map(OscType::Float)
+                        .collect(),
+                })
+            })
+            .collect();
+        let bundle = OscPacket::Bundle(rosc::OscBundle { timetag: rosc::OscTime::from((0, 1)), content });
+        let bytes = rosc::encoder::encode(&bundle).unwrap();
+        assert!(bytes.len() <= DATAGRAM_MAX, "{} bytes", bytes.len());
+        tx.send_to(&bytes, src.local_addr()).unwrap();
+        let mut out = [DeviceSample::default(); 8];
+        let mut got = Vec::new();
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while got.len() < 1000 && std::time::Instant::now() < deadline {
+            let n = src.read_pending(&mut out).unwrap();
+            got.extend(out[..n].iter().map(|s| s.raw.wrist_deg[0]));
+        }
+        let want: Vec<f32> = (0..1000).map(|k| (k % 300) as f32).collect();
+        assert_eq!(got, want);
+        let c = src.counters().snapshot();
+        assert_eq!((c.reports, c.seq_gaps, c.malformed), (1000, 0, 0));
     }
 
     /// The loop waits on the OSC source's ready descriptor: quiet with nothing queued, readable

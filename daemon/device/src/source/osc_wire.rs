@@ -5,8 +5,6 @@
 
 use frond_motion::HandSample;
 
-/// Largest accepted angle magnitude, degrees.
-pub const MAX_ABS_DEG: f64 = 360.0;
 /// Deepest bundle nesting accepted (trackers send flat bundles).
 pub const MAX_BUNDLE_DEPTH: usize = 16;
 
@@ -17,7 +15,8 @@ pub enum Reject {
     Malformed,
     /// Another address.
     OtherAddress,
-    /// A non-finite value, a negative time, or an angle beyond +-360 degrees.
+    /// A sample outside the hand limits ([`HandSample::check_plausible`]): a non-finite value, a
+    /// negative time, or an angle beyond ±[`frond_motion::plausible::MAX_HAND_ANGLE_DEG`].
     OutOfRange,
 }
 
@@ -56,17 +55,13 @@ fn message(b: &[u8]) -> Result<HandSample, Reject> {
         *slot = value;
         args = &args[size..];
     }
-    if !v[0].is_finite() || v[0] < 0.0 {
-        return Err(Reject::OutOfRange);
-    }
-    if v[1..].iter().any(|a| !a.is_finite() || a.abs() > MAX_ABS_DEG) {
-        return Err(Reject::OutOfRange);
-    }
-    Ok(HandSample {
+    let hand = HandSample {
         t: v[0],
         wrist_deg: [v[1] as f32, v[2] as f32, v[3] as f32],
         thumb_deg: [v[4] as f32, v[5] as f32, v[6] as f32],
-    })
+    };
+    hand.check_plausible().map_err(|_| Reject::OutOfRange)?;
+    Ok(hand)
 }
 
 /// Calls `f` for every message of one UDP datagram, in order: a sample, or why it was dropped.
@@ -217,6 +212,35 @@ mod tests {
         fn agrees_with_the_rosc_reference(p in packet()) {
             let bytes = rosc::encoder::encode(&p).unwrap();
             prop_assert_eq!(ours(&bytes), reference(&bytes));
+        }
+
+        /// Issue 14, point 11: the live OSC path and the offline hand-file parser (`frond map`,
+        /// `--replay`) accept exactly the same samples, and exactly those the documented rule
+        /// (written out again here) allows: `t` finite and not negative, every angle finite and
+        /// within ±360 degrees.
+        #[test]
+        fn live_and_offline_accept_the_same_hands(
+            t in prop_oneof![Just(0.0f64), Just(-0.0), 0.0f64..1e6, -1.0f64..0.0, any::<f64>()],
+            angles in proptest::collection::vec(
+                prop_oneof![Just(360.0f32), Just(-360.0), Just(360.00003), -400.0f32..400.0, any::<f32>()],
+                6,
+            ),
+        ) {
+            let mut args = vec![OscType::Double(t)];
+            args.extend(angles.iter().map(|&a| OscType::Float(a)));
+            let packet = OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args });
+            let live = ours(&rosc::encoder::encode(&packet).unwrap());
+            let fmt = |v: &[f32]| v.iter().map(|a| a.to_string()).collect::<Vec<_>>().join(",");
+            let line = format!(r#"{{"t":{t},"wrist":[{}],"thumb":[{}]}}"#, fmt(&angles[..3]), fmt(&angles[3..]));
+            let offline = frond_motion::parse_hand_line(&line);
+            let rule = t.is_finite() && t >= 0.0 && angles.iter().all(|a| a.is_finite() && a.abs() <= 360.0);
+            prop_assert_eq!(matches!(live[..], [Ok(_)]), rule, "live {:?}", live);
+            prop_assert_eq!(offline.is_ok(), rule, "{} -> {:?}", line, offline);
+            if let (Ok(off), [Ok(on)]) = (offline, &live[..]) {
+                // serde_json's float parsing may be one unit in the last place off for `t`.
+                prop_assert!((off.t - on.t).abs() <= on.t.abs() * 1e-15, "{} vs {}", off.t, on.t);
+                prop_assert_eq!((off.wrist_deg, off.thumb_deg), (on.wrist_deg, on.thumb_deg));
+            }
         }
 
         /// Arbitrary bytes never panic, and a message or malformed verdict always comes out.
