@@ -200,3 +200,54 @@ fn a_client_cannot_flood_the_log_with_refusals_or_quote_a_huge_name_into_it() {
     assert!(text.contains("count=290") && text.contains("control refusals not logged"), "{text}");
     assert!(text.len() < 20_000, "the log grew by {} bytes", text.len());
 }
+
+/// Issue 14, point 13: a request larger than the control limit is answered with an error that
+/// names the limit, read by the client even while it is still sending (the daemon replies on
+/// the header, then drains what it can; the client reads the reply after its write fails).
+#[test]
+fn an_over_size_control_request_is_answered_not_reset() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    // A raw client announcing 4 MiB and sending it all, as a careless third-party tool would.
+    let mut s = UnixStream::connect(daemon.socket_dir.join(CONTROL_SOCKET)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    s.set_write_timeout(Some(Duration::from_secs(10))).unwrap();
+    let len = 4u32 << 20;
+    let mut frame = len.to_le_bytes().to_vec();
+    frame.push(PROTOCOL_VERSION);
+    frame.resize(4 + len as usize, b'x');
+    let _ = s.write_all(&frame); // fails with EPIPE once the daemon has closed: expected
+    let reply: ControlReply = read_frame(&mut s, &mut Vec::new()).expect("the refusal is readable");
+    match reply {
+        ControlReply::Error(e) => {
+            assert_eq!(e.kind, ControlErrorKind::BadRequest);
+            assert!(e.message.contains(&format!("frame length {len} exceeds the limit")), "{}", e.message);
+        }
+        other => panic!("{other:?}"),
+    }
+    // (`frond` itself never sends one: it checks names and field files against the limits
+    // first.) The daemon still answers.
+    assert!(matches!(daemon.control(&ControlRequest::Status), ControlReply::Status(_)));
+}
+
+/// Issue 14, point 13: the subscriber past the limit (64) is told why, not closed without a
+/// word; a slot that frees is usable again.
+#[test]
+fn the_65th_subscriber_is_told_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let mut subs: Vec<frond_sdk::Subscriber> =
+        (0..64).map(|_| frond_sdk::Subscriber::connect(&daemon.socket_dir).unwrap()).collect();
+    wait_for(Duration::from_secs(5), || daemon.status().subscribers.len() == 64);
+    match frond_sdk::Subscriber::connect(&daemon.socket_dir) {
+        Err(frond_sdk::SdkError::Refused { reason, .. }) => {
+            assert!(reason.contains("the subscriber limit is reached (64 connected"), "{reason}");
+        }
+        Err(other) => panic!("refused without the reason: {other}"),
+        Ok(_) => panic!("a 65th subscriber was accepted"),
+    }
+    drop(subs.pop());
+    wait_for(Duration::from_secs(5), || daemon.status().subscribers.len() == 63);
+    let mut again = frond_sdk::Subscriber::connect(&daemon.socket_dir).expect("a freed slot is usable");
+    while !matches!(again.next_event().unwrap(), frond_sdk::Event::Pose(_)) {}
+}

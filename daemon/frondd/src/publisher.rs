@@ -124,7 +124,13 @@ pub fn spawn_acceptor(
                 }
             };
             if registry.live() >= max {
-                warn!(max, "refusing a pose subscriber: the subscriber limit is reached");
+                refuse_subscriber(
+                    stream,
+                    &format!(
+                        "the subscriber limit is reached ({max} connected; `max_subscribers` in the \
+                         daemon's config, at most {MAX_SUBSCRIBERS})"
+                    ),
+                );
                 continue;
             }
             let id = next_id;
@@ -148,6 +154,26 @@ pub fn spawn_acceptor(
             info!(id, "pose subscriber connected");
         }
     })
+}
+
+/// Tells a connection the daemon cannot take why, in place of a hello, and closes it. Never
+/// blocks: a fresh socket has room for the one small frame, and a client that is gone is
+/// simply gone. Logged at most 10 times per 10 s (a client decides how often this runs).
+fn refuse_subscriber(mut stream: UnixStream, reason: &str) {
+    static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
+    let verdict = REFUSALS.check(Instant::now());
+    if verdict.held_back_before > 0 {
+        warn!(count = verdict.held_back_before, "pose subscriber refusals not logged (more than 10 in 10 s)");
+    }
+    if verdict.log {
+        warn!(reason, "refusing a pose subscriber");
+    }
+    let mut frame = Vec::with_capacity(256);
+    encode_frame(&ServerMessage::Refused(reason.to_string()), &mut frame);
+    if stream.set_nonblocking(true).is_ok() {
+        let _ = stream.write_all(&frame);
+    }
+    let _ = stream.shutdown(std::net::Shutdown::Both);
 }
 
 /// One subscriber as the publisher sees it.

@@ -13,6 +13,9 @@ pub enum ServerMessage {
     /// frame of any element it adds; and right after a [`Hello`] whose table is already out of
     /// date. Replaces the table of the [`Hello`] or of the last `Elements`.
     Elements(ElementTable),
+    /// Sent instead of a [`Hello`] when the daemon cannot take the connection (its subscriber
+    /// limit is reached), saying why; the daemon closes the connection after it.
+    Refused(String),
 }
 
 /// Every element the daemon publishes, with what it is. Element ids are assigned by the daemon

@@ -45,6 +45,9 @@ impl Conn {
         };
         let hello = match conn.read_message(path, Some(opts.hello_timeout)) {
             ReadOutcome::Message(ServerMessage::Hello(hello)) => hello,
+            ReadOutcome::Message(ServerMessage::Refused(reason)) => {
+                return Err(SdkError::Refused { path: path.to_owned(), reason });
+            }
             ReadOutcome::Message(ServerMessage::Pose(_) | ServerMessage::Elements(_)) => {
                 return Err(SdkError::Protocol {
                     path: path.to_owned(),

@@ -64,6 +64,15 @@ pub enum SdkError {
         /// The last attempt's error.
         last: Box<SdkError>,
     },
+    /// The daemon refused the connection and said why (its subscriber limit is reached). Not
+    /// fatal: a reconnecting subscriber keeps trying until a slot frees or it gives up.
+    #[error("the frond daemon at {} refused the subscription: {reason}", path.display())]
+    Refused {
+        /// The pose socket path.
+        path: PathBuf,
+        /// The daemon's reason.
+        reason: String,
+    },
     /// The subscriber is finished (disconnected without reconnection, or after a fatal error).
     #[error("the subscription is closed")]
     Closed,

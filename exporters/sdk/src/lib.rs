@@ -290,6 +290,12 @@ impl Subscriber {
                 }
                 Err(error) => Err(self.fail(error)),
             },
+            // Only sent in place of a hello; mid-stream it can only mean the daemon is closing.
+            ReadOutcome::Message(ServerMessage::Refused(reason)) => {
+                tracing::warn!(path = %self.path.display(), %reason, "the daemon dropped the subscription");
+                self.drop_connection();
+                Ok(Event::Disconnected)
+            }
             ReadOutcome::Closed => {
                 tracing::info!(path = %self.path.display(), "pose stream closed");
                 self.drop_connection();
