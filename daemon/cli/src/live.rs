@@ -25,10 +25,24 @@ pub(crate) fn play(g: &Global, take: Option<String>, stop: bool, seed: u64) -> a
     };
     c.expect_ok(&req)?;
     match take {
-        Some(t) => println!("looping take {t} on the pose stream (element 0, flagged playback)"),
+        Some(t) => {
+            println!("looping take {t} on the pose stream (element 0, flagged playback)");
+            warn_damaged_stage(&mut c, "playback");
+        }
         None => println!("playback stopped"),
     }
     Ok(())
+}
+
+/// Says on stderr when the daemon reports that the take a stage just started from is damaged
+/// (it plays the readable frames; `frond take repair` rewrites the take without the rest).
+fn warn_damaged_stage(c: &mut Control, stage: &str) {
+    let Ok(status) = c.status() else { return };
+    if let Some(s) = status.stages.iter().find(|s| s.name == stage)
+        && s.state.contains("(damaged:")
+    {
+        eprintln!("frond: warning: {}", s.state);
+    }
 }
 
 pub(crate) fn record_layer(
@@ -80,6 +94,7 @@ pub(crate) fn field_start(
     let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
     c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
     println!("field of {take} playing; steer it with `frond control` or a wrist swipe");
+    warn_damaged_stage(&mut c, "field");
     Ok(())
 }
 

@@ -10,7 +10,7 @@ use std::io::{self, Write};
 use std::path::PathBuf;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use anyhow::{Context, anyhow};
+use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};
@@ -241,7 +241,7 @@ pub enum TakeTool {
 
 fn read_take(g: &Global, name: &str) -> anyhow::Result<Take> {
     let path = crate::takes::resolve(g, name)?;
-    let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
+    let bytes = crate::takes::read_take_bytes(&path)?;
     let take = Take::from_bytes(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     if let Ok(scan) = frond_motion::scan_take(&bytes) {
         crate::takes::warn_damage(&path, &scan);
@@ -348,11 +348,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             };
             let mapping = rig.as_ref().map(|r| r.mapping()).unwrap_or_default();
             let cal = match (&calibration, &rig) {
-                (Some(p), _) => {
-                    let text =
-                        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-                    Calibration::from_toml_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?
-                }
+                (Some(p), _) => crate::control::load_calibration(p)?.0,
                 (None, Some(r)) => Calibration::neutral_for(r),
                 (None, None) => Calibration {
                     id: "none".into(),
@@ -370,7 +366,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             };
             let mut mapper = Mapper::new(mapping, cal.params(), spec);
             let text =
-                std::fs::read_to_string(&file).with_context(|| format!("cannot read {}", file.display()))?;
+                frond_motion::rig_files::read_small_text(&file, frond_motion::jsonl::MAX_HAND_FILE_BYTES)
+                    .map_err(|e| anyhow!("cannot read {}: {}", file.display(), e.reason()))?;
             let frames =
                 import_jsonl(&text, kind, &mut mapper).map_err(|e| anyhow!("{}: {e}", file.display()))?;
             let header = TakeHeader {

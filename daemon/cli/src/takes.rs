@@ -50,8 +50,14 @@ pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
     Ok(path)
 }
 
+/// A take file's bytes: a regular file within `rig_files::MAX_TAKE_FILE_BYTES`.
+pub(crate) fn read_take_bytes(path: &Path) -> anyhow::Result<Vec<u8>> {
+    frond_motion::rig_files::read_take_file(path)
+        .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))
+}
+
 fn read_scan(path: &Path) -> anyhow::Result<(TakeScan, u64)> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read take {}", path.display()))?;
+    let bytes = read_take_bytes(path)?;
     let scan = scan_take(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     Ok((scan, bytes.len() as u64))
 }
@@ -389,7 +395,7 @@ pub(crate) fn repair_report(path: &Path, r: &Repaired) -> String {
 
 pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
     let path = resolve(g, name)?;
-    let bytes = std::fs::read(&path).with_context(|| format!("cannot read take {}", path.display()))?;
+    let bytes = read_take_bytes(&path)?;
     let Some((fixed, r)) = repaired_bytes(&bytes).map_err(|e| anyhow!("{}: {e:#}", path.display()))? else {
         println!("{} is complete; nothing to repair", path.display());
         return Ok(());

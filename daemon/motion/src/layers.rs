@@ -86,17 +86,26 @@ impl Take {
     /// Reads a take file's bytes (a torn tail is ignored, as by every reader). A take without a
     /// header record is refused.
     pub fn from_bytes(bytes: &[u8]) -> Result<Take, TakeError> {
+        Ok(Self::from_bytes_noting_damage(bytes)?.0)
+    }
+
+    /// [`Take::from_bytes`], also saying in words what the reader skipped in a damaged take
+    /// ([`crate::take::TakeScan::damage`]; `None` when the take is sound), for callers that work
+    /// on the readable frames and must say so.
+    pub fn from_bytes_noting_damage(bytes: &[u8]) -> Result<(Take, Option<String>), TakeError> {
         let scan = scan_take(bytes)?;
+        let damage = scan.damage();
         let header = scan.header.ok_or(TakeError::Structure {
             offset: crate::take::MAGIC.len() as u64,
             reason: "the take has no header record".to_string(),
         })?;
-        Ok(Take {
+        let take = Take {
             header,
             element_names: header_element_names(bytes),
             frames: scan.frames,
             markers: scan.markers,
-        })
+        };
+        Ok((take, damage))
     }
 
     /// The complete file: magic, header (with `elements` when there are names), frames,

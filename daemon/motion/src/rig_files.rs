@@ -174,6 +174,17 @@ pub fn read_small_file(path: &Path, max: u64) -> Result<Vec<u8>, FileError> {
     Ok(bytes)
 }
 
+/// Largest take file a command reads, bytes: about 16 million frames, the resampling limit
+/// ([`crate::take::MAX_RESAMPLED_FRAMES`]).
+pub const MAX_TAKE_FILE_BYTES: u64 = 2 << 30;
+/// Largest mesh file (`.glb`) a rig may name, bytes.
+pub const MAX_MESH_FILE_BYTES: u64 = 256 << 20;
+
+/// Reads a take file: [`read_small_file`] with [`MAX_TAKE_FILE_BYTES`].
+pub fn read_take_file(path: &Path) -> Result<Vec<u8>, FileError> {
+    read_small_file(path, MAX_TAKE_FILE_BYTES)
+}
+
 /// `O_NONBLOCK` on Linux (every architecture frond builds for).
 const O_NONBLOCK: i32 = 0o4000;
 

@@ -23,14 +23,9 @@ pub enum BakeError {
         /// What is wrong with it.
         reason: frond_protocol::paths::TakeNameError,
     },
-    /// The take file could not be read.
-    #[error("cannot read take {}: {source}", path.display())]
-    TakeRead {
-        /// The take file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
+    /// The take file could not be read, is not a regular file, or is too large.
+    #[error("cannot read take {}: {}", .0.path().display(), .0.reason())]
+    TakeFile(frond_motion::rig_files::FileError),
     /// The take file is damaged (bad magic, corrupt record in the middle, bad structure).
     #[error("take {origin} is damaged: {source}")]
     TakeDamaged {

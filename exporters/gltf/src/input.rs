@@ -60,8 +60,11 @@ impl LoadedRig {
                     Some(dir) => dir.join(path),
                     None => PathBuf::from(path),
                 };
-                let bytes = std::fs::read(&full)
-                    .map_err(|e| mesh_err(format!("cannot read {}: {e}", full.display())))?;
+                let bytes = frond_motion::rig_files::read_small_file(
+                    &full,
+                    frond_motion::rig_files::MAX_MESH_FILE_BYTES,
+                )
+                .map_err(|e| mesh_err(format!("cannot read {}: {}", full.display(), e.reason())))?;
                 let skeleton = Skeleton::from_rig(&self.rig);
                 let names: Vec<String> = self.rig.joints.iter().map(|j| j.name.clone()).collect();
                 let stem = frond_motion::gltf_mesh::load_gltf_mesh(&bytes, &skeleton, &names)
@@ -119,11 +122,13 @@ impl TakeInput {
     /// in `takes_dir`.
     pub fn resolve(arg: &str, takes_dir: &Path) -> Result<Self, BakeError> {
         let path = take_path(arg, takes_dir)?;
-        let bytes = std::fs::read(&path).map_err(|source| match source.kind() {
-            std::io::ErrorKind::NotFound => {
+        let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| match e {
+            frond_motion::rig_files::FileError::Read { source, .. }
+                if source.kind() == std::io::ErrorKind::NotFound =>
+            {
                 BakeError::TakeNotFound { arg: arg.to_string(), path: path.clone() }
             }
-            _ => BakeError::TakeRead { path: path.clone(), source },
+            other => BakeError::TakeFile(other),
         })?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or(arg).to_string();
         Self::from_bytes(&bytes, &stem, &path.display().to_string())

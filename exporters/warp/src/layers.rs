@@ -19,6 +19,12 @@ use thiserror::Error;
 
 use crate::inpaint::inpaint;
 
+/// Largest image file read (picture, layer, background, scale map), bytes: checked before
+/// reading, as for every file frond opens (`frond_motion::rig_files`).
+pub const MAX_IMAGE_FILE_BYTES: u64 = 256 << 20;
+/// Largest decoded image side, pixels (a 16384 x 16384 RGBA picture is 1 GiB).
+pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
+
 /// An 8-bit RGBA image, straight alpha, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Rgba {
@@ -59,6 +65,21 @@ pub enum SceneError {
         /// Why.
         source: image::ImageError,
     },
+    /// A file is not a regular file, or is larger than [`MAX_IMAGE_FILE_BYTES`].
+    #[error("cannot read {what} {}: {}", .error.path().display(), .error.reason())]
+    File {
+        /// Which input.
+        what: &'static str,
+        /// Why.
+        error: frond_motion::rig_files::FileError,
+    },
+    /// No vegetation layer was given: every frame would be the picture itself.
+    #[error(
+        "nothing in the picture is marked as vegetation: give at least one --layer (a greyscale mask \
+         of the plants, or an RGBA image of them with alpha); without one every frame would be the \
+         picture itself"
+    )]
+    NoLayers,
     /// An input has another size than the picture.
     #[error(
         "{what} {name} is {got_w}x{got_h} but the picture is {want_w}x{want_h}; every input must have the picture's size"
@@ -216,14 +237,13 @@ impl Scene {
         background: Option<&Path>,
         scale_map: Option<&Path>,
     ) -> Result<Scene, SceneError> {
+        if layers.is_empty() {
+            return Err(SceneError::NoLayers);
+        }
         let pic = read_rgba("image", picture)?;
         let mut inputs = Vec::new();
         for path in layers {
-            let img = image::open(path).map_err(|source| SceneError::Read {
-                what: "layer",
-                path: path.clone(),
-                source,
-            })?;
+            let img = read_image("layer", path)?;
             let input = if img.color().has_alpha() && img.color().has_color() {
                 let rgba = img.to_rgba8();
                 LayerInput::Rgba(Rgba {
@@ -250,11 +270,7 @@ impl Scene {
         let bg = background.map(|p| read_rgba("background", p)).transpose()?;
         let sm = match scale_map {
             Some(p) => {
-                let img = image::open(p).map_err(|source| SceneError::Read {
-                    what: "scale map",
-                    path: p.to_path_buf(),
-                    source,
-                })?;
+                let img = read_image("scale map", p)?;
                 let l = img.to_luma8();
                 let (sw, sh) = (l.width() as usize, l.height() as usize);
                 Some((p.display().to_string(), l.into_raw(), sw, sh))
@@ -275,11 +291,25 @@ impl Scene {
     }
 }
 
-/// Reads an image file as RGBA.
+/// Reads and decodes an image file: a regular file of at most [`MAX_IMAGE_FILE_BYTES`] (a FIFO or
+/// a device is refused without blocking), sides of at most [`MAX_IMAGE_SIDE_PX`].
+pub fn read_image(what: &'static str, path: &Path) -> Result<image::DynamicImage, SceneError> {
+    let bytes = frond_motion::rig_files::read_small_file(path, MAX_IMAGE_FILE_BYTES)
+        .map_err(|error| SceneError::File { what, error })?;
+    let read_err = |source| SceneError::Read { what, path: path.to_path_buf(), source };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| read_err(image::ImageError::IoError(e)))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE_PX);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE_PX);
+    reader.limits(limits);
+    reader.decode().map_err(read_err)
+}
+
+/// Reads an image file as RGBA (see [`read_image`]).
 pub fn read_rgba(what: &'static str, path: &Path) -> Result<Rgba, SceneError> {
-    let img =
-        image::open(path).map_err(|source| SceneError::Read { what, path: path.to_path_buf(), source })?;
-    let rgba = img.to_rgba8();
+    let rgba = read_image(what, path)?.to_rgba8();
     Ok(Rgba { width: rgba.width() as usize, height: rgba.height() as usize, data: rgba.into_raw() })
 }
 

@@ -50,6 +50,15 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     let (out, params) = (out?, params?);
     let scene = load_scene(&args.scene)?;
     let track = args.take.as_deref().map(PoseTrack::from_take).transpose()?;
+    if let (Some(track), Some(path)) = (&track, &args.take)
+        && let Some(damage) = &track.damage
+    {
+        eprintln!(
+            "frond-warp: warning: take {}: {damage}; the wind follows its {} readable frames",
+            path.display(),
+            track.times_s.len()
+        );
+    }
     let mut animator = Animator::new(scene, params)?;
     let n = frond_warp::render::render(
         &mut animator,

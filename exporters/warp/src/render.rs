@@ -79,13 +79,16 @@ pub struct PoseTrack {
     pub times_s: Vec<f64>,
     /// Root joint `[pitch, yaw, roll]` at each time, degrees.
     pub roots_deg: Vec<[f32; 3]>,
+    /// What the reader skipped in a damaged take, in words (`None` when it is sound): the track
+    /// holds the readable frames.
+    pub damage: Option<String>,
 }
 
 impl PoseTrack {
     /// Reads a `.take` file (frond's take format) and keeps the root joint of every frame.
     pub fn from_take(path: &Path) -> Result<PoseTrack, RenderError> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.to_string() })?;
+        let bytes = frond_motion::rig_files::read_take_file(path)
+            .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.reason() })?;
         let scan = frond_motion::take::scan_take(&bytes)
             .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.to_string() })?;
         let poses = scan.poses();
@@ -99,6 +102,7 @@ impl PoseTrack {
         Ok(PoseTrack {
             times_s: poses.iter().map(|p| p.t - t0).collect(),
             roots_deg: poses.iter().map(|p| p.joints_deg[0]).collect(),
+            damage: scan.damage(),
         })
     }
 }

@@ -236,11 +236,29 @@ fn bad_input_gives_clear_errors() {
     // Unreadable image.
     let junk = t.path().join("junk.png");
     std::fs::write(&junk, b"this is no png").unwrap();
-    let o = run(&["render", "--image", s(&junk), "--frames", "2", "-o", s(&out)]);
+    let o = run(&["render", "--image", s(&junk), "--layer", s(&mask), "--frames", "2", "-o", s(&out)]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot read image") && stderr(&o).contains("junk.png"), "{}", stderr(&o));
-    let o = run(&["render", "--image", s(&t.path().join("missing.png")), "--frames", "2", "-o", s(&out)]);
+    let missing = t.path().join("missing.png");
+    let o = run(&["render", "--image", s(&missing), "--layer", s(&mask), "--frames", "2", "-o", s(&out)]);
     assert!(stderr(&o).contains("missing.png"), "{}", stderr(&o));
+
+    // Issue 14, point 13: no layer means nothing would move; refused, naming --layer.
+    let o = run(&["render", "--image", s(&pic), "--frames", "2", "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nothing in the picture is marked as vegetation: give at least one --layer"));
+
+    // Issue 14, point 9: a FIFO or a device is refused at once, never read or waited on.
+    let fifo = t.path().join("pic.fifo");
+    let c = std::ffi::CString::new(s(&fifo)).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates a node there.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    for (flag, path, what) in [("--image", s(&fifo), "a FIFO"), ("--layer", "/dev/zero", "a device")] {
+        let (image, layer) = if flag == "--image" { (path, s(&mask)) } else { (s(&pic), path) };
+        let o = run(&["render", "--image", image, "--layer", layer, "--frames", "2", "-o", s(&out)]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(path) && stderr(&o).contains(what), "{}", stderr(&o));
+    }
 
     // Mask of another size.
     let small = t.path().join("small.png");

@@ -35,6 +35,9 @@ pub enum StageError {
         /// Its frames at 30 FPS.
         frames: usize,
     },
+    /// The take is longer than a live loop may be (`playback::MAX_LOOP_FRAMES` at 30 FPS).
+    #[error("the take's global layer is too long to loop: {0}")]
+    TooLongToLoop(frond_motion::take::TooManyFrames),
     /// No loop transitions could be found (seed 000, Eq. 5).
     #[error(transparent)]
     Loop(#[from] LoopError),

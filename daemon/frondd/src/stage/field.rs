@@ -12,7 +12,7 @@ use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::{ElementInfo, ElementKind, StageInput, StageKey};
 
 use super::error::StageError;
-use super::playback::looped_clip;
+use super::playback::{LoopedTake, looped_clip, note_damage};
 use super::{
     BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
 };
@@ -72,19 +72,31 @@ pub struct FieldReport {
     pub controls: FieldControlsCell,
     take: String,
     plants: usize,
+    /// What a damaged take lost, in words (empty for a sound take).
+    damage: String,
 }
 
 impl FieldReport {
     /// The report of a field of take `take` with `plants` plants (no controls yet).
     pub fn new(take: &str, plants: usize) -> Self {
-        FieldReport { controls: FieldControlsCell::default(), take: take.to_string(), plants }
+        FieldReport {
+            controls: FieldControlsCell::default(),
+            take: take.to_string(),
+            plants,
+            damage: String::new(),
+        }
+    }
+
+    /// The same, for a damaged take: `damage` says what the reader skipped.
+    pub fn damaged(take: &str, plants: usize, damage: &Option<String>) -> Self {
+        FieldReport { damage: note_damage(take, damage), ..Self::new(take, plants) }
     }
 }
 
 impl StageReport for FieldReport {
     fn describe(&self) -> String {
         let controls = self.controls.load().map(|c| describe_controls(&c)).unwrap_or_default();
-        format!("field of {}: {} plants; {controls}", self.take, self.plants)
+        format!("field of {}{}: {} plants; {controls}", self.take, self.damage, self.plants)
     }
 }
 
@@ -120,7 +132,19 @@ impl FieldStage {
         t0_ns: u64,
         report: Arc<FieldReport>,
     ) -> Result<Self, StageError> {
-        let (clip, transitions) = looped_clip(take_bytes)?;
+        Self::from_looped(looped_clip(take_bytes)?, field, ids, seed, t0_ns, report)
+    }
+
+    /// [`FieldStage::new`] on a take already made ready to loop.
+    pub fn from_looped(
+        looped: LoopedTake,
+        field: Field,
+        ids: &[u16],
+        seed: u64,
+        t0_ns: u64,
+        report: Arc<FieldReport>,
+    ) -> Result<Self, StageError> {
+        let LoopedTake { clip, transitions, .. } = looped;
         let n = field.plants.len();
         if n == 0 {
             return Err(StageError::EmptyField);
@@ -229,9 +253,11 @@ pub fn build(
         )));
     }
     let ids = &ctx.free_ids[..publish];
-    let report = Arc::new(FieldReport::new(take, count));
-    let stage = FieldStage::new(&bytes, field, ids, seed, ctx.now_ns, report.clone())
-        .map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
+    let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
+    let looped = looped_clip(&bytes).map_err(invalid)?;
+    let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));
+    let stage =
+        FieldStage::from_looped(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
     let elements = ids
         .iter()
         .enumerate()

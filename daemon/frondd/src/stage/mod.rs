@@ -201,11 +201,18 @@ pub struct StageCommand {
     pub applied: Arc<AtomicBool>,
 }
 
-/// Reads a take file from the takes directory (its name validated first).
+/// Largest take file a live stage reads, bytes (about 4 million frames; the clip it loops is
+/// bounded further by `playback::MAX_LOOP_FRAMES`).
+pub const MAX_STAGE_TAKE_BYTES: u64 = 512 << 20;
+
+/// Reads a take file from the takes directory (its name validated first): a regular file of at
+/// most [`MAX_STAGE_TAKE_BYTES`], so a FIFO or a device put there cannot block or exhaust the
+/// control thread.
 pub fn read_take(takes_dir: &Path, name: &str) -> Result<Vec<u8>, BuildError> {
     frond_protocol::paths::validate_take_name(name)
         .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: e.to_string() })?;
     let path = takes_dir.join(format!("{name}.take"));
-    std::fs::read(&path)
-        .map_err(|e| BuildError::invalid(format!("cannot read take {name:?} at {}: {e}", path.display())))
+    frond_motion::rig_files::read_small_file(&path, MAX_STAGE_TAKE_BYTES).map_err(|e| {
+        BuildError::invalid(format!("cannot read take {name:?} at {}: {}", path.display(), e.reason()))
+    })
 }

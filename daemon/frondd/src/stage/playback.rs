@@ -6,6 +6,7 @@ use std::sync::Arc;
 use frond_motion::clip::Clip;
 use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};
+use frond_motion::take::resample_plan;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::error::StageError;
@@ -17,10 +18,29 @@ use crate::clock::NS_PER_S;
 /// Frame rate takes are looped at (seed 000 records at 30 FPS).
 pub const LOOP_FPS: f64 = 30.0;
 
+/// Most frames a looped take may have at [`LOOP_FPS`]: 10 hours, the export budget of `frond
+/// take export` (about 50 MB of clip). Counted before the take is resampled.
+pub const MAX_LOOP_FRAMES: u64 = 1_080_000;
+
+/// A take made ready to loop.
+pub struct LoopedTake {
+    /// Its global layer at [`LOOP_FPS`].
+    pub clip: Clip,
+    /// Its loop transitions (seed 000, Eq. 5).
+    pub transitions: Transitions,
+    /// What the reader skipped in a damaged take, in words; `None` when it is sound.
+    pub damage: Option<String>,
+}
+
 /// The global layer of `take_bytes` as a 30 FPS clip with its loop transitions (seed 000, Eq. 5).
-pub fn looped_clip(take_bytes: &[u8]) -> Result<(Clip, Transitions), StageError> {
-    let take = Take::from_bytes(take_bytes)?;
-    let clip = take.clip(0, LOOP_FPS);
+/// A damaged take loops its readable frames, saying what was skipped; one longer than
+/// [`MAX_LOOP_FRAMES`] is refused before it is resampled.
+pub fn looped_clip(take_bytes: &[u8]) -> Result<LoopedTake, StageError> {
+    let (take, damage) = Take::from_bytes_noting_damage(take_bytes)?;
+    let poses: Vec<_> = take.layer(0, false).iter().map(|f| f.pose).collect();
+    let plan = resample_plan(&poses, LOOP_FPS);
+    plan.check(LOOP_FPS, MAX_LOOP_FRAMES).map_err(StageError::TooLongToLoop)?;
+    let clip = Clip::from_poses(&poses, LOOP_FPS);
     if clip.len() < 8 {
         return Err(StageError::TooShortToLoop { frames: clip.len() });
     }
@@ -28,7 +48,18 @@ pub fn looped_clip(take_bytes: &[u8]) -> Result<(Clip, Transitions), StageError>
     let mut params = LoopParams::default();
     params.window = params.window.min((clip.len() - 2) / 4);
     let transitions = find_transitions(&clip, &params)?;
-    Ok((clip, transitions))
+    Ok(LoopedTake { clip, transitions, damage })
+}
+
+/// The words a stage's report adds for a damaged take, logged once when the stage is built.
+pub fn note_damage(take: &str, damage: &Option<String>) -> String {
+    match damage {
+        Some(d) => {
+            tracing::warn!(take, damage = %d, "the take is damaged; looping its readable frames");
+            format!(" (damaged: {d}; looping the readable frames)")
+        }
+        None => String::new(),
+    }
 }
 
 /// The looping take.
@@ -41,9 +72,12 @@ pub struct PlaybackStage {
 impl PlaybackStage {
     /// Loops the global layer of `take_bytes` from host time `t0_ns`, published as `element`.
     pub fn new(take_bytes: &[u8], seed: u64, t0_ns: u64, element: u16) -> Result<Self, StageError> {
-        let (clip, transitions) = looped_clip(take_bytes)?;
-        let playback = Playback::new(clip, &transitions, seed, PlaybackParams::default(), 0);
-        Ok(PlaybackStage { playback, t0_ns, element })
+        Ok(Self::from_looped(looped_clip(take_bytes)?, seed, t0_ns, element))
+    }
+
+    fn from_looped(looped: LoopedTake, seed: u64, t0_ns: u64, element: u16) -> Self {
+        let playback = Playback::new(looped.clip, &looped.transitions, seed, PlaybackParams::default(), 0);
+        PlaybackStage { playback, t0_ns, element }
     }
 }
 
@@ -61,13 +95,14 @@ impl LiveStage for PlaybackStage {
 /// Builds the playback of take `take` as the global element (id 0).
 pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
     let bytes = super::read_take(ctx.takes_dir, take)?;
-    let stage = PlaybackStage::new(&bytes, seed, ctx.now_ns, 0)
-        .map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
+    let looped = looped_clip(&bytes).map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
+    let damage = note_damage(take, &looped.damage);
+    let stage = PlaybackStage::from_looped(looped, seed, ctx.now_ns, 0);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
             kind: "playback",
-            report: Arc::new(FixedReport(format!("looping take {take} as the global element"))),
+            report: Arc::new(FixedReport(format!("looping take {take} as the global element{damage}"))),
             elements: vec![ElementInfo {
                 id: 0,
                 name: take.to_string(),
