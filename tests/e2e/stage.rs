@@ -102,6 +102,34 @@ fn sigterm_finishes_the_take_and_removes_the_sockets() {
     assert!(seqs.windows(2).all(|w| w[0] < w[1]), "frames out of order");
 }
 
+/// Issue 14, point 13: once SIGTERM is handled the daemon is gone promptly, with subscribers and
+/// an idle control client connected: its helper threads are woken, not waited for at their next
+/// poll, and nothing runs after the log says `stopped`. (The bound is a hang check, ten times the
+/// usual 0.1 s.)
+#[test]
+fn sigterm_stops_promptly_with_clients_connected() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("frondd.log");
+    let mut daemon = Daemon::start_with_stderr(
+        dir.path(),
+        &["--source", "in-process"],
+        std::fs::File::create(&log).unwrap().into(),
+    );
+    let mut subs: Vec<Subscriber> =
+        (0..4).map(|_| Subscriber::connect(&daemon.socket_dir).unwrap()).collect();
+    for s in &mut subs {
+        s.next_event().unwrap();
+    }
+    let _idle_control = UnixStream::connect(daemon.socket_dir.join("control.sock")).unwrap();
+    let t0 = Instant::now();
+    let status = daemon.proc.terminate(Duration::from_secs(10)).expect("frondd did not stop on SIGTERM");
+    let took = t0.elapsed();
+    assert!(status.success(), "{status}");
+    assert!(took < Duration::from_secs(1), "SIGTERM to exit took {took:?}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.trim_end().lines().last().is_some_and(|l| l.contains("stopped")), "{text}");
+}
+
 #[test]
 fn kill_9_while_recording_loses_no_written_frame() {
     let dir = tempfile::tempdir().unwrap();

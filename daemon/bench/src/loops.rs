@@ -290,6 +290,8 @@ impl FullLoop {
 impl Drop for FullLoop {
     fn drop(&mut self) {
         self.stop_all.store(true, Relaxed);
+        // Wake the acceptor, which otherwise looks at `stop_all` only every `STOP_POLL`.
+        let _ = UnixStream::connect(self._dir.path().join(frond_protocol::POSES_SOCKET));
         // Dropping the engine closes the publisher's queue: it ends and closes the sockets, and
         // the clients see end-of-file.
         self.engine = None;

@@ -619,10 +619,11 @@ pub fn spawn_control(
             let stream = match listener.accept() {
                 Ok((s, _)) => s,
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                    // Woken by a connection, or every 100 ms to look at `stop`.
+                    // Woken by a connection (at shutdown the daemon makes one), or every
+                    // `STOP_POLL` to look at `stop`.
                     crate::clock::wait_readable(
                         std::os::fd::AsFd::as_fd(&listener),
-                        Duration::from_millis(100),
+                        crate::publisher::STOP_POLL,
                     );
                     continue;
                 }

@@ -377,6 +377,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     }
     loop_stop.store(true, Relaxed);
     threads_stop.store(true, Relaxed);
+    wake_listeners(&[&pose_path, &control_path]);
     let engine = rt.join().map_err(|_| DaemonError::LoopPanicked)?;
     drop(engine); // closes the publisher's queue, so it ends
     for (name, handle) in
@@ -387,6 +388,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         }
     }
     drop(cmd_tx);
+    // Control connections still open hold senders of their own: tell the recorder to end.
+    let _ = rec_tx.send(crate::recorder::RecorderMsg::Shutdown);
     drop(rec_tx);
     drop(ctx);
     if recorder.join().is_err() {
@@ -400,6 +403,15 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     drop(opened); // unmounts the virtual glove nodes, if any
     info!("stopped");
     Ok(())
+}
+
+/// Connects once to each of the daemon's listening sockets that still is its own, so the threads
+/// that wait on them see `stop` at once instead of at their next `STOP_POLL`. (A socket whose
+/// path now belongs to another daemon is left alone: its thread sees `stop` at the next poll.)
+fn wake_listeners(sockets: &[&OwnedSocket]) {
+    for socket in sockets.iter().filter(|s| s.still_ours()) {
+        let _ = std::os::unix::net::UnixStream::connect(&socket.path);
+    }
 }
 
 /// A control reply's message, for errors outside the control socket.
@@ -474,7 +486,9 @@ fn housekeeping(
     let mut last_ping = Instant::now();
     let mut ticks_at_ping = last_ticks;
     while !stop.load(Relaxed) {
-        thread::sleep(Duration::from_millis(50));
+        // Ten times a second: what it does is for people and for `frond status`, and every
+        // wake-up of the daemon costs CPU the realtime loop could use.
+        thread::sleep(Duration::from_millis(100));
         if reload.swap(false, Relaxed) {
             notifier.notify("RELOADING=1");
             reload_fn(ctx);
@@ -612,14 +626,20 @@ fn spawn_reopener(
             .map(|(hand, factory)| Pending::Awaited { hand, factory, since: Instant::now() })
             .collect();
         while !stop.load(Relaxed) {
-            // Wait for a newly lost source, or 100 ms before the next attempt.
-            if let Ok(lost) = rx.recv_timeout(Duration::from_millis(100)) {
-                pending.push(Pending::Lost {
+            // Wait for a newly lost source: 100 ms before the next attempt while some are
+            // pending, else until one is lost (or `STOP_POLL`). The loop's end closes the
+            // channel at shutdown.
+            let wait =
+                if pending.is_empty() { crate::publisher::STOP_POLL } else { Duration::from_millis(100) };
+            match rx.recv_timeout(wait) {
+                Ok(lost) => pending.push(Pending::Lost {
                     hand: lost.hand,
                     source: lost.source,
                     since: Instant::now(),
                     attempts: 0,
-                });
+                }),
+                Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+                Err(crossbeam_channel::RecvTimeoutError::Timeout) => {}
             }
             let mut still = Vec::with_capacity(pending.len());
             for p in pending.drain(..) {

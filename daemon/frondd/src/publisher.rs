@@ -24,6 +24,15 @@ use tracing::{debug, info, warn};
 use crate::engine::{LoopCommand, MAX_SUBSCRIBERS};
 use crate::lanes::{NewLane, SlowLane};
 
+/// How often the helper threads that wait on a socket or a channel look at their `stop` flag
+/// when nothing wakes them (the daemon wakes them at shutdown: see `daemon::wake_listeners`).
+/// Rare, because every wake-up of an idle daemon costs CPU the realtime loop could use.
+pub const STOP_POLL: Duration = Duration::from_millis(500);
+/// How often the publisher takes the frames queued for it while no subscriber is on its slow
+/// lane (with one, the loop wakes it for every frame). Bounds the queue's occupancy: 100 ms is
+/// 100 frames at 1 kHz, 1 000 at 10 kHz, far from [`PUBLISH_QUEUE_FRAMES`].
+const IDLE_DRAIN: Duration = Duration::from_millis(100);
+
 /// Frames the loop may get ahead of the publisher thread before it drops them.
 pub const PUBLISH_QUEUE_FRAMES: usize = 8192;
 /// Bytes budgeted per frame in a subscriber's backlog (a pose frame encodes to ~230 bytes).
@@ -110,11 +119,9 @@ pub fn spawn_acceptor(
             let stream = match listener.accept() {
                 Ok((stream, _)) => stream,
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                    // Woken by a connection, or every 100 ms to look at `stop`.
-                    crate::clock::wait_readable(
-                        std::os::fd::AsFd::as_fd(&listener),
-                        Duration::from_millis(100),
-                    );
+                    // Woken by a connection (at shutdown the daemon makes one), or every
+                    // `STOP_POLL` to look at `stop`.
+                    crate::clock::wait_readable(std::os::fd::AsFd::as_fd(&listener), STOP_POLL);
                     continue;
                 }
                 Err(e) => {
@@ -143,6 +150,7 @@ pub fn spawn_acceptor(
                 .send_timeout(LoopCommand::AddSubscriber(Box::new(new)), Duration::from_secs(1))
                 .is_err()
             {
+                // The connection went with the command; the client sees it closed.
                 warn!(id, "refusing a pose subscriber: the realtime loop is not accepting");
                 continue;
             }
@@ -270,7 +278,7 @@ pub fn spawn_publisher(
         let mut poses: Vec<Pose> = Vec::with_capacity(MAX_BATCH);
         let cap = config.queue_frames.max(2) * BACKLOG_BYTES_PER_FRAME;
         loop {
-            let first = match wake.recv_timeout(&frames, Duration::from_millis(20)) {
+            let first = match wake.recv_timeout(&frames, IDLE_DRAIN) {
                 Ok(p) => p,
                 Err(TryRecvError::Disconnected) => break,
                 Err(TryRecvError::Empty) => None,

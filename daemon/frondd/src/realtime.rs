@@ -70,8 +70,58 @@ pub fn pin_thread<T>(handle: &thread::JoinHandle<T>, cpu: Option<usize>) -> Stri
 /// Asks for 1 ns timer slack on the calling thread (the default 50 us lets the kernel
 /// coalesce a normal-priority thread's wake-ups that much later; SCHED_FIFO threads have none).
 fn set_timer_slack_1ns() {
+    set_timer_slack_ns(1);
+}
+
+fn set_timer_slack_ns(ns: u64) {
     // SAFETY: PR_SET_TIMERSLACK takes an integer argument and affects only the calling thread.
-    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
+    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, ns as libc::c_ulong, 0, 0, 0) };
+}
+
+/// Timer slack of the loop's waits while a hand source's reports cover every tick.
+pub const STREAMING_SLACK_NS: u64 = 2_000_000;
+/// Ticks in a row that reports must cover before the loop waits with [`STREAMING_SLACK_NS`].
+pub const STREAMING_AFTER_TICKS: u32 = 64;
+/// Most ticks a late tick after a relaxed wait catches up on at once.
+const MAX_CATCH_UP_TICKS: u32 = 64;
+
+/// The waits' timer precision. While a source's reports cover every tick, the deadline only
+/// matters if the source falls silent, and a precise timer armed and cancelled for every wait
+/// costs more than reading the report (a hardware timer reprogramming each way; on a virtual
+/// machine, a trap to the hypervisor each). After [`STREAMING_AFTER_TICKS`] covered ticks in a
+/// row the loop waits with [`STREAMING_SLACK_NS`] of slack, which lets the kernel serve the
+/// deadline with a timer interrupt already due instead of programming one. The first tick after
+/// the source falls silent may come that much late: it catches up on the periods it slept
+/// through (a held frame each, no overrun counted, no lateness recorded, since no report was
+/// waiting), and every tick that runs makes the waits precise again. SCHED_FIFO threads get no
+/// slack from the kernel, so with `realtime.priority` set the waits stay precise throughout.
+#[derive(Debug, Default)]
+struct WaitPrecision {
+    covered_in_row: u32,
+    relaxed: bool,
+}
+
+impl WaitPrecision {
+    /// Reports covered the upcoming tick; `every_tick` when the engine must run every tick
+    /// anyway (stages, several hands), which keeps the waits precise.
+    fn covered(&mut self, every_tick: bool) {
+        self.covered_in_row = self.covered_in_row.saturating_add(1);
+        if !self.relaxed && !every_tick && self.covered_in_row >= STREAMING_AFTER_TICKS {
+            set_timer_slack_ns(STREAMING_SLACK_NS);
+            self.relaxed = true;
+        }
+    }
+
+    /// A tick runs; returns whether the wait before it was relaxed. Precise from now on.
+    fn tick_runs(&mut self) -> bool {
+        self.covered_in_row = 0;
+        let was = self.relaxed;
+        if was {
+            set_timer_slack_1ns();
+            self.relaxed = false;
+        }
+        was
+    }
 }
 
 /// Whether a report at `now_ns` (before `deadline_ns`) falls in the period that the tick at
@@ -109,6 +159,7 @@ pub fn spawn_loop(
         // deadline alone this period, so a descriptor that stays readable (hung up, say) cannot
         // spin it.
         let mut empty_wakes = 0u8;
+        let mut precision = WaitPrecision::default();
         while !stop.load(Relaxed) {
             let fds: &mut [libc::pollfd] = if empty_wakes >= 2 { &mut [] } else { engine.ready_fds() };
             let woke = if fds.is_empty() {
@@ -132,15 +183,29 @@ pub fn spawn_loop(
                         engine.cover_tick(upcoming);
                         if upcoming {
                             deadline += period;
+                            precision.covered(engine.needs_every_tick());
                         }
                     }
                 }
                 continue;
             }
             empty_wakes = 0;
-            stats.lateness.record(now.saturating_sub(deadline));
+            let relaxed = precision.tick_runs();
+            if !relaxed {
+                stats.lateness.record(now.saturating_sub(deadline));
+            }
             engine.tick(now);
             deadline += period;
+            if relaxed {
+                // The source fell silent during a relaxed wait: a held frame for every period
+                // slept through, at once, as the stream promises one per period.
+                let mut caught_up = 0;
+                while deadline <= now && caught_up < MAX_CATCH_UP_TICKS {
+                    engine.tick(now);
+                    deadline += period;
+                    caught_up += 1;
+                }
+            }
             let after = monotonic_ns();
             if after >= deadline + period {
                 // More than a whole period behind: skip the missed deadlines instead of
@@ -157,7 +222,33 @@ pub fn spawn_loop(
 
 #[cfg(test)]
 mod tests {
-    use super::covers_upcoming_tick;
+    use super::{STREAMING_AFTER_TICKS, STREAMING_SLACK_NS, WaitPrecision, covers_upcoming_tick};
+
+    fn timer_slack_ns() -> u64 {
+        // SAFETY: PR_GET_TIMERSLACK takes no arguments and returns the calling thread's slack.
+        unsafe { libc::prctl(libc::PR_GET_TIMERSLACK, 0, 0, 0, 0) as u64 }
+    }
+
+    /// The waits relax only after enough covered ticks in a row, never while the engine needs
+    /// every tick, and every tick that runs makes them precise again (read back from the kernel).
+    #[test]
+    fn waits_relax_only_while_reports_cover_every_tick() {
+        super::set_timer_slack_1ns();
+        let mut p = WaitPrecision::default();
+        for _ in 0..STREAMING_AFTER_TICKS - 1 {
+            p.covered(false);
+        }
+        assert_eq!(timer_slack_ns(), 1, "not yet");
+        p.covered(true);
+        assert_eq!(timer_slack_ns(), 1, "a stage or a second hand needs every tick");
+        p.covered(false);
+        assert_eq!(timer_slack_ns(), STREAMING_SLACK_NS);
+        assert!(p.tick_runs(), "the tick after a relaxed wait knows it");
+        assert_eq!(timer_slack_ns(), 1);
+        assert!(!p.tick_runs());
+        p.covered(false);
+        assert_eq!(timer_slack_ns(), 1, "the count starts again after a tick");
+    }
 
     #[test]
     fn a_report_covers_the_tick_that_closes_its_period() {

@@ -76,6 +76,10 @@ pub enum RecorderMsg {
         /// Where to answer.
         reply: Sender<Result<u64, String>>,
     },
+    /// The daemon's last message: write what the loop handed over, finish an open take, end the
+    /// thread. (Waiting for the channel to close instead would wait for every control
+    /// connection still open, each holding a sender, however idle.)
+    Shutdown,
 }
 
 /// Counters of the current take, read by status.
@@ -274,12 +278,20 @@ pub fn spawn_recorder(
                 Err(RecvTimeoutError::Timeout) => None,
                 Err(RecvTimeoutError::Disconnected) => break,
             };
+            let mut shutdown = false;
             while let Some(msg) = next.take() {
                 // Frames the loop handed over before this request belong before it (a marker
                 // after them, a take's end after its last frame).
                 drain(&mut frames, &mut open, &mut buf, &counters, fsync_interval);
+                if matches!(msg, RecorderMsg::Shutdown) {
+                    shutdown = true;
+                    break;
+                }
                 handle(msg, &mut open, &mut buf, &counters, fsync_interval);
                 next = rx.try_recv().ok();
+            }
+            if shutdown {
+                break;
             }
             drain(&mut frames, &mut open, &mut buf, &counters, fsync_interval);
             flush(&mut open, &mut buf, &counters, fsync_interval);
@@ -382,6 +394,8 @@ fn handle(
                 }
             }
         }
+        // Taken by the thread's loop before it gets here.
+        RecorderMsg::Shutdown => {}
         RecorderMsg::Stop { reply } => {
             let Some(o) = open.take() else {
                 let _ = reply.send(Err("no take is being recorded".into()));

@@ -215,8 +215,10 @@ impl HandSource for OscHandSource {
         Some(std::os::fd::AsRawFd::as_raw_fd(&self.socket))
     }
 
-    /// Takes what the last datagram left, then every datagram waiting on the socket until `out`
-    /// is full; never blocks, never allocates.
+    /// Takes what the last datagram left, or else the next datagram waiting on the socket: one
+    /// `recv` per call that finds one. Not draining until `EAGAIN` saves a system call per sample
+    /// at the tracker's rate (the loop's `ppoll` is level-triggered: a socket with more
+    /// datagrams wakes it again at once). Never blocks, never allocates.
     fn read_pending(&mut self, out: &mut [DeviceSample]) -> Result<usize, SourceError> {
         let mut n = 0;
         while n < out.len() && self.pending_at < self.pending_len {
@@ -229,8 +231,9 @@ impl HandSource for OscHandSource {
         } else {
             return Ok(n);
         }
-        while n < out.len() {
+        while n == 0 {
             match self.socket.recv(&mut self.buf) {
+                // A datagram of only rejected messages gives nothing: try the next one.
                 Ok(len) => self.decode(len, out, &mut n),
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 // WouldBlock: nothing more; anything else (an ICMP error on a UDP socket) is
