@@ -298,3 +298,56 @@ fn non_finite_values_in_a_take_are_refused_by_frame() {
     }
     assert!(daemon.status().stages.is_empty(), "a take with NaN is playing");
 }
+
+/// Issue 14, points 5, 7 and 9, live: the daemon loops what a damaged take still holds and
+/// says so (status, log, `frond play`); a take longer than a live loop may be is refused before
+/// it is resampled; a FIFO named like a take is refused at once instead of blocking a control
+/// thread.
+#[test]
+fn live_stages_play_what_a_take_holds_refuse_what_is_too_long_and_never_block_on_a_fifo() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+
+    // Damaged: one flipped bit in the 20th of 60 frames.
+    let frames: Vec<(f64, f32)> = (0..60).map(|k| (k as f64 / 30.0, (k % 10) as f32)).collect();
+    let path = write_take(&daemon.takes_dir, "hurt", &frames);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let (at, _, _) = records(&bytes).into_iter().filter(|r| r.1 == 2).nth(20).unwrap();
+    bytes[at + 60] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let out = daemon.frond().args(["play", "hurt"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: looping take hurt") && err.contains("1 damaged stretch skipped"), "{err}");
+    assert!(err.contains("looping the readable frames"), "{err}");
+    let stage = daemon.status().stages.into_iter().find(|s| s.name == "playback").expect("playing");
+    assert!(stage.state.contains("(damaged: 1 damaged stretch skipped"), "{}", stage.state);
+    daemon.frond_ok(&["play", "--stop"]);
+
+    // Too long: 40 001 frames 0.9 s apart (each step interpolated) span 36 000 s, which is
+    // 36 000 * 30 + 1 = 1 080 001 frames at 30 FPS, one past the limit of 1 080 000.
+    let long: Vec<(f64, f32)> = (0..40_001).map(|k| (k as f64 * 0.9, (k % 7) as f32)).collect();
+    write_take(&daemon.takes_dir, "long", &long);
+    let out = daemon.frond().args(["play", "long"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "too long to loop: resampling at 30 FPS gives 1080001 frames, more than the limit of 1080000"
+        ),
+        "{err}"
+    );
+
+    // A FIFO where a take should be: refused, naming what it is, without waiting for a writer.
+    let fifo = daemon.takes_dir.join("pipe.take");
+    let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates a node there.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let t0 = std::time::Instant::now();
+    let out = daemon.frond().args(["play", "pipe"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("it is a FIFO, not a regular file"), "{err}");
+    assert!(t0.elapsed() < Duration::from_secs(5), "took {:?}", t0.elapsed());
+    assert!(daemon.status().stages.is_empty());
+}

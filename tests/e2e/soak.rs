@@ -1,6 +1,7 @@
-//! The soak (issue 8): `frond soak` runs the daemon on the virtual glove for
-//! `FROND_SOAK_SECONDS` (default 60) under a fault schedule (unplugs, corrupt reports, a slow
-//! subscriber, a reconnecting exporter, a recording) and prints its figures as JSON. This test
+//! The soak (issues 8 and 14): `frond soak` runs the daemon on the virtual glove for
+//! `FROND_SOAK_SECONDS` (default 60) under a fault schedule (unplugs, corrupt reports, a clock
+//! jump, a SIGSTOP pause, a full disk under the recording, a slow subscriber, a reconnecting
+//! exporter) and prints its figures as JSON. This test
 //! runs the real command and checks the figures itself, so a verdict bug in the command cannot
 //! hide a failure.
 
@@ -84,6 +85,19 @@ fn soak_under_faults() {
     assert_eq!(num(take, "torn_bytes"), 0.0);
     assert_eq!(num(take, "seq_breaks"), 0.0, "take differs from the recorded frames: {take}");
     assert_eq!(num(take, "frames"), num(take, "frames_reported"));
+    // Issue 14: the clock jump (forward, then back), the pause, the full disk.
+    let x = &r["faults"];
+    assert!(num(x, "discontinuities") >= 2.0, "clock jump not counted: {x}");
+    assert!(num(x, "pause_ms") >= 1000.0, "{x}");
+    assert!(num(x, "stale_skipped") > 0.0, "nothing skipped after the pause: {x}");
+    assert!(x["disk_error"].as_str().is_some_and(|e| !e.is_empty()), "the disk never filled: {x}");
+    assert!(num(x, "disk_error_at_s") < num(x, "disk_freed_at_s"), "{x}");
+    assert!(x["first_take_stop"].as_str().is_some_and(|m| m.contains("refused")), "{x}");
+    let cut = &x["first_take"];
+    assert_eq!(cut["ended"], true, "the cut take was not closed once space returned: {cut}");
+    assert_eq!(num(cut, "torn_bytes"), 0.0, "{cut}");
+    assert_eq!(num(cut, "seq_breaks"), 0.0, "frames before the fault are missing: {cut}");
+    assert!(num(cut, "frames") > 1000.0, "{cut}");
     assert!(num(&r, "rss_growth_kib") < 2048.0, "RSS grew {} KiB", r["rss_growth_kib"]);
     for k in ["threads", "fds"] {
         assert_eq!(r["idle_before"][k], r["idle_after"][k], "{k} changed between the idle samples");

@@ -131,10 +131,11 @@ pub enum Command {
     /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion
     /// toolkit and exporters) and say whether each target holds.
     Bench(BenchArgs),
-    /// Run the daemon on the virtual glove under faults (unplugs, corrupt reports, slow and
-    /// reconnecting subscribers, a recording) for a while, then check it held up and print the
-    /// figures. Needs /dev/fuse and root (the glove's hidraw node), and frondd and frond-vhid
-    /// beside frond or on PATH. Exit status 1 when a check fails.
+    /// Run the daemon on the virtual glove under faults (unplugs, corrupt reports, a clock jump,
+    /// a SIGSTOP pause, a full disk under the recording, slow and reconnecting subscribers) for
+    /// a while, then check it held up and print the figures. Needs /dev/fuse and root (the
+    /// glove's hidraw node, the tmpfs the takes fill), and frondd and frond-vhid beside frond or
+    /// on PATH. Exit status 1 when a check fails.
     Soak {
         /// How long to run, seconds (at least 20).
         #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]

@@ -7,10 +7,17 @@
 //! an exporter that disconnects and reconnects in a loop, a recording for the whole run, and a
 //! status poll every second that samples the daemon's RSS, threads and open files.
 //!
+//! On top of that ([`faults`]): the glove's clock is off for a second, the daemon is paused
+//! (SIGSTOP) for a second, and the takes directory is a small tmpfs that fills part way through
+//! the first take and is freed later, after which a second take is recorded to the end.
+//!
 //! Verdict: the daemon is still running and exits 0 on SIGTERM; healthy subscribers see no
-//! sequence gap outside the unplug windows; the device is back within 500 ms of each replug;
-//! the take is complete (contiguous frames, End record); RSS grows less than 2 MiB after the
-//! warm-up; threads and open files return to their idle counts once the clients are gone.
+//! sequence gap outside the unplug windows (the pause included); the device is back within
+//! 500 ms of each replug; the clock jump is counted as two discontinuities and the pause skips
+//! stale reports; the take cut by the full disk holds every frame up to the fault, is closed,
+//! and its `record stop` reports the error; the last take is complete (contiguous frames, End
+//! record); RSS grows less than 2 MiB after the warm-up; threads and open files return to their
+//! idle counts once the clients are gone.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader};
@@ -28,10 +35,14 @@ use serde::Serialize;
 use crate::control::Control;
 
 mod clients;
+mod faults;
+mod takes;
 
 use crate::{Interrupted, signals, usage};
 pub use clients::SubscriberFigures;
-use clients::{push_run, spawn_exporter, spawn_subscriber};
+use clients::{spawn_exporter, spawn_subscriber};
+pub use takes::TakeFigures;
+use takes::{Part, read_take};
 
 /// Length of each unplug window.
 pub const UNPLUG_MS: u64 = 300;
@@ -55,23 +66,6 @@ pub struct ProcSample {
     pub rss_kib: i64,
     pub threads: i64,
     pub fds: i64,
-}
-
-/// The take as read back after the run.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct TakeFigures {
-    pub path: String,
-    pub frames: u64,
-    pub frames_reported: u64,
-    pub recorder_dropped: u64,
-    pub ended: bool,
-    pub torn_bytes: u64,
-    /// Places where the take's frame sequence differs from the fresh (not `held`) frames flagged
-    /// `recording` that healthy-1 received: frames missing from the take, or extra ones.
-    pub seq_breaks: u64,
-    /// Fresh recorded frames healthy-1 received that are not in the take.
-    pub missing_frames: u64,
-    pub error: Option<String>,
 }
 
 /// Everything `frond soak` measured, and the verdict.
@@ -103,6 +97,8 @@ pub struct SoakReport {
     pub daemon_exit: Option<String>,
     pub daemon_stop_ms: Option<f64>,
     pub samples: Vec<ProcSample>,
+    /// The time jump, the pause and the full disk, and what the daemon said of them.
+    pub faults: faults::FaultFigures,
     pub failures: Vec<String>,
 }
 
@@ -141,6 +137,21 @@ fn print_human(r: &SoakReport) {
     println!(
         "  take {}: {} frames, ended {}, torn {} bytes, seq breaks {}",
         r.take.path, r.take.frames, r.take.ended, r.take.torn_bytes, r.take.seq_breaks
+    );
+    let x = &r.faults;
+    println!(
+        "  clock jump: {} discontinuities; pause {:?} ms: {} stale reports skipped",
+        x.discontinuities, x.pause_ms, x.stale_skipped
+    );
+    println!(
+        "  full disk at {:?} s ({:?}), freed at {:?} s; cut take {} frames, ended {}, breaks {}; record stop: {:?}",
+        x.disk_error_at_s,
+        x.disk_error,
+        x.disk_freed_at_s,
+        x.first_take.frames,
+        x.first_take.ended,
+        x.first_take.seq_breaks,
+        x.first_take_stop
     );
     println!(
         "  RSS {} -> {} KiB (growth {} KiB), threads {} -> {}, fds {} -> {} (idle before/after)",
@@ -259,6 +270,8 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     let root = tempfile::Builder::new().prefix("frond-soak-").tempdir().context("temp dir")?;
     let (socket_dir, takes_dir) = (root.path().join("run"), root.path().join("takes"));
     let (vhid_log, daemon_log) = (root.path().join("vhid.log"), root.path().join("frondd.log"));
+    // Dropped after the daemon (declared before it): the takes live on a small tmpfs.
+    let _tmpfs = faults::Tmpfs::mount(&takes_dir)?;
 
     let mut glove = {
         let mut child = Command::new(&vhid)
@@ -266,6 +279,9 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
             .args(["--corrupt", &CORRUPT_PROB.to_string(), "--seed", &seed.to_string()])
             .args(["--unplug-at-ms", &FIRST_UNPLUG_MS.to_string(), "--unplug-ms", &UNPLUG_MS.to_string()])
             .args(["--unplug-every-ms", &UNPLUG_EVERY_MS.to_string()])
+            .args(["--time-jump-at-ms", &faults::TIME_JUMP_AT_MS.to_string()])
+            .args(["--time-jump-ms", &faults::TIME_JUMP_MS.to_string()])
+            .args(["--time-jump-s", &faults::TIME_JUMP_S.to_string()])
             .arg("--node")
             .arg(root.path().join("glove").join("hidraw-frond"))
             .stdin(Stdio::null())
@@ -324,12 +340,17 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     subs.push(spawn_subscriber(&socket_dir, "slow".into(), Some(Duration::from_millis(2)), &stop)?);
     let restarts = Arc::new(AtomicU64::new(0));
     let exporter = spawn_exporter(&socket_dir, seed, &stop, &restarts)?;
-    let take_name = format!("soak-{seed:x}");
-    control.record_start(&take_name)?;
+    // The first take runs into a full disk part way through; a second one follows it.
+    r.faults.disk_filler_bytes = faults::fill_disk(&takes_dir, duration)?;
+    let first_take = format!("soak-{seed:x}");
+    let take_name = format!("soak-{seed:x}-after");
+    control.record_start(&first_take)?;
 
-    // The run: one status request and one /proc sample a second.
+    // The run: one status request and one /proc sample a second, the pause and the freeing of
+    // the disk on the way.
     let warmup = Duration::from_secs(10).min(duration / 4);
     let mut after_warmup: Option<ProcSample> = None;
+    let mut second_take_started = false;
     while t0.elapsed() < duration {
         if signals::interrupted() {
             stop.store(true, Relaxed);
@@ -339,7 +360,29 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
         if !daemon.alive() {
             break;
         }
-        control.status().context("status request during the soak")?;
+        if r.faults.pause_ms.is_none() && t0.elapsed() >= faults::PAUSE_AT {
+            r.faults.pause_ms = Some(faults::pause(pid));
+        }
+        let status = control.status().context("status request during the soak")?;
+        let at_s = t0.elapsed().as_secs_f64();
+        if r.faults.disk_error.is_none()
+            && let Some(e) = status.recorder_error
+        {
+            (r.faults.disk_error, r.faults.disk_error_at_s) = (Some(e), Some(at_s));
+        }
+        if r.faults.disk_freed_at_s.is_none() && at_s >= duration.as_secs_f64() * faults::DISK_FREED_AT {
+            faults::free_disk(&takes_dir)?;
+            r.faults.disk_freed_at_s = Some(at_s);
+        } else if !second_take_started && r.faults.disk_freed_at_s.is_some_and(|t| at_s >= t + 2.0) {
+            // Room again for two seconds: the recorder has closed the cut take. Ending it
+            // reports the error once; then the next take.
+            r.faults.first_take_stop = Some(match control.record_stop() {
+                Ok(rec) => format!("ok: {} frames", rec.frames),
+                Err(e) => format!("{e:#}"),
+            });
+            control.record_start(&take_name)?;
+            second_take_started = true;
+        }
         if let Some(s) = sample_proc(pid, t0) {
             if t0.elapsed() >= warmup && after_warmup.is_none() {
                 after_warmup = Some(s);
@@ -364,6 +407,10 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     let mut exporter_figures = exporter.join().unwrap_or_default();
     r.exporter_restarts = restarts.load(Relaxed);
     if let Some(s) = &status {
+        if let Some(h) = s.hands.first() {
+            r.faults.discontinuities = h.discontinuities;
+            r.faults.stale_skipped = h.stale_skipped;
+        }
         r.ticks = s.ticks;
         r.reports = s.source.reports;
         r.rejected_reports = s.source.rejected;
@@ -385,10 +432,13 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     glove.0.stop(Duration::from_secs(3));
     let glove_elapsed = glove_started.elapsed();
 
-    // The take.
+    // The takes, against the recorded frames healthy-1 saw: the cut one up to its last frame
+    // (no frame before the fault lost), the next one from its first.
+    let seen = r.subscribers.first().map(|s| s.recorded_runs.clone()).unwrap_or_default();
+    r.faults.first_take.path = takes_dir.join(format!("{first_take}.take")).display().to_string();
+    read_take(&mut r.faults.first_take, &seen, Part::UpToItsEnd);
     if !r.take.path.is_empty() {
-        let seen = r.subscribers.first().map(|s| s.recorded_runs.clone()).unwrap_or_default();
-        read_take(&mut r.take, &seen);
+        read_take(&mut r.take, &seen, Part::FromItsStart);
     }
     // Reopen latency: the healthy subscribers saw the same windows; take the first one's.
     let windows = r.subscribers.first().map(|s| s.lost_windows.clone()).unwrap_or_default();
@@ -443,6 +493,14 @@ fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
     if windows + 1 < expected {
         f.push(format!("{windows} device-lost window(s) seen, the glove unplugged about {expected} times"));
     }
+    // A reopen time that cannot be told would make the next check pass for nothing.
+    if let Some(w) = r.subscribers.first().and_then(|s| s.lost_windows.iter().find(|w| w.reopen_ms.is_none()))
+    {
+        f.push(format!(
+            "the reopen time after the window seq {}..={} could not be told from the glove's schedule",
+            w.first_seq, w.last_seq
+        ));
+    }
     if let Some(w) = r
         .subscribers
         .first()
@@ -470,6 +528,7 @@ fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
     if t.recorder_dropped > 0 {
         f.push(format!("the recorder dropped {} frames", t.recorder_dropped));
     }
+    faults::verdict(&r.faults, &mut f);
     if r.rss_growth_kib >= RSS_GROWTH_LIMIT_KIB {
         f.push(format!(
             "RSS grew {} KiB after warm-up ({} -> {} KiB), limit {RSS_GROWTH_LIMIT_KIB}",
@@ -484,41 +543,4 @@ fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
         ));
     }
     r.failures = f;
-}
-
-/// Reads the take back and compares its frames with `seen`, the fresh recorded frames a healthy
-/// subscriber received (as runs).
-fn read_take(t: &mut TakeFigures, seen: &[(u64, u64)]) {
-    let bytes = match std::fs::read(&t.path) {
-        Ok(b) => b,
-        Err(e) => {
-            t.error = Some(format!("cannot read: {e}"));
-            return;
-        }
-    };
-    match frond_motion::scan_take(&bytes) {
-        Ok(scan) => {
-            let mut runs = Vec::new();
-            let mut increasing = true;
-            let mut last: Option<u64> = None;
-            for f in scan.frames.iter().filter(|f| f.element == 0) {
-                increasing &= last.is_none_or(|l| f.seq > l);
-                last = Some(f.seq);
-                push_run(&mut runs, f.seq);
-            }
-            t.frames = runs.iter().map(|r| r.1).sum();
-            t.ended = scan.ended;
-            t.torn_bytes = scan.torn_bytes;
-            if !increasing {
-                t.error = Some("frame sequence numbers do not increase".into());
-            }
-            // Differences between the two run lists: runs present in one and not the other.
-            let (a, b): (std::collections::HashSet<_>, std::collections::HashSet<_>) =
-                (runs.iter().collect(), seen.iter().collect());
-            t.seq_breaks = a.symmetric_difference(&b).count() as u64;
-            let seen_total: u64 = seen.iter().map(|r| r.1).sum();
-            t.missing_frames = seen_total.saturating_sub(t.frames);
-        }
-        Err(e) => t.error = Some(e.to_string()),
-    }
 }

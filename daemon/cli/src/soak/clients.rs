@@ -114,6 +114,10 @@ impl Tracker {
 /// ms. `None` when the estimate is meaningless (the daemon's unwrapped device time no longer
 /// matches the glove's schedule, e.g. after the 32-bit µs clock wrapped, past 71 minutes).
 fn reopen_ms(host_ns: u64, dev_us: u64, fresh_ns: u64) -> Option<f64> {
+    // The glove's counter is 32 bits of microseconds. The daemon unwraps it, and reads the
+    // soak's clock jump back (`faults::TIME_JUMP_S`) as a wrap: modulo 2^32 it is the glove's
+    // schedule again (for the first 71 minutes).
+    let dev_us = dev_us % (1 << 32);
     let dev_ms = dev_us / 1000;
     let first_end = FIRST_UNPLUG_MS + UNPLUG_MS;
     let k = if dev_ms < first_end { 0 } else { (dev_ms - first_end) / UNPLUG_EVERY_MS + 1 };

@@ -80,6 +80,15 @@ struct Args {
     /// Repeat the stall with this period in milliseconds.
     #[arg(long, value_name = "P", requires = "stall_at_ms")]
     stall_every_ms: Option<u64>,
+    /// Shift the reports' device time this many milliseconds after the first report...
+    #[arg(long, value_name = "T", requires_all = ["time_jump_ms", "time_jump_s"])]
+    time_jump_at_ms: Option<u64>,
+    /// ...for this many milliseconds...
+    #[arg(long, value_name = "N", requires = "time_jump_at_ms")]
+    time_jump_ms: Option<u64>,
+    /// ...by this many seconds (negative: back), as a glitching or restarting clock would.
+    #[arg(long, value_name = "S", allow_negative_numbers = true, requires = "time_jump_at_ms")]
+    time_jump_s: Option<f64>,
     /// Delay each report by a random 0..=J microseconds.
     #[arg(long, value_name = "J", default_value_t = 0)]
     jitter_us: u32,
@@ -147,6 +156,17 @@ fn config(args: &Args) -> Result<VirtualGloveConfig> {
             stall: match (args.stall_at_ms, args.stall_ms) {
                 (Some(at_ms), Some(duration_ms)) => {
                     Some(UnplugPlan { at_ms, duration_ms, every_ms: args.stall_every_ms })
+                }
+                _ => None,
+            },
+            time_jump: match (args.time_jump_at_ms, args.time_jump_ms, args.time_jump_s) {
+                (Some(at_ms), Some(duration_ms), Some(s)) => {
+                    if !(s.is_finite() && s.abs() <= 4294.0) {
+                        bail!(
+                            "--time-jump-s must be within +-4294 s (the 32-bit microsecond clock), got {s}"
+                        );
+                    }
+                    Some(vhid::TimeJump { at_ms, duration_ms, by_us: (s * 1e6).round() as i64 })
                 }
                 _ => None,
             },

@@ -72,6 +72,31 @@ impl UnplugPlan {
     }
 }
 
+/// A stretch of time in which the glove's clock is off (a firmware glitch, a tracker that
+/// restarted its counter): from `at_ms` for `duration_ms` each report's device time is shifted by
+/// `by_us` (wrapping, as the 32-bit counter does), then it is right again. The daemon must start
+/// a new timeline at both ends (issue 14, point 6), neither freezing nor bursting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TimeJump {
+    /// Start, milliseconds after the first report.
+    pub at_ms: u64,
+    /// How long the clock stays off.
+    pub duration_ms: u64,
+    /// The shift, microseconds (negative: the clock went back).
+    pub by_us: i64,
+}
+
+impl TimeJump {
+    /// The device time reported for schedule time `time_us` at `elapsed_ms`.
+    pub fn apply(&self, elapsed_ms: u64, time_us: u64) -> u64 {
+        if (self.at_ms..self.at_ms.saturating_add(self.duration_ms)).contains(&elapsed_ms) {
+            time_us.wrapping_add_signed(self.by_us)
+        } else {
+            time_us
+        }
+    }
+}
+
 /// Faults to inject.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FaultPlan {
@@ -85,6 +110,8 @@ pub struct FaultPlan {
     /// firmware hang or a tracker that lost the hand), which the daemon must detect without a
     /// disconnect.
     pub stall: Option<UnplugPlan>,
+    /// A stretch in which the glove's clock is off.
+    pub time_jump: Option<TimeJump>,
     /// Each report is delayed by a uniform random 0..=`jitter_us` microseconds (device time is
     /// not affected: it is when the glove sampled the hand).
     pub jitter_us: u32,
@@ -94,7 +121,15 @@ pub struct FaultPlan {
 
 impl Default for FaultPlan {
     fn default() -> Self {
-        Self { drop_prob: 0.0, corrupt_prob: 0.0, unplug: None, stall: None, jitter_us: 0, seed: 0x5EED_F20D }
+        Self {
+            drop_prob: 0.0,
+            corrupt_prob: 0.0,
+            unplug: None,
+            stall: None,
+            time_jump: None,
+            jitter_us: 0,
+            seed: 0x5EED_F20D,
+        }
     }
 }
 
@@ -368,7 +403,11 @@ impl Generator {
                 continue;
             }
             let device_time_us = match self.clock {
-                DeviceClock::Schedule => time_us as u32, // the device's microsecond counter wraps
+                // The device's microsecond counter wraps.
+                DeviceClock::Schedule => match self.faults.time_jump {
+                    Some(j) => j.apply((offset_s * 1000.0) as u64, time_us) as u32,
+                    None => time_us as u32,
+                },
                 DeviceClock::Monotonic => monotonic_us_u32(),
             };
             let (report, clamped) =
@@ -438,6 +477,18 @@ mod tests {
         let periodic = UnplugPlan { every_ms: Some(1000), ..once };
         assert!(periodic.unplugged_at(1120));
         assert!(!periodic.unplugged_at(1150));
+    }
+
+    #[test]
+    fn a_time_jump_shifts_the_clock_inside_its_window_only() {
+        let forward = TimeJump { at_ms: 100, duration_ms: 50, by_us: 1_000_000_000 };
+        assert_eq!(forward.apply(99, 99_000), 99_000);
+        assert_eq!(forward.apply(100, 100_000), 1_000_100_000);
+        assert_eq!(forward.apply(149, 149_000), 1_000_149_000);
+        assert_eq!(forward.apply(150, 150_000), 150_000);
+        // Back past zero: wraps, as the device's counter does (the daemon sees a jump either way).
+        let back = TimeJump { by_us: -200_000, ..forward };
+        assert_eq!(back.apply(120, 120_000) as u32, (120_000u64.wrapping_sub(200_000)) as u32);
     }
 
     #[test]
