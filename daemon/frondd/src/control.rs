@@ -456,7 +456,7 @@ impl ControlContext {
         }
         match rx.recv_timeout(Duration::from_secs(5)) {
             Ok(Ok(())) => {}
-            Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e),
+            Ok(Err(e)) => return refuse(ControlErrorKind::Internal, e.to_string()),
             Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not answer"),
         }
         if let Err(reply) = self.send_loop(LoopCommand::SetRecording(true)) {
@@ -502,7 +502,7 @@ impl ControlContext {
             Ok(Err(e)) => {
                 // The recorder has let the take go (closed, or left for `take repair`): so must we.
                 state.recording = None;
-                return refuse(ControlErrorKind::Internal, e);
+                return refuse(ControlErrorKind::Internal, e.to_string());
             }
             Err(_) => return refuse(ControlErrorKind::Internal, "the recorder did not finish the take"),
         };

@@ -62,7 +62,7 @@ pub enum RecorderMsg {
         /// Names of the secondary layers (layer `k + 1` is `elements[k]`).
         elements: Vec<String>,
         /// Where to answer.
-        reply: Sender<Result<(), String>>,
+        reply: Sender<Result<(), RecorderError>>,
     },
     /// A marker at pose `seq`.
     Mark {
@@ -74,12 +74,35 @@ pub enum RecorderMsg {
     /// Finish the take: End record, sync, close. Answers the frame count.
     Stop {
         /// Where to answer.
-        reply: Sender<Result<u64, String>>,
+        reply: Sender<Result<u64, RecorderError>>,
     },
     /// The daemon's last message: write what the loop handed over, finish an open take, end the
     /// thread. (Waiting for the channel to close instead would wait for every control
     /// connection still open, each holding a sender, however idle.)
     Shutdown,
+}
+
+/// Why the recorder could not start or finish a take.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RecorderError {
+    /// The take file could not be created.
+    #[error("cannot create {}: {reason}", path.display())]
+    Create {
+        /// The take file.
+        path: PathBuf,
+        /// The I/O error, in words.
+        reason: String,
+    },
+    /// A start arrived while a take is open.
+    #[error("a take is already being recorded")]
+    AlreadyRecording,
+    /// A stop arrived with no take open.
+    #[error("no take is being recorded")]
+    NotRecording,
+    /// The take met a write fault: the path, the error, what was kept and lost, and whether the
+    /// take is closed, in words.
+    #[error("{0}")]
+    Fault(String),
 }
 
 /// Counters of the current take, read by status.
@@ -357,7 +380,7 @@ fn handle(
         }
         RecorderMsg::Start { path, header, elements, reply } => {
             if open.is_some() {
-                let _ = reply.send(Err("a take is already being recorded".into()));
+                let _ = reply.send(Err(RecorderError::AlreadyRecording));
                 return;
             }
             let mut head = Vec::new();
@@ -390,7 +413,8 @@ fn handle(
                     let _ = reply.send(Ok(()));
                 }
                 Err(e) => {
-                    let _ = reply.send(Err(format!("cannot create {}: {e}", path.display())));
+                    let _ =
+                        reply.send(Err(RecorderError::Create { path: path.clone(), reason: e.to_string() }));
                 }
             }
         }
@@ -398,7 +422,7 @@ fn handle(
         RecorderMsg::Shutdown => {}
         RecorderMsg::Stop { reply } => {
             let Some(o) = open.take() else {
-                let _ = reply.send(Err("no take is being recorded".into()));
+                let _ = reply.send(Err(RecorderError::NotRecording));
                 return;
             };
             let _ = reply.send(finish(o, buf, counters, fsync_interval));
@@ -453,7 +477,7 @@ fn finish(
     buf: &mut Vec<u8>,
     counters: &RecorderCounters,
     retry: Duration,
-) -> Result<u64, String> {
+) -> Result<u64, RecorderError> {
     let closed_before = o.closed;
     let closed = closed_before || close(&mut o, buf, counters, retry, true);
     buf.clear();
@@ -468,7 +492,7 @@ fn finish(
     if f.unlogged_failures > 0 && !closed_before {
         info!(path = %o.path.display(), failed_retries = f.unlogged_failures, "the take's write fault lasted until it was stopped");
     }
-    Err(text)
+    Err(RecorderError::Fault(text))
 }
 
 fn flush(open: &mut Option<Open>, buf: &mut Vec<u8>, counters: &RecorderCounters, fsync_interval: Duration) {
@@ -562,7 +586,7 @@ mod tests {
         assert!(text.contains("keeps its first 0 frames"), "{text}");
         assert!(text.contains("2 more wait in memory"), "{text}");
         // Stopped with the disk still full: the two frames are lost, the take is left open.
-        let err = finish(o, &mut buf, &counters, Duration::from_secs(1)).unwrap_err();
+        let err = finish(o, &mut buf, &counters, Duration::from_secs(1)).unwrap_err().to_string();
         assert!(err.contains("2 frames after the fault were not recorded"), "{err}");
         assert!(err.contains("it could not be closed"), "{err}");
         assert!(counters.fault().is_none(), "reported once, by the stop");

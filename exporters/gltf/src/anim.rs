@@ -134,13 +134,14 @@ pub fn unit(q: [f32; 4]) -> [f32; 4] {
     q.map(|c| (f64::from(c) / n) as f32)
 }
 
+/// A bake rate out of range.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("must be a number above 0 and at most {MAX_FPS}, got {0}")]
+pub struct BadFps(pub f64);
+
 /// Checks a bake rate.
-pub fn check_fps(fps: f64) -> Result<f64, String> {
-    if fps.is_finite() && fps > 0.0 && fps <= MAX_FPS {
-        Ok(fps)
-    } else {
-        Err(format!("must be a number above 0 and at most {MAX_FPS}, got {fps}"))
-    }
+pub fn check_fps(fps: f64) -> Result<f64, BadFps> {
+    if fps.is_finite() && fps > 0.0 && fps <= MAX_FPS { Ok(fps) } else { Err(BadFps(fps)) }
 }
 
 /// The take's times on the bake's time line: from 0 at the first kept frame, with every step

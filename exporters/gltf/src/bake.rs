@@ -97,7 +97,8 @@ impl Baker {
         opts: &BakeOptions,
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
-        let fps = check_fps(opts.fps).map_err(|reason| BakeError::Option { option: "--fps", reason })?;
+        let fps =
+            check_fps(opts.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })?;
         // The budget is checked before any key is allocated.
         let (keys, discontinuities) = Layers::plan(&take.frames, fps);
         let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
@@ -158,7 +159,8 @@ impl Baker {
         opts: &BakeOptions,
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
-        let fps = check_fps(opts.fps).map_err(|reason| BakeError::Option { option: "--fps", reason })?;
+        let fps =
+            check_fps(opts.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })?;
         if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 24.0 * 3600.0) {
             return Err(BakeError::Option {
                 option: "--duration",

@@ -123,7 +123,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
                 vmc_rig.bone_names = names;
                 names_fixed = true;
             }
-            Err(e) => problems.push(e),
+            Err(e) => problems.push(e.to_string()),
         }
     }
     if !problems.is_empty() {

@@ -73,16 +73,19 @@ pub fn from_loaded(loaded: &LoadedRig) -> Result<RigFile, RigFileError> {
     })
 }
 
+/// A `--vmc-bones` value that is neither `humanoid` nor four names.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("--vmc-bones: expected `humanoid` or 4 non-empty comma-separated names, got `{0}`")]
+pub struct BadBoneNames(pub String);
+
 /// Parses `--vmc-bones`: `humanoid`, or four comma-separated names.
-pub fn parse_bone_names(spec: &str) -> Result<[String; 4], String> {
+pub fn parse_bone_names(spec: &str) -> Result<[String; 4], BadBoneNames> {
     if spec == "humanoid" {
         return Ok(crate::encode::vmc_humanoid_names());
     }
     let names: Vec<&str> = spec.split(',').map(str::trim).collect();
     if names.len() != 4 || names.iter().any(|n| n.is_empty() || n.len() > 255) {
-        return Err(format!(
-            "--vmc-bones: expected `humanoid` or 4 non-empty comma-separated names, got `{spec}`"
-        ));
+        return Err(BadBoneNames(spec.to_string()));
     }
     Ok(std::array::from_fn(|i| names[i].to_string()))
 }
@@ -177,7 +180,7 @@ mod tests {
             ["Hips", "Spine", "Chest", "Neck"].map(String::from)
         );
         assert_eq!(parse_bone_names("a, b,c,d").unwrap(), ["a", "b", "c", "d"].map(String::from));
-        assert!(parse_bone_names("a,b,c").unwrap_err().contains("expected `humanoid` or 4"));
+        assert!(parse_bone_names("a,b,c").unwrap_err().to_string().contains("expected `humanoid` or 4"));
         assert!(parse_bone_names("a,,c,d").is_err());
     }
 }
