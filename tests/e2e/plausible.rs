@@ -4,29 +4,12 @@
 //! thumb range of 1e-45 degrees or a neutral of 1e30 degrees, and a rig scaling a joint by 1e30,
 //! are refused by `frondd` and by `frond map` with the same paths.
 
-use std::io::Write;
 use std::net::UdpSocket;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
-use frond_e2e::{Daemon, bin, repo_root, wait_for};
-use frond_protocol::PoseFlags;
-use frond_sdk::{Event, Subscriber};
-use rosc::{OscMessage, OscPacket, OscType};
-
-/// `frond map ARGS` with `input` on stdin.
-fn frond_map(args: &[&str], input: &str) -> Output {
-    let mut map = Command::new(bin("frond"))
-        .arg("map")
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    map.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
-    map.wait_with_output().unwrap()
-}
+use frond_e2e::{Daemon, bin, fresh_poses, frond_map, repo_root, send_osc_pitches, wait_for};
+use frond_sdk::Subscriber;
 
 #[test]
 fn the_hand_limits_are_the_same_live_and_offline() {
@@ -39,23 +22,9 @@ fn the_hand_limits_are_the_same_live_and_offline() {
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     // Wrist pitch per sample: the limit itself is allowed on both sides, 400 and 1e30 are not.
     let pitches = [10.0f32, 400.0, 1e30, -360.0, 360.0, 20.0];
-    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    for (k, &pitch) in pitches.iter().enumerate() {
-        let mut args = vec![OscType::Double(k as f64 * 0.01), OscType::Float(pitch)];
-        args.extend([0.0f32; 5].map(OscType::Float));
-        let packet = OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args });
-        tx.send_to(&rosc::encoder::encode(&packet).unwrap(), ("127.0.0.1", port)).unwrap();
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    let mut fresh = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while fresh.len() < 4 && Instant::now() < deadline {
-        if let Event::Pose(p) = sub.next_event().unwrap()
-            && !p.flags.contains(PoseFlags::HELD)
-        {
-            fresh.push(p);
-        }
-    }
+    let samples: Vec<(f64, f32)> = pitches.iter().enumerate().map(|(k, &p)| (k as f64 * 0.01, p)).collect();
+    send_osc_pitches(port, &samples, Duration::from_millis(10));
+    let fresh = fresh_poses(&mut sub, 4, Duration::from_secs(10));
     assert_eq!(fresh.len(), 4, "the four plausible samples are published");
     wait_for(Duration::from_secs(2), || daemon.status().source.rejected == 2);
 

@@ -3,15 +3,12 @@
 //! and in `frond map` alike; a daemon paused with SIGSTOP resumes at the present, flagged, with
 //! no burst of stale reports and no gap for a healthy subscriber.
 
-use std::io::Write;
 use std::net::UdpSocket;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use frond_e2e::{Daemon, bin, repo_root, wait_for};
+use frond_e2e::{Daemon, fresh_poses, frond_map, repo_root, send_osc_pitches, wait_for};
 use frond_protocol::PoseFlags;
 use frond_sdk::{Event, Subscriber};
-use rosc::{OscMessage, OscPacket, OscType};
 
 #[test]
 fn a_timestamp_that_jumps_or_goes_back_resets_the_filter_live_and_offline() {
@@ -28,23 +25,8 @@ fn a_timestamp_that_jumps_or_goes_back_resets_the_filter_live_and_offline() {
     let mut samples: Vec<(f64, f32)> = (0..20).map(|k| (f64::from(k) * 0.005, 10.0)).collect();
     samples.push((1e9, 50.0));
     samples.extend((0..20).map(|k| (0.2 + f64::from(k) * 0.005, 20.0)));
-    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    for &(t, pitch) in &samples {
-        let mut args = vec![OscType::Double(t), OscType::Float(pitch)];
-        args.extend([0.0f32; 5].map(OscType::Float));
-        let packet = OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args });
-        tx.send_to(&rosc::encoder::encode(&packet).unwrap(), ("127.0.0.1", port)).unwrap();
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let mut fresh = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while fresh.len() < samples.len() && Instant::now() < deadline {
-        if let Event::Pose(p) = sub.next_event().unwrap()
-            && !p.flags.contains(PoseFlags::HELD)
-        {
-            fresh.push(p);
-        }
-    }
+    send_osc_pitches(port, &samples, Duration::from_millis(5));
+    let fresh = fresh_poses(&mut sub, samples.len(), Duration::from_secs(20));
     assert_eq!(fresh.len(), samples.len(), "every sample published");
     let flagged: Vec<usize> =
         (0..fresh.len()).filter(|&i| fresh[i].flags.contains(PoseFlags::DISCONTINUITY)).collect();
@@ -67,16 +49,7 @@ fn a_timestamp_that_jumps_or_goes_back_resets_the_filter_live_and_offline() {
         .iter()
         .map(|(t, p)| format!("{{\"t\":{t},\"wrist\":[{p},0,0],\"thumb\":[0,0,0]}}\n"))
         .collect();
-    let mut map = Command::new(bin("frond"))
-        .args(["map", "--filter", filter, "--rig"])
-        .arg(&rig)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    map.stdin.take().unwrap().write_all(jsonl.as_bytes()).unwrap();
-    let out = map.wait_with_output().unwrap();
+    let out = frond_map(&["--filter", filter, "--rig", rig.to_str().unwrap()], &jsonl);
     assert!(out.status.success(), "{out:?}");
     let lines: Vec<serde_json::Value> =
         String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();

@@ -218,3 +218,49 @@ pub fn wait_for(timeout: Duration, mut cond: impl FnMut() -> bool) -> bool {
     }
     cond()
 }
+
+/// Sends one `/frond/hand` message per `(t, wrist pitch)` to `127.0.0.1:port` (the other five
+/// angles 0), `gap` apart, as a tracker would.
+pub fn send_osc_pitches(port: u16, samples: &[(f64, f32)], gap: Duration) {
+    use rosc::{OscMessage, OscPacket, OscType};
+    let tx = std::net::UdpSocket::bind("127.0.0.1:0").expect("a UDP socket");
+    for &(t, pitch) in samples {
+        let mut args = vec![OscType::Double(t), OscType::Float(pitch)];
+        args.extend([0.0f32; 5].map(OscType::Float));
+        let packet = OscPacket::Message(OscMessage { addr: "/frond/hand".into(), args });
+        tx.send_to(&rosc::encoder::encode(&packet).expect("encodable"), ("127.0.0.1", port))
+            .expect("send to the daemon's OSC port");
+        std::thread::sleep(gap);
+    }
+}
+
+/// The next `n` poses of `sub` that carry a new report (not flagged `held`), waiting at most
+/// `timeout`: fewer when they do not come.
+pub fn fresh_poses(sub: &mut frond_sdk::Subscriber, n: usize, timeout: Duration) -> Vec<frond_sdk::Pose> {
+    let mut fresh = Vec::new();
+    let deadline = Instant::now() + timeout;
+    while fresh.len() < n && Instant::now() < deadline {
+        if let frond_sdk::Event::Pose(p) = sub.next_event().expect("the pose stream")
+            && !p.flags.contains(frond_protocol::PoseFlags::HELD)
+        {
+            fresh.push(p);
+        }
+    }
+    fresh
+}
+
+/// `frond map ARGS` with `input` on its standard input, run to the end.
+pub fn frond_map(args: &[&str], input: &str) -> std::process::Output {
+    use std::io::Write;
+    let mut map = Command::new(bin("frond"))
+        .arg("map")
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start frond map");
+    // A refusal may close stdin before all of it is read: that is frond map's answer, not ours.
+    let _ = map.stdin.take().expect("stdin").write_all(input.as_bytes());
+    map.wait_with_output().expect("frond map")
+}
