@@ -430,3 +430,49 @@ proptest! {
         prop_assert_eq!(scan.skipped_bytes(), garbage.len() as u64);
     }
 }
+
+/// Time steps as a tracker or a damaged take may give them: small, repeated, backwards, huge,
+/// not finite.
+fn arb_step() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        4 => 0.0f64..0.05,
+        1 => Just(0.0),
+        1 => -10.0f64..0.0,
+        1 => 1.0f64..1e12,
+        1 => Just(f64::NAN),
+        1 => Just(f64::INFINITY),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Issue 14, point 7: resampling is bounded by the input, never by its time span. With every
+    /// step longer than `MAX_INTERPOLATED_GAP_S` (or backwards, or not finite) collapsed to one
+    /// output frame, `n` input frames at `fps` give at most `(n - 1) * max(gap * fps, 1) + 1`
+    /// frames (plus the one-twentieth tolerance), whatever the times say; the plan counts
+    /// exactly what `resample` then gives, before anything is allocated.
+    #[test]
+    fn resampling_is_bounded_by_the_input_not_its_time_span(
+        steps in prop::collection::vec(arb_step(), 0..60),
+        fps in prop_oneof![Just(30.0f64), Just(1000.0), 1.0f64..240.0],
+    ) {
+        use frond_motion::take::{MAX_INTERPOLATED_GAP_S, resample, resample_plan};
+        let mut t = 0.0f64;
+        let mut frames = vec![PoseFrame { t, joints_deg: [[0.0; 3]; 4] }];
+        for (k, dt) in steps.iter().enumerate() {
+            t = if dt.is_finite() { t + dt } else { *dt };
+            frames.push(PoseFrame { t, joints_deg: [[k as f32; 3]; 4] });
+            if !t.is_finite() {
+                t = 0.0;
+            }
+        }
+        let plan = resample_plan(&frames, fps);
+        let out = resample(&frames, fps);
+        prop_assert_eq!(plan.frames, out.len() as u64);
+        let per_step = (MAX_INTERPOLATED_GAP_S * fps).max(1.0);
+        let bound = (frames.len() - 1) as f64 * per_step + 1.05 + 1.0;
+        prop_assert!((out.len() as f64) <= bound, "{} frames from {} inputs at {fps}", out.len(), frames.len());
+        prop_assert!(out.iter().all(|p| p.t.is_finite()));
+    }
+}
