@@ -121,7 +121,7 @@ impl SourceCounters {
         }
     }
 
-    fn bump(a: &AtomicU64, n: u64) {
+    pub(crate) fn bump(a: &AtomicU64, n: u64) {
         a.fetch_add(n, Ordering::Relaxed);
     }
 }

@@ -352,7 +352,8 @@ pub struct SourceStatus {
     pub reports: u64,
     /// Reports rejected (bad id, short, corrupt, out of range).
     pub rejected: u64,
-    /// Gaps in the device's own report sequence numbers.
+    /// Reports lost before frond read them: gaps in the device's own report sequence numbers,
+    /// and datagrams the kernel dropped from a full OSC receive buffer.
     pub device_seq_gaps: u64,
 }
 

@@ -132,9 +132,32 @@ pub struct OscHandSource {
     pending_at: usize,
     pending_len: usize,
     seq: u32,
+    /// The kernel's count of datagrams it dropped for this socket, as last read (`SO_RXQ_OVFL`).
+    kernel_drops: u32,
     counters: Arc<SourceCounters>,
     describe: String,
     local: SocketAddr,
+}
+
+/// `SO_RXQ_OVFL` (the generic Linux value; not exported by every libc version): each received
+/// datagram carries the socket's count of datagrams dropped because its receive buffer was full.
+const SO_RXQ_OVFL: libc::c_int = 40;
+
+/// Asks the kernel to report dropped datagrams with every datagram received. `false` when it
+/// refuses (then drops stay uncounted, as they would be anyway).
+fn count_kernel_drops(socket: &UdpSocket) -> bool {
+    use std::os::fd::AsRawFd;
+    let on: libc::c_int = 1;
+    // SAFETY: a valid socket descriptor we own and a c_int option value of the right size.
+    unsafe {
+        libc::setsockopt(
+            socket.as_raw_fd(),
+            libc::SOL_SOCKET,
+            SO_RXQ_OVFL,
+            (&on as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        ) == 0
+    }
 }
 
 impl OscHandSource {
@@ -145,6 +168,7 @@ impl OscHandSource {
         let socket = UdpSocket::bind(addr).map_err(open_err)?;
         socket.set_nonblocking(true).map_err(open_err)?;
         let local = socket.local_addr().map_err(open_err)?;
+        count_kernel_drops(&socket);
         Ok(Self {
             socket,
             buf: vec![0u8; DATAGRAM_MAX].into_boxed_slice(),
@@ -152,6 +176,7 @@ impl OscHandSource {
             pending_at: 0,
             pending_len: 0,
             seq: 0,
+            kernel_drops: 0,
             counters: Arc::new(SourceCounters::default()),
             describe: format!("osc://{local}"),
             local,
@@ -161,6 +186,46 @@ impl OscHandSource {
     /// The bound address (useful with port 0).
     pub fn local_addr(&self) -> SocketAddr {
         self.local
+    }
+
+    /// Receives one datagram into `buf` without blocking, and counts the datagrams the kernel
+    /// dropped since the last one (its receive buffer was full: the tracker sent faster than the
+    /// loop read) as `seq_gaps`, lost reports like a glove's sequence gaps. One `recvmsg`, no
+    /// allocation.
+    fn recv(&mut self) -> std::io::Result<usize> {
+        use std::os::fd::AsRawFd;
+        let mut iov = libc::iovec { iov_base: self.buf.as_mut_ptr().cast(), iov_len: self.buf.len() };
+        // Room for one cmsghdr and a u32, 8-byte aligned.
+        let mut control = [0u64; 4];
+        // SAFETY: msghdr is plain data; every pointer set below outlives the call.
+        let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+        msg.msg_iov = &mut iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control.as_mut_ptr().cast();
+        msg.msg_controllen = std::mem::size_of_val(&control) as _;
+        // SAFETY: a socket we own; `msg` points at `iov` (into our own buffer of `iov_len`
+        // bytes) and at `control`, both live and exclusively borrowed for the call.
+        let n = unsafe { libc::recvmsg(self.socket.as_raw_fd(), &mut msg, libc::MSG_DONTWAIT) };
+        if n < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // SAFETY: `msg` was filled by recvmsg; CMSG_FIRSTHDR/CMSG_NXTHDR stay inside
+        // `msg_control[..msg_controllen]`, and a SO_RXQ_OVFL header carries a u32.
+        unsafe {
+            let mut c = libc::CMSG_FIRSTHDR(&msg);
+            while !c.is_null() {
+                if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == SO_RXQ_OVFL {
+                    let drops = std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<u32>());
+                    let new = drops.wrapping_sub(self.kernel_drops);
+                    self.kernel_drops = drops;
+                    if new > 0 {
+                        SourceCounters::bump(&self.counters.seq_gaps, u64::from(new));
+                    }
+                }
+                c = libc::CMSG_NXTHDR(&msg, c);
+            }
+        }
+        Ok(n as usize)
     }
 
     /// Decodes the datagram in `buf[..len]`: samples into `out[n..]`, the rest into `pending`.
@@ -232,7 +297,7 @@ impl HandSource for OscHandSource {
             return Ok(n);
         }
         while n == 0 {
-            match self.socket.recv(&mut self.buf) {
+            match self.recv() {
                 // A datagram of only rejected messages gives nothing: try the next one.
                 Ok(len) => self.decode(len, out, &mut n),
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -371,6 +436,49 @@ pub(super) mod tests {
         }
         let c = src.counters().snapshot();
         assert_eq!((c.reports, c.malformed), (20, 1));
+    }
+
+    /// Issue 14, point 13: datagrams the kernel drops because the loop did not read fast enough
+    /// are counted (as `seq_gaps`), exactly: every datagram sent is either read or counted.
+    #[test]
+    fn datagrams_the_kernel_drops_are_counted() {
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let sent = 5000u64;
+        for k in 0..sent {
+            let msg = OscPacket::Message(rosc::OscMessage {
+                addr: OSC_HAND_ADDRESS.into(),
+                args: [k as f32 * 1e-3, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+                    .into_iter()
+                    .map(OscType::Float)
+                    .collect(),
+            });
+            tx.send_to(&rosc::encoder::encode(&msg).unwrap(), src.local_addr()).unwrap();
+        }
+        // Nothing read while they were sent: the receive buffer overflowed.
+        let mut out = [DeviceSample::default(); 64];
+        let mut read = 0u64;
+        while let Ok(n) = src.read_pending(&mut out) {
+            if n == 0 {
+                break;
+            }
+            read += n as u64;
+        }
+        // The kernel stamps its drop count on the datagrams it queues after the drops: the next
+        // one the tracker sends tells.
+        assert!(read < sent, "the receive buffer never overflowed");
+        let msg = OscPacket::Message(rosc::OscMessage {
+            addr: OSC_HAND_ADDRESS.into(),
+            args: [9.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0].into_iter().map(OscType::Float).collect(),
+        });
+        tx.send_to(&rosc::encoder::encode(&msg).unwrap(), src.local_addr()).unwrap();
+        let (before, deadline) = (read, std::time::Instant::now() + Duration::from_secs(5));
+        while read == before && std::time::Instant::now() < deadline {
+            read += src.read_pending(&mut out).unwrap() as u64;
+        }
+        let c = src.counters().snapshot();
+        assert_eq!(read + c.seq_gaps, sent + 1, "read {read}, counted {}", c.seq_gaps);
+        assert_eq!(c.reports, read);
     }
 
     /// Issue 14, point 13: a bundle holding far more samples than one read takes loses none.
