@@ -54,8 +54,8 @@ pub enum Command {
     /// daemon's own mapping code. Bad lines are reported on stderr with their line number and
     /// skipped; the good ones are written; the exit status is 1 if any line was bad.
     Map {
-        /// Rig file (TOML).
-        #[arg(long, value_name = "FILE")]
+        /// Rig: an embedded name (grass, flower, shrub) or a rig file (TOML).
+        #[arg(long, value_name = "NAME|FILE")]
         rig: PathBuf,
         /// Calibration file (TOML) [default: zero neutral, the rig's thumb ranges].
         #[arg(long, value_name = "FILE")]

@@ -161,10 +161,12 @@ pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, Stri
 }
 
 /// Reads and validates a rig file (the one rig loader, `frond_motion::rig_files`).
-pub(crate) fn load_rig(path: &Path) -> anyhow::Result<(Rig, String)> {
-    let text = read_text(path, "rig")?;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let loaded = frond_motion::rig_files::rig_from_text(text, path.display().to_string(), &stem, None)?;
+/// A rig given on the command line: an embedded name (`grass`, `flower`, `shrub`) or a rig file,
+/// read the way the daemon reads it (`frond_motion::rig_files::load_rig`).
+pub(crate) fn load_rig(spec: &Path) -> anyhow::Result<(Rig, String)> {
+    // Its message names the file and the cause already: no source chain after it.
+    let loaded =
+        frond_motion::rig_files::load_rig(&spec.to_string_lossy()).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok((loaded.rig, loaded.text))
 }
 

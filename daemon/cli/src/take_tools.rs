@@ -57,8 +57,9 @@ pub enum TakeTool {
         file: PathBuf,
         /// Take name to write.
         name: String,
-        /// Rig file for hand samples (TOML) [default: a blade with unit scales].
-        #[arg(long, value_name = "FILE")]
+        /// Rig for hand samples: an embedded name or a rig file (TOML) [default: a blade with
+        /// unit scales].
+        #[arg(long, value_name = "NAME|FILE")]
         rig: Option<PathBuf>,
         /// Calibration file for hand samples.
         #[arg(long, value_name = "FILE")]
@@ -209,8 +210,8 @@ pub enum TakeTool {
         /// Range of the top thumb joint, degrees [default: the rig's, else 60].
         #[arg(long, value_name = "DEG")]
         thumb_range: Option<f32>,
-        /// Rig file giving the thumb range.
-        #[arg(long, value_name = "FILE")]
+        /// Rig giving the thumb range: an embedded name or a rig file (TOML).
+        #[arg(long, value_name = "NAME|FILE")]
         rig: Option<PathBuf>,
         #[command(flatten)]
         out: Output,

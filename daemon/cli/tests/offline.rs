@@ -137,16 +137,23 @@ fn map_drives_the_shrub_to_its_bend_range_for_two_different_wrists() {
         )
         .unwrap();
         let hand = format!("{{\"t\":0.0,\"wrist\":{extreme},\"thumb\":[50,60,70]}}\n");
-        let out = run(
-            frond().args(["map", "--filter", "none", "--rig"]).arg(&shrub).arg("--calibration").arg(&cal),
-            &hand,
-        );
-        assert!(out.status.success(), "{id}: {}", text(&out.stderr));
-        let p = poses(&out.stdout);
-        assert_eq!(p.len(), 1);
-        let close =
-            p[0].joints_deg.iter().flatten().zip(want.iter().flatten()).all(|(a, b)| (a - b).abs() < 1e-4);
-        assert!(close, "{id}: {:?}", p[0].joints_deg);
+        // The rig file, and the same rig by its embedded name.
+        for rig in [shrub.as_os_str(), "shrub".as_ref()] {
+            let out = run(
+                frond().args(["map", "--filter", "none", "--rig"]).arg(rig).arg("--calibration").arg(&cal),
+                &hand,
+            );
+            assert!(out.status.success(), "{id} {rig:?}: {}", text(&out.stderr));
+            let p = poses(&out.stdout);
+            assert_eq!(p.len(), 1);
+            let close = p[0]
+                .joints_deg
+                .iter()
+                .flatten()
+                .zip(want.iter().flatten())
+                .all(|(a, b)| (a - b).abs() < 1e-4);
+            assert!(close, "{id} {rig:?}: {:?}", p[0].joints_deg);
+        }
     }
 }
 
@@ -217,7 +224,8 @@ fn map_names_a_missing_or_invalid_rig_file() {
     assert_eq!(out.status.code(), Some(1));
     let err = text(&out.stderr);
     assert!(
-        err.starts_with("frond: error: cannot read rig file") && err.contains(&path_str(&missing)),
+        err.starts_with(&format!("frond: error: cannot read rig {}: ", path_str(&missing)))
+            && err.matches("No such file").count() == 1,
         "{err}"
     );
 
