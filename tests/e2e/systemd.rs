@@ -94,3 +94,73 @@ fn frondd_service_exposure_is_at_most_2() {
         assert!(unit.contains(key), "frondd.service lacks {key}");
     }
 }
+
+/// Issue 18: the unit's own command line starts the daemon on a fresh machine, where
+/// `/etc/frond/frondd.toml` does not exist (the embedded defaults apply), and a member of the
+/// daemon's group (here root's group 0, as the service's `frond` group) may use the control
+/// socket, its membership read from the socket (`SO_PEERGROUPS`, which `ProtectProc=invisible`
+/// cannot hide), while a user outside it is refused.
+#[test]
+fn the_units_command_line_runs_on_a_fresh_machine_and_admits_the_group() {
+    let unit = std::fs::read_to_string(repo_root().join("systemd/frondd.service")).unwrap();
+    let exec = unit.lines().find_map(|l| l.strip_prefix("ExecStart=")).expect("ExecStart");
+    let mut words = exec.split_whitespace();
+    assert_eq!(words.next(), Some("/usr/bin/frondd"));
+    let args: Vec<&str> = words.collect();
+    assert!(!std::path::Path::new("/etc/frond/frondd.toml").exists(), "this machine has a frondd.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let takes = dir.path().join("takes");
+    let (run_s, takes_s) = (run.to_str().unwrap().to_string(), takes.to_str().unwrap().to_string());
+    // The unit's arguments, with its two state directories moved into the test's.
+    let args: Vec<String> = args
+        .iter()
+        .map(|a| match *a {
+            "/run/frond" => run_s.clone(),
+            "/var/lib/frond/takes" => takes_s.clone(),
+            other => other.to_string(),
+        })
+        .collect();
+    assert!(args.iter().any(|a| a == "/etc/frond/frondd.toml"), "{args:?}");
+    let mut daemon = frond_e2e::Proc {
+        child: Command::new(bin("frondd"))
+            .args(&args)
+            .stdin(std::process::Stdio::null())
+            .stderr(std::fs::File::create(dir.path().join("frondd.log")).unwrap())
+            .spawn()
+            .unwrap(),
+        name: "frondd".into(),
+    };
+    let status = || Command::new(bin("frond")).env("FROND_SOCKET_DIR", &run).arg("status").output().unwrap();
+    let up = frond_e2e::wait_for(std::time::Duration::from_secs(20), || status().status.success());
+    if !up {
+        let _ = daemon.terminate(std::time::Duration::from_secs(5));
+        let err = std::fs::read_to_string(dir.path().join("frondd.log")).unwrap_or_default();
+        panic!("frondd with the unit's command line did not come up:\n{err}");
+    }
+    // Another user, in the daemon's group and not: setpriv (util-linux) changes the client only.
+    let as_user = |groups: &str| {
+        Command::new("setpriv")
+            .args(["--reuid=4321", "--regid=4321", &format!("--groups={groups}"), "--"])
+            .arg(bin("frond"))
+            .arg("status")
+            .env("FROND_SOCKET_DIR", &run)
+            .output()
+    };
+    match as_user("0") {
+        Ok(out) if out.status.code().is_some() => {
+            assert!(
+                out.status.success(),
+                "a member of the daemon's group: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let outsider = as_user("4321").unwrap();
+            assert!(!outsider.status.success(), "a user outside the daemon's group was let in");
+            let err = String::from_utf8_lossy(&outsider.stderr);
+            assert!(err.contains("permission denied") || err.contains("not allowed"), "{err}");
+        }
+        other => eprintln!("skipped the group check: setpriv cannot run here ({other:?})"),
+    }
+    let code = daemon.terminate(std::time::Duration::from_secs(5)).expect("frondd stops on SIGTERM");
+    assert!(code.success(), "{code}");
+}

@@ -4,6 +4,7 @@
 //! with a read timeout, and answers with one reply frame. Every refusal is a typed
 //! [`ControlError`] reply and a log line. Changes reach the realtime loop as [`LoopCommand`]s.
 
+pub use crate::access::{AccessError, AccessPolicy, PeerCred, peer_cred};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering::{AcqRel, Acquire, Relaxed};
@@ -155,92 +156,6 @@ pub struct ControlContext {
     /// the state lock several times: two clients' sessions cannot interleave (one's failed start
     /// undoing the other's layer, say).
     pub recording_session: Mutex<()>,
-}
-
-/// Who may use the control socket, checked against the peer's credentials (SO_PEERCRED).
-#[derive(Debug, Clone, Default)]
-pub struct AccessPolicy {
-    /// The daemon's effective uid (always allowed, as is root).
-    pub own_uid: u32,
-    /// Extra allowed users.
-    pub allowed_uids: Vec<u32>,
-    /// Allowed groups (the client's primary or supplementary groups).
-    pub allowed_gids: Vec<u32>,
-}
-
-/// A connected client's credentials.
-#[derive(Debug, Clone, Copy)]
-pub struct PeerCred {
-    /// Process id.
-    pub pid: i32,
-    /// User id.
-    pub uid: u32,
-    /// Primary group id.
-    pub gid: u32,
-}
-
-/// Reads SO_PEERCRED of a connected Unix socket.
-pub fn peer_cred(stream: &UnixStream) -> std::io::Result<PeerCred> {
-    use std::os::fd::AsRawFd;
-    let mut cred = libc::ucred { pid: 0, uid: 0, gid: 0 };
-    let mut len = std::mem::size_of::<libc::ucred>() as libc::socklen_t;
-    // SAFETY: `cred` and `len` are valid for writes of the sizes passed; the fd is a live socket.
-    let rc = unsafe {
-        libc::getsockopt(
-            stream.as_raw_fd(),
-            libc::SOL_SOCKET,
-            libc::SO_PEERCRED,
-            (&mut cred as *mut libc::ucred).cast(),
-            &mut len,
-        )
-    };
-    if rc != 0 {
-        return Err(std::io::Error::last_os_error());
-    }
-    Ok(PeerCred { pid: cred.pid, uid: cred.uid, gid: cred.gid })
-}
-
-/// Supplementary groups of process `pid`, from `/proc/<pid>/status`.
-fn supplementary_groups(pid: i32) -> Vec<u32> {
-    let Ok(text) = std::fs::read_to_string(format!("/proc/{pid}/status")) else { return Vec::new() };
-    text.lines()
-        .find_map(|l| l.strip_prefix("Groups:"))
-        .map(|g| g.split_whitespace().filter_map(|x| x.parse().ok()).collect())
-        .unwrap_or_default()
-}
-
-/// Why a client may not use the control socket.
-#[derive(Debug, thiserror::Error)]
-pub enum AccessError {
-    /// `SO_PEERCRED` failed.
-    #[error("cannot read the client's credentials: {0}")]
-    Credentials(#[source] std::io::Error),
-    /// Neither the client's user nor any of its groups is allowed.
-    #[error(
-        "uid {uid} (gid {gid}) is not allowed on the control socket; add it to control.allowed_uids or \
-         one of its groups to control.allowed_gids in the daemon's config"
-    )]
-    NotAllowed {
-        /// The client's uid.
-        uid: u32,
-        /// The client's primary gid.
-        gid: u32,
-    },
-}
-
-impl AccessPolicy {
-    /// Whether `peer` may use the control socket; `Err` says why not.
-    pub fn check(&self, peer: &PeerCred) -> Result<(), AccessError> {
-        if peer.uid == 0 || peer.uid == self.own_uid || self.allowed_uids.contains(&peer.uid) {
-            return Ok(());
-        }
-        if self.allowed_gids.contains(&peer.gid)
-            || supplementary_groups(peer.pid).iter().any(|g| self.allowed_gids.contains(g))
-        {
-            return Ok(());
-        }
-        Err(AccessError::NotAllowed { uid: peer.uid, gid: peer.gid })
-    }
 }
 
 pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {

@@ -307,6 +307,8 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         access: AccessPolicy {
             // SAFETY: geteuid has no preconditions and cannot fail.
             own_uid: unsafe { libc::geteuid() },
+            // SAFETY: getegid has no preconditions and cannot fail.
+            own_gid: unsafe { libc::getegid() },
             allowed_uids: config.allowed_uids.clone(),
             allowed_gids: config.allowed_gids.clone(),
         },

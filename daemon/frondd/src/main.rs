@@ -17,6 +17,11 @@ struct Args {
     /// Configuration file (TOML); keys it sets override the embedded defaults.
     #[arg(long, env = "FROND_CONFIG")]
     config: Option<PathBuf>,
+    /// With --config: a missing file means the embedded defaults (the file only overrides, and
+    /// is read again on SIGHUP once it exists); any other problem with it is still an error.
+    /// The service unit uses it, so a fresh install runs without /etc/frond/frondd.toml.
+    #[arg(long, requires = "config")]
+    config_optional: bool,
     /// Directory of poses.sock and control.sock [default: $XDG_RUNTIME_DIR/frond].
     #[arg(long, env = "FROND_SOCKET_DIR")]
     socket_dir: Option<PathBuf>,
@@ -120,11 +125,22 @@ fn main() -> ExitCode {
         args.replay,
     )
     .with_hands(hands);
-    let config_path = args.config.clone();
+    let (config_path, optional) = (args.config.clone(), args.config_optional);
+    // The file to read now: none when it is optional and absent.
+    let present = move || {
+        config_path.clone().filter(|p| {
+            !(optional
+                && std::fs::symlink_metadata(p).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound))
+        })
+    };
     let reload_overrides = overrides.clone();
+    let reload_present = present.clone();
     let loader: ConfigLoader =
-        Box::new(move || Config::load(config_path.as_deref(), reload_overrides.clone()));
-    let config = match Config::load(args.config.as_deref(), overrides) {
+        Box::new(move || Config::load(reload_present().as_deref(), reload_overrides.clone()));
+    if let (Some(p), None) = (&args.config, present()) {
+        tracing::info!(path = %p.display(), "no config file there (optional): the embedded defaults apply");
+    }
+    let config = match Config::load(present().as_deref(), overrides) {
         Ok(c) => c,
         Err(errors) => {
             for e in errors.problems {
