@@ -164,9 +164,7 @@ pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, Stri
 /// A rig given on the command line: an embedded name (`grass`, `flower`, `shrub`) or a rig file,
 /// read the way the daemon reads it (`frond_motion::rig_files::load_rig`).
 pub(crate) fn load_rig(spec: &Path) -> anyhow::Result<(Rig, String)> {
-    // Its message names the file and the cause already: no source chain after it.
-    let loaded =
-        frond_motion::rig_files::load_rig(&spec.to_string_lossy()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let loaded = frond_motion::rig_files::load_rig(&spec.to_string_lossy())?;
     Ok((loaded.rig, loaded.text))
 }
 

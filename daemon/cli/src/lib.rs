@@ -108,7 +108,7 @@ fn exit_for(e: &anyhow::Error) -> ExitCode {
         eprintln!("frond: interrupted");
         return ExitCode::from(130);
     }
-    eprintln!("frond: error: {e:#}");
+    eprintln!("frond: error: {}", frond_protocol::error_text(e.as_ref()));
     if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
 }
 

@@ -168,8 +168,9 @@ fn main() -> ExitCode {
     match run(config, options) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!("{e:#}");
-            eprintln!("frondd: error: {e:#}");
+            let text = frond_protocol::error_text(&e);
+            tracing::error!("{text}");
+            eprintln!("frondd: error: {text}");
             ExitCode::FAILURE
         }
     }

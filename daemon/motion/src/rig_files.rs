@@ -93,9 +93,10 @@ pub enum RigFileError {
         /// The embedded rigs' names.
         embedded: String,
     },
-    /// The file could not be read.
+    /// The file could not be read. (Not a `source`: the message already says it all, and a
+    /// chain printed after it would repeat it.)
     #[error("cannot read rig {}: {}", .0.path().display(), .0.reason())]
-    File(#[from] FileError),
+    File(FileError),
     /// The rig did not validate.
     #[error("{origin}: {source}")]
     Invalid {
@@ -105,6 +106,12 @@ pub enum RigFileError {
         #[source]
         source: RigError,
     },
+}
+
+impl From<FileError> for RigFileError {
+    fn from(e: FileError) -> Self {
+        RigFileError::File(e)
+    }
 }
 
 /// A validated rig, its text and where it came from.

@@ -17,6 +17,7 @@
 
 pub mod control;
 pub mod convention;
+pub mod errors;
 pub mod frame;
 pub mod paths;
 pub mod pose;
@@ -26,6 +27,7 @@ pub use control::{
     RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport,
     SubscriberStatus,
 };
+pub use errors::error_text;
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_CONTROL_REQUEST, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError,
     decode_frame, encode_frame, encode_frame_as, read_frame, read_frame_limited, write_frame,

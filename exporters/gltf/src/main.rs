@@ -99,7 +99,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("frond-gltf: error: {e:#}");
+            eprintln!("frond-gltf: error: {}", frond_protocol::error_text(e.as_ref()));
             ExitCode::FAILURE
         }
     }

@@ -98,6 +98,7 @@ fn damaged_and_empty_takes() {
     std::fs::write(&junk, b"hello world, not a take").unwrap();
     let e = fails(&keep, &["bake", "--take", junk.to_str().unwrap(), "--rig", "grass", "-o", o]);
     assert!(e.contains("junk.take is damaged: not a frond take: bad magic"), "{e}");
+    assert_eq!(e.matches("bad magic").count(), 1, "the cause is said once (issue 18): {e}");
 
     // Only a header: nothing to bake.
     let empty = write_take(dir.path(), "empty", "grass", Vec::new(), &[]);

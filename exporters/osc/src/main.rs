@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use clap::{Parser, ValueEnum};
 use frond_osc::encode::VmcRig;
 use frond_osc::resample::RATE_RANGE_HZ;
@@ -127,7 +127,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         }
     }
     if !problems.is_empty() {
-        bail!("invalid arguments:\n  {}", problems.join("\n  "));
+        return Err(InvalidArguments(problems.join("\n  ")).into());
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
     let mut config = BridgeConfig::new(socket_dir, protocol, targets);
@@ -167,29 +167,27 @@ fn run(args: &Args) -> anyhow::Result<()> {
     Ok(result?)
 }
 
-/// The error and its causes, leaving out a cause its parent's message already quotes.
-fn error_chain(e: &anyhow::Error) -> String {
-    let mut out = e.to_string();
-    for cause in e.chain().skip(1) {
-        let text = cause.to_string();
-        if !out.contains(&text) {
-            out.push_str(": ");
-            out.push_str(&text);
-        }
-    }
-    out
-}
+/// Arguments that parse but are not valid (every problem, one per line): exit status 2, as for
+/// clap's own usage errors and every other frond binary.
+#[derive(Debug, thiserror::Error)]
+#[error("invalid arguments:\n  {0}")]
+struct InvalidArguments(String);
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let filter = match tracing_subscriber::EnvFilter::try_new(&args.log_level) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("frond-osc: error: --log-level {:?}: {e}", args.log_level);
+            return ExitCode::from(2);
+        }
+    };
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("frond-osc: {}", error_chain(&e));
-            ExitCode::FAILURE
+            eprintln!("frond-osc: error: {}", frond_protocol::error_text(e.as_ref()));
+            if e.downcast_ref::<InvalidArguments>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
     }
 }

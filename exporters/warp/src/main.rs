@@ -20,7 +20,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("frond-warp: error: {e:#}");
+            eprintln!("frond-warp: error: {}", frond_protocol::error_text(e.as_ref()));
             ExitCode::from(2)
         }
     }

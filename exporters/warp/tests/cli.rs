@@ -239,6 +239,7 @@ fn bad_input_gives_clear_errors() {
     let o = run(&["render", "--image", s(&junk), "--layer", s(&mask), "--frames", "2", "-o", s(&out)]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot read image") && stderr(&o).contains("junk.png"), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches("could not be determined").count(), 1, "said once: {}", stderr(&o));
     let missing = t.path().join("missing.png");
     let o = run(&["render", "--image", s(&missing), "--layer", s(&mask), "--frames", "2", "-o", s(&out)]);
     assert!(stderr(&o).contains("missing.png"), "{}", stderr(&o));
