@@ -2,10 +2,12 @@
 //!
 //! Point masses at joints 1..3 and at the plant's top; joint 0 anchored. Linear springs along the
 //! four segments (Eq. 1), angular springs at the four joints (Eq. 2, or the bending form, see
-//! [`AngularForm`]), forces by Eq. 3, wind drag `drag * (w - v)` and gravity. One step is the
-//! implicit Euler step of Baraff and Witkin 1998 (their Eq. 6):
+//! [`AngularForm`]), forces by Eq. 3, wind drag `drag * (w - v)` and gravity. One step is an
+//! implicit (backward) Euler step, `M (v₁ - v₀) = h f(x₀ + h v₁, v₁)`, solved by Newton
+//! iterations whose linear systems are those of Baraff and Witkin 1998 (their Eq. 6; the first
+//! iteration is exactly their single step):
 //!
-//! `(M + h D + h² K) Δv = h (f + h (∂f/∂x) v)`, `v += Δv`, `x += h v`,
+//! `(M + h D + h² K) δ = -r`, `r = M (v - v₀) - h f`,
 //!
 //! with `K = -∂f/∂x`, `D = -∂f/∂v`, solved by conjugate gradient ([`conjugate_gradient`]). For a
 //! behaviour function `C` (a scalar or a 3-vector) with Jacobian `J = ∂C/∂x`, Eq. 3 is
@@ -13,7 +15,10 @@
 //! curvature term `C ∂²C/∂x²` is kept for a stretched linear spring (it is the tension's
 //! sideways stiffness and positive semi-definite) and left out otherwise (a compressed spring,
 //! the angular springs), as is usual: it keeps the system matrix symmetric positive definite,
-//! which conjugate gradient needs, and the step unconditionally stable.
+//! which conjugate gradient needs. The price is that Newton converges linearly, not
+//! quadratically, at large bends (up to [`MAX_NEWTON_ITERATIONS`]); a backtracking line search on
+//! the step's incremental potential keeps every iteration from adding energy. The damping
+//! matrix `D` is taken at the step's start (linearly implicit damping).
 //!
 //! Everything lives in fixed-size arrays inside [`PlantSim`]: [`PlantSim::step`] never
 //! allocates.

@@ -47,12 +47,14 @@ fn sim_static_bend_under_a_steady_wind_matches_small_angle_statics() {
         for (j, (angles, want)) in pose.joints_deg.iter().zip(want_rad).enumerate() {
             let got = f64::from(angles[axis]).to_radians() * sign;
             let other = angles[1 - axis];
-            assert!((got - want).abs() < 0.01 * want, "dir {dir} joint {j}: {got} vs {want}");
+            // Within 0.5 %: the lever arms shorten by cos(0.0375) ~ 0.9993 at most, and
+            // k sin(theta) differs from k theta by theta^2 / 6 < 1e-4.
+            assert!((got - want).abs() < 0.005 * want, "dir {dir} joint {j}: {got} vs {want}");
             assert!(other.abs() < 1e-4, "dir {dir} joint {j}: no bend across the wind, found {other}");
         }
         let top = sim.positions_m()[4];
         let along = if dir == 0.0 { top.x } else { top.z };
-        assert!((along - 0.01225).abs() < 0.01 * 0.01225, "dir {dir}: top at {top}");
+        assert!((along - 0.01225).abs() < 0.005 * 0.01225, "dir {dir}: top at {top}");
         assert!(sim.velocities_m_s().iter().all(|v| v.length() < 1e-6), "settled");
     }
 }
@@ -88,7 +90,9 @@ fn sim_single_segment_period_is_two_pi_sqrt_i_over_k() {
     assert!(crossings.len() >= 3, "{crossings:?}");
     let periods = crossings.len() - 1;
     let period = (crossings[periods] - crossings[0]) / periods as f64;
-    assert!((period - 1.98692).abs() < 0.005 * 1.98692, "period {period} s, want 1.98692 s");
+    // Implicit Euler lengthens the period by about (omega h)^2 / 3 = 3e-6; the stiff lower
+    // joints give way by k / 1000 relative: 0.1 % is ample.
+    assert!((period - 1.98692).abs() < 0.001 * 1.98692, "period {period} s, want 1.98692 s");
 }
 
 fn bent_sim(p: SimParams) -> PlantSim {

@@ -322,4 +322,23 @@ mod tests {
         assert!(differs, "another seed gives another wind");
         assert!(hi - lo > 2.0, "the gusts vary the speed: {lo}..{hi}");
     }
+
+    proptest::proptest! {
+        /// Any text: an error or a spec, never a panic; every spec printed reads back as itself.
+        #[test]
+        fn sim_wind_spec_parser_never_panics_and_round_trips(text in "\\PC{0,60}") {
+            if let Ok(w) = text.parse::<WindSpec>() {
+                proptest::prop_assert_eq!(w.to_string().parse::<WindSpec>().unwrap(), w);
+            }
+        }
+
+        #[test]
+        fn sim_wind_spec_values_round_trip(
+            speed in 0.0f64..=100.0, dir in -360.0f64..=360.0, gust in 0.0f64..=1.0,
+            seed in proptest::num::u64::ANY, until in proptest::option::of(0.0f64..=86_400.0),
+        ) {
+            let w = WindSpec { speed_m_s: speed, dir_deg: dir, gust, seed, until_s: until };
+            proptest::prop_assert_eq!(w.to_string().parse::<WindSpec>().unwrap(), w);
+        }
+    }
 }
