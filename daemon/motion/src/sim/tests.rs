@@ -95,6 +95,39 @@ fn sim_single_segment_period_is_two_pi_sqrt_i_over_k() {
     assert!((period - 1.98692).abs() < 0.001 * 1.98692, "period {period} s, want 1.98692 s");
 }
 
+#[test]
+fn sim_bend_damping_decays_a_single_segment_at_kd_over_2i() {
+    // The segment of the period test (I = 4e-4 kg m^2, k = 0.004 N m/rad, omega = sqrt(10))
+    // with damping ratio 0.05: kd = 2 * 0.05 * sqrt(k I) = 2 * 0.05 * 1.26491e-3
+    // = 1.26491e-4 N m s/rad. The amplitude decays at sigma = kd / (2 I) = 0.158114 /s; the
+    // damped period is T_d = 1.98692 / sqrt(1 - 0.05^2) = 1.98941 s, so successive peaks are
+    // in the ratio exp(-sigma T_d) = exp(-0.314553) = 0.730116. Implicit Euler adds its own
+    // damping, exp(-omega^2 h T_d / 2) = exp(-0.0099470) = 0.990102 per period: 0.722889.
+    let heights = [0.0, 0.1, 0.2, 0.3, 0.5];
+    let mut p = params(heights);
+    p.mass_kg = [4.0, 2.0, 1.0, 0.01];
+    p.bend_stiffness_nm_per_rad = [1000.0, 1000.0, 1000.0, 0.004];
+    p.bend_damping_nms_per_rad = [10.0, 10.0, 10.0, 1.26491e-4];
+    p.drag_ns_per_m = [0.0; 4];
+    let mut sim = PlantSim::new(heights, p, WindSpec::CALM).unwrap();
+    sim.set_pose(&[[0.0; 3], [0.0; 3], [0.0; 3], [0.0, 2.0, 0.0]]);
+    let mut peaks = Vec::new();
+    let (mut a, mut b) = (f32::MIN, sim.pose().joints_deg[3][1]);
+    while sim.time_s() < 6.5 {
+        sim.step().unwrap();
+        let c = sim.pose().joints_deg[3][1];
+        if b > a && b >= c && b > 0.0 {
+            peaks.push(f64::from(b));
+        }
+        (a, b) = (b, c);
+    }
+    assert!(peaks.len() >= 3, "{peaks:?}");
+    for w in peaks.windows(2) {
+        let ratio = w[1] / w[0];
+        assert!((ratio - 0.722889).abs() < 0.001, "peak ratio {ratio}, want 0.722889 ({peaks:?})");
+    }
+}
+
 fn bent_sim(p: SimParams) -> PlantSim {
     let mut sim = PlantSim::new(HEIGHTS, p, WindSpec::CALM).unwrap();
     sim.set_pose(&[[10.0, -20.0, 0.0], [-15.0, 5.0, 0.0], [25.0, 30.0, 0.0], [-30.0, 10.0, 0.0]]);
