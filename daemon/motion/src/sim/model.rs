@@ -480,3 +480,69 @@ impl PlantSim {
         PoseFrame { t: self.t_s, joints_deg }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The forces of Eq. 3 (assembled) are minus the gradient of the energy (written
+    /// separately, `potential_j`), by central differences, for both angular forms, gravity and
+    /// stretched and compressed segments.
+    #[test]
+    fn sim_forces_are_minus_the_energy_gradient() {
+        let heights = [0.0, 0.1, 0.2, 0.3, 0.4];
+        for angular in [AngularForm::Bending, AngularForm::Paper] {
+            let mut p = SimParams::defaults_for(heights);
+            p.angular = angular;
+            p.gravity_m_s2 = 9.81;
+            let mut sim = PlantSim::new(heights, p, WindSpec::CALM).unwrap();
+            sim.set_pose(&[[10.0, -20.0, 0.0], [-15.0, 5.0, 0.0], [25.0, 30.0, 0.0], [-30.0, 10.0, 0.0]]);
+            // At the rest lengths (bending and gravity only), then with segment 1 stretched by
+            // 0.3 % and segment 3 compressed by 0.2 %.
+            for stretched in [false, true] {
+                let mut x = sim.x;
+                if stretched {
+                    let d1 = x[2] - x[1];
+                    for n in 2..NODES {
+                        x[n] += d1 * 0.003;
+                    }
+                    x[4] -= (x[4] - x[3]) * 0.002;
+                }
+                sim.assemble(&x);
+                let force = sim.force;
+                let eps = 1e-7;
+                for n in 1..NODES {
+                    for axis in 0..3 {
+                        let (mut plus, mut minus) = (x, x);
+                        plus[n][axis] += eps;
+                        minus[n][axis] -= eps;
+                        let grad = (sim.potential_j(&plus) - sim.potential_j(&minus)) / (2.0 * eps);
+                        let f = force[n - 1][axis];
+                        let scale = force.iter().map(|f| f.abs().max_element()).fold(0.0, f64::max);
+                        assert!(
+                            (f + grad).abs() < 1e-6 * scale,
+                            "{angular:?} stretched {stretched} node {n} axis {axis}: force {f}, -dU/dx {}",
+                            -grad
+                        );
+                    }
+                }
+                // K is symmetric and positive semi-definite (x^T K x >= 0 for a few x).
+                let k = &sim.stiffness.0;
+                for r in 0..DOF {
+                    for c in 0..DOF {
+                        assert!((k[r][c] - k[c][r]).abs() <= 1e-9 * k[r][r].abs().max(k[c][c].abs()));
+                    }
+                }
+                for seed in 0..8 {
+                    let v: [f64; DOF] = std::array::from_fn(|i| ((i * 7 + seed * 13) % 11) as f64 - 5.0);
+                    let mut kv = [0.0; DOF];
+                    sim.stiffness.mul(&v, &mut kv);
+                    let vkv: f64 = v.iter().zip(&kv).map(|(a, b)| a * b).sum();
+                    assert!(
+                        vkv >= -1e-9 * k.iter().map(|r| r.iter().map(|x| x.abs()).sum::<f64>()).sum::<f64>()
+                    );
+                }
+            }
+        }
+    }
+}
