@@ -503,8 +503,8 @@ mod tests {
                 let mut x = sim.x;
                 if stretched {
                     let d1 = x[2] - x[1];
-                    for n in 2..NODES {
-                        x[n] += d1 * 0.003;
+                    for xn in &mut x[2..] {
+                        *xn += d1 * 0.003;
                     }
                     x[4] -= (x[4] - x[3]) * 0.002;
                 }
