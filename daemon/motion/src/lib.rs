@@ -11,6 +11,9 @@
 //! and the delayed lookup), [`looping`] (Eq. 5), [`field`] (Eq. 6-7, `field.json`),
 //! [`controls`] (section 6.3), [`guided`] (Eq. 8) and [`align`] (section 6.5). Randomness comes
 //! from [`rng::SeededRng`] only.
+//!
+//! [`sim`] is the simulated plant of seed 003, section 4.2: a mass-spring skeleton in wind, read
+//! back as poses.
 
 #![warn(missing_docs)]
 
@@ -35,6 +38,7 @@ pub mod rig_files;
 mod rig_mesh;
 pub mod rng;
 pub mod sample;
+pub mod sim;
 pub mod skeleton;
 pub mod take;
 

@@ -18,6 +18,8 @@ use crate::problems::Problems;
 use crate::rig_mesh::RawMesh;
 pub use crate::rig_mesh::{MeshShape, MeshSpec};
 use crate::sample::JOINTS;
+use crate::sim::SimParams;
+use crate::sim::params::{RawSim, node_heights_m};
 
 /// Default number of twistable joints (seed 000: "In most of our experiments, we set tau = 2").
 pub const DEFAULT_TAU: u8 = 2;
@@ -97,6 +99,9 @@ pub struct Rig {
     /// Bone names sent for the joints, root first, by a VMC exporter (`[vmc] bones`, for
     /// receivers that accept only humanoid bone names); `None`: the joint names.
     pub vmc_bones: Option<[String; JOINTS]>,
+    /// The simulated plant's parameters (seed 003, section 4.2; `[sim]` table, see
+    /// [`crate::sim::params`]); defaults from the rig's geometry when the table is absent.
+    pub sim: SimParams,
 }
 
 /// The `[guided]` table of a rig: Eq. 8's `sigma_i` (seconds) and `s_g(i)` for joints 1..3.
@@ -192,6 +197,8 @@ struct RawRig {
     guided: Option<GuidedSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     vmc: Option<RawVmc>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sim: Option<RawSim>,
 }
 
 fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
@@ -353,6 +360,9 @@ impl RawRig {
             }
         }
 
+        let heights = node_heights_m(joints.each_ref().map(|j| j.height_m), &mesh);
+        let sim = self.sim.clone().unwrap_or_default().validate(&mut p, heights);
+
         if !p.is_empty() {
             return Err(p);
         }
@@ -369,6 +379,7 @@ impl RawRig {
             mesh,
             guided: self.guided,
             vmc_bones,
+            sim,
         })
     }
 }
@@ -415,6 +426,7 @@ impl Rig {
             mesh: Some(RawMesh::from_spec(&self.mesh)),
             guided: self.guided,
             vmc: self.vmc_bones.as_ref().map(|b| RawVmc { bones: b.to_vec() }),
+            sim: RawSim::from_params(&self.sim, self.sim_node_heights_m()),
         };
         // Plain strings, integers and f32 values always serialize.
         toml::to_string(&raw).unwrap_or_default()
@@ -431,6 +443,12 @@ impl Rig {
             tau: self.tau,
             bend_range_deg: self.bend_range_deg,
         }
+    }
+
+    /// Rest heights of the simulated plant's nodes (joints 0..3 and the top, `mesh.height_m`),
+    /// metres (see [`crate::sim::node_heights_m`]).
+    pub fn sim_node_heights_m(&self) -> [f64; crate::sim::NODES] {
+        node_heights_m(self.joints.each_ref().map(|j| j.height_m), &self.mesh)
     }
 
     /// The joint names, root first (for the protocol `Hello` and take headers).
