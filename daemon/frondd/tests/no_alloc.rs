@@ -247,7 +247,8 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let ids: Vec<u16> = (40..56).collect();
     let report = Arc::new(FieldReport::new("g", 100));
     let field = Field::from_json(&field.to_json()).unwrap();
-    let live_field = FieldStage::new(&bytes, field, &ids, 5, t0, report.clone()).unwrap();
+    let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
+    let live_field = FieldStage::new(looped, field, &ids, 5, t0, report.clone()).unwrap();
     let stages: [Box<dyn frondd::stage::LiveStage>; 4] = [
         Box::new(PlaybackStage::new(&bytes, 5, t0, 0).unwrap()),
         Box::new(live_field),

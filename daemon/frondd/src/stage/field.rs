@@ -122,21 +122,9 @@ pub struct FieldStage {
 }
 
 impl FieldStage {
-    /// `field` of the looped take `take_bytes`, its first plants published as the element ids
-    /// `ids` (one per published plant).
+    /// `field` of a take made ready to loop ([`looped_clip`]), its first plants published as
+    /// the element ids `ids` (one per published plant).
     pub fn new(
-        take_bytes: &[u8],
-        field: Field,
-        ids: &[u16],
-        seed: u64,
-        t0_ns: u64,
-        report: Arc<FieldReport>,
-    ) -> Result<Self, StageError> {
-        Self::from_looped(looped_clip(take_bytes)?, field, ids, seed, t0_ns, report)
-    }
-
-    /// [`FieldStage::new`] on a take already made ready to loop.
-    pub fn from_looped(
         looped: LoopedTake,
         field: Field,
         ids: &[u16],
@@ -256,8 +244,7 @@ pub fn build(
     let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
     let looped = looped_clip(&bytes).map_err(invalid)?;
     let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));
-    let stage =
-        FieldStage::from_looped(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
+    let stage = FieldStage::new(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
     let elements = ids
         .iter()
         .enumerate()
