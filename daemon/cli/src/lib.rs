@@ -16,6 +16,7 @@ mod map;
 mod signals;
 mod soak;
 mod status;
+mod take_sim;
 mod take_tools;
 mod takes;
 mod tap;

@@ -77,6 +77,38 @@ pub enum TakeTool {
         #[arg(long)]
         force: bool,
     },
+    /// The simulated plant of seed 003 (section 4): RIG's mass-spring plant (its `[sim]` table,
+    /// or --sim FILE's) blown by --wind from rest for --duration seconds, sampled at --fps, as
+    /// take NAME. --wind: `speed=S,dir=DEG,gust=G,seed=N[,until=S]` (m/s; 0 deg towards +X, 90
+    /// towards +Z; gust 0..1).
+    Simulate {
+        /// Take name to write.
+        name: String,
+        /// Rig: an embedded name or a rig file (TOML).
+        #[arg(long, value_name = "NAME|FILE")]
+        rig: PathBuf,
+        /// A TOML file with a `[sim]` table replacing the rig's.
+        #[arg(long, value_name = "FILE")]
+        sim: Option<PathBuf>,
+        /// The wind.
+        #[arg(long, value_name = "SPEC")]
+        wind: String,
+        /// Seconds to simulate.
+        #[arg(long, value_name = "S")]
+        duration: f64,
+        /// Frames per second of the take.
+        #[arg(long, default_value_t = 30.0, value_name = "FPS")]
+        fps: f64,
+        /// Also write every frame's node positions, velocities and forces (JSON Lines).
+        #[arg(long, value_name = "FILE.jsonl")]
+        states: Option<PathBuf>,
+        /// Print the poses as JSON Lines instead of writing the take.
+        #[arg(long)]
+        jsonl: bool,
+        /// Replace an existing take (and states file) of the same name.
+        #[arg(long)]
+        force: bool,
+    },
     /// Resample every layer to --fps (poses and hand samples, linear interpolation).
     Resample {
         /// Take name.
@@ -279,7 +311,7 @@ fn global_clip(take: &Take, fps: f64, what: &str) -> anyhow::Result<Clip> {
 }
 
 /// Writes the result: JSONL of its global layer on stdout, or `OUT.take` in the takes dir.
-fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyhow::Result<()> {
+pub(crate) fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyhow::Result<()> {
     if out.jsonl {
         let stdout = io::stdout();
         let mut w = io::BufWriter::new(stdout.lock());
@@ -387,6 +419,22 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             take.set_layer(GLOBAL_LAYER, None, frames);
             let out = Output { output: Some(name.clone()), jsonl, force, fps: 30.0 };
             emit(g, take, name, &out)
+        }
+        TakeTool::Simulate { name, rig, sim, wind, duration, fps, states, jsonl, force } => {
+            crate::take_sim::run(
+                g,
+                crate::take_sim::Simulate {
+                    name,
+                    rig,
+                    sim,
+                    wind,
+                    duration_s: duration,
+                    fps,
+                    states,
+                    jsonl,
+                    force,
+                },
+            )
         }
         TakeTool::Resample { name, out } => {
             check_fps(out.fps)?;

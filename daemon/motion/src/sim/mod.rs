@@ -86,6 +86,22 @@ pub fn simulate(
     duration_s: f64,
     fps: f64,
 ) -> Result<Vec<PoseFrame>, SimError> {
+    let mut out = Vec::new();
+    simulate_each(rig, sim, wind, duration_s, fps, &mut |_, pose| out.push(pose))?;
+    Ok(out)
+}
+
+/// [`simulate`], handing each frame to `each` with the plant in that frame's state (for the
+/// node positions, velocities and forces `frond take simulate --states` writes) instead of
+/// collecting them. The same bounds are checked before the first step.
+pub fn simulate_each(
+    rig: &Rig,
+    sim: &SimParams,
+    wind: WindSpec,
+    duration_s: f64,
+    fps: f64,
+    each: &mut dyn FnMut(&mut PlantSim, PoseFrame),
+) -> Result<(), SimError> {
     if !(duration_s.is_finite() && duration_s >= 0.0) {
         return Err(SimError::Argument {
             what: "duration_s",
@@ -107,16 +123,42 @@ pub fn simulate(
         return Err(SimError::TooManySteps { steps: steps as u64 });
     }
     let mut plant = PlantSim::new(rig.sim_node_heights_m(), *sim, wind)?;
-    let mut out = Vec::with_capacity(frames as usize);
     let h = sim.timestep_s;
     for k in 0..frames {
         let t = k as f64 / fps;
         while plant.time_s() + 0.5 * h <= t {
             plant.step()?;
         }
-        out.push(PoseFrame { t, ..plant.pose() });
+        let pose = PoseFrame { t, ..plant.pose() };
+        each(&mut plant, pose);
     }
-    Ok(out)
+    Ok(())
+}
+
+/// Why a `--sim` file was refused.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SimFileError {
+    /// Not TOML, no `[sim]` table, or a key of the wrong type or unknown (the toml message).
+    #[error("{0}")]
+    Toml(String),
+    /// Some values are out of range (every problem with its path).
+    #[error("{0}")]
+    Invalid(Problems),
+}
+
+/// Reads a `--sim FILE.toml`: a document holding one `[sim]` table, as in a rig file, which
+/// replaces the rig's (keys it leaves out take the defaults for the plant's `heights_m`).
+pub fn sim_from_toml_str(text: &str, heights_m: [f64; NODES]) -> Result<SimParams, SimFileError> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Doc {
+        sim: params::RawSim,
+    }
+    let doc: Doc =
+        toml::from_str(text).map_err(|e| SimFileError::Toml(e.to_string().trim_end().to_string()))?;
+    let mut p = Problems::default();
+    let sim = doc.sim.validate(&mut p, heights_m);
+    if p.is_empty() { Ok(sim) } else { Err(SimFileError::Invalid(p)) }
 }
 
 #[cfg(test)]

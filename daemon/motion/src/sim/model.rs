@@ -368,6 +368,25 @@ impl PlantSim {
         }
     }
 
+    /// The total force on each free node (joints 1..3, top) in the current state, newtons: the
+    /// springs (Eq. 1-3) and gravity at the current positions, the wind's drag `drag (w - v)` at
+    /// the current time, and the springs' damping at the current velocities. Section 4.3 stores
+    /// these with the positions and velocities of every sample. Reassembles the springs (no
+    /// allocation).
+    pub fn forces_n(&mut self) -> [DVec3; FREE_NODES] {
+        let x = self.x;
+        self.assemble(&x);
+        let wind = self.wind.velocity_m_s(self.t_s);
+        let mut flat = [DVec3::ZERO; FREE_NODES];
+        flat.copy_from_slice(&self.v[1..]);
+        let mut dv = [0.0; DOF];
+        // `D` holds the drag's `-drag v` too (see `assemble`).
+        self.damping.mul_nodes(&flat, &mut dv);
+        std::array::from_fn(|i| {
+            self.force[i] + self.params.drag_ns_per_m[i] * wind - DVec3::from_slice(&dv[3 * i..3 * i + 3])
+        })
+    }
+
     /// Advances the plant by one implicit (backward) Euler step of `timestep_s`,
     /// allocation-free: it solves `M (v₁ - v₀) = h f(x₀ + h v₁, v₁)` for `v₁` (the wind at the
     /// step's end, the damping matrix `D₀` taken at `x₀`) by Newton iterations, each the linear

@@ -1,0 +1,112 @@
+//! `frond take simulate`: the simulated plant of seed 003 (section 4) written as a take, and,
+//! with `--states`, the node positions, velocities and forces of every frame as section 4.3
+//! stores them (JSON Lines).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, anyhow};
+use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
+use frond_motion::sim::{SimError, WindSpec, sim_from_toml_str, simulate_each};
+use frond_motion::take::TakeHeader;
+
+use crate::args::Global;
+use crate::control::load_rig;
+use crate::take_tools::{Output, emit};
+use crate::usage;
+
+/// Largest `--sim` file read, bytes.
+const MAX_SIM_FILE_BYTES: u64 = 1 << 20;
+
+/// What `frond take simulate` was asked.
+pub(crate) struct Simulate {
+    pub name: String,
+    pub rig: PathBuf,
+    pub sim: Option<PathBuf>,
+    pub wind: String,
+    pub duration_s: f64,
+    pub fps: f64,
+    pub states: Option<PathBuf>,
+    pub jsonl: bool,
+    pub force: bool,
+}
+
+/// Runs the simulation and writes the take (or the poses as JSON Lines) and the states.
+pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
+    let wind: WindSpec = match a.wind.parse() {
+        Ok(w) => w,
+        Err(e) => return usage(format!("--wind {:?}: {e}", a.wind)),
+    };
+    let (rig, _) = load_rig(&a.rig)?;
+    let sim = match &a.sim {
+        None => rig.sim,
+        Some(path) => {
+            let text = frond_motion::rig_files::read_small_text(path, MAX_SIM_FILE_BYTES)
+                .map_err(|e| anyhow!("cannot read {}: {}", path.display(), e.reason()))?;
+            sim_from_toml_str(&text, rig.sim_node_heights_m())
+                .map_err(|e| anyhow!("{}: {e}", path.display()))?
+        }
+    };
+    if let Some(states) = &a.states
+        && states.exists()
+        && !a.force
+    {
+        return usage(format!("{} exists; use --force to replace it", states.display()));
+    }
+    let mut states = match &a.states {
+        Some(path) => Some((path, std::io::BufWriter::new(create(path)?))),
+        None => None,
+    };
+    let mut poses = Vec::new();
+    let mut write_error = None;
+    let result = simulate_each(&rig, &sim, wind, a.duration_s, a.fps, &mut |plant, pose| {
+        if let Some((_, w)) = states.as_mut()
+            && write_error.is_none()
+        {
+            let line = serde_json::json!({
+                "t": pose.t,
+                "positions_m": plant.positions_m().map(|p| p.to_array()),
+                "velocities_m_s": plant.velocities_m_s().map(|v| v.to_array()),
+                "forces_n": plant.forces_n().map(|f| f.to_array()),
+            });
+            if let Err(e) = writeln!(w, "{line}") {
+                write_error = Some(e);
+            }
+        }
+        poses.push(pose);
+    });
+    match result {
+        Ok(()) => {}
+        Err(
+            e @ (SimError::Argument { .. } | SimError::TooManyFrames { .. } | SimError::TooManySteps { .. }),
+        ) => {
+            return usage(e.to_string());
+        }
+        Err(e) => return Err(e.into()),
+    }
+    if let Some((path, mut w)) = states {
+        if let Some(e) = write_error {
+            return Err(anyhow!("writing {}: {e}", path.display()));
+        }
+        w.flush().with_context(|| format!("writing {}", path.display()))?;
+    }
+    let clip = frond_motion::clip::Clip { fps: a.fps, frames: poses };
+    let header = TakeHeader {
+        name: a.name.clone(),
+        rig_name: rig.name.clone(),
+        calibration_id: "none".into(),
+        filter: format!("sim {wind}"),
+        tick_rate_hz: a.fps.round().max(1.0) as u32,
+        created_unix_s: 0,
+        daemon_version: format!("frond {} (simulate)", env!("CARGO_PKG_VERSION")),
+        joint_names: rig.joint_names(),
+    };
+    let mut take = Take::new(header);
+    take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
+    let out = Output { output: Some(a.name.clone()), jsonl: a.jsonl, force: a.force, fps: a.fps };
+    emit(g, take, a.name, &out)
+}
+
+fn create(path: &Path) -> anyhow::Result<std::fs::File> {
+    std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))
+}
