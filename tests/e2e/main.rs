@@ -6,6 +6,7 @@ mod hostile;
 mod hostile_files;
 mod hostile_takes;
 mod live_modes;
+mod no_color;
 mod osc_input;
 mod plausible;
 mod rt_syscalls;
