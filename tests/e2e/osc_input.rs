@@ -95,3 +95,38 @@ fn osc_hand_messages_drive_the_daemon_like_frond_map() {
     );
     assert_eq!(daemon.status().source.reports, 50);
 }
+
+/// Issue 18: `frond-vhid --osc HOST:PORT` is the reference sender for the OSC input. It drives a
+/// daemon's `osc://` source like a tracker bridge would: every sample a report, each published
+/// fresh, with the glove's faults carried over (a corrupted report arrives as bytes that are not
+/// OSC and is counted as rejected, never mapped).
+#[test]
+fn the_reference_osc_sender_drives_the_osc_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let source = format!("osc://127.0.0.1:{port}");
+    let daemon = Daemon::start(dir.path(), &["--source", &source]);
+    let target = format!("127.0.0.1:{port}");
+    let (mut glove, first_line, _out) =
+        frond_e2e::start_vhid(&["--osc", &target, "--rate", "500", "--corrupt", "0.1", "--seed", "7"]);
+    assert_eq!(first_line.to_str(), Some(format!("osc://{target}").as_str()));
+    assert!(
+        wait_for(Duration::from_secs(10), || {
+            let s = daemon.status().source;
+            s.reports > 500 && s.rejected > 20
+        }),
+        "{:?}",
+        daemon.status().source
+    );
+    let s = daemon.status().source;
+    assert_eq!(s.kind, "osc");
+    // About one in ten reports corrupted: rejected, the rest mapped.
+    let share = s.rejected as f64 / (s.reports + s.rejected) as f64;
+    assert!((0.04..0.2).contains(&share), "{} of {} rejected", s.rejected, s.reports + s.rejected);
+    let mut sub = frond_sdk::Subscriber::connect(&daemon.socket_dir).unwrap();
+    let fresh = frond_e2e::fresh_poses(&mut sub, 50, Duration::from_secs(5));
+    assert_eq!(fresh.len(), 50, "fresh poses from the OSC sender");
+    // The sway moves: the poses are not all one.
+    assert!(fresh.windows(2).any(|w| w[0].joints_deg != w[1].joints_deg));
+    let _ = glove.terminate(Duration::from_secs(5));
+}

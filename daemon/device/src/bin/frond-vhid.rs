@@ -56,6 +56,10 @@ struct Args {
     /// Device node backend.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
+    /// Instead of a device node, send `/frond/hand` OSC messages to HOST:PORT (UDP), as a
+    /// tracker bridge would: the reference sender for `frondd --source osc://HOST:PORT`.
+    #[arg(long, value_name = "HOST:PORT", conflicts_with_all = ["node", "backend"])]
+    osc: Option<String>,
     /// Probability of dropping each report.
     #[arg(long = "drop", value_name = "P", default_value_t = 0.0)]
     drop_prob: f64,
@@ -192,19 +196,23 @@ fn default_node() -> PathBuf {
 enum Glove {
     Fuse(vhid::VirtualGloveHandle),
     Uhid(UhidGlove),
+    Osc(vhid::OscGlove, String),
 }
 
 impl Glove {
-    fn node(&self) -> &std::path::Path {
+    /// What the first line of stdout names: the node, or the OSC target.
+    fn node(&self) -> std::path::PathBuf {
         match self {
-            Self::Fuse(g) => g.node_path(),
-            Self::Uhid(g) => g.node_path(),
+            Self::Fuse(g) => g.node_path().to_owned(),
+            Self::Uhid(g) => g.node_path().to_owned(),
+            Self::Osc(_, target) => PathBuf::from(format!("osc://{target}")),
         }
     }
     fn stats(&self) -> std::sync::Arc<VhidStats> {
         match self {
             Self::Fuse(g) => g.stats(),
             Self::Uhid(g) => g.stats(),
+            Self::Osc(g, _) => g.stats(),
         }
     }
 }
@@ -217,7 +225,18 @@ fn run(args: Args) -> Result<()> {
         Backend::Fuse => false,
         Backend::Auto => vhid::uhid::available(),
     };
-    let glove = if use_uhid {
+    let glove = if let Some(target) = &args.osc {
+        use std::net::ToSocketAddrs;
+        let addr = target
+            .to_socket_addrs()
+            .ok()
+            .and_then(|mut a| a.next())
+            .with_context(|| format!("--osc {target:?}: expected HOST:PORT, e.g. 127.0.0.1:9001"))?;
+        Glove::Osc(
+            vhid::OscGlove::start(config, addr).context("cannot start the OSC sender")?,
+            target.clone(),
+        )
+    } else if use_uhid {
         Glove::Uhid(UhidGlove::create(config).context("cannot create the UHID glove")?)
     } else {
         let node = args.node.clone().unwrap_or_else(default_node);
@@ -251,6 +270,10 @@ fn run(args: Args) -> Result<()> {
     let result = match glove {
         Glove::Fuse(g) => g.unmount().context("unmount failed"),
         Glove::Uhid(g) => {
+            drop(g);
+            Ok(())
+        }
+        Glove::Osc(g, _) => {
             drop(g);
             Ok(())
         }

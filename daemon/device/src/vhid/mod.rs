@@ -21,10 +21,12 @@ use crate::jsonl::{HandFileError, load_hand_file};
 
 mod fuse;
 mod inprocess;
+mod osc_out;
 pub mod uhid;
 
 pub use fuse::{NODE_NAME, VirtualGloveHandle, mount_fuse, mount_fuse_node};
 pub use inprocess::InProcessGlove;
+pub use osc_out::OscGlove;
 
 /// Highest report rate of the virtual glove.
 pub const MAX_RATE_HZ: f64 = 8000.0;
