@@ -39,8 +39,9 @@ pub(crate) fn not_running_message(path: &Path, err: &io::Error) -> String {
         _ => format!("cannot connect to {}: {err}", path.display()),
     };
     format!(
-        "the frond daemon is not running: {why}. Start it with `frondd --socket-dir {}` \
-         (or `systemctl --user start frondd`), or try `frond demo`; if it runs elsewhere, pass \
+        "the frond daemon is not running: {why}. Start it with `frondd --socket-dir {}`, or try \
+         `frond demo`; the system service (`systemctl start frondd`, systemd/frondd.service) \
+         listens in /run/frond (set FROND_SOCKET_DIR=/run/frond); if it runs elsewhere, pass \
          --socket-dir or set FROND_SOCKET_DIR",
         path.parent().unwrap_or(Path::new(".")).display()
     )
@@ -245,6 +246,22 @@ pub(crate) fn record_stop(g: &Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 18: the hint names only what frond ships (the system unit in /run/frond), not a
+    /// user unit that does not exist.
+    #[test]
+    fn the_not_running_hint_names_what_frond_ships() {
+        let err = io::Error::from(io::ErrorKind::NotFound);
+        let m = not_running_message(Path::new("/tmp/x/control.sock"), &err);
+        assert!(m.contains("no control socket at /tmp/x/control.sock"), "{m}");
+        assert!(m.contains("`frondd --socket-dir /tmp/x`") && m.contains("`frond demo`"), "{m}");
+        assert!(m.contains("`systemctl start frondd`") && m.contains("FROND_SOCKET_DIR=/run/frond"), "{m}");
+        assert!(!m.contains("--user"), "{m}");
+        let unit =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../systemd/frondd.service"))
+                .expect("the unit the hint names");
+        assert!(unit.contains("--socket-dir /run/frond"), "the unit listens where the hint says");
+    }
 
     #[test]
     fn not_running_names_the_socket_and_how_to_start() {
