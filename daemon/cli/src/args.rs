@@ -131,6 +131,18 @@ pub enum Command {
     /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion
     /// toolkit and exporters) and say whether each target holds.
     Bench(BenchArgs),
+    /// Print a shell completion script for frond (bash, zsh, fish, elvish, powershell), e.g.
+    /// `frond completions bash > /etc/bash_completion.d/frond`.
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
+    /// Write frond's man pages (frond.1 and one per command, frond-take-export.1 ...) into DIR.
+    Man {
+        /// Directory to write them to (created if missing).
+        #[arg(short = 'o', long = "output", value_name = "DIR")]
+        dir: std::path::PathBuf,
+    },
     /// Run the daemon on the virtual glove under faults (unplugs, corrupt reports, a clock jump,
     /// a SIGSTOP pause, a full disk under the recording, slow and reconnecting subscribers) for
     /// a while, then check it held up and print the figures. Needs /dev/fuse and root (the

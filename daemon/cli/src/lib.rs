@@ -11,6 +11,7 @@ mod bench;
 mod calibrate;
 mod control;
 mod demo;
+mod docs;
 mod live;
 mod map;
 mod signals;
@@ -156,5 +157,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
         Command::Bench(a) => bench::run(&a),
         Command::Soak { duration, json, seed } => soak::run(duration, json, seed),
+        Command::Completions { shell } => docs::completions(shell),
+        Command::Man { dir } => docs::man(&dir),
     }
 }
