@@ -275,10 +275,10 @@ pub enum TakeTool {
 fn read_take(g: &Global, name: &str) -> anyhow::Result<Take> {
     let path = crate::takes::resolve(g, name)?;
     let bytes = crate::takes::read_take_bytes(&path)?;
-    let take = Take::from_bytes(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    if let Ok(scan) = frond_motion::scan_take(&bytes) {
-        crate::takes::warn_damage(&path, &scan);
-    }
+    // One read of the bytes: the take and what it skipped.
+    let (take, damage) =
+        Take::from_bytes_noting_damage(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    crate::takes::warn_damaged(&path, damage.as_deref(), take.frames.len());
     Ok(take)
 }
 

@@ -64,11 +64,15 @@ fn read_scan(path: &Path) -> anyhow::Result<(TakeScan, u64)> {
 
 /// Warns on stderr that `path` is damaged and only its readable part is used.
 pub(crate) fn warn_damage(path: &Path, scan: &TakeScan) {
-    if let Some(d) = scan.damage() {
+    warn_damaged(path, scan.damage().as_deref(), scan.frames.len());
+}
+
+/// The same warning, from what the reader said (`TakeScan::damage`) and the frames it kept.
+pub(crate) fn warn_damaged(path: &Path, damage: Option<&str>, readable_frames: usize) {
+    if let Some(d) = damage {
         eprintln!(
-            "frond: warning: {}: {d}; using the {} readable frames (`frond take repair` rewrites the take without the damage)",
+            "frond: warning: {}: {d}; using the {readable_frames} readable frames (`frond take repair` rewrites the take without the damage)",
             path.display(),
-            scan.frames.len()
         );
     }
 }

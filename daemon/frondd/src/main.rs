@@ -140,10 +140,11 @@ fn main() -> ExitCode {
     let reload_present = present.clone();
     let loader: ConfigLoader =
         Box::new(move || Config::load(reload_present().as_deref(), reload_overrides.clone()));
-    if let (Some(p), None) = (&args.config, present()) {
+    let file = present();
+    if let (Some(p), None) = (&args.config, &file) {
         tracing::info!(path = %p.display(), "no config file there (optional): the embedded defaults apply");
     }
-    let config = match Config::load(present().as_deref(), overrides) {
+    let config = match Config::load(file.as_deref(), overrides) {
         Ok(c) => c,
         Err(errors) => {
             for e in errors.problems {

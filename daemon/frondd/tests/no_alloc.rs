@@ -250,7 +250,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
     let live_field = FieldStage::new(looped, field, &ids, 5, t0, report.clone()).unwrap();
     let stages: [Box<dyn frondd::stage::LiveStage>; 4] = [
-        Box::new(PlaybackStage::new(&bytes, 5, t0, 0).unwrap()),
+        Box::new(PlaybackStage::new(frondd::stage::playback::looped_clip(&bytes).unwrap(), 5, t0, 0)),
         Box::new(live_field),
         Box::new(GuidedStage::new(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000)),
         Box::new(LayerStage::new(1)),

@@ -70,12 +70,9 @@ pub struct PlaybackStage {
 }
 
 impl PlaybackStage {
-    /// Loops the global layer of `take_bytes` from host time `t0_ns`, published as `element`.
-    pub fn new(take_bytes: &[u8], seed: u64, t0_ns: u64, element: u16) -> Result<Self, StageError> {
-        Ok(Self::from_looped(looped_clip(take_bytes)?, seed, t0_ns, element))
-    }
-
-    fn from_looped(looped: LoopedTake, seed: u64, t0_ns: u64, element: u16) -> Self {
+    /// Loops a take made ready to loop ([`looped_clip`]) from host time `t0_ns`, published as
+    /// `element`.
+    pub fn new(looped: LoopedTake, seed: u64, t0_ns: u64, element: u16) -> Self {
         let playback = Playback::new(looped.clip, &looped.transitions, seed, PlaybackParams::default(), 0);
         PlaybackStage { playback, t0_ns, element }
     }
@@ -97,7 +94,7 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
     let bytes = super::read_take(ctx.takes_dir, take)?;
     let looped = looped_clip(&bytes).map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
     let damage = note_damage(take, &looped.damage);
-    let stage = PlaybackStage::from_looped(looped, seed, ctx.now_ns, 0);
+    let stage = PlaybackStage::new(looped, seed, ctx.now_ns, 0);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
