@@ -17,6 +17,7 @@ mod map;
 mod signals;
 mod soak;
 mod status;
+mod take_graph;
 mod take_sim;
 mod take_tools;
 mod takes;

@@ -25,6 +25,7 @@ pub mod edit;
 pub mod field;
 pub mod filter;
 pub mod gltf_mesh;
+pub mod graph;
 pub mod guided;
 pub mod jsonl;
 pub mod layers;

@@ -1,0 +1,279 @@
+//! `frond take graph` and `frond take walk`: the motion graphs and walks of seed 003 (sections 5
+//! and 6) on takes on disk. The math is `frond_motion::graph`; this is argument checking and I/O.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::anyhow;
+use frond_motion::clip::Clip;
+use frond_motion::graph::build::pose_distance_deg;
+use frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
+use frond_motion::graph::walk::PosePlan;
+use frond_motion::graph::{
+    ControlPoint, EdgeKind, GraphError, GraphFile, GraphParams, MotionGraph, Walker, build_graph,
+    control_positions_m,
+};
+use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
+use frond_motion::sample::{JOINTS, PoseFrame};
+use frond_motion::skeleton::Skeleton;
+
+use crate::args::Global;
+use crate::calibrate::write_atomically_bytes;
+use crate::control::load_rig;
+use crate::take_tools::{Output, check_fps, emit, global_clip, read_take};
+use crate::usage;
+
+/// Longest walk, seconds (an hour).
+const MAX_WALK_S: f64 = 3600.0;
+/// Most plants of one `frond take walk`.
+const MAX_PLANTS: u32 = 256;
+
+/// What `frond take graph` was asked.
+pub(crate) struct Graph {
+    pub name: String,
+    pub control: String,
+    pub extend: u32,
+    pub max_pose_deg: f64,
+    pub radius_scale: f64,
+    pub max_transitions: u32,
+    pub rig: Option<PathBuf>,
+    pub output: Option<PathBuf>,
+    pub explain: bool,
+    pub fps: f64,
+    pub force: bool,
+}
+
+/// The take's poses at `fps` and the control point's path, with the rig it was recorded on (or
+/// `--rig`).
+fn take_and_path(
+    g: &Global,
+    name: &str,
+    rig: Option<&Path>,
+    control: ControlPoint,
+    fps: f64,
+) -> anyhow::Result<(Take, Clip, Vec<[f64; 3]>)> {
+    let take = read_take(g, name)?;
+    let clip = global_clip(&take, fps, name)?;
+    let rig_spec = rig.map_or_else(|| PathBuf::from(&take.header.rig_name), Path::to_path_buf);
+    let (rig, _) = load_rig(&rig_spec).map_err(|e| {
+        anyhow!(
+            "{e:#}\n(the take was recorded on rig {:?}; give the rig with --rig NAME|FILE)",
+            take.header.rig_name
+        )
+    })?;
+    let top_m = rig.sim_node_heights_m()[4] as f32;
+    let path = control_positions_m(control, &Skeleton::from_rig(&rig), top_m, &clip.frames);
+    Ok((take, clip, path))
+}
+
+/// Builds the graph and writes `NAME.graph.json` (or `-o FILE`).
+pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
+    check_fps(a.fps)?;
+    let control: ControlPoint = match a.control.parse() {
+        Ok(c) => c,
+        Err(e) => return usage(format!("--control: {e}")),
+    };
+    let params = GraphParams {
+        control,
+        extend: a.extend,
+        max_pose_deg: a.max_pose_deg,
+        radius_scale: a.radius_scale,
+        max_transitions: a.max_transitions,
+    };
+    if let Err(e) = params.check() {
+        return usage(format!("--{}", e.to_string().replace('_', "-")));
+    }
+    let out = a.output.clone().unwrap_or_else(|| PathBuf::from(format!("{}.graph.json", a.name)));
+    if out.exists() && !a.force {
+        return usage(format!("{} exists; use --force to replace it", out.display()));
+    }
+    let (_, clip, path) = take_and_path(g, &a.name, a.rig.as_deref(), control, a.fps)?;
+    let graph = match build_graph(&clip.frames, &path, &params) {
+        Ok(graph) => graph,
+        Err(e @ (GraphError::NoTransition { .. } | GraphError::SampleCount(_))) => {
+            anyhow::bail!("take {:?}: {e}", a.name)
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let file = GraphFile::new(&graph, &params, &a.name, a.fps, &clip.frames);
+    write_atomically_bytes(&out, file.to_json().as_bytes())?;
+    println!(
+        "wrote {} ({} nodes of {} frames, {} transitions; pruned {} dead-end and {} unconnected frames)",
+        out.display(),
+        graph.len(),
+        clip.frames.len(),
+        graph.transitions(),
+        count(&graph.pruned.dead_end_frames),
+        count(&graph.pruned.outside_largest_part_frames),
+    );
+    if a.explain {
+        let per_node = graph.transitions() as f64 / graph.len() as f64;
+        let explain = serde_json::json!({
+            "take": a.name,
+            "frames": clip.frames.len(),
+            "nodes": graph.len(),
+            "transitions": graph.transitions(),
+            "transitions_per_node": per_node,
+            "pruned": graph.pruned,
+        });
+        eprintln!("{explain}");
+    }
+    Ok(())
+}
+
+fn count(ranges: &[[u32; 2]]) -> u64 {
+    ranges.iter().map(|r| (r[1] - r[0] + 1) as u64).sum()
+}
+
+/// What `frond take walk` was asked.
+pub(crate) struct Walk {
+    pub name: String,
+    pub graph: PathBuf,
+    pub duration_s: f64,
+    pub seed: u64,
+    pub goal_dir_deg: Option<f64>,
+    pub goal_pose: Option<String>,
+    pub plants: u32,
+    pub rig: Option<PathBuf>,
+    pub explain: bool,
+    pub out: Output,
+}
+
+/// Reads and checks a graph file (regular, at most [`MAX_GRAPH_FILE_BYTES`]).
+pub(crate) fn read_graph_file(path: &Path) -> anyhow::Result<GraphFile> {
+    let text = frond_motion::rig_files::read_small_text(path, MAX_GRAPH_FILE_BYTES)
+        .map_err(|e| anyhow!("cannot read {}: {}", path.display(), e.reason()))?;
+    GraphFile::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+/// `--goal-pose`: `frame=N` (a frame of the take at the graph's rate) or 12 comma-separated
+/// angles in degrees (pitch, yaw, roll of joints 0..3).
+fn parse_goal_pose(spec: &str, poses: &[PoseFrame]) -> anyhow::Result<PoseFrame> {
+    if let Some(n) = spec.strip_prefix("frame=") {
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| crate::UsageError(format!("--goal-pose {spec:?}: frame=N needs a frame number")))?;
+        return match poses.get(n) {
+            Some(p) => Ok(*p),
+            None => usage(format!(
+                "--goal-pose {spec:?}: the take has {} frames at the graph's rate",
+                poses.len()
+            )),
+        };
+    }
+    let values: Vec<f32> =
+        spec.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
+            crate::UsageError(format!(
+                "--goal-pose {spec:?}: expected frame=N or 12 comma-separated angles in degrees"
+            ))
+        })?;
+    if values.len() != 3 * JOINTS || !values.iter().all(|v| v.is_finite() && v.abs() <= 360.0) {
+        return usage(format!(
+            "--goal-pose {spec:?}: expected 12 finite angles within +-360 degrees (pitch, yaw, roll of joints 0..3), found {} values",
+            values.len()
+        ));
+    }
+    let mut joints_deg = [[0.0; 3]; JOINTS];
+    for (j, a) in joints_deg.iter_mut().enumerate() {
+        a.copy_from_slice(&values[3 * j..3 * j + 3]);
+    }
+    Ok(PoseFrame { t: 0.0, joints_deg })
+}
+
+/// The node whose pose is nearest `goal` (12-angle distance).
+fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u32 {
+    (0..graph.len() as u32)
+        .min_by(|&a, &b| {
+            let da = pose_distance_deg(&poses[graph.node_frames[a as usize] as usize], goal);
+            let db = pose_distance_deg(&poses[graph.node_frames[b as usize] as usize], goal);
+            da.total_cmp(&db)
+        })
+        .unwrap_or(0)
+}
+
+/// Walks the graph and writes the take (one layer per extra plant).
+pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
+    if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= MAX_WALK_S) {
+        return usage(format!("--duration must be in (0, {MAX_WALK_S}] seconds, got {}", a.duration_s));
+    }
+    if a.plants == 0 || a.plants > MAX_PLANTS {
+        return usage(format!("--plants must be 1 to {MAX_PLANTS}, got {}", a.plants));
+    }
+    if let Some(d) = a.goal_dir_deg
+        && !(d.is_finite() && d.abs() <= 360.0)
+    {
+        return usage(format!("--goal-dir must be a finite angle within +-360 degrees, got {d}"));
+    }
+    let file = read_graph_file(&a.graph)?;
+    let control = file.control_point()?;
+    let (take, clip, _) = take_and_path(g, &a.name, a.rig.as_deref(), control, file.fps)?;
+    let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", a.graph.display()))?;
+    let poses = &clip.frames;
+    let goal = match (&a.goal_pose, a.goal_dir_deg) {
+        (Some(p), _) => {
+            let pose = parse_goal_pose(p, poses)?;
+            let node = nearest_node(&graph, poses, &pose);
+            frond_motion::graph::Goal::Pose(PosePlan::new(&graph, node))
+        }
+        (None, Some(dir_deg)) => frond_motion::graph::Goal::Direction { dir_deg },
+        (None, None) => frond_motion::graph::Goal::Random,
+    };
+    let frames = (a.duration_s * file.fps).round().max(1.0) as usize;
+    let mut out_take = take.clone();
+    out_take.frames.clear();
+    out_take.markers.clear();
+    out_take.header.tick_rate_hz = file.fps.round().max(1.0) as u32;
+    out_take.header.filter = format!("walk seed={} goal={}", a.seed, goal_name(&a));
+    let mut explains = Vec::new();
+    for plant in 0..a.plants {
+        // Plant p: seed + p, starting at a node spread over the graph.
+        let start = (plant as u64 * graph.len() as u64 / a.plants as u64) as u32;
+        let mut w = Walker::new(&graph, start, a.seed.wrapping_add(plant as u64), file.fps);
+        w.set_goal(goal.clone());
+        let mut walked = Vec::with_capacity(frames);
+        let mut taken = Vec::new();
+        for _ in 0..frames {
+            let s = w.next_frame(&graph, poses);
+            if a.explain
+                && let (Some(node), Some(e)) = (s.node, s.chose)
+                && e.kind == EdgeKind::Transition
+            {
+                taken.push(serde_json::json!({
+                    "t": s.pose.t,
+                    "from_frame": graph.node_frames[node as usize],
+                    "to_frame": graph.node_frames[e.to as usize],
+                    "inbetweens": e.inbetweens,
+                }));
+            }
+            walked.push(s.pose);
+        }
+        let clip = Clip { fps: file.fps, frames: walked };
+        let (id, name) =
+            if plant == 0 { (GLOBAL_LAYER, None) } else { (plant as u16, Some(format!("plant{plant}"))) };
+        out_take.set_layer(id, name.as_deref(), frames_from_clip(&clip, id, 0, None));
+        if a.explain {
+            explains.push(serde_json::json!({
+                "plant": plant,
+                "seed": a.seed.wrapping_add(plant as u64),
+                "start_frame": graph.node_frames[start as usize],
+                "end_node_frame": graph.node_frames[w.node() as usize],
+                "transitions_taken": w.transitions_taken(),
+                "transitions": taken,
+            }));
+        }
+    }
+    if a.explain {
+        eprintln!("{}", serde_json::json!({ "graph": a.graph, "goal": goal_name(&a), "plants": explains }));
+    }
+    let mut out = a.out;
+    out.fps = file.fps;
+    emit(g, out_take, format!("{}-walk", a.name), &out)
+}
+
+fn goal_name(a: &Walk) -> String {
+    match (&a.goal_pose, a.goal_dir_deg) {
+        (Some(p), _) => format!("pose:{p}"),
+        (None, Some(d)) => format!("dir:{d}"),
+        (None, None) => "random".into(),
+    }
+}
