@@ -43,6 +43,15 @@ pub fn components(o: &Options) -> Section {
         ),
         part("gltf_bake", "glTF bake throughput", || gltf_bake(o)),
         part("warp", "warp time per 1080p frame vs OpenCV cv2.remap, single thread", || warp(o)),
+        part("sim_step", "simulated plant: one implicit Euler step (seed 003, section 4)", || {
+            crate::plant_motion::sim_step(o)
+        }),
+        part("graph_build", "motion graph build (seed 003, section 5) at 2k, 10k and 100k samples", || {
+            crate::plant_motion::graph_build(o)
+        }),
+        part("graph_walk", "motion graph walkers (seed 003, section 6)", || {
+            crate::plant_motion::graph_walk(o)
+        }),
         part("osc", "OSC latency: daemon stamp -> UDP receiver, vs a pose-socket subscriber", || osc(o)),
     ];
     let mut s = Section::ok("components", "motion toolkit and exporters", Vec::new(), Value::Null);

@@ -16,6 +16,7 @@ pub mod hidraw_latency;
 pub mod latency;
 pub mod loops;
 pub mod osc_latency;
+pub mod plant_motion;
 pub mod procs;
 pub mod relay;
 pub mod report;

@@ -219,11 +219,25 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         (None, None) => frond_motion::graph::Goal::Random,
     };
     let frames = (a.duration_s * file.fps).round().max(1.0) as usize;
-    let mut out_take = take.clone();
-    out_take.frames.clear();
-    out_take.markers.clear();
-    out_take.header.tick_rate_hz = file.fps.round().max(1.0) as u32;
-    out_take.header.filter = format!("walk seed={} goal={}", a.seed, goal_name(&a));
+    if a.out.jsonl && a.plants > 1 {
+        return usage("--jsonl prints one plant; use it without --plants, or write takes");
+    }
+    let base = a.out.output.clone().unwrap_or_else(|| format!("{}-walk", a.name));
+    // Check every output name before walking (no half-written set of takes).
+    for plant in 0..a.plants {
+        let name = plant_take_name(&base, plant);
+        if let Err(e) = frond_protocol::paths::validate_take_name(&name) {
+            return usage(e.to_string());
+        }
+        let path = frond_protocol::paths::takes_dir(g.takes_dir.clone()).join(format!("{name}.take"));
+        if !a.out.jsonl && !a.out.force && path.exists() {
+            return usage(format!(
+                "{} exists; use --force to replace it or -o to choose another name",
+                path.display()
+            ));
+        }
+    }
+    let mut outputs = Vec::new();
     let mut explains = Vec::new();
     for plant in 0..a.plants {
         // Plant p: seed + p, starting at a node spread over the graph.
@@ -248,9 +262,14 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             walked.push(s.pose);
         }
         let clip = Clip { fps: file.fps, frames: walked };
-        let (id, name) =
-            if plant == 0 { (GLOBAL_LAYER, None) } else { (plant as u16, Some(format!("plant{plant}"))) };
-        out_take.set_layer(id, name.as_deref(), frames_from_clip(&clip, id, 0, None));
+        let mut out_take = take.clone();
+        out_take.frames.clear();
+        out_take.markers.clear();
+        out_take.header.tick_rate_hz = file.fps.round().max(1.0) as u32;
+        out_take.header.filter =
+            format!("walk seed={} goal={}", a.seed.wrapping_add(plant as u64), goal_name(&a));
+        out_take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
+        outputs.push((plant_take_name(&base, plant), out_take));
         if a.explain {
             explains.push(serde_json::json!({
                 "plant": plant,
@@ -267,7 +286,16 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     }
     let mut out = a.out;
     out.fps = file.fps;
-    emit(g, out_take, format!("{}-walk", a.name), &out)
+    for (name, t) in outputs {
+        out.output = Some(name.clone());
+        emit(g, t, name, &out)?;
+    }
+    Ok(())
+}
+
+/// Plant 0 is `base`, plant `p` is `base-plantP`.
+fn plant_take_name(base: &str, plant: u32) -> String {
+    if plant == 0 { base.to_string() } else { format!("{base}-plant{plant}") }
 }
 
 fn goal_name(a: &Walk) -> String {

@@ -149,8 +149,8 @@ pub enum TakeTool {
     },
     /// A walk on a motion graph of take NAME (seed 003, section 6): random, towards a ground-
     /// plane direction (--goal-dir DEG: 0 towards +X, 90 towards +Z), or to a pose (--goal-pose
-    /// frame=N or 12 comma-separated angles). --plants N adds N - 1 more plants as layers
-    /// plant1.., each with seed + i.
+    /// frame=N or 12 comma-separated angles). --plants N walks N plants, each with seed + i,
+    /// into takes OUT, OUT-plant1, OUT-plant2, ...
     Walk {
         /// Take name (the one the graph was built on).
         name: String,

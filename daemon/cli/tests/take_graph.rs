@@ -110,7 +110,7 @@ fn walks_are_deterministic_and_directed_walks_lean_towards_their_goal() {
 }
 
 #[test]
-fn a_walk_writes_a_take_with_one_layer_per_plant_and_explains_itself() {
+fn a_walk_writes_one_take_per_plant_and_explains_itself() {
     let dir = tempfile::tempdir().unwrap();
     simulated(dir.path());
     let out = frond(dir.path())
@@ -118,7 +118,10 @@ fn a_walk_writes_a_take_with_one_layer_per_plant_and_explains_itself() {
         .args(["--plants", "3", "--seed", "2", "--explain"])
         .output()
         .unwrap();
-    assert!(ok(&out).contains("breeze-walk.take (300 frames, 3 layers)"));
+    let stdout = ok(&out);
+    for name in ["breeze-walk.take", "breeze-walk-plant1.take", "breeze-walk-plant2.take"] {
+        assert!(stdout.contains(&format!("{name} (300 frames, 1 layers)")), "{stdout}");
+    }
     let explain: Value = serde_json::from_str(String::from_utf8_lossy(&out.stderr).trim()).unwrap();
     let plants = explain["plants"].as_array().unwrap();
     assert_eq!(plants.len(), 3);
@@ -130,16 +133,21 @@ fn a_walk_writes_a_take_with_one_layer_per_plant_and_explains_itself() {
             p["transitions_taken"].as_u64().unwrap()
         );
     }
-    let bytes = std::fs::read(dir.path().join("breeze-walk.take")).unwrap();
-    let (take, damage) = frond_motion::layers::Take::from_bytes_noting_damage(&bytes).unwrap();
-    assert_eq!(damage, None);
-    assert_eq!(take.layer_ids(), vec![0, 1, 2]);
-    assert_eq!((take.layer_name(1), take.layer_name(2)), ("plant1".into(), "plant2".into()));
     // Each plant walks its own way.
-    assert_ne!(
-        take.layer(1, true).iter().map(|f| f.pose).collect::<Vec<_>>(),
-        take.layer(2, true).iter().map(|f| f.pose).collect::<Vec<_>>()
-    );
+    let poses = |name: &str| {
+        let bytes = std::fs::read(dir.path().join(format!("{name}.take"))).unwrap();
+        let (take, damage) = frond_motion::layers::Take::from_bytes_noting_damage(&bytes).unwrap();
+        assert_eq!(damage, None);
+        assert_eq!(take.layer_ids(), vec![0]);
+        take.layer(0, true).iter().map(|f| f.pose).collect::<Vec<_>>()
+    };
+    assert_ne!(poses("breeze-walk-plant1"), poses("breeze-walk-plant2"));
+    // Names are checked before anything is written.
+    let again = frond(dir.path())
+        .args(["take", "walk", "breeze", "--graph", "breeze.graph.json", "--duration", "10", "--plants", "3"])
+        .output()
+        .unwrap();
+    failed(&again, 2, "exists; use --force");
 }
 
 #[test]

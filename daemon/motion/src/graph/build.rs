@@ -3,9 +3,12 @@
 //! 1. Backbone: an edge from every sample to the next (5.1).
 //! 2. Transitions (5.2.1, Fig. 4): for each sample `p_t` with a successor, the samples `s` within
 //!    `d = radius_scale * |p(t+1) - p(t)|` that lie in front, `(s - p_t) . v_t > 0` with
-//!    `v_t = p(t+1) - p(t)`. The neighbour search is an R-tree (`rstar`), so building is
-//!    `O(n log n)` for paths that do not pile up on one spot.
-//!    - Beyond the paper, a pose gate: the 12 joint angles of `s` and `p_t` must lie within
+//!    `v_t = p(t+1) - p(t)`. The neighbour search is an R-tree (`rstar`) that examines at most
+//!    [`MAX_NEIGHBOURS`] samples within `d` (the tree's first, in its spatial order), so
+//!    building stays near `O(n log n)` even for a long take whose path covers a small region
+//!    ever more densely (where only a handful of transitions per sample are kept anyway).
+//!    - Beyond the paper, a pose gate (applied after the thinning of step 3): the 12 joint
+//!      angles of `s` and `p_t` must lie within
 //!      `max_pose_deg` (Euclidean, degrees) of each other, since one point's distance can join
 //!      poses that look different (the paper's own section 7 says so).
 //!    - Samples within `2k + 1` frames of `t` are the backbone itself, not a transition.
@@ -90,6 +93,9 @@ impl GraphParams {
     }
 }
 
+/// Most samples within the radius examined per sample.
+pub const MAX_NEIGHBOURS: usize = 64;
+
 /// Largest `max_transitions`.
 pub const MAX_TRANSITIONS_PER_NODE: u32 = 32;
 
@@ -129,7 +135,14 @@ pub fn build_graph(
     let mut transitions: Vec<(u32, u32, u32)> = Vec::new();
     let mut candidates: Vec<usize> = Vec::new();
     let mut kept: Vec<(f64, usize)> = Vec::new();
-    for t in 0..n - 1 {
+    // Queries in the tree's own (spatial) order, not the take's: neighbouring queries then walk
+    // the same part of the tree, which keeps a large take's search in cache. Each sample's
+    // transitions depend on that sample alone, and they are sorted afterwards.
+    let order: Vec<usize> = tree.iter().map(|s| s.data as usize).collect();
+    for &t in &order {
+        if t + 1 == n {
+            continue;
+        }
         let p = positions_m[t];
         let v = sub(positions_m[t + 1], p);
         let d = params.radius_scale * dot(v, v).sqrt();
@@ -137,26 +150,29 @@ pub fn build_graph(
             continue;
         }
         candidates.clear();
-        for s in tree.locate_within_distance(p, d * d) {
+        // At most MAX_NEIGHBOURS of the samples within `d` (the R-tree's first, in its spatial
+        // order): a long take over a small region has ever more samples within `d`, and
+        // examining them all would make building quadratic.
+        for s in tree.locate_within_distance(p, d * d).take(MAX_NEIGHBOURS) {
             let j = s.data as usize;
-            if j.abs_diff(t) <= 2 * k + 1 || dot(sub(*s.geom(), p), v) <= 0.0 {
-                continue;
-            }
-            if pose_distance_deg(&poses[t], &poses[j]) <= params.max_pose_deg {
+            if j.abs_diff(t) > 2 * k + 1 && dot(sub(*s.geom(), p), v) > 0.0 {
                 candidates.push(j);
             }
         }
         pruned.transitions_found += candidates.len() as u64;
         candidates.sort_unstable();
-        // 5.3: of each contiguous run of neighbours keep the latest.
+        // 5.3: of each contiguous run of neighbours keep the latest; then the pose gate.
         kept.clear();
         for (idx, &j) in candidates.iter().enumerate() {
             if candidates.get(idx + 1) == Some(&(j + 1)) {
                 pruned.transitions_same_segment += 1;
                 continue;
             }
-            if t >= k && j + k < n {
-                kept.push((pose_distance_deg(&poses[t], &poses[j]), j));
+            let dist_deg = pose_distance_deg(&poses[t], &poses[j]);
+            if dist_deg > params.max_pose_deg {
+                pruned.transitions_pose_gate += 1;
+            } else if t >= k && j + k < n {
+                kept.push((dist_deg, j));
             }
         }
         kept.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));

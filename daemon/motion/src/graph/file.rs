@@ -14,7 +14,7 @@
 //!   "edges": [ { "from": 0, "to": 1, "kind": "backbone", "inbetweens": 0 },
 //!              { "from": 7, "to": 310, "kind": "transition", "inbetweens": 5 } ],
 //!   "pruned": { "transitions_found": 812, "transitions_same_segment": 240,
-//!               "transitions_over_cap": 120,
+//!               "transitions_pose_gate": 35, "transitions_over_cap": 120,
 //!               "dead_end_frames": [[880, 899]], "outside_largest_part_frames": [[0, 13]],
 //!               "transitions_removed": 31 }
 //! }

@@ -124,6 +124,8 @@ pub struct Pruned {
     pub transitions_found: u64,
     /// Transitions dropped because a later sample of the same contiguous segment was kept.
     pub transitions_same_segment: u64,
+    /// Transitions dropped by the pose gate (`max_pose_deg`).
+    pub transitions_pose_gate: u64,
     /// Transitions dropped because a sample had more than `max_transitions`.
     pub transitions_over_cap: u64,
     /// Frames removed as dead ends (repeated until nothing changed), as `[first, last]` ranges.
