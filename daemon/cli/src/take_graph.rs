@@ -28,17 +28,39 @@ const MAX_WALK_S: f64 = 3600.0;
 const MAX_PLANTS: u32 = 256;
 
 /// What `frond take graph` was asked.
-pub(crate) struct Graph {
+#[derive(Debug, clap::Args)]
+pub struct Graph {
+    /// Take name.
     pub name: String,
+    /// Control point: joint1, joint2, joint3 or top.
+    #[arg(long, default_value = "top", value_name = "POINT")]
     pub control: String,
+    /// Samples a transition is extended by on each side (k of Fig. 4).
+    #[arg(long, default_value_t = 2, value_name = "K")]
     pub extend: u32,
+    /// Largest 12-joint-angle distance between the two ends of a transition, degrees.
+    #[arg(long, default_value_t = 10.0, value_name = "DEG")]
     pub max_pose_deg: f64,
+    /// Scale of the search radius (the paper's is one step, 1).
+    #[arg(long, default_value_t = 1.0, value_name = "X")]
     pub radius_scale: f64,
+    /// Most transitions leaving one sample (the nearest in pose are kept).
+    #[arg(long, default_value_t = 3, value_name = "N")]
     pub max_transitions: u32,
+    /// Rig of the take [default: the rig it was recorded on].
+    #[arg(long, value_name = "NAME|FILE")]
     pub rig: Option<PathBuf>,
+    /// Graph file to write [default: NAME.graph.json].
+    #[arg(short = 'o', long = "output", value_name = "FILE")]
     pub output: Option<PathBuf>,
+    /// Print what was found and pruned as JSON on stderr.
+    #[arg(long)]
     pub explain: bool,
+    /// Frame rate the graph is built at.
+    #[arg(long, default_value_t = 30.0, value_name = "FPS")]
     pub fps: f64,
+    /// Replace an existing graph file.
+    #[arg(long)]
     pub force: bool,
 }
 
@@ -125,17 +147,43 @@ fn count(ranges: &[[u32; 2]]) -> u64 {
 }
 
 /// What `frond take walk` was asked.
-pub(crate) struct Walk {
+#[derive(Debug, clap::Args)]
+pub struct Walk {
+    /// Take name (the one the graph was built on).
     pub name: String,
+    /// Graph file (from frond take graph).
+    #[arg(long, value_name = "FILE")]
     pub graph: PathBuf,
-    pub duration_s: f64,
+    /// Seconds to walk.
+    #[arg(long, value_name = "S")]
+    pub duration: f64,
+    /// Seed of the random choices.
+    #[arg(long, default_value_t = 0, value_name = "N")]
     pub seed: u64,
-    pub goal_dir_deg: Option<f64>,
+    /// Goal direction in the ground plane, degrees.
+    #[arg(long, value_name = "DEG", conflicts_with = "goal_pose", allow_hyphen_values = true)]
+    pub goal_dir: Option<f64>,
+    /// Goal pose: frame=N or 12 comma-separated angles, degrees.
+    #[arg(long, value_name = "P", allow_hyphen_values = true)]
     pub goal_pose: Option<String>,
+    /// Plants walking the graph.
+    #[arg(long, default_value_t = 1, value_name = "N")]
     pub plants: u32,
+    /// Rig of the take [default: the rig it was recorded on].
+    #[arg(long, value_name = "NAME|FILE")]
     pub rig: Option<PathBuf>,
+    /// Print the path and the transitions taken as JSON on stderr.
+    #[arg(long)]
     pub explain: bool,
-    pub out: Output,
+    /// Name of the take to write [default: NAME-walk].
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: Option<String>,
+    /// Print the first plant's poses as JSON Lines on stdout instead of writing a take.
+    #[arg(long)]
+    pub jsonl: bool,
+    /// Replace an existing take of the same name.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Reads and checks a graph file (regular, at most [`MAX_GRAPH_FILE_BYTES`]).
@@ -193,13 +241,13 @@ fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u
 
 /// Walks the graph and writes the take (one layer per extra plant).
 pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
-    if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= MAX_WALK_S) {
-        return usage(format!("--duration must be in (0, {MAX_WALK_S}] seconds, got {}", a.duration_s));
+    if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= MAX_WALK_S) {
+        return usage(format!("--duration must be in (0, {MAX_WALK_S}] seconds, got {}", a.duration));
     }
     if a.plants == 0 || a.plants > MAX_PLANTS {
         return usage(format!("--plants must be 1 to {MAX_PLANTS}, got {}", a.plants));
     }
-    if let Some(d) = a.goal_dir_deg
+    if let Some(d) = a.goal_dir
         && !(d.is_finite() && d.abs() <= 360.0)
     {
         return usage(format!("--goal-dir must be a finite angle within +-360 degrees, got {d}"));
@@ -209,7 +257,7 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     let (take, clip, _) = take_and_path(g, &a.name, a.rig.as_deref(), control, file.fps)?;
     let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", a.graph.display()))?;
     let poses = &clip.frames;
-    let goal = match (&a.goal_pose, a.goal_dir_deg) {
+    let goal = match (&a.goal_pose, a.goal_dir) {
         (Some(p), _) => {
             let pose = parse_goal_pose(p, poses)?;
             let node = nearest_node(&graph, poses, &pose);
@@ -218,11 +266,11 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         (None, Some(dir_deg)) => frond_motion::graph::Goal::Direction { dir_deg },
         (None, None) => frond_motion::graph::Goal::Random,
     };
-    let frames = (a.duration_s * file.fps).round().max(1.0) as usize;
-    if a.out.jsonl && a.plants > 1 {
+    let frames = (a.duration * file.fps).round().max(1.0) as usize;
+    if a.jsonl && a.plants > 1 {
         return usage("--jsonl prints one plant; use it without --plants, or write takes");
     }
-    let base = a.out.output.clone().unwrap_or_else(|| format!("{}-walk", a.name));
+    let base = a.output.clone().unwrap_or_else(|| format!("{}-walk", a.name));
     // Check every output name before walking (no half-written set of takes).
     for plant in 0..a.plants {
         let name = plant_take_name(&base, plant);
@@ -230,7 +278,7 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             return usage(e.to_string());
         }
         let path = frond_protocol::paths::takes_dir(g.takes_dir.clone()).join(format!("{name}.take"));
-        if !a.out.jsonl && !a.out.force && path.exists() {
+        if !a.jsonl && !a.force && path.exists() {
             return usage(format!(
                 "{} exists; use --force to replace it or -o to choose another name",
                 path.display()
@@ -284,8 +332,7 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     if a.explain {
         eprintln!("{}", serde_json::json!({ "graph": a.graph, "goal": goal_name(&a), "plants": explains }));
     }
-    let mut out = a.out;
-    out.fps = file.fps;
+    let mut out = Output { output: None, jsonl: a.jsonl, force: a.force, fps: file.fps };
     for (name, t) in outputs {
         out.output = Some(name.clone());
         emit(g, t, name, &out)?;
@@ -299,7 +346,7 @@ fn plant_take_name(base: &str, plant: u32) -> String {
 }
 
 fn goal_name(a: &Walk) -> String {
-    match (&a.goal_pose, a.goal_dir_deg) {
+    match (&a.goal_pose, a.goal_dir) {
         (Some(p), _) => format!("pose:{p}"),
         (None, Some(d)) => format!("dir:{d}"),
         (None, None) => "random".into(),

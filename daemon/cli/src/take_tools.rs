@@ -113,81 +113,12 @@ pub enum TakeTool {
     /// transitions where the point passes within one step of itself going forwards (extended
     /// by --extend samples each side), pruned to one closed, strongly connected graph. Writes
     /// NAME.graph.json (or -o FILE).
-    Graph {
-        /// Take name.
-        name: String,
-        /// Control point: joint1, joint2, joint3 or top.
-        #[arg(long, default_value = "top", value_name = "POINT")]
-        control: String,
-        /// Samples a transition is extended by on each side (k of Fig. 4).
-        #[arg(long, default_value_t = 2, value_name = "K")]
-        extend: u32,
-        /// Largest 12-joint-angle distance between the two ends of a transition, degrees.
-        #[arg(long, default_value_t = 10.0, value_name = "DEG")]
-        max_pose_deg: f64,
-        /// Scale of the search radius (the paper's is one step, 1).
-        #[arg(long, default_value_t = 1.0, value_name = "X")]
-        radius_scale: f64,
-        /// Most transitions leaving one sample (the nearest in pose are kept).
-        #[arg(long, default_value_t = 3, value_name = "N")]
-        max_transitions: u32,
-        /// Rig of the take [default: the rig it was recorded on].
-        #[arg(long, value_name = "NAME|FILE")]
-        rig: Option<PathBuf>,
-        /// Graph file to write [default: NAME.graph.json].
-        #[arg(short = 'o', long = "output", value_name = "FILE")]
-        output: Option<PathBuf>,
-        /// Print what was found and pruned as JSON on stderr.
-        #[arg(long)]
-        explain: bool,
-        /// Frame rate the graph is built at.
-        #[arg(long, default_value_t = 30.0, value_name = "FPS")]
-        fps: f64,
-        /// Replace an existing graph file.
-        #[arg(long)]
-        force: bool,
-    },
+    Graph(crate::take_graph::Graph),
     /// A walk on a motion graph of take NAME (seed 003, section 6): random, towards a ground-
     /// plane direction (--goal-dir DEG: 0 towards +X, 90 towards +Z), or to a pose (--goal-pose
     /// frame=N or 12 comma-separated angles). --plants N walks N plants, each with seed + i,
     /// into takes OUT, OUT-plant1, OUT-plant2, ...
-    Walk {
-        /// Take name (the one the graph was built on).
-        name: String,
-        /// Graph file (from frond take graph).
-        #[arg(long, value_name = "FILE")]
-        graph: PathBuf,
-        /// Seconds to walk.
-        #[arg(long, value_name = "S")]
-        duration: f64,
-        /// Seed of the random choices.
-        #[arg(long, default_value_t = 0, value_name = "N")]
-        seed: u64,
-        /// Goal direction in the ground plane, degrees.
-        #[arg(long, value_name = "DEG", conflicts_with = "goal_pose", allow_hyphen_values = true)]
-        goal_dir: Option<f64>,
-        /// Goal pose: frame=N or 12 comma-separated angles, degrees.
-        #[arg(long, value_name = "P", allow_hyphen_values = true)]
-        goal_pose: Option<String>,
-        /// Plants walking the graph.
-        #[arg(long, default_value_t = 1, value_name = "N")]
-        plants: u32,
-        /// Rig of the take [default: the rig it was recorded on].
-        #[arg(long, value_name = "NAME|FILE")]
-        rig: Option<PathBuf>,
-        /// Print the path and the transitions taken as JSON on stderr.
-        #[arg(long)]
-        explain: bool,
-        /// Name of the take to write [default: NAME-walk].
-        #[arg(short = 'o', long = "output", value_name = "OUT")]
-        output: Option<String>,
-        /// Print the first plant's poses as JSON Lines on stdout instead of writing a take.
-        #[arg(long)]
-        jsonl: bool,
-        /// Replace an existing take of the same name.
-        #[arg(long)]
-        force: bool,
-    },
+    Walk(crate::take_graph::Walk),
     /// Resample every layer to --fps (poses and hand samples, linear interpolation).
     Resample {
         /// Take name.
@@ -515,62 +446,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                 },
             )
         }
-        TakeTool::Graph {
-            name,
-            control,
-            extend,
-            max_pose_deg,
-            radius_scale,
-            max_transitions,
-            rig,
-            output,
-            explain,
-            fps,
-            force,
-        } => crate::take_graph::graph(
-            g,
-            crate::take_graph::Graph {
-                name,
-                control,
-                extend,
-                max_pose_deg,
-                radius_scale,
-                max_transitions,
-                rig,
-                output,
-                explain,
-                fps,
-                force,
-            },
-        ),
-        TakeTool::Walk {
-            name,
-            graph,
-            duration,
-            seed,
-            goal_dir,
-            goal_pose,
-            plants,
-            rig,
-            explain,
-            output,
-            jsonl,
-            force,
-        } => crate::take_graph::walk(
-            g,
-            crate::take_graph::Walk {
-                name,
-                graph,
-                duration_s: duration,
-                seed,
-                goal_dir_deg: goal_dir,
-                goal_pose,
-                plants,
-                rig,
-                explain,
-                out: Output { output, jsonl, force, fps: 30.0 },
-            },
-        ),
+        TakeTool::Graph(a) => crate::take_graph::graph(g, a),
+        TakeTool::Walk(a) => crate::take_graph::walk(g, a),
         TakeTool::Resample { name, out } => {
             check_fps(out.fps)?;
             let src = read_take(g, &name)?;
