@@ -107,6 +107,9 @@ pub enum Command {
     /// Field playback in the daemon (seed 000, section 6.2).
     #[command(subcommand)]
     Field(FieldCommand),
+    /// Plants walking a motion graph in the daemon (seed 003, section 6), directed live.
+    #[command(subcommand)]
+    Graph(crate::graph_live::GraphCommand),
     /// Steer the playing field from the keyboard: arrows set the force direction, + and - its
     /// strength, q quits (seed 000, section 6.3). A wrist swipe steers it too.
     Control,

@@ -12,6 +12,7 @@ mod calibrate;
 mod control;
 mod demo;
 mod docs;
+mod graph_live;
 mod live;
 mod map;
 mod signals;
@@ -148,6 +149,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Field(args::FieldCommand::Stop) => live::field_stop(g),
         Command::Field(args::FieldCommand::Key { key }) => live::field_key(g, &key),
         Command::Control => live::control(g),
+        Command::Graph(cmd) => graph_live::run(g, cmd),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
         Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held, force }) => {

@@ -50,7 +50,8 @@ pub struct Graph {
     /// Rig of the take [default: the rig it was recorded on].
     #[arg(long, value_name = "NAME|FILE")]
     pub rig: Option<PathBuf>,
-    /// Graph file to write [default: NAME.graph.json].
+    /// Graph file to write [default: NAME.graph.json in the takes directory, where `frond
+    /// graph play` finds it].
     #[arg(short = 'o', long = "output", value_name = "FILE")]
     pub output: Option<PathBuf>,
     /// Print what was found and pruned as JSON on stderr.
@@ -104,7 +105,7 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
     if let Err(e) = params.check() {
         return usage(format!("--{}", e.to_string().replace('_', "-")));
     }
-    let out = a.output.clone().unwrap_or_else(|| PathBuf::from(format!("{}.graph.json", a.name)));
+    let out = a.output.clone().unwrap_or_else(|| default_graph_path(g, &a.name));
     if out.exists() && !a.force {
         return usage(format!("{} exists; use --force to replace it", out.display()));
     }
@@ -151,9 +152,9 @@ fn count(ranges: &[[u32; 2]]) -> u64 {
 pub struct Walk {
     /// Take name (the one the graph was built on).
     pub name: String,
-    /// Graph file (from frond take graph).
+    /// Graph file (from frond take graph) [default: NAME.graph.json in the takes directory].
     #[arg(long, value_name = "FILE")]
-    pub graph: PathBuf,
+    pub graph: Option<PathBuf>,
     /// Seconds to walk.
     #[arg(long, value_name = "S")]
     pub duration: f64,
@@ -184,6 +185,11 @@ pub struct Walk {
     /// Replace an existing take of the same name.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `NAME.graph.json` in the takes directory.
+pub(crate) fn default_graph_path(g: &Global, name: &str) -> PathBuf {
+    frond_protocol::paths::takes_dir(g.takes_dir.clone()).join(format!("{name}.graph.json"))
 }
 
 /// Reads and checks a graph file (regular, at most [`MAX_GRAPH_FILE_BYTES`]).
@@ -252,10 +258,11 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     {
         return usage(format!("--goal-dir must be a finite angle within +-360 degrees, got {d}"));
     }
-    let file = read_graph_file(&a.graph)?;
+    let graph_path = a.graph.clone().unwrap_or_else(|| default_graph_path(g, &a.name));
+    let file = read_graph_file(&graph_path)?;
     let control = file.control_point()?;
     let (take, clip, _) = take_and_path(g, &a.name, a.rig.as_deref(), control, file.fps)?;
-    let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", a.graph.display()))?;
+    let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", graph_path.display()))?;
     let poses = &clip.frames;
     let goal = match (&a.goal_pose, a.goal_dir) {
         (Some(p), _) => {
@@ -330,7 +337,10 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         }
     }
     if a.explain {
-        eprintln!("{}", serde_json::json!({ "graph": a.graph, "goal": goal_name(&a), "plants": explains }));
+        eprintln!(
+            "{}",
+            serde_json::json!({ "graph": graph_path, "goal": goal_name(&a), "plants": explains })
+        );
     }
     let mut out = Output { output: None, jsonl: a.jsonl, force: a.force, fps: file.fps };
     for (name, t) in outputs {

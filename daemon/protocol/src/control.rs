@@ -115,6 +115,20 @@ pub enum StageSpec {
         /// Seed of the loop's random jumps.
         seed: u64,
     },
+    /// Walk a motion graph (seed 003, section 6): `plants` plants (1..=64) walk the graph file
+    /// `graph` (a name: `<takes dir>/<graph>.graph.json`, from `frond take graph`) over the
+    /// frames of `take`, each an announced `field-plant` element published at 60 Hz, each with
+    /// seed `seed + i`. Directed by [`StageInput::GraphGoal`].
+    Graph {
+        /// Take name in the takes directory.
+        take: String,
+        /// Graph name in the takes directory.
+        graph: String,
+        /// How many plants walk (1..=64).
+        plants: u16,
+        /// Seed of the first plant's walk.
+        seed: u64,
+    },
     /// Guided procedural motion on the live mapping (seed 000, Eq. 8):
     /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains).
     Guided {
@@ -130,6 +144,7 @@ impl StageSpec {
             StageSpec::Playback { .. } => "playback",
             StageSpec::Field { .. } => "field",
             StageSpec::Guided { .. } => "guided",
+            StageSpec::Graph { .. } => "graph",
         }
     }
 }
@@ -139,6 +154,28 @@ impl StageSpec {
 pub enum StageInput {
     /// A field control key (seed 000, section 6.3).
     Key(StageKey),
+    /// The goal of a graph walk (seed 003, section 6.1.2).
+    GraphGoal(GraphGoal),
+}
+
+/// What the plants of a graph walk aim for.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GraphGoal {
+    /// Random walks.
+    Off,
+    /// A ground-plane direction, degrees (0 towards +X, 90 towards +Z).
+    Dir {
+        /// The direction.
+        deg: f64,
+    },
+    /// The hand's bend direction, live: the root joint's bend from the mapped pose.
+    Hand,
+    /// The pose of a take frame (at the graph's rate): the nearest node, by the shortest path.
+    Frame {
+        /// The frame.
+        frame: u32,
+    },
 }
 
 /// The keys of the field controls (seed 000, section 6.3): arrows turn the propagation direction

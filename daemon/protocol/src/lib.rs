@@ -23,7 +23,7 @@ pub mod paths;
 pub mod pose;
 
 pub use control::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, HandStatus, LatencySummary,
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, HandStatus, LatencySummary,
     RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport,
     SubscriberStatus,
 };

@@ -205,7 +205,7 @@ impl LiveStage for FieldStage {
     }
 
     fn input(&mut self, input: StageInput) {
-        let StageInput::Key(k) = input;
+        let StageInput::Key(k) = input else { return };
         let mut c = self.player.controls();
         c.key(control_key(k));
         self.set_controls(c);

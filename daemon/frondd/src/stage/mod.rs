@@ -16,6 +16,7 @@
 
 pub mod error;
 pub mod field;
+pub mod graph;
 pub mod guided;
 pub mod layer;
 pub mod playback;
@@ -171,6 +172,7 @@ pub fn build(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildEr
             field::build(take, field_json, *plants, *seed, ctx)
         }
         StageSpec::Guided { spec } => guided::build(spec, ctx),
+        StageSpec::Graph { take, graph, plants, seed } => graph::build(take, graph, *plants, *seed, ctx),
     }
 }
 

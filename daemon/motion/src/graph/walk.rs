@@ -42,6 +42,29 @@ impl PosePlan {
     /// Plans every node's shortest way to `target` (Dijkstra on the reversed edges, weights the
     /// frames each edge takes).
     pub fn new(graph: &MotionGraph, target: u32) -> Self {
+        let mut planner = PosePlanner::new(graph);
+        planner.start(Some(target));
+        while !planner.work(usize::MAX) {}
+        PosePlan { target: planner.target.unwrap_or(target), frames_to_target: planner.dist }
+    }
+}
+
+/// [`PosePlan`] for a live stage: the buffers allocated once, and the search spread over ticks
+/// (`work` pops at most a budget of nodes per call), so a goal change never stalls a tick and
+/// never allocates.
+#[derive(Debug, Clone)]
+pub struct PosePlanner {
+    first: Vec<u32>,
+    rev: Vec<(u32, u32)>,
+    dist: Vec<u32>,
+    heap: BinaryHeap<Reverse<(u32, u32)>>,
+    target: Option<u32>,
+    done: bool,
+}
+
+impl PosePlanner {
+    /// Buffers for `graph` (allocates; off the realtime thread).
+    pub fn new(graph: &MotionGraph) -> Self {
         let n = graph.len();
         let mut first = vec![0u32; n + 1];
         for e in &graph.edges {
@@ -56,23 +79,59 @@ impl PosePlan {
             rev[fill[e.to as usize] as usize] = (e.from, e.frames());
             fill[e.to as usize] += 1;
         }
-        let mut dist = vec![u32::MAX; n];
-        let mut heap = BinaryHeap::new();
-        dist[target as usize] = 0;
-        heap.push(Reverse((0u32, target)));
-        while let Some(Reverse((d, v))) = heap.pop() {
-            if d > dist[v as usize] {
+        PosePlanner {
+            first,
+            rev,
+            dist: vec![u32::MAX; n],
+            heap: BinaryHeap::with_capacity(graph.edges.len() + 1),
+            target: None,
+            done: false,
+        }
+    }
+
+    /// Starts planning towards `target` (clamped to the graph); `None` stops.
+    pub fn start(&mut self, target: Option<u32>) {
+        self.dist.fill(u32::MAX);
+        self.heap.clear();
+        self.target = target.map(|t| t.min(self.dist.len().saturating_sub(1) as u32));
+        self.done = false;
+        if let Some(t) = self.target {
+            self.dist[t as usize] = 0;
+            self.heap.push(Reverse((0, t)));
+        }
+    }
+
+    /// Runs at most `budget` steps of the search; true once the plan is complete. The lazy
+    /// Dijkstra pushes at most one entry per edge plus one, the heap's capacity: no allocation.
+    pub fn work(&mut self, budget: usize) -> bool {
+        for _ in 0..budget {
+            let Some(Reverse((d, v))) = self.heap.pop() else {
+                self.done = self.target.is_some();
+                return self.done;
+            };
+            if d > self.dist[v as usize] {
                 continue;
             }
-            for &(u, w) in &rev[first[v as usize] as usize..first[v as usize + 1] as usize] {
+            let (a, b) = (self.first[v as usize] as usize, self.first[v as usize + 1] as usize);
+            for &(u, w) in &self.rev[a..b] {
                 let nd = d.saturating_add(w);
-                if nd < dist[u as usize] {
-                    dist[u as usize] = nd;
-                    heap.push(Reverse((nd, u)));
+                if nd < self.dist[u as usize] {
+                    self.dist[u as usize] = nd;
+                    self.heap.push(Reverse((nd, u)));
                 }
             }
         }
-        PosePlan { target, frames_to_target: dist }
+        false
+    }
+
+    /// The target, if planning towards one.
+    pub fn target(&self) -> Option<u32> {
+        self.target
+    }
+
+    /// The complete plan (frames to the target from each node), once [`Self::work`] finished.
+    pub fn plan(&self) -> Option<&[u32]> {
+        self.done.then_some(&self.dist[..])
     }
 }
 
@@ -163,6 +222,17 @@ impl Walker {
 
     /// The next frame of the walk over `poses` (the take `graph` was built on, at its rate).
     pub fn next_frame(&mut self, graph: &MotionGraph, poses: &[PoseFrame]) -> WalkStep {
+        self.next_frame_with(graph, poses, None)
+    }
+
+    /// [`Self::next_frame`], with a shared pose plan (frames to the target from each node, as
+    /// [`PosePlanner::plan`] gives) taking the place of the goal while it is `Some`.
+    pub fn next_frame_with(
+        &mut self,
+        graph: &MotionGraph,
+        poses: &[PoseFrame],
+        plan: Option<&[u32]>,
+    ) -> WalkStep {
         let t = self.frame as f64 / self.fps;
         self.frame += 1;
         if let Some(e) = self.edge
@@ -175,7 +245,10 @@ impl Walker {
         if let Some(e) = self.edge {
             self.node = e.to;
         }
-        let e = self.choose(graph);
+        let e = match plan {
+            Some(p) => choose_by_plan(graph.out_edges(self.node), p),
+            None => self.choose(graph),
+        };
         if e.kind == EdgeKind::Transition {
             self.transitions_taken += 1;
         }
@@ -205,21 +278,24 @@ impl Walker {
                 }
                 best
             }
-            Goal::Pose(plan) => {
-                let mut best = out[0];
-                let mut best_cost = u64::MAX;
-                for e in out {
-                    let rest = plan.frames_to_target.get(e.to as usize).copied().unwrap_or(u32::MAX);
-                    let cost = e.frames() as u64 + rest as u64;
-                    if cost < best_cost {
-                        best_cost = cost;
-                        best = *e;
-                    }
-                }
-                best
-            }
+            Goal::Pose(plan) => choose_by_plan(out, &plan.frames_to_target),
         }
     }
+}
+
+/// The edge of `out` on a shortest way to the plan's target.
+fn choose_by_plan(out: &[Edge], frames_to_target: &[u32]) -> Edge {
+    let mut best = out[0];
+    let mut best_cost = u64::MAX;
+    for e in out {
+        let rest = frames_to_target.get(e.to as usize).copied().unwrap_or(u32::MAX);
+        let cost = e.frames() as u64 + rest as u64;
+        if cost < best_cost {
+            best_cost = cost;
+            best = *e;
+        }
+    }
+    best
 }
 
 /// The node `frames` backbone steps after `node` (or the last one reachable on the backbone).

@@ -1,0 +1,127 @@
+//! `frond graph play|goal|stop`: plants walking a motion graph in the daemon (seed 003, section
+//! 6), directed live. The graph is `NAME.graph.json` in the takes directory (`frond take graph`
+//! writes it there), read by the daemon.
+
+use clap::Subcommand;
+use frond_protocol::{ControlReply, ControlRequest, GraphGoal, StageInput, StageSpec};
+
+use crate::args::Global;
+use crate::control::Control;
+
+/// The stage's name.
+const STAGE: &str = "graph";
+
+/// `frond graph ...`
+#[derive(Debug, Subcommand)]
+pub enum GraphCommand {
+    /// N plants walk the graph of TAKE live, each an announced element (`walker0`..).
+    Play {
+        /// Take name (in the takes directory).
+        take: String,
+        /// Graph name in the takes directory [default: TAKE, i.e. TAKE.graph.json].
+        #[arg(long, value_name = "NAME")]
+        graph: Option<String>,
+        /// Plants walking (1..=64).
+        #[arg(long, default_value_t = 8, value_name = "N")]
+        plants: u16,
+        /// Seed of the first plant's walk (plant i gets seed + i).
+        #[arg(long, default_value_t = 1, value_name = "S")]
+        seed: u64,
+    },
+    /// Direct the walk: `dir DEG` (0 towards +X, 90 towards +Z), `hand` (the hand's bend
+    /// direction, live), `pose frame=N` (the pose of take frame N, by the shortest path) or
+    /// `off` (random walks).
+    Goal {
+        /// dir, hand, pose or off.
+        kind: String,
+        /// The direction in degrees (dir) or frame=N (pose).
+        #[arg(allow_hyphen_values = true)]
+        value: Option<String>,
+    },
+    /// Stop the walk.
+    Stop,
+}
+
+/// Parses `frond graph goal KIND [VALUE]`.
+pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, String> {
+    match (kind, value) {
+        ("off", None) => Ok(GraphGoal::Off),
+        ("hand", None) => Ok(GraphGoal::Hand),
+        ("dir", Some(v)) => match v.trim().parse::<f64>() {
+            Ok(deg) if deg.is_finite() && deg.abs() <= 360.0 => Ok(GraphGoal::Dir { deg }),
+            _ => Err(format!("goal dir {v:?}: expected an angle in degrees within +-360")),
+        },
+        ("pose", Some(v)) => match v.strip_prefix("frame=").map(|n| n.trim().parse::<u32>()) {
+            Some(Ok(frame)) => Ok(GraphGoal::Frame { frame }),
+            _ => Err(format!(
+                "goal pose {v:?}: expected frame=N (a frame of the take at the graph's rate); \
+                 `frond take walk --goal-pose` also takes 12 angles offline"
+            )),
+        },
+        ("off" | "hand", Some(v)) => Err(format!("goal {kind} takes no value, got {v:?}")),
+        ("dir" | "pose", None) => Err(format!("goal {kind} needs a value (dir DEG, pose frame=N)")),
+        (other, _) => Err(format!("unknown goal {other:?}: expected dir DEG, hand, pose frame=N or off")),
+    }
+}
+
+/// Runs one `frond graph` command.
+pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
+    match cmd {
+        GraphCommand::Play { take, graph, plants, seed } => {
+            if !(1..=64).contains(&plants) {
+                return crate::usage(format!("--plants must be 1..=64, got {plants}"));
+            }
+            let graph = graph.unwrap_or_else(|| take.clone());
+            for (what, name) in [("take", &take), ("--graph", &graph)] {
+                if let Err(e) = frond_protocol::paths::validate_take_name(name) {
+                    return crate::usage(format!("{what}: {e}"));
+                }
+            }
+            let mut c = Control::from_global(g)?;
+            let spec = StageSpec::Graph { take: take.clone(), graph, plants, seed };
+            c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
+            println!("{plants} plants walking the graph of {take}; direct them with `frond graph goal`");
+            Ok(())
+        }
+        GraphCommand::Goal { kind, value } => {
+            let goal = match parse_goal(&kind, value.as_deref()) {
+                Ok(goal) => goal,
+                Err(e) => return crate::usage(e),
+            };
+            let mut c = Control::from_global(g)?;
+            c.expect_ok(&ControlRequest::StageInput {
+                name: STAGE.into(),
+                input: StageInput::GraphGoal(goal),
+            })?;
+            if let ControlReply::Status(s) = c.request(&ControlRequest::Status)? {
+                for m in s.modes.iter().filter(|m| m.contains("graph walk")) {
+                    println!("{m}");
+                }
+            }
+            Ok(())
+        }
+        GraphCommand::Stop => {
+            Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: STAGE.into() })?;
+            println!("graph walk stopped");
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn goals_parse_and_bad_ones_say_why() {
+        assert_eq!(parse_goal("dir", Some("-45")), Ok(GraphGoal::Dir { deg: -45.0 }));
+        assert_eq!(parse_goal("pose", Some("frame=12")), Ok(GraphGoal::Frame { frame: 12 }));
+        assert_eq!(parse_goal("hand", None), Ok(GraphGoal::Hand));
+        assert_eq!(parse_goal("off", None), Ok(GraphGoal::Off));
+        assert!(parse_goal("dir", Some("nan")).unwrap_err().contains("angle"));
+        assert!(parse_goal("dir", None).unwrap_err().contains("needs a value"));
+        assert!(parse_goal("pose", Some("1,2,3")).unwrap_err().contains("frame=N"));
+        assert!(parse_goal("north", None).unwrap_err().contains("unknown goal"));
+        assert!(parse_goal("off", Some("1")).unwrap_err().contains("takes no value"));
+    }
+}

@@ -1,0 +1,340 @@
+//! Plants walking a motion graph on the pose stream (seed 003, section 6): `plants` walkers over
+//! one take's graph, each with its own seed and start, published at [`GRAPH_PUBLISH_HZ`] as
+//! announced `field-plant` elements (a group of plants, as a field's), interpolating between the
+//! walks' frames. The goal is set live ([`GraphGoal`]): off (random walks), a direction, the
+//! hand's bend direction (section 6.1.2: "the animator can direct the animation at each
+//! arbitrary moment"), or a take frame's pose, whose shortest-path plan is computed over the
+//! following ticks ([`PosePlanner`], a bounded number of nodes per tick).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, AtomicU32, AtomicU64, Ordering::Relaxed};
+
+use frond_motion::clip::Joints;
+use frond_motion::graph::walk::PosePlanner;
+use frond_motion::graph::{Goal, GraphFile, MotionGraph, Walker};
+use frond_motion::layers::{GLOBAL_LAYER, Take};
+use frond_motion::sample::JOINTS;
+use frond_motion::{HandSample, PoseFrame};
+use frond_protocol::{ControlErrorKind, ElementInfo, ElementKind, GraphGoal, StageInput};
+
+use super::{
+    BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
+};
+use crate::clock::NS_PER_S;
+
+/// Most plants of one graph stage.
+pub const MAX_GRAPH_PLANTS: usize = 64;
+/// Frames per second on the stream.
+pub const GRAPH_PUBLISH_HZ: u32 = 60;
+/// Nodes the pose planner settles per tick (a 1 kHz tick spends some tens of microseconds).
+pub const PLAN_NODES_PER_TICK: usize = 2_000;
+/// Largest graph file read, bytes.
+pub const MAX_GRAPH_FILE_BYTES: u64 = frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
+/// Smallest bend of the root, degrees, that sets a goal from the hand (below it the plants walk
+/// at random).
+pub const HAND_GOAL_MIN_BEND_DEG: f32 = 5.0;
+
+const GOAL_OFF: u8 = 0;
+const GOAL_DIR: u8 = 1;
+const GOAL_HAND: u8 = 2;
+const GOAL_FRAME: u8 = 3;
+
+/// What `frond status` says of a graph walk: goal, the first plant's node, transitions taken.
+pub struct GraphReport {
+    take: String,
+    plants: usize,
+    nodes: usize,
+    goal: AtomicU8,
+    goal_dir_deg: AtomicU64,
+    goal_frame: AtomicU32,
+    planned: AtomicU8,
+    node_frame: AtomicU32,
+    transitions: AtomicU64,
+}
+
+impl StageReport for GraphReport {
+    fn describe(&self) -> String {
+        let goal = match self.goal.load(Relaxed) {
+            GOAL_DIR => format!("goal direction {:.0} deg", f64::from_bits(self.goal_dir_deg.load(Relaxed))),
+            GOAL_HAND => {
+                format!("goal from the hand ({:.0} deg)", f64::from_bits(self.goal_dir_deg.load(Relaxed)))
+            }
+            GOAL_FRAME => format!(
+                "goal pose of frame {}{}",
+                self.goal_frame.load(Relaxed),
+                if self.planned.load(Relaxed) == 1 { "" } else { " (planning)" }
+            ),
+            _ => "random walks".into(),
+        };
+        format!(
+            "graph walk of {}: {} plants on {} nodes; {goal}; plant 0 at frame {}; {} transitions taken",
+            self.take,
+            self.plants,
+            self.nodes,
+            self.node_frame.load(Relaxed),
+            self.transitions.load(Relaxed)
+        )
+    }
+}
+
+/// The walkers in the loop.
+pub struct GraphStage {
+    graph: MotionGraph,
+    poses: Vec<PoseFrame>,
+    walkers: Vec<Walker>,
+    /// Per plant: the walk's previous and next frame, interpolated between.
+    frames: Vec<(Joints, Joints)>,
+    ids: Vec<u16>,
+    frame_ns: u64,
+    t0_ns: u64,
+    next_publish_ns: u64,
+    frames_done: u64,
+    planner: PosePlanner,
+    goal: GraphGoal,
+    hand_dir_deg: Option<f64>,
+    report: Arc<GraphReport>,
+}
+
+impl GraphStage {
+    fn walker_goal(&self) -> Goal {
+        match self.goal {
+            GraphGoal::Dir { deg } => Goal::Direction { dir_deg: deg },
+            GraphGoal::Hand => match self.hand_dir_deg {
+                Some(dir_deg) => Goal::Direction { dir_deg },
+                None => Goal::Random,
+            },
+            GraphGoal::Off | GraphGoal::Frame { .. } => Goal::Random,
+        }
+    }
+
+    fn set_goals(&mut self) {
+        let goal = self.walker_goal();
+        for w in &mut self.walkers {
+            // Direction and random goals hold no heap data: setting them never allocates.
+            w.set_goal(match &goal {
+                Goal::Direction { dir_deg } => Goal::Direction { dir_deg: *dir_deg },
+                _ => Goal::Random,
+            });
+        }
+    }
+
+    /// Advances every walker by one walk frame.
+    fn step(&mut self) {
+        let plan = self.planner.plan();
+        for (w, f) in self.walkers.iter_mut().zip(self.frames.iter_mut()) {
+            let s = w.next_frame_with(&self.graph, &self.poses, plan);
+            *f = (f.1, s.pose.joints_deg);
+        }
+        self.frames_done += 1;
+        if let Some(w) = self.walkers.first() {
+            self.report.node_frame.store(self.graph.node_frames[w.node() as usize], Relaxed);
+        }
+        let taken: u64 = self.walkers.iter().map(Walker::transitions_taken).sum();
+        self.report.transitions.store(taken, Relaxed);
+    }
+}
+
+fn lerp(a: &Joints, b: &Joints, u: f32) -> Joints {
+    std::array::from_fn(|j| std::array::from_fn(|c| a[j][c] + (b[j][c] - a[j][c]) * u))
+}
+
+/// The ground-plane direction the root bends towards, degrees (0 towards +X, 90 towards +Z), or
+/// `None` for a bend under [`HAND_GOAL_MIN_BEND_DEG`]: pitch about +X takes +Y towards +Z, yaw
+/// about +Z takes it towards -X (frond's rotation convention).
+pub fn bend_direction_deg(root_deg: [f32; 3]) -> Option<f64> {
+    let [pitch, yaw, _] = root_deg;
+    if pitch.hypot(yaw) < HAND_GOAL_MIN_BEND_DEG {
+        return None;
+    }
+    let (x, z) = (-(yaw.to_radians().sin()) as f64, (pitch.to_radians().sin()) as f64);
+    Some(z.atan2(x).to_degrees().rem_euclid(360.0))
+}
+
+impl LiveStage for GraphStage {
+    fn on_hand(&mut self, _hand: &HandSample, pose: &mut PoseFrame, _element: &mut u16) {
+        if self.goal == GraphGoal::Hand {
+            let dir = bend_direction_deg(pose.joints_deg[0]);
+            if dir.is_some() != self.hand_dir_deg.is_some()
+                || matches!((dir, self.hand_dir_deg), (Some(a), Some(b)) if (a - b).abs() > 1.0)
+            {
+                self.hand_dir_deg = dir;
+                self.report.goal_dir_deg.store(dir.unwrap_or(f64::NAN).to_bits(), Relaxed);
+                self.set_goals();
+            }
+        }
+    }
+
+    fn tick(&mut self, ctx: &TickContext, out: &mut dyn FrameSink) {
+        if self.planner.target().is_some()
+            && self.planner.plan().is_none()
+            && self.planner.work(PLAN_NODES_PER_TICK)
+        {
+            self.report.planned.store(1, Relaxed);
+        }
+        let elapsed = ctx.now_ns.saturating_sub(self.t0_ns);
+        // Catch up with the walk's own frame rate (at most a second's frames per tick after a
+        // stall, then it carries on from now).
+        let due = elapsed / self.frame_ns;
+        if due > self.frames_done + 30 {
+            self.frames_done = due.saturating_sub(1);
+        }
+        while self.frames_done <= due {
+            self.step();
+        }
+        if ctx.now_ns < self.next_publish_ns {
+            return;
+        }
+        let period = NS_PER_S / u64::from(GRAPH_PUBLISH_HZ);
+        self.next_publish_ns = (self.next_publish_ns + period).max(ctx.now_ns);
+        // `frames.1` is walk frame `frames_done - 1`, at time (frames_done - 1) * frame_ns.
+        let t_next = (self.frames_done - 1) * self.frame_ns;
+        let u = 1.0 - (t_next.saturating_sub(elapsed) as f64 / self.frame_ns as f64).clamp(0.0, 1.0);
+        for (id, (a, b)) in self.ids.iter().zip(&self.frames) {
+            out.emit(*id, lerp(a, b, u as f32));
+        }
+    }
+
+    fn every_tick(&self) -> bool {
+        true
+    }
+
+    fn input(&mut self, input: StageInput) {
+        let StageInput::GraphGoal(goal) = input else { return };
+        self.goal = goal;
+        let (code, dir, frame) = match goal {
+            GraphGoal::Off => (GOAL_OFF, f64::NAN, 0),
+            GraphGoal::Dir { deg } => (GOAL_DIR, deg, 0),
+            GraphGoal::Hand => (GOAL_HAND, f64::NAN, 0),
+            GraphGoal::Frame { frame } => (GOAL_FRAME, f64::NAN, frame),
+        };
+        self.report.goal.store(code, Relaxed);
+        self.report.goal_dir_deg.store(dir.to_bits(), Relaxed);
+        self.report.goal_frame.store(frame, Relaxed);
+        self.report.planned.store(0, Relaxed);
+        let target = match goal {
+            // The node nearest the frame: the graph keeps frames in order, so the first node at
+            // or after it (or the last one).
+            GraphGoal::Frame { frame } => {
+                let i = self.graph.node_frames.partition_point(|&f| f < frame);
+                Some(i.min(self.graph.len() - 1) as u32)
+            }
+            _ => None,
+        };
+        self.planner.start(target);
+        self.hand_dir_deg = None;
+        self.set_goals();
+    }
+}
+
+fn takes_goals(input: &StageInput) -> bool {
+    matches!(input, StageInput::GraphGoal(_))
+}
+
+/// Builds `plants` walkers of graph `graph` (in the takes directory) over take `take`.
+pub fn build(
+    take: &str,
+    graph: &str,
+    plants: u16,
+    seed: u64,
+    ctx: &BuildContext,
+) -> Result<BuiltStage, BuildError> {
+    let plants = usize::from(plants);
+    if !(1..=MAX_GRAPH_PLANTS).contains(&plants) {
+        return Err(BuildError::invalid(format!(
+            "a graph walk has 1..={MAX_GRAPH_PLANTS} plants, not {plants}"
+        )));
+    }
+    if ctx.free_ids.len() < plants {
+        return Err(BuildError::invalid(format!(
+            "no room for {plants} more elements ({} free)",
+            ctx.free_ids.len()
+        )));
+    }
+    frond_protocol::paths::validate_take_name(graph)
+        .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: format!("graph name: {e}") })?;
+    let path = ctx.takes_dir.join(format!("{graph}.graph.json"));
+    let text = frond_motion::rig_files::read_small_text(&path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
+        BuildError::invalid(format!("cannot read graph {graph:?} at {}: {}", path.display(), e.reason()))
+    })?;
+    let file =
+        GraphFile::from_json(&text).map_err(|e| BuildError::invalid(format!("{}: {e}", path.display())))?;
+    let bytes = super::read_take(ctx.takes_dir, take)?;
+    let (t, damage) = Take::from_bytes_noting_damage(&bytes)
+        .map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
+    let poses = t.clip(GLOBAL_LAYER, file.fps).frames;
+    let motion_graph = file.graph_for(&poses).map_err(|e| {
+        BuildError::invalid(format!(
+            "graph {graph:?} and take {take:?}{}: {e}",
+            damage.map(|d| format!(" (damaged: {d})")).unwrap_or_default()
+        ))
+    })?;
+    let ids = ctx.free_ids[..plants].to_vec();
+    let n = motion_graph.len();
+    let walkers: Vec<Walker> = (0..plants)
+        .map(|i| Walker::new(&motion_graph, (i * n / plants) as u32, seed.wrapping_add(i as u64), file.fps))
+        .collect();
+    let report = Arc::new(GraphReport {
+        take: take.to_string(),
+        plants,
+        nodes: n,
+        goal: AtomicU8::new(GOAL_OFF),
+        goal_dir_deg: AtomicU64::new(f64::NAN.to_bits()),
+        goal_frame: AtomicU32::new(0),
+        planned: AtomicU8::new(0),
+        node_frame: AtomicU32::new(motion_graph.node_frames[0]),
+        transitions: AtomicU64::new(0),
+    });
+    let rest = [[0.0f32; 3]; JOINTS];
+    let stage = GraphStage {
+        planner: PosePlanner::new(&motion_graph),
+        graph: motion_graph,
+        poses,
+        walkers,
+        frames: vec![(rest, rest); plants],
+        ids: ids.clone(),
+        frame_ns: (NS_PER_S as f64 / file.fps).round().max(1.0) as u64,
+        t0_ns: ctx.now_ns,
+        next_publish_ns: ctx.now_ns,
+        frames_done: 0,
+        goal: GraphGoal::Off,
+        hand_dir_deg: None,
+        report: report.clone(),
+    };
+    let elements = ids
+        .iter()
+        .enumerate()
+        .map(|(i, &id)| ElementInfo {
+            id,
+            name: format!("walker{i}"),
+            kind: ElementKind::FieldPlant,
+            source: ctx.name.to_string(),
+            rig: ctx.rig.name.clone(),
+        })
+        .collect();
+    Ok(BuiltStage {
+        stage: Box::new(stage),
+        info: StageInfo {
+            kind: "graph",
+            report,
+            elements,
+            hand_element: None,
+            accepts: takes_goals,
+            rig: super::rig_info(ctx.rig),
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bend_direction_deg;
+
+    #[test]
+    fn the_hand_bend_sets_the_goal_direction() {
+        // Pitch bends towards +Z (90 deg), negative yaw towards +X (0 deg), positive yaw -X.
+        assert!((bend_direction_deg([20.0, 0.0, 0.0]).unwrap() - 90.0).abs() < 1e-6);
+        assert!((bend_direction_deg([-20.0, 0.0, 0.0]).unwrap() - 270.0).abs() < 1e-6);
+        assert!(bend_direction_deg([0.0, -20.0, 0.0]).unwrap().abs() < 1e-6);
+        assert!((bend_direction_deg([0.0, 20.0, 0.0]).unwrap() - 180.0).abs() < 1e-6);
+        assert_eq!(bend_direction_deg([2.0, 2.0, 40.0]), None, "roll alone is no bend");
+    }
+}

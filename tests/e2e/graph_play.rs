@@ -1,0 +1,124 @@
+//! `frond graph play|goal|stop` (issue 16, seed 003 section 6 live): plants walking the motion
+//! graph of a simulated take in the real daemon, announced as elements, directed live, with the
+//! goal and the transitions taken in `frond status`.
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use frond_e2e::{Daemon, wait_for};
+use frond_protocol::ElementKind;
+use frond_sdk::{Event, Subscriber};
+
+fn mode(daemon: &Daemon) -> String {
+    daemon.status().modes.into_iter().find(|m| m.contains("graph walk")).unwrap_or_default()
+}
+
+#[test]
+fn walkers_play_live_and_follow_their_goal() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    daemon.frond_ok(&[
+        "take",
+        "simulate",
+        "breeze",
+        "--rig",
+        "grass",
+        "--duration",
+        "60",
+        "--wind",
+        "speed=3,dir=0,gust=0.8,seed=4",
+    ]);
+    daemon.frond_ok(&["take", "graph", "breeze"]);
+    assert!(daemon.takes_dir.join("breeze.graph.json").is_file(), "the graph goes beside its take");
+    // The take's range of angles: walking can only show poses between the take's.
+    let export = daemon.frond_ok(&["take", "export", "breeze", "--include-held"]);
+    let mut max_deg: f64 = 0.0;
+    for l in export.lines() {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        for j in 0..4 {
+            for c in 0..2 {
+                max_deg = max_deg.max(v["joints"][j][c].as_f64().unwrap().abs());
+            }
+        }
+    }
+
+    let out = daemon.frond_ok(&["graph", "play", "breeze", "--plants", "4", "--seed", "3"]);
+    assert!(out.contains("4 plants walking"), "{out}");
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let table = sub.elements().clone();
+    let walkers: HashMap<u16, String> = (0..200u16)
+        .filter_map(|id| {
+            table.get(id).filter(|e| e.kind == ElementKind::FieldPlant).map(|e| (id, e.name.clone()))
+        })
+        .collect();
+    let mut names: Vec<&String> = walkers.values().collect();
+    names.sort();
+    assert_eq!(names, ["walker0", "walker1", "walker2", "walker3"]);
+    // Two seconds of frames: every walker moves, within the take's range.
+    let mut seen: HashMap<u16, Vec<[[f32; 3]; 4]>> = HashMap::new();
+    let deadline = std::time::Instant::now() + Duration::from_secs(2);
+    while std::time::Instant::now() < deadline {
+        if let Event::Pose(p) = sub.next_event().unwrap()
+            && walkers.contains_key(&p.element)
+        {
+            seen.entry(p.element).or_default().push(p.joints_deg);
+        }
+    }
+    assert_eq!(seen.len(), 4, "frames of every walker");
+    for (id, frames) in &seen {
+        assert!(frames.len() >= 60, "walker {id}: {} frames in 2 s at 60 Hz", frames.len());
+        assert!(frames.windows(2).any(|w| w[0] != w[1]), "walker {id} does not move");
+        for f in frames {
+            for j in f {
+                assert!(
+                    (j[0] as f64).abs() <= max_deg + 1.0 && (j[1] as f64).abs() <= max_deg + 1.0,
+                    "{j:?} beyond {max_deg}"
+                );
+            }
+        }
+    }
+    assert_ne!(seen.values().next(), seen.values().nth(1), "each walker walks its own way");
+
+    // Goals, as status shows them.
+    let out = daemon.frond_ok(&["graph", "goal", "dir", "90"]);
+    assert!(out.contains("goal direction 90 deg"), "{out}");
+    daemon.frond_ok(&["graph", "goal", "pose", "frame=900"]);
+    assert!(
+        wait_for(Duration::from_secs(3), || {
+            let m = mode(&daemon);
+            m.contains("goal pose of frame 900") && !m.contains("planning")
+        }),
+        "{}",
+        mode(&daemon)
+    );
+    daemon.frond_ok(&["graph", "goal", "hand"]);
+    assert!(mode(&daemon).contains("goal from the hand"), "{}", mode(&daemon));
+    let taken = |m: &str| -> u64 {
+        m.split("; ").find_map(|p| p.strip_suffix(" transitions taken")?.parse().ok()).unwrap_or(0)
+    };
+    let before = taken(&mode(&daemon));
+    assert!(wait_for(Duration::from_secs(5), || taken(&mode(&daemon)) > before), "{}", mode(&daemon));
+    daemon.frond_ok(&["graph", "goal", "off"]);
+    assert!(mode(&daemon).contains("random walks"));
+
+    // Bad goals and graphs are refused by name; stop ends it.
+    let out = daemon.frond().args(["graph", "goal", "north"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown goal"));
+    daemon.frond_ok(&["graph", "stop"]);
+    assert!(daemon.status().modes.is_empty(), "{:?}", daemon.status().modes);
+    let out = daemon.frond().args(["graph", "play", "breeze", "--graph", "nope"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("cannot read graph \"nope\""),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(daemon.takes_dir.join("cut.graph.json"), "{\"version\": 1").unwrap();
+    let out = daemon.frond().args(["graph", "play", "breeze", "--graph", "cut"]).output().unwrap();
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("not a motion graph file"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
