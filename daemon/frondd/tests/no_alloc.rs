@@ -249,11 +249,38 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let field = Field::from_json(&field.to_json()).unwrap();
     let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
     let live_field = FieldStage::new(looped, field, &ids, 5, t0, report.clone()).unwrap();
-    let stages: [Box<dyn frondd::stage::LiveStage>; 4] = [
+    // Four plants walking a motion graph of a Lissajous sway (seed 003, section 6).
+    use frond_motion::PoseFrame;
+    let sway: Vec<PoseFrame> = (0..1200)
+        .map(|i| {
+            let t = i as f64;
+            let mut joints_deg = [[0.0f32; 3]; 4];
+            joints_deg[0] = [
+                (15.0 * (std::f64::consts::TAU * t / 41.3).sin()) as f32,
+                (15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin()) as f32,
+                0.0,
+            ];
+            PoseFrame { t: t / 30.0, joints_deg }
+        })
+        .collect();
+    let control = frond_motion::graph::ControlPoint::Top;
+    let path = frond_motion::graph::control_positions_m(
+        control,
+        &frond_motion::skeleton::Skeleton::from_rig(&rig),
+        0.5,
+        &sway,
+    );
+    let graph =
+        frond_motion::graph::build_graph(&sway, &path, &frond_motion::graph::GraphParams::new(control))
+            .unwrap();
+    let (walk, graph_report) =
+        frondd::stage::graph::GraphStage::new(graph, sway, &[60, 61, 62, 63], 9, 30.0, t0, "sway");
+    let stages: [Box<dyn frondd::stage::LiveStage>; 5] = [
         Box::new(PlaybackStage::new(frondd::stage::playback::looped_clip(&bytes).unwrap(), 5, t0, 0)),
         Box::new(live_field),
         Box::new(GuidedStage::new(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000)),
         Box::new(LayerStage::new(1)),
+        Box::new(walk),
     ];
     for (slot, stage) in stages.into_iter().enumerate() {
         cmd_tx.send(stage_command(slot, Install(Some(stage)), None)).unwrap();
@@ -270,6 +297,13 @@ fn every_live_stage_allocates_nothing_per_tick() {
         .map(|k| stage_command(1, Input(StageInput::Key(k)), None))
         .collect();
     changes.push(stage_command(0, frondd::stage::StageAction::Announce, Some(vec![0u8; 300])));
+    // Graph goals (popped last to first: the pose goal, planned over the following ticks, last).
+    use frond_protocol::GraphGoal;
+    for goal in
+        [GraphGoal::Dir { deg: 90.0 }, GraphGoal::Hand, GraphGoal::Off, GraphGoal::Frame { frame: 600 }]
+    {
+        changes.insert(0, stage_command(4, Input(StageInput::GraphGoal(goal)), None));
+    }
     let ((), allocations) = count_allocations(|| {
         for i in 0..10_000 {
             now += 1_000_000;
@@ -290,9 +324,12 @@ fn every_live_stage_allocates_nothing_per_tick() {
     assert!(elements.contains(&0) && elements.contains(&1), "{elements:?}");
     assert!(elements.contains(&40) && elements.contains(&55), "{elements:?}");
     assert!(!elements.contains(&56), "only the ids given are used");
+    assert!((60..64).all(|id| elements.contains(&id)), "graph walkers: {elements:?}");
+    let walk = frondd::stage::StageReport::describe(&*graph_report);
+    assert!(walk.contains("goal pose of frame 600") && !walk.contains("planning"), "{walk}");
     assert_eq!(report.controls.load().unwrap().direction_deg, 180.0, "the keys reached the field");
     // Every applied command came back to be dropped off the loop.
-    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 7);
+    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 12);
 }
 
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive

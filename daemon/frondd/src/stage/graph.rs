@@ -96,6 +96,53 @@ pub struct GraphStage {
 }
 
 impl GraphStage {
+    /// Walkers over `graph` (built on `poses`, at `fps`) published as `ids` (one plant each, at
+    /// most [`MAX_GRAPH_PLANTS`]), plant `i` with seed `seed + i`, starting at host time `t0_ns`;
+    /// with the report `frond status` reads. Allocates (off the realtime thread).
+    pub fn new(
+        graph: MotionGraph,
+        poses: Vec<PoseFrame>,
+        ids: &[u16],
+        seed: u64,
+        fps: f64,
+        t0_ns: u64,
+        take: &str,
+    ) -> (Self, Arc<GraphReport>) {
+        let plants = ids.len().clamp(1, MAX_GRAPH_PLANTS);
+        let n = graph.len();
+        let walkers: Vec<Walker> = (0..plants)
+            .map(|i| Walker::new(&graph, (i * n / plants) as u32, seed.wrapping_add(i as u64), fps))
+            .collect();
+        let report = Arc::new(GraphReport {
+            take: take.to_string(),
+            plants,
+            nodes: n,
+            goal: AtomicU8::new(GOAL_OFF),
+            goal_dir_deg: AtomicU64::new(f64::NAN.to_bits()),
+            goal_frame: AtomicU32::new(0),
+            planned: AtomicU8::new(0),
+            node_frame: AtomicU32::new(graph.node_frames[0]),
+            transitions: AtomicU64::new(0),
+        });
+        let rest = [[0.0f32; 3]; JOINTS];
+        let stage = GraphStage {
+            planner: PosePlanner::new(&graph),
+            graph,
+            poses,
+            walkers,
+            frames: vec![(rest, rest); plants],
+            ids: ids[..plants].to_vec(),
+            frame_ns: (NS_PER_S as f64 / fps).round().max(1.0) as u64,
+            t0_ns,
+            next_publish_ns: t0_ns,
+            frames_done: 0,
+            goal: GraphGoal::Off,
+            hand_dir_deg: None,
+            report: report.clone(),
+        };
+        (stage, report)
+    }
+
     fn walker_goal(&self) -> Goal {
         match self.goal {
             GraphGoal::Dir { deg } => Goal::Direction { dir_deg: deg },
@@ -269,37 +316,7 @@ pub fn build(
         ))
     })?;
     let ids = ctx.free_ids[..plants].to_vec();
-    let n = motion_graph.len();
-    let walkers: Vec<Walker> = (0..plants)
-        .map(|i| Walker::new(&motion_graph, (i * n / plants) as u32, seed.wrapping_add(i as u64), file.fps))
-        .collect();
-    let report = Arc::new(GraphReport {
-        take: take.to_string(),
-        plants,
-        nodes: n,
-        goal: AtomicU8::new(GOAL_OFF),
-        goal_dir_deg: AtomicU64::new(f64::NAN.to_bits()),
-        goal_frame: AtomicU32::new(0),
-        planned: AtomicU8::new(0),
-        node_frame: AtomicU32::new(motion_graph.node_frames[0]),
-        transitions: AtomicU64::new(0),
-    });
-    let rest = [[0.0f32; 3]; JOINTS];
-    let stage = GraphStage {
-        planner: PosePlanner::new(&motion_graph),
-        graph: motion_graph,
-        poses,
-        walkers,
-        frames: vec![(rest, rest); plants],
-        ids: ids.clone(),
-        frame_ns: (NS_PER_S as f64 / file.fps).round().max(1.0) as u64,
-        t0_ns: ctx.now_ns,
-        next_publish_ns: ctx.now_ns,
-        frames_done: 0,
-        goal: GraphGoal::Off,
-        hand_dir_deg: None,
-        report: report.clone(),
-    };
+    let (stage, report) = GraphStage::new(motion_graph, poses, &ids, seed, file.fps, ctx.now_ns, take);
     let elements = ids
         .iter()
         .enumerate()
