@@ -122,3 +122,36 @@ fn walkers_play_live_and_follow_their_goal() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn the_simulated_plant_runs_live_and_the_hand_blows_it() {
+    use frond_protocol::PoseFlags;
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    let bad = daemon.frond().args(["sim", "start", "--wind", "speed=fast"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    daemon.frond_ok(&["sim", "start", "--wind", "speed=3,dir=90,gust=0,seed=1"]);
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let mut sim_frames = Vec::new();
+    while sim_frames.len() < 1500 {
+        if let Event::Pose(p) = sub.next_event().unwrap()
+            && p.element == 0
+            && p.flags.contains(PoseFlags::PLAYBACK)
+        {
+            sim_frames.push(p.joints_deg);
+        }
+    }
+    assert!(sim_frames.windows(2).any(|w| w[0] != w[1]), "the simulated plant does not move");
+    assert!(sim_frames.iter().all(|f| f.iter().flatten().all(|a| a.is_finite() && a.abs() < 90.0)));
+    // The virtual glove bends the wrist: its bend turns the wind away from the spec's.
+    let winds: std::collections::HashSet<String> = (0..40)
+        .filter_map(|_| {
+            std::thread::sleep(Duration::from_millis(50));
+            let m = daemon.status().modes.into_iter().find(|m| m.contains("simulated plant"))?;
+            Some(m.split(": ").nth(1)?.split(" at ").next()?.to_string())
+        })
+        .collect();
+    assert!(winds.len() > 1, "the hand never changed the wind: {winds:?}");
+    daemon.frond_ok(&["sim", "stop"]);
+    assert!(daemon.status().modes.is_empty(), "{:?}", daemon.status().modes);
+}

@@ -107,6 +107,9 @@ pub enum Command {
     /// Field playback in the daemon (seed 000, section 6.2).
     #[command(subcommand)]
     Field(FieldCommand),
+    /// The simulated plant of seed 003 (section 4) in the daemon, blown by the hand.
+    #[command(subcommand)]
+    Sim(crate::graph_live::SimCommand),
     /// Plants walking a motion graph in the daemon (seed 003, section 6), directed live.
     #[command(subcommand)]
     Graph(crate::graph_live::GraphCommand),

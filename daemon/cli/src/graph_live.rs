@@ -1,6 +1,7 @@
-//! `frond graph play|goal|stop`: plants walking a motion graph in the daemon (seed 003, section
-//! 6), directed live. The graph is `NAME.graph.json` in the takes directory (`frond take graph`
-//! writes it there), read by the daemon.
+//! Seed 003 live in the daemon: `frond graph play|goal|stop`, plants walking a motion graph
+//! (section 6), directed live (the graph is `NAME.graph.json` in the takes directory, where
+//! `frond take graph` writes it, read by the daemon); and `frond sim start|stop`, the simulated
+//! plant (section 4) blown by the hand.
 
 use clap::Subcommand;
 use frond_protocol::{ControlReply, ControlRequest, GraphGoal, StageInput, StageSpec};
@@ -40,6 +41,47 @@ pub enum GraphCommand {
     },
     /// Stop the walk.
     Stop,
+}
+
+/// `frond sim ...`
+#[derive(Debug, Subcommand)]
+pub enum SimCommand {
+    /// Run the simulated plant in the loop as the global element; the hand's bend blows it
+    /// (direction of the bend, 0.2 m/s per degree, at most 12 m/s; under 5 degrees: --wind).
+    Start {
+        /// Rig: an embedded name or a rig file [default: the active rig].
+        #[arg(long, value_name = "NAME|FILE")]
+        rig: Option<std::path::PathBuf>,
+        /// The wind while the hand does not blow: `speed=S,dir=DEG,gust=G,seed=N`.
+        #[arg(long, default_value = "speed=0,dir=0,gust=0,seed=1", value_name = "SPEC")]
+        wind: String,
+    },
+    /// Stop the simulation.
+    Stop,
+}
+
+/// Runs one `frond sim` command.
+pub(crate) fn sim(g: &Global, cmd: SimCommand) -> anyhow::Result<()> {
+    match cmd {
+        SimCommand::Start { rig, wind } => {
+            if let Err(e) = wind.parse::<frond_motion::sim::WindSpec>() {
+                return crate::usage(format!("--wind {wind:?}: {e}"));
+            }
+            let rig_toml = match &rig {
+                Some(spec) => Some(crate::control::load_rig(spec)?.1),
+                None => None,
+            };
+            let mut c = Control::from_global(g)?;
+            c.expect_ok(&ControlRequest::StageStart { name: None, spec: StageSpec::Sim { rig_toml, wind } })?;
+            println!("simulated plant running as the global element; bend the hand to blow it");
+            Ok(())
+        }
+        SimCommand::Stop => {
+            Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: "sim".into() })?;
+            println!("simulation stopped");
+            Ok(())
+        }
+    }
 }
 
 /// Parses `frond graph goal KIND [VALUE]`.

@@ -150,6 +150,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Field(args::FieldCommand::Key { key }) => live::field_key(g, &key),
         Command::Control => live::control(g),
         Command::Graph(cmd) => graph_live::run(g, cmd),
+        Command::Sim(cmd) => graph_live::sim(g, cmd),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
         Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held, force }) => {

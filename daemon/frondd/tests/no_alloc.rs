@@ -275,12 +275,23 @@ fn every_live_stage_allocates_nothing_per_tick() {
             .unwrap();
     let (walk, graph_report) =
         frondd::stage::graph::GraphStage::new(graph, sway, &[60, 61, 62, 63], 9, 30.0, t0, "sway");
-    let stages: [Box<dyn frondd::stage::LiveStage>; 5] = [
+    // The simulated plant (seed 003, section 4) in a gusty wind the hand turns.
+    let plant =
+        frond_motion::sim::PlantSim::from_rig(&rig, "speed=4,dir=30,gust=0.8,seed=2".parse().unwrap())
+            .unwrap();
+    let (sim, sim_report) = frondd::stage::sim::SimStage::new(
+        plant,
+        "speed=4,dir=30,gust=0.8,seed=2".parse().unwrap(),
+        t0,
+        "flower",
+    );
+    let stages: [Box<dyn frondd::stage::LiveStage>; 6] = [
         Box::new(PlaybackStage::new(frondd::stage::playback::looped_clip(&bytes).unwrap(), 5, t0, 0)),
         Box::new(live_field),
         Box::new(GuidedStage::new(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000)),
         Box::new(LayerStage::new(1)),
         Box::new(walk),
+        Box::new(sim),
     ];
     for (slot, stage) in stages.into_iter().enumerate() {
         cmd_tx.send(stage_command(slot, Install(Some(stage)), None)).unwrap();
@@ -325,11 +336,16 @@ fn every_live_stage_allocates_nothing_per_tick() {
     assert!(elements.contains(&40) && elements.contains(&55), "{elements:?}");
     assert!(!elements.contains(&56), "only the ids given are used");
     assert!((60..64).all(|id| elements.contains(&id)), "graph walkers: {elements:?}");
+    let sim = frondd::stage::StageReport::describe(&*sim_report);
+    assert!(
+        sim.contains("at 10.5 s") || sim.contains("at 10.4 s"),
+        "the plant simulated the counted ticks: {sim}"
+    );
     let walk = frondd::stage::StageReport::describe(&*graph_report);
     assert!(walk.contains("goal pose of frame 600") && !walk.contains("planning"), "{walk}");
     assert_eq!(report.controls.load().unwrap().direction_deg, 180.0, "the keys reached the field");
     // Every applied command came back to be dropped off the loop.
-    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 12);
+    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 13);
 }
 
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive

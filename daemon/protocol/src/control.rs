@@ -129,6 +129,15 @@ pub enum StageSpec {
         /// Seed of the first plant's walk.
         seed: u64,
     },
+    /// The simulated plant of seed 003 (section 4) in the loop, published as the global element
+    /// (flagged `playback`): `rig_toml` (a rig file's text; `None`: the active rig) blown by
+    /// `wind` (`speed=S,dir=DEG,gust=G,seed=N`); the hand's bend steers the wind live.
+    Sim {
+        /// Rig file text, or the active rig.
+        rig_toml: Option<String>,
+        /// Wind spec text.
+        wind: String,
+    },
     /// Guided procedural motion on the live mapping (seed 000, Eq. 8):
     /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains).
     Guided {
@@ -145,6 +154,7 @@ impl StageSpec {
             StageSpec::Field { .. } => "field",
             StageSpec::Guided { .. } => "guided",
             StageSpec::Graph { .. } => "graph",
+            StageSpec::Sim { .. } => "sim",
         }
     }
 }

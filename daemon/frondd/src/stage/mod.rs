@@ -21,6 +21,7 @@ pub mod guided;
 pub mod layer;
 pub mod playback;
 pub mod registry;
+pub mod sim;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -173,6 +174,7 @@ pub fn build(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildEr
         }
         StageSpec::Guided { spec } => guided::build(spec, ctx),
         StageSpec::Graph { take, graph, plants, seed } => graph::build(take, graph, *plants, *seed, ctx),
+        StageSpec::Sim { rig_toml, wind } => sim::build(rig_toml.as_deref(), wind, ctx),
     }
 }
 

@@ -224,6 +224,11 @@ impl PlantSim {
         &self.params
     }
 
+    /// Changes the wind from the next step on (a live stage steering it; no allocation).
+    pub fn set_wind(&mut self, spec: WindSpec) {
+        self.wind = Wind::new(spec);
+    }
+
     /// The wind field.
     pub fn wind(&self) -> &Wind {
         &self.wind
