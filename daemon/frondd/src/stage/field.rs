@@ -9,7 +9,7 @@ use frond_motion::clip::Joints;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::{Field, FieldPlayer};
 use frond_motion::{HandSample, PoseFrame};
-use frond_protocol::{ElementInfo, ElementKind, StageInput, StageKey};
+use frond_protocol::{StageInput, StageKey};
 
 use super::error::StageError;
 use super::playback::{LoopedTake, looped_clip, note_damage};
@@ -245,17 +245,7 @@ pub fn build(
     let looped = looped_clip(&bytes).map_err(invalid)?;
     let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));
     let stage = FieldStage::new(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
-    let elements = ids
-        .iter()
-        .enumerate()
-        .map(|(i, &id)| ElementInfo {
-            id,
-            name: format!("plant{i}"),
-            kind: ElementKind::FieldPlant,
-            source: ctx.name.to_string(),
-            rig: ctx.rig.name.clone(),
-        })
-        .collect();
+    let elements = super::plant_elements(ids, "plant", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {

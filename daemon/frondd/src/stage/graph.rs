@@ -15,7 +15,7 @@ use frond_motion::graph::{Goal, GraphFile, MotionGraph, Walker};
 use frond_motion::layers::{GLOBAL_LAYER, Take};
 use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
-use frond_protocol::{ControlErrorKind, ElementInfo, ElementKind, GraphGoal, StageInput};
+use frond_protocol::{ControlErrorKind, GraphGoal, StageInput};
 
 use super::{
     BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
@@ -317,17 +317,7 @@ pub fn build(
     })?;
     let ids = ctx.free_ids[..plants].to_vec();
     let (stage, report) = GraphStage::new(motion_graph, poses, &ids, seed, file.fps, ctx.now_ns, take);
-    let elements = ids
-        .iter()
-        .enumerate()
-        .map(|(i, &id)| ElementInfo {
-            id,
-            name: format!("walker{i}"),
-            kind: ElementKind::FieldPlant,
-            source: ctx.name.to_string(),
-            rig: ctx.rig.name.clone(),
-        })
-        .collect();
+    let elements = super::plant_elements(&ids, "walker", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {

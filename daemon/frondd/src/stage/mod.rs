@@ -125,6 +125,21 @@ pub fn rig_info(rig: &Rig) -> RigInfo {
     RigInfo { name: rig.name.clone(), joint_names: rig.joints.iter().map(|j| j.name.clone()).collect() }
 }
 
+/// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants (a field's,
+/// a graph walk's), one per id.
+pub fn plant_elements(ids: &[u16], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
+    ids.iter()
+        .enumerate()
+        .map(|(i, &id)| ElementInfo {
+            id,
+            name: format!("{prefix}{i}"),
+            kind: frond_protocol::ElementKind::FieldPlant,
+            source: ctx.name.to_string(),
+            rig: ctx.rig.name.clone(),
+        })
+        .collect()
+}
+
 /// Takes no input.
 pub fn no_input(_: &StageInput) -> bool {
     false
