@@ -20,7 +20,8 @@ const SECTIONS: [&str; 8] = [
     "osc_latency",
     "hidraw_latency",
 ];
-const PARTS: [&str; 5] = ["field_playback", "loop_synthesis", "gltf_bake", "warp", "osc"];
+const PARTS: [&str; 8] =
+    ["field_playback", "loop_synthesis", "gltf_bake", "warp", "sim_step", "graph_build", "graph_walk", "osc"];
 
 fn frond() -> Command {
     Command::new(env!("CARGO_BIN_EXE_frond"))

@@ -221,11 +221,12 @@ impl LiveStage for GraphStage {
         let elapsed = ctx.now_ns.saturating_sub(self.t0_ns);
         // Catch up with the walk's own frame rate (at most a second's frames per tick after a
         // stall, then it carries on from now).
+        // The walk is one frame ahead of now: `frames` holds walk frames `due` and `due + 1`.
         let due = elapsed / self.frame_ns;
         if due > self.frames_done + 30 {
-            self.frames_done = due.saturating_sub(1);
+            self.frames_done = due;
         }
-        while self.frames_done <= due {
+        while self.frames_done <= due + 1 {
             self.step();
         }
         if ctx.now_ns < self.next_publish_ns {
@@ -233,9 +234,8 @@ impl LiveStage for GraphStage {
         }
         let period = NS_PER_S / u64::from(GRAPH_PUBLISH_HZ);
         self.next_publish_ns = (self.next_publish_ns + period).max(ctx.now_ns);
-        // `frames.1` is walk frame `frames_done - 1`, at time (frames_done - 1) * frame_ns.
-        let t_next = (self.frames_done - 1) * self.frame_ns;
-        let u = 1.0 - (t_next.saturating_sub(elapsed) as f64 / self.frame_ns as f64).clamp(0.0, 1.0);
+        // `frames.0` is walk frame `due` (at `due * frame_ns <= elapsed`), `frames.1` the next.
+        let u = ((elapsed - due * self.frame_ns) as f64 / self.frame_ns as f64).clamp(0.0, 1.0);
         for (id, (a, b)) in self.ids.iter().zip(&self.frames) {
             out.emit(*id, lerp(a, b, u as f32));
         }
@@ -333,7 +333,65 @@ pub fn build(
 
 #[cfg(test)]
 mod tests {
-    use super::bend_direction_deg;
+    use super::*;
+    use frond_motion::graph::{ControlPoint, GraphParams, build_graph, control_positions_m};
+    use frond_motion::skeleton::Skeleton;
+
+    struct Sink(Vec<Joints>);
+    impl FrameSink for Sink {
+        fn emit(&mut self, _element: u16, joints_deg: Joints) {
+            self.0.push(joints_deg);
+        }
+    }
+
+    #[test]
+    fn published_frames_interpolate_between_walk_frames() {
+        let sway: Vec<PoseFrame> = (0..600)
+            .map(|i| {
+                let t = i as f64;
+                let mut joints_deg = [[0.0f32; 3]; JOINTS];
+                joints_deg[0] = [
+                    (15.0 * (std::f64::consts::TAU * t / 41.3).sin()) as f32,
+                    (15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin()) as f32,
+                    0.0,
+                ];
+                PoseFrame { t: t / 30.0, joints_deg }
+            })
+            .collect();
+        let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
+        let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
+        // The same walk, frame by frame, as the reference.
+        let mut reference = Walker::new(&graph, 0, 4, 30.0);
+        let walk: Vec<Joints> =
+            (0..40).map(|_| reference.next_frame(&graph, &sway).pose.joints_deg).collect();
+        let (mut stage, _) = GraphStage::new(graph, sway, &[40], 4, 30.0, 0, "sway");
+        let hand = HandSample::default();
+        let mut sink = Sink(Vec::new());
+        // Publishing at 60 Hz on 1 ms ticks: a publication at time t shows the walk between
+        // frames floor(t / 33.3 ms) and the next, in proportion.
+        let mut times = Vec::new();
+        for tick in 0..1000u64 {
+            let ctx = TickContext { now_ns: tick * 1_000_000, device_time_us: 0, hand };
+            let before = sink.0.len();
+            stage.tick(&ctx, &mut sink);
+            if sink.0.len() > before {
+                times.push(ctx.now_ns);
+            }
+        }
+        assert!(sink.0.len() >= 59, "{} publications in 1 s", sink.0.len());
+        let frame_ns = (1e9f64 / 30.0).round() as u64;
+        for (k, got) in sink.0.iter().enumerate().take(50) {
+            let due = (times[k] / frame_ns) as usize;
+            let (a, b) = (walk[due], walk[due + 1]);
+            let u = (times[k] - due as u64 * frame_ns) as f32 / frame_ns as f32;
+            for j in 0..JOINTS {
+                for c in 0..3 {
+                    let want = a[j][c] + (b[j][c] - a[j][c]) * u;
+                    assert!((got[j][c] - want).abs() < 1e-3, "publication {k}: {} vs {want}", got[j][c]);
+                }
+            }
+        }
+    }
 
     #[test]
     fn the_hand_bend_sets_the_goal_direction() {
