@@ -28,7 +28,7 @@ use rstar::primitives::GeomWithData;
 
 use super::{
     ControlPoint, Edge, EdgeKind, GraphError, MAX_EXTEND, MAX_GRAPH_SAMPLES, MAX_INBETWEENS, MotionGraph,
-    Pruned,
+    Pruned, Rows,
 };
 use crate::sample::PoseFrame;
 
@@ -187,25 +187,11 @@ pub fn build_graph(
     transitions.sort_unstable();
     transitions.dedup_by_key(|e| (e.0, e.1));
 
-    // Adjacency over frames: successor lists (backbone implicit) and predecessor lists.
+    // Adjacency over frames (the backbone implicit): transitions by source and by target.
+    let succ = Rows::new(n, transitions.iter().map(|&(a, b, _)| (a as usize, b)));
+    let preds = Rows::new(n, transitions.iter().map(|&(a, b, _)| (b as usize, a)));
     let mut alive = vec![true; n];
-    let mut out_degree: Vec<u32> = (0..n).map(|i| u32::from(i + 1 < n)).collect();
-    let mut pred_first = vec![0u32; n + 1];
-    for &(_, b, _) in &transitions {
-        pred_first[b as usize + 1] += 1;
-    }
-    for &(a, _, _) in &transitions {
-        out_degree[a as usize] += 1;
-    }
-    for i in 0..n {
-        pred_first[i + 1] += pred_first[i];
-    }
-    let mut preds = vec![0u32; transitions.len()];
-    let mut fill = pred_first.clone();
-    for &(a, b, _) in &transitions {
-        preds[fill[b as usize] as usize] = a;
-        fill[b as usize] += 1;
-    }
+    let mut out_degree: Vec<u32> = (0..n).map(|i| u32::from(i + 1 < n) + succ.row(i).len() as u32).collect();
     // Dead ends: remove nodes with no way on, repeatedly.
     let mut queue: Vec<usize> = (0..n).filter(|&i| out_degree[i] == 0).collect();
     let mut dead = Vec::new();
@@ -226,47 +212,25 @@ pub fn build_graph(
         if i > 0 {
             drop_pred(i - 1);
         }
-        for &q in &preds[pred_first[i] as usize..pred_first[i + 1] as usize] {
+        for &q in preds.row(i) {
             drop_pred(q as usize);
         }
     }
     dead.sort_unstable();
     pruned.dead_end_frames = ranges(&dead);
 
-    // Successor lists of the survivors, for the strongly connected parts.
-    let mut succ_first = vec![0u32; n + 1];
-    for &(a, b, _) in &transitions {
-        if alive[a as usize] && alive[b as usize] {
-            succ_first[a as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        succ_first[i + 1] += succ_first[i];
-    }
-    let mut succ = vec![0u32; succ_first[n] as usize];
-    let mut fill = succ_first.clone();
-    for &(a, b, _) in &transitions {
-        if alive[a as usize] && alive[b as usize] {
-            succ[fill[a as usize] as usize] = b;
-            fill[a as usize] += 1;
-        }
-    }
+    // The strongly connected parts of the survivors (Tarjan skips the dead): edge 0 is the
+    // backbone where there is one, then the transitions.
     let component = largest_scc(n, &alive, |i, e| {
-        let backbone = i + 1 < n && alive[i + 1];
-        let d = (succ_first[i + 1] - succ_first[i]) as usize;
-        if backbone {
-            if e == 0 {
-                Some(i + 1)
-            } else if e - 1 < d {
-                Some(succ[succ_first[i] as usize + e - 1] as usize)
-            } else {
-                None
+        let transition = if i + 1 < n {
+            match e {
+                0 => return Some(i + 1),
+                _ => e - 1,
             }
-        } else if e < d {
-            Some(succ[succ_first[i] as usize + e] as usize)
         } else {
-            None
-        }
+            e
+        };
+        succ.row(i).get(transition).map(|&s| s as usize)
     });
     let keep: Vec<bool> = (0..n).map(|i| alive[i] && component[i]).collect();
     let outside: Vec<u32> = (0..n).filter(|&i| alive[i] && !component[i]).map(|i| i as u32).collect();

@@ -162,13 +162,7 @@ impl MotionGraph {
         pruned: Pruned,
     ) -> Self {
         edges.sort_by_key(|e| (e.from, e.kind == EdgeKind::Transition, e.to));
-        let mut first_edge = vec![0u32; node_frames.len() + 1];
-        for e in &edges {
-            first_edge[e.from as usize + 1] += 1;
-        }
-        for i in 0..node_frames.len() {
-            first_edge[i + 1] += first_edge[i];
-        }
+        let first_edge = row_starts(node_frames.len(), edges.iter().map(|e| e.from as usize));
         MotionGraph { node_frames, node_positions_m, edges, first_edge, pruned }
     }
 
@@ -196,6 +190,46 @@ impl MotionGraph {
     /// The node at take frame `frame`, if the graph kept it.
     pub fn node_at_frame(&self, frame: u32) -> Option<u32> {
         self.node_frames.binary_search(&frame).ok().map(|i| i as u32)
+    }
+}
+
+/// Where each key's row starts in values grouped by key (compressed sparse rows): row `k` is
+/// `start[k]..start[k + 1]`, for `keys` keys (each `< keys`).
+pub(crate) fn row_starts(keys: usize, of: impl Iterator<Item = usize>) -> Vec<u32> {
+    let mut start = vec![0u32; keys + 1];
+    for k in of {
+        start[k + 1] += 1;
+    }
+    for k in 0..keys {
+        start[k + 1] += start[k];
+    }
+    start
+}
+
+/// Values grouped by a key, each row in the order given (compressed sparse rows): the
+/// adjacency lists of the graph build and of the pose planner.
+#[derive(Debug, Clone)]
+pub(crate) struct Rows<T> {
+    start: Vec<u32>,
+    values: Vec<T>,
+}
+
+impl<T: Copy + Default> Rows<T> {
+    /// Groups `items` (`(key, value)`, keys `< keys`) by key.
+    pub(crate) fn new(keys: usize, items: impl Iterator<Item = (usize, T)> + Clone) -> Self {
+        let start = row_starts(keys, items.clone().map(|(k, _)| k));
+        let mut values = vec![T::default(); start[keys] as usize];
+        let mut fill = start.clone();
+        for (k, v) in items {
+            values[fill[k] as usize] = v;
+            fill[k] += 1;
+        }
+        Rows { start, values }
+    }
+
+    /// The values of key `k`.
+    pub(crate) fn row(&self, k: usize) -> &[T] {
+        &self.values[self.start[k] as usize..self.start[k + 1] as usize]
     }
 }
 

@@ -22,7 +22,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use super::{Edge, EdgeKind, MotionGraph};
+use super::{Edge, EdgeKind, MotionGraph, Rows};
 use crate::rng::SeededRng;
 use crate::sample::{JOINTS, PoseFrame};
 
@@ -54,8 +54,8 @@ impl PosePlan {
 /// never allocates.
 #[derive(Debug, Clone)]
 pub struct PosePlanner {
-    first: Vec<u32>,
-    rev: Vec<(u32, u32)>,
+    /// Each node's incoming edges as (source, frames).
+    rev: Rows<(u32, u32)>,
     dist: Vec<u32>,
     heap: BinaryHeap<Reverse<(u32, u32)>>,
     target: Option<u32>,
@@ -65,24 +65,10 @@ pub struct PosePlanner {
 impl PosePlanner {
     /// Buffers for `graph` (allocates; off the realtime thread).
     pub fn new(graph: &MotionGraph) -> Self {
-        let n = graph.len();
-        let mut first = vec![0u32; n + 1];
-        for e in &graph.edges {
-            first[e.to as usize + 1] += 1;
-        }
-        for i in 0..n {
-            first[i + 1] += first[i];
-        }
-        let mut rev = vec![(0u32, 0u32); graph.edges.len()];
-        let mut fill = first.clone();
-        for e in &graph.edges {
-            rev[fill[e.to as usize] as usize] = (e.from, e.frames());
-            fill[e.to as usize] += 1;
-        }
+        let rev = Rows::new(graph.len(), graph.edges.iter().map(|e| (e.to as usize, (e.from, e.frames()))));
         PosePlanner {
-            first,
             rev,
-            dist: vec![u32::MAX; n],
+            dist: vec![u32::MAX; graph.len()],
             heap: BinaryHeap::with_capacity(graph.edges.len() + 1),
             target: None,
             done: false,
@@ -112,8 +98,7 @@ impl PosePlanner {
             if d > self.dist[v as usize] {
                 continue;
             }
-            let (a, b) = (self.first[v as usize] as usize, self.first[v as usize + 1] as usize);
-            for &(u, w) in &self.rev[a..b] {
+            for &(u, w) in self.rev.row(v as usize) {
                 let nd = d.saturating_add(w);
                 if nd < self.dist[u as usize] {
                     self.dist[u as usize] = nd;
