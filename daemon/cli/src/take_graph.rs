@@ -65,17 +65,21 @@ pub struct Graph {
     pub force: bool,
 }
 
-/// The take's poses at `fps` and the control point's path, with the rig it was recorded on (or
-/// `--rig`).
-fn take_and_path(
-    g: &Global,
-    name: &str,
-    rig: Option<&Path>,
-    control: ControlPoint,
-    fps: f64,
-) -> anyhow::Result<(Take, Clip, Vec<[f64; 3]>)> {
+/// The take's global poses at `fps`.
+fn take_clip(g: &Global, name: &str, fps: f64) -> anyhow::Result<(Take, Clip)> {
     let take = read_take(g, name)?;
     let clip = global_clip(&take, fps, name)?;
+    Ok((take, clip))
+}
+
+/// The control point's path over `poses` of `take`, by forward kinematics of the rig it was
+/// recorded on (or `--rig`).
+fn control_path(
+    take: &Take,
+    rig: Option<&Path>,
+    control: ControlPoint,
+    poses: &[PoseFrame],
+) -> anyhow::Result<Vec<[f64; 3]>> {
     let rig_spec = rig.map_or_else(|| PathBuf::from(&take.header.rig_name), Path::to_path_buf);
     let (rig, _) = load_rig(&rig_spec).map_err(|e| {
         anyhow!(
@@ -84,8 +88,7 @@ fn take_and_path(
         )
     })?;
     let top_m = rig.sim_node_heights_m()[4] as f32;
-    let path = control_positions_m(control, &Skeleton::from_rig(&rig), top_m, &clip.frames);
-    Ok((take, clip, path))
+    Ok(control_positions_m(control, &Skeleton::from_rig(&rig), top_m, poses))
 }
 
 /// Builds the graph and writes `NAME.graph.json` (or `-o FILE`).
@@ -109,7 +112,8 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
     if out.exists() && !a.force {
         return usage(format!("{} exists; use --force to replace it", out.display()));
     }
-    let (_, clip, path) = take_and_path(g, &a.name, a.rig.as_deref(), control, a.fps)?;
+    let (take, clip) = take_clip(g, &a.name, a.fps)?;
+    let path = control_path(&take, a.rig.as_deref(), control, &clip.frames)?;
     let graph = match build_graph(&clip.frames, &path, &params) {
         Ok(graph) => graph,
         Err(e @ (GraphError::NoTransition { .. } | GraphError::SampleCount(_))) => {
@@ -170,9 +174,6 @@ pub struct Walk {
     /// Plants walking the graph.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub plants: u32,
-    /// Rig of the take [default: the rig it was recorded on].
-    #[arg(long, value_name = "NAME|FILE")]
-    pub rig: Option<PathBuf>,
     /// Print the path and the transitions taken as JSON on stderr.
     #[arg(long)]
     pub explain: bool,
@@ -260,8 +261,7 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     }
     let graph_path = a.graph.clone().unwrap_or_else(|| default_graph_path(g, &a.name));
     let file = read_graph_file(&graph_path)?;
-    let control = file.control_point()?;
-    let (take, clip, _) = take_and_path(g, &a.name, a.rig.as_deref(), control, file.fps)?;
+    let (take, clip) = take_clip(g, &a.name, file.fps)?;
     let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", graph_path.display()))?;
     let poses = &clip.frames;
     let goal = match (&a.goal_pose, a.goal_dir) {

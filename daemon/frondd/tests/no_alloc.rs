@@ -250,19 +250,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
     let live_field = FieldStage::new(looped, field, &ids, 5, t0, report.clone()).unwrap();
     // Four plants walking a motion graph of a Lissajous sway (seed 003, section 6).
-    use frond_motion::PoseFrame;
-    let sway: Vec<PoseFrame> = (0..1200)
-        .map(|i| {
-            let t = i as f64;
-            let mut joints_deg = [[0.0f32; 3]; 4];
-            joints_deg[0] = [
-                (15.0 * (std::f64::consts::TAU * t / 41.3).sin()) as f32,
-                (15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin()) as f32,
-                0.0,
-            ];
-            PoseFrame { t: t / 30.0, joints_deg }
-        })
-        .collect();
+    let sway = frond_motion::graph::sample_sway(1200);
     let control = frond_motion::graph::ControlPoint::Top;
     let path = frond_motion::graph::control_positions_m(
         control,

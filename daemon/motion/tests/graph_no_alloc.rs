@@ -4,31 +4,15 @@
 
 use frond_motion::graph::walk::PosePlan;
 use frond_motion::graph::{
-    ControlPoint, EdgeKind, Goal, GraphParams, Walker, build_graph, control_positions_m,
+    ControlPoint, EdgeKind, Goal, GraphParams, Walker, build_graph, control_positions_m, sample_sway,
 };
-use frond_motion::sample::{JOINTS, PoseFrame};
 use frond_motion::skeleton::Skeleton;
 
 mod common;
 
-fn sway(n: usize) -> Vec<PoseFrame> {
-    (0..n)
-        .map(|i| {
-            let t = i as f64;
-            let mut joints_deg = [[0.0f32; 3]; JOINTS];
-            joints_deg[0] = [
-                (15.0 * (std::f64::consts::TAU * t / 41.3).sin()) as f32,
-                (15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin()) as f32,
-                0.0,
-            ];
-            PoseFrame { t: t / 30.0, joints_deg }
-        })
-        .collect()
-}
-
 #[test]
 fn walkers_do_not_allocate_per_frame() {
-    let poses = sway(1200);
+    let poses = sample_sway(1200);
     let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &poses);
     let graph = build_graph(&poses, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
     let plan = PosePlan::new(&graph, (graph.len() / 3) as u32);

@@ -233,14 +233,7 @@ pub fn build(
     let field = Field::from_json(field_json)
         .map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
     let count = field.plants.len();
-    let publish = usize::from(plants).min(count);
-    if ctx.free_ids.len() < publish {
-        return Err(BuildError::invalid(format!(
-            "no room for {publish} more elements ({} free)",
-            ctx.free_ids.len()
-        )));
-    }
-    let ids = &ctx.free_ids[..publish];
+    let ids = super::element_ids(ctx, usize::from(plants).min(count))?;
     let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
     let looped = looped_clip(&bytes).map_err(invalid)?;
     let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));

@@ -155,13 +155,10 @@ impl GraphStage {
     }
 
     fn set_goals(&mut self) {
+        // Direction and random goals hold no heap data: cloning them never allocates.
         let goal = self.walker_goal();
         for w in &mut self.walkers {
-            // Direction and random goals hold no heap data: setting them never allocates.
-            w.set_goal(match &goal {
-                Goal::Direction { dir_deg } => Goal::Direction { dir_deg: *dir_deg },
-                _ => Goal::Random,
-            });
+            w.set_goal(goal.clone());
         }
     }
 
@@ -291,12 +288,7 @@ pub fn build(
             "a graph walk has 1..={MAX_GRAPH_PLANTS} plants, not {plants}"
         )));
     }
-    if ctx.free_ids.len() < plants {
-        return Err(BuildError::invalid(format!(
-            "no room for {plants} more elements ({} free)",
-            ctx.free_ids.len()
-        )));
-    }
+    let ids = super::element_ids(ctx, plants)?;
     frond_protocol::paths::validate_take_name(graph)
         .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: format!("graph name: {e}") })?;
     let path = ctx.takes_dir.join(format!("{graph}.graph.json"));
@@ -315,9 +307,8 @@ pub fn build(
             damage.map(|d| format!(" (damaged: {d})")).unwrap_or_default()
         ))
     })?;
-    let ids = ctx.free_ids[..plants].to_vec();
-    let (stage, report) = GraphStage::new(motion_graph, poses, &ids, seed, file.fps, ctx.now_ns, take);
-    let elements = super::plant_elements(&ids, "walker", ctx);
+    let (stage, report) = GraphStage::new(motion_graph, poses, ids, seed, file.fps, ctx.now_ns, take);
+    let elements = super::plant_elements(ids, "walker", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
@@ -346,18 +337,7 @@ mod tests {
 
     #[test]
     fn published_frames_interpolate_between_walk_frames() {
-        let sway: Vec<PoseFrame> = (0..600)
-            .map(|i| {
-                let t = i as f64;
-                let mut joints_deg = [[0.0f32; 3]; JOINTS];
-                joints_deg[0] = [
-                    (15.0 * (std::f64::consts::TAU * t / 41.3).sin()) as f32,
-                    (15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin()) as f32,
-                    0.0,
-                ];
-                PoseFrame { t: t / 30.0, joints_deg }
-            })
-            .collect();
+        let sway = frond_motion::graph::sample_sway(600);
         let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
         let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
         // The same walk, frame by frame, as the reference.

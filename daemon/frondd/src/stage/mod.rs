@@ -125,6 +125,13 @@ pub fn rig_info(rig: &Rig) -> RigInfo {
     RigInfo { name: rig.name.clone(), joint_names: rig.joints.iter().map(|j| j.name.clone()).collect() }
 }
 
+/// The first `count` element ids no running stage uses, or a refusal saying how many are free.
+pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [u16], BuildError> {
+    ctx.free_ids.get(..count).ok_or_else(|| {
+        BuildError::invalid(format!("no room for {count} more elements ({} free)", ctx.free_ids.len()))
+    })
+}
+
 /// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants (a field's,
 /// a graph walk's), one per id.
 pub fn plant_elements(ids: &[u16], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {

@@ -222,13 +222,10 @@ pub fn build_graph(
     // The strongly connected parts of the survivors (Tarjan skips the dead): edge 0 is the
     // backbone where there is one, then the transitions.
     let component = largest_scc(n, &alive, |i, e| {
-        let transition = if i + 1 < n {
-            match e {
-                0 => return Some(i + 1),
-                _ => e - 1,
-            }
-        } else {
-            e
+        let transition = match (i + 1 < n, e) {
+            (true, 0) => return Some(i + 1),
+            (true, e) => e - 1,
+            (false, e) => e,
         };
         succ.row(i).get(transition).map(|&s| s as usize)
     });

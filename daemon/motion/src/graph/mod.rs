@@ -87,6 +87,22 @@ pub fn control_positions_m(
     poses.iter().map(|p| control.position_m(skeleton, top_m, p).as_dvec3().to_array()).collect()
 }
 
+/// A sway whose top path crosses itself often, `frames` frames at 30 per second: joint 0 swings
+/// 15 degrees in pitch and in yaw with incommensurate periods (41.3 and 29.7 frames), the other
+/// joints at half its angles. The motion the graph, allocation and stage tests build graphs of.
+pub fn sample_sway(frames: usize) -> Vec<PoseFrame> {
+    (0..frames)
+        .map(|i| {
+            let t = i as f64;
+            let pitch = 15.0 * (std::f64::consts::TAU * t / 41.3).sin();
+            let yaw = 15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin();
+            let mut joints_deg = [[(pitch * 0.5) as f32, (yaw * 0.5) as f32, 0.0]; JOINTS];
+            joints_deg[0] = [pitch as f32, yaw as f32, 0.0];
+            PoseFrame { t: t / 30.0, joints_deg }
+        })
+        .collect()
+}
+
 /// How an edge moves between two nodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -1,5 +1,5 @@
 //! Motion graph and walk invariants (seed 003, sections 5 and 6), on motions whose geometry is
-//! known: a Lissajous sway that crosses itself often, a straight sweep that never does.
+//! known: the Lissajous [`sample_sway`] that crosses itself often, a straight sweep that never does.
 
 use super::build::{GraphParams, build_graph, pose_distance_deg};
 use super::file::{GraphFile, GraphFileError};
@@ -12,24 +12,6 @@ const FPS: f64 = 30.0;
 
 fn skeleton() -> Skeleton {
     Skeleton::even(1.0)
-}
-
-/// Joint 0 sways in pitch and yaw with incommensurate periods (frames), the others follow at
-/// half the angle: the top's path is a Lissajous figure that crosses itself many times.
-fn lissajous(frames: usize) -> Vec<PoseFrame> {
-    (0..frames)
-        .map(|i| {
-            let t = i as f64;
-            let pitch = 15.0 * (std::f64::consts::TAU * t / 41.3).sin();
-            let yaw = 15.0 * (std::f64::consts::TAU * t / 29.7 + 0.5).sin();
-            let mut joints_deg = [[0.0f32; 3]; JOINTS];
-            joints_deg[0] = [pitch as f32, yaw as f32, 0.0];
-            for j in joints_deg.iter_mut().skip(1) {
-                *j = [(pitch * 0.5) as f32, (yaw * 0.5) as f32, 0.0];
-            }
-            PoseFrame { t: t / FPS, joints_deg }
-        })
-        .collect()
 }
 
 fn positions(poses: &[PoseFrame]) -> Vec<[f64; 3]> {
@@ -58,7 +40,7 @@ fn reach(graph: &MotionGraph, from: u32, reverse: bool) -> Vec<bool> {
 
 #[test]
 fn the_graph_is_closed_and_strongly_connected() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let g = graph_of(&poses);
     assert!(g.transitions() >= 10, "only {} transitions", g.transitions());
     for i in 0..g.len() as u32 {
@@ -66,14 +48,14 @@ fn the_graph_is_closed_and_strongly_connected() {
         let t = g.out_edges(i).iter().filter(|e| e.kind == EdgeKind::Transition).count();
         assert!(t <= 3, "node {i} has {t} transitions, the default cap is 3");
     }
-    assert!(g.pruned.transitions_over_cap > 0, "the Lissajous figure crosses itself more than 3 times");
+    assert!(g.pruned.transitions_over_cap > 0, "the sample sway crosses itself more than 3 times");
     assert!(reach(&g, 0, false).iter().all(|&r| r), "not every node is reachable from node 0");
     assert!(reach(&g, 0, true).iter().all(|&r| r), "node 0 is not reachable from every node");
 }
 
 #[test]
 fn transitions_lie_within_the_radius_and_in_front() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let p = positions(&poses);
     let g = graph_of(&poses);
     let k = 2;
@@ -94,7 +76,7 @@ fn transitions_lie_within_the_radius_and_in_front() {
 
 #[test]
 fn one_transition_per_contiguous_segment_the_latest() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let g = graph_of(&poses);
     for i in 0..g.len() as u32 {
         let targets: Vec<u32> = g
@@ -107,7 +89,7 @@ fn one_transition_per_contiguous_segment_the_latest() {
             assert!(w[1] > w[0] + 1, "node {i} has transitions to consecutive frames {w:?}");
         }
     }
-    assert!(g.pruned.transitions_same_segment > 0, "the Lissajous figure has runs of neighbours");
+    assert!(g.pruned.transitions_same_segment > 0, "the sample sway has runs of neighbours");
 }
 
 #[test]
@@ -127,7 +109,7 @@ fn a_straight_sweep_is_refused() {
 #[test]
 fn a_tail_that_leaves_for_good_is_pruned_as_a_dead_end() {
     // The sway, then a slow straight drift away from everything before.
-    let mut poses = lissajous(900);
+    let mut poses = sample_sway(900);
     let last = *poses.last().unwrap();
     for i in 0..60 {
         let mut p = last;
@@ -145,7 +127,7 @@ fn a_tail_that_leaves_for_good_is_pruned_as_a_dead_end() {
 
 #[test]
 fn bad_parameters_and_sizes_are_refused() {
-    let poses = lissajous(100);
+    let poses = sample_sway(100);
     let p = positions(&poses);
     let mut params = GraphParams::new(ControlPoint::Top);
     params.extend = 65;
@@ -176,7 +158,7 @@ fn the_control_point_follows_forward_kinematics() {
 
 #[test]
 fn random_walks_never_stall_and_are_deterministic() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let g = graph_of(&poses);
     let run = |seed| {
         let mut w = Walker::new(&g, 0, seed, FPS);
@@ -204,7 +186,7 @@ fn max_accel(poses: &[PoseFrame]) -> f64 {
 
 #[test]
 fn inbetweens_have_no_kink_at_either_end() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let g = graph_of(&poses);
     let mut w = Walker::new(&g, 0, 3, FPS);
     let walk: Vec<PoseFrame> = (0..20_000).map(|_| w.next_frame(&g, &poses).pose).collect();
@@ -236,7 +218,7 @@ fn inbetweens_have_no_kink_at_either_end() {
 
 #[test]
 fn the_number_of_inbetweens_grows_with_the_distance_bridged() {
-    let poses = lissajous(2400);
+    let poses = sample_sway(2400);
     let g = graph_of(&poses);
     let mut pairs: Vec<(f64, u32)> = g
         .edges
@@ -264,7 +246,7 @@ fn fraction_towards(walk: &[PoseFrame], dir_deg: f64) -> f64 {
 
 #[test]
 fn goal_directed_walks_spend_clearly_more_time_towards_the_goal() {
-    let poses = lissajous(2400);
+    let poses = sample_sway(2400);
     let g = graph_of(&poses);
     for dir_deg in [0.0, 90.0, 225.0] {
         let mut random = Walker::new(&g, 0, 11, FPS);
@@ -279,7 +261,7 @@ fn goal_directed_walks_spend_clearly_more_time_towards_the_goal() {
 
 #[test]
 fn a_pose_goal_is_reached_by_the_shortest_path_and_revisited() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let g = graph_of(&poses);
     let target = (g.len() / 2) as u32;
     let plan = PosePlan::new(&g, target);
@@ -297,7 +279,7 @@ fn a_pose_goal_is_reached_by_the_shortest_path_and_revisited() {
 
 #[test]
 fn the_graph_file_round_trips_and_refuses_damage() {
-    let poses = lissajous(1200);
+    let poses = sample_sway(1200);
     let params = GraphParams::new(ControlPoint::Top);
     let g = build_graph(&poses, &positions(&poses), &params).unwrap();
     let file = GraphFile::new(&g, &params, "sway", FPS, &poses);
@@ -325,7 +307,7 @@ mod damaged_files {
         /// without a panic: every index the walker uses was validated.
         #[test]
         fn damaged_graph_files_never_panic(edits in proptest::collection::vec((any::<usize>(), 0u8..128), 1..8)) {
-            let poses = lissajous(300);
+            let poses = sample_sway(300);
             let params = GraphParams::new(ControlPoint::Top);
             let g = build_graph(&poses, &positions(&poses), &params).unwrap();
             let mut bytes = GraphFile::new(&g, &params, "sway", FPS, &poses).to_json().into_bytes();
