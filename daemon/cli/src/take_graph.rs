@@ -154,11 +154,15 @@ fn count(ranges: &[[u32; 2]]) -> u64 {
 /// What `frond take walk` was asked.
 #[derive(Debug, clap::Args)]
 pub struct Walk {
-    /// Take name (the one the graph was built on).
-    pub name: String,
-    /// Graph file (from frond take graph) [default: NAME.graph.json in the takes directory].
+    /// Take names, each with its graph (seed 003, section 6.1 instancing: plant `p` walks take
+    /// `p mod count`'s graph, so several takes, or one take's graphs for several control points
+    /// built into files of their own, make one grove).
+    #[arg(required = true, num_args = 1..)]
+    pub names: Vec<String>,
+    /// Graph file (from frond take graph), one per take in the same order
+    /// [default: NAME.graph.json in the takes directory].
     #[arg(long, value_name = "FILE")]
-    pub graph: Option<PathBuf>,
+    pub graph: Vec<PathBuf>,
     /// Seconds to walk.
     #[arg(long, value_name = "S")]
     pub duration: f64,
@@ -171,13 +175,13 @@ pub struct Walk {
     /// Goal pose: frame=N or 12 comma-separated angles, degrees.
     #[arg(long, value_name = "P", allow_hyphen_values = true)]
     pub goal_pose: Option<String>,
-    /// Plants walking the graph.
-    #[arg(long, default_value_t = 1, value_name = "N")]
-    pub plants: u32,
+    /// Plants walking [default: one per take].
+    #[arg(long, value_name = "N")]
+    pub plants: Option<u32>,
     /// Print the path and the transitions taken as JSON on stderr.
     #[arg(long)]
     pub explain: bool,
-    /// Name of the take to write [default: NAME-walk].
+    /// Name of the take to write [default: NAME-walk, NAME the first take].
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub output: Option<String>,
     /// Print the first plant's poses as JSON Lines on stdout instead of writing a take.
@@ -246,40 +250,64 @@ fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u
         .unwrap_or(0)
 }
 
-/// Walks the graph and writes the take (one layer per extra plant).
+/// One take a walk draws on: its graph and poses.
+struct Source {
+    name: String,
+    graph_path: PathBuf,
+    fps: f64,
+    take: Take,
+    poses: Vec<PoseFrame>,
+    graph: MotionGraph,
+    goal: frond_motion::graph::Goal,
+}
+
+/// Reads take `name` with its graph and resolves the goal on it.
+fn walk_source(g: &Global, a: &Walk, name: &str, graph_path: PathBuf) -> anyhow::Result<Source> {
+    let file = read_graph_file(&graph_path)?;
+    let (take, clip) = take_clip(g, name, file.fps)?;
+    let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", graph_path.display()))?;
+    let poses = clip.frames;
+    let goal = match (&a.goal_pose, a.goal_dir) {
+        (Some(p), _) => {
+            let pose = parse_goal_pose(p, &poses)?;
+            let node = nearest_node(&graph, &poses, &pose);
+            frond_motion::graph::Goal::Pose(PosePlan::new(&graph, node))
+        }
+        (None, Some(dir_deg)) => frond_motion::graph::Goal::Direction { dir_deg },
+        (None, None) => frond_motion::graph::Goal::Random,
+    };
+    Ok(Source { name: name.to_string(), graph_path, fps: file.fps, take, poses, graph, goal })
+}
+
+/// Walks the graphs and writes one take per plant.
 pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= MAX_WALK_S) {
         return usage(format!("--duration must be in (0, {MAX_WALK_S}] seconds, got {}", a.duration));
     }
-    if a.plants == 0 || a.plants > MAX_PLANTS {
-        return usage(format!("--plants must be 1 to {MAX_PLANTS}, got {}", a.plants));
+    let plants = a.plants.unwrap_or(a.names.len().min(MAX_PLANTS as usize) as u32);
+    if plants == 0 || plants > MAX_PLANTS || a.names.len() > MAX_PLANTS as usize {
+        return usage(format!(
+            "--plants must be 1 to {MAX_PLANTS} (and at most as many takes), got {plants}"
+        ));
     }
     if let Some(d) = a.goal_dir
         && !(d.is_finite() && d.abs() <= 360.0)
     {
         return usage(format!("--goal-dir must be a finite angle within +-360 degrees, got {d}"));
     }
-    let graph_path = a.graph.clone().unwrap_or_else(|| default_graph_path(g, &a.name));
-    let file = read_graph_file(&graph_path)?;
-    let (take, clip) = take_clip(g, &a.name, file.fps)?;
-    let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", graph_path.display()))?;
-    let poses = &clip.frames;
-    let goal = match (&a.goal_pose, a.goal_dir) {
-        (Some(p), _) => {
-            let pose = parse_goal_pose(p, poses)?;
-            let node = nearest_node(&graph, poses, &pose);
-            frond_motion::graph::Goal::Pose(PosePlan::new(&graph, node))
-        }
-        (None, Some(dir_deg)) => frond_motion::graph::Goal::Direction { dir_deg },
-        (None, None) => frond_motion::graph::Goal::Random,
-    };
-    let frames = (a.duration * file.fps).round().max(1.0) as usize;
-    if a.jsonl && a.plants > 1 {
-        return usage("--jsonl prints one plant; use it without --plants, or write takes");
+    if !a.graph.is_empty() && a.graph.len() != a.names.len() {
+        return usage(format!(
+            "give one --graph per take ({} takes, {} graphs), or none for NAME.graph.json",
+            a.names.len(),
+            a.graph.len()
+        ));
     }
-    let base = a.output.clone().unwrap_or_else(|| format!("{}-walk", a.name));
-    // Check every output name before walking (no half-written set of takes).
-    for plant in 0..a.plants {
+    if a.jsonl && plants > 1 {
+        return usage("--jsonl prints one plant; use it with one take and without --plants, or write takes");
+    }
+    let base = a.output.clone().unwrap_or_else(|| format!("{}-walk", a.names[0]));
+    // Check every output name before reading or walking (no half-written set of takes).
+    for plant in 0..plants {
         let name = plant_take_name(&base, plant);
         if let Err(e) = frond_protocol::paths::validate_take_name(&name) {
             return usage(e.to_string());
@@ -292,17 +320,26 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             ));
         }
     }
+    let mut sources = Vec::with_capacity(a.names.len());
+    for (i, name) in a.names.iter().enumerate() {
+        let path = a.graph.get(i).cloned().unwrap_or_else(|| default_graph_path(g, name));
+        sources.push(walk_source(g, &a, name, path)?);
+    }
     let mut outputs = Vec::new();
     let mut explains = Vec::new();
-    for plant in 0..a.plants {
-        // Plant p: seed + p, starting at a node spread over the graph.
-        let start = (plant as u64 * graph.len() as u64 / a.plants as u64) as u32;
-        let mut w = Walker::new(&graph, start, a.seed.wrapping_add(plant as u64), file.fps);
-        w.set_goal(goal.clone());
+    for plant in 0..plants {
+        // Plant p: take p mod count, seed + p, starting at a node spread over its graph.
+        let src = &sources[plant as usize % sources.len()];
+        let (graph, poses) = (&src.graph, &src.poses);
+        let start = (plant as u64 * graph.len() as u64 / plants as u64) as u32;
+        let seed = a.seed.wrapping_add(plant as u64);
+        let mut w = Walker::new(graph, start, seed, src.fps);
+        w.set_goal(src.goal.clone());
+        let frames = (a.duration * src.fps).round().max(1.0) as usize;
         let mut walked = Vec::with_capacity(frames);
         let mut taken = Vec::new();
         for _ in 0..frames {
-            let s = w.next_frame(&graph, poses);
+            let s = w.next_frame(graph, poses);
             if a.explain
                 && let (Some(node), Some(e)) = (s.node, s.chose)
                 && e.kind == EdgeKind::Transition
@@ -316,19 +353,20 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             }
             walked.push(s.pose);
         }
-        let clip = Clip { fps: file.fps, frames: walked };
-        let mut out_take = take.clone();
+        let clip = Clip { fps: src.fps, frames: walked };
+        let mut out_take = src.take.clone();
         out_take.frames.clear();
         out_take.markers.clear();
-        out_take.header.tick_rate_hz = file.fps.round().max(1.0) as u32;
-        out_take.header.filter =
-            format!("walk seed={} goal={}", a.seed.wrapping_add(plant as u64), goal_name(&a));
+        out_take.header.tick_rate_hz = src.fps.round().max(1.0) as u32;
+        out_take.header.filter = format!("walk of {} seed={seed} goal={}", src.name, goal_name(&a));
         out_take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
-        outputs.push((plant_take_name(&base, plant), out_take));
+        outputs.push((plant_take_name(&base, plant), out_take, src.fps));
         if a.explain {
             explains.push(serde_json::json!({
                 "plant": plant,
-                "seed": a.seed.wrapping_add(plant as u64),
+                "take": src.name,
+                "graph": src.graph_path,
+                "seed": seed,
                 "start_frame": graph.node_frames[start as usize],
                 "end_node_frame": graph.node_frames[w.node() as usize],
                 "transitions_taken": w.transitions_taken(),
@@ -337,14 +375,11 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         }
     }
     if a.explain {
-        eprintln!(
-            "{}",
-            serde_json::json!({ "graph": graph_path, "goal": goal_name(&a), "plants": explains })
-        );
+        let graphs: Vec<_> = sources.iter().map(|s| &s.graph_path).collect();
+        eprintln!("{}", serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains }));
     }
-    let mut out = Output { output: None, jsonl: a.jsonl, force: a.force, fps: file.fps };
-    for (name, t) in outputs {
-        out.output = Some(name.clone());
+    for (name, t, fps) in outputs {
+        let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps };
         emit(g, t, name, &out)?;
     }
     Ok(())

@@ -241,3 +241,55 @@ fn bad_arguments_and_damaged_files_get_clear_errors() {
     );
     failed(&run(&["take", "walk", "breeze", "--graph", "/dev/zero", "--duration", "1"]), 1, "cannot read");
 }
+
+#[test]
+fn instanced_plants_walk_their_own_takes_and_control_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated(d);
+    // A second take, in another wind, with its graph on another control point.
+    ok(&frond(d)
+        .args(["take", "simulate", "gale", "--rig", "grass", "--duration", "60"])
+        .args(["--wind", "speed=5,dir=90,gust=0.6,seed=9"])
+        .output()
+        .unwrap());
+    ok(&frond(d).args(["take", "graph", "gale", "--control", "joint2"]).output().unwrap());
+    let out = frond(d)
+        .args(["take", "walk", "breeze", "gale", "--plants", "3", "--duration", "5", "--seed", "1"])
+        .args(["-o", "grove", "--explain"])
+        .output()
+        .unwrap();
+    ok(&out);
+    let explain: Value = serde_json::from_str(String::from_utf8_lossy(&out.stderr).trim()).unwrap();
+    let take_of = |name: &str| {
+        let bytes = std::fs::read(d.join(format!("{name}.take"))).unwrap();
+        frond_motion::layers::Take::from_bytes_noting_damage(&bytes).unwrap().0
+    };
+    for (i, (name, source)) in
+        [("grove", "breeze"), ("grove-plant1", "gale"), ("grove-plant2", "breeze")].into_iter().enumerate()
+    {
+        let plant = &explain["plants"][i];
+        assert_eq!(plant["take"], source);
+        assert_eq!(plant["seed"], 1 + i as u64);
+        let walked = take_of(name);
+        assert_eq!(walked.header.filter, format!("walk of {source} seed={} goal=random", 1 + i));
+        // The walk starts on its own take's pose at the start node's frame.
+        let src = take_of(source);
+        let start = plant["start_frame"].as_u64().unwrap() as usize;
+        let want = src.layer(0, true)[start].pose.joints_deg;
+        let got = walked.layer(0, true)[0].pose.joints_deg;
+        for j in 0..4 {
+            for c in 0..3 {
+                assert!((want[j][c] - got[j][c]).abs() < 1e-3, "{name} joint {j}: {got:?} vs {want:?}");
+            }
+        }
+    }
+    failed(
+        &frond(d)
+            .args(["take", "walk", "breeze", "gale", "--graph", "breeze.graph.json", "--duration", "1"])
+            .output()
+            .unwrap(),
+        2,
+        "give one --graph per take (2 takes, 1 graphs)",
+    );
+}

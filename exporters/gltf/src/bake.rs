@@ -69,9 +69,9 @@ pub type Progress<'a> = &'a mut dyn FnMut(u64, u64);
 /// [`Baked`] back with [`Baker::recycle`]).
 #[derive(Debug, Default)]
 pub struct Baker {
-    bin: Vec<u8>,
-    quats: Vec<[f32; 4]>,
-    poses: Vec<Joints>,
+    pub(crate) bin: Vec<u8>,
+    pub(crate) quats: Vec<[f32; 4]>,
+    pub(crate) poses: Vec<Joints>,
 }
 
 impl Baker {
@@ -227,17 +227,17 @@ impl Baker {
     }
 }
 
-fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
+pub(crate) fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
     std::array::from_fn(|i| rig.rig.joints[i].name.clone())
 }
 
-fn element_names(rig: &LoadedRig) -> Vec<String> {
+pub(crate) fn element_names(rig: &LoadedRig) -> Vec<String> {
     rig.rig.elements.iter().map(|e| e.name.clone()).collect()
 }
 
 /// Writes a rotation channel for each joint of each joint set in `targets`, keyed by `poses`
 /// (one per key time); returns how many. `quats` is scratch space.
-fn joint_channels(
+pub(crate) fn joint_channels(
     doc: &mut DocBuilder,
     anim: &mut AnimationBuilder,
     targets: &[[gltf_json::Index<gltf_json::Node>; JOINTS]],
@@ -258,7 +258,7 @@ fn joint_channels(
 
 /// The joint sets a layer animates: the main joints for layer 0, the element instances it was
 /// assigned to otherwise.
-fn targets(
+pub(crate) fn targets(
     nodes: &PlantNodes,
     assignment: &[Option<u16>],
     layer: u16,
@@ -272,7 +272,7 @@ fn targets(
 /// Which layer animates each element instance of the plant (in `assets.elements` order), by
 /// `frond_motion::layers::assign_layers` (seed 000, section 5.3: by kind name, at random among
 /// several layers of one kind).
-fn assign(
+pub(crate) fn assign(
     rig: &LoadedRig,
     take: &TakeInput,
     layers: &Layers,
@@ -304,7 +304,7 @@ fn assign(
         .collect()
 }
 
-fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
+pub(crate) fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
     let mut notes = Vec::new();
     if let Some(h) = &take.header
         && !h.rig_name.is_empty()
@@ -334,18 +334,7 @@ fn take_extras(
     fps: f64,
     field: Option<&Field>,
 ) -> Option<Box<json::extras::RawValue>> {
-    let h = take.header.as_ref();
-    let mut v = json!({
-        "take": take.name,
-        "rig": rig.rig.name,
-        "take_rig": h.map(|h| h.rig_name.clone()),
-        "capture_rate_hz": h.map(|h| h.tick_rate_hz),
-        "calibration_id": h.map(|h| h.calibration_id.clone()),
-        "filter": h.map(|h| h.filter.clone()),
-        "daemon_version": h.map(|h| h.daemon_version.clone()),
-        "recorded_unix_s": h.map(|h| h.created_unix_s),
-        "bake_fps": fps,
-    });
+    let mut v = extras_json(rig, take, fps);
     if let Some(f) = field {
         v["field"] = json!({
             "source": f.origin,
@@ -358,4 +347,20 @@ fn take_extras(
         });
     }
     json::extras::RawValue::from_string(v.to_string()).ok()
+}
+
+/// The take's provenance as extras: name, rigs, capture rate, calibration, filter, versions.
+pub(crate) fn extras_json(rig: &LoadedRig, take: &TakeInput, fps: f64) -> serde_json::Value {
+    let h = take.header.as_ref();
+    json!({
+        "take": take.name,
+        "rig": rig.rig.name,
+        "take_rig": h.map(|h| h.rig_name.clone()),
+        "capture_rate_hz": h.map(|h| h.tick_rate_hz),
+        "calibration_id": h.map(|h| h.calibration_id.clone()),
+        "filter": h.map(|h| h.filter.clone()),
+        "daemon_version": h.map(|h| h.daemon_version.clone()),
+        "recorded_unix_s": h.map(|h| h.created_unix_s),
+        "bake_fps": fps,
+    })
 }

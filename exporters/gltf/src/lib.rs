@@ -16,6 +16,8 @@
 //! - one animation per take, named after it: LINEAR rotation channels, unit quaternions from
 //!   the rotation convention of `frond_protocol::convention` (`R = R_yaw R_pitch R_roll`) kept
 //!   on one hemisphere, key times in seconds from 0, every accessor with min/max;
+//! - a grove ([`Baker::bake_grove`]): one plant per take on a square grid, each its own animation
+//!   channels, for the walks of seed 003's instancing;
 //! - `asset.generator = "frond <version>"` and extras (take, rig, capture rate, calibration id)
 //!   on the asset and the animation.
 
@@ -27,6 +29,7 @@ pub mod bench;
 pub mod doc;
 pub mod error;
 pub mod field;
+pub mod grove;
 pub mod input;
 pub mod live;
 pub mod output;

@@ -25,7 +25,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Bake a take on one plant, or (with --field) on every plant of a field.
+    /// Bake a take on one plant, several takes as a grove (one plant each, on a grid), or (with
+    /// --field) a take on every plant of a field.
     Bake(BakeArgs),
     /// Capture the running daemon's next recording (or everything until Ctrl-C with --all) and
     /// bake it when recording stops or on Ctrl-C.
@@ -59,9 +60,14 @@ struct Common {
 
 #[derive(Args)]
 struct BakeArgs {
-    /// Take: a name in the takes directory, or a path to a .take file.
-    #[arg(long, value_name = "TAKE")]
-    take: String,
+    /// Take: a name in the takes directory, or a path to a .take file. Repeat it (or give several
+    /// after one --take) to bake a grove: one plant per take, e.g. the walks of
+    /// `frond take walk --plants N`.
+    #[arg(long, value_name = "TAKE", num_args = 1.., required = true)]
+    take: Vec<String>,
+    /// Distance between the plants of a grove, metres [default: the rig's top joint height].
+    #[arg(long, value_name = "METRES", conflicts_with = "field")]
+    spacing: Option<f32>,
     /// Field file (field.json from `frond take field`): bake every plant of the field.
     #[arg(long, value_name = "FILE", requires = "duration")]
     field: Option<PathBuf>,
@@ -128,21 +134,38 @@ fn bake(a: BakeArgs) -> anyhow::Result<()> {
     let (opts, format) = options(&a.common)?;
     let rig = LoadedRig::resolve(&a.common.rig)?;
     let takes_dir = frond_protocol::paths::takes_dir(a.takes_dir.clone());
-    let take = TakeInput::resolve(&a.take, &takes_dir)?;
+    if a.field.is_some() && a.take.len() > 1 {
+        bail!("--field bakes one take on every plant of the field, got {} takes", a.take.len());
+    }
+    if a.spacing.is_some() && a.take.len() < 2 {
+        bail!("--spacing places the plants of a grove: give two or more takes");
+    }
+    if a.take.len() > frond_gltf::grove::MAX_GROVE_PLANTS {
+        bail!("a grove has at most {} takes, got {}", frond_gltf::grove::MAX_GROVE_PLANTS, a.take.len());
+    }
+    let takes = a.take.iter().map(|t| TakeInput::resolve(t, &takes_dir)).collect::<Result<Vec<_>, _>>()?;
     let field = a.field.as_deref().map(Field::read).transpose()?;
     let model = rig.model()?;
     let bar = progress_bar(a.common.quiet);
-    bar.set_message(format!("baking {}", take.name));
+    bar.set_message(match takes.len() {
+        1 => format!("baking {}", takes[0].name),
+        n => format!("baking a grove of {n} takes"),
+    });
     let mut progress = |done: u64, total: u64| {
         bar.set_length(total);
         bar.set_position(done);
     };
     let mut baker = Baker::new();
-    let baked = match (&field, a.duration) {
-        (Some(field), Some(duration)) => {
-            baker.bake_field(&rig, &model, &take, field, duration, &opts, &mut progress)?
+    let baked = match (&field, a.duration, takes.as_slice()) {
+        (Some(field), Some(duration), [take]) => {
+            baker.bake_field(&rig, &model, take, field, duration, &opts, &mut progress)?
         }
-        _ => baker.bake_take(&rig, &model, &take, &opts, &mut progress)?,
+        (_, _, [take]) => baker.bake_take(&rig, &model, take, &opts, &mut progress)?,
+        _ => {
+            let spacing = a.spacing.unwrap_or_else(|| frond_gltf::grove::default_spacing_m(&rig));
+            let name = a.common.output.file_stem().and_then(|s| s.to_str()).unwrap_or("grove");
+            baker.bake_grove(&rig, &model, &takes, spacing, name, &opts, &mut progress)?
+        }
     };
     bar.finish_and_clear();
     finish(baked, &a.common.output, format, a.common.quiet)

@@ -208,6 +208,21 @@ fn bad_options_and_fields() {
     let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", g, "--duration=-1", "-o", o]);
     assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
 
+    // A grove: several takes, never with a field; --spacing only for a grove, and sane.
+    let e =
+        fails(&keep, &["bake", "--take", t, t, "--rig", "grass", "--field", g, "--duration", "1", "-o", o]);
+    assert!(e.contains("--field bakes one take on every plant of the field, got 2 takes"), "{e}");
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--spacing", "1", "-o", o]);
+    assert!(e.contains("--spacing places the plants of a grove"), "{e}");
+    for bad in ["0", "-1", "nan", "1e9"] {
+        let e =
+            fails(&keep, &["bake", "--take", t, t, "--rig", "grass", &format!("--spacing={bad}"), "-o", o]);
+        assert!(e.contains("--spacing: must be metres above 0"), "{bad}: {e}");
+    }
+    let e = fails(&keep, &["bake", "--take", t, "/no/such.take", "--rig", "grass", "-o", o]);
+    assert!(e.contains("/no/such.take"), "{e}");
+    assert!(!keep.join("out.glb").exists());
+
     // --field and --duration go together (usage errors, exit 2).
     let out = run(&["bake", "--take", t, "--rig", "grass", "--field", f, "-o", o]);
     assert_eq!(out.status.code(), Some(2));

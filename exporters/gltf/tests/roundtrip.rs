@@ -258,6 +258,59 @@ fn field_shares_one_mesh_and_delays_each_plant() {
 }
 
 #[test]
+fn grove_gives_each_plant_its_own_take_on_a_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    // Three different motions; the third take is half as long and holds its last pose after.
+    let a = write_take(dir.path(), "walk", "grass", frames(0, 5.0, 2.0, 200.0, 0.0), &[]);
+    let b = write_take(dir.path(), "walk-plant1", "grass", frames(0, 1.0, 2.0, 200.0, 1.3), &[]);
+    let c = write_take(dir.path(), "walk-plant2", "grass", frames(0, 0.0, 1.0, 200.0, 2.6), &[]);
+    let out = dir.path().join("grove.glb");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    run_ok(&[
+        "bake",
+        "-q",
+        "--take",
+        &s(&a),
+        &s(&b),
+        "--take",
+        &s(&c),
+        "--rig",
+        "grass",
+        "--spacing",
+        "0.5",
+        "-o",
+        &s(&out),
+    ]);
+    let (doc, buffers) = load(&out);
+    assert_eq!(doc.meshes().count(), 1);
+    assert_eq!(doc.skins().count(), 3);
+    let anim = doc.animations().next().unwrap();
+    assert_eq!(anim.name(), Some("grove"));
+    assert_eq!(anim.channels().count(), 12);
+    let extras: serde_json::Value =
+        serde_json::from_str(doc.as_json().asset.extras.as_ref().unwrap().get()).unwrap();
+    assert_eq!(extras["grove"]["takes"], serde_json::json!(["walk", "walk-plant1", "walk-plant2"]));
+    // 3 plants: 2 columns, 2 rows, 0.5 m apart, centred: worked out by hand.
+    let at = [[-0.25, 0.0, -0.25], [0.25, 0.0, -0.25], [-0.25, 0.0, 0.25]];
+    let takes = [(&a, 5.0), (&b, 1.0), (&c, 0.0)];
+    for (i, skin) in doc.skins().enumerate() {
+        let root = skin.skeleton().unwrap();
+        assert_eq!(root.name(), Some(format!("grass_{i}").as_str()));
+        assert_eq!(root.transform().decomposed().0, at[i], "plant {i}");
+        let frames = frond_motion::scan_take(&std::fs::read(takes[i].0).unwrap()).unwrap().frames;
+        for (j, joint) in skin.joints().enumerate() {
+            let ch = anim.channels().find(|c| c.target().node().index() == joint.index()).unwrap();
+            let (times, quats) = rotations(&ch, &buffers);
+            assert_eq!(times.len(), 61, "the longest take sets the length");
+            for (k, q) in quats.iter().enumerate() {
+                let want = joint_quat(expected_angles(&frames, 0, takes[i].1, k as f64 / 30.0, j));
+                assert!(close_quat(*q, want, 1e-5), "plant {i} joint {j} key {k}");
+            }
+        }
+    }
+}
+
+#[test]
 fn gltf_output_is_a_json_file_and_a_bin_beside_it() {
     let dir = tempfile::tempdir().unwrap();
     let take = grass_take(dir.path(), "split");

@@ -73,6 +73,10 @@ fn every_rig_a_layered_take_and_a_field_validate_clean() {
         s(&out),
     ]);
     files.push(out);
+    let other = write_take(d, "other", "flower", frames(0, 1.0, 1.0, 200.0, 2.0), &[]);
+    let out = d.join("grove.glb");
+    bake(&["--take", s(&layered), s(&other), s(&layered), "--rig", "flower", "-o", s(&out)]);
+    files.push(out);
     let out = d.join("split.gltf");
     bake(&["--take", s(&take), "--rig", "shrub", "--gltf", "--fps", "24", "-o", s(&out)]);
     files.push(out);
