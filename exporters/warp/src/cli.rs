@@ -25,7 +25,9 @@ Pixels outside every layer never change (unless --sway-margin lets layers grow).
 
 Live: `serve` subscribes to frondd (--socket-dir, env FROND_SOCKET_DIR): the root joint's bend
 sets the wind direction and strength, the sway rate the interval. Without a daemon it falls back to
-a procedural wind with the page's settings and says so.
+a procedural wind with the page's settings and says so, or with --wind-sim to seed 003's
+simulation wind (speed=S,dir=DEG,gust=G,seed=N[,until=S], as frond take simulate --wind; strength
+= speed / 10 m/s); render takes --wind-sim too.
 
 Examples:
   frond-warp make-samples rig-files/images
@@ -156,6 +158,10 @@ pub struct RenderArgs {
     /// A recorded take (NAME.take): its root joint drives the wind instead of the procedural wind.
     #[arg(long, value_name = "TAKE")]
     pub take: Option<PathBuf>,
+    /// Seed 003's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` (as `frond take
+    /// simulate --wind`): the wind that blows the simulated plant blows the picture.
+    #[arg(long, value_name = "SPEC", conflicts_with = "take")]
+    pub wind_sim: Option<String>,
     /// Frames to render [1, 100000].
     #[arg(long, allow_negative_numbers = true)]
     pub frames: i64,
@@ -188,6 +194,21 @@ pub struct ServeArgs {
     /// Do not connect to the daemon (procedural wind only).
     #[arg(long)]
     pub no_daemon: bool,
+    /// Seed 003's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` instead of the
+    /// procedural one while no hand drives the wind (time from the start of the page).
+    #[arg(long, value_name = "SPEC")]
+    pub wind_sim: Option<String>,
+}
+
+/// `--wind-sim SPEC` parsed (a bad spec is reported through `ck` with the others).
+pub fn sim_wind(spec: Option<&str>, ck: &mut Checker) -> Option<crate::wind::SimWind> {
+    match spec?.parse::<frond_motion::sim::WindSpec>() {
+        Ok(w) => Some(crate::wind::SimWind::new(w)),
+        Err(e) => {
+            ck.push("--wind-sim", format!("{:?}", spec.unwrap_or_default()), e);
+            None
+        }
+    }
 }
 
 /// `frond-warp bench`.

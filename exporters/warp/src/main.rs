@@ -6,7 +6,7 @@ use anyhow::Context;
 use clap::Parser;
 use frond_warp::cli::{BenchArgs, Cli, Command, RenderArgs, SceneArgs, ServeArgs};
 use frond_warp::params::Checker;
-use frond_warp::render::{OutputKind, PoseTrack};
+use frond_warp::render::{OutputKind, PoseTrack, WindDriver};
 use frond_warp::{Animator, Scene};
 
 fn main() -> ExitCode {
@@ -39,6 +39,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     if let Err(e) = &out {
         ck.push("--output", args.output.display(), e);
     }
+    let sim_wind = frond_warp::cli::sim_wind(args.wind_sim.as_deref(), &mut ck);
     let params = args.sim.to_params(args.scene.layers.len());
     let mut problems = ck.finish().err().map(|e| e.0).unwrap_or_default();
     if let Err(e) = &params {
@@ -60,32 +61,43 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         );
     }
     let mut animator = Animator::new(scene, params)?;
-    let n = frond_warp::render::render(
-        &mut animator,
-        track.as_ref(),
-        args.frames as usize,
-        args.fps,
-        &out,
-        args.quiet,
-    )?;
+    let driver = match (&track, &sim_wind) {
+        (Some(t), _) => WindDriver::Take(t),
+        (None, Some(w)) => WindDriver::Sim(w),
+        (None, None) => WindDriver::Procedural,
+    };
+    let n =
+        frond_warp::render::render(&mut animator, driver, args.frames as usize, args.fps, &out, args.quiet)?;
     if !args.quiet {
         eprintln!(
             "frond-warp: wrote {n} frames to {} (wind: {})",
             args.output.display(),
-            if track.is_some() { "take" } else { "procedural" }
+            match driver {
+                WindDriver::Take(_) => "take".to_string(),
+                WindDriver::Sim(w) => format!("simulation {}", w.spec()),
+                WindDriver::Procedural => "procedural".to_string(),
+            }
         );
     }
     Ok(())
 }
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    let mut ck = Checker::new();
+    let sim_wind = frond_warp::cli::sim_wind(args.wind_sim.as_deref(), &mut ck);
+    ck.finish()?;
     let params = args.sim.to_params(args.scene.layers.len())?;
     let scene = load_scene(&args.scene)?;
     let animator = Animator::new(scene, params)?;
     let socket_dir = frond_protocol::paths::socket_dir(args.socket_dir.clone());
     frond_warp::serve::serve(
         animator,
-        frond_warp::serve::ServeOptions { listen: args.listen, socket_dir, no_daemon: args.no_daemon },
+        frond_warp::serve::ServeOptions {
+            listen: args.listen,
+            socket_dir,
+            no_daemon: args.no_daemon,
+            sim_wind,
+        },
     )
 }
 

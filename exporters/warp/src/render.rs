@@ -1,8 +1,9 @@
 //! Offline rendering: `frond-warp render ... --frames N --fps F -o out.gif|out.webp|DIR/`.
 //!
 //! The wind comes from a recorded take (the root joint through [`crate::wind::HandWind`], frame
-//! times from the take's pose times) or, without one, from the seeded procedural wind. Either way
-//! the output depends only on the inputs and the seed.
+//! times from the take's pose times), from seed 003's simulation wind ([`crate::wind::SimWind`])
+//! or, without either, from the seeded procedural wind. Either way the output depends only on the
+//! inputs and the seed.
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -12,7 +13,18 @@ use image::{Delay, Frame, RgbaImage};
 use thiserror::Error;
 
 use crate::compose::Animator;
-use crate::wind::HandWind;
+use crate::wind::{HandWind, SimWind};
+
+/// What blows the picture in an offline render.
+#[derive(Debug, Clone, Copy)]
+pub enum WindDriver<'a> {
+    /// The seeded procedural wind of the parameters.
+    Procedural,
+    /// A take's root joint, as the hand live (looping if the take is shorter).
+    Take(&'a PoseTrack),
+    /// The simulation's wind at each frame's time.
+    Sim(&'a SimWind),
+}
 
 /// Where frames go.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -138,11 +150,11 @@ impl Progress {
     }
 }
 
-/// Renders `frames` frames at `fps` into `out`; with a `track`, the hand of the take drives the
-/// wind (looping if the take is shorter). Returns the number of frames written.
+/// Renders `frames` frames at `fps` into `out`, blown by `driver`. Returns the number of frames
+/// written.
 pub fn render(
     animator: &mut Animator,
-    track: Option<&PoseTrack>,
+    driver: WindDriver<'_>,
     frames: usize,
     fps: f32,
     out: &OutputKind,
@@ -154,11 +166,17 @@ pub fn render(
     let mut hand = HandWind::new();
     let mut cursor = 0usize;
     let mut sink = Sink::open(out, w, h, fps)?;
-    if track.is_some() {
+    if !matches!(driver, WindDriver::Procedural) {
         animator.set_procedural(false);
     }
     for k in 0..frames {
-        if let Some(tr) = track {
+        if let WindDriver::Sim(sim) = driver {
+            let mut wind = animator.params().wind;
+            sim.update(k as f64 * dt as f64, &mut wind);
+            // Valid by construction (direction finite, strength clamped, interval 0).
+            let _ = animator.set_wind(wind);
+        }
+        if let WindDriver::Take(tr) = driver {
             let duration = tr.times_s.last().copied().unwrap_or(0.0).max(1e-9);
             let t = (k as f64 * dt as f64) % (duration + dt as f64);
             if k > 0 && cursor < tr.times_s.len() && tr.times_s[cursor] > t {

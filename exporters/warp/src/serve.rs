@@ -13,7 +13,10 @@
 //!   answers 400 with every problem named.
 //!
 //! When the daemon streams poses, the root joint drives direction, strength and interval (the
-//! page says "hand"); otherwise the procedural wind uses the page's settings (and says so).
+//! page says "hand"; with `frond sim start` the daemon's element 0 is the simulated plant, so its
+//! bend under the simulation's wind drives the picture); otherwise, with `--wind-sim SPEC`, seed
+//! 003's simulation wind blows (the page says "simulation"), else the procedural wind uses the
+//! page's settings (and says so).
 
 use std::io::Read;
 use std::path::PathBuf;
@@ -26,7 +29,7 @@ use tiny_http::{Header, Method, Response, Server};
 
 use crate::compose::Animator;
 use crate::params::{InvalidParams, SceneParams};
-use crate::wind::HandWind;
+use crate::wind::{HandWind, SimWind};
 
 /// Simulation rate of the live preview.
 pub const SERVE_FPS: f32 = 30.0;
@@ -114,7 +117,8 @@ struct Shared {
     daemon: DaemonState,
     /// Latest root joint from the daemon and when it arrived.
     root: Option<([f32; 3], Instant)>,
-    hand_driven: bool,
+    /// `hand`, `simulation` or `procedural`.
+    wind_source: &'static str,
 }
 
 /// Options of [`serve`].
@@ -126,6 +130,8 @@ pub struct ServeOptions {
     pub socket_dir: PathBuf,
     /// Do not try to reach the daemon at all.
     pub no_daemon: bool,
+    /// Seed 003's simulation wind for when no hand drives the wind (`--wind-sim`).
+    pub sim_wind: Option<SimWind>,
 }
 
 /// Runs the preview until the process ends. Prints `listening on http://ADDR/` once bound.
@@ -141,17 +147,18 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
         pending: None,
         daemon: DaemonState { connected: false, message: "not connected yet".into() },
         root: None,
-        hand_driven: false,
+        wind_source: "procedural",
     }));
     let (w, h) = (animator.scene().width, animator.scene().height);
     let still = animator.scene().still();
     let stop = Arc::new(AtomicBool::new(false));
+    let sim_wind = opts.sim_wind.clone();
     {
         let shared = shared.clone();
         let stop = stop.clone();
         std::thread::Builder::new()
             .name("warp-sim".into())
-            .spawn(move || sim_loop(animator, shared, stop))?;
+            .spawn(move || sim_loop(animator, sim_wind, shared, stop))?;
     }
     if opts.no_daemon {
         shared.lock().expect("lock").daemon.message = "daemon disabled (--no-daemon): procedural wind".into();
@@ -192,7 +199,7 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
                     "width": w,
                     "height": h,
                     "daemon": s.daemon,
-                    "wind_source": if s.hand_driven { "hand" } else { "procedural" },
+                    "wind_source": s.wind_source,
                     "params": s.params,
                 });
                 text(200, &body.to_string(), "application/json")
@@ -231,7 +238,12 @@ fn text(code: u16, body: &str, ctype: &str) -> Response<std::io::Cursor<Vec<u8>>
         .with_header(Header::from_bytes("Content-Type", ctype).expect("header"))
 }
 
-fn sim_loop(mut animator: Animator, shared: Arc<Mutex<Shared>>, stop: Arc<AtomicBool>) {
+fn sim_loop(
+    mut animator: Animator,
+    sim_wind: Option<SimWind>,
+    shared: Arc<Mutex<Shared>>,
+    stop: Arc<AtomicBool>,
+) {
     let dt = 1.0 / SERVE_FPS;
     let period = Duration::from_secs_f32(dt);
     let mut next = Instant::now();
@@ -257,6 +269,11 @@ fn sim_loop(mut animator: Animator, shared: Arc<Mutex<Shared>>, stop: Arc<Atomic
             let mut wind = animator.params().wind;
             hand.update(start.elapsed().as_secs_f64(), root_deg, &mut wind);
             let _ = animator.set_wind(wind);
+        } else if let Some(sim) = &sim_wind {
+            animator.set_procedural(false);
+            let mut wind = animator.params().wind;
+            sim.update(start.elapsed().as_secs_f64(), &mut wind);
+            let _ = animator.set_wind(wind);
         } else {
             animator.set_procedural(true);
         }
@@ -275,7 +292,11 @@ fn sim_loop(mut animator: Animator, shared: Arc<Mutex<Shared>>, stop: Arc<Atomic
             s.frame_no += 1;
             s.fps = fps;
             s.params = animator.params().clone();
-            s.hand_driven = live.is_some();
+            s.wind_source = match (live.is_some(), sim_wind.is_some()) {
+                (true, _) => "hand",
+                (false, true) => "simulation",
+                (false, false) => "procedural",
+            };
         }
         next += period;
         let now = Instant::now();

@@ -8,7 +8,14 @@
 //! the strength (`bend / full_bend_deg`, clamped to [0, 1]) and the sway rate (direction reversals
 //! of the bend, with hysteresis) sets the interval between injections: a hand swaying at 1 Hz blows
 //! a gust per second; a hand held still and bent blows a steady wind (interval 0).
+//!
+//! Simulation mapping ([`SimWind`]): the wind that blows seed 003's simulated plant
+//! (`frond_motion::sim::Wind`, the spec `frond take simulate --wind` and `frond sim start --wind`
+//! take) blows the picture: its ground-plane velocity `(w_x, w_z)` is the direction (+X right,
+//! +Z towards the viewer, i.e. down, as above) and `|w| / FULL_SIM_WIND_M_S` the strength,
+//! injected continuously (interval 0): the gusts are in the velocity itself.
 
+use frond_motion::sim::{Wind, WindSpec};
 use frond_protocol::convention::joint_matrix;
 
 use crate::params::WindParams;
@@ -104,6 +111,45 @@ impl HandWind {
     }
 }
 
+/// Wind speed of the simulation at which the picture's wind strength reaches 1, m/s (a strong
+/// breeze, Beaufort 5-6).
+pub const FULL_SIM_WIND_M_S: f64 = 10.0;
+
+/// Direction (degrees, 0 = right, 90 = down) and strength in [0, 1] of a simulation wind
+/// velocity `[x, y, z]` in m/s (the vertical component does not show on the picture).
+pub fn sim_to_wind(velocity_m_s: [f64; 3]) -> (f32, f32) {
+    let [x, _, z] = velocity_m_s;
+    let speed = x.hypot(z);
+    let direction = if speed < 1e-12 { 0.0 } else { z.atan2(x).to_degrees() as f32 };
+    (direction, (speed / FULL_SIM_WIND_M_S).clamp(0.0, 1.0) as f32)
+}
+
+/// The simulation's wind over time as the warp's wind settings.
+#[derive(Debug, Clone)]
+pub struct SimWind {
+    wind: Wind,
+}
+
+impl SimWind {
+    /// The wind of `spec` (same spec, same gusts as the simulated plant's).
+    pub fn new(spec: WindSpec) -> Self {
+        SimWind { wind: Wind::new(spec) }
+    }
+
+    /// The spec.
+    pub fn spec(&self) -> &WindSpec {
+        self.wind.spec()
+    }
+
+    /// Updates `wind` (direction, strength, interval 0; the source is kept) for time `t_s`.
+    pub fn update(&self, t_s: f64, wind: &mut WindParams) {
+        let (direction, strength) = sim_to_wind(self.wind.velocity_m_s(t_s).to_array());
+        wind.direction_deg = direction;
+        wind.strength = strength;
+        wind.interval_s = 0.0;
+    }
+}
+
 /// Deterministic gusts for when no hand drives the wind: each injection's strength and direction
 /// vary a little around the user's settings, from a seeded hash (same seed, same wind).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -167,6 +213,31 @@ mod tests {
         }
         assert_eq!(wind.interval_s, 0.0);
         assert!((wind.strength - 0.75).abs() < 1e-3);
+    }
+
+    #[test]
+    fn the_simulation_wind_maps_to_direction_and_strength() {
+        // By hand: 5 m/s towards +X is half strength to the right; towards +Z is down.
+        assert_eq!(sim_to_wind([5.0, 0.0, 0.0]), (0.0, 0.5));
+        let (d, s) = sim_to_wind([0.0, 3.0, 20.0]);
+        assert!((d - 90.0).abs() < 1e-5 && s == 1.0, "{d} {s}");
+        assert_eq!(sim_to_wind([0.0; 3]), (0.0, 0.0));
+        // A steady spec is steady; `until` releases it; gusts vary around the speed.
+        let mut w = WindParams::default();
+        SimWind::new("speed=3,dir=45,gust=0,seed=0,until=2".parse().unwrap()).update(1.0, &mut w);
+        assert!((w.direction_deg - 45.0).abs() < 1e-4 && (w.strength - 0.3).abs() < 1e-6, "{w:?}");
+        assert_eq!(w.interval_s, 0.0);
+        SimWind::new("speed=3,dir=45,gust=0,seed=0,until=2".parse().unwrap()).update(2.5, &mut w);
+        assert_eq!(w.strength, 0.0);
+        let gusty = SimWind::new("speed=5,dir=0,gust=0.8,seed=4".parse().unwrap());
+        let strengths: Vec<f32> = (0..100)
+            .map(|k| {
+                gusty.update(k as f64 * 0.1, &mut w);
+                w.strength
+            })
+            .collect();
+        let (lo, hi) = strengths.iter().fold((1.0f32, 0.0f32), |(l, h), &s| (l.min(s), h.max(s)));
+        assert!(hi - lo > 0.1 && lo >= 0.0 && hi <= 1.0, "gusts {lo}..{hi}");
     }
 
     #[test]

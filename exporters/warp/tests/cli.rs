@@ -142,6 +142,11 @@ fn render_is_deterministic_for_a_seed_and_gif_and_webp_are_written() {
 
 /// A take whose root joint sways +-30 degrees of yaw at 1 Hz for 2 s at 100 Hz.
 fn write_take(path: &Path) {
+    write_take_with(path, |t| 30.0 * (std::f64::consts::TAU * t).sin() as f32)
+}
+
+/// A take whose root joint's yaw is `yaw(t)` degrees, 2 s at 100 Hz.
+fn write_take_with(path: &Path, yaw: impl Fn(f64) -> f32) {
     let mut out = Vec::new();
     encode_file_start(&mut out);
     encode_record(
@@ -159,7 +164,7 @@ fn write_take(path: &Path) {
     );
     for k in 0..200u64 {
         let t = k as f64 / 100.0;
-        let yaw = 30.0 * (std::f64::consts::TAU * t).sin() as f32;
+        let yaw = yaw(t);
         let frame = TakeFrame {
             seq: k,
             device_time_us: k * 10_000,
@@ -225,6 +230,71 @@ fn a_take_drives_the_wind_deterministically() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot read take") && stderr(&o).contains("bad.take"), "{}", stderr(&o));
+}
+
+#[test]
+fn the_simulation_wind_blows_the_picture() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let render = |extra: &[&str], out: &Path| {
+        let mut args = vec!["render", "--image", s(&pic), "--layer", s(&mask), "--fluid-grid", "16"];
+        args.extend_from_slice(&["--frames", "20", "-o", s(out), "--quiet"]);
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        frames(out)
+    };
+    // A steady 6 m/s towards +X is strength 6/10 = 0.6 towards the right; so is a hand held
+    // with the root yawed -24 degrees (tip towards +X, 24/40 of the full bend): two mappings
+    // worked out by hand must blow the picture alike.
+    let take = t.path().join("held.take");
+    write_take_with(&take, |_| -24.0);
+    let sim = render(&["--wind-sim", "speed=6,dir=0,gust=0,seed=1"], &t.path().join("sim/"));
+    let held = render(&["--take", s(&take)], &t.path().join("held/"));
+    let still = render(&["--strength", "0"], &t.path().join("still/"));
+    let mean_diff = |a: &[u8], b: &[u8]| {
+        a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / a.len() as f64
+    };
+    let moved = mean_diff(&sim[19], &still[19]);
+    assert!(moved > 1.0, "the simulation's wind did not move the picture ({moved})");
+    assert!(mean_diff(&sim[19], &held[19]) < 0.05 * moved, "sim and hand mappings disagree");
+    // Another direction blows differently; the same spec renders the same bytes; released, calm.
+    let west = render(&["--wind-sim", "speed=6,dir=180,gust=0,seed=1"], &t.path().join("west/"));
+    assert!(mean_diff(&west[19], &sim[19]) > 0.5 * moved);
+    assert_eq!(sim, render(&["--wind-sim", "speed=6,dir=0,gust=0,seed=1"], &t.path().join("again/")));
+    let calm = render(&["--wind-sim", "speed=6,dir=0,gust=0,seed=1,until=0"], &t.path().join("calm/"));
+    assert_eq!(calm, still);
+    // Bad specs are named; a take and a simulation wind do not mix.
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--frames",
+        "2",
+        "-o",
+        "x/",
+        "--wind-sim",
+        "speed=-3",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--wind-sim") && stderr(&o).contains("speed"), "{}", stderr(&o));
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--frames",
+        "2",
+        "-o",
+        "x/",
+        "--wind-sim",
+        "speed=1",
+        "--take",
+        s(&take),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
 }
 
 #[test]
@@ -352,4 +422,45 @@ fn make_samples_writes_the_committed_assets() {
     assert!(o.status.success(), "{}", stderr(&o));
     let fs = frames(&out);
     assert_ne!(fs[0], fs[7]);
+}
+
+#[test]
+fn serve_follows_the_simulation_wind_without_a_hand() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let mut child = bin()
+        .args(["serve", "--image", s(&pic), "--layer", s(&mask), "--listen", "127.0.0.1:0", "--no-daemon"])
+        .args(["--wind-sim", "speed=4,dir=90,gust=0,seed=1"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let addr = line.trim().strip_prefix("listening on http://").unwrap().trim_end_matches('/').to_string();
+    let status = || -> serde_json::Value {
+        let mut c = std::net::TcpStream::connect(&addr).unwrap();
+        write!(c, "GET /status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+        let mut r = String::new();
+        c.read_to_string(&mut r).unwrap();
+        serde_json::from_str(r.split("\r\n\r\n").nth(1).unwrap()).unwrap()
+    };
+    // The simulation thread applies the wind from its first frame on.
+    let mut v = status();
+    for _ in 0..50 {
+        if v["frame"].as_u64().unwrap() > 2 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        v = status();
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(v["wind_source"], "simulation", "{v}");
+    // 4 m/s towards +Z: straight down at 4/10 of the full strength, continuous.
+    let wind = &v["params"]["wind"];
+    assert!((wind["direction_deg"].as_f64().unwrap() - 90.0).abs() < 1e-4, "{v}");
+    assert!((wind["strength"].as_f64().unwrap() - 0.4).abs() < 1e-6, "{v}");
+    assert_eq!(wind["interval_s"], 0.0);
 }
