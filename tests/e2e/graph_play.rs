@@ -91,6 +91,25 @@ fn walkers_play_live_and_follow_their_goal() {
         "{}",
         mode(&daemon)
     );
+    // A pose by its 12 angles: those of a node's frame (read from the graph file and the take's
+    // export), so the nearest node is that very frame.
+    let graph: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(daemon.takes_dir.join("breeze.graph.json")).unwrap())
+            .unwrap();
+    let nodes = graph["nodes"].as_array().unwrap();
+    let frame = nodes[nodes.len() / 3]["frame"].as_u64().unwrap() as usize;
+    let line: serde_json::Value = serde_json::from_str(export.lines().nth(frame).unwrap()).unwrap();
+    let angles: Vec<String> = (0..12).map(|i| line["joints"][i / 3][i % 3].to_string()).collect();
+    daemon.frond_ok(&["graph", "goal", "pose", &angles.join(",")]);
+    assert!(
+        wait_for(Duration::from_secs(3), || mode(&daemon)
+            .contains(&format!("goal pose given by its angles, nearest frame {frame};"))),
+        "frame {frame}: {}",
+        mode(&daemon)
+    );
+    let out = daemon.frond().args(["graph", "goal", "pose", "1,2,3"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("12 finite angles"));
     daemon.frond_ok(&["graph", "goal", "hand"]);
     assert!(mode(&daemon).contains("goal from the hand"), "{}", mode(&daemon));
     let taken = |m: &str| -> u64 {

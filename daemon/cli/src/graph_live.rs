@@ -4,6 +4,7 @@
 //! plant (section 4) blown by the hand.
 
 use clap::Subcommand;
+use frond_motion::graph::PoseGoalSpec;
 use frond_protocol::{ControlReply, ControlRequest, GraphGoal, StageInput, StageSpec};
 
 use crate::args::Global;
@@ -30,12 +31,13 @@ pub enum GraphCommand {
         seed: u64,
     },
     /// Direct the walk: `dir DEG` (0 towards +X, 90 towards +Z), `hand` (the hand's bend
-    /// direction, live), `pose frame=N` (the pose of take frame N, by the shortest path) or
-    /// `off` (random walks).
+    /// direction, live), `pose frame=N` (the pose of take frame N) or `pose A,B,...` (12 angles,
+    /// degrees: pitch, yaw, roll of joints 0..3; the nearest node, by the shortest path) or `off`
+    /// (random walks).
     Goal {
         /// dir, hand, pose or off.
         kind: String,
-        /// The direction in degrees (dir) or frame=N (pose).
+        /// The direction in degrees (dir); frame=N or 12 comma-separated angles (pose).
         #[arg(allow_hyphen_values = true)]
         value: Option<String>,
     },
@@ -93,16 +95,16 @@ pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, S
             Ok(deg) if deg.is_finite() && deg.abs() <= 360.0 => Ok(GraphGoal::Dir { deg }),
             _ => Err(format!("goal dir {v:?}: expected an angle in degrees within +-360")),
         },
-        ("pose", Some(v)) => match v.strip_prefix("frame=").map(|n| n.trim().parse::<u32>()) {
-            Some(Ok(frame)) => Ok(GraphGoal::Frame { frame }),
-            _ => Err(format!(
-                "goal pose {v:?}: expected frame=N (a frame of the take at the graph's rate); \
-                 `frond take walk --goal-pose` also takes 12 angles offline"
-            )),
+        ("pose", Some(v)) => match v.parse::<PoseGoalSpec>() {
+            Ok(PoseGoalSpec::Frame(frame)) => Ok(GraphGoal::Frame { frame }),
+            Ok(PoseGoalSpec::Angles(joints_deg)) => Ok(GraphGoal::Pose { joints_deg }),
+            Err(e) => Err(format!("goal pose {e}")),
         },
         ("off" | "hand", Some(v)) => Err(format!("goal {kind} takes no value, got {v:?}")),
-        ("dir" | "pose", None) => Err(format!("goal {kind} needs a value (dir DEG, pose frame=N)")),
-        (other, _) => Err(format!("unknown goal {other:?}: expected dir DEG, hand, pose frame=N or off")),
+        ("dir" | "pose", None) => Err(format!("goal {kind} needs a value (dir DEG, pose frame=N|12 angles)")),
+        (other, _) => {
+            Err(format!("unknown goal {other:?}: expected dir DEG, hand, pose frame=N|12 angles, or off"))
+        }
     }
 }
 
@@ -162,7 +164,16 @@ mod tests {
         assert_eq!(parse_goal("off", None), Ok(GraphGoal::Off));
         assert!(parse_goal("dir", Some("nan")).unwrap_err().contains("angle"));
         assert!(parse_goal("dir", None).unwrap_err().contains("needs a value"));
-        assert!(parse_goal("pose", Some("1,2,3")).unwrap_err().contains("frame=N"));
+        assert!(
+            parse_goal("pose", Some("1,2,3")).unwrap_err().contains("12 finite angles"),
+            "{:?}",
+            parse_goal("pose", Some("1,2,3"))
+        );
+        assert!(parse_goal("pose", Some("frame=x")).unwrap_err().contains("frame=N needs a frame number"));
+        let twelve = "1,2,3,4,5,6,7,8,9,10,11,-12";
+        let want = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0], [10.0, 11.0, -12.0]];
+        assert_eq!(parse_goal("pose", Some(twelve)), Ok(GraphGoal::Pose { joints_deg: want }));
+        assert!(parse_goal("pose", Some(&format!("{twelve},1"))).unwrap_err().contains("or more"));
         assert!(parse_goal("north", None).unwrap_err().contains("unknown goal"));
         assert!(parse_goal("off", Some("1")).unwrap_err().contains("takes no value"));
     }

@@ -5,15 +5,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::anyhow;
 use frond_motion::clip::Clip;
-use frond_motion::graph::build::pose_distance_deg;
 use frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
 use frond_motion::graph::walk::PosePlan;
 use frond_motion::graph::{
-    ControlPoint, EdgeKind, GraphError, GraphFile, GraphParams, MotionGraph, Walker, build_graph,
-    control_positions_m,
+    ControlPoint, EdgeKind, GraphError, GraphFile, GraphParams, MotionGraph, PoseGoalSpec, Walker,
+    build_graph, control_positions_m, nearest_node,
 };
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
-use frond_motion::sample::{JOINTS, PoseFrame};
+use frond_motion::sample::PoseFrame;
 use frond_motion::skeleton::Skeleton;
 
 use crate::args::Global;
@@ -207,47 +206,17 @@ pub(crate) fn read_graph_file(path: &Path) -> anyhow::Result<GraphFile> {
 /// `--goal-pose`: `frame=N` (a frame of the take at the graph's rate) or 12 comma-separated
 /// angles in degrees (pitch, yaw, roll of joints 0..3).
 fn parse_goal_pose(spec: &str, poses: &[PoseFrame]) -> anyhow::Result<PoseFrame> {
-    if let Some(n) = spec.strip_prefix("frame=") {
-        let n: usize = n
-            .trim()
-            .parse()
-            .map_err(|_| crate::UsageError(format!("--goal-pose {spec:?}: frame=N needs a frame number")))?;
-        return match poses.get(n) {
+    match spec.parse::<PoseGoalSpec>() {
+        Err(e) => usage(format!("--goal-pose {e}")),
+        Ok(PoseGoalSpec::Frame(n)) => match poses.get(n as usize) {
             Some(p) => Ok(*p),
             None => usage(format!(
                 "--goal-pose {spec:?}: the take has {} frames at the graph's rate",
                 poses.len()
             )),
-        };
+        },
+        Ok(PoseGoalSpec::Angles(joints_deg)) => Ok(PoseFrame { t: 0.0, joints_deg }),
     }
-    let values: Vec<f32> =
-        spec.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
-            crate::UsageError(format!(
-                "--goal-pose {spec:?}: expected frame=N or 12 comma-separated angles in degrees"
-            ))
-        })?;
-    if values.len() != 3 * JOINTS || !values.iter().all(|v| v.is_finite() && v.abs() <= 360.0) {
-        return usage(format!(
-            "--goal-pose {spec:?}: expected 12 finite angles within +-360 degrees (pitch, yaw, roll of joints 0..3), found {} values",
-            values.len()
-        ));
-    }
-    let mut joints_deg = [[0.0; 3]; JOINTS];
-    for (j, a) in joints_deg.iter_mut().enumerate() {
-        a.copy_from_slice(&values[3 * j..3 * j + 3]);
-    }
-    Ok(PoseFrame { t: 0.0, joints_deg })
-}
-
-/// The node whose pose is nearest `goal` (12-angle distance).
-fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u32 {
-    (0..graph.len() as u32)
-        .min_by(|&a, &b| {
-            let da = pose_distance_deg(&poses[graph.node_frames[a as usize] as usize], goal);
-            let db = pose_distance_deg(&poses[graph.node_frames[b as usize] as usize], goal);
-            da.total_cmp(&db)
-        })
-        .unwrap_or(0)
 }
 
 /// One take a walk draws on: its graph and poses.

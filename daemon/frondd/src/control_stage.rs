@@ -182,6 +182,11 @@ impl ControlContext {
             );
         };
         let running = state.stages.get(name).expect("slot_of found it");
+        if let StageInput::GraphGoal(goal) = &input
+            && let Err(why) = goal.check()
+        {
+            return refuse(ControlErrorKind::BadRequest, why);
+        }
         if !(running.info.accepts)(&input) {
             return refuse(
                 ControlErrorKind::BadRequest,

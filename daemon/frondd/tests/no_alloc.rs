@@ -298,9 +298,13 @@ fn every_live_stage_allocates_nothing_per_tick() {
     changes.push(stage_command(0, frondd::stage::StageAction::Announce, Some(vec![0u8; 300])));
     // Graph goals (popped last to first: the pose goal, planned over the following ticks, last).
     use frond_protocol::GraphGoal;
-    for goal in
-        [GraphGoal::Dir { deg: 90.0 }, GraphGoal::Hand, GraphGoal::Off, GraphGoal::Frame { frame: 600 }]
-    {
+    for goal in [
+        GraphGoal::Dir { deg: 90.0 },
+        GraphGoal::Hand,
+        GraphGoal::Off,
+        GraphGoal::Pose { joints_deg: [[12.0, -5.0, 0.0]; 4] },
+        GraphGoal::Frame { frame: 600 },
+    ] {
         changes.insert(0, stage_command(4, Input(StageInput::GraphGoal(goal)), None));
     }
     let ((), allocations) = count_allocations(|| {
@@ -333,7 +337,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     assert!(walk.contains("goal pose of frame 600") && !walk.contains("planning"), "{walk}");
     assert_eq!(report.controls.load().unwrap().direction_deg, 180.0, "the keys reached the field");
     // Every applied command came back to be dropped off the loop.
-    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 13);
+    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 14);
 }
 
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive

@@ -186,6 +186,28 @@ pub enum GraphGoal {
         /// The frame.
         frame: u32,
     },
+    /// A pose given by its 12 angles: the node nearest it (Euclidean over the angles), by the
+    /// shortest path.
+    Pose {
+        /// Pitch, yaw, roll of joints 0..3, degrees (finite, within +-360).
+        joints_deg: [[f32; 3]; 4],
+    },
+}
+
+impl GraphGoal {
+    /// Checks what a client may have sent: angles finite and within +-360 degrees.
+    pub fn check(&self) -> Result<(), String> {
+        let ok = |a: f64| a.is_finite() && a.abs() <= 360.0;
+        match self {
+            GraphGoal::Dir { deg } if !ok(*deg) => {
+                Err(format!("goal direction {deg} is not a finite angle within +-360 degrees"))
+            }
+            GraphGoal::Pose { joints_deg } if !joints_deg.iter().flatten().all(|&a| ok(a as f64)) => Err(
+                format!("goal pose {joints_deg:?} has an angle that is not finite or beyond +-360 degrees"),
+            ),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// The keys of the field controls (seed 000, section 6.3): arrows turn the propagation direction
@@ -445,4 +467,21 @@ pub struct RecordingStatus {
     pub dropped: u64,
     /// True while recording continues.
     pub active: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn graph_goals_from_a_client_are_checked() {
+        assert!(GraphGoal::Dir { deg: -90.0 }.check().is_ok());
+        assert!(GraphGoal::Dir { deg: f64::NAN }.check().unwrap_err().contains("not a finite angle"));
+        assert!(GraphGoal::Dir { deg: 400.0 }.check().is_err());
+        let mut joints_deg = [[10.0f32; 3]; 4];
+        assert!(GraphGoal::Pose { joints_deg }.check().is_ok());
+        joints_deg[2][1] = f32::INFINITY;
+        assert!(GraphGoal::Pose { joints_deg }.check().unwrap_err().contains("not finite"));
+        assert!(GraphGoal::Frame { frame: u32::MAX }.check().is_ok());
+    }
 }

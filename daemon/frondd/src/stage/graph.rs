@@ -10,6 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU32, AtomicU64, Ordering::Relaxed};
 
 use frond_motion::clip::Joints;
+use frond_motion::graph::build::pose_distance_deg;
 use frond_motion::graph::walk::PosePlanner;
 use frond_motion::graph::{Goal, GraphFile, MotionGraph, Walker};
 use frond_motion::layers::{GLOBAL_LAYER, Take};
@@ -38,6 +39,7 @@ const GOAL_OFF: u8 = 0;
 const GOAL_DIR: u8 = 1;
 const GOAL_HAND: u8 = 2;
 const GOAL_FRAME: u8 = 3;
+const GOAL_POSE: u8 = 4;
 
 /// What `frond status` says of a graph walk: goal, the first plant's node, transitions taken.
 pub struct GraphReport {
@@ -64,6 +66,12 @@ impl StageReport for GraphReport {
                 self.goal_frame.load(Relaxed),
                 if self.planned.load(Relaxed) == 1 { "" } else { " (planning)" }
             ),
+            GOAL_POSE => match self.planned.load(Relaxed) {
+                1 => {
+                    format!("goal pose given by its angles, nearest frame {}", self.goal_frame.load(Relaxed))
+                }
+                _ => "goal pose given by its angles (planning)".into(),
+            },
             _ => "random walks".into(),
         };
         format!(
@@ -90,6 +98,8 @@ pub struct GraphStage {
     next_publish_ns: u64,
     frames_done: u64,
     planner: PosePlanner,
+    /// A pose goal's nearest-node search, [`PLAN_NODES_PER_TICK`] nodes per tick.
+    nearest: Option<NearestSearch>,
     goal: GraphGoal,
     hand_dir_deg: Option<f64>,
     report: Arc<GraphReport>,
@@ -136,6 +146,7 @@ impl GraphStage {
             t0_ns,
             next_publish_ns: t0_ns,
             frames_done: 0,
+            nearest: None,
             goal: GraphGoal::Off,
             hand_dir_deg: None,
             report: report.clone(),
@@ -150,7 +161,7 @@ impl GraphStage {
                 Some(dir_deg) => Goal::Direction { dir_deg },
                 None => Goal::Random,
             },
-            GraphGoal::Off | GraphGoal::Frame { .. } => Goal::Random,
+            GraphGoal::Off | GraphGoal::Frame { .. } | GraphGoal::Pose { .. } => Goal::Random,
         }
     }
 
@@ -175,6 +186,29 @@ impl GraphStage {
         }
         let taken: u64 = self.walkers.iter().map(Walker::transitions_taken).sum();
         self.report.transitions.store(taken, Relaxed);
+    }
+}
+
+/// The search for the node nearest a pose goal, spread over ticks (a 100,000-node graph would
+/// take a millisecond in one go).
+struct NearestSearch {
+    goal: PoseFrame,
+    next: usize,
+    best: (f64, u32),
+}
+
+impl NearestSearch {
+    /// Scans up to `budget` more nodes; the nearest node once every node is seen.
+    fn work(&mut self, graph: &MotionGraph, poses: &[PoseFrame], budget: usize) -> Option<u32> {
+        let end = (self.next + budget).min(graph.len());
+        for (i, &f) in graph.node_frames[self.next..end].iter().enumerate() {
+            let d = pose_distance_deg(&poses[f as usize], &self.goal);
+            if d < self.best.0 {
+                self.best = (d, (self.next + i) as u32);
+            }
+        }
+        self.next = end;
+        (end == graph.len()).then_some(self.best.1)
     }
 }
 
@@ -209,7 +243,13 @@ impl LiveStage for GraphStage {
     }
 
     fn tick(&mut self, ctx: &TickContext, out: &mut dyn FrameSink) {
-        if self.planner.target().is_some()
+        if let Some(search) = &mut self.nearest
+            && let Some(node) = search.work(&self.graph, &self.poses, PLAN_NODES_PER_TICK)
+        {
+            self.nearest = None;
+            self.report.goal_frame.store(self.graph.node_frames[node as usize], Relaxed);
+            self.planner.start(Some(node));
+        } else if self.planner.target().is_some()
             && self.planner.plan().is_none()
             && self.planner.work(PLAN_NODES_PER_TICK)
         {
@@ -250,6 +290,7 @@ impl LiveStage for GraphStage {
             GraphGoal::Dir { deg } => (GOAL_DIR, deg, 0),
             GraphGoal::Hand => (GOAL_HAND, f64::NAN, 0),
             GraphGoal::Frame { frame } => (GOAL_FRAME, f64::NAN, frame),
+            GraphGoal::Pose { .. } => (GOAL_POSE, f64::NAN, 0),
         };
         self.report.goal.store(code, Relaxed);
         self.report.goal_dir_deg.store(dir.to_bits(), Relaxed);
@@ -262,6 +303,15 @@ impl LiveStage for GraphStage {
                 let i = self.graph.node_frames.partition_point(|&f| f < frame);
                 Some(i.min(self.graph.len() - 1) as u32)
             }
+            _ => None,
+        };
+        // A pose by its angles: first the nearest node, over the next ticks, then its plan.
+        self.nearest = match goal {
+            GraphGoal::Pose { joints_deg } => Some(NearestSearch {
+                goal: PoseFrame { t: 0.0, joints_deg },
+                next: 0,
+                best: (f64::INFINITY, 0),
+            }),
             _ => None,
         };
         self.planner.start(target);
@@ -371,6 +421,36 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_pose_goal_finds_its_nearest_node_over_several_ticks() {
+        let sway = frond_motion::graph::sample_sway(600);
+        let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
+        let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
+        let goal = PoseFrame { t: 0.0, joints_deg: [[9.0, -14.0, 3.0], [4.0, 2.0, 0.0], [0.0; 3], [1.0; 3]] };
+        // Brute force, by the squared angle differences.
+        let d2 = |p: &PoseFrame| -> f64 {
+            (0..JOINTS)
+                .flat_map(|j| (0..3).map(move |c| (j, c)))
+                .map(|(j, c)| (p.joints_deg[j][c] as f64 - goal.joints_deg[j][c] as f64).powi(2))
+                .sum()
+        };
+        let want = (0..graph.len())
+            .min_by(|&a, &b| {
+                d2(&sway[graph.node_frames[a] as usize]).total_cmp(&d2(&sway[graph.node_frames[b] as usize]))
+            })
+            .unwrap() as u32;
+        let mut search = NearestSearch { goal, next: 0, best: (f64::INFINITY, 0) };
+        let mut ticks = 1;
+        let found = loop {
+            if let Some(n) = search.work(&graph, &sway, 7) {
+                break n;
+            }
+            ticks += 1;
+        };
+        assert_eq!(found, want);
+        assert_eq!(ticks, graph.len().div_ceil(7), "7 nodes a tick");
     }
 
     #[test]

@@ -249,6 +249,63 @@ impl<T: Copy + Default> Rows<T> {
     }
 }
 
+/// A pose goal as written (`--goal-pose P`, `frond graph goal pose P`): a take frame or the 12
+/// joint angles themselves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseGoalSpec {
+    /// `frame=N`: the pose of frame `N` of the take at the graph's rate.
+    Frame(u32),
+    /// 12 comma-separated angles, degrees: pitch, yaw, roll of joints 0..3.
+    Angles([[f32; 3]; JOINTS]),
+}
+
+/// Largest absolute angle of a pose goal, degrees.
+pub const MAX_GOAL_ANGLE_DEG: f32 = 360.0;
+
+impl std::str::FromStr for PoseGoalSpec {
+    type Err = String;
+
+    fn from_str(spec: &str) -> Result<Self, String> {
+        if let Some(n) = spec.strip_prefix("frame=") {
+            return n
+                .trim()
+                .parse()
+                .map(PoseGoalSpec::Frame)
+                .map_err(|_| format!("{spec:?}: frame=N needs a frame number"));
+        }
+        let values: Vec<f32> = spec
+            .split(',')
+            .take(3 * JOINTS + 1)
+            .map(|v| v.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("{spec:?}: expected frame=N or 12 comma-separated angles in degrees"))?;
+        if values.len() != 3 * JOINTS
+            || !values.iter().all(|v| v.is_finite() && v.abs() <= MAX_GOAL_ANGLE_DEG)
+        {
+            return Err(format!(
+                "{spec:?}: expected 12 finite angles within +-{MAX_GOAL_ANGLE_DEG} degrees (pitch, yaw, roll of joints 0..3), found {}{} values",
+                values.len(),
+                if values.len() > 3 * JOINTS { " or more" } else { "" }
+            ));
+        }
+        Ok(PoseGoalSpec::Angles(std::array::from_fn(|j| std::array::from_fn(|c| values[3 * j + c]))))
+    }
+}
+
+/// The node whose take pose is nearest `goal` (Euclidean over the 12 angles,
+/// [`build::pose_distance_deg`]); the first of equals. `poses` are the take's frames the graph
+/// was built on.
+pub fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u32 {
+    let mut best = (f64::INFINITY, 0u32);
+    for (i, &f) in graph.node_frames.iter().enumerate() {
+        let d = build::pose_distance_deg(&poses[f as usize], goal);
+        if d < best.0 {
+            best = (d, i as u32);
+        }
+    }
+    best.1
+}
+
 /// Why a graph could not be built or walked.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum GraphError {
