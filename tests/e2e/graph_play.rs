@@ -174,3 +174,70 @@ fn the_simulated_plant_runs_live_and_the_hand_blows_it() {
     daemon.frond_ok(&["sim", "stop"]);
     assert!(daemon.status().modes.is_empty(), "{:?}", daemon.status().modes);
 }
+
+#[test]
+fn plants_walk_several_takes_live_each_on_its_own_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    for (name, wind) in
+        [("breeze", "speed=3,dir=0,gust=0.8,seed=4"), ("gale", "speed=5,dir=90,gust=0.6,seed=9")]
+    {
+        daemon.frond_ok(&["take", "simulate", name, "--rig", "grass", "--duration", "40", "--wind", wind]);
+    }
+    daemon.frond_ok(&["take", "graph", "breeze", "--control", "top"]);
+    daemon.frond_ok(&["take", "graph", "gale", "--control", "joint2"]);
+    let nodes = |graph: &str| -> usize {
+        let text = std::fs::read_to_string(daemon.takes_dir.join(format!("{graph}.graph.json"))).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()["nodes"].as_array().unwrap().len()
+    };
+    let out = daemon.frond_ok(&["graph", "play", "breeze", "gale", "--plants", "4"]);
+    assert!(out.contains("4 plants walking the graphs of breeze, gale"), "{out}");
+    let total = nodes("breeze") + nodes("gale");
+    assert!(
+        mode(&daemon).contains(&format!("graph walk of breeze, gale: 4 plants on {total} nodes")),
+        "{} (expected {total} nodes)",
+        mode(&daemon)
+    );
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let walkers: Vec<u16> = (0..200u16)
+        .filter(|&id| sub.elements().get(id).is_some_and(|e| e.kind == ElementKind::FieldPlant))
+        .collect();
+    assert_eq!(walkers.len(), 4);
+    // A frame goal is a frame of each plant's own take; it gets planned on both graphs.
+    daemon.frond_ok(&["graph", "goal", "pose", "frame=600"]);
+    assert!(
+        wait_for(Duration::from_secs(3), || {
+            let m = mode(&daemon);
+            m.contains("goal pose of frame 600") && !m.contains("planning")
+        }),
+        "{}",
+        mode(&daemon)
+    );
+    let mut moved = HashMap::new();
+    let deadline = std::time::Instant::now() + Duration::from_secs(1);
+    while std::time::Instant::now() < deadline {
+        if let Event::Pose(p) = sub.next_event().unwrap()
+            && walkers.contains(&p.element)
+        {
+            moved.entry(p.element).or_insert_with(Vec::new).push(p.joints_deg);
+        }
+    }
+    assert_eq!(moved.len(), 4, "every walker publishes");
+    daemon.frond_ok(&["graph", "stop"]);
+    // Graphs of one walk share a frame rate; the number of graphs matches the takes.
+    let gale60 = daemon.takes_dir.join("gale60.graph.json");
+    daemon.frond_ok(&["take", "graph", "gale", "--fps", "60", "-o", gale60.to_str().unwrap()]);
+    let out = daemon
+        .frond()
+        .args(["graph", "play", "breeze", "gale", "--graph", "breeze", "--graph", "gale60"])
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("share one frame rate"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = daemon.frond().args(["graph", "play", "breeze", "gale", "--graph", "breeze"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("one --graph per take"));
+}

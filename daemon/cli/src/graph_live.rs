@@ -5,7 +5,9 @@
 
 use clap::Subcommand;
 use frond_motion::graph::PoseGoalSpec;
-use frond_protocol::{ControlReply, ControlRequest, GraphGoal, StageInput, StageSpec};
+use frond_protocol::{
+    ControlReply, ControlRequest, GraphGoal, GraphSource, MAX_GRAPH_SOURCES, StageInput, StageSpec,
+};
 
 use crate::args::Global;
 use crate::control::Control;
@@ -16,13 +18,17 @@ const STAGE: &str = "graph";
 /// `frond graph ...`
 #[derive(Debug, Subcommand)]
 pub enum GraphCommand {
-    /// N plants walk the graph of TAKE live, each an announced element (`walker0`..).
+    /// N plants walk the graphs of the takes live, each an announced element (`walker0`..);
+    /// plant i walks take i mod count (section 6.1 instancing: each take its own graph and
+    /// control point).
     Play {
-        /// Take name (in the takes directory).
-        take: String,
-        /// Graph name in the takes directory [default: TAKE, i.e. TAKE.graph.json].
+        /// Take names (in the takes directory), at most 8.
+        #[arg(required = true, num_args = 1..)]
+        takes: Vec<String>,
+        /// Graph names in the takes directory, one per take in order [default: each take's own,
+        /// TAKE.graph.json].
         #[arg(long, value_name = "NAME")]
-        graph: Option<String>,
+        graph: Vec<String>,
         /// Plants walking (1..=64).
         #[arg(long, default_value_t = 8, value_name = "N")]
         plants: u16,
@@ -111,20 +117,42 @@ pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, S
 /// Runs one `frond graph` command.
 pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
     match cmd {
-        GraphCommand::Play { take, graph, plants, seed } => {
+        GraphCommand::Play { takes, graph, plants, seed } => {
             if !(1..=64).contains(&plants) {
                 return crate::usage(format!("--plants must be 1..=64, got {plants}"));
             }
-            let graph = graph.unwrap_or_else(|| take.clone());
-            for (what, name) in [("take", &take), ("--graph", &graph)] {
-                if let Err(e) = frond_protocol::paths::validate_take_name(name) {
-                    return crate::usage(format!("{what}: {e}"));
+            let max = MAX_GRAPH_SOURCES.min(usize::from(plants));
+            if takes.len() > max {
+                return crate::usage(format!(
+                    "{plants} plants walk at most {max} takes, got {}",
+                    takes.len()
+                ));
+            }
+            if !graph.is_empty() && graph.len() != takes.len() {
+                return crate::usage(format!(
+                    "give one --graph per take ({} takes, {} graphs), or none for each take's own",
+                    takes.len(),
+                    graph.len()
+                ));
+            }
+            let mut sources = Vec::with_capacity(takes.len());
+            for (i, take) in takes.iter().enumerate() {
+                let graph = graph.get(i).unwrap_or(take).clone();
+                for (what, name) in [("take", take), ("--graph", &graph)] {
+                    if let Err(e) = frond_protocol::paths::validate_take_name(name) {
+                        return crate::usage(format!("{what}: {e}"));
+                    }
                 }
+                sources.push(GraphSource { take: take.clone(), graph });
             }
             let mut c = Control::from_global(g)?;
-            let spec = StageSpec::Graph { take: take.clone(), graph, plants, seed };
+            let spec = StageSpec::Graph { sources, plants, seed };
             c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
-            println!("{plants} plants walking the graph of {take}; direct them with `frond graph goal`");
+            println!(
+                "{plants} plants walking the graph{} of {}; direct them with `frond graph goal`",
+                if takes.len() == 1 { "" } else { "s" },
+                takes.join(", ")
+            );
             Ok(())
         }
         GraphCommand::Goal { kind, value } => {

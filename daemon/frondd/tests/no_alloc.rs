@@ -261,8 +261,16 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let graph =
         frond_motion::graph::build_graph(&sway, &path, &frond_motion::graph::GraphParams::new(control))
             .unwrap();
-    let (walk, graph_report) =
-        frondd::stage::graph::GraphStage::new(graph, sway, &[60, 61, 62, 63], 9, 30.0, t0, "sway");
+    let (walk, graph_report) = frondd::stage::graph::GraphStage::new(
+        vec![
+            frondd::stage::graph::GraphSource::new("sway", graph.clone(), sway.clone()),
+            frondd::stage::graph::GraphSource::new("sway2", graph, sway),
+        ],
+        &[60, 61, 62, 63],
+        9,
+        30.0,
+        t0,
+    );
     // The simulated plant (seed 003, section 4) in a gusty wind the hand turns.
     let plant =
         frond_motion::sim::PlantSim::from_rig(&rig, "speed=4,dir=30,gust=0.8,seed=2".parse().unwrap())

@@ -115,15 +115,13 @@ pub enum StageSpec {
         /// Seed of the loop's random jumps.
         seed: u64,
     },
-    /// Walk a motion graph (seed 003, section 6): `plants` plants (1..=64) walk the graph file
-    /// `graph` (a name: `<takes dir>/<graph>.graph.json`, from `frond take graph`) over the
-    /// frames of `take`, each an announced `field-plant` element published at 60 Hz, each with
-    /// seed `seed + i`. Directed by [`StageInput::GraphGoal`].
+    /// Walk motion graphs (seed 003, section 6): `plants` plants (1..=64), plant `i` walking
+    /// `sources[i mod len]` (instancing, section 6.1: each take with its own graph and control
+    /// point), each an announced `field-plant` element published at 60 Hz, each with seed
+    /// `seed + i`. Directed by [`StageInput::GraphGoal`].
     Graph {
-        /// Take name in the takes directory.
-        take: String,
-        /// Graph name in the takes directory.
-        graph: String,
+        /// The takes and their graphs (1..=[`MAX_GRAPH_SOURCES`]).
+        sources: Vec<GraphSource>,
         /// How many plants walk (1..=64).
         plants: u16,
         /// Seed of the first plant's walk.
@@ -166,6 +164,19 @@ pub enum StageInput {
     Key(StageKey),
     /// The goal of a graph walk (seed 003, section 6.1.2).
     GraphGoal(GraphGoal),
+}
+
+/// Most takes one live graph walk draws on (each graph is held in memory).
+pub const MAX_GRAPH_SOURCES: usize = 8;
+
+/// One take of a live graph walk and its graph.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GraphSource {
+    /// Take name in the takes directory.
+    pub take: String,
+    /// Graph name in the takes directory (`<takes dir>/<graph>.graph.json`, from `frond take
+    /// graph`).
+    pub graph: String,
 }
 
 /// What the plants of a graph walk aim for.

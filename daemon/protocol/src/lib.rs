@@ -23,9 +23,9 @@ pub mod paths;
 pub mod pose;
 
 pub use control::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, HandStatus, LatencySummary,
-    RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport,
-    SubscriberStatus,
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource, HandStatus,
+    LatencySummary, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec,
+    StageStatus, StatusReport, SubscriberStatus,
 };
 pub use errors::error_text;
 pub use frame::{

@@ -1,10 +1,12 @@
-//! Plants walking a motion graph on the pose stream (seed 003, section 6): `plants` walkers over
-//! one take's graph, each with its own seed and start, published at [`GRAPH_PUBLISH_HZ`] as
+//! Plants walking motion graphs on the pose stream (seed 003, section 6): `plants` walkers, plant
+//! `i` on source `i mod n` (a take and its graph: section 6.1's instancing), each with its own
+//! seed and start, published at [`GRAPH_PUBLISH_HZ`] as
 //! announced `field-plant` elements (a group of plants, as a field's), interpolating between the
 //! walks' frames. The goal is set live ([`GraphGoal`]): off (random walks), a direction, the
 //! hand's bend direction (section 6.1.2: "the animator can direct the animation at each
-//! arbitrary moment"), or a take frame's pose, whose shortest-path plan is computed over the
-//! following ticks ([`PosePlanner`], a bounded number of nodes per tick).
+//! arbitrary moment"), or a pose (a frame of each plant's own take, or 12 angles: the nearest
+//! node of each graph), whose shortest-path plans are computed over the following ticks
+//! ([`PosePlanner`], a bounded number of nodes per tick, one source after the other).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU32, AtomicU64, Ordering::Relaxed};
@@ -85,11 +87,50 @@ impl StageReport for GraphReport {
     }
 }
 
+/// One take a walk draws on: its graph, its frames, and the plan towards a pose goal on it.
+pub struct GraphSource {
+    /// The take's name (for `frond status`).
+    pub take: String,
+    /// The graph, built on [`GraphSource::poses`].
+    pub graph: MotionGraph,
+    /// The take's frames at the graph's rate.
+    pub poses: Vec<PoseFrame>,
+    planner: PosePlanner,
+    /// A pose goal's nearest-node search, [`PLAN_NODES_PER_TICK`] nodes per tick.
+    nearest: Option<NearestSearch>,
+}
+
+impl GraphSource {
+    /// A source (allocates its planner: off the realtime thread).
+    pub fn new(take: &str, graph: MotionGraph, poses: Vec<PoseFrame>) -> Self {
+        GraphSource { take: take.to_string(), planner: PosePlanner::new(&graph), graph, poses, nearest: None }
+    }
+
+    /// Whether a pose goal still needs work on this source.
+    fn busy(&self) -> bool {
+        self.nearest.is_some() || (self.planner.target().is_some() && self.planner.plan().is_none())
+    }
+
+    /// One tick's share of the search and the plan; the goal node's frame when the search ends.
+    fn work(&mut self, budget: usize) -> Option<u32> {
+        if let Some(search) = &mut self.nearest {
+            let node = search.work(&self.graph, &self.poses, budget)?;
+            self.nearest = None;
+            self.planner.start(Some(node));
+            return Some(self.graph.node_frames[node as usize]);
+        }
+        if self.planner.target().is_some() && self.planner.plan().is_none() {
+            self.planner.work(budget);
+        }
+        None
+    }
+}
+
 /// The walkers in the loop.
 pub struct GraphStage {
-    graph: MotionGraph,
-    poses: Vec<PoseFrame>,
-    walkers: Vec<Walker>,
+    sources: Vec<GraphSource>,
+    /// Per plant: its source and its walker.
+    walkers: Vec<(usize, Walker)>,
     /// Per plant: the walk's previous and next frame, interpolated between.
     frames: Vec<(Joints, Joints)>,
     ids: Vec<u16>,
@@ -97,48 +138,46 @@ pub struct GraphStage {
     t0_ns: u64,
     next_publish_ns: u64,
     frames_done: u64,
-    planner: PosePlanner,
-    /// A pose goal's nearest-node search, [`PLAN_NODES_PER_TICK`] nodes per tick.
-    nearest: Option<NearestSearch>,
     goal: GraphGoal,
     hand_dir_deg: Option<f64>,
     report: Arc<GraphReport>,
 }
 
 impl GraphStage {
-    /// Walkers over `graph` (built on `poses`, at `fps`) published as `ids` (one plant each, at
-    /// most [`MAX_GRAPH_PLANTS`]), plant `i` with seed `seed + i`, starting at host time `t0_ns`;
-    /// with the report `frond status` reads. Allocates (off the realtime thread).
+    /// Walkers over `sources` (every graph at `fps`) published as `ids` (one plant each, at most
+    /// [`MAX_GRAPH_PLANTS`]), plant `i` on source `i mod n` with seed `seed + i`, starting at host
+    /// time `t0_ns`; with the report `frond status` reads. Allocates (off the realtime thread).
     pub fn new(
-        graph: MotionGraph,
-        poses: Vec<PoseFrame>,
+        sources: Vec<GraphSource>,
         ids: &[u16],
         seed: u64,
         fps: f64,
         t0_ns: u64,
-        take: &str,
     ) -> (Self, Arc<GraphReport>) {
+        assert!(!sources.is_empty(), "a graph walk needs a source");
         let plants = ids.len().clamp(1, MAX_GRAPH_PLANTS);
-        let n = graph.len();
-        let walkers: Vec<Walker> = (0..plants)
-            .map(|i| Walker::new(&graph, (i * n / plants) as u32, seed.wrapping_add(i as u64), fps))
+        let walkers: Vec<(usize, Walker)> = (0..plants)
+            .map(|i| {
+                let k = i % sources.len();
+                let g = &sources[k].graph;
+                (k, Walker::new(g, (i * g.len() / plants) as u32, seed.wrapping_add(i as u64), fps))
+            })
             .collect();
+        let names: Vec<&str> = sources.iter().map(|s| s.take.as_str()).collect();
         let report = Arc::new(GraphReport {
-            take: take.to_string(),
+            take: names.join(", "),
             plants,
-            nodes: n,
+            nodes: sources.iter().map(|s| s.graph.len()).sum(),
             goal: AtomicU8::new(GOAL_OFF),
             goal_dir_deg: AtomicU64::new(f64::NAN.to_bits()),
             goal_frame: AtomicU32::new(0),
             planned: AtomicU8::new(0),
-            node_frame: AtomicU32::new(graph.node_frames[0]),
+            node_frame: AtomicU32::new(sources[0].graph.node_frames[0]),
             transitions: AtomicU64::new(0),
         });
         let rest = [[0.0f32; 3]; JOINTS];
         let stage = GraphStage {
-            planner: PosePlanner::new(&graph),
-            graph,
-            poses,
+            sources,
             walkers,
             frames: vec![(rest, rest); plants],
             ids: ids[..plants].to_vec(),
@@ -146,7 +185,6 @@ impl GraphStage {
             t0_ns,
             next_publish_ns: t0_ns,
             frames_done: 0,
-            nearest: None,
             goal: GraphGoal::Off,
             hand_dir_deg: None,
             report: report.clone(),
@@ -168,23 +206,23 @@ impl GraphStage {
     fn set_goals(&mut self) {
         // Direction and random goals hold no heap data: cloning them never allocates.
         let goal = self.walker_goal();
-        for w in &mut self.walkers {
+        for (_, w) in &mut self.walkers {
             w.set_goal(goal.clone());
         }
     }
 
     /// Advances every walker by one walk frame.
     fn step(&mut self) {
-        let plan = self.planner.plan();
-        for (w, f) in self.walkers.iter_mut().zip(self.frames.iter_mut()) {
-            let s = w.next_frame_with(&self.graph, &self.poses, plan);
+        for ((k, w), f) in self.walkers.iter_mut().zip(self.frames.iter_mut()) {
+            let src = &self.sources[*k];
+            let s = w.next_frame_with(&src.graph, &src.poses, src.planner.plan());
             *f = (f.1, s.pose.joints_deg);
         }
         self.frames_done += 1;
-        if let Some(w) = self.walkers.first() {
-            self.report.node_frame.store(self.graph.node_frames[w.node() as usize], Relaxed);
+        if let Some((k, w)) = self.walkers.first() {
+            self.report.node_frame.store(self.sources[*k].graph.node_frames[w.node() as usize], Relaxed);
         }
-        let taken: u64 = self.walkers.iter().map(Walker::transitions_taken).sum();
+        let taken: u64 = self.walkers.iter().map(|(_, w)| w.transitions_taken()).sum();
         self.report.transitions.store(taken, Relaxed);
     }
 }
@@ -243,17 +281,16 @@ impl LiveStage for GraphStage {
     }
 
     fn tick(&mut self, ctx: &TickContext, out: &mut dyn FrameSink) {
-        if let Some(search) = &mut self.nearest
-            && let Some(node) = search.work(&self.graph, &self.poses, PLAN_NODES_PER_TICK)
-        {
-            self.nearest = None;
-            self.report.goal_frame.store(self.graph.node_frames[node as usize], Relaxed);
-            self.planner.start(Some(node));
-        } else if self.planner.target().is_some()
-            && self.planner.plan().is_none()
-            && self.planner.work(PLAN_NODES_PER_TICK)
-        {
-            self.report.planned.store(1, Relaxed);
+        // Pose goals: one source at a time gets the tick's planning budget.
+        if let Some(k) = self.sources.iter().position(GraphSource::busy) {
+            if let Some(frame) = self.sources[k].work(PLAN_NODES_PER_TICK)
+                && k == 0
+            {
+                self.report.goal_frame.store(frame, Relaxed);
+            }
+            if !self.sources.iter().any(GraphSource::busy) {
+                self.report.planned.store(1, Relaxed);
+            }
         }
         let elapsed = ctx.now_ns.saturating_sub(self.t0_ns);
         // Catch up with the walk's own frame rate (at most a second's frames per tick after a
@@ -296,25 +333,27 @@ impl LiveStage for GraphStage {
         self.report.goal_dir_deg.store(dir.to_bits(), Relaxed);
         self.report.goal_frame.store(frame, Relaxed);
         self.report.planned.store(0, Relaxed);
-        let target = match goal {
-            // The node nearest the frame: the graph keeps frames in order, so the first node at
-            // or after it (or the last one).
-            GraphGoal::Frame { frame } => {
-                let i = self.graph.node_frames.partition_point(|&f| f < frame);
-                Some(i.min(self.graph.len() - 1) as u32)
-            }
-            _ => None,
-        };
-        // A pose by its angles: first the nearest node, over the next ticks, then its plan.
-        self.nearest = match goal {
-            GraphGoal::Pose { joints_deg } => Some(NearestSearch {
-                goal: PoseFrame { t: 0.0, joints_deg },
-                next: 0,
-                best: (f64::INFINITY, 0),
-            }),
-            _ => None,
-        };
-        self.planner.start(target);
+        for src in &mut self.sources {
+            let target = match goal {
+                // The node nearest the frame of each plant's own take: the graph keeps frames in
+                // order, so the first node at or after it (or the last one).
+                GraphGoal::Frame { frame } => {
+                    let i = src.graph.node_frames.partition_point(|&f| f < frame);
+                    Some(i.min(src.graph.len() - 1) as u32)
+                }
+                _ => None,
+            };
+            // A pose by its angles: first the nearest node, over the next ticks, then its plan.
+            src.nearest = match goal {
+                GraphGoal::Pose { joints_deg } => Some(NearestSearch {
+                    goal: PoseFrame { t: 0.0, joints_deg },
+                    next: 0,
+                    best: (f64::INFINITY, 0),
+                }),
+                _ => None,
+            };
+            src.planner.start(target);
+        }
         self.hand_dir_deg = None;
         self.set_goals();
     }
@@ -324,10 +363,9 @@ fn takes_goals(input: &StageInput) -> bool {
     matches!(input, StageInput::GraphGoal(_))
 }
 
-/// Builds `plants` walkers of graph `graph` (in the takes directory) over take `take`.
+/// Builds `plants` walkers over `sources` (takes and graphs in the takes directory).
 pub fn build(
-    take: &str,
-    graph: &str,
+    sources: &[frond_protocol::GraphSource],
     plants: u16,
     seed: u64,
     ctx: &BuildContext,
@@ -338,7 +376,46 @@ pub fn build(
             "a graph walk has 1..={MAX_GRAPH_PLANTS} plants, not {plants}"
         )));
     }
+    let max = frond_protocol::MAX_GRAPH_SOURCES.min(plants);
+    if sources.is_empty() || sources.len() > max {
+        return Err(BuildError::invalid(format!(
+            "a walk of {plants} plants draws on 1..={max} takes, not {}",
+            sources.len()
+        )));
+    }
     let ids = super::element_ids(ctx, plants)?;
+    let mut loaded = Vec::with_capacity(sources.len());
+    let mut fps = None;
+    for src in sources {
+        let (source, src_fps) = load_source(&src.take, &src.graph, ctx)?;
+        match fps {
+            Some(f) if f != src_fps => {
+                return Err(BuildError::invalid(format!(
+                    "the graphs of one walk share one frame rate: {:?} is at {f} fps, graph {:?} at {src_fps}",
+                    sources[0].graph, src.graph
+                )));
+            }
+            _ => fps = Some(src_fps),
+        }
+        loaded.push(source);
+    }
+    let (stage, report) = GraphStage::new(loaded, ids, seed, fps.unwrap_or(30.0), ctx.now_ns);
+    let elements = super::plant_elements(ids, "walker", ctx);
+    Ok(BuiltStage {
+        stage: Box::new(stage),
+        info: StageInfo {
+            kind: "graph",
+            report,
+            elements,
+            hand_element: None,
+            accepts: takes_goals,
+            rig: super::rig_info(ctx.rig),
+        },
+    })
+}
+
+/// Reads take `take` and its graph `graph` (checked against each other); the graph's rate.
+fn load_source(take: &str, graph: &str, ctx: &BuildContext) -> Result<(GraphSource, f64), BuildError> {
     frond_protocol::paths::validate_take_name(graph)
         .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: format!("graph name: {e}") })?;
     let path = ctx.takes_dir.join(format!("{graph}.graph.json"));
@@ -357,19 +434,7 @@ pub fn build(
             damage.map(|d| format!(" (damaged: {d})")).unwrap_or_default()
         ))
     })?;
-    let (stage, report) = GraphStage::new(motion_graph, poses, ids, seed, file.fps, ctx.now_ns, take);
-    let elements = super::plant_elements(ids, "walker", ctx);
-    Ok(BuiltStage {
-        stage: Box::new(stage),
-        info: StageInfo {
-            kind: "graph",
-            report,
-            elements,
-            hand_element: None,
-            accepts: takes_goals,
-            rig: super::rig_info(ctx.rig),
-        },
-    })
+    Ok((GraphSource::new(take, motion_graph, poses), file.fps))
 }
 
 #[cfg(test)]
@@ -394,7 +459,7 @@ mod tests {
         let mut reference = Walker::new(&graph, 0, 4, 30.0);
         let walk: Vec<Joints> =
             (0..40).map(|_| reference.next_frame(&graph, &sway).pose.joints_deg).collect();
-        let (mut stage, _) = GraphStage::new(graph, sway, &[40], 4, 30.0, 0, "sway");
+        let (mut stage, _) = GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[40], 4, 30.0, 0);
         let hand = HandSample::default();
         let mut sink = Sink(Vec::new());
         // Publishing at 60 Hz on 1 ms ticks: a publication at time t shows the walk between

@@ -195,7 +195,7 @@ pub fn build(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildEr
             field::build(take, field_json, *plants, *seed, ctx)
         }
         StageSpec::Guided { spec } => guided::build(spec, ctx),
-        StageSpec::Graph { take, graph, plants, seed } => graph::build(take, graph, *plants, *seed, ctx),
+        StageSpec::Graph { sources, plants, seed } => graph::build(sources, *plants, *seed, ctx),
         StageSpec::Sim { rig_toml, wind } => sim::build(rig_toml.as_deref(), wind, ctx),
     }
 }
