@@ -292,9 +292,27 @@ pub enum TakeCommand {
     Export {
         /// Take name (or a path to a .take file).
         name: String,
-        /// JSON Lines output (the only format for now).
-        #[arg(long)]
+        /// JSON Lines output on stdout (the default).
+        #[arg(long, conflicts_with = "bvh")]
         jsonl: bool,
+        /// BVH (Biovision Hierarchy) into -o FILE: the mocap exchange format MotionBuilder, Maya
+        /// and Blender import; metres, Y up, channels Zrotation Xrotation Yrotation (frond's
+        /// R = R_yaw R_pitch R_roll), at --fps (default 30).
+        #[arg(long, requires = "output")]
+        bvh: bool,
+        /// Output file (with --bvh).
+        #[arg(short = 'o', long = "output", value_name = "FILE", requires = "bvh")]
+        output: Option<PathBuf>,
+        /// Rig whose joint names and heights the BVH skeleton takes [default: the take's rig].
+        #[arg(long, value_name = "NAME|FILE", requires = "bvh")]
+        rig: Option<PathBuf>,
+        /// Field file (field.json from `frond take field`): every plant of the field, one BVH
+        /// root each (with --bvh and --duration).
+        #[arg(long, value_name = "FILE", requires_all = ["bvh", "duration"])]
+        field: Option<PathBuf>,
+        /// Length of a field export, seconds.
+        #[arg(long, value_name = "S", requires = "field")]
+        duration: Option<f64>,
         /// Resample to this many frames per second (e.g. 30, the seed's rate).
         #[arg(long, value_name = "FPS")]
         fps: Option<f64>,

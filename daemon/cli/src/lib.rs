@@ -18,6 +18,7 @@ mod map;
 mod signals;
 mod soak;
 mod status;
+mod take_bvh;
 mod take_graph;
 mod take_sim;
 mod take_tools;
@@ -153,9 +154,32 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(cmd) => graph_live::sim(g, cmd),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
-        Command::Take(args::TakeCommand::Export { name, jsonl: _, fps, include_held, force }) => {
-            takes::export(g, &name, fps, include_held, force)
-        }
+        Command::Take(args::TakeCommand::Export {
+            name,
+            jsonl: _,
+            bvh,
+            output,
+            rig,
+            field,
+            duration,
+            fps,
+            include_held,
+            force,
+        }) => match (bvh, output) {
+            (true, Some(output)) => take_bvh::export_bvh(
+                g,
+                take_bvh::BvhExport {
+                    name: &name,
+                    output: &output,
+                    fps,
+                    rig: rig.as_deref(),
+                    field: field.as_deref(),
+                    duration_s: duration,
+                    force,
+                },
+            ),
+            _ => takes::export(g, &name, fps, include_held, force),
+        },
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),
         Command::Demo { seconds, name } => demo::run(g, seconds, name),

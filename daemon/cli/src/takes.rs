@@ -230,7 +230,6 @@ fn export_source(scan: &TakeScan, include_held: bool) -> Vec<PoseFrame> {
 
 /// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
 /// when `fps` is given.
-#[cfg(test)]
 pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool) -> Vec<PoseFrame> {
     let poses = export_source(scan, include_held);
     match fps {

@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod align;
+pub mod bvh;
 pub mod calibration;
 pub mod clip;
 pub mod controls;

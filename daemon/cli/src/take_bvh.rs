@@ -1,0 +1,126 @@
+//! `frond take export NAME --bvh -o FILE.bvh [--field field.json --duration S]`: a take (or every
+//! plant of a field) as BVH, the mocap exchange format (`frond_motion::bvh`), at `--fps`
+//! (default 30, the seed's rate), on the take's rig (or `--rig`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::anyhow;
+use frond_motion::bvh::{self, BvhPlant};
+use frond_motion::clip::{Clip, frame_count};
+use frond_motion::field::{Field, MAX_FIELD_FILE_BYTES};
+use frond_motion::rig::Rig;
+use frond_motion::sample::JOINTS;
+use frond_motion::sim::node_heights_m;
+
+use crate::args::Global;
+use crate::takes::{MAX_EXPORT_FRAMES, check_resample, export_poses, resolve, warn_damage};
+use crate::usage;
+
+/// Default BVH frame rate: the seed's authoring rate.
+pub const DEFAULT_BVH_FPS: f64 = 30.0;
+/// Longest field export, seconds.
+const MAX_FIELD_DURATION_S: f64 = 24.0 * 3600.0;
+
+/// What `--bvh` was asked.
+pub(crate) struct BvhExport<'a> {
+    pub name: &'a str,
+    pub output: &'a Path,
+    pub fps: Option<f64>,
+    pub rig: Option<&'a Path>,
+    pub field: Option<&'a Path>,
+    pub duration_s: Option<f64>,
+    pub force: bool,
+}
+
+fn plant(rig: &Rig, prefix: String, position_m: [f64; 2], scale: f64) -> BvhPlant {
+    BvhPlant {
+        prefix,
+        joint_names: std::array::from_fn(|j| rig.joints[j].name.clone()),
+        heights_m: node_heights_m(std::array::from_fn(|j| rig.joints[j].height_m), &rig.mesh),
+        position_m,
+        scale,
+    }
+}
+
+/// Writes the BVH file.
+pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
+    let fps = a.fps.unwrap_or(DEFAULT_BVH_FPS);
+    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+        return usage(format!("--fps must be above 0 and at most 1000 for BVH, got {fps}"));
+    }
+    if let Some(d) = a.duration_s
+        && !(d.is_finite() && d > 0.0 && d <= MAX_FIELD_DURATION_S)
+    {
+        return usage(format!("--duration must be in (0, {MAX_FIELD_DURATION_S}] seconds, got {d}"));
+    }
+    let path = resolve(g, a.name)?;
+    let bytes = frond_motion::rig_files::read_take_file(&path)
+        .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))?;
+    let scan = frond_motion::take::scan_take(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    warn_damage(&path, &scan);
+    let rig_spec: PathBuf = match (a.rig, &scan.header) {
+        (Some(r), _) => r.to_path_buf(),
+        (None, Some(h)) if !h.rig_name.is_empty() => PathBuf::from(&h.rig_name),
+        _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
+    };
+    let (rig, _) = crate::control::load_rig(&rig_spec)?;
+    let source = export_poses(&scan, None, false);
+    if source.is_empty() {
+        anyhow::bail!("{} has no frames of the main skeleton to export", path.display());
+    }
+    let mut out = String::new();
+    match (a.field, a.duration_s) {
+        (None, None) => {
+            check_resample(&path.display().to_string(), &source, fps, a.force)?;
+            let poses = export_poses(&scan, Some(fps), false);
+            let plants = [plant(&rig, String::new(), [0.0, 0.0], 1.0)];
+            bvh::begin(&plants, poses.len(), 1.0 / fps, &mut out);
+            for p in &poses {
+                bvh::push_frame(&plants, std::slice::from_ref(&p.joints_deg), &mut out);
+            }
+        }
+        (Some(field_path), Some(duration_s)) => {
+            let text = frond_motion::rig_files::read_small_text(field_path, MAX_FIELD_FILE_BYTES)
+                .map_err(|e| anyhow!("cannot read field {}: {}", field_path.display(), e.reason()))?;
+            let field = Field::from_json(&text).map_err(|e| anyhow!("{}: {e}", field_path.display()))?;
+            if field.plants.is_empty() {
+                anyhow::bail!("{}: the field has no plants", field_path.display());
+            }
+            let frames = frame_count(duration_s, fps);
+            let values = frames as u64 * field.plants.len() as u64;
+            let limit =
+                if a.force { frond_motion::take::MAX_RESAMPLED_FRAMES as u64 } else { MAX_EXPORT_FRAMES };
+            if values > limit {
+                return usage(format!(
+                    "{} plants x {frames} frames is {values} plant-frames, more than {limit}{}",
+                    field.plants.len(),
+                    if a.force { " (the hard limit)" } else { "; pass --force to go past it" }
+                ));
+            }
+            let clip = Clip::from_poses(&export_poses(&scan, Some(field.fps), false), field.fps);
+            let digits = field.plants.len().to_string().len();
+            let plants: Vec<BvhPlant> = field
+                .plants
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let prefix = format!("{}_{i:0digits$}", rig.name);
+                    plant(&rig, prefix, p.position_m.map(f64::from), f64::from(p.scale))
+                })
+                .collect();
+            bvh::begin(&plants, frames, 1.0 / fps, &mut out);
+            let mut row: Vec<[[f32; 3]; JOINTS]> = vec![[[0.0; 3]; JOINTS]; plants.len()];
+            for k in 0..frames {
+                let t = k as f64 / fps;
+                for (i, pose) in row.iter_mut().enumerate() {
+                    *pose = field.pose(i, &clip, t);
+                }
+                bvh::push_frame(&plants, &row, &mut out);
+            }
+        }
+        _ => return usage("--field and --duration go together"),
+    }
+    crate::calibrate::write_atomically_bytes(a.output, out.as_bytes())?;
+    println!("{}", a.output.display());
+    Ok(())
+}

@@ -1,0 +1,134 @@
+#!/usr/bin/env python3
+"""Imports frond's BVH files with Blender's own BVH importer (bpy, io_anim_bvh) and checks them
+against forward kinematics computed here, independently of frond's Rust code.
+
+Usage: python bvh_blender.py SPEC.json   (prints "ok ..." and exits 0, or a reason and exits 1)
+
+SPEC: {"bvh": FILE, "poses": JSONL FILE (`frond take export --fps F`: {"t", "joints"} lines),
+       "names": [4 joint names], "heights_m": [h0, h1, h2, h3, top],
+       "field": optional {"bvh": FILE, "plants": [{"prefix", "position_m": [x, z], "scale"}]}}
+
+Checks, for the take: one bone per joint with the rig's names, the scene's frame rate, and at
+every frame each bone's head (and the top bone's tail) in world space equal to frond's convention
+(stem +Y; joint rotation R = R_yaw(Z) R_pitch(X) R_roll(Y) relative to its parent, chained root to
+top) mapped to Blender's Z-up world by the importer's default axes: (x, y, z) -> (x, -z, y).
+For the field: every plant's root bone stands at its position and its segments have its scale.
+"""
+
+import json
+import math
+import os
+import sys
+
+import bpy
+
+
+def fail(msg):
+    print(f"bvh check failed: {msg}", file=sys.stderr, flush=True)
+    os._exit(1)
+
+
+def mat_mul(a, b):
+    return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+
+def mat_vec(m, v):
+    return [sum(m[i][k] * v[k] for k in range(3)) for i in range(3)]
+
+
+def joint_matrix(pitch, yaw, roll):
+    p, y, r = (math.radians(a) for a in (pitch, yaw, roll))
+    rx = [[1, 0, 0], [0, math.cos(p), -math.sin(p)], [0, math.sin(p), math.cos(p)]]
+    rz = [[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]]
+    ry = [[math.cos(r), 0, math.sin(r)], [0, 1, 0], [-math.sin(r), 0, math.cos(r)]]
+    return mat_mul(mat_mul(rz, rx), ry)
+
+
+def fk(joints, heights):
+    """World positions (frond's Y-up frame) of joints 0..3 and the top."""
+    points = [[0.0, heights[0], 0.0]]
+    acc = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+    for j in range(4):
+        acc = mat_mul(acc, joint_matrix(*joints[j]))
+        seg = mat_vec(acc, [0.0, heights[j + 1] - heights[j], 0.0])
+        points.append([points[-1][i] + seg[i] for i in range(3)])
+    return points
+
+
+def to_blender(p):
+    return (p[0], -p[2], p[1])
+
+
+def import_bvh(path):
+    before = set(bpy.data.objects)
+    bpy.ops.import_anim.bvh(filepath=path, global_scale=1.0, rotate_mode="NATIVE",
+                            use_fps_scale=False, update_scene_fps=True, update_scene_duration=True)
+    new = [o for o in bpy.data.objects if o not in before]
+    arms = [o for o in new if o.type == "ARMATURE"]
+    if len(arms) != 1:
+        fail(f"{path}: expected one armature, got {[o.name for o in new]}")
+    return arms[0]
+
+
+def close(a, b, tol):
+    return all(abs(x - y) <= tol for x, y in zip(a, b))
+
+
+def main():
+    spec = json.load(open(sys.argv[1]))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    poses = [json.loads(line) for line in open(spec["poses"]) if line.strip()]
+    heights = spec["heights_m"]
+    names = spec["names"]
+    arm = import_bvh(spec["bvh"])
+    bones = [b.name for b in arm.data.bones]
+    if sorted(bones) != sorted(names):
+        fail(f"bones {bones}, expected the rig's joints {names}")
+    scene = bpy.context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    want_fps = round(1.0 / (poses[1]["t"] - poses[0]["t"]))
+    if abs(fps - want_fps) > 1e-3:
+        fail(f"scene runs at {fps} fps, the BVH at {want_fps}")
+    start = scene.frame_start
+    first, last = arm.animation_data.action.frame_range
+    if round(last - first) + 1 != len(poses) or round(first) != start:
+        fail(f"keys on frames {first}..{last}, {len(poses)} exported from frame {start}")
+    worst = 0.0
+    for k, pose in enumerate(poses):
+        scene.frame_set(start + k)
+        want = [to_blender(p) for p in fk(pose["joints"], heights)]
+        mw = arm.matrix_world
+        for j, name in enumerate(names):
+            pb = arm.pose.bones[name]
+            head = mw @ pb.head
+            worst = max(worst, max(abs(a - b) for a, b in zip(head, want[j])))
+            if not close(head, want[j], 1e-4):
+                fail(f"frame {k} {name}: head {tuple(head)}, forward kinematics {want[j]}")
+        tail = mw @ arm.pose.bones[names[3]].tail
+        if not close(tail, want[4], 1e-4):
+            fail(f"frame {k}: top {tuple(tail)}, forward kinematics {want[4]}")
+    report = f"ok: {len(poses)} frames, {len(names)} bones, worst head error {worst:.2e} m"
+
+    field = spec.get("field")
+    if field:
+        arm = import_bvh(field["bvh"])
+        scene.frame_set(scene.frame_start)
+        for plant in field["plants"]:
+            root = arm.pose.bones.get(f"{plant['prefix']}_{names[0]}")
+            if root is None:
+                fail(f"field: no root bone for {plant['prefix']} in {[b.name for b in arm.data.bones]}")
+            x, z = plant["position_m"]
+            want = to_blender([x, heights[0] * plant["scale"], z])
+            head = arm.matrix_world @ arm.data.bones[root.name].head_local
+            if not close(head, want, 1e-4):
+                fail(f"field plant {plant['prefix']}: rests at {tuple(head)}, expected {want}")
+            lower = arm.data.bones[f"{plant['prefix']}_{names[1]}"]
+            seg = (lower.head_local - arm.data.bones[root.name].head_local).length
+            if abs(seg - (heights[1] - heights[0]) * plant["scale"]) > 1e-4:
+                fail(f"field plant {plant['prefix']}: first segment {seg} m, scale {plant['scale']}")
+        report += f"; field of {len(field['plants'])} plants placed and scaled"
+    print(report, flush=True)
+    os._exit(0)
+
+
+main()
