@@ -5,17 +5,23 @@ Blender's scripts/addons folder), enable "frond receiver". The panel is in the 3
 (N), tab "frond".
 
 Start `frond-osc --target 127.0.0.1:9000` (the `frond` namespace, the default), pick the armature
-(one imported from frond-gltf has pose bones `joint0` .. `joint3`, root first) and press Listen.
-Every received frame sets the bones' quaternion rotations from `/frond/joint/<i>/quat`; Record
-keys each received frame into a new action at the frame given by the pose's device time `t`
-(`start frame + (t - t0) * scene fps`, fractional frames kept so no frame is lost; frames flagged
-held, which repeat the previous pose, are applied but not keyed). Frames flagged
-device-lost (`/frond/status` bit 2) are not applied or keyed: the armature holds its last pose.
+(for instance one imported from a GLB that frond-gltf baked: File > Import > glTF 2.0) and press
+Listen. The bones are found by the joint names frond-osc announces (`/frond/rig`: the daemon's
+rig and its four joint names, root first, repeated every second), so an armature imported from
+frond-gltf's GLB of any rig (`root/lower/middle/tip` for grass, `root/stem_low/stem_high/head` for
+the flower, ...) is driven as it is; before any announcement, or for bones missing from the
+armature, the names `joint0` .. `joint3` are tried. Every received frame sets the bones'
+rotations from `/frond/joint/<i>/quat`; Record keys each received frame into a new action at the
+frame given by the pose's device time `t` (`start frame + (t - t0) * scene fps`, fractional frames
+kept so no frame is lost; frames flagged held, which repeat the previous pose, are applied but not
+keyed). Frames flagged device-lost (`/frond/status` bit 2) are not applied or keyed: the armature
+holds its last pose.
 
 Axes: frond's joint frame has the stem along +Y, pitch about +X, yaw about +Z (right-handed,
 glTF). A Blender bone pointing along its parent's direction with roll 0 has exactly these local
 axes (bone Y along the bone; in a Z-up scene bone X = world X, bone Z = world -Y, which is where
-glTF's +Z lands), so frond's quaternion (x, y, z, w) is the pose bone's `rotation_quaternion`
+glTF's +Z lands), and Blender's glTF importer gives the bones of frond-gltf's GLBs the glTF
+joints' own frames, so frond's quaternion (x, y, z, w) is the pose bone's `rotation_quaternion`
 (w, x, y, z) unchanged.
 
 No dependency beyond Blender: OSC is decoded here (OSC 1.0 bundles and messages).
@@ -39,7 +45,7 @@ try:
 except ImportError:  # the OSC parsing below is usable without Blender
     bpy = None
 
-BONE_NAMES = ("joint0", "joint1", "joint2", "joint3")
+BONE_NAMES = ("joint0", "joint1", "joint2", "joint3")  # before /frond/rig names the joints
 HELD = 1
 DEVICE_LOST = 2
 
@@ -129,6 +135,41 @@ def frame_from_messages(messages):
     return frame
 
 
+def joint_quat(pitch, yaw, roll):
+    """frond's convention (stem +Y, R = R_yaw(Z) R_pitch(X) R_roll(Y)) as (x, y, z, w)."""
+    import math
+
+    def axis(i, deg):
+        h = math.radians(deg) / 2
+        v = [0.0, 0.0, 0.0]
+        v[i] = math.sin(h)
+        return (v[0], v[1], v[2], math.cos(h))
+
+    def mul(a, b):
+        ax, ay, az, aw = a
+        bx, by, bz, bw = b
+        return (
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        )
+
+    return mul(mul(axis(2, yaw), axis(0, pitch)), axis(1, roll))
+
+
+def element_frame_from_messages(messages):
+    """An element frame dict ({"element", "seq", "t", "quats"}) from a bundle holding
+    `/frond/element/<e>/pose`, or None."""
+    for tag, address, args in messages:
+        if address.startswith("/frond/element/") and address.endswith("/pose") and len(args) == 14:
+            a = list(args[2:14])
+            quats = [joint_quat(*a[3 * j : 3 * j + 3]) for j in range(4)]
+            e = int(address.split("/")[3])
+            return {"element": e, "timetag": tag, "seq": args[0], "t": args[1], "quats": quats, "flags": 0}
+    return None
+
+
 class Receiver:
     """A non-blocking UDP socket; `poll()` drains it and returns the complete frames, in order."""
 
@@ -138,10 +179,23 @@ class Receiver:
         self.sock.bind((host, port))
         self.sock.setblocking(False)
         self.malformed = 0
+        self.rig = None
+        self.joint_names = None
+        self.elements = {}
 
     @property
     def port(self):
         return self.sock.getsockname()[1]
+
+    def read_names(self, messages):
+        """Takes the announced names: `/frond/rig` (rig, 4 joints) and `/frond/element/<e>/info`
+        (name, kind, rig, 4 joints)."""
+        for _, address, args in messages:
+            if address == "/frond/rig" and len(args) == 5 and all(isinstance(a, str) for a in args):
+                self.rig, self.joint_names = args[0], tuple(args[1:5])
+            elif address.startswith("/frond/element/") and address.endswith("/info") and len(args) == 7:
+                e = int(address.split("/")[3])
+                self.elements[e] = {"name": args[0], "kind": args[1], "rig": args[2], "joints": tuple(args[3:7])}
 
     def poll(self, limit=100000):
         frames = []
@@ -151,7 +205,9 @@ class Receiver:
             except (BlockingIOError, InterruptedError):
                 break
             try:
-                frame = frame_from_messages(parse_packet(data))
+                messages = parse_packet(data)
+                self.read_names(messages)
+                frame = frame_from_messages(messages) or element_frame_from_messages(messages)
             except (OscError, struct.error, ValueError, UnicodeDecodeError):
                 self.malformed += 1
                 continue
@@ -173,26 +229,64 @@ def _armature(scene):
     return obj if obj is not None and obj.type == "ARMATURE" else None
 
 
+def element_bones(obj, element):
+    """The joint sets a secondary element drives: every instance of its kind in frond-gltf's
+    naming (`leaf0_joint0` .. `leaf0_joint3`, `leaf1_joint0`, ...; a layer `leaf#2` is a `leaf`),
+    as announced by `/frond/element/<e>/info` (kind `layer`)."""
+    receiver = _state["receiver"]
+    info = receiver.elements.get(element) if receiver is not None else None
+    if info is None or info["kind"] != "layer":
+        return []
+    kind = info["name"].split("#")[0]
+    sets = []
+    k = 0
+    while all(f"{kind}{k}_joint{j}" in obj.pose.bones for j in range(4)):
+        sets.append([f"{kind}{k}_joint{j}" for j in range(4)])
+        k += 1
+    return sets
+
+
+def frame_bones(obj, frame):
+    """The joint sets a frame drives: the main skeleton for the global element, a layer's
+    instances for a secondary element."""
+    if frame.get("element", 0) == 0:
+        return [bone_names(obj)]
+    return element_bones(obj, frame["element"])
+
+
+def bone_names(obj):
+    """The four pose bones frond's joints drive, root first: the announced joint names, else
+    `joint0` .. `joint3`, per joint whichever the armature has (None when it has neither)."""
+    receiver = _state["receiver"]
+    announced = receiver.joint_names if receiver is not None and receiver.joint_names else BONE_NAMES
+    names = []
+    for name, fallback in zip(announced, BONE_NAMES):
+        names.append(name if name in obj.pose.bones else fallback if fallback in obj.pose.bones else None)
+    return names
+
+
 def apply_frame(obj, frame):
     """Sets the pose bones' rotations from the frame's joint quaternions."""
-    for name, (x, y, z, w) in zip(BONE_NAMES, frame["quats"]):
-        pb = obj.pose.bones.get(name)
-        if pb is None:
-            continue
-        pb.rotation_mode = "QUATERNION"
-        pb.rotation_quaternion = (w, x, y, z)
+    for names in frame_bones(obj, frame):
+        for name, (x, y, z, w) in zip(names, frame["quats"]):
+            pb = obj.pose.bones.get(name) if name else None
+            if pb is None:
+                continue
+            pb.rotation_mode = "QUATERNION"
+            pb.rotation_quaternion = (w, x, y, z)
 
 
 def key_frame(obj, scene, frame):
     """Keys the bones' rotations at the frame's device time (see the module docs)."""
     if _state["t0"] is None:
-        _state["t0"] = frame["t"]
+        _state["t0"] = frame["t"]  # any element's: device time is shared
     fps = scene.render.fps / scene.render.fps_base
     at = scene.frond_receiver.record_start + (frame["t"] - _state["t0"]) * fps
-    for name in BONE_NAMES:
-        pb = obj.pose.bones.get(name)
-        if pb is not None:
-            pb.keyframe_insert("rotation_quaternion", frame=at, group=name)
+    for names in frame_bones(obj, frame):
+        for name in names:
+            pb = obj.pose.bones.get(name) if name else None
+            if pb is not None:
+                pb.keyframe_insert("rotation_quaternion", frame=at, group=name)
     _state["keyed"] += 1
 
 
@@ -338,6 +432,9 @@ if bpy is not None:
             else:
                 col.operator("frond.stop", icon="PAUSE")
                 col.label(text=f"frames {_state['frames']}  last seq {_state['last_seq']}")
+                receiver = _state["receiver"]
+                if receiver.joint_names:
+                    col.label(text=f"rig {receiver.rig}: {', '.join(receiver.joint_names)}")
                 if _state["lost"]:
                     col.label(text=f"device lost in {_state['lost']} frames", icon="ERROR")
             label = "Stop recording" if props.recording else "Record"

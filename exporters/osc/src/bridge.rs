@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
-use frond_protocol::{Hello, Pose};
+use frond_protocol::{ElementTable, Hello, Pose};
 use frond_sdk::{Event, SdkError, Subscriber};
 use thiserror::Error;
 
@@ -141,8 +141,13 @@ struct SubCounters {
 enum Msg {
     Pose(Pose),
     Hello(Hello),
+    Elements(ElementTable),
     End(SdkError),
 }
+
+/// How often the `frond` namespace repeats its names bundle (a receiver started late learns
+/// them within this).
+pub const NAMES_EVERY: Duration = Duration::from_secs(1);
 
 enum Encoder {
     Frond(FrondEncoder),
@@ -168,6 +173,9 @@ pub struct Bridge {
     datagrams: Datagrams,
     vmc_names_fixed: bool,
     frames_out: u64,
+    /// The daemon's rig, joint names and element table, for the names bundle.
+    names: (String, Vec<String>, ElementTable),
+    names_due: Instant,
 }
 
 impl Bridge {
@@ -180,6 +188,8 @@ impl Bridge {
         if !config.vmc_names_fixed {
             apply_hello_names(&mut vmc_rig, sub.hello());
         }
+        let hello = sub.hello();
+        let names = (hello.rig_name.clone(), hello.joint_names.clone(), sub.elements().clone());
         let encoder = match config.protocol {
             Protocol::Frond => Encoder::Frond(FrondEncoder::new(config.clock_offset)),
             Protocol::Vmc => Encoder::Vmc(VmcEncoder::new(config.clock_offset, vmc_rig)),
@@ -200,6 +210,8 @@ impl Bridge {
             datagrams: Datagrams::new(),
             vmc_names_fixed: config.vmc_names_fixed,
             frames_out: 0,
+            names,
+            names_due: Instant::now(),
         })
     }
 
@@ -243,6 +255,10 @@ impl Bridge {
                     None => self.send(&pose)?,
                 },
                 Ok(Msg::Hello(hello)) => self.on_hello(&hello),
+                Ok(Msg::Elements(table)) => {
+                    self.names.2 = table;
+                    self.names_due = Instant::now();
+                }
                 Ok(Msg::End(e)) => return Err(e.into()),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return Err(SdkError::Closed.into()),
@@ -256,6 +272,14 @@ impl Bridge {
                 });
                 self.resampler = Some(r);
                 result?;
+            }
+            if let Encoder::Frond(e) = &self.encoder
+                && Instant::now() >= self.names_due
+            {
+                let (rig, joints, table) = &self.names;
+                e.encode_names(rig, joints, table, &mut self.datagrams)?;
+                self.sender.send(&self.datagrams);
+                self.names_due = Instant::now() + NAMES_EVERY;
             }
             if let Some(every) = stats_every
                 && last_stats.elapsed() >= every
@@ -276,6 +300,8 @@ impl Bridge {
 
     fn on_hello(&mut self, hello: &Hello) {
         tracing::info!(rig = %hello.rig_name, joints = ?hello.joint_names, "daemon hello");
+        self.names = (hello.rig_name.clone(), hello.joint_names.clone(), hello.elements.clone());
+        self.names_due = Instant::now();
         if let Encoder::Vmc(e) = &mut self.encoder
             && !self.vmc_names_fixed
         {
@@ -312,8 +338,8 @@ fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters) 
                 counters.missing.fetch_add(got - expected, Ordering::Relaxed);
                 continue;
             }
-            // Element addresses are by id (`/frond/element/N/pose`); names are issue 18's.
-            Ok(Event::Elements(_)) => continue,
+            // Element addresses are by id (`/frond/element/N/pose`); the names bundle names them.
+            Ok(Event::Elements(table)) => Msg::Elements(table),
             Ok(Event::RigChanged(hello)) => Msg::Hello(hello),
             Ok(Event::Reconnected(hello)) => {
                 counters.reconnects.fetch_add(1, Ordering::Relaxed);

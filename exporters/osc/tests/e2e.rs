@@ -398,22 +398,76 @@ fn blender_addon_drives_the_armature_and_records() {
     let Some(py) = python_with_bpy() else {
         return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
     };
+    let gltf = frondd.with_file_name("frond-gltf");
+    if !gltf.exists() {
+        return skip("frond-gltf is not built (cargo build --workspace --bins)");
+    }
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
+    // The armature a user has: frond-gltf's GLB of the daemon's rig (grass), imported by Blender.
+    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader {
+        name: "rest".into(),
+        rig_name: "grass".into(),
+        calibration_id: "none".into(),
+        filter: "none".into(),
+        tick_rate_hz: 30,
+        created_unix_s: 0,
+        daemon_version: "test".into(),
+        joint_names: Vec::new(),
+    });
+    let rest: Vec<frond_motion::PoseFrame> =
+        (0..3).map(|k| frond_motion::PoseFrame { t: k as f64 / 30.0, joints_deg: [[0.0; 3]; 4] }).collect();
+    let clip = frond_motion::clip::Clip { fps: 30.0, frames: rest };
+    take.set_layer(0, None, frond_motion::layers::frames_from_clip(&clip, 0, 0, None));
+    std::fs::write(tmp.path().join("rest.take"), take.to_bytes()).unwrap();
+    let glb = tmp.path().join("grass.glb");
+    let baked = Command::new(&gltf)
+        .args(["bake", "-q", "--rig", "grass", "--take"])
+        .arg(tmp.path().join("rest.take"))
+        .arg("-o")
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    let flower = tmp.path().join("flower.glb");
+    let baked = Command::new(&gltf)
+        .args(["bake", "-q", "--rig", "flower", "--take"])
+        .arg(tmp.path().join("rest.take"))
+        .arg("-o")
+        .arg(&flower)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    let heights: Vec<String> = rig.joints.iter().map(|j| j.height_m.to_string()).collect();
     let out = tmp.path().join("blender.jsonl");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_check.py");
     let mut child = Command::new(&py)
         .arg(script)
         .args(["--frames", "300", "--record", "200", "--timeout", "90", "--out"])
         .arg(&out)
+        .arg("--glb")
+        .arg(&glb)
+        .arg("--flower-glb")
+        .arg(&flower)
+        .args(["--heights", &heights.join(",")])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("start blender_check.py");
+    // The importer logs on stdout too: the port is the line `port N`.
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
     let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("blender port");
+    let port: u16 = loop {
+        line.clear();
+        if reader.read_line(&mut line).expect("blender port") == 0 {
+            panic!("blender_check ended without printing its port");
+        }
+        if let Some(p) = line.trim().strip_prefix("port ") {
+            break p.parse().unwrap_or_else(|_| panic!("blender_check printed `{line}`"));
+        }
+    };
     let mut blender = Proc(child);
-    let port: u16 = line.trim().parse().unwrap_or_else(|_| panic!("blender_check printed `{line}`"));
     let collector = Collector::start(&daemon.socket_dir);
     let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
     wait_receiver(&mut blender);
@@ -426,9 +480,25 @@ fn blender_addon_drives_the_armature_and_records() {
     for f in &frames {
         let seq = f["seq"].as_i64().unwrap() as u32;
         let pose = by_seq.get(&seq).unwrap_or_else(|| panic!("frame {seq} unknown to the SDK subscriber"));
-        for (i, q) in f["quats"].as_array().unwrap().iter().enumerate() {
-            let [x, y, z, w] = joint_quat(pose.joints_deg[i]);
-            assert_eq!(f32s(q), [w, x, y, z], "Blender's rotation of joint{i} at {seq}");
+        // Forward kinematics of the daemon's pose (frond_protocol's convention), Y up -> Blender Z up.
+        let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
+        let mut p = [0.0, f64::from(rig.joints[0].height_m), 0.0];
+        for (i, head) in f["heads"].as_array().unwrap().iter().enumerate() {
+            let got: Vec<f64> = head.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            let want = [p[0], -p[2], p[1]];
+            for c in 0..3 {
+                assert!(
+                    (got[c] - want[c]).abs() < 1e-4,
+                    "Blender's head of joint {i} at {seq}: {got:?} vs {want:?}"
+                );
+            }
+            let m = frond_protocol::convention::joint_matrix(pose.joints_deg[i]);
+            r = std::array::from_fn(|a| std::array::from_fn(|b| (0..3).map(|k| r[a][k] * m[k][b]).sum()));
+            if i + 1 < 4 {
+                let seg = f64::from(rig.joints[i + 1].height_m - rig.joints[i].height_m);
+                // R (0, seg, 0): the second column.
+                p = std::array::from_fn(|a| p[a] + r[a][1] * seg);
+            }
         }
     }
 }

@@ -305,3 +305,67 @@ fn assert_bytes_eq(got: &[u8], expected: &[u8]) {
         );
     }
 }
+
+#[test]
+fn the_names_bundle_names_the_rig_and_every_element() {
+    use frond_protocol::{ElementInfo, ElementKind, ElementTable, RigInfo};
+    let names = |v: [&str; 4]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let table = ElementTable {
+        version: 3,
+        rigs: vec![RigInfo {
+            name: "flower".into(),
+            joint_names: names(["root", "stem_low", "stem_high", "head"]),
+        }],
+        elements: vec![
+            ElementInfo {
+                id: 0,
+                name: "flower".into(),
+                kind: ElementKind::Hand,
+                source: "hand".into(),
+                rig: "flower".into(),
+            },
+            ElementInfo {
+                id: 1,
+                name: "leaf#1".into(),
+                kind: ElementKind::Layer,
+                source: "layer".into(),
+                rig: "flower".into(),
+            },
+        ],
+    };
+    let mut out = Datagrams::new();
+    let joints = names(["root", "stem_low", "stem_high", "head"]);
+    FrondEncoder::new(OFFSET).encode_names("flower", &joints, &table, &mut out).unwrap();
+    assert_eq!(out.len(), 1);
+    let b = decode_bundle(out.get(0).unwrap());
+    assert_eq!(b.timetag, rosc::OscTime { seconds: 0, fractional: 1 }, "immediately");
+    let msgs: Vec<(String, Vec<String>)> = b
+        .content
+        .iter()
+        .map(|p| match p {
+            OscPacket::Message(m) => {
+                (m.addr.clone(), m.args.iter().map(|a| a.clone().string().expect("string args")).collect())
+            }
+            OscPacket::Bundle(_) => panic!("nested bundle"),
+        })
+        .collect();
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    assert_eq!(
+        msgs,
+        vec![
+            ("/frond/rig".to_string(), s(&["flower", "root", "stem_low", "stem_high", "head"])),
+            (
+                "/frond/element/1/info".to_string(),
+                s(&["leaf#1", "layer", "flower", "root", "stem_low", "stem_high", "head"])
+            ),
+        ]
+    );
+    // The message bytes as the spec lays them out: address, ",sssss", padded strings.
+    let raw = out.get(0).unwrap();
+    let rig_msg = message(
+        b"/frond/rig\0\0",
+        b",sssss\0\0",
+        b"flower\0\0root\0\0\0\0stem_low\0\0\0\0stem_high\0\0\0head\0\0\0\0",
+    );
+    assert!(raw.windows(rig_msg.len()).any(|w| w == rig_msg.as_slice()), "the /frond/rig bytes");
+}

@@ -1,8 +1,8 @@
 //! The `frond` OSC namespace (documented in the [parent module](super)).
 
-use frond_protocol::Pose;
 use frond_protocol::convention::joint_quat;
-use rosc::{OscPacket, OscType};
+use frond_protocol::{ElementTable, Pose};
+use rosc::{OscMessage, OscPacket, OscTime, OscType};
 
 use super::{ClockOffset, Datagrams, EncodeError, set_f32, template, timetag};
 
@@ -37,6 +37,17 @@ fn fill_pose(packet: &mut OscPacket, pose: &Pose) {
     }
 }
 
+/// Longest name in the names bundle, bytes (a rig's joint names are at most 255).
+pub const MAX_NAME_BYTES: usize = 255;
+
+fn cut(name: &str) -> &str {
+    let mut end = name.len().min(MAX_NAME_BYTES);
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    &name[..end]
+}
+
 impl FrondEncoder {
     /// An encoder whose timetags use `offset` (see [`ClockOffset`]).
     pub fn new(offset: ClockOffset) -> FrondEncoder {
@@ -50,6 +61,37 @@ impl FrondEncoder {
             }),
             elements: Vec::new(),
         }
+    }
+
+    /// Encodes the names bundle into `out` (replacing what it held), timetag "immediately": the
+    /// main skeleton's `/frond/rig ,sssss` (rig name, then the 4 joint names, root first) and, per
+    /// announced element `e` other than 0, `/frond/element/<e>/info ,sssssss` (element name, kind
+    /// `hand|layer|playback|field-plant`, rig, its 4 joint names). Names longer than
+    /// [`MAX_NAME_BYTES`] are cut at a character boundary. Allocates: the bridge sends it when the
+    /// daemon's names change and once a second, never per frame.
+    pub fn encode_names(
+        &self,
+        rig: &str,
+        joint_names: &[String],
+        table: &ElementTable,
+        out: &mut Datagrams,
+    ) -> Result<(), EncodeError> {
+        out.begin(OscTime { seconds: 0, fractional: 1 });
+        let s = |v: &str| OscType::String(cut(v).to_string());
+        let joints = |names: &[String]| -> Vec<OscType> {
+            (0..4).map(|j| s(names.get(j).map_or("", String::as_str))).collect()
+        };
+        let mut args = vec![s(rig)];
+        args.extend(joints(joint_names));
+        out.push(&OscPacket::Message(OscMessage { addr: "/frond/rig".into(), args }))?;
+        for e in table.elements.iter().filter(|e| e.id != 0) {
+            let mut args = vec![s(&e.name), s(e.kind.as_str()), s(&e.rig)];
+            args.extend(joints(table.joint_names(e.id).unwrap_or(&[])));
+            let addr = format!("/frond/element/{}/info", e.id);
+            out.push(&OscPacket::Message(OscMessage { addr, args }))?;
+        }
+        out.finish();
+        Ok(())
     }
 
     /// Encodes one frame into `out` (replacing what it held).
