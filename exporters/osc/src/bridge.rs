@@ -244,6 +244,8 @@ impl Bridge {
         mut on_stats: impl FnMut(&BridgeStats),
     ) -> Result<(), BridgeError> {
         let mut last_stats = Instant::now();
+        // The names first, so that a receiver knows the joints before the first frame.
+        self.send_names_if_due()?;
         while !stop.load(Ordering::Relaxed) {
             let mut wait = Duration::from_millis(100);
             if let Some(due) = self.resampler.as_ref().and_then(Resampler::next_tick_ns) {
@@ -273,20 +275,26 @@ impl Bridge {
                 self.resampler = Some(r);
                 result?;
             }
-            if let Encoder::Frond(e) = &self.encoder
-                && Instant::now() >= self.names_due
-            {
-                let (rig, joints, table) = &self.names;
-                e.encode_names(rig, joints, table, &mut self.datagrams)?;
-                self.sender.send(&self.datagrams);
-                self.names_due = Instant::now() + NAMES_EVERY;
-            }
+            self.send_names_if_due()?;
             if let Some(every) = stats_every
                 && last_stats.elapsed() >= every
             {
                 last_stats = Instant::now();
                 on_stats(&self.stats());
             }
+        }
+        Ok(())
+    }
+
+    /// Sends the `frond` namespace's names bundle when it is due (see [`NAMES_EVERY`]).
+    fn send_names_if_due(&mut self) -> Result<(), EncodeError> {
+        if let Encoder::Frond(e) = &self.encoder
+            && Instant::now() >= self.names_due
+        {
+            let (rig, joints, table) = &self.names;
+            e.encode_names(rig, joints, table, &mut self.datagrams)?;
+            self.sender.send(&self.datagrams);
+            self.names_due = Instant::now() + NAMES_EVERY;
         }
         Ok(())
     }

@@ -239,7 +239,13 @@ fn frond_namespace_delivers_every_frame_in_order_with_the_daemons_values() {
     let stderr = stop_and_stderr(osc);
 
     let by_seq: HashMap<u32, &Pose> = poses.iter().map(|p| (p.seq as u32, p)).collect();
-    let frames = read_jsonl(&out);
+    let mut frames = read_jsonl(&out);
+    // The names bundle: the daemon's rig and its joint names, as its hello says.
+    let at = frames.iter().position(|f| f.get("names").is_some()).expect("a names bundle");
+    assert_eq!(at, 0, "the names go out before the first frame");
+    let names = frames.remove(at);
+    assert_eq!(names["names"]["rig"], "grass", "{names}");
+    assert_eq!(names["names"]["joints"], serde_json::json!(["root", "lower", "middle", "tip"]), "{names}");
     assert_eq!(frames.len(), FRAMES);
     for f in &frames {
         let seq = f["seq"].as_i64().unwrap() as u32;
@@ -330,6 +336,9 @@ fn rate_resampling_never_repeats_a_frame() {
             panic!("bundle expected")
         };
         let rosc::OscPacket::Message(m) = &b.content[0] else { panic!("message expected") };
+        if m.addr == "/frond/rig" {
+            continue; // the names bundle
+        }
         let rosc::OscType::Int(seq) = m.args[0] else { panic!("int seq expected") };
         let joints: Vec<f32> = m.args[2..14]
             .iter()

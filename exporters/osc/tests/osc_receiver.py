@@ -8,7 +8,10 @@ stderr and exits 1; without enough frames before --timeout it exits 2.
 
 frond mode, per datagram: a bundle (timetag non-decreasing) holding /frond/pose ',idffffffffffff',
 /frond/joint/0..3/quat ',ffff' with unit norm and /frond/status ',i'; sequence numbers must be
-consecutive (every frame, in order) unless --allow-gaps (then only strictly increasing).
+consecutive (every frame, in order) unless --allow-gaps (then only strictly increasing). The names
+bundle (timetag "immediately" (0, 1): /frond/rig ',sssss', /frond/element/<e>/info ',sssssss')
+must arrive before --count frames have: its rig and joint names go to the first line of --out as
+{"names": ...}.
 vmc mode: every datagram at most 1200 bytes and a bundle; messages grouped by bundle timetag into
 frames; Root/Pos ',sfffffff' "root", Bone/Pos ',sfffffff', OK ',iiii' (loaded 1), T ',f'; bone
 rotations of unit norm; a frame is complete when its /VMC/Ext/T arrives.
@@ -64,6 +67,29 @@ def unit(q, what):
     expect(abs(n - 1.0) < 1e-5, f"{what}: quaternion norm {n} is not 1 ({q})")
 
 
+def names_bundle(dgram):
+    """The names of a names bundle, or None for another datagram."""
+    if not OscBundle.dgram_is_bundle(dgram):
+        return None
+    found = list(messages(OscBundle(dgram)))
+    if not found or not (found[0].address == "/frond/rig" or found[0].address.endswith("/info")):
+        return None
+    expect(tuple(timetag(dgram)) == (0, 1), f"names bundle timetag {timetag(dgram)} is not 'immediately'")
+    names = {"elements": {}}
+    for m in found:
+        tags = type_tags(m.dgram)
+        if m.address == "/frond/rig":
+            expect(tags == ",sssss", f"/frond/rig type tags {tags}")
+            names["rig"], names["joints"] = m.params[0], list(m.params[1:5])
+        elif m.address.startswith("/frond/element/") and m.address.endswith("/info"):
+            expect(tags == ",sssssss", f"{m.address} type tags {tags}")
+            names["elements"][m.address.split("/")[3]] = list(m.params)
+        else:
+            raise Violation(f"unexpected address {m.address} in the names bundle")
+    expect("rig" in names, "names bundle without /frond/rig")
+    return names
+
+
 def frond_frame(dgram):
     expect(OscBundle.dgram_is_bundle(dgram), "datagram is not a bundle")
     frame = {"timetag": list(timetag(dgram)), "quats": [None] * 4}
@@ -92,7 +118,7 @@ def frond_frame(dgram):
 
 
 def run_frond(sock, args, out):
-    frames, last_seq, last_tag = 0, None, (0, 0)
+    frames, last_seq, last_tag, named = 0, None, (0, 0), False
     deadline = time.monotonic() + args.timeout
     while frames < args.count:
         if time.monotonic() > deadline:
@@ -101,6 +127,12 @@ def run_frond(sock, args, out):
         try:
             dgram = sock.recv(65536)
         except socket.timeout:
+            continue
+        names = names_bundle(dgram)
+        if names is not None:
+            if not named:
+                out.write(json.dumps({"names": names}) + "\n")
+            named = True
             continue
         frame = frond_frame(dgram)
         tag = tuple(frame["timetag"])
@@ -116,6 +148,7 @@ def run_frond(sock, args, out):
         last_seq, last_tag = seq, tag
         out.write(json.dumps(frame) + "\n")
         frames += 1
+    expect(named, f"no names bundle among {frames} frames")
     return 0
 
 
