@@ -14,7 +14,9 @@ use frond_protocol::{ElementTable, Hello, Pose};
 use frond_sdk::{Event, SdkError, Subscriber};
 use thiserror::Error;
 
-use crate::encode::{ClockOffset, Datagrams, EncodeError, FrondEncoder, VmcEncoder, VmcRig, monotonic_ns};
+use crate::encode::{
+    ClockOffset, Datagrams, EncodeError, FrondEncoder, Timetags, VmcEncoder, VmcRig, monotonic_ns,
+};
 use crate::resample::{ResampleCounters, Resampler};
 use crate::sender::{Sender, SenderError, TargetCounters};
 
@@ -42,11 +44,13 @@ pub struct BridgeConfig {
     pub rate_hz: Option<f64>,
     /// VMC rig (heights, bone names).
     pub vmc_rig: VmcRig,
-    /// When true the VMC bone names are fixed (from `--vmc-bones` or a rig file's `[vmc]` table);
-    /// otherwise they follow the daemon's hello (its joint names).
+    /// When true the VMC bone names are fixed (humanoid, `--vmc-bones` or a rig file's `[vmc]`
+    /// table); otherwise (`--vmc-bones joints`) they follow the daemon's hello (its joint names).
     pub vmc_names_fixed: bool,
     /// Timetag clock offset (measure it with [`ClockOffset::measure`]).
     pub clock_offset: ClockOffset,
+    /// What the frames' timetags say.
+    pub timetags: Timetags,
     /// Capacity of the queue between the subscriber thread and the sending loop.
     pub queue_capacity: usize,
 }
@@ -63,6 +67,7 @@ impl BridgeConfig {
             vmc_rig: VmcRig::default(),
             vmc_names_fixed: false,
             clock_offset: ClockOffset::measure(),
+            timetags: Timetags::Publish,
             queue_capacity: 4096,
         }
     }
@@ -191,8 +196,16 @@ impl Bridge {
         let hello = sub.hello();
         let names = (hello.rig_name.clone(), hello.joint_names.clone(), sub.elements().clone());
         let encoder = match config.protocol {
-            Protocol::Frond => Encoder::Frond(FrondEncoder::new(config.clock_offset)),
-            Protocol::Vmc => Encoder::Vmc(VmcEncoder::new(config.clock_offset, vmc_rig)),
+            Protocol::Frond => {
+                let mut e = FrondEncoder::new(config.clock_offset);
+                e.set_timetags(config.timetags);
+                Encoder::Frond(e)
+            }
+            Protocol::Vmc => {
+                let mut e = VmcEncoder::new(config.clock_offset, vmc_rig);
+                e.set_timetags(config.timetags);
+                Encoder::Vmc(e)
+            }
         };
         let (tx, rx) = sync_channel(config.queue_capacity.max(1));
         let counters = Arc::new(SubCounters::default());

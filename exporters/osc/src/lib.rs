@@ -26,3 +26,5 @@ pub use bridge::{Bridge, BridgeConfig, BridgeError, BridgeStats, Protocol};
 pub const DEFAULT_FROND_PORT: u16 = 9000;
 /// Default UDP port of VMC receivers (the VMC protocol's performer-to-marionette port).
 pub const DEFAULT_VMC_PORT: u16 = 39539;
+/// VMC's default output rate, Hz: what VMC performers send and receivers expect (about 60).
+pub const DEFAULT_VMC_RATE_HZ: f64 = 60.0;

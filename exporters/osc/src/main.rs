@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::{Parser, ValueEnum};
-use frond_osc::encode::VmcRig;
+use frond_osc::encode::{Timetags, VmcRig};
 use frond_osc::resample::RATE_RANGE_HZ;
 use frond_osc::{Bridge, BridgeConfig, DEFAULT_FROND_PORT, DEFAULT_VMC_PORT, Protocol, bench, rig, sender};
 
@@ -31,10 +31,15 @@ struct Args {
     /// OSC dialect.
     #[arg(long, value_enum, default_value = "frond")]
     protocol: ProtocolArg,
-    /// Output rate in Hz: send the newest frame at this rate (never a stale one twice).
-    /// Default: every frame the daemon publishes.
-    #[arg(long, value_name = "HZ")]
-    rate: Option<f64>,
+    /// Output rate: HZ sends the newest frame at this rate (never a stale one twice); `every`
+    /// sends every frame the daemon publishes. Default: 60 for vmc (what VMC tools expect),
+    /// every frame for frond.
+    #[arg(long, value_name = "HZ|every")]
+    rate: Option<String>,
+    /// Bundle timetags: `immediately` (apply on receipt) or `publish` (the frame's publish time,
+    /// NTP). Default: immediately for vmc, publish for frond.
+    #[arg(long, value_name = "WHEN")]
+    timetag: Option<String>,
     /// Local address to send from, e.g. 0.0.0.0:0 or 192.168.1.5:0.
     #[arg(long, value_name = "ADDR")]
     bind: Option<String>,
@@ -47,10 +52,12 @@ struct Args {
     socket_dir: Option<PathBuf>,
     /// Rig for VMC joint offsets and, if it has a [vmc] table, bone names: an embedded rig
     /// (grass, flower, shrub) or a rig file (rig-files/plants/*.toml). Default: the grass rig's
-    /// heights and the daemon's joint names.
+    /// heights.
     #[arg(long, value_name = "RIG|FILE")]
     rig: Option<String>,
-    /// VMC bone names: `humanoid` (Hips,Spine,Chest,Neck) or four comma-separated names.
+    /// VMC bone names: `humanoid` (Unity HumanBodyBones Hips,Spine,Chest,Neck: what VMC
+    /// receivers map), `joints` (the daemon's joint names, followed live) or four
+    /// comma-separated names. Default: the --rig file's [vmc] bones, else humanoid.
     #[arg(long, value_name = "NAMES")]
     vmc_bones: Option<String>,
     /// Measure daemon-to-receiver latency (p50/p99) with 1 and 4 loopback targets, print JSON
@@ -94,37 +101,55 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
             }
         },
     };
-    if let Some(rate) = args.rate
-        && !RATE_RANGE_HZ.contains(&rate)
-    {
-        problems.push(format!(
-            "--rate {rate}: must be between {} and {} Hz",
-            RATE_RANGE_HZ.start(),
-            RATE_RANGE_HZ.end()
-        ));
-    }
+    let rate_hz = match (args.rate.as_deref(), protocol) {
+        (Some("every"), _) | (None, Protocol::Frond) => None,
+        (None, Protocol::Vmc) => Some(frond_osc::DEFAULT_VMC_RATE_HZ),
+        (Some(r), _) => match r.parse::<f64>() {
+            Ok(rate) if RATE_RANGE_HZ.contains(&rate) => Some(rate),
+            _ => {
+                problems.push(format!(
+                    "--rate {r}: must be `every` or between {} and {} Hz",
+                    RATE_RANGE_HZ.start(),
+                    RATE_RANGE_HZ.end()
+                ));
+                None
+            }
+        },
+    };
+    let timetags = match (args.timetag.as_deref(), protocol) {
+        (Some("immediately"), _) | (None, Protocol::Vmc) => Timetags::Immediately,
+        (Some("publish"), _) | (None, Protocol::Frond) => Timetags::Publish,
+        (Some(other), _) => {
+            problems.push(format!("--timetag {other}: expected `immediately` or `publish`"));
+            Timetags::Publish
+        }
+    };
     if !(args.bench_seconds.is_finite() && args.bench_seconds > 0.0 && args.bench_seconds <= 3600.0) {
         problems.push(format!("--bench-seconds {}: must be in (0, 3600]", args.bench_seconds));
     }
     let mut vmc_rig = VmcRig::default();
-    let mut names_fixed = false;
+    let mut names_fixed = true;
+    let mut from_rig_table = false;
     if let Some(path) = &args.rig {
         match rig::load(path) {
             Ok(file) => {
-                vmc_rig = file.vmc;
-                names_fixed = file.has_vmc_bones;
+                vmc_rig.heights_m = file.vmc.heights_m;
+                if file.has_vmc_bones {
+                    vmc_rig.bone_names = file.vmc.bone_names;
+                    from_rig_table = true;
+                }
             }
             Err(e) => problems.push(e.to_string()),
         }
     }
-    if let Some(spec) = &args.vmc_bones {
-        match rig::parse_bone_names(spec) {
-            Ok(names) => {
-                vmc_rig.bone_names = names;
-                names_fixed = true;
-            }
+    match args.vmc_bones.as_deref() {
+        Some("joints") => names_fixed = false,
+        Some(spec) => match rig::parse_bone_names(spec) {
+            Ok(names) => vmc_rig.bone_names = names,
             Err(e) => problems.push(e.to_string()),
-        }
+        },
+        None if from_rig_table => {}
+        None => vmc_rig.bone_names = frond_osc::encode::vmc_humanoid_names(),
     }
     if !problems.is_empty() {
         return Err(InvalidArguments(problems.join("\n  ")).into());
@@ -132,7 +157,8 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
     let mut config = BridgeConfig::new(socket_dir, protocol, targets);
     config.bind = bind;
-    config.rate_hz = args.rate;
+    config.rate_hz = rate_hz;
+    config.timetags = timetags;
     config.vmc_rig = vmc_rig;
     config.vmc_names_fixed = names_fixed;
     Ok(config)

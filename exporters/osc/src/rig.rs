@@ -75,7 +75,7 @@ pub fn from_loaded(loaded: &LoadedRig) -> Result<RigFile, RigFileError> {
 
 /// A `--vmc-bones` value that is neither `humanoid` nor four names.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("--vmc-bones: expected `humanoid` or 4 non-empty comma-separated names, got `{0}`")]
+#[error("--vmc-bones: expected `humanoid`, `joints` or 4 non-empty comma-separated names, got `{0}`")]
 pub struct BadBoneNames(pub String);
 
 /// Parses `--vmc-bones`: `humanoid`, or four comma-separated names.

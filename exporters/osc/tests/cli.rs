@@ -9,13 +9,25 @@ fn frond_osc(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn invalid_arguments_exit_2_naming_each_problem_once() {
-    let out = frond_osc(&["--vmc-bones", "a,b", "--rig", "/nonexistent/rig.toml", "--rate", "0"]);
+    let out = frond_osc(&[
+        "--vmc-bones",
+        "a,b",
+        "--rig",
+        "/nonexistent/rig.toml",
+        "--rate",
+        "0",
+        "--timetag",
+        "later",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.starts_with("frond-osc: error: invalid arguments:"), "{err}");
-    for problem in
-        ["--vmc-bones: expected `humanoid` or 4", "cannot read rig /nonexistent/rig.toml", "--rate 0"]
-    {
+    for problem in [
+        "--vmc-bones: expected `humanoid`, `joints` or 4",
+        "cannot read rig /nonexistent/rig.toml",
+        "--rate 0: must be `every` or",
+        "--timetag later: expected `immediately` or `publish`",
+    ] {
         assert_eq!(err.matches(problem).count(), 1, "{problem:?} in:\n{err}");
     }
     assert_eq!(err.matches("No such file").count(), 1, "the OS error once:\n{err}");

@@ -276,26 +276,28 @@ fn vmc_mode_sends_the_rig_bones_with_unit_unity_rotations() {
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("vmc.jsonl");
-    let (mut receiver, port) = start_receiver(&py, "vmc", 500, &out);
+    // Defaults: humanoid bone names, 60 Hz, timetags "immediately".
+    let (mut receiver, port) = start_receiver(&py, "vmc", 150, &out);
     let collector = Collector::start(&daemon.socket_dir);
     let osc = start_osc(&daemon.socket_dir, &["--protocol", "vmc", "--target", &format!("127.0.0.1:{port}")]);
     wait_receiver(&mut receiver);
-    let (hello, poses) = collector.finish();
+    let (_, poses) = collector.finish();
     stop_and_stderr(osc);
 
     // VMC carries T as f32 seconds of device time: match frames to the SDK's poses by it.
     let by_t: HashMap<u32, &Pose> = poses.iter().map(|p| ((p.hand.t as f32).to_bits(), p)).collect();
     let frames = read_jsonl(&out);
+    let humanoid = ["Hips", "Spine", "Chest", "Neck"];
     let mut matched = 0;
     for f in &frames {
+        assert_eq!(f["timetag"], serde_json::json!([0, 1]), "timetag 'immediately'");
+        assert_eq!(f["datagrams"], 1, "one bundle per frame");
         let bones = f["bones"].as_object().unwrap();
-        let mut names: Vec<&String> = bones.keys().collect();
+        let mut names: Vec<&str> = bones.keys().map(String::as_str).collect();
         names.sort();
-        let mut expected: Vec<&String> = hello.joint_names.iter().collect();
-        expected.sort();
-        assert_eq!(names, expected, "bones are named after the daemon's joints");
-        for (i, name) in hello.joint_names.iter().enumerate() {
-            let b = f32s(&bones[name]);
+        assert_eq!(names, ["Chest", "Hips", "Neck", "Spine"], "Unity HumanBodyBones names by default");
+        for (i, name) in humanoid.iter().enumerate() {
+            let b = f32s(&bones[*name]);
             // Default rig heights (no --rig): local offsets straight up.
             let below = if i == 0 { 0.0 } else { DEFAULT_HEIGHTS_M[i - 1] };
             assert_eq!(b[..3], [0.0, DEFAULT_HEIGHTS_M[i] - below, 0.0], "position of {name}");
@@ -303,8 +305,8 @@ fn vmc_mode_sends_the_rig_bones_with_unit_unity_rotations() {
         let t = f["t"].as_f64().unwrap() as f32;
         if let Some(pose) = by_t.get(&t.to_bits()) {
             matched += 1;
-            for (i, name) in hello.joint_names.iter().enumerate() {
-                let rot = f32s(&bones[name])[3..].to_vec();
+            for (i, name) in humanoid.iter().enumerate() {
+                let rot = f32s(&bones[*name])[3..].to_vec();
                 assert_eq!(rot, unity_quat(joint_quat(pose.joints_deg[i])), "rotation of {name} at t={t}");
             }
         }
@@ -314,6 +316,12 @@ fn vmc_mode_sends_the_rig_bones_with_unit_unity_rotations() {
         "only {matched} of {} VMC frames matched an SDK pose",
         frames.len()
     );
+    // About 60 frames a second of device time, not the daemon's 1 kHz.
+    let mut steps: Vec<f64> =
+        frames.windows(2).map(|w| w[1]["t"].as_f64().unwrap() - w[0]["t"].as_f64().unwrap()).collect();
+    steps.sort_by(f64::total_cmp);
+    let median = steps[steps.len() / 2];
+    assert!((0.014..0.020).contains(&median), "median step {median} s, expected about 1/60");
 }
 
 /// `--rate` through the real pipeline: strictly increasing sequence numbers (no frame sent

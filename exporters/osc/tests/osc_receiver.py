@@ -12,9 +12,10 @@ consecutive (every frame, in order) unless --allow-gaps (then only strictly incr
 bundle (timetag "immediately" (0, 1): /frond/rig ',sssss', /frond/element/<e>/info ',sssssss')
 must arrive before --count frames have: its rig and joint names go to the first line of --out as
 {"names": ...}.
-vmc mode: every datagram at most 1200 bytes and a bundle; messages grouped by bundle timetag into
-frames; Root/Pos ',sfffffff' "root", Bone/Pos ',sfffffff', OK ',iiii' (loaded 1), T ',f'; bone
-rotations of unit norm; a frame is complete when its /VMC/Ext/T arrives.
+vmc mode: every datagram at most 1200 bytes and a bundle; a frame starts with the bundle holding
+/VMC/Ext/Root/Pos and is complete when its /VMC/Ext/T arrives (timetags may all be "immediately",
+so they cannot group frames); Root/Pos ',sfffffff' "root", Bone/Pos ',sfffffff', OK ',iiii'
+(loaded 1), T ',f'; bone rotations of unit norm.
 """
 
 import argparse
@@ -168,9 +169,14 @@ def run_vmc(sock, args, out):
         tag = timetag(dgram)
         expect(tag >= last_tag, f"timetag went backwards: {last_tag} -> {tag}")
         last_tag = tag
-        frame = pending.setdefault(tag, {"timetag": list(tag), "bones": {}, "datagrams": 0})
+        found = list(messages(OscBundle(dgram)))
+        if any(m.address == "/VMC/Ext/Root/Pos" for m in found):
+            expect(pending.get("frame") is None, "a frame began before the previous one's T")
+            pending["frame"] = {"timetag": list(tag), "bones": {}, "datagrams": 0}
+        frame = pending.get("frame")
+        expect(frame is not None, "a datagram outside a frame (no Root/Pos before it)")
         frame["datagrams"] += 1
-        for m in messages(OscBundle(dgram)):
+        for m in found:
             tags = type_tags(m.dgram)
             if m.address == "/VMC/Ext/Root/Pos":
                 expect(tags == ",sfffffff", f"Root/Pos type tags {tags}")
@@ -191,7 +197,7 @@ def run_vmc(sock, args, out):
             else:
                 raise Violation(f"unexpected address {m.address}")
         if "t" in frame:
-            del pending[tag]
+            pending["frame"] = None
             expect("root" in frame and "ok" in frame, f"frame {tag} without Root/Pos or OK")
             expect(len(frame["bones"]) == 4, f"frame {tag} has {len(frame['bones'])} bones")
             out.write(json.dumps(frame) + "\n")

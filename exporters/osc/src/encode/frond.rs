@@ -2,15 +2,16 @@
 
 use frond_protocol::convention::joint_quat;
 use frond_protocol::{ElementTable, Pose};
-use rosc::{OscMessage, OscPacket, OscTime, OscType};
+use rosc::{OscMessage, OscPacket, OscType};
 
-use super::{ClockOffset, Datagrams, EncodeError, set_f32, template, timetag};
+use super::{ClockOffset, Datagrams, EncodeError, IMMEDIATELY, Timetags, set_f32, template, timetag};
 
 /// Encoder of the `frond` namespace; holds the message templates so that encoding a frame does
 /// not allocate.
 #[derive(Debug, Clone)]
 pub struct FrondEncoder {
     offset: ClockOffset,
+    timetags: Timetags,
     pose: OscPacket,
     quats: [OscPacket; 4],
     status: OscPacket,
@@ -49,10 +50,16 @@ fn cut(name: &str) -> &str {
 }
 
 impl FrondEncoder {
+    /// Frames' timetags from now on ([`Timetags::Publish`] unless set).
+    pub fn set_timetags(&mut self, timetags: Timetags) {
+        self.timetags = timetags;
+    }
+
     /// An encoder whose timetags use `offset` (see [`ClockOffset`]).
     pub fn new(offset: ClockOffset) -> FrondEncoder {
         FrondEncoder {
             offset,
+            timetags: Timetags::Publish,
             pose: pose_template("/frond/pose".into()),
             quats: std::array::from_fn(|i| template(format!("/frond/joint/{i}/quat"), Vec::new(), 4)),
             status: OscPacket::Message(rosc::OscMessage {
@@ -76,7 +83,7 @@ impl FrondEncoder {
         table: &ElementTable,
         out: &mut Datagrams,
     ) -> Result<(), EncodeError> {
-        out.begin(OscTime { seconds: 0, fractional: 1 });
+        out.begin(IMMEDIATELY);
         let s = |v: &str| OscType::String(cut(v).to_string());
         let joints = |names: &[String]| -> Vec<OscType> {
             (0..4).map(|j| s(names.get(j).map_or("", String::as_str))).collect()
@@ -96,7 +103,10 @@ impl FrondEncoder {
 
     /// Encodes one frame into `out` (replacing what it held).
     pub fn encode(&mut self, pose: &Pose, out: &mut Datagrams) -> Result<(), EncodeError> {
-        out.begin(timetag(pose.host_monotonic_ns, self.offset));
+        out.begin(match self.timetags {
+            Timetags::Publish => timetag(pose.host_monotonic_ns, self.offset),
+            Timetags::Immediately => IMMEDIATELY,
+        });
         if pose.element != 0 {
             let slot = match self.elements.iter().position(|(e, _)| *e == pose.element) {
                 Some(i) => i,

@@ -83,6 +83,20 @@ pub enum EncodeError {
     },
 }
 
+/// The OSC timetag "immediately" (OSC 1.0: 63 zero bits and a one).
+pub const IMMEDIATELY: OscTime = OscTime { seconds: 0, fractional: 1 };
+
+/// What a bundle's timetag says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Timetags {
+    /// The frame's host publish time (NTP, through [`ClockOffset`]): a receiver may schedule by it.
+    #[default]
+    Publish,
+    /// [`IMMEDIATELY`]: apply on receipt (VMC receivers expect this; a receiver whose clock is
+    /// behind would otherwise hold frames back).
+    Immediately,
+}
+
 /// Offset `CLOCK_REALTIME - CLOCK_MONOTONIC` in nanoseconds, fixed for the life of the exporter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ClockOffset {

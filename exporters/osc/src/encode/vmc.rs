@@ -4,7 +4,10 @@ use frond_protocol::convention::joint_quat;
 use frond_protocol::{Pose, PoseFlags};
 use rosc::{OscMessage, OscPacket, OscType};
 
-use super::{ClockOffset, Datagrams, EncodeError, set_f32, template, timetag, unity_position, unity_quat};
+use super::{
+    ClockOffset, Datagrams, EncodeError, IMMEDIATELY, Timetags, set_f32, template, timetag, unity_position,
+    unity_quat,
+};
 
 /// Humanoid bone names (Unity `HumanBodyBones`) for receivers that only accept those: the stem
 /// becomes the spine chain.
@@ -42,6 +45,7 @@ impl VmcRig {
 #[derive(Debug, Clone)]
 pub struct VmcEncoder {
     offset: ClockOffset,
+    timetags: Timetags,
     rig: VmcRig,
     root: OscPacket,
     bones: [OscPacket; 4],
@@ -54,12 +58,18 @@ fn bone_template(name: &str) -> OscPacket {
 }
 
 impl VmcEncoder {
+    /// Frames' timetags from now on ([`Timetags::Publish`] unless set).
+    pub fn set_timetags(&mut self, timetags: Timetags) {
+        self.timetags = timetags;
+    }
+
     /// An encoder for `rig` whose timetags use `offset`.
     pub fn new(offset: ClockOffset, rig: VmcRig) -> VmcEncoder {
         let mut root = template("/VMC/Ext/Root/Pos".into(), vec![OscType::String("root".into())], 7);
         set_f32(&mut root, 7, 1.0); // identity rotation: w = 1
         let mut enc = VmcEncoder {
             offset,
+            timetags: Timetags::Publish,
             bones: std::array::from_fn(|i| bone_template(&rig.bone_names[i])),
             rig,
             root,
@@ -93,7 +103,10 @@ impl VmcEncoder {
     /// Encodes one frame into `out` (replacing what it held). Poses of secondary elements have no
     /// VMC bone and produce no datagram.
     pub fn encode(&mut self, pose: &Pose, out: &mut Datagrams) -> Result<(), EncodeError> {
-        out.begin(timetag(pose.host_monotonic_ns, self.offset));
+        out.begin(match self.timetags {
+            Timetags::Publish => timetag(pose.host_monotonic_ns, self.offset),
+            Timetags::Immediately => IMMEDIATELY,
+        });
         if pose.element != 0 {
             out.finish();
             return Ok(());
