@@ -6,6 +6,7 @@ mod hands;
 mod hostile;
 mod hostile_files;
 mod hostile_takes;
+mod leap;
 mod live_modes;
 mod no_color;
 mod osc_input;

@@ -14,7 +14,9 @@ pub mod vhid;
 
 pub use profile::{ChannelId, DeviceProfile, ProfileError};
 pub use report::{CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters};
-pub use source::{HandSource, HidSource, OscHandSource, ReplaySource, SourceError, SourceKind};
+pub use source::{
+    HandSource, HidSource, LeapAddress, LeapSource, OscHandSource, ReplaySource, SourceError, SourceKind,
+};
 pub use vhid::{
     DeviceClock, FaultPlan, GloveSource, InProcessGlove, UnplugPlan, VhidError, VirtualGloveConfig,
     VirtualGloveHandle, mount_fuse,

@@ -65,7 +65,8 @@ pub struct RawHand {
 
 impl RawHand {
     /// Parses a `--hand` flag: `NAME=KIND[,key=value...]`, where KIND is a source kind
-    /// (`auto`, `virtual`, `in-process`, `hid`, `hid:PATH`, `replay:PATH`, `osc://IP:PORT`) and
+    /// (`auto`, `virtual`, `in-process`, `hid`, `hid:PATH`, `replay:PATH`, `osc://IP:PORT`,
+    /// `leap://HOST:PORT[?hand=left|right]`) and
     /// the keys are `element`, `rig`, `calibration`, `profile` and `path`.
     pub fn parse_flag(flag: &str) -> Result<RawHand, ConfigError> {
         Self::parse_flag_text(flag).map_err(ConfigError::one)
@@ -232,6 +233,8 @@ pub enum SourceChoice {
     Replay(PathBuf),
     /// `/frond/hand` OSC messages on this UDP address.
     Osc(String),
+    /// A Leap Motion / Ultraleap tracking service (`leap://HOST:PORT[?hand=left|right]`).
+    Leap(frond_device::LeapAddress),
 }
 
 /// Validated configuration.
@@ -336,9 +339,16 @@ fn source_choice(
             }
             SourceChoice::Osc(addr.to_string())
         }
+        leap if leap.starts_with("leap://") => match leap.parse::<frond_device::LeapAddress>() {
+            Ok(a) => SourceChoice::Leap(a),
+            Err(e) => {
+                errors.push(format!("{key}: {e}"));
+                SourceChoice::Auto
+            }
+        },
         other => {
             errors.push(format!(
-                "{key}: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT"
+                "{key}: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
             ));
             SourceChoice::Auto
         }
@@ -369,7 +379,7 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
             Some(kind) => source_choice(errors, &key("kind"), kind, h.replay.as_deref(), &key("replay")),
             None => {
                 errors.push(format!(
-                    "{}: required (auto, virtual, in-process, hid, replay, osc://IP:PORT)",
+                    "{}: required (auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT)",
                     key("kind")
                 ));
                 SourceChoice::Auto
@@ -634,9 +644,9 @@ mod tests {
             errors,
             [
                 "hands[0].name: \"a b\": 1 to 32 letters, digits, '_' or '-'",
-                "hands[1].kind: required (auto, virtual, in-process, hid, replay, osc://IP:PORT)",
+                "hands[1].kind: required (auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT)",
                 "hands[2].name: \"x\" is also the name of hands[1]",
-                "hands[2].kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT",
+                "hands[2].kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT",
                 "hands[3].kind: hands[0] (\"a b\") reads the same device or address; give each hand its own `path` or address",
             ],
         );

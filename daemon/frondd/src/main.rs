@@ -40,7 +40,8 @@ struct Args {
     /// Jitter filter: none, lowpass[:cutoff_hz=F], one-euro[:min_cutoff=..,beta=..,d_cutoff=..].
     #[arg(long)]
     filter: Option<String>,
-    /// Hand source: auto, virtual, in-process, hid, replay, osc://IP:PORT.
+    /// Hand source: auto, virtual, in-process, hid, replay, osc://IP:PORT,
+    /// leap://HOST:PORT[?hand=left|right] (a Leap Motion / Ultraleap service).
     #[arg(long)]
     source: Option<String>,
     /// Device profile TOML (default: the embedded reference glove profile).
@@ -54,7 +55,7 @@ struct Args {
     replay: Option<String>,
     /// A hand source of several (repeat, at most 8; replaces the config's `[[hands]]` and
     /// `--source`): NAME=KIND[,element=LAYER][,rig=RIG][,calibration=FILE][,profile=FILE], KIND one
-    /// of auto, virtual, in-process, hid, hid:PATH, replay:PATH, osc://IP:PORT. E.g.
+    /// of auto, virtual, in-process, hid, hid:PATH, replay:PATH, osc://IP:PORT, leap://HOST:PORT. E.g.
     /// `--hand left=hid:/dev/hidraw3 --hand right=hid:/dev/hidraw4,element=leaf`.
     #[arg(long = "hand", value_name = "NAME=KIND[,key=value...]")]
     hands: Vec<String>,

@@ -188,6 +188,10 @@ pub fn open_source(
             let src = OscHandSource::bind(addr).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
+        SourceChoice::Leap(address) => {
+            let src = frond_device::LeapSource::connect(address).map_err(source_error)?;
+            Ok(opened(Box::new(src), None))
+        }
         SourceChoice::InProcess => open_virtual(config, index, hand, socket_dir, false),
         SourceChoice::Virtual => open_virtual(config, index, hand, socket_dir, true),
         SourceChoice::Auto => {

@@ -30,6 +30,7 @@ pub mod graph;
 pub mod guided;
 pub mod jsonl;
 pub mod layers;
+pub mod leap;
 pub mod looping;
 pub mod mapping;
 pub mod mesh;

@@ -7,11 +7,13 @@ use std::sync::Arc;
 use crate::report::{DeviceSample, SourceCounters};
 
 mod hid;
+mod leap;
 mod osc;
 mod osc_wire;
 mod replay;
 
 pub use hid::HidSource;
+pub use leap::{LeapAddress, LeapSource};
 pub use osc::{OSC_HAND_ADDRESS, OscHandSource, decode_hand_packet};
 pub use replay::ReplaySource;
 
@@ -28,6 +30,8 @@ pub enum SourceKind {
     Replay,
     /// `/frond/hand` OSC messages over UDP (webcam or phone hand trackers).
     Osc,
+    /// A Leap Motion / Ultraleap tracking service's WebSocket (protocol v6).
+    Leap,
 }
 
 impl SourceKind {
@@ -39,6 +43,7 @@ impl SourceKind {
             Self::InProcess => "in-process",
             Self::Replay => "replay",
             Self::Osc => "osc",
+            Self::Leap => "leap",
         }
     }
 }
