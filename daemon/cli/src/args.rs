@@ -293,18 +293,23 @@ pub enum TakeCommand {
         /// Take name (or a path to a .take file).
         name: String,
         /// JSON Lines output on stdout (the default).
-        #[arg(long, conflicts_with = "bvh")]
+        #[arg(long, conflicts_with_all = ["bvh", "usd"])]
         jsonl: bool,
         /// BVH (Biovision Hierarchy) into -o FILE: the mocap exchange format MotionBuilder, Maya
         /// and Blender import; metres, Y up, channels Zrotation Xrotation Yrotation (frond's
         /// R = R_yaw R_pitch R_roll), at --fps (default 30).
-        #[arg(long, requires = "output")]
+        #[arg(long, requires = "output", group = "file_format")]
         bvh: bool,
-        /// Output file (with --bvh).
-        #[arg(short = 'o', long = "output", value_name = "FILE", requires = "bvh")]
+        /// USD (UsdSkel) text layer into -o FILE.usda: the rig's skinned mesh, skeleton and the
+        /// take's animation, Y up, metres, time codes at --fps (default 30).
+        #[arg(long, requires = "output", group = "file_format", conflicts_with = "field")]
+        usd: bool,
+        /// Output file (with --bvh or --usd).
+        #[arg(short = 'o', long = "output", value_name = "FILE", requires = "file_format")]
         output: Option<PathBuf>,
-        /// Rig whose joint names and heights the BVH skeleton takes [default: the take's rig].
-        #[arg(long, value_name = "NAME|FILE", requires = "bvh")]
+        /// Rig whose joint names, heights (and, for USD, mesh) the file takes [default: the
+        /// take's rig].
+        #[arg(long, value_name = "NAME|FILE", requires = "file_format")]
         rig: Option<PathBuf>,
         /// Field file (field.json from `frond take field`): every plant of the field, one BVH
         /// root each (with --bvh and --duration).

@@ -22,6 +22,7 @@ mod take_bvh;
 mod take_graph;
 mod take_sim;
 mod take_tools;
+mod take_usd;
 mod takes;
 mod tap;
 
@@ -158,6 +159,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             name,
             jsonl: _,
             bvh,
+            usd,
             output,
             rig,
             field,
@@ -166,6 +168,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             include_held,
             force,
         }) => match (bvh, output) {
+            (false, Some(output)) if usd => take_usd::export_usd(
+                g,
+                take_usd::UsdExport { name: &name, output: &output, fps, rig: rig.as_deref(), force },
+            ),
             (true, Some(output)) => take_bvh::export_bvh(
                 g,
                 take_bvh::BvhExport {

@@ -298,3 +298,39 @@ mod tests {
         assert!(matches!(e, RigFileError::Invalid { .. }) && e.to_string().contains("bad.toml"), "{e}");
     }
 }
+
+/// Why a rig's plant geometry could not be built.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("rig {origin}: mesh: {reason}")]
+pub struct PlantModelError {
+    /// The rig (`embedded rig grass` or its file).
+    pub origin: String,
+    /// What is wrong.
+    pub reason: String,
+}
+
+/// The plant geometry of a loaded rig: the procedural shape its `[mesh]` names, or its
+/// glTF/GLB mesh file (read relative to the rig file, at most [`MAX_MESH_FILE_BYTES`], skin
+/// weights from the file where it has them). The one loader for every exporter.
+pub fn plant_model(loaded: &LoadedRig) -> Result<crate::mesh::PlantModel, PlantModelError> {
+    use crate::rig::MeshSpec;
+    let err = |reason: String| PlantModelError { origin: loaded.origin.clone(), reason };
+    match &loaded.rig.mesh {
+        MeshSpec::Procedural { .. } => {
+            crate::mesh::procedural_model(&loaded.rig).map_err(|e| err(e.to_string()))
+        }
+        MeshSpec::File { path } => {
+            let full = match &loaded.dir {
+                Some(dir) => dir.join(path),
+                None => PathBuf::from(path),
+            };
+            let bytes = read_small_file(&full, MAX_MESH_FILE_BYTES)
+                .map_err(|e| err(format!("cannot read {}: {}", full.display(), e.reason())))?;
+            let skeleton = crate::skeleton::Skeleton::from_rig(&loaded.rig);
+            let names: Vec<String> = loaded.rig.joints.iter().map(|j| j.name.clone()).collect();
+            let stem = crate::gltf_mesh::load_gltf_mesh(&bytes, &skeleton, &names)
+                .map_err(|e| err(format!("{}: {e}", full.display())))?;
+            Ok(crate::mesh::PlantModel { skeleton, stem, elements: Vec::new() })
+        }
+    }
+}

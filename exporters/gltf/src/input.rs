@@ -4,9 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use frond_motion::mesh::{PlantModel, procedural_model};
-use frond_motion::rig::MeshSpec;
-use frond_motion::skeleton::Skeleton;
+use frond_motion::mesh::PlantModel;
 use frond_motion::{Rig, TakeFrame, TakeHeader, scan_take};
 
 use crate::error::BakeError;
@@ -50,28 +48,17 @@ impl LoadedRig {
     }
 
     /// The plant geometry: the procedural shape the rig names, or its glTF/GLB mesh file (read
-    /// relative to the rig file, skin weights from the file where it has them).
+    /// relative to the rig file, skin weights from the file where it has them), by
+    /// `frond_motion::rig_files::plant_model`.
     pub fn model(&self) -> Result<PlantModel, BakeError> {
-        let mesh_err = |reason: String| BakeError::RigMesh { origin: self.origin.clone(), reason };
-        match &self.rig.mesh {
-            MeshSpec::Procedural { .. } => procedural_model(&self.rig).map_err(|e| mesh_err(e.to_string())),
-            MeshSpec::File { path } => {
-                let full = match &self.dir {
-                    Some(dir) => dir.join(path),
-                    None => PathBuf::from(path),
-                };
-                let bytes = frond_motion::rig_files::read_small_file(
-                    &full,
-                    frond_motion::rig_files::MAX_MESH_FILE_BYTES,
-                )
-                .map_err(|e| mesh_err(format!("cannot read {}: {}", full.display(), e.reason())))?;
-                let skeleton = Skeleton::from_rig(&self.rig);
-                let names: Vec<String> = self.rig.joints.iter().map(|j| j.name.clone()).collect();
-                let stem = frond_motion::gltf_mesh::load_gltf_mesh(&bytes, &skeleton, &names)
-                    .map_err(|e| mesh_err(format!("{}: {e}", full.display())))?;
-                Ok(PlantModel { skeleton, stem, elements: Vec::new() })
-            }
-        }
+        let loaded = frond_motion::rig_files::LoadedRig {
+            rig: self.rig.clone(),
+            text: String::new(),
+            origin: self.origin.clone(),
+            dir: self.dir.clone(),
+        };
+        frond_motion::rig_files::plant_model(&loaded)
+            .map_err(|e| BakeError::RigMesh { origin: e.origin, reason: e.reason })
     }
 }
 

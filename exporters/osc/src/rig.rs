@@ -180,7 +180,9 @@ mod tests {
             ["Hips", "Spine", "Chest", "Neck"].map(String::from)
         );
         assert_eq!(parse_bone_names("a, b,c,d").unwrap(), ["a", "b", "c", "d"].map(String::from));
-        assert!(parse_bone_names("a,b,c").unwrap_err().to_string().contains("expected `humanoid` or 4"));
+        assert!(
+            parse_bone_names("a,b,c").unwrap_err().to_string().contains("expected `humanoid`, `joints` or 4")
+        );
         assert!(parse_bone_names("a,,c,d").is_err());
     }
 }
