@@ -164,3 +164,33 @@ fn the_units_command_line_runs_on_a_fresh_machine_and_admits_the_group() {
     let code = daemon.terminate(std::time::Duration::from_secs(5)).expect("frondd stops on SIGTERM");
     assert!(code.success(), "{code}");
 }
+
+/// The udev rule (issue 18): hidraw nodes of the glove over USB (vendor and product attributes)
+/// and over Bluetooth (the parent HID device's name `0005:VVVV:PPPP.N`) go to the `frond` group.
+/// `udevadm verify` checks the syntax where this systemd has it (255 and later).
+#[test]
+fn the_udev_rule_matches_usb_and_bluetooth_gloves() {
+    let rules = frond_e2e::repo_root().join("systemd/70-frond.rules");
+    let text = std::fs::read_to_string(&rules).unwrap();
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty() && !l.starts_with('#')).collect();
+    assert!(
+        lines.iter().all(|l| l.starts_with("SUBSYSTEM==\"hidraw\"") && l.contains("GROUP=\"frond\"")),
+        "{text}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("ATTRS{idVendor}==\"1209\"") && l.contains("ATTRS{idProduct}==\"f0d1\""))
+    );
+    // The kernel names a Bluetooth HID device BUS:VENDOR:PRODUCT.N, bus 0005, upper-case hex.
+    assert!(lines.iter().any(|l| l.contains("KERNELS==\"0005:1209:F0D1.*\"")), "{text}");
+    let verify = Command::new("udevadm").arg("verify").arg(&rules).output();
+    match verify {
+        Ok(o) if o.status.success() => {}
+        Ok(o) if String::from_utf8_lossy(&o.stderr).contains("Unknown command") => {
+            eprintln!("note: this udevadm has no `verify` (systemd < 255); the rule's syntax is not checked");
+        }
+        Ok(o) => panic!("udevadm verify: {}", String::from_utf8_lossy(&o.stderr)),
+        Err(_) => eprintln!("note: no udevadm here; the rule's syntax is not checked"),
+    }
+}
