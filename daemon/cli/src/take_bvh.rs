@@ -2,7 +2,7 @@
 //! plant of a field) as BVH, the mocap exchange format (`frond_motion::bvh`), at `--fps`
 //! (default 30, the seed's rate), on the take's rig (or `--rig`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::anyhow;
 use frond_motion::bvh::{self, BvhPlant};
@@ -13,7 +13,7 @@ use frond_motion::sample::JOINTS;
 use frond_motion::sim::node_heights_m;
 
 use crate::args::Global;
-use crate::takes::{MAX_EXPORT_FRAMES, check_resample, export_poses, resolve, warn_damage};
+use crate::takes::{MAX_EXPORT_FRAMES, TakeForFile, check_resample, export_poses, take_for_file};
 use crate::usage;
 
 /// Default BVH frame rate: the seed's authoring rate.
@@ -53,21 +53,8 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
     {
         return usage(format!("--duration must be in (0, {MAX_FIELD_DURATION_S}] seconds, got {d}"));
     }
-    let path = resolve(g, a.name)?;
-    let bytes = frond_motion::rig_files::read_take_file(&path)
-        .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))?;
-    let scan = frond_motion::take::scan_take(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    warn_damage(&path, &scan);
-    let rig_spec: PathBuf = match (a.rig, &scan.header) {
-        (Some(r), _) => r.to_path_buf(),
-        (None, Some(h)) if !h.rig_name.is_empty() => PathBuf::from(&h.rig_name),
-        _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
-    };
-    let (rig, _) = crate::control::load_rig(&rig_spec)?;
-    let source = export_poses(&scan, None, false);
-    if source.is_empty() {
-        anyhow::bail!("{} has no frames of the main skeleton to export", path.display());
-    }
+    let TakeForFile { path, scan, rig, source } = take_for_file(g, a.name, a.rig)?;
+    let rig = rig.rig;
     let mut out = String::new();
     match (a.field, a.duration_s) {
         (None, None) => {

@@ -2,13 +2,13 @@
 //! (`frond_motion::usd`): the rig's skinned mesh, skeleton and the take's animation at `--fps`
 //! (default 30), on the take's rig (or `--rig`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::anyhow;
 use frond_motion::usd::{UsdTake, write_usda};
 
 use crate::args::Global;
-use crate::takes::{check_resample, export_poses, resolve, warn_damage};
+use crate::takes::{TakeForFile, check_resample, export_poses, take_for_file};
 use crate::usage;
 
 /// What `--usd` was asked.
@@ -36,22 +36,8 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
         return usage(format!("--fps must be above 0 and at most 1000 for USD, got {fps}"));
     }
-    let path = resolve(g, a.name)?;
-    let bytes = frond_motion::rig_files::read_take_file(&path)
-        .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))?;
-    let scan = frond_motion::take::scan_take(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    warn_damage(&path, &scan);
-    let rig_spec: PathBuf = match (a.rig, &scan.header) {
-        (Some(r), _) => r.to_path_buf(),
-        (None, Some(h)) if !h.rig_name.is_empty() => PathBuf::from(&h.rig_name),
-        _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
-    };
-    let loaded = frond_motion::rig_files::load_rig(&rig_spec.to_string_lossy())?;
+    let TakeForFile { path, scan, rig: loaded, source } = take_for_file(g, a.name, a.rig)?;
     let model = frond_motion::rig_files::plant_model(&loaded).map_err(|e| anyhow!("{e}"))?;
-    let source = export_poses(&scan, None, false);
-    if source.is_empty() {
-        anyhow::bail!("{} has no frames of the main skeleton to export", path.display());
-    }
     check_resample(&path.display().to_string(), &source, fps, a.force)?;
     let poses: Vec<_> = export_poses(&scan, Some(fps), false).iter().map(|p| p.joints_deg).collect();
     let joint_names: [String; 4] = std::array::from_fn(|j| loaded.rig.joints[j].name.clone());

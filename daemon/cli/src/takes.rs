@@ -429,6 +429,34 @@ impl Repaired {
     }
 }
 
+/// A take to write as a file of another format (`--bvh`, `--usd`): its path, its scan (damage
+/// warned about), the rig it is written on (`--rig`, else the take's own) and its main-skeleton
+/// poses (at least one).
+pub(crate) struct TakeForFile {
+    pub path: PathBuf,
+    pub scan: TakeScan,
+    pub rig: frond_motion::rig_files::LoadedRig,
+    pub source: Vec<PoseFrame>,
+}
+
+/// Reads take `name` and its rig for a file export.
+pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyhow::Result<TakeForFile> {
+    let path = resolve(g, name)?;
+    let (scan, _) = read_scan(&path)?;
+    warn_damage(&path, &scan);
+    let rig_spec: PathBuf = match (rig, &scan.header) {
+        (Some(r), _) => r.to_path_buf(),
+        (None, Some(h)) if !h.rig_name.is_empty() => PathBuf::from(&h.rig_name),
+        _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
+    };
+    let rig = frond_motion::rig_files::load_rig(&rig_spec.to_string_lossy())?;
+    let source = export_poses(&scan, None, false);
+    if source.is_empty() {
+        bail!("{} has no frames of the main skeleton to export", path.display());
+    }
+    Ok(TakeForFile { path, scan, rig, source })
+}
+
 #[cfg(test)]
 mod tests {
     use frond_motion::take::encode_file_start;

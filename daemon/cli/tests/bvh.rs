@@ -3,58 +3,9 @@
 //! `bvh_blender.py` drives and checks against forward kinematics computed there. Without bpy the
 //! test says why and passes as skipped, unless `CI=true` or `FROND_REQUIRE_PYTHON=1`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+mod common;
 
-fn frond(takes: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));
-    c.env_remove("FROND_SOCKET_DIR").env("FROND_TAKES_DIR", takes).current_dir(takes);
-    c
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-        || std::env::var("FROND_REQUIRE_PYTHON").is_ok_and(|v| v == "1")
-}
-
-fn python_with_bpy() -> Option<PathBuf> {
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/python/.venv/bin/python");
-    let ok = Command::new(&py)
-        .args(["-c", "import bpy"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(py)
-}
-
-/// 3 s at 100 Hz of every angle moving (roll too), imported as a pose take.
-fn performed(dir: &Path) {
-    let lines: String = (0..300)
-        .map(|k| {
-            let t = k as f64 / 100.0;
-            let joints: Vec<String> = (0..4)
-                .map(|j| {
-                    let a = j as f64 + 1.0;
-                    format!(
-                        "[{:.4},{:.4},{:.4}]",
-                        35.0 * (1.3 * t + a).sin(),
-                        -28.0 * (0.9 * t + 0.5 * a).cos(),
-                        if j == 0 { 0.0 } else { 40.0 * (1.7 * t - a).sin() }
-                    )
-                })
-                .collect();
-            format!("{{\"t\":{t},\"joints\":[{}]}}\n", joints.join(","))
-        })
-        .collect();
-    std::fs::write(dir.join("wave.jsonl"), lines).unwrap();
-    ok(&frond(dir).args(["take", "import", "wave.jsonl", "wave", "--kind", "pose"]).output().unwrap());
-}
+use common::{frond, ok, performed, python_check, python_with, skip};
 
 #[test]
 fn blender_imports_the_bvh_and_its_bones_follow_the_take() {
@@ -109,21 +60,10 @@ fn blender_imports_the_bvh_and_its_bones_follow_the_take() {
         "field": {"bvh": d.join("field.bvh"), "plants": plants},
     });
     std::fs::write(d.join("spec.json"), spec.to_string()).unwrap();
-    let Some(py) = python_with_bpy() else {
-        let why = "no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)";
-        assert!(!required(), "{why} (required because CI=true or FROND_REQUIRE_PYTHON=1)");
-        eprintln!("SKIPPED: {why}");
-        return;
-    };
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/bvh_blender.py");
-    let out = Command::new(py).arg(script).arg(d.join("spec.json")).output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("ok:"),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    eprintln!("{}", stdout.lines().find(|l| l.starts_with("ok:")).unwrap_or_default());
+    match python_with("bpy") {
+        Some(py) => python_check(&py, "bvh_blender.py", &[], &d.join("spec.json")),
+        None => skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)"),
+    }
 }
 
 #[test]

@@ -16,11 +16,12 @@ For the field: every plant's root bone stands at its position and its segments h
 """
 
 import json
-import math
 import os
 import sys
 
 import bpy
+
+from frond_convention import fk, to_blender
 
 
 def fail(msg):
@@ -28,35 +29,14 @@ def fail(msg):
     os._exit(1)
 
 
-def mat_mul(a, b):
-    return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
 
 
-def mat_vec(m, v):
-    return [sum(m[i][k] * v[k] for k in range(3)) for i in range(3)]
 
 
-def joint_matrix(pitch, yaw, roll):
-    p, y, r = (math.radians(a) for a in (pitch, yaw, roll))
-    rx = [[1, 0, 0], [0, math.cos(p), -math.sin(p)], [0, math.sin(p), math.cos(p)]]
-    rz = [[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]]
-    ry = [[math.cos(r), 0, math.sin(r)], [0, 1, 0], [-math.sin(r), 0, math.cos(r)]]
-    return mat_mul(mat_mul(rz, rx), ry)
 
 
-def fk(joints, heights):
-    """World positions (frond's Y-up frame) of joints 0..3 and the top."""
-    points = [[0.0, heights[0], 0.0]]
-    acc = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
-    for j in range(4):
-        acc = mat_mul(acc, joint_matrix(*joints[j]))
-        seg = mat_vec(acc, [0.0, heights[j + 1] - heights[j], 0.0])
-        points.append([points[-1][i] + seg[i] for i in range(3)])
-    return points
 
 
-def to_blender(p):
-    return (p[0], -p[2], p[1])
 
 
 def import_bvh(path):

@@ -2,28 +2,12 @@
 //! binary, on a take `frond take simulate` wrote: the graph file as documented, walks that are
 //! deterministic, directed walks that lean towards their goal, and clear errors.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::{failed, frond, ok};
 use serde_json::Value;
-
-fn frond(takes: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));
-    c.env_remove("FROND_SOCKET_DIR").env("FROND_TAKES_DIR", takes).current_dir(takes);
-    c
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn failed(out: &Output, code: i32, needle: &str) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(code), "{err}");
-    assert!(err.contains(needle), "stderr lacks {needle:?}: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-}
 
 /// A minute of gusty wind on the grass rig, then its graph.
 fn simulated(dir: &Path) {

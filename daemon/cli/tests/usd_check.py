@@ -20,9 +20,10 @@ Blender's Z-up world: (x, y, z) -> (x, -z, y)).
 """
 
 import json
-import math
 import os
 import sys
+
+from frond_convention import fk, to_blender
 
 
 def fail(msg):
@@ -30,27 +31,10 @@ def fail(msg):
     os._exit(1)
 
 
-def mat_mul(a, b):
-    return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
 
 
-def joint_matrix(pitch, yaw, roll):
-    p, y, r = (math.radians(a) for a in (pitch, yaw, roll))
-    rx = [[1, 0, 0], [0, math.cos(p), -math.sin(p)], [0, math.sin(p), math.cos(p)]]
-    rz = [[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]]
-    ry = [[math.cos(r), 0, math.sin(r)], [0, 1, 0], [-math.sin(r), 0, math.cos(r)]]
-    return mat_mul(mat_mul(rz, rx), ry)
 
 
-def fk(joints, heights):
-    """Positions of joints 0..3 in frond's Y-up frame."""
-    points = [[0.0, heights[0], 0.0]]
-    acc = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
-    for j in range(3):
-        acc = mat_mul(acc, joint_matrix(*joints[j]))
-        seg = heights[j + 1] - heights[j]
-        points.append([points[-1][i] + acc[i][1] * seg for i in range(3)])
-    return points
 
 
 def close(a, b, tol):
@@ -127,7 +111,7 @@ def check_blender(spec, poses):
         want = fk(poses[k]["joints"], spec["heights_m"])
         for j, name in enumerate(names):
             head = arm.matrix_world @ arm.pose.bones[name].head
-            w = (want[j][0], -want[j][2], want[j][1])
+            w = to_blender(want[j])
             worst = max(worst, max(abs(a - b) for a, b in zip(head, w)))
             if not close(head, w, 1e-4):
                 fail(f"Blender frame {k} {name}: head {tuple(head)}, forward kinematics {w}")
