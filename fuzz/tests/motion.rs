@@ -271,6 +271,7 @@ fn take_bytes(frames: u64, marker: bool, end: bool) -> Vec<u8> {
             created_unix_s: 1_700_000_000,
             daemon_version: "0.1.0".into(),
             joint_names: ["a", "b", "c", "d"].map(String::from).to_vec(),
+            clock: None,
         }),
         &mut out,
     );

@@ -75,6 +75,7 @@ fn header(name: &str) -> TakeHeader {
         created_unix_s: 1_700_000_000,
         daemon_version: "test".into(),
         joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
+        clock: None,
     }
 }
 

@@ -19,4 +19,5 @@ mod stage;
 mod systemd;
 mod take_tools;
 mod tap_matches_map;
+mod timecode;
 mod untrusted_time;

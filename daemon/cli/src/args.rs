@@ -324,6 +324,10 @@ pub enum TakeCommand {
         /// Also print held frames (every recorded tick); ignored with --fps.
         #[arg(long)]
         include_held: bool,
+        /// SMPTE timecode of the first frame, HH:MM:SS:FF at --fps (with --usd) [default: the
+        /// time of day, UTC, the take's first frame was recorded at, when the take knows it].
+        #[arg(long, value_name = "HH:MM:SS:FF", requires = "usd")]
+        timecode_start: Option<String>,
         /// Resample past the export limit (1,080,000 frames); never past 16,777,216.
         #[arg(long)]
         force: bool,

@@ -166,11 +166,19 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             duration,
             fps,
             include_held,
+            timecode_start,
             force,
         }) => match (bvh, output) {
             (false, Some(output)) if usd => take_usd::export_usd(
                 g,
-                take_usd::UsdExport { name: &name, output: &output, fps, rig: rig.as_deref(), force },
+                take_usd::UsdExport {
+                    name: &name,
+                    output: &output,
+                    fps,
+                    rig: rig.as_deref(),
+                    timecode_start: timecode_start.as_deref(),
+                    force,
+                },
             ),
             (true, Some(output)) => take_bvh::export_bvh(
                 g,

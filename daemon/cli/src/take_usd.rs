@@ -17,6 +17,7 @@ pub(crate) struct UsdExport<'a> {
     pub output: &'a Path,
     pub fps: Option<f64>,
     pub rig: Option<&'a Path>,
+    pub timecode_start: Option<&'a str>,
     pub force: bool,
 }
 
@@ -41,8 +42,11 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     check_resample(&path.display().to_string(), &source, fps, a.force)?;
     let poses: Vec<_> = export_poses(&scan, Some(fps), false).iter().map(|p| p.joints_deg).collect();
     let joint_names: [String; 4] = std::array::from_fn(|j| loaded.rig.joints[j].name.clone());
+    let timecode = crate::takes::start_timecode(&scan, fps, a.timecode_start)?;
     let h = scan.header.as_ref();
     let info = [
+        ("timecode_start", timecode.map(|t| t.to_string()).unwrap_or_default()),
+        ("timecode_rate", timecode.map(|t| t.rate.to_string()).unwrap_or_default()),
         ("take", a.name.to_string()),
         ("rig", loaded.rig.name.clone()),
         ("take_rig", h.map(|h| h.rig_name.clone()).unwrap_or_default()),

@@ -439,6 +439,27 @@ pub(crate) struct TakeForFile {
     pub source: Vec<PoseFrame>,
 }
 
+/// Timecode of the first exported frame at `fps`: `start` (`HH:MM:SS:FF`) if given, else the
+/// wall-clock time of day (UTC) the take's first kept frame was recorded at, when the take
+/// knows it (recorded by a daemon that writes its clock).
+pub(crate) fn start_timecode(
+    scan: &TakeScan,
+    fps: f64,
+    start: Option<&str>,
+) -> anyhow::Result<Option<frond_motion::timecode::Timecode>> {
+    let rate = frond_motion::timecode::nominal_rate(fps).map_err(|e| crate::UsageError(e.to_string()))?;
+    if let Some(text) = start {
+        let tc = frond_motion::timecode::Timecode::parse(text, rate)
+            .map_err(|e| crate::UsageError(format!("--timecode-start {e}")))?;
+        return Ok(Some(tc));
+    }
+    let first = scan.frames.iter().find(|f| f.element == 0 && !PoseFlags(f.flags).contains(PoseFlags::HELD));
+    Ok(match (scan.header.as_ref().and_then(|h| h.clock), first) {
+        (Some(clock), Some(f)) => clock.timecode_of(f.host_ns, fps),
+        _ => None,
+    })
+}
+
 /// Reads take `name` and its rig for a file export.
 pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyhow::Result<TakeForFile> {
     let path = resolve(g, name)?;

@@ -362,6 +362,14 @@ impl ControlContext {
                 .unwrap_or(0),
             daemon_version: env!("CARGO_PKG_VERSION").to_string(),
             joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
+            // Both clocks read back to back: frames' host times get wall times (timecode).
+            clock: Some(frond_motion::take::TakeClock {
+                unix_ns: SystemTime::now()
+                    .duration_since(SystemTime::UNIX_EPOCH)
+                    .map(|d| d.as_nanos() as u64)
+                    .unwrap_or(0),
+                host_ns: crate::clock::monotonic_ns(),
+            }),
         };
         let elements: Vec<String> = state.rig.elements.iter().map(|e| e.name.clone()).collect();
         let (tx, rx) = bounded(1);

@@ -177,6 +177,7 @@ fn take_bytes() -> Vec<u8> {
         created_unix_s: 0,
         daemon_version: "test".into(),
         joint_names: vec![],
+        clock: None,
     };
     let mut take = Take::new(header);
     let frames = (0..3000u64).map(|k| {

@@ -278,6 +278,7 @@ mod tests {
             created_unix_s: 0,
             daemon_version: "test".into(),
             joint_names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
+            clock: None,
         }
     }
 

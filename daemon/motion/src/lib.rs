@@ -44,6 +44,7 @@ pub mod sample;
 pub mod sim;
 pub mod skeleton;
 pub mod take;
+pub mod timecode;
 pub mod usd;
 
 pub use calibration::{Calibration, CalibrationError, CalibrationParams};

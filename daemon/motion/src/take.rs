@@ -75,6 +75,34 @@ pub struct TakeHeader {
     pub daemon_version: String,
     /// Rig joint names, root first.
     pub joint_names: Vec<String>,
+    /// The host's clocks read together when recording began, so that a frame's `host_ns` has a
+    /// wall-clock time (and timecode); absent in takes made offline or before frond wrote it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock: Option<TakeClock>,
+}
+
+/// The host's wall clock and monotonic clock read together: a frame stamped `host_ns`
+/// (CLOCK_MONOTONIC) happened at Unix time `unix_ns + (host_ns - self.host_ns)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TakeClock {
+    /// CLOCK_REALTIME, nanoseconds since 1970.
+    pub unix_ns: u64,
+    /// CLOCK_MONOTONIC at the same instant, nanoseconds.
+    pub host_ns: u64,
+}
+
+impl TakeClock {
+    /// Unix time of a frame stamped `host_ns` (monotonic).
+    pub fn unix_ns_of(&self, host_ns: u64) -> u64 {
+        let d = i128::from(host_ns) - i128::from(self.host_ns);
+        (i128::from(self.unix_ns) + d).clamp(0, i128::from(u64::MAX)) as u64
+    }
+
+    /// SMPTE timecode (UTC time of day) of a frame stamped `host_ns`, at `fps`.
+    pub fn timecode_of(&self, host_ns: u64, fps: f64) -> Option<crate::timecode::Timecode> {
+        let rate = crate::timecode::nominal_rate(fps).ok()?;
+        Some(crate::timecode::Timecode::from_unix_ns(self.unix_ns_of(host_ns), rate))
+    }
 }
 
 /// One recorded tick.

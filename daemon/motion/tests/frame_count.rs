@@ -37,6 +37,7 @@ fn header() -> TakeHeader {
         created_unix_s: 0,
         daemon_version: "test".into(),
         joint_names: Vec::new(),
+        clock: None,
     }
 }
 

@@ -18,6 +18,7 @@ fn header() -> TakeHeader {
         created_unix_s: 1_700_000_000,
         daemon_version: "0.1.0".into(),
         joint_names: vec!["root".into(), "lower".into(), "middle".into(), "tip".into()],
+        clock: None,
     }
 }
 

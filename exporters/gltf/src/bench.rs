@@ -80,6 +80,7 @@ pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
             created_unix_s: 0,
             daemon_version: "bench".to_string(),
             joint_names: Vec::new(),
+            clock: None,
         }),
         frames,
         ..TakeInput::default()

@@ -112,6 +112,7 @@ impl LiveCapture {
                 created_unix_s,
                 daemon_version: hello.daemon_version.clone(),
                 joint_names: hello.joint_names.clone(),
+                clock: None,
             }),
             element_names: Vec::new(),
             frames: self.frames,

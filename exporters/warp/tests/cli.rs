@@ -159,6 +159,7 @@ fn write_take_with(path: &Path, yaw: impl Fn(f64) -> f32) {
             created_unix_s: 0,
             daemon_version: "test".into(),
             joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
+            clock: None,
         }),
         &mut out,
     );

@@ -36,6 +36,7 @@ pub fn header(name: &str, rig: &str) -> TakeHeader {
         created_unix_s: 1_700_000_000,
         daemon_version: "0.1.0".to_string(),
         joint_names: Vec::new(),
+        clock: None,
     }
 }
 
