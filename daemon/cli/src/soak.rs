@@ -351,6 +351,7 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     let warmup = Duration::from_secs(10).min(duration / 4);
     let mut after_warmup: Option<ProcSample> = None;
     let mut second_take_started = false;
+    let (mut streaming, mut last_reports) = (false, 0u64);
     while t0.elapsed() < duration {
         if signals::interrupted() {
             stop.store(true, Relaxed);
@@ -360,10 +361,15 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
         if !daemon.alive() {
             break;
         }
-        if r.faults.pause_ms.is_none() && t0.elapsed() >= faults::PAUSE_AT {
+        // The pause comes once the glove is streaming (reports grew over the last second):
+        // only then can the daemon find stale reports queued behind it when it resumes (on a
+        // loaded machine the glove may still be unplugged, or not yet opened, at PAUSE_AT).
+        if r.faults.pause_ms.is_none() && t0.elapsed() >= faults::PAUSE_AT && streaming {
             r.faults.pause_ms = Some(faults::pause(pid));
         }
         let status = control.status().context("status request during the soak")?;
+        streaming = status.source.reports > last_reports;
+        last_reports = status.source.reports;
         let at_s = t0.elapsed().as_secs_f64();
         if r.faults.disk_error.is_none()
             && let Some(e) = status.recorder_error
