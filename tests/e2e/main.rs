@@ -1,6 +1,7 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
 mod demo;
+mod doctor;
 mod graph_play;
 mod hands;
 mod hostile;

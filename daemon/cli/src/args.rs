@@ -137,6 +137,14 @@ pub enum Command {
     /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion
     /// toolkit and exporters) and say whether each target holds.
     Bench(BenchArgs),
+    /// Check what a stage set-up needs (daemon, socket directory, glove node and permissions,
+    /// udev rule, frond group, FUSE, realtime limits, the service, the exporters) and say how to
+    /// fix each problem. Exit status 1 when something needs fixing.
+    Doctor {
+        /// One JSON object: {"healthy", "checks": [{"name", "verdict", "found", "fix"}]}.
+        #[arg(long)]
+        json: bool,
+    },
     /// Print a shell completion script for frond (bash, zsh, fish, elvish, powershell), e.g.
     /// `frond completions bash > /etc/bash_completion.d/frond`.
     Completions {

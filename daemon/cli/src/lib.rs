@@ -12,6 +12,7 @@ mod calibrate;
 mod control;
 mod demo;
 mod docs;
+mod doctor;
 mod graph_live;
 mod live;
 mod map;
@@ -199,6 +200,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo { seconds, name } => demo::run(g, seconds, name),
         Command::Bench(a) => bench::run(&a),
         Command::Soak { duration, json, seed } => soak::run(duration, json, seed),
+        Command::Doctor { json } => match doctor::run(g, json)? {
+            true => Ok(()),
+            // The report said what is wrong: exit 1, adding nothing.
+            false => Err(anyhow::Error::new(ChildFailed(1))),
+        },
         Command::Completions { shell } => docs::completions(shell),
         Command::Man { dir } => docs::man(&dir),
     }

@@ -1,0 +1,324 @@
+//! `frond doctor [--json]`: checks what a stage set-up needs and explains each problem with its
+//! fix: the daemon and its socket directory, the glove's hidraw node and its permissions, the udev
+//! rule and the `frond` group, FUSE for the virtual glove, realtime limits, the service's state,
+//! and the exporters beside `frond`. Exit status 0 when nothing needs fixing, 1 otherwise.
+
+use std::path::{Path, PathBuf};
+
+use frond_protocol::{ControlReply, ControlRequest, paths};
+use serde::Serialize;
+
+use crate::args::Global;
+use crate::control::Control;
+
+/// The glove the udev rule and the default device profile name (pid.codes).
+const GLOVE_HID_ID: &str = "00001209:0000F0D1";
+/// Where the udev rule is installed.
+const UDEV_RULES: [&str; 2] = ["/etc/udev/rules.d/70-frond.rules", "/lib/udev/rules.d/70-frond.rules"];
+
+/// How one check went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    /// Fine.
+    Ok,
+    /// Works, but not as well as it could (a fallback is used).
+    Warn,
+    /// Needs fixing for a stage.
+    Problem,
+}
+
+/// One check: what was found and, unless it is fine, how to fix it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Check {
+    /// Short name (`daemon`, `glove`, ...).
+    pub name: &'static str,
+    /// The verdict.
+    pub verdict: Verdict,
+    /// What was found.
+    pub found: String,
+    /// What to do, when something is to be done.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix: Option<String>,
+}
+
+fn check(name: &'static str, verdict: Verdict, found: String, fix: Option<String>) -> Check {
+    Check { name, verdict, found, fix }
+}
+
+fn daemon(g: &Global) -> Check {
+    let dir = paths::socket_dir(g.socket_dir.clone());
+    let status = Control::connect(&dir).and_then(|mut c| c.request(&ControlRequest::Status));
+    match status {
+        Ok(ControlReply::Status(s)) => check(
+            "daemon",
+            Verdict::Ok,
+            format!(
+                "frondd {} at {} ({} source {}, {} subscribers)",
+                s.daemon_version,
+                dir.display(),
+                s.source.kind,
+                s.source.path,
+                s.subscribers.len()
+            ),
+            None,
+        ),
+        Ok(other) => check("daemon", Verdict::Problem, format!("unexpected reply {other:?}"), None),
+        Err(e) => check(
+            "daemon",
+            Verdict::Problem,
+            format!("no daemon answers at {}", dir.display()),
+            Some(frond_protocol::error_text(e.as_ref())),
+        ),
+    }
+}
+
+fn socket_dir(g: &Global) -> Check {
+    use std::os::unix::fs::MetadataExt;
+    let dir = paths::socket_dir(g.socket_dir.clone());
+    match std::fs::metadata(&dir) {
+        Ok(m) if m.is_dir() => {
+            // SAFETY: getuid has no preconditions.
+            let me = unsafe { libc::getuid() };
+            let mode = m.mode() & 0o777;
+            let verdict = if m.uid() == me || me == 0 { Verdict::Ok } else { Verdict::Warn };
+            let fix = (verdict != Verdict::Ok).then(|| {
+                format!("{} belongs to uid {}; run as that user or pass --socket-dir", dir.display(), m.uid())
+            });
+            check(
+                "socket-dir",
+                verdict,
+                format!("{} (mode {mode:o}, owner uid {})", dir.display(), m.uid()),
+                fix,
+            )
+        }
+        Ok(_) => check(
+            "socket-dir",
+            Verdict::Problem,
+            format!("{} is not a directory", dir.display()),
+            Some("remove it, or pass --socket-dir DIR (env FROND_SOCKET_DIR)".to_string()),
+        ),
+        Err(_) => check(
+            "socket-dir",
+            Verdict::Warn,
+            format!("{} does not exist yet", dir.display()),
+            Some("frondd creates it when it starts".into()),
+        ),
+    }
+}
+
+/// The hidraw nodes and whether one is the glove (HID_ID in sysfs) and openable.
+fn glove() -> Check {
+    let mut nodes = Vec::new();
+    if let Ok(rd) = std::fs::read_dir("/sys/class/hidraw") {
+        for e in rd.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let uevent = std::fs::read_to_string(e.path().join("device/uevent")).unwrap_or_default();
+            let id = uevent.lines().find_map(|l| l.strip_prefix("HID_ID=")).unwrap_or("").to_string();
+            nodes.push((PathBuf::from("/dev").join(&name), id));
+        }
+    }
+    nodes.sort();
+    let gloves: Vec<&(PathBuf, String)> = nodes.iter().filter(|(_, id)| id.ends_with(GLOVE_HID_ID)).collect();
+    let Some((node, id)) = gloves.first() else {
+        return check(
+            "glove",
+            Verdict::Warn,
+            format!("no frond glove among {} hidraw nodes", nodes.len()),
+            Some(
+                "plug the glove in (USB or Bluetooth), or use the virtual glove (`frondd --source virtual`)"
+                    .into(),
+            ),
+        );
+    };
+    let bus = if id.starts_with("0005:") { "Bluetooth" } else { "USB" };
+    match std::fs::OpenOptions::new().read(true).write(true).open(node) {
+        Ok(_) => check("glove", Verdict::Ok, format!("{} ({bus}) opens read-write", node.display()), None),
+        Err(e) => check(
+            "glove",
+            Verdict::Problem,
+            format!("{} ({bus}) cannot be opened: {e}", node.display()),
+            Some(
+                "install the udev rule and join the frond group (see `udev` and `group`), then replug".into(),
+            ),
+        ),
+    }
+}
+
+fn udev_rule() -> Check {
+    match UDEV_RULES.iter().find(|p| Path::new(p).is_file()) {
+        Some(p) => check("udev", Verdict::Ok, format!("{p} installed"), None),
+        None => check(
+            "udev",
+            Verdict::Warn,
+            "the udev rule is not installed: only root can open the glove".into(),
+            Some(
+                "sudo cp systemd/70-frond.rules /etc/udev/rules.d/ && sudo udevadm control --reload && sudo udevadm trigger"
+                    .into(),
+            ),
+        ),
+    }
+}
+
+fn group() -> Check {
+    let name = std::ffi::CString::new("frond").expect("no NUL");
+    // SAFETY: getgrnam with a valid C string; the result is read at once.
+    let gr = unsafe { libc::getgrnam(name.as_ptr()) };
+    if gr.is_null() {
+        return check(
+            "group",
+            Verdict::Warn,
+            "there is no `frond` group".into(),
+            Some("sudo groupadd --system frond && sudo usermod -aG frond $USER (then log in again)".into()),
+        );
+    }
+    // SAFETY: `gr` is a valid group entry returned just above.
+    let gid = unsafe { (*gr).gr_gid };
+    let mut groups = vec![0 as libc::gid_t; 256];
+    // SAFETY: the buffer holds `groups.len()` entries.
+    let n = unsafe { libc::getgroups(groups.len() as i32, groups.as_mut_ptr()) };
+    // SAFETY: getuid/getgid have no preconditions.
+    let (uid, egid) = unsafe { (libc::getuid(), libc::getegid()) };
+    let member = egid == gid || (n > 0 && groups[..n as usize].contains(&gid));
+    if member || uid == 0 {
+        check(
+            "group",
+            Verdict::Ok,
+            format!("in group frond (gid {gid}){}", if uid == 0 { " or root" } else { "" }),
+            None,
+        )
+    } else {
+        check(
+            "group",
+            Verdict::Problem,
+            format!("not in group frond (gid {gid}): the glove and the control socket refuse this user"),
+            Some("sudo usermod -aG frond $USER (then log in again)".into()),
+        )
+    }
+}
+
+fn fuse() -> Check {
+    match std::fs::OpenOptions::new().read(true).write(true).open("/dev/fuse") {
+        Ok(_) => check(
+            "fuse",
+            Verdict::Ok,
+            "/dev/fuse opens: the virtual glove can serve a hidraw node".into(),
+            None,
+        ),
+        Err(e) => check(
+            "fuse",
+            Verdict::Warn,
+            format!("/dev/fuse: {e}: the virtual glove runs in-process only"),
+            Some("install fuse3 (`apt install fuse3`) for the virtual glove's hidraw node".into()),
+        ),
+    }
+}
+
+fn realtime() -> Check {
+    let limit = |res| {
+        let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+        // SAFETY: getrlimit writes one rlimit into `r`.
+        unsafe { libc::getrlimit(res, &mut r) };
+        r.rlim_cur
+    };
+    let (rtprio, memlock) = (limit(libc::RLIMIT_RTPRIO), limit(libc::RLIMIT_MEMLOCK));
+    // SAFETY: getuid has no preconditions.
+    let root = unsafe { libc::getuid() } == 0;
+    let found = format!(
+        "RLIMIT_RTPRIO {}, RLIMIT_MEMLOCK {}",
+        rtprio,
+        if memlock == libc::RLIM_INFINITY {
+            "unlimited".to_string()
+        } else {
+            format!("{} KiB", memlock / 1024)
+        }
+    );
+    if root || rtprio > 0 {
+        check("realtime", Verdict::Ok, found, None)
+    } else {
+        check(
+            "realtime",
+            Verdict::Warn,
+            format!("{found}: realtime.priority needs RLIMIT_RTPRIO > 0 (the loop runs at normal priority)"),
+            Some(
+                "run frondd from the unit (LimitRTPRIO=, LimitMEMLOCK= are set there) or add `@frond - rtprio 90` and `@frond - memlock unlimited` to /etc/security/limits.d/frond.conf"
+                    .into(),
+            ),
+        )
+    }
+}
+
+fn service() -> Check {
+    let out = std::process::Command::new("systemctl").args(["is-active", "frondd"]).output();
+    match out {
+        Err(_) => check("service", Verdict::Warn, "no systemctl here".into(), None),
+        Ok(o) => {
+            let state = String::from_utf8_lossy(&o.stdout).trim().to_string();
+            if state == "active" {
+                check("service", Verdict::Ok, "frondd.service is active".into(), None)
+            } else {
+                check(
+                    "service",
+                    Verdict::Warn,
+                    format!("frondd.service is {}", if state.is_empty() { "unknown" } else { &state }),
+                    Some(
+                        "install the unit (systemd/frondd.service) and `systemctl enable --now frondd`"
+                            .into(),
+                    ),
+                )
+            }
+        }
+    }
+}
+
+fn exporters() -> Check {
+    let here = std::env::current_exe().ok().and_then(|p| p.parent().map(Path::to_path_buf));
+    let on_path = |name: &str| {
+        here.as_ref().is_some_and(|d| d.join(name).is_file())
+            || std::env::var_os("PATH")
+                .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()))
+    };
+    let missing: Vec<&str> =
+        ["frond-gltf", "frond-osc", "frond-warp"].into_iter().filter(|n| !on_path(n)).collect();
+    if missing.is_empty() {
+        check("exporters", Verdict::Ok, "frond-gltf, frond-osc and frond-warp are installed".into(), None)
+    } else {
+        check(
+            "exporters",
+            Verdict::Warn,
+            format!("not found beside frond or on PATH: {}", missing.join(", ")),
+            Some("install them with frond (`cargo install --path exporters/<name>`)".into()),
+        )
+    }
+}
+
+/// Every check, in order.
+pub fn checks(g: &Global) -> Vec<Check> {
+    vec![daemon(g), socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service(), exporters()]
+}
+
+/// Runs `frond doctor`; `Ok(false)` when something needs fixing.
+pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<bool> {
+    let all = checks(g);
+    let healthy = all.iter().all(|c| c.verdict != Verdict::Problem);
+    if json {
+        println!("{}", serde_json::json!({ "healthy": healthy, "checks": all }));
+    } else {
+        for c in &all {
+            let mark = match c.verdict {
+                Verdict::Ok => "ok     ",
+                Verdict::Warn => "warn   ",
+                Verdict::Problem => "PROBLEM",
+            };
+            println!("{mark} {:<10} {}", c.name, c.found);
+            if let Some(fix) = &c.fix {
+                println!("        {:<10} fix: {fix}", "");
+            }
+        }
+        println!(
+            "{}",
+            if healthy { "nothing needs fixing" } else { "something needs fixing (PROBLEM above)" }
+        );
+    }
+    Ok(healthy)
+}
