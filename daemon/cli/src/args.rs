@@ -334,8 +334,12 @@ pub enum TakeCommand {
         include_held: bool,
         /// SMPTE timecode of the first frame, HH:MM:SS:FF at --fps (with --usd) [default: the
         /// time of day, UTC, the take's first frame was recorded at, when the take knows it].
-        #[arg(long, value_name = "HH:MM:SS:FF", requires = "usd")]
+        #[arg(long, value_name = "HH:MM:SS:FF")]
         timecode_start: Option<String>,
+        /// JSON Lines: add each frame's SMPTE timecode ("tc": "HH:MM:SS:FF", at --fps) from the
+        /// take's recording clock or --timecode-start.
+        #[arg(long, requires = "fps", conflicts_with_all = ["bvh", "usd"])]
+        timecode: bool,
         /// Resample past the export limit (1,080,000 frames); never past 16,777,216.
         #[arg(long)]
         force: bool,

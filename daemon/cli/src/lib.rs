@@ -168,6 +168,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             fps,
             include_held,
             timecode_start,
+            timecode,
             force,
         }) => match (bvh, output) {
             (false, Some(output)) if usd => take_usd::export_usd(
@@ -193,7 +194,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                     force,
                 },
             ),
-            _ => takes::export(g, &name, fps, include_held, force),
+            _ if timecode_start.is_some() && !timecode => {
+                usage("--timecode-start goes with --usd or --timecode")
+            }
+            _ => takes::export(
+                g,
+                &name,
+                fps,
+                include_held,
+                timecode.then_some(timecode_start.as_deref()),
+                force,
+            ),
         },
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),

@@ -266,6 +266,7 @@ pub(crate) fn export(
     name: &str,
     fps: Option<f64>,
     include_held: bool,
+    timecode: Option<Option<&str>>,
     force: bool,
 ) -> anyhow::Result<()> {
     if let Some(fps) = fps
@@ -294,12 +295,32 @@ pub(crate) fn export(
         check_resample(&path.display().to_string(), &poses, fps, force)?;
         poses = resample(&poses, fps);
     }
+    // `--timecode`: frame k of the export is the start plus k frames (on the --fps grid).
+    let start = match (timecode, fps) {
+        (Some(given), Some(fps)) => match start_timecode(&scan, fps, given)? {
+            Some(tc) => Some(tc),
+            None => {
+                return usage(format!(
+                    "{} has no recording clock (made offline?): give --timecode-start HH:MM:SS:FF",
+                    path.display()
+                ));
+            }
+        },
+        _ => None,
+    };
     let stdout = io::stdout();
     let mut out = io::BufWriter::new(stdout.lock());
     let mut line = String::with_capacity(256);
-    for p in &poses {
+    for (k, p) in poses.iter().enumerate() {
         line.clear();
         write_pose_line(p, None, &mut line);
+        if let Some(tc) = start
+            && line.ends_with('}')
+        {
+            line.pop();
+            use std::fmt::Write as _;
+            let _ = write!(line, ",\"tc\":\"{}\"}}", tc.plus_frames(k as u64));
+        }
         line.push('\n');
         out.write_all(line.as_bytes())?;
     }
