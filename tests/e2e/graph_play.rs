@@ -79,6 +79,18 @@ fn walkers_play_live_and_follow_their_goal() {
     }
     assert_ne!(seen.values().next(), seen.values().nth(1), "each walker walks its own way");
 
+    // `frond tap` names the element of every line and can follow one of them.
+    let walker1 = *walkers.iter().find(|(_, n)| n.as_str() == "walker1").unwrap().0;
+    let tapped = daemon.frond_ok(&["tap", "--jsonl", "--element", "walker1", "--count", "3"]);
+    let lines: Vec<serde_json::Value> = tapped.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 3);
+    assert!(lines.iter().all(|l| l["element"] == walker1), "{tapped}");
+    let human = daemon.frond_ok(&["tap", "--element", &walker1.to_string(), "--count", "2"]);
+    assert!(human.lines().all(|l| l.starts_with("[walker1] #")), "{human}");
+    let out = daemon.frond().args(["tap", "--element", "nobody", "--count", "1"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no such element"));
+
     // Goals, as status shows them.
     let out = daemon.frond_ok(&["graph", "goal", "dir", "90"]);
     assert!(out.contains("goal direction 90 deg"), "{out}");

@@ -40,7 +40,8 @@ pub enum Command {
     /// Print live poses. Frames that only repeat the previous pose (flag `held`) are skipped
     /// unless --include-held is given, so each line is one new device sample.
     Tap {
-        /// One JSON object a line: {"seq":..,"t":..,"joints":[[p,y,r],x4]} plus "flags" when set.
+        /// One JSON object a line: {"seq":..,"t":..,"joints":[[p,y,r],x4]}, plus "element" (its
+        /// id) for any element but the global one and "flags" when set. Default: readable lines.
         #[arg(long)]
         jsonl: bool,
         /// Exit after printing N frames.
@@ -49,6 +50,10 @@ pub enum Command {
         /// Also print held frames (every tick of the daemon).
         #[arg(long)]
         include_held: bool,
+        /// Only this element: its id or its name in the element table (`walker3`, `leaf`, ...).
+        /// Default: every element (the global one, hands' layers, field plants, walkers).
+        #[arg(long, value_name = "ID|NAME")]
+        element: Option<String>,
     },
     /// Map a hand recording (JSONL on stdin) to poses (JSONL on stdout), offline, with the
     /// daemon's own mapping code. Bad lines are reported on stderr with their line number and

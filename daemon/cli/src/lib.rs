@@ -129,7 +129,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match cli.command {
         Command::Status { json } => status::run(g, json),
-        Command::Tap { jsonl, count, include_held } => tap::run(g, jsonl, count, include_held),
+        Command::Tap { jsonl, count, include_held, element } => {
+            tap::run(g, jsonl, count, include_held, element.as_deref())
+        }
         Command::Map { rig, calibration, filter, input } => {
             map::run(&rig, calibration.as_deref(), filter.as_deref(), input.as_deref())
         }

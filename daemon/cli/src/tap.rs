@@ -16,7 +16,13 @@ use frond_sdk::{Event, SdkError, Subscriber};
 
 use crate::args::Global;
 
-pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: bool) -> anyhow::Result<()> {
+pub(crate) fn run(
+    g: &Global,
+    jsonl: bool,
+    count: Option<u64>,
+    include_held: bool,
+    element: Option<&str>,
+) -> anyhow::Result<()> {
     let dir = paths::socket_dir(g.socket_dir.clone());
     let mut sub = Subscriber::options().connect(&dir).map_err(|e| match e {
         SdkError::NotRunning { source, .. } => anyhow::anyhow!(crate::control::not_running_message(
@@ -26,6 +32,23 @@ pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: boo
         other => other.into(),
     })?;
     let mut names = sub.hello().joint_names.clone();
+    // `--element`: an id, or a name looked up in the element table (again when it changes).
+    let pick = |table: &frond_protocol::ElementTable| -> anyhow::Result<Option<u16>> {
+        let Some(want) = element else { return Ok(None) };
+        if let Ok(id) = want.parse::<u16>() {
+            return Ok(Some(id));
+        }
+        match table.elements.iter().find(|e| e.name == want) {
+            Some(e) => Ok(Some(e.id)),
+            None => {
+                let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
+                crate::usage(format!("--element {want:?}: no such element (announced: {})", known.join(", ")))
+            }
+        }
+    };
+    let mut only = pick(sub.elements())?;
+    let mut element_names: Vec<(u16, String)> =
+        sub.elements().elements.iter().map(|e| (e.id, e.name.clone())).collect();
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut line = String::with_capacity(256);
@@ -36,13 +59,19 @@ pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: boo
     loop {
         match sub.next_event().context("reading the pose stream")? {
             Event::Pose(pose) => {
-                if pose.flags.contains(PoseFlags::HELD) && !include_held {
+                if (pose.flags.contains(PoseFlags::HELD) && !include_held)
+                    || only.is_some_and(|id| id != pose.element)
+                {
                     continue;
                 }
                 line.clear();
                 if jsonl {
                     pose_jsonl(&pose, &mut line);
                 } else {
+                    if pose.element != 0 {
+                        let name = element_names.iter().find(|(id, _)| *id == pose.element);
+                        let _ = write!(line, "[{}] ", name.map_or("?", |(_, n)| n.as_str()));
+                    }
                     pose_human(&pose, &names, &mut line);
                 }
                 line.push('\n');
@@ -71,6 +100,10 @@ pub(crate) fn run(g: &Global, jsonl: bool, count: Option<u64>, include_held: boo
                     .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), e.name))
                     .collect();
                 eprintln!("frond tap: elements now: {}", list.join(", "));
+                element_names = table.elements.iter().map(|e| (e.id, e.name.clone())).collect();
+                if element.is_some_and(|e| e.parse::<u16>().is_err()) {
+                    only = pick(&table)?;
+                }
             }
             Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
         }
@@ -83,10 +116,15 @@ pub(crate) fn pose_frame(pose: &Pose) -> PoseFrame {
 }
 
 /// `{"seq":..,"t":..,"joints":[...]}` exactly as `frond map` formats numbers, plus
-/// `"flags":[..]` when any flag is set. No newline.
+/// `"element":N` for any element but the global one (0) and `"flags":[..]` when any flag is
+/// set. No newline.
 pub(crate) fn pose_jsonl(pose: &Pose, out: &mut String) {
     let start = out.len();
     write_pose_line(&pose_frame(pose), Some(pose.seq), out);
+    if pose.element != 0 && out[start..].ends_with('}') {
+        out.pop();
+        let _ = write!(out, ",\"element\":{}}}", pose.element);
+    }
     if pose.flags.0 != 0 && out[start..].ends_with('}') {
         out.pop();
         out.push_str(",\"flags\":[");
@@ -132,6 +170,19 @@ mod tests {
             joints_deg: [[1.5, -2.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -3.25]],
             hand: HandWire { t: 1.5, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
         }
+    }
+
+    #[test]
+    fn jsonl_names_any_element_but_the_global_one() {
+        let mut p = pose(PoseFlags::default());
+        p.element = 41;
+        let mut s = String::new();
+        pose_jsonl(&p, &mut s);
+        assert!(s.ends_with(",\"element\":41}"), "{s}");
+        p.flags = PoseFlags::HELD;
+        s.clear();
+        pose_jsonl(&p, &mut s);
+        assert!(s.ends_with(",\"element\":41,\"flags\":[\"held\"]}"), "{s}");
     }
 
     #[test]
