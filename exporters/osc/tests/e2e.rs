@@ -520,3 +520,82 @@ fn blender_addon_drives_the_armature_and_records() {
         }
     }
 }
+
+fn python_with_vmcp() -> Option<PathBuf> {
+    let py = python()?;
+    let ok = Command::new(&py)
+        .args(["-c", "import vmcp, osc4py3"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    ok.then_some(py)
+}
+
+/// A third-party VMC receiver (vmcp from PyPI, which parses bones as Unity HumanBodyBones as VMC
+/// marionettes do) takes frond-osc's default VMC stream as it is: every frame's four humanoid
+/// bones with the daemon's rotations in Unity's frame, the root, "loaded, calibrated, tracking".
+/// With the daemon's own joint names (`--vmc-bones joints`, `root` among them) it refuses them.
+#[test]
+fn a_third_party_vmc_receiver_accepts_the_default_stream() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python_with_vmcp() else {
+        return skip("no vmcp in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str], count: usize, out: &Path| {
+        let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vmcp_receiver.py");
+        let mut child = Command::new(&py)
+            .arg(script)
+            .args([&port.to_string(), &count.to_string()])
+            .arg(out)
+            .arg("30")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        assert_eq!(line.trim(), "listening");
+        let mut args = vec!["--protocol", "vmc"];
+        let target = format!("127.0.0.1:{port}");
+        args.extend(["--target", &target]);
+        args.extend(extra);
+        let osc = start_osc(&daemon.socket_dir, &args);
+        let status = child.wait().unwrap();
+        let mut err = String::new();
+        child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+        stop_and_stderr(osc);
+        (status, err)
+    };
+    let collector = Collector::start(&daemon.socket_dir);
+    let out = tmp.path().join("vmcp.jsonl");
+    let (status, err) = run(&[], 60, &out);
+    assert!(status.success(), "vmcp: {err}");
+    let (_, poses) = collector.finish();
+    let by_t: HashMap<u32, &Pose> = poses.iter().map(|p| ((p.hand.t as f32).to_bits(), p)).collect();
+    let frames = read_jsonl(&out);
+    assert_eq!(frames.len(), 60);
+    let mut matched = 0;
+    for f in &frames {
+        let bones = f["bones"].as_object().unwrap();
+        let mut names: Vec<&str> = bones.keys().map(String::as_str).collect();
+        names.sort();
+        assert_eq!(names, ["Chest", "Hips", "Neck", "Spine"], "{f}");
+        assert_eq!(f["state"], serde_json::json!([1, 3, 0, 1]), "loaded, calibrated, normal, tracking");
+        if let Some(pose) = by_t.get(&(f["t"].as_f64().unwrap() as f32).to_bits()) {
+            matched += 1;
+            for (i, name) in ["Hips", "Spine", "Chest", "Neck"].iter().enumerate() {
+                let rot = f32s(&bones[*name])[3..].to_vec();
+                assert_eq!(rot, unity_quat(joint_quat(pose.joints_deg[i])), "{name}");
+            }
+        }
+    }
+    assert!(matched >= frames.len() * 9 / 10, "{matched} of {} frames matched a daemon pose", frames.len());
+    // The daemon's own names are no VMC bones: a strict receiver refuses them.
+    let (status, err) = run(&["--vmc-bones", "joints"], 5, &tmp.path().join("joints.jsonl"));
+    assert_eq!(status.code(), Some(1), "vmcp accepted the joint names: {err}");
+    assert!(err.contains("BoneTransformEvent"), "{err}");
+}
