@@ -12,9 +12,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU32, AtomicU64, Ordering::Relaxed};
 
 use frond_motion::clip::Joints;
-use frond_motion::graph::build::pose_distance_deg;
 use frond_motion::graph::walk::PosePlanner;
-use frond_motion::graph::{Goal, GraphFile, MotionGraph, Walker};
+use frond_motion::graph::{Goal, GraphFile, MotionGraph, NearestNodeSearch, Walker};
 use frond_motion::layers::{GLOBAL_LAYER, Take};
 use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
@@ -97,7 +96,7 @@ pub struct GraphSource {
     pub poses: Vec<PoseFrame>,
     planner: PosePlanner,
     /// A pose goal's nearest-node search, [`PLAN_NODES_PER_TICK`] nodes per tick.
-    nearest: Option<NearestSearch>,
+    nearest: Option<NearestNodeSearch>,
 }
 
 impl GraphSource {
@@ -106,9 +105,14 @@ impl GraphSource {
         GraphSource { take: take.to_string(), planner: PosePlanner::new(&graph), graph, poses, nearest: None }
     }
 
+    /// Whether the planner has a target but no plan yet.
+    fn planning(&self) -> bool {
+        self.planner.target().is_some() && self.planner.plan().is_none()
+    }
+
     /// Whether a pose goal still needs work on this source.
     fn busy(&self) -> bool {
-        self.nearest.is_some() || (self.planner.target().is_some() && self.planner.plan().is_none())
+        self.nearest.is_some() || self.planning()
     }
 
     /// One tick's share of the search and the plan; the goal node's frame when the search ends.
@@ -119,7 +123,7 @@ impl GraphSource {
             self.planner.start(Some(node));
             return Some(self.graph.node_frames[node as usize]);
         }
-        if self.planner.target().is_some() && self.planner.plan().is_none() {
+        if self.planning() {
             self.planner.work(budget);
         }
         None
@@ -227,29 +231,6 @@ impl GraphStage {
     }
 }
 
-/// The search for the node nearest a pose goal, spread over ticks (a 100,000-node graph would
-/// take a millisecond in one go).
-struct NearestSearch {
-    goal: PoseFrame,
-    next: usize,
-    best: (f64, u32),
-}
-
-impl NearestSearch {
-    /// Scans up to `budget` more nodes; the nearest node once every node is seen.
-    fn work(&mut self, graph: &MotionGraph, poses: &[PoseFrame], budget: usize) -> Option<u32> {
-        let end = (self.next + budget).min(graph.len());
-        for (i, &f) in graph.node_frames[self.next..end].iter().enumerate() {
-            let d = pose_distance_deg(&poses[f as usize], &self.goal);
-            if d < self.best.0 {
-                self.best = (d, (self.next + i) as u32);
-            }
-        }
-        self.next = end;
-        (end == graph.len()).then_some(self.best.1)
-    }
-}
-
 fn lerp(a: &Joints, b: &Joints, u: f32) -> Joints {
     std::array::from_fn(|j| std::array::from_fn(|c| a[j][c] + (b[j][c] - a[j][c]) * u))
 }
@@ -345,11 +326,9 @@ impl LiveStage for GraphStage {
             };
             // A pose by its angles: first the nearest node, over the next ticks, then its plan.
             src.nearest = match goal {
-                GraphGoal::Pose { joints_deg } => Some(NearestSearch {
-                    goal: PoseFrame { t: 0.0, joints_deg },
-                    next: 0,
-                    best: (f64::INFINITY, 0),
-                }),
+                GraphGoal::Pose { joints_deg } => {
+                    Some(NearestNodeSearch::new(PoseFrame { t: 0.0, joints_deg }))
+                }
                 _ => None,
             };
             src.planner.start(target);
@@ -506,7 +485,7 @@ mod tests {
                 d2(&sway[graph.node_frames[a] as usize]).total_cmp(&d2(&sway[graph.node_frames[b] as usize]))
             })
             .unwrap() as u32;
-        let mut search = NearestSearch { goal, next: 0, best: (f64::INFINITY, 0) };
+        let mut search = NearestNodeSearch::new(goal);
         let mut ticks = 1;
         let found = loop {
             if let Some(n) = search.work(&graph, &sway, 7) {

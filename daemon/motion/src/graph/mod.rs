@@ -296,14 +296,36 @@ impl std::str::FromStr for PoseGoalSpec {
 /// [`build::pose_distance_deg`]); the first of equals. `poses` are the take's frames the graph
 /// was built on.
 pub fn nearest_node(graph: &MotionGraph, poses: &[PoseFrame], goal: &PoseFrame) -> u32 {
-    let mut best = (f64::INFINITY, 0u32);
-    for (i, &f) in graph.node_frames.iter().enumerate() {
-        let d = build::pose_distance_deg(&poses[f as usize], goal);
-        if d < best.0 {
-            best = (d, i as u32);
-        }
+    NearestNodeSearch::new(*goal).work(graph, poses, usize::MAX).unwrap_or(0)
+}
+
+/// [`nearest_node`] a bounded number of nodes at a time, for the realtime loop (a
+/// 100,000-node graph would take a millisecond in one go). Holds no heap data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NearestNodeSearch {
+    goal: PoseFrame,
+    next: usize,
+    best: (f64, u32),
+}
+
+impl NearestNodeSearch {
+    /// A search for the node nearest `goal`, nothing scanned yet.
+    pub fn new(goal: PoseFrame) -> Self {
+        NearestNodeSearch { goal, next: 0, best: (f64::INFINITY, 0) }
     }
-    best.1
+
+    /// Scans up to `budget` more nodes; the nearest node once every node is seen.
+    pub fn work(&mut self, graph: &MotionGraph, poses: &[PoseFrame], budget: usize) -> Option<u32> {
+        let end = self.next.saturating_add(budget).min(graph.len());
+        for (i, &f) in graph.node_frames[self.next..end].iter().enumerate() {
+            let d = build::pose_distance_deg(&poses[f as usize], &self.goal);
+            if d < self.best.0 {
+                self.best = (d, (self.next + i) as u32);
+            }
+        }
+        self.next = end;
+        (end == graph.len()).then_some(self.best.1)
+    }
 }
 
 /// Why a graph could not be built or walked.
