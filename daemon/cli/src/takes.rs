@@ -474,11 +474,7 @@ pub(crate) fn start_timecode(
             .map_err(|e| crate::UsageError(format!("--timecode-start {e}")))?;
         return Ok(Some(tc));
     }
-    let first = scan.frames.iter().find(|f| f.element == 0 && !PoseFlags(f.flags).contains(PoseFlags::HELD));
-    Ok(match (scan.header.as_ref().and_then(|h| h.clock), first) {
-        (Some(clock), Some(f)) => clock.timecode_of(f.host_ns, fps),
-        _ => None,
-    })
+    Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))
 }
 
 /// Reads take `name` and its rig for a file export.

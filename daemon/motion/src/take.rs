@@ -81,6 +81,16 @@ pub struct TakeHeader {
     pub clock: Option<TakeClock>,
 }
 
+impl TakeHeader {
+    /// SMPTE timecode, at `fps`, of the first kept main-skeleton frame of `frames` (the first
+    /// frame of every export: held frames are skipped), when the take knows its recording clock.
+    pub fn start_timecode(&self, frames: &[TakeFrame], fps: f64) -> Option<crate::timecode::Timecode> {
+        let clock = self.clock?;
+        let first = frames.iter().find(|f| f.element == 0 && f.flags & crate::layers::FLAG_HELD == 0)?;
+        clock.timecode_of(first.host_ns, fps)
+    }
+}
+
 /// The host's wall clock and monotonic clock read together: a frame stamped `host_ns`
 /// (CLOCK_MONOTONIC) happened at Unix time `unix_ns + (host_ns - self.host_ns)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -362,16 +362,6 @@ pub(crate) fn extras_json(rig: &LoadedRig, take: &TakeInput, fps: f64) -> serde_
         "daemon_version": h.map(|h| h.daemon_version.clone()),
         "recorded_unix_s": h.map(|h| h.created_unix_s),
         "bake_fps": fps,
-        "timecode_start": start_timecode(take, fps).map(|t| t.to_string()),
+        "timecode_start": h.and_then(|h| h.start_timecode(&take.frames, fps)).map(|t| t.to_string()),
     })
-}
-
-/// SMPTE timecode (UTC time of day) of the take's first kept main-skeleton frame at `fps`,
-/// when the take knows its recording clock.
-fn start_timecode(take: &TakeInput, fps: f64) -> Option<frond_motion::timecode::Timecode> {
-    let clock = take.header.as_ref()?.clock?;
-    let first = take.frames.iter().find(|f| {
-        f.element == 0 && !frond_protocol::PoseFlags(f.flags).contains(frond_protocol::PoseFlags::HELD)
-    })?;
-    clock.timecode_of(first.host_ns, fps)
 }
