@@ -13,11 +13,9 @@ use frond_motion::sample::JOINTS;
 use frond_motion::sim::node_heights_m;
 
 use crate::args::Global;
-use crate::takes::{MAX_EXPORT_FRAMES, TakeForFile, check_resample, export_poses, take_for_file};
+use crate::takes::{MAX_EXPORT_FRAMES, TakeForFile, take_for_file};
 use crate::usage;
 
-/// Default BVH frame rate: the seed's authoring rate.
-pub const DEFAULT_BVH_FPS: f64 = 30.0;
 /// Longest field export, seconds.
 const MAX_FIELD_DURATION_S: f64 = 24.0 * 3600.0;
 
@@ -44,23 +42,19 @@ fn plant(rig: &Rig, prefix: String, position_m: [f64; 2], scale: f64) -> BvhPlan
 
 /// Writes the BVH file.
 pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
-    let fps = a.fps.unwrap_or(DEFAULT_BVH_FPS);
-    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-        return usage(format!("--fps must be above 0 and at most 1000 for BVH, got {fps}"));
-    }
+    let fps = TakeForFile::fps(a.fps, "BVH")?;
     if let Some(d) = a.duration_s
         && !(d.is_finite() && d > 0.0 && d <= MAX_FIELD_DURATION_S)
     {
         return usage(format!("--duration must be in (0, {MAX_FIELD_DURATION_S}] seconds, got {d}"));
     }
-    let TakeForFile { path, scan, rig, source } = take_for_file(g, a.name, a.rig)?;
-    let rig = rig.rig;
+    let take = take_for_file(g, a.name, a.rig)?;
+    let rig = &take.rig.rig;
     let mut out = String::new();
     match (a.field, a.duration_s) {
         (None, None) => {
-            check_resample(&path.display().to_string(), &source, fps, a.force)?;
-            let poses = export_poses(&scan, Some(fps), false);
-            let plants = [plant(&rig, String::new(), [0.0, 0.0], 1.0)];
+            let poses = take.resampled(fps, a.force)?;
+            let plants = [plant(rig, String::new(), [0.0, 0.0], 1.0)];
             bvh::begin(&plants, poses.len(), 1.0 / fps, &mut out);
             for p in &poses {
                 bvh::push_frame(&plants, std::slice::from_ref(&p.joints_deg), &mut out);
@@ -84,7 +78,7 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
                     if a.force { " (the hard limit)" } else { "; pass --force to go past it" }
                 ));
             }
-            let clip = Clip::from_poses(&export_poses(&scan, Some(field.fps), false), field.fps);
+            let clip = Clip::from_poses(&frond_motion::resample(&take.source, field.fps), field.fps);
             let digits = field.plants.len().to_string().len();
             let plants: Vec<BvhPlant> = field
                 .plants
@@ -92,7 +86,7 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
                 .enumerate()
                 .map(|(i, p)| {
                     let prefix = format!("{}_{i:0digits$}", rig.name);
-                    plant(&rig, prefix, p.position_m.map(f64::from), f64::from(p.scale))
+                    plant(rig, prefix, p.position_m.map(f64::from), f64::from(p.scale))
                 })
                 .collect();
             bvh::begin(&plants, frames, 1.0 / fps, &mut out);

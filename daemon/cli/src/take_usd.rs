@@ -8,7 +8,7 @@ use anyhow::anyhow;
 use frond_motion::usd::{UsdTake, write_usda};
 
 use crate::args::Global;
-use crate::takes::{TakeForFile, check_resample, export_poses, take_for_file};
+use crate::takes::{TakeForFile, take_for_file};
 use crate::usage;
 
 /// What `--usd` was asked.
@@ -33,16 +33,13 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
         }
         _ => return usage(format!("{}: a USD layer is named .usda", a.output.display())),
     }
-    let fps = a.fps.unwrap_or(crate::take_bvh::DEFAULT_BVH_FPS);
-    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-        return usage(format!("--fps must be above 0 and at most 1000 for USD, got {fps}"));
-    }
-    let TakeForFile { path, scan, rig: loaded, source } = take_for_file(g, a.name, a.rig)?;
-    let model = frond_motion::rig_files::plant_model(&loaded).map_err(|e| anyhow!("{e}"))?;
-    check_resample(&path.display().to_string(), &source, fps, a.force)?;
-    let poses: Vec<_> = export_poses(&scan, Some(fps), false).iter().map(|p| p.joints_deg).collect();
+    let fps = TakeForFile::fps(a.fps, "USD")?;
+    let take = take_for_file(g, a.name, a.rig)?;
+    let (scan, loaded) = (&take.scan, &take.rig);
+    let model = frond_motion::rig_files::plant_model(loaded).map_err(|e| anyhow!("{e}"))?;
+    let poses: Vec<_> = take.resampled(fps, a.force)?.iter().map(|p| p.joints_deg).collect();
     let joint_names: [String; 4] = std::array::from_fn(|j| loaded.rig.joints[j].name.clone());
-    let timecode = crate::takes::start_timecode(&scan, fps, a.timecode_start)?;
+    let timecode = crate::takes::start_timecode(scan, fps, a.timecode_start)?;
     let h = scan.header.as_ref();
     let info = [
         ("timecode_start", timecode.map(|t| t.to_string()).unwrap_or_default()),

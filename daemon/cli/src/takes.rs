@@ -460,6 +460,26 @@ pub(crate) struct TakeForFile {
     pub source: Vec<PoseFrame>,
 }
 
+/// Frame rate of a file export (BVH, USD): `--fps`, or the seed's authoring rate.
+pub(crate) const DEFAULT_FILE_FPS: f64 = 30.0;
+
+impl TakeForFile {
+    /// `--fps` of a `format` export checked (default [`DEFAULT_FILE_FPS`]).
+    pub fn fps(fps: Option<f64>, format: &str) -> anyhow::Result<f64> {
+        let fps = fps.unwrap_or(DEFAULT_FILE_FPS);
+        if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+            return usage(format!("--fps must be above 0 and at most 1000 for {format}, got {fps}"));
+        }
+        Ok(fps)
+    }
+
+    /// The main-skeleton poses resampled to `fps`, refused past the export limits first.
+    pub fn resampled(&self, fps: f64, force: bool) -> anyhow::Result<Vec<PoseFrame>> {
+        check_resample(&self.path.display().to_string(), &self.source, fps, force)?;
+        Ok(resample(&self.source, fps))
+    }
+}
+
 /// Timecode of the first exported frame at `fps`: `start` (`HH:MM:SS:FF`) if given, else the
 /// wall-clock time of day (UTC) the take's first kept frame was recorded at, when the take
 /// knows it (recorded by a daemon that writes its clock).
