@@ -46,9 +46,8 @@ pub(crate) fn run(
             }
         }
     };
-    let mut only = pick(sub.elements())?;
-    let mut element_names: Vec<(u16, String)> =
-        sub.elements().elements.iter().map(|e| (e.id, e.name.clone())).collect();
+    let mut table = sub.elements().clone();
+    let mut only = pick(&table)?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut line = String::with_capacity(256);
@@ -69,8 +68,8 @@ pub(crate) fn run(
                     pose_jsonl(&pose, &mut line);
                 } else {
                     if pose.element != 0 {
-                        let name = element_names.iter().find(|(id, _)| *id == pose.element);
-                        let _ = write!(line, "[{}] ", name.map_or("?", |(_, n)| n.as_str()));
+                        let name = table.get(pose.element).map_or("?", |e| e.name.as_str());
+                        let _ = write!(line, "[{name}] ");
                     }
                     pose_human(&pose, &names, &mut line);
                 }
@@ -93,14 +92,11 @@ pub(crate) fn run(
                 eprintln!("frond tap: reconnected (daemon {}, rig {})", h.daemon_version, h.rig_name);
                 names = h.joint_names;
             }
-            Event::Elements(table) => {
-                let list: Vec<String> = table
-                    .elements
-                    .iter()
-                    .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), e.name))
-                    .collect();
+            Event::Elements(new) => {
+                let list: Vec<String> =
+                    new.elements.iter().map(|e| format!("{} {} {}", e.id, e.kind.as_str(), e.name)).collect();
                 eprintln!("frond tap: elements now: {}", list.join(", "));
-                element_names = table.elements.iter().map(|e| (e.id, e.name.clone())).collect();
+                table = new;
                 if element.is_some_and(|e| e.parse::<u16>().is_err()) {
                     only = pick(&table)?;
                 }

@@ -182,9 +182,7 @@ impl ControlContext {
             );
         };
         let running = state.stages.get(name).expect("slot_of found it");
-        if let StageInput::GraphGoal(goal) = &input
-            && let Err(why) = goal.check()
-        {
+        if let Err(why) = input.check() {
             return refuse(ControlErrorKind::BadRequest, why);
         }
         if !(running.info.accepts)(&input) {

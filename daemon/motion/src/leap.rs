@@ -34,7 +34,8 @@ pub enum Chirality {
 }
 
 impl Chirality {
-    fn as_str(self) -> &'static str {
+    /// `left` or `right`, as the v6 protocol names hands.
+    pub fn as_str(self) -> &'static str {
         match self {
             Chirality::Left => "left",
             Chirality::Right => "right",

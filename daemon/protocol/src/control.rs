@@ -166,6 +166,16 @@ pub enum StageInput {
     GraphGoal(GraphGoal),
 }
 
+impl StageInput {
+    /// Checks what a client may have sent, before it reaches the loop (a key is always valid).
+    pub fn check(&self) -> Result<(), String> {
+        match self {
+            StageInput::Key(_) => Ok(()),
+            StageInput::GraphGoal(goal) => goal.check(),
+        }
+    }
+}
+
 /// Most takes one live graph walk draws on (each graph is held in memory).
 pub const MAX_GRAPH_SOURCES: usize = 8;
 

@@ -178,8 +178,8 @@ pub struct Bridge {
     datagrams: Datagrams,
     vmc_names_fixed: bool,
     frames_out: u64,
-    /// The daemon's rig, joint names and element table, for the names bundle.
-    names: (String, Vec<String>, ElementTable),
+    /// The daemon's hello (rig, joint names) with its latest element table: the names bundle.
+    names: Hello,
     names_due: Instant,
 }
 
@@ -193,8 +193,8 @@ impl Bridge {
         if !config.vmc_names_fixed {
             apply_hello_names(&mut vmc_rig, sub.hello());
         }
-        let hello = sub.hello();
-        let names = (hello.rig_name.clone(), hello.joint_names.clone(), sub.elements().clone());
+        let mut names = sub.hello().clone();
+        names.elements = sub.elements().clone();
         let encoder = match config.protocol {
             Protocol::Frond => {
                 let mut e = FrondEncoder::new(config.clock_offset);
@@ -271,7 +271,7 @@ impl Bridge {
                 },
                 Ok(Msg::Hello(hello)) => self.on_hello(&hello),
                 Ok(Msg::Elements(table)) => {
-                    self.names.2 = table;
+                    self.names.elements = table;
                     self.names_due = Instant::now();
                 }
                 Ok(Msg::End(e)) => return Err(e.into()),
@@ -304,8 +304,8 @@ impl Bridge {
         if let Encoder::Frond(e) = &self.encoder
             && Instant::now() >= self.names_due
         {
-            let (rig, joints, table) = &self.names;
-            e.encode_names(rig, joints, table, &mut self.datagrams)?;
+            let h = &self.names;
+            e.encode_names(&h.rig_name, &h.joint_names, &h.elements, &mut self.datagrams)?;
             self.sender.send(&self.datagrams);
             self.names_due = Instant::now() + NAMES_EVERY;
         }
@@ -321,7 +321,7 @@ impl Bridge {
 
     fn on_hello(&mut self, hello: &Hello) {
         tracing::info!(rig = %hello.rig_name, joints = ?hello.joint_names, "daemon hello");
-        self.names = (hello.rig_name.clone(), hello.joint_names.clone(), hello.elements.clone());
+        self.names = hello.clone();
         self.names_due = Instant::now();
         if let Encoder::Vmc(e) = &mut self.encoder
             && !self.vmc_names_fixed

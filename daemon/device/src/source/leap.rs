@@ -67,7 +67,6 @@ pub struct LeapSource {
     rx: Receiver<DeviceSample>,
     bell: Arc<Doorbell>,
     counters: Arc<SourceCounters>,
-    connected: Arc<AtomicBool>,
     overflow: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -82,7 +81,6 @@ impl LeapSource {
         let bell = Arc::new(Doorbell::new().map_err(|e| open(format!("eventfd: {e}")))?);
         let (tx, rx) = crossbeam_channel::bounded(QUEUE_LEN);
         let counters = Arc::new(SourceCounters::default());
-        let connected = Arc::new(AtomicBool::new(false));
         let overflow = Arc::new(AtomicU64::new(0));
         let stop = Arc::new(AtomicBool::new(false));
         let client = Client {
@@ -91,7 +89,6 @@ impl LeapSource {
             tx,
             bell: Arc::clone(&bell),
             counters: Arc::clone(&counters),
-            connected: Arc::clone(&connected),
             overflow: Arc::clone(&overflow),
             stop: Arc::clone(&stop),
         };
@@ -99,25 +96,19 @@ impl LeapSource {
             .name("frond-leap".into())
             .spawn(move || client.run())
             .map_err(|e| open(format!("cannot start the client thread: {e}")))?;
-        let hand = match address.hand {
-            Chirality::Left => "left",
-            Chirality::Right => "right",
-        };
         Ok(LeapSource {
             rx,
             bell,
             counters,
-            connected,
             overflow,
             stop,
             thread: Some(thread),
-            describe: format!("Leap Motion service at ws://{}/v6.json, {hand} hand", address.host_port),
+            describe: format!(
+                "Leap Motion service at ws://{}/v6.json, {} hand",
+                address.host_port,
+                address.hand.as_str()
+            ),
         })
-    }
-
-    /// Whether the client is connected to the service now.
-    pub fn is_connected(&self) -> bool {
-        self.connected.load(Ordering::Relaxed)
     }
 
     /// Samples lost because the loop did not keep up (queue full).
@@ -176,7 +167,6 @@ struct Client {
     tx: Sender<DeviceSample>,
     bell: Arc<Doorbell>,
     counters: Arc<SourceCounters>,
-    connected: Arc<AtomicBool>,
     overflow: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
 }
@@ -189,7 +179,6 @@ impl Client {
             match self.session() {
                 Ok(()) => return, // asked to stop
                 Err((was_connected, why)) => {
-                    self.connected.store(false, Ordering::Relaxed);
                     if was_connected {
                         // A fresh outage: say it (the session did) and retry soon.
                         said_down = false;
@@ -238,7 +227,6 @@ impl Client {
         for ask in [r#"{"background":true}"#, r#"{"focused":true}"#] {
             ws.send(tungstenite::Message::text(ask)).map_err(|e| not(e.to_string()))?;
         }
-        self.connected.store(true, Ordering::Relaxed);
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let mut warned_version = false;
         loop {
