@@ -21,6 +21,7 @@ import sys
 
 import bpy
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "tests", "python"))
 from frond_convention import fk, to_blender
 
 

@@ -18,7 +18,6 @@ test to compare with forward kinematics of the daemon's poses. Exit 0 on success
 
 import argparse
 import json
-import math
 import os
 import socket
 import sys
@@ -26,8 +25,11 @@ import time
 
 import bpy
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "blender"))
+here = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(here, "..", "blender"))
+sys.path.insert(0, os.path.join(here, "..", "..", "..", "tests", "python"))
 import frond_receiver  # noqa: E402
+from frond_convention import joint_matrix, mat_mul  # noqa: E402
 
 
 
@@ -35,19 +37,6 @@ def fail(msg):
     print(f"blender check failed: {msg}", file=sys.stderr, flush=True)
     # Not sys.exit: bpy's shutdown can hang with the add-on still registered.
     os._exit(1)
-
-
-def mat_mul(a, b):
-    return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
-
-
-def frond_matrix(pitch, yaw, roll):
-    """frond's convention, written from its documentation: R = Rz(yaw) Rx(pitch) Ry(roll)."""
-    p, y, r = (math.radians(a) for a in (pitch, yaw, roll))
-    rx = [[1, 0, 0], [0, math.cos(p), -math.sin(p)], [0, math.sin(p), math.cos(p)]]
-    rz = [[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]]
-    ry = [[math.cos(r), 0, math.sin(r)], [0, 1, 0], [-math.sin(r), 0, math.cos(r)]]
-    return mat_mul(mat_mul(rz, rx), ry)
 
 
 def import_glb(path):
@@ -76,7 +65,7 @@ def check_geometry(obj, frame, names, heights):
         head = obj.matrix_world @ pb.head
         close(head, (point[0], -point[2], point[1]), 1e-4, f"world head of {name} at seq {frame['seq']}")
         heads.append(list(head))
-        r = mat_mul(r, frond_matrix(*angles[3 * i : 3 * i + 3]))
+        r = mat_mul(r, joint_matrix(*angles[3 * i : 3 * i + 3]))
         stem = [r[0][1], r[1][1], r[2][1]]  # R * (0, 1, 0) in frond's Y-up frame
         expected = (stem[0], -stem[2], stem[1])  # Blender Z-up world
         m = (obj.matrix_world @ pb.matrix).to_3x3()
@@ -126,7 +115,7 @@ def check_layer(scene, flower_glb):
         for j in range(4):
             pb = flower.pose.bones[f"leaf{k}_joint{j}"]
             got = pb.rotation_quaternion.to_matrix()
-            want = frond_matrix(*angles[3 * j : 3 * j + 3])
+            want = joint_matrix(*angles[3 * j : 3 * j + 3])
             for a in range(3):
                 close(got[a], want[a], 1e-5, f"leaf{k}_joint{j} rotation row {a}")
             driven += 1

@@ -49,14 +49,20 @@ fn frondd() -> Option<PathBuf> {
     Some(dir.join("frondd")).filter(|p| p.exists())
 }
 
-fn python() -> Option<PathBuf> {
+/// The tests' venv python when it can import `modules` (comma-separated, as `import` takes them).
+fn python_with(modules: &str) -> Option<PathBuf> {
     let py = repo_root().join("tests/python/.venv/bin/python");
     let ok = Command::new(&py)
-        .args(["-c", "import pythonosc"])
+        .args(["-c", &format!("import {modules}")])
+        .stdout(Stdio::null())
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
     ok.then_some(py)
+}
+
+fn python() -> Option<PathBuf> {
+    python_with("pythonosc")
 }
 
 /// Kills (SIGTERM, then SIGKILL) and reaps the child when dropped.
@@ -395,24 +401,13 @@ fn bench_reports_latency_for_one_and_four_targets() {
     }
 }
 
-fn python_with_bpy() -> Option<PathBuf> {
-    let py = python()?;
-    let ok = Command::new(&py)
-        .args(["-c", "import bpy"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(py)
-}
-
 /// The Blender add-on, headless (bpy from PyPI): frond-osc drives its armature; the bone
 /// rotations Blender reports equal the daemon's joints in frond's convention, and Record keys the
 /// frames into an action (`blender_check.py` checks geometry and keys itself).
 #[test]
 fn blender_addon_drives_the_armature_and_records() {
     let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
-    let Some(py) = python_with_bpy() else {
+    let Some(py) = python_with("bpy") else {
         return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
     };
     let gltf = frondd.with_file_name("frond-gltf");
@@ -521,17 +516,6 @@ fn blender_addon_drives_the_armature_and_records() {
     }
 }
 
-fn python_with_vmcp() -> Option<PathBuf> {
-    let py = python()?;
-    let ok = Command::new(&py)
-        .args(["-c", "import vmcp, osc4py3"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(py)
-}
-
 /// A third-party VMC receiver (vmcp from PyPI, which parses bones as Unity HumanBodyBones as VMC
 /// marionettes do) takes frond-osc's default VMC stream as it is: every frame's four humanoid
 /// bones with the daemon's rotations in Unity's frame, the root, "loaded, calibrated, tracking".
@@ -539,7 +523,7 @@ fn python_with_vmcp() -> Option<PathBuf> {
 #[test]
 fn a_third_party_vmc_receiver_accepts_the_default_stream() {
     let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
-    let Some(py) = python_with_vmcp() else {
+    let Some(py) = python_with("vmcp, osc4py3") else {
         return skip("no vmcp in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
     };
     let daemon = start_daemon(&frondd);

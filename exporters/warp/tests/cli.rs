@@ -180,36 +180,28 @@ fn write_take_with(path: &Path, yaw: impl Fn(f64) -> f32) {
     std::fs::write(path, out).unwrap();
 }
 
+/// Renders 20 frames of `pic` with `mask` as its layer on a 16-cell wind grid, with `extra`
+/// arguments, into the directory `out`; returns the frames.
+fn render_20(pic: &Path, mask: &Path, extra: &[&str], out: &Path) -> Vec<Vec<u8>> {
+    let mut args = vec!["render", "--image", s(pic), "--layer", s(mask), "--fluid-grid", "16"];
+    args.extend_from_slice(&["--frames", "20", "-o", s(out), "--quiet"]);
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    frames(out)
+}
+
 #[test]
 fn a_take_drives_the_wind_deterministically() {
     let t = tempfile::tempdir().unwrap();
     let (pic, mask) = inputs(t.path());
     let take = t.path().join("sway.take");
     write_take(&take);
-    let render = |extra: &[&str], out: &Path| {
-        let mut args = vec![
-            "render",
-            "--image",
-            s(&pic),
-            "--layer",
-            s(&mask),
-            "--fluid-grid",
-            "16",
-            "--frames",
-            "20",
-            "-o",
-            s(out),
-            "--quiet",
-        ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-    };
+    let render = |extra: &[&str], out: &Path| render_20(&pic, &mask, extra, out);
     let (a, b, still) = (t.path().join("a/"), t.path().join("b/"), t.path().join("still/"));
-    render(&["--take", s(&take)], &a);
-    render(&["--take", s(&take), "--seed", "99"], &b);
-    render(&["--strength", "0"], &still);
-    let (fa, fb, fs) = (frames(&a), frames(&b), frames(&still));
+    let fa = render(&["--take", s(&take)], &a);
+    let fb = render(&["--take", s(&take), "--seed", "99"], &b);
+    let fs = render(&["--strength", "0"], &still);
     assert_eq!(fa, fb, "a take must not depend on the procedural seed");
     assert_ne!(fa[19], fs[19], "the take's sway did not move the picture");
 
@@ -237,14 +229,7 @@ fn a_take_drives_the_wind_deterministically() {
 fn the_simulation_wind_blows_the_picture() {
     let t = tempfile::tempdir().unwrap();
     let (pic, mask) = inputs(t.path());
-    let render = |extra: &[&str], out: &Path| {
-        let mut args = vec!["render", "--image", s(&pic), "--layer", s(&mask), "--fluid-grid", "16"];
-        args.extend_from_slice(&["--frames", "20", "-o", s(out), "--quiet"]);
-        args.extend_from_slice(extra);
-        let o = run(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        frames(out)
-    };
+    let render = |extra: &[&str], out: &Path| render_20(&pic, &mask, extra, out);
     // A steady 6 m/s towards +X is strength 6/10 = 0.6 towards the right; so is a hand held
     // with the root yawed -24 degrees (tip towards +X, 24/40 of the full bend): two mappings
     // worked out by hand must blow the picture alike.
