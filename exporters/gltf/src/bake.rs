@@ -27,6 +27,23 @@ pub struct BakeOptions {
     pub force: bool,
 }
 
+impl BakeOptions {
+    /// The key rate, checked (named `--fps` in the error).
+    pub(crate) fn checked_fps(&self) -> Result<f64, BakeError> {
+        check_fps(self.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })
+    }
+
+    /// Keys a channel may have, and what an error past it says: [`MAX_BAKE_KEYS`], or with
+    /// `force` the hard limit.
+    pub(crate) fn key_limit(&self) -> (u64, &'static str) {
+        if self.force {
+            (frond_motion::take::MAX_RESAMPLED_FRAMES as u64, " (the hard limit)")
+        } else {
+            (MAX_BAKE_KEYS, "; pass --force to go past it")
+        }
+    }
+}
+
 impl Default for BakeOptions {
     fn default() -> Self {
         BakeOptions { fps: 30.0, seed: 0, force: false }
@@ -97,14 +114,11 @@ impl Baker {
         opts: &BakeOptions,
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
-        let fps =
-            check_fps(opts.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })?;
+        let fps = opts.checked_fps()?;
         // The budget is checked before any key is allocated.
         let (keys, discontinuities) = Layers::plan(&take.frames, fps);
-        let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
-        let limit = if opts.force { hard } else { MAX_BAKE_KEYS };
+        let (limit, hint) = opts.key_limit();
         if keys > limit {
-            let hint = if opts.force { " (the hard limit)" } else { "; pass --force to go past it" };
             return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
         }
         let layers = Layers::from_frames(&take.frames, fps)
@@ -159,8 +173,7 @@ impl Baker {
         opts: &BakeOptions,
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
-        let fps =
-            check_fps(opts.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })?;
+        let fps = opts.checked_fps()?;
         if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 24.0 * 3600.0) {
             return Err(BakeError::Option {
                 option: "--duration",

@@ -4,8 +4,8 @@
 
 use frond_motion::mesh::PlantModel;
 
-use crate::anim::{Layers, check_fps};
-use crate::bake::{BakeOptions, BakeStats, Baked, Baker, MAX_BAKE_KEYS, Progress};
+use crate::anim::Layers;
+use crate::bake::{BakeOptions, BakeStats, Baked, Baker, Progress};
 use crate::doc::{DocBuilder, Placement, PlantNodes};
 use crate::error::BakeError;
 use crate::input::{LoadedRig, TakeInput};
@@ -47,8 +47,7 @@ impl Baker {
         opts: &BakeOptions,
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
-        let fps =
-            check_fps(opts.fps).map_err(|e| BakeError::Option { option: "--fps", reason: e.to_string() })?;
+        let fps = opts.checked_fps()?;
         if takes.is_empty() || takes.len() > MAX_GROVE_PLANTS {
             return Err(BakeError::Option {
                 option: "--take",
@@ -63,13 +62,12 @@ impl Baker {
         }
         // Budgets first: keys per channel, and keys over every plant.
         let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
-        let limit = if opts.force { hard } else { MAX_BAKE_KEYS };
+        let (limit, hint) = opts.key_limit();
         let mut all_keys = 0u64;
         for take in takes {
             let (keys, _) = Layers::plan(&take.frames, fps);
             all_keys = all_keys.saturating_add(keys);
             if keys > limit || all_keys > hard {
-                let hint = if opts.force { " (the hard limit)" } else { "; pass --force to go past it" };
                 let (keys, limit) = if keys > limit { (keys, limit) } else { (all_keys, hard) };
                 return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
             }
