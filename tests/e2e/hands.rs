@@ -57,8 +57,11 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
     // The left hand while the right one is lost: its fresh frames and any flagged lost.
     let mut left_fresh_in_window = 0u64;
     let mut left_lost_in_window = 0u64;
+    let mut left_held_in_window = 0u64;
     let mut window_start: Option<Instant> = None;
     let mut window_end: Option<Instant> = None;
+    // Fresh frames per element as this subscriber saw them: the status counts at least these.
+    let mut fresh_seen = [0u64; 2];
     let deadline = Instant::now() + Duration::from_secs(20);
     while right_back.is_none() && Instant::now() < deadline {
         let pose = match sub.next_event().unwrap() {
@@ -72,6 +75,9 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
         last_seq = Some(pose.seq);
         let fresh = !pose.flags.contains(PoseFlags::HELD);
         let lost = pose.flags.contains(PoseFlags::DEVICE_LOST);
+        if let Some(seen) = fresh_seen.get_mut(usize::from(pose.element)) {
+            *seen += u64::from(fresh);
+        }
         match pose.element {
             1 => {
                 if lost && right_fresh_before.is_some() {
@@ -88,6 +94,7 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
                 if window_start.is_some() {
                     left_lost_in_window += u64::from(lost);
                     left_fresh_in_window += u64::from(fresh);
+                    left_held_in_window += u64::from(!fresh);
                 }
             }
             other => panic!("element {other} was never announced"),
@@ -95,14 +102,19 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
     }
     let before = right_fresh_before.expect("the right glove reported before its unplug");
     let after = right_back.expect("the right glove was reopened");
-    assert!(right_lost_frames > 300, "only {right_lost_frames} right-hand frames flagged device_lost");
+    // Counts, not rates: a loaded CI machine runs fewer ticks than 1 kHz and the gloves deliver a
+    // fraction of their reports (seq gaps); the device-time gap and the window say how long.
+    assert!(right_lost_frames > 50, "only {right_lost_frames} right-hand frames flagged device_lost");
     let gap_ms = (after - before) as f64 / 1000.0;
     assert!((1490.0..2200.0).contains(&gap_ms), "right glove device-time gap {gap_ms} ms");
     let window_ms = (window_end.unwrap() - window_start.unwrap()).as_secs_f64() * 1000.0;
     assert_eq!(left_lost_in_window, 0, "the left hand was flagged lost while only the right one was");
+    assert!(window_ms > 1000.0, "the right hand was lost for only {window_ms:.0} ms");
+    // A left hand that stalled with the right would publish only held frames for ~1.5 s.
     assert!(
-        left_fresh_in_window as f64 > 0.7 * window_ms,
-        "the left hand stalled with the right: {left_fresh_in_window} fresh frames in {window_ms:.0} ms"
+        left_fresh_in_window > 2 * left_held_in_window && left_fresh_in_window > 100,
+        "the left hand stalled with the right: {left_fresh_in_window} fresh and \
+         {left_held_in_window} held frames in {window_ms:.0} ms"
     );
 
     // Status shows each hand with its own counters and history.
@@ -117,7 +129,11 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
     let right_events = right.events.join("\n");
     assert!(right_events.contains("device lost") && right_events.contains("reopened"), "{right_events}");
     assert!(!left.events.join("\n").contains("reopened"), "{:?}", left.events);
-    assert!(left.frames > 2000 && right.frames > 1000, "{left:?} {right:?}");
+    assert!(
+        left.frames >= fresh_seen[0] && right.frames >= fresh_seen[1] && fresh_seen[1] > 0,
+        "status counts fewer fresh frames than were seen {fresh_seen:?}: {left:?} {right:?}"
+    );
+    assert!(left.frames > right.frames, "the never-unplugged left hand has more frames {left:?} {right:?}");
     let all = status.device_events.join("\n");
     assert!(all.contains("right: ") && all.contains("left: "), "{all}");
     let text = daemon.frond_ok(&["status"]);
