@@ -62,6 +62,70 @@ pub enum Command {
     },
     /// Time the warp of one frame (single thread) and the full pipeline.
     Bench(BenchArgs),
+    /// Multiscale cages of a vegetation layer (seed 004): build them, inspect their coordinates.
+    #[command(subcommand)]
+    Cage(CageCommand),
+}
+
+/// `frond-warp cage ...`.
+#[derive(Debug, Subcommand)]
+pub enum CageCommand {
+    /// Build the multiscale cage tree of a layer (crowns, lobes inside them) into cage.json.
+    #[command(long_about = CAGE_BUILD_ABOUT)]
+    Build(CageBuildArgs),
+    /// Print the mean value coordinates of points for one cage, as JSON.
+    Coords(CageCoordsArgs),
+}
+
+const CAGE_BUILD_ABOUT: &str = "Build the multiscale cage tree (seed 004, section 5.2) of a vegetation layer.
+
+Each 4-connected part of the layer's matte (a greyscale mask, or an RGBA image's alpha) holding at
+least --min-part of the foliage is a crown (a root cage); a cage's foliage is split into --lobes
+compact clusters, each outlined and clipped inside it, down to --levels levels. Outlines are traced
+along pixel edges, simplified and resampled to --vertices vertices. The file (cage.json, documented
+in exporters/warp/README.md) lists every cage with its parent, kind and vertices in image pixels.
+
+Example:
+  frond-warp cage build --layer rig-files/images/shrub.png -o shrub-cage.json";
+
+/// `frond-warp cage build`.
+#[derive(Debug, Clone, Args)]
+pub struct CageBuildArgs {
+    /// The vegetation layer: a greyscale mask, or an RGBA image (its alpha is the matte).
+    #[arg(long, value_name = "MASK_OR_RGBA")]
+    pub layer: PathBuf,
+    /// Levels of cages: 1 = crowns only; 3 = crown, outer lobes, inner lobes.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub levels: usize,
+    /// Vertices per cage.
+    #[arg(long, default_value_t = 64, value_name = "V")]
+    pub vertices: usize,
+    /// Lobes each internal cage is split into.
+    #[arg(long, default_value_t = 3, value_name = "K")]
+    pub lobes: usize,
+    /// Matte level (0-255) counted as vegetation.
+    #[arg(long, default_value_t = 128, value_name = "LEVEL")]
+    pub threshold: u8,
+    /// Smallest part that is a crown, as a fraction of all the foliage.
+    #[arg(long = "min-part", default_value_t = 0.02, value_name = "FRACTION")]
+    pub min_part: f64,
+    /// Output file (cage.json); `-` for standard output.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+}
+
+/// `frond-warp cage coords`.
+#[derive(Debug, Clone, Args)]
+pub struct CageCoordsArgs {
+    /// The cage file.
+    #[arg(long, value_name = "FILE")]
+    pub cage: PathBuf,
+    /// The cage's id in the file.
+    #[arg(long, value_name = "N")]
+    pub id: u32,
+    /// A point `X,Y` in image pixels; repeat for several.
+    #[arg(long = "at", value_name = "X,Y", required = true, allow_hyphen_values = true)]
+    pub at: Vec<String>,
 }
 
 /// The picture and its layers.

@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::Parser;
-use frond_warp::cli::{BenchArgs, Cli, Command, RenderArgs, SceneArgs, ServeArgs};
+use frond_warp::cli::{BenchArgs, CageCommand, Cli, Command, RenderArgs, SceneArgs, ServeArgs};
 use frond_warp::params::Checker;
 use frond_warp::render::{OutputKind, PoseTrack, WindDriver};
 use frond_warp::{Animator, Scene};
@@ -16,6 +16,7 @@ fn main() -> ExitCode {
         Command::Serve(args) => serve(args),
         Command::MakeSamples { dir } => make_samples(&dir),
         Command::Bench(args) => bench(args),
+        Command::Cage(cmd) => cage(cmd),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -99,6 +100,41 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             sim_wind,
         },
     )
+}
+
+fn cage(cmd: CageCommand) -> anyhow::Result<()> {
+    use frond_warp::cages;
+    match cmd {
+        CageCommand::Build(a) => {
+            let opts = frond_cage::BuildOptions {
+                levels: a.levels,
+                vertices: a.vertices,
+                lobes: a.lobes,
+                threshold: a.threshold,
+                min_part_fraction: a.min_part,
+            };
+            let (tree, text) = cages::build_file(&a.layer, &opts)?;
+            if a.output.as_os_str() == "-" {
+                print!("{text}");
+            } else {
+                cages::write_file(&a.output, &text)
+                    .with_context(|| format!("writing {}", a.output.display()))?;
+                let leaves = tree.cages.iter().filter(|c| c.kind == frond_cage::CageKind::Leaf).count();
+                eprintln!(
+                    "frond-warp: wrote {} cages ({} crowns, {leaves} leaves, {} levels deep) to {}",
+                    tree.cages.len(),
+                    tree.roots().count(),
+                    (0..tree.cages.len()).map(|i| tree.depth(i) + 1).max().unwrap_or(0),
+                    a.output.display()
+                );
+            }
+        }
+        CageCommand::Coords(a) => {
+            let tree = cages::read_cage_file(&a.cage)?;
+            println!("{}", cages::coords_json(&tree, a.id, &a.at)?);
+        }
+    }
+    Ok(())
 }
 
 fn make_samples(dir: &std::path::Path) -> anyhow::Result<()> {

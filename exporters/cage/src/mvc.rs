@@ -1,0 +1,259 @@
+//! 2D mean value coordinates of a point with respect to a closed polygon (seed 004, section 5.3,
+//! step 1: "the MVC of a point p_i inside a given cage C is a set of parameters w_ij satisfying
+//! p_i = sum_j w_ij v_j").
+//!
+//! Floater's coordinates (2003) in the form Hormann and Floater (2006, "Mean value coordinates for
+//! arbitrary planar polygons", Eq. 11) give for any polygon, convex or not, and any point of the
+//! plane that is not on the boundary:
+//!
+//! ```text
+//! s_i = v_i - x,  r_i = |s_i|,  A_i = det(s_i, s_{i+1}) / 2,  D_i = s_i . s_{i+1}
+//! t_i = tan(alpha_i / 2) = (r_i r_{i+1} - D_i) / (2 A_i)
+//! w_i = (t_{i-1} + t_i) / r_i,   lambda_i = w_i / sum_j w_j
+//! ```
+//!
+//! On the boundary the coordinates are their limits: 1 at a vertex, linear along an edge. The
+//! limits are taken explicitly (relative tolerances below) so the weights stay finite however
+//! close the point comes to the boundary, instead of dividing by an area that underflows.
+
+use crate::Point;
+
+/// A point closer to a vertex than this fraction of the polygon's size is that vertex.
+const AT_VERTEX_REL: f64 = 1e-12;
+/// A point whose triangle with an edge has less than this fraction of `r_i r_{i+1}` as area,
+/// and lies between the edge's ends, is on that edge.
+const ON_EDGE_REL: f64 = 1e-12;
+
+/// Writes the mean value coordinates of `x` with respect to the closed polygon `cage` (its last
+/// vertex joins its first) into `weights` (cleared first; one per vertex, summing to 1).
+///
+/// The polygon needs at least 3 vertices and no two consecutive equal vertices (what
+/// [`crate::CageTree`] validates); otherwise the weights are those of the nearest vertex.
+pub fn mean_value_coordinates(cage: &[Point], x: Point, weights: &mut Vec<f64>) {
+    weights.clear();
+    let n = cage.len();
+    weights.resize(n, 0.0);
+    if n == 0 {
+        return;
+    }
+    let scale = size_of(cage).max(f64::MIN_POSITIVE);
+    // s_i, r_i; a point at a vertex takes that vertex.
+    let mut nearest = (f64::INFINITY, 0);
+    for (i, v) in cage.iter().enumerate() {
+        let r = (v[0] - x[0]).hypot(v[1] - x[1]);
+        if r < nearest.0 {
+            nearest = (r, i);
+        }
+    }
+    if n < 3 || nearest.0 <= AT_VERTEX_REL * scale {
+        weights[nearest.1] = 1.0;
+        return;
+    }
+    // On an edge: linear interpolation between its ends.
+    for i in 0..n {
+        let j = (i + 1) % n;
+        let (si, sj) = (sub(cage[i], x), sub(cage[j], x));
+        let (ri, rj) = (norm(si), norm(sj));
+        let a2 = det(si, sj);
+        let d = dot(si, sj);
+        if d < 0.0 && a2.abs() <= ON_EDGE_REL * ri * rj {
+            weights[i] = rj / (ri + rj);
+            weights[j] = ri / (ri + rj);
+            return;
+        }
+    }
+    // Inside or outside: Eq. 11 of Hormann and Floater.
+    let t = |i: usize| {
+        let j = (i + 1) % n;
+        let (si, sj) = (sub(cage[i], x), sub(cage[j], x));
+        (norm(si) * norm(sj) - dot(si, sj)) / det(si, sj)
+    };
+    let mut t_prev = t(n - 1);
+    let mut sum = 0.0;
+    for (i, w) in weights.iter_mut().enumerate() {
+        let t_i = t(i);
+        *w = (t_prev + t_i) / norm(sub(cage[i], x));
+        sum += *w;
+        t_prev = t_i;
+    }
+    if sum.is_finite() && sum != 0.0 {
+        for w in weights.iter_mut() {
+            *w /= sum;
+        }
+    } else {
+        // Only reachable through cancellation far outside a degenerate polygon: the nearest vertex.
+        weights.fill(0.0);
+        weights[nearest.1] = 1.0;
+    }
+}
+
+/// The point with coordinates `weights` with respect to `cage`: `sum_j w_j v_j` (step 1: a finer
+/// cage's vertex follows its parent's moved vertices).
+pub fn apply(cage: &[Point], weights: &[f64]) -> Point {
+    let mut p = [0.0, 0.0];
+    for (v, w) in cage.iter().zip(weights) {
+        p[0] += w * v[0];
+        p[1] += w * v[1];
+    }
+    p
+}
+
+/// Largest side of the polygon's bounding box.
+fn size_of(cage: &[Point]) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for v in cage {
+        for k in 0..2 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    (hi[0] - lo[0]).max(hi[1] - lo[1])
+}
+
+fn sub(a: Point, b: Point) -> Point {
+    [a[0] - b[0], a[1] - b[1]]
+}
+fn norm(a: Point) -> f64 {
+    a[0].hypot(a[1])
+}
+fn dot(a: Point, b: Point) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+fn det(a: Point, b: Point) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn coords(cage: &[Point], x: Point) -> Vec<f64> {
+        let mut w = Vec::new();
+        mean_value_coordinates(cage, x, &mut w);
+        w
+    }
+
+    const SQUARE: [Point; 4] = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]];
+    /// An L: not convex, with a reflex vertex at (1, 1).
+    const ELL: [Point; 6] = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]];
+
+    #[test]
+    fn the_centre_of_a_square_weighs_each_corner_a_quarter() {
+        for w in coords(&SQUARE, [1.0, 1.0]) {
+            assert!((w - 0.25).abs() < 1e-15, "{w}");
+        }
+    }
+
+    /// Floater's definition, evaluated from angles rather than Eq. 11:
+    /// w_i = (tan(alpha_{i-1}/2) + tan(alpha_i/2)) / |v_i - x|, alpha_i the angle at x between
+    /// v_i and v_{i+1} (atan2 of the two directions).
+    fn floater_by_angles(cage: &[Point], x: Point) -> Vec<f64> {
+        let n = cage.len();
+        let angle = |i: usize| {
+            let (a, b) = (cage[i], cage[(i + 1) % n]);
+            let (aa, ab) = ((a[1] - x[1]).atan2(a[0] - x[0]), (b[1] - x[1]).atan2(b[0] - x[0]));
+            let mut d = ab - aa;
+            while d > std::f64::consts::PI {
+                d -= std::f64::consts::TAU;
+            }
+            while d < -std::f64::consts::PI {
+                d += std::f64::consts::TAU;
+            }
+            d
+        };
+        let raw: Vec<f64> = (0..n)
+            .map(|i| {
+                let r = (cage[i][0] - x[0]).hypot(cage[i][1] - x[1]);
+                ((angle((i + n - 1) % n) / 2.0).tan() + (angle(i) / 2.0).tan()) / r
+            })
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|w| w / sum).collect()
+    }
+
+    #[test]
+    fn points_inside_and_outside_match_floaters_angle_definition() {
+        for (cage, x) in [
+            (&SQUARE[..], [0.5, 0.5]),
+            (&SQUARE[..], [1.9, 0.3]),
+            (&ELL[..], [0.5, 1.5]),
+            (&ELL[..], [1.5, 0.5]),
+            (&ELL[..], [1.6, 1.7]), // outside, in the L's notch
+            (&ELL[..], [-3.0, 5.0]),
+        ] {
+            let (w, want) = (coords(cage, x), floater_by_angles(cage, x));
+            for (got, want) in w.iter().zip(&want) {
+                assert!((got - want).abs() < 1e-12, "{x:?}: {w:?} vs {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn at_a_vertex_the_weight_is_that_vertex_and_on_an_edge_linear() {
+        assert_eq!(coords(&ELL, [1.0, 1.0]), [0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        let w = coords(&ELL, [1.5, 1.0]);
+        assert_eq!(w, [0.0, 0.0, 0.5, 0.5, 0.0, 0.0]);
+        let w = coords(&SQUARE, [0.5, 0.0]);
+        assert_eq!(w, [0.75, 0.25, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn weights_stay_finite_and_tend_to_the_edge_as_the_point_approaches_it() {
+        for k in 1..=300 {
+            let eps = 10f64.powi(-k);
+            let w = coords(&ELL, [0.5, eps]);
+            assert!(w.iter().all(|w| w.is_finite()), "{eps}: {w:?}");
+            let p = apply(&ELL, &w);
+            assert!((p[0] - 0.5).abs() < 1e-9 && (p[1] - eps).abs() < 1e-9, "{eps}: {p:?}");
+            if k > 8 {
+                assert!((w[0] - 0.75).abs() < 1e-6 && (w[1] - 0.25).abs() < 1e-6, "{eps}: {w:?}");
+            }
+        }
+    }
+
+    fn star(n: usize, seed: &[f64]) -> Vec<Point> {
+        // A star-shaped polygon around (0, 0) with radii from `seed`: often not convex.
+        (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                let r = 1.0 + 2.0 * seed[i % seed.len()];
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    proptest! {
+        /// Partition of unity and linear reproduction (p = sum w_j v_j, so every linear
+        /// function is reproduced), inside and outside a non-convex polygon.
+        #[test]
+        fn weights_sum_to_one_and_reproduce_the_point(
+            n in 3usize..40,
+            seed in prop::collection::vec(0.0f64..1.0, 1..40),
+            x in -4.0f64..4.0, y in -4.0f64..4.0,
+        ) {
+            let cage = star(n, &seed);
+            let w = coords(&cage, [x, y]);
+            let sum: f64 = w.iter().sum();
+            prop_assert!((sum - 1.0).abs() < 1e-9, "sum {}", sum);
+            let p = apply(&cage, &w);
+            prop_assert!((p[0] - x).abs() < 1e-7 && (p[1] - y).abs() < 1e-7, "{:?} vs {:?}", p, (x, y));
+        }
+
+        /// Moving the cage by an affine map moves the point by the same map.
+        #[test]
+        fn an_affine_map_of_the_cage_maps_the_point(
+            n in 3usize..24,
+            seed in prop::collection::vec(0.0f64..1.0, 1..24),
+            x in -0.9f64..0.9, y in -0.9f64..0.9,
+            m in prop::array::uniform4(-2.0f64..2.0), t in prop::array::uniform2(-50.0f64..50.0),
+        ) {
+            let cage = star(n, &seed);
+            let w = coords(&cage, [x, y]);
+            let f = |p: Point| [m[0] * p[0] + m[1] * p[1] + t[0], m[2] * p[0] + m[3] * p[1] + t[1]];
+            let moved: Vec<Point> = cage.iter().map(|&v| f(v)).collect();
+            let (got, want) = (apply(&moved, &w), f([x, y]));
+            prop_assert!((got[0] - want[0]).abs() < 1e-7 && (got[1] - want[1]).abs() < 1e-7);
+        }
+    }
+}
