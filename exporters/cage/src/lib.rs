@@ -12,8 +12,11 @@
 pub mod build;
 pub mod contour;
 pub mod laplacian;
+pub mod morph;
 pub mod mvc;
 pub mod outline;
+pub mod raster;
+pub mod sketch;
 pub mod tree;
 
 pub use build::{BuildOptions, build_cage_tree};

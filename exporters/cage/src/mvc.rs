@@ -62,11 +62,14 @@ pub fn mean_value_coordinates(cage: &[Point], x: Point, weights: &mut Vec<f64>) 
             return;
         }
     }
-    // Inside or outside: Eq. 11 of Hormann and Floater.
+    // Inside or outside: Eq. 11 of Hormann and Floater. tan(alpha/2) has two forms,
+    // (r r' - D) / det = det / (r r' + D); each is taken where it does not divide 0 by 0 (the
+    // second for a point on the line of an edge but beyond its ends, alpha = 0).
     let t = |i: usize| {
         let j = (i + 1) % n;
         let (si, sj) = (sub(cage[i], x), sub(cage[j], x));
-        (norm(si) * norm(sj) - dot(si, sj)) / det(si, sj)
+        let (rr, d, a2) = (norm(si) * norm(sj), dot(si, sj), det(si, sj));
+        if d >= 0.0 { a2 / (rr + d) } else { (rr - d) / a2 }
     };
     let mut t_prev = t(n - 1);
     let mut sum = 0.0;
@@ -181,6 +184,9 @@ mod tests {
             (&ELL[..], [1.5, 0.5]),
             (&ELL[..], [1.6, 1.7]), // outside, in the L's notch
             (&ELL[..], [-3.0, 5.0]),
+            (&ELL[..], [0.5, 1.0]),    // inside, on the line of the edge (2,1)-(1,1)
+            (&SQUARE[..], [3.0, 0.0]), // outside, on the line of the edge (0,0)-(2,0)
+            (&SQUARE[..], [1.0, -4.0]),
         ] {
             let (w, want) = (coords(cage, x), floater_by_angles(cage, x));
             for (got, want) in w.iter().zip(&want) {

@@ -133,6 +133,42 @@ mod tests {
         assert!(frechet_closed(&SQUARE, &start_nearest(&SQUARE, [4.0, 4.0])) > 4.0);
     }
 
+    /// A second implementation: Eiter and Mannila's recurrence, written out.
+    fn eiter_mannila(a: &[Point], b: &[Point]) -> f64 {
+        let mut ca = vec![vec![0.0f64; b.len()]; a.len()];
+        for i in 0..a.len() {
+            for j in 0..b.len() {
+                let d = dist(a[i], b[j]);
+                ca[i][j] = match (i, j) {
+                    (0, 0) => d,
+                    (0, _) => ca[0][j - 1].max(d),
+                    (_, 0) => ca[i - 1][0].max(d),
+                    _ => ca[i - 1][j].min(ca[i - 1][j - 1]).min(ca[i][j - 1]).max(d),
+                };
+            }
+        }
+        ca[a.len() - 1][b.len() - 1]
+    }
+
+    #[test]
+    fn frechet_matches_the_recurrence_written_out() {
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 100.0
+        };
+        for n in [2usize, 3, 7, 20] {
+            for m in [2usize, 5, 13] {
+                let a: Vec<Point> = (0..n).map(|_| [next(), next()]).collect();
+                let b: Vec<Point> = (0..m).map(|_| [next(), next()]).collect();
+                let (got, want) = (frechet_open(&a, &b), eiter_mannila(&a, &b));
+                assert!((got - want).abs() < 1e-9, "{n}x{m}: {got} vs {want}");
+                let closed = |p: &[Point]| p.iter().chain(p.first()).copied().collect::<Vec<_>>();
+                assert!((frechet_closed(&a, &b) - eiter_mannila(&closed(&a), &closed(&b))).abs() < 1e-9);
+            }
+        }
+    }
+
     #[test]
     fn simplifying_drops_collinear_vertices() {
         let poly = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]];

@@ -62,6 +62,9 @@ pub enum Command {
     },
     /// Time the warp of one frame (single thread) and the full pipeline.
     Bench(BenchArgs),
+    /// Morph a layer towards a sketch, keeping its shape (seed 004, section 5).
+    #[command(long_about = MORPH_ABOUT)]
+    Morph(MorphArgs),
     /// Multiscale cages of a vegetation layer (seed 004): build them, inspect their coordinates.
     #[command(subcommand)]
     Cage(CageCommand),
@@ -87,6 +90,63 @@ in exporters/warp/README.md) lists every cage with its parent, kind and vertices
 
 Example:
   frond-warp cage build --layer rig-files/images/shrub.png -o shrub-cage.json";
+
+const MORPH_ABOUT: &str =
+    "Morph a vegetation layer towards a sketch, keeping its shape (seed 004, section 5).
+
+The layer's multiscale cage tree (--cage, or built from the layer as `cage build` does) carries the
+picture: the sketched crown moves to the sketch's outline (closed sketch) or has the oversketched
+stretch replaced (open sketch), finer cages follow by mean value coordinates and Eq. 1, lobes
+stretch over parts of their parent they leave uncovered (off: --no-adapt) and lobes mostly outside
+a closed sketch fade out (off: --no-prune). The pixels move with the seed-001 remap. --report
+writes the discrete Frechet distance of each frame's outline to the reference in-between.
+
+sketch.json: {\"version\":1,\"closed\":true|false,\"points\":[[x,y],...]} in image pixels.
+
+Example:
+  frond-warp morph --image rig-files/images/shrub-background.png --layer rig-files/images/shrub.png \\
+      --sketch heart.json --frames 30 -o morph.webp --report quality.json";
+
+/// `frond-warp morph`.
+#[derive(Debug, Clone, Args)]
+pub struct MorphArgs {
+    /// The picture (PNG, JPEG, GIF or WebP).
+    #[arg(long, value_name = "IMG")]
+    pub image: PathBuf,
+    /// The vegetation layer that morphs: a mask (cut out of the picture) or an RGBA image.
+    #[arg(long, value_name = "MASK_OR_RGBA")]
+    pub layer: PathBuf,
+    /// Background under the layer (default: the picture, inpainted under the mask).
+    #[arg(long, value_name = "BG")]
+    pub background: Option<PathBuf>,
+    /// The layer's cage tree (cage.json; default: built from the layer).
+    #[arg(long, value_name = "FILE")]
+    pub cage: Option<PathBuf>,
+    /// The sketch (sketch.json).
+    #[arg(long, value_name = "FILE")]
+    pub sketch: PathBuf,
+    /// Frames, the first the picture and the last the target.
+    #[arg(long, default_value_t = 30, allow_negative_numbers = true)]
+    pub frames: i64,
+    /// Frame rate of the animation.
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    pub fps: f32,
+    /// Output: FILE.gif, FILE.webp, or DIR/ for PNG frames.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: PathBuf,
+    /// Write the quality report (JSON: t, frechet_px per frame, crown, pruned) here.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// No self-adaptive cages (section 5.4.1).
+    #[arg(long)]
+    pub no_adapt: bool,
+    /// No pruning (section 5.4.2).
+    #[arg(long)]
+    pub no_prune: bool,
+    /// No progress bar or summary.
+    #[arg(long)]
+    pub quiet: bool,
+}
 
 /// `frond-warp cage build`.
 #[derive(Debug, Clone, Args)]

@@ -21,6 +21,7 @@ pub use params::{FluidParams, Horizon, InvalidParams, LayerParams, SceneParams, 
 pub mod bench;
 pub mod cages;
 pub mod cli;
+pub mod morph;
 pub mod render;
 pub mod samples;
 pub mod serve;

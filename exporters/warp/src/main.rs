@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::Parser;
-use frond_warp::cli::{BenchArgs, CageCommand, Cli, Command, RenderArgs, SceneArgs, ServeArgs};
+use frond_warp::cli::{BenchArgs, CageCommand, Cli, Command, MorphArgs, RenderArgs, SceneArgs, ServeArgs};
 use frond_warp::params::Checker;
 use frond_warp::render::{OutputKind, PoseTrack, WindDriver};
 use frond_warp::{Animator, Scene};
@@ -17,6 +17,7 @@ fn main() -> ExitCode {
         Command::MakeSamples { dir } => make_samples(&dir),
         Command::Bench(args) => bench(args),
         Command::Cage(cmd) => cage(cmd),
+        Command::Morph(args) => morph(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -100,6 +101,46 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             sim_wind,
         },
     )
+}
+
+fn morph(a: MorphArgs) -> anyhow::Result<()> {
+    let mut ck = Checker::new();
+    ck.range_i64("--frames", a.frames, 1, 10_000);
+    ck.range_f32("--fps", a.fps, 1.0, 240.0);
+    let out = OutputKind::from_path(&a.output);
+    if let Err(e) = &out {
+        ck.push("--output", a.output.display(), e);
+    }
+    ck.finish()?;
+    let job = frond_warp::morph::MorphJob {
+        image: a.image,
+        layer: a.layer,
+        background: a.background,
+        cage: a.cage,
+        sketch: a.sketch,
+        frames: a.frames as usize,
+        fps: a.fps,
+        output: out?,
+        report: a.report.clone(),
+        opts: frond_cage::morph::MorphOptions { adapt: !a.no_adapt, prune: !a.no_prune },
+        quiet: a.quiet,
+    };
+    let summary = frond_warp::morph::run(&job)?;
+    if let Some(path) = &a.report {
+        frond_warp::cages::write_file(path, &summary.report_json())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if !a.quiet {
+        let worst = summary.frechet_px.iter().copied().fold(0.0, f64::max);
+        eprintln!(
+            "frond-warp: wrote {} frames to {} (crown {}, {} cages pruned, outline within {worst:.1} px of the reference)",
+            summary.frames,
+            a.output.display(),
+            summary.crown,
+            summary.pruned.len()
+        );
+    }
+    Ok(())
 }
 
 fn cage(cmd: CageCommand) -> anyhow::Result<()> {

@@ -120,16 +120,16 @@ impl PoseTrack {
 }
 
 /// Progress on stderr: a bar on a terminal, nothing otherwise (or when quiet).
-struct Progress {
+pub(crate) struct Progress {
     total: usize,
     on: bool,
 }
 
 impl Progress {
-    fn new(total: usize, quiet: bool) -> Progress {
+    pub(crate) fn new(total: usize, quiet: bool) -> Progress {
         Progress { total, on: !quiet && std::io::stderr().is_terminal() }
     }
-    fn tick(&self, done: usize) {
+    pub(crate) fn tick(&self, done: usize) {
         if !self.on {
             return;
         }
@@ -198,14 +198,15 @@ pub fn render(
     Ok(frames)
 }
 
-enum Sink {
+/// Where rendered frames go (GIF, animated WebP or a directory of PNGs).
+pub(crate) enum Sink {
     Gif(PathBuf, Box<GifEncoder<std::io::BufWriter<std::fs::File>>>, u32, u32, Delay),
     Webp(PathBuf, WebpAnim),
     Dir(PathBuf, u32, u32),
 }
 
 impl Sink {
-    fn open(out: &OutputKind, w: usize, h: usize, fps: f32) -> Result<Sink, RenderError> {
+    pub(crate) fn open(out: &OutputKind, w: usize, h: usize, fps: f32) -> Result<Sink, RenderError> {
         let (w, h) = (w as u32, h as u32);
         Ok(match out {
             OutputKind::Gif(path) => {
@@ -228,7 +229,7 @@ impl Sink {
         })
     }
 
-    fn push(&mut self, k: usize, frame: &[u8]) -> Result<(), RenderError> {
+    pub(crate) fn push(&mut self, k: usize, frame: &[u8]) -> Result<(), RenderError> {
         match self {
             Sink::Gif(path, enc, w, h, delay) => {
                 let img = RgbaImage::from_raw(*w, *h, frame.to_vec()).expect("frame size");
@@ -246,7 +247,7 @@ impl Sink {
         }
     }
 
-    fn finish(self) -> Result<(), RenderError> {
+    pub(crate) fn finish(self) -> Result<(), RenderError> {
         match self {
             Sink::Gif(..) | Sink::Dir(..) => Ok(()),
             Sink::Webp(path, anim) => {
