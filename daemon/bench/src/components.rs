@@ -43,6 +43,11 @@ pub fn components(o: &Options) -> Section {
         ),
         part("gltf_bake", "glTF bake throughput", || gltf_bake(o)),
         part("warp", "warp time per 1080p frame vs OpenCV cv2.remap, single thread", || warp(o)),
+        part(
+            "cage_warp",
+            "seed 004 morph frame at 1080p (cage tree, field, warp) vs the plain remap",
+            || cage_warp(o),
+        ),
         part("sim_step", "simulated plant: one implicit Euler step (seed 003, section 4)", || {
             crate::plant_motion::sim_step(o)
         }),
@@ -290,7 +295,8 @@ fn warp(o: &Options) -> Part {
     let (mut ours_json, mut cv_json) = (Value::Null, Value::Null);
     for round in 0..rounds {
         let mut cmd = Command::new(&bin);
-        cmd.args(["bench", "--json", "--pipeline-frames", "0", "--iterations"]).arg(iterations.to_string());
+        cmd.args(["bench", "--json", "--pipeline-frames", "0", "--cage-frames", "0", "--iterations"])
+            .arg(iterations.to_string());
         if round == 0 {
             cmd.arg("--write-field").arg(dir.path());
         }
@@ -340,6 +346,33 @@ fn warp(o: &Options) -> Part {
         "warp time per 1080p frame vs OpenCV cv2.remap, single thread",
         vec![m],
         json!({"frond_warp": ours_json, "cv2_remap": cv_json, "rounds": rounds}),
+    ))
+}
+
+/// Seed 004: one morph frame of a 13-cage tree at 1080p against the plain seed-001 remap timed
+/// in the same run, interleaved (`frond-warp bench --cage-frames N`).
+fn cage_warp(o: &Options) -> Part {
+    let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e))?;
+    let frames = if o.quick { 3 } else { 20 };
+    let mut cmd = Command::new(&bin);
+    cmd.args(["bench", "--json", "--pipeline-frames", "0", "--iterations", "1", "--cage-frames"])
+        .arg(frames.to_string());
+    let v = json_line(&output(&mut cmd, "frond-warp bench")?, "frond-warp bench")?;
+    let c = &v["cage"];
+    let get = |k: &str| c[k].as_f64().ok_or((Status::Error, format!("frond-warp bench: no cage.{k}")));
+    let m = Measurement::new(
+        "cage_morph_1080p_frame_ms",
+        "ms",
+        get("frame_ms")?,
+        "the plain seed-001 remap of a 1080p frame, same run, interleaved",
+        get("remap_ms")?,
+    )
+    .with_target("a 1080p cage morph frame within 2.5x the plain remap", Bound::MaxRatio, 2.5);
+    Ok(Section::ok(
+        "cage_warp",
+        "seed 004 morph frame at 1080p (cage tree, field, warp) vs the plain remap",
+        vec![m],
+        json!({"frond_warp": c}),
     ))
 }
 

@@ -20,8 +20,17 @@ const SECTIONS: [&str; 8] = [
     "osc_latency",
     "hidraw_latency",
 ];
-const PARTS: [&str; 8] =
-    ["field_playback", "loop_synthesis", "gltf_bake", "warp", "sim_step", "graph_build", "graph_walk", "osc"];
+const PARTS: [&str; 9] = [
+    "field_playback",
+    "loop_synthesis",
+    "gltf_bake",
+    "warp",
+    "cage_warp",
+    "sim_step",
+    "graph_build",
+    "graph_walk",
+    "osc",
+];
 
 fn frond() -> Command {
     Command::new(env!("CARGO_BIN_EXE_frond"))

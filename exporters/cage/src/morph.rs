@@ -65,6 +65,8 @@ pub struct MorphPlan {
     follow: Vec<Option<LaplacianEditor>>,
     /// Per cage: pruned (fades out).
     pruned: Vec<bool>,
+    /// The root cages.
+    roots: Vec<usize>,
     opts: MorphOptions,
 }
 
@@ -97,7 +99,8 @@ impl MorphPlan {
             let shape = Polygon::new(to_line_string(&sketch.points, true), vec![]);
             prune(&tree, crown, &shape, &mut pruned);
         }
-        MorphPlan { tree, crown, target, weights, follow, pruned, opts }
+        let roots = tree.roots().collect();
+        MorphPlan { tree, crown, target, weights, follow, pruned, roots, opts }
     }
 
     /// The tree at rest.
@@ -165,16 +168,21 @@ impl MorphPlan {
     /// holding `p`, applied to that cage at rest; outside every crown, the nearest crown's
     /// (the coordinates extend continuously outside a cage). `weights` is scratch.
     pub fn inverse_map(&self, now: &[Vec<Point>], p: Point, weights: &mut Vec<f64>) -> Point {
+        self.inverse_map_in(now, p, weights).0
+    }
+
+    /// [`MorphPlan::inverse_map`] and the index of the cage that mapped `p`.
+    pub fn inverse_map_in(&self, now: &[Vec<Point>], p: Point, weights: &mut Vec<f64>) -> (Point, usize) {
         let cages = &self.tree.cages;
         let mut at: Option<usize> = None;
-        let mut level: Vec<usize> = self.tree.roots().collect();
+        let mut level: &[usize] = &self.roots;
         // Living cages first: a pruned lobe only shows where no living one reaches.
         let holds = |i: usize| contains(&now[i], p);
         while let Some(&hit) =
             level.iter().find(|&&i| !self.pruned[i] && holds(i)).or_else(|| level.iter().find(|&&i| holds(i)))
         {
             at = Some(hit);
-            level = cages[hit].children.clone();
+            level = &cages[hit].children;
         }
         let cage = at.unwrap_or_else(|| {
             self.tree
@@ -183,10 +191,10 @@ impl MorphPlan {
                 .expect("a tree has a root")
         });
         if now[cage] == cages[cage].vertices {
-            return p;
+            return (p, cage);
         }
         mean_value_coordinates(&now[cage], p, weights);
-        apply(&cages[cage].vertices, weights)
+        (apply(&cages[cage].vertices, weights), cage)
     }
 }
 

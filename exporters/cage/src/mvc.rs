@@ -36,52 +36,69 @@ pub fn mean_value_coordinates(cage: &[Point], x: Point, weights: &mut Vec<f64>) 
     if n == 0 {
         return;
     }
-    let scale = size_of(cage).max(f64::MIN_POSITIVE);
-    // s_i, r_i; a point at a vertex takes that vertex.
+    // One pass: r_i (kept in `weights` until replaced by w_i), the nearest vertex, the scale.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let mut nearest = (f64::INFINITY, 0);
     for (i, v) in cage.iter().enumerate() {
-        let r = (v[0] - x[0]).hypot(v[1] - x[1]);
+        let (dx, dy) = (v[0] - x[0], v[1] - x[1]);
+        let r = (dx * dx + dy * dy).sqrt();
+        weights[i] = r;
         if r < nearest.0 {
             nearest = (r, i);
         }
+        lo = [lo[0].min(v[0]), lo[1].min(v[1])];
+        hi = [hi[0].max(v[0]), hi[1].max(v[1])];
     }
+    let scale = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(f64::MIN_POSITIVE);
     if n < 3 || nearest.0 <= AT_VERTEX_REL * scale {
+        weights.fill(0.0);
         weights[nearest.1] = 1.0;
         return;
     }
-    // On an edge: linear interpolation between its ends.
-    for i in 0..n {
-        let j = (i + 1) % n;
-        let (si, sj) = (sub(cage[i], x), sub(cage[j], x));
-        let (ri, rj) = (norm(si), norm(sj));
-        let a2 = det(si, sj);
-        let d = dot(si, sj);
-        if d < 0.0 && a2.abs() <= ON_EDGE_REL * ri * rj {
-            weights[i] = rj / (ri + rj);
-            weights[j] = ri / (ri + rj);
-            return;
-        }
-    }
-    // Inside or outside: Eq. 11 of Hormann and Floater. tan(alpha/2) has two forms,
+    // tan(alpha_i / 2) for the edge i -> i+1. Eq. 11 of Hormann and Floater has two forms,
     // (r r' - D) / det = det / (r r' + D); each is taken where it does not divide 0 by 0 (the
-    // second for a point on the line of an edge but beyond its ends, alpha = 0).
-    let t = |i: usize| {
-        let j = (i + 1) % n;
+    // second for a point on the line of an edge but beyond its ends, alpha = 0). A point on an
+    // edge (D < 0, det ~ 0) takes the linear interpolation of its ends.
+    let edge = |i: usize, r: &[f64]| -> Result<f64, (usize, usize)> {
+        let j = if i + 1 == n { 0 } else { i + 1 };
         let (si, sj) = (sub(cage[i], x), sub(cage[j], x));
-        let (rr, d, a2) = (norm(si) * norm(sj), dot(si, sj), det(si, sj));
-        if d >= 0.0 { a2 / (rr + d) } else { (rr - d) / a2 }
+        let (rr, d, a2) = (r[i] * r[j], dot(si, sj), det(si, sj));
+        if d < 0.0 && a2.abs() <= ON_EDGE_REL * rr {
+            return Err((i, j));
+        }
+        Ok(if d >= 0.0 { a2 / (rr + d) } else { (rr - d) / a2 })
     };
-    let mut t_prev = t(n - 1);
-    let mut sum = 0.0;
-    for (i, w) in weights.iter_mut().enumerate() {
-        let t_i = t(i);
-        *w = (t_prev + t_i) / norm(sub(cage[i], x));
-        sum += *w;
+    let on_edge = |weights: &mut Vec<f64>, (i, j): (usize, usize)| {
+        let (ri, rj) = (weights[i], weights[j]);
+        weights.fill(0.0);
+        weights[i] = rj / (ri + rj);
+        weights[j] = ri / (ri + rj);
+    };
+    let t_last = match edge(n - 1, weights) {
+        Ok(t) => t,
+        Err(e) => return on_edge(weights, e),
+    };
+    let (mut t_prev, mut sum) = (t_last, 0.0);
+    // w_i = (t_{i-1} + t_i) / r_i, written over r_i once r_i is no longer needed: edge i needs
+    // r_i and r_{i+1}, both still there (r_0 is only needed by t_last, taken first).
+    for i in 0..n {
+        let t_i = if i + 1 == n {
+            t_last
+        } else {
+            match edge(i, weights) {
+                Ok(t) => t,
+                Err(e) => return on_edge(weights, e),
+            }
+        };
+        let w = (t_prev + t_i) / weights[i];
+        weights[i] = w;
+        sum += w;
         t_prev = t_i;
     }
     if sum.is_finite() && sum != 0.0 {
+        let inv = 1.0 / sum;
         for w in weights.iter_mut() {
-            *w /= sum;
+            *w *= inv;
         }
     } else {
         // Only reachable through cancellation far outside a degenerate polygon: the nearest vertex.
@@ -101,23 +118,8 @@ pub fn apply(cage: &[Point], weights: &[f64]) -> Point {
     p
 }
 
-/// Largest side of the polygon's bounding box.
-fn size_of(cage: &[Point]) -> f64 {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for v in cage {
-        for k in 0..2 {
-            lo[k] = lo[k].min(v[k]);
-            hi[k] = hi[k].max(v[k]);
-        }
-    }
-    (hi[0] - lo[0]).max(hi[1] - lo[1])
-}
-
 fn sub(a: Point, b: Point) -> Point {
     [a[0] - b[0], a[1] - b[1]]
-}
-fn norm(a: Point) -> f64 {
-    a[0].hypot(a[1])
 }
 fn dot(a: Point, b: Point) -> f64 {
     a[0] * b[0] + a[1] * b[1]

@@ -162,3 +162,109 @@ pub fn write_field(dir: &Path, w: usize, h: usize) -> std::io::Result<()> {
     std::fs::write(dir.join("meta.json"), serde_json::json!({ "width": w, "height": h }).to_string())?;
     Ok(())
 }
+
+/// Result of [`bench_cage`]: one morph frame of seed 004 against the plain seed-001 remap.
+#[derive(Debug, Clone, Serialize)]
+pub struct CageBench {
+    /// Frame width.
+    pub width: usize,
+    /// Frame height.
+    pub height: usize,
+    /// Cages in the tree, and vertices per cage.
+    pub cages: usize,
+    /// Vertices per cage.
+    pub vertices: usize,
+    /// Timed frames.
+    pub iterations: usize,
+    /// Median cage tree update (MVC propagation, Eq. 1, adaptation), milliseconds.
+    pub tree_update_ms: f64,
+    /// Median displacement field from the cages (grid corners by MVC), milliseconds.
+    pub field_ms: f64,
+    /// Median fade and region, milliseconds.
+    pub layer_ms: f64,
+    /// Median warp of the layer over the background, milliseconds.
+    pub warp_ms: f64,
+    /// Median whole morph frame (the four above), milliseconds.
+    pub frame_ms: f64,
+    /// Median plain seed-001 remap of the same frame size in the same run, milliseconds.
+    pub remap_ms: f64,
+}
+
+/// Times morph frames of a synthetic `w x h` plant (three overlapping discs, its default cage
+/// tree: 13 cages of 64 vertices) towards an ellipse, interleaved with the plain remap.
+pub fn bench_cage(w: usize, h: usize, iterations: usize) -> CageBench {
+    use frond_cage::morph::{MorphOptions, MorphPlan};
+    use frond_cage::sketch::Sketch;
+    let (fw, fh) = (w as f64, h as f64);
+    let discs = [
+        (0.42 * fw, 0.55 * fh, 0.28 * fh),
+        (0.55 * fw, 0.42 * fh, 0.24 * fh),
+        (0.52 * fw, 0.7 * fh, 0.2 * fh),
+    ];
+    let mask: Vec<u8> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+            if discs.iter().any(|&(cx, cy, r)| (x - cx).hypot(y - cy) < r) { 255 } else { 0 }
+        })
+        .collect();
+    let tree =
+        frond_cage::build_cage_tree(&mask, w, h, &frond_cage::BuildOptions::default()).expect("a tree");
+    let pic = Rgba { width: w, height: h, data: synthetic_frame(w, h) };
+    let scene = Scene::build(pic, vec![("bench".into(), LayerInput::Mask(mask))], None, None).expect("scene");
+    let ellipse: Vec<[f64; 2]> = (0..256)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / 256.0;
+            [0.5 * fw + 0.3 * fw * a.cos(), 0.55 * fh + 0.3 * fh * a.sin()]
+        })
+        .collect();
+    let sketch = Sketch { closed: true, points: ellipse };
+    let (cages, vertices) = (tree.cages.len(), tree.cages[0].vertices.len());
+    let plan = MorphPlan::new(tree, &sketch, MorphOptions::default());
+    let mut frames = crate::morph::MorphFrames::new(&scene, &plan);
+    let mut frame = scene.background.clone();
+    let src = synthetic_frame(w, h);
+    let mut dst = vec![0u8; src.len()];
+    let plain = synthetic_warper(w, h);
+    let n = iterations.max(1);
+    let mut times = vec![[0.0f64; 5]; n];
+    let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
+    for (k, row) in times.iter_mut().enumerate() {
+        let t = (k + 1) as f64 / (n + 1) as f64;
+        let t0 = Instant::now();
+        frames.update_cages(t);
+        row[0] = ms(t0);
+        let t0 = Instant::now();
+        frames.update_field();
+        row[1] = ms(t0);
+        let t0 = Instant::now();
+        frames.update_layer(t);
+        row[2] = ms(t0);
+        let t0 = Instant::now();
+        frame.copy_from_slice(&scene.background);
+        frames.warper().warp_over(frames.layer(), frames.region(), &mut frame);
+        row[3] = ms(t0);
+        let t0 = Instant::now();
+        plain.remap(&src, &mut dst);
+        row[4] = ms(t0);
+    }
+    let median = |i: usize| {
+        let mut v: Vec<f64> = times.iter().map(|r| r[i]).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mut whole: Vec<f64> = times.iter().map(|r| r[0] + r[1] + r[2] + r[3]).collect();
+    whole.sort_by(f64::total_cmp);
+    CageBench {
+        width: w,
+        height: h,
+        cages,
+        vertices,
+        iterations: n,
+        tree_update_ms: median(0),
+        field_ms: median(1),
+        layer_ms: median(2),
+        warp_ms: median(3),
+        frame_ms: whole[whole.len() / 2],
+        remap_ms: median(4),
+    }
+}

@@ -359,6 +359,9 @@ pub struct BenchArgs {
     /// Also time every warp kernel this CPU runs (scalar, SSE2, AVX2).
     #[arg(long)]
     pub all_kernels: bool,
+    /// Morph frames timed for the cage mode (seed 004) at the warp's size; 0 skips it.
+    #[arg(long, default_value_t = 10)]
+    pub cage_frames: usize,
 }
 
 impl SimArgs {

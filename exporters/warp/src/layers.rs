@@ -314,7 +314,7 @@ pub fn read_rgba(what: &'static str, path: &Path) -> Result<Rgba, SceneError> {
 }
 
 /// Square dilation of a 0/1 map by `r` pixels (separable running max).
-pub(crate) fn dilate(map: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
+fn dilate(map: &[u8], w: usize, h: usize, r: usize) -> Vec<u8> {
     if r == 0 {
         return map.to_vec();
     }

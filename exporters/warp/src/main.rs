@@ -208,6 +208,8 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
+    let cage = (args.cage_frames > 0)
+        .then(|| frond_warp::bench::bench_cage(args.width, args.height, args.cage_frames));
     if let Some(dir) = &args.write_field {
         frond_warp::bench::write_field(dir, args.width, args.height)
             .with_context(|| format!("writing the field to {}", dir.display()))?;
@@ -217,6 +219,7 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
             "warp": warp,
             "warp_kernels": kernels,
             "pipeline": pipeline,
+            "cage": cage,
             "field_dir": args.write_field,
             "threads": 1,
             "release": !cfg!(debug_assertions),
@@ -243,6 +246,23 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
         }
         for p in pipeline {
             println!("pipeline {}x{}: {:.1} frames/s ({} frames)", p.width, p.height, p.fps, p.frames);
+        }
+        if let Some(c) = &cage {
+            println!(
+                "cage morph {}x{} ({} cages of {} vertices): frame {:.2} ms (tree {:.2}, field {:.2}, layer {:.2}, \
+                 warp {:.2}) against the plain remap's {:.2} ms: {:.2}x",
+                c.width,
+                c.height,
+                c.cages,
+                c.vertices,
+                c.frame_ms,
+                c.tree_update_ms,
+                c.field_ms,
+                c.layer_ms,
+                c.warp_ms,
+                c.remap_ms,
+                c.frame_ms / c.remap_ms
+            );
         }
         if let Some(dir) = &args.write_field {
             println!(

@@ -23,7 +23,6 @@ use frond_motion::rig_files::read_small_text;
 
 use crate::Scene;
 use crate::cages::{CageCommandError, read_cage_file};
-use crate::layers::dilate;
 use crate::render::{OutputKind, Progress, Sink};
 use crate::warp::Warper;
 
@@ -31,6 +30,9 @@ use crate::warp::Warper;
 pub const MAX_SKETCH_FILE_BYTES: u64 = 4 << 20;
 /// Grid cell of the cage warp, pixels (the field is smooth inside a leaf cage).
 pub const CAGE_CELL_PX: usize = 4;
+/// Cells per side of a block whose corners are interpolated when the block lies inside one cage,
+/// clear of every outline (the map is smooth there): 16 px blocks.
+const BLOCK_CELLS: usize = 4;
 /// Most slack a layer may have beyond its rest crowns, pixels.
 const MAX_SLACK_PX: usize = 16;
 
@@ -125,29 +127,235 @@ fn read_sketch(path: &Path, size: [u32; 2]) -> Result<Sketch, CageCommandError> 
         .map_err(|e| CageCommandError::Argument(format!("sketch {}: {e}", path.display())))
 }
 
-fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummary, CageCommandError> {
-    let (w, h) = (scene.width, scene.height);
-    let layer = &scene.layers[0];
-    let tree = plan.tree();
-    let roots: Vec<usize> = tree.roots().collect();
-    let slack = layer_slack(layer.pixels.as_slice(), w, tree, &roots);
-    // Pixels of pruned cages at rest: they fade with t.
-    let mut pruned_px = vec![0u8; w * h];
-    for (i, c) in tree.cages.iter().enumerate() {
-        if plan.pruned()[i] {
-            fill_polygon(&c.vertices, w, h, &mut pruned_px);
+/// The in-betweens of one morph, frame by frame: the cage field, the fading of pruned lobes and
+/// the region the layer may draw in, with their buffers kept between frames.
+pub struct MorphFrames<'a> {
+    scene: &'a Scene,
+    plan: &'a MorphPlan,
+    roots: Vec<usize>,
+    slack: usize,
+    pruned_px: Vec<u8>,
+    any_pruned: bool,
+    warper: Warper,
+    layer_t: Vec<u8>,
+    region: Vec<u8>,
+    /// The deformed crowns before growing, and the horizontal pass of the growing.
+    filled: Vec<u8>,
+    tmp: Vec<u8>,
+    weights: Vec<f64>,
+    now: Vec<Vec<Point>>,
+}
+
+impl<'a> MorphFrames<'a> {
+    /// Prepares the morph of `scene`'s first layer by `plan`.
+    pub fn new(scene: &'a Scene, plan: &'a MorphPlan) -> MorphFrames<'a> {
+        let (w, h) = (scene.width, scene.height);
+        let layer = &scene.layers[0];
+        let tree = plan.tree();
+        let roots: Vec<usize> = tree.roots().collect();
+        let slack = layer_slack(&layer.pixels, w, tree, &roots);
+        // Pixels of pruned cages at rest: they fade with t.
+        let mut pruned_px = vec![0u8; w * h];
+        for (i, c) in tree.cages.iter().enumerate() {
+            if plan.pruned()[i] {
+                fill_polygon(&c.vertices, w, h, &mut pruned_px);
+            }
+        }
+        MorphFrames {
+            scene,
+            plan,
+            roots,
+            slack,
+            pruned_px,
+            any_pruned: plan.pruned().iter().any(|&p| p),
+            warper: Warper::new(w, h, CAGE_CELL_PX, CAGE_CELL_PX),
+            layer_t: layer.pixels.clone(),
+            region: vec![0; w * h],
+            filled: vec![0; w * h],
+            tmp: vec![0; w * h],
+            weights: Vec::new(),
+            now: Vec::new(),
         }
     }
-    let any_pruned = plan.pruned().iter().any(|&p| p);
-    let mut warper = Warper::new(w, h, CAGE_CELL_PX, CAGE_CELL_PX);
-    let (cols, rows) = warper.corners();
-    let mut sink = Sink::open(&job.output, w, h, job.fps).map_err(render_err)?;
-    let progress = Progress::new(job.frames, job.quiet);
+
+    /// The cages at `t` (seed 004, sections 5.3-5.4).
+    pub fn update_cages(&mut self, t: f64) {
+        self.now = self.plan.cages_at(t);
+    }
+
+    /// Sets every grid corner near the deformed crowns to the cage map's displacement (corners
+    /// farther than two cells and the slack from every crown's box are never drawn: 0).
+    ///
+    /// The map is smooth inside a cage, so a 16 px block whose four corners are mapped by the same
+    /// cage and which no deformed outline crosses (its centre farther from every outline than its
+    /// half diagonal) takes its inner corners by bilinear interpolation; other corners are mapped
+    /// one by one.
+    pub fn update_field(&mut self) {
+        let (cols, rows) = self.warper.corners();
+        let margin = (2 * CAGE_CELL_PX + self.slack) as f64;
+        let boxes: Vec<[f64; 4]> = self.roots.iter().map(|&r| bounds(&self.now[r], margin)).collect();
+        let corner_at =
+            |cx: usize, cy: usize| [(cx * CAGE_CELL_PX) as f64 + 0.5, (cy * CAGE_CELL_PX) as f64 + 0.5];
+        let near =
+            |p: Point| boxes.iter().any(|b| p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3]);
+        let (plan, now) = (self.plan, &self.now);
+        let weights = &mut self.weights;
+        let mut exact = |p: Point| -> ([f32; 2], usize) {
+            if !near(p) {
+                return ([0.0, 0.0], usize::MAX);
+            }
+            let (src, cage) = plan.inverse_map_in(now, p, weights);
+            ([(src[0] - p[0]) as f32, (src[1] - p[1]) as f32], cage)
+        };
+        let b = BLOCK_CELLS;
+        let half_diag = (b * CAGE_CELL_PX) as f64 * std::f64::consts::FRAC_1_SQRT_2 + 1.0;
+        for by in (0..rows).step_by(b) {
+            for bx in (0..cols).step_by(b) {
+                let (x1, y1) = ((bx + b).min(cols - 1), (by + b).min(rows - 1));
+                let corners = [(bx, by), (x1, by), (bx, y1), (x1, y1)];
+                let mapped = corners.map(|(cx, cy)| exact(corner_at(cx, cy)));
+                for (k, &(cx, cy)) in corners.iter().enumerate() {
+                    self.warper.set_corner(cx, cy, mapped[k].0);
+                }
+                let centre = [
+                    (corner_at(bx, by)[0] + corner_at(x1, y1)[0]) / 2.0,
+                    (corner_at(bx, by)[1] + corner_at(x1, y1)[1]) / 2.0,
+                ];
+                let one_cage = mapped.iter().all(|m| m.1 == mapped[0].1);
+                let smooth = one_cage
+                    && (mapped[0].1 == usize::MAX
+                        || now.iter().all(|c| outline_distance_at_least(c, centre, half_diag)));
+                for cy in by..=y1 {
+                    for cx in bx..=x1 {
+                        if corners.contains(&(cx, cy)) {
+                            continue;
+                        }
+                        let d = if smooth {
+                            let u = (cx - bx) as f32 / (x1 - bx).max(1) as f32;
+                            let v = (cy - by) as f32 / (y1 - by).max(1) as f32;
+                            let lerp = |a: [f32; 2], b: [f32; 2], t: f32| {
+                                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+                            };
+                            lerp(lerp(mapped[0].0, mapped[1].0, u), lerp(mapped[2].0, mapped[3].0, u), v)
+                        } else {
+                            exact(corner_at(cx, cy)).0
+                        };
+                        self.warper.set_corner(cx, cy, d);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The layer's colours with pruned lobes faded to `1 - t`, and the region it may draw in:
+    /// the deformed crowns grown by the slack.
+    pub fn update_layer(&mut self, t: f64) {
+        let (w, h) = (self.scene.width, self.scene.height);
+        let layer = &self.scene.layers[0];
+        if self.any_pruned {
+            let keep = 1.0 - t;
+            for (px, (out, &pr)) in
+                layer.pixels.chunks_exact(4).zip(self.layer_t.chunks_exact_mut(4).zip(&self.pruned_px))
+            {
+                out[3] = if pr != 0 { (px[3] as f64 * keep).round() as u8 } else { px[3] };
+            }
+        }
+        // Only the crowns' box (grown by the slack) can be set: the rest stays 0.
+        let s = self.slack as f64;
+        let b = self
+            .roots
+            .iter()
+            .map(|&r| bounds(&self.now[r], s + 1.0))
+            .fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |a, b| {
+                [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+            });
+        let clamp = |v: f64, hi: usize| (v.max(0.0) as usize).min(hi);
+        let (x0, y0, x1, y1) = (clamp(b[0], w), clamp(b[1], h), clamp(b[2].ceil(), w), clamp(b[3].ceil(), h));
+        self.region.fill(0);
+        self.filled.fill(0);
+        for &r in &self.roots {
+            fill_polygon(&self.now[r], w, h, &mut self.filled);
+        }
+        dilate_box(&self.filled, &mut self.tmp, &mut self.region, w, self.slack, [x0, y0, x1, y1]);
+    }
+
+    /// The whole in-between at `t`, composed over the background into `frame`.
+    pub fn frame_at(&mut self, t: f64, frame: &mut Vec<u8>) {
+        self.update_cages(t);
+        self.update_field();
+        self.update_layer(t);
+        frame.clear();
+        frame.extend_from_slice(&self.scene.background);
+        self.warper.warp_over(&self.layer_t, &self.region, frame);
+    }
+
+    /// The warper of the last frame.
+    pub fn warper(&self) -> &Warper {
+        &self.warper
+    }
+
+    /// The layer as last drawn (pruned lobes faded).
+    pub fn layer(&self) -> &[u8] {
+        &self.layer_t
+    }
+
+    /// The region of the last frame.
+    pub fn region(&self) -> &[u8] {
+        &self.region
+    }
+}
+
+/// Square dilation of `map` by `r` into `out` inside `[x0, y0, x1, y1)` (separable running max;
+/// `map` is 0 outside that box, and so `out` is left).
+fn dilate_box(map: &[u8], tmp: &mut [u8], out: &mut [u8], w: usize, r: usize, [x0, y0, x1, y1]: [usize; 4]) {
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let (lo, hi) = (x.saturating_sub(r).max(x0), (x + r).min(x1 - 1));
+            tmp[y * w + x] = map[y * w + lo..=y * w + hi].iter().copied().max().unwrap_or(0);
+        }
+    }
+    for y in y0..y1 {
+        let (lo, hi) = (y.saturating_sub(r).max(y0), (y + r).min(y1 - 1));
+        for x in x0..x1 {
+            out[y * w + x] = (lo..=hi).map(|yy| tmp[yy * w + x]).max().unwrap_or(0);
+        }
+    }
+}
+
+/// Whether every edge of the closed polygon is at least `d` from `p`.
+fn outline_distance_at_least(poly: &[Point], p: Point, d: f64) -> bool {
+    let d2 = d * d;
+    let n = poly.len();
+    (0..n).all(|i| {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = ex * ex + ey * ey;
+        let t =
+            if len2 > 0.0 { (((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let (dx, dy) = (p[0] - a[0] - t * ex, p[1] - a[1] - t * ey);
+        dx * dx + dy * dy >= d2
+    })
+}
+
+/// `[x0, y0, x1, y1]` of `poly` grown by `margin`.
+fn bounds(poly: &[Point], margin: f64) -> [f64; 4] {
+    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    for p in poly {
+        b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+    }
+    [b[0] - margin, b[1] - margin, b[2] + margin, b[3] + margin]
+}
+
+fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummary, CageCommandError> {
+    let (w, h) = (scene.width, scene.height);
+    let tree = plan.tree();
     let crown = plan.crown();
     let n = tree.cages[crown].vertices.len();
-    let mut layer_t = layer.pixels.clone();
+    let mut frames = MorphFrames::new(scene, plan);
+    let mut sink = Sink::open(&job.output, w, h, job.fps).map_err(render_err)?;
+    let progress = Progress::new(job.frames, job.quiet);
+    let mut frame = Vec::with_capacity(w * h * 4);
     let mut warped = vec![0u8; w * h * 4];
-    let mut weights = Vec::new();
     let mut summary = MorphSummary {
         frames: job.frames,
         crown: tree.cages[crown].id,
@@ -157,32 +365,10 @@ fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummar
     };
     for k in 0..job.frames {
         let t = if job.frames > 1 { k as f64 / (job.frames - 1) as f64 } else { 1.0 };
-        let now = plan.cages_at(t);
-        for cy in 0..rows {
-            for cx in 0..cols {
-                let p = [(cx * CAGE_CELL_PX) as f64 + 0.5, (cy * CAGE_CELL_PX) as f64 + 0.5];
-                let src = plan.inverse_map(&now, p, &mut weights);
-                warper.set_corner(cx, cy, [(src[0] - p[0]) as f32, (src[1] - p[1]) as f32]);
-            }
-        }
-        if any_pruned {
-            let keep = 1.0 - t;
-            for (px, (out, &pr)) in
-                layer.pixels.chunks_exact(4).zip(layer_t.chunks_exact_mut(4).zip(&pruned_px))
-            {
-                out[3] = if pr != 0 { (px[3] as f64 * keep).round() as u8 } else { px[3] };
-            }
-        }
-        let mut region = vec![0u8; w * h];
-        for &r in &roots {
-            fill_polygon(&now[r], w, h, &mut region);
-        }
-        let region = dilate(&region, w, h, slack);
-        let mut frame = scene.background.clone();
-        warper.warp_over(&layer_t, &region, &mut frame);
+        frames.frame_at(t, &mut frame);
         sink.push(k, &frame).map_err(render_err)?;
         // Section 6.2: this frame's outline against the reference in-between.
-        warper.remap(&layer_t, &mut warped);
+        frames.warper().remap(frames.layer(), &mut warped);
         let reference: Vec<Point> = tree.cages[crown]
             .vertices
             .iter()
@@ -190,7 +376,7 @@ fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummar
             .map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
             .collect();
         summary.t.push(t);
-        summary.frechet_px.push(outline_distance(&warped, &region, w, h, &reference, n));
+        summary.frechet_px.push(outline_distance(&warped, frames.region(), w, h, &reference, n));
         progress.tick(k + 1);
     }
     sink.finish().map_err(render_err)?;
