@@ -103,6 +103,18 @@ impl MorphPlan {
         MorphPlan { tree, crown, target, weights, follow, pruned, roots, opts }
     }
 
+    /// A plan without a sketch, for a crown moved from outside ([`MorphPlan::cages_for_crown`]):
+    /// the largest crown, nothing pruned.
+    pub fn driven(tree: CageTree, opts: MorphOptions) -> MorphPlan {
+        let crown = largest_root(&tree);
+        let points = tree.cages[crown].vertices.clone();
+        let mut plan =
+            MorphPlan::new(tree, &Sketch { closed: true, points }, MorphOptions { prune: false, ..opts });
+        plan.crown = crown;
+        plan.target = plan.tree.cages[crown].vertices.clone();
+        plan
+    }
+
     /// The tree at rest.
     pub fn tree(&self) -> &CageTree {
         &self.tree
@@ -127,16 +139,28 @@ impl MorphPlan {
     /// the tree.
     pub fn cages_at(&self, t: f64) -> Vec<Vec<Point>> {
         let t = t.clamp(0.0, 1.0);
+        let rest = &self.tree.cages[self.crown].vertices;
+        let crown: Vec<Point> = rest
+            .iter()
+            .zip(&self.target)
+            .map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
+            .collect();
+        self.cages_with(&crown, t > 0.0)
+    }
+
+    /// Every cage's vertices when the planned crown is at `crown_now` (one point per vertex) and
+    /// the other crowns at rest: the hierarchy propagates it as in [`MorphPlan::cages_at`] (the
+    /// skeleton-driven mode moves the crown by skinning).
+    pub fn cages_for_crown(&self, crown_now: &[Point]) -> Vec<Vec<Point>> {
+        self.cages_with(crown_now, crown_now != self.tree.cages[self.crown].vertices.as_slice())
+    }
+
+    fn cages_with(&self, crown_now: &[Point], moved: bool) -> Vec<Vec<Point>> {
         let cages = &self.tree.cages;
         let mut out: Vec<Vec<Point>> = Vec::with_capacity(cages.len());
         for (i, c) in cages.iter().enumerate() {
             let now = match c.parent {
-                None if i == self.crown => c
-                    .vertices
-                    .iter()
-                    .zip(&self.target)
-                    .map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
-                    .collect(),
+                None if i == self.crown => crown_now.to_vec(),
                 None => c.vertices.clone(),
                 // A cage whose parent did not move stays exactly as it is (no rounding).
                 Some(p) if out[p] == cages[p].vertices => c.vertices.clone(),
@@ -154,7 +178,7 @@ impl MorphPlan {
             // grandchildren then follow the adapted children.
             if let Some(p) = c.parent
                 && self.opts.adapt
-                && t > 0.0
+                && moved
                 && cages[p].children.last() == Some(&i)
             {
                 adapt_children(&self.tree, p, &self.pruned, &mut out);
@@ -196,6 +220,12 @@ impl MorphPlan {
         mean_value_coordinates(&now[cage], p, weights);
         (apply(&cages[cage].vertices, weights), cage)
     }
+}
+
+/// The root cage of the largest area.
+pub fn largest_root(tree: &CageTree) -> usize {
+    let area = |i: usize| crate::outline::signed_area2(&tree.cages[i].vertices);
+    tree.roots().max_by(|&a, &b| area(a).total_cmp(&area(b))).expect("a tree has a root")
 }
 
 /// The root cage a sketch reshapes: most overlap with its points' bounding polygon, else nearest.

@@ -286,6 +286,19 @@ pub struct RenderArgs {
     /// simulate --wind`): the wind that blows the simulated plant blows the picture.
     #[arg(long, value_name = "SPEC", conflicts_with = "take")]
     pub wind_sim: Option<String>,
+    /// How the picture moves: `wave` (seed 001: wind, waves, grid warp) or `cage` (seed 004: the
+    /// first layer's crown cage skinned to the plant skeleton, bent by --take's poses).
+    #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
+    pub mode: RenderMode,
+    /// Cage mode: the layer's cage tree (default: built from the layer as `cage build` does).
+    #[arg(long, value_name = "FILE")]
+    pub cage: Option<PathBuf>,
+    /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
+    pub anchor: Option<String>,
+    /// Cage mode: the skeleton's rig (default: the take's own rig).
+    #[arg(long, value_name = "RIG")]
+    pub rig: Option<String>,
     /// Frames to render [1, 100000].
     #[arg(long, allow_negative_numbers = true)]
     pub frames: i64,
@@ -298,6 +311,15 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// How `render` moves the picture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RenderMode {
+    /// Seed 001: wind, waves and the grid warp.
+    Wave,
+    /// Seed 004: the crown cage skinned to the skeleton of --take.
+    Cage,
 }
 
 /// `frond-warp serve`.

@@ -19,6 +19,7 @@ pub use compose::Animator;
 pub use layers::{LayerInput, Rgba, Scene, SceneError};
 pub use params::{FluidParams, Horizon, InvalidParams, LayerParams, SceneParams, WindParams, WindSource};
 pub mod bench;
+pub mod cage_skin;
 pub mod cages;
 pub mod cli;
 pub mod morph;

@@ -33,6 +33,9 @@ fn load_scene(args: &SceneArgs) -> anyhow::Result<Scene> {
 }
 
 fn render(args: RenderArgs) -> anyhow::Result<()> {
+    if args.mode == frond_warp::cli::RenderMode::Cage {
+        return render_cage(args);
+    }
     // Every argument problem at once: output kind, frames, fps and the simulation parameters.
     let mut ck = Checker::new();
     ck.range_i64("--frames", args.frames, 1, 100_000);
@@ -101,6 +104,66 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             sim_wind,
         },
     )
+}
+
+/// `render --mode cage --take TAKE`.
+fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
+    let mut ck = Checker::new();
+    ck.range_i64("--frames", args.frames, 1, 100_000);
+    ck.range_f32("--fps", args.fps, 1.0, 240.0);
+    let out = OutputKind::from_path(&args.output);
+    if let Err(e) = &out {
+        ck.push("--output", args.output.display(), e);
+    }
+    if args.take.is_none() {
+        ck.push("--take", "(none)", "--mode cage needs a take: its poses bend the plant");
+    }
+    if args.wind_sim.is_some() {
+        ck.push(
+            "--wind-sim",
+            args.wind_sim.as_deref().unwrap_or_default(),
+            "the cage mode has no wind; drop it",
+        );
+    }
+    if args.scene.layers.len() != 1 {
+        ck.push("--layer", args.scene.layers.len(), "the cage mode bends exactly one layer");
+    }
+    let anchor = args.anchor.as_deref().map(frond_warp::cages::parse_point);
+    if let Some(Err(e)) = &anchor {
+        ck.push("--anchor", args.anchor.as_deref().unwrap_or_default(), e);
+    }
+    ck.finish()?;
+    let take = args.take.as_deref().expect("checked");
+    let track = PoseTrack::from_take(take)?;
+    if let Some(damage) = &track.damage {
+        eprintln!(
+            "frond-warp: warning: take {}: {damage}; using its {} readable frames",
+            take.display(),
+            track.times_s.len()
+        );
+    }
+    let rig_spec = args.rig.clone().or_else(|| track.rig_name.clone()).unwrap_or_else(|| "grass".into());
+    let rig = frond_motion::rig_files::load_rig(&rig_spec).with_context(|| format!("rig {rig_spec}"))?;
+    let scene = load_scene(&args.scene)?;
+    let job = frond_warp::cage_skin::CageTakeJob {
+        cage: args.cage.clone(),
+        anchor: anchor.transpose().map_err(anyhow::Error::msg)?,
+        skeleton: frond_motion::skeleton::Skeleton::from_rig(&rig.rig),
+        frames: args.frames as usize,
+        fps: args.fps,
+        output: out?,
+        adapt: true,
+        quiet: args.quiet,
+    };
+    let n = frond_warp::cage_skin::render_take(&scene, &track, &job)?;
+    if !args.quiet {
+        eprintln!(
+            "frond-warp: wrote {n} frames to {} (cage mode, rig {rig_spec}, take {})",
+            args.output.display(),
+            take.display()
+        );
+    }
+    Ok(())
 }
 
 fn morph(a: MorphArgs) -> anyhow::Result<()> {

@@ -183,6 +183,11 @@ impl<'a> MorphFrames<'a> {
         self.now = self.plan.cages_at(t);
     }
 
+    /// The cages with the plan's crown at `crown` (the skeleton-driven mode).
+    pub fn set_crown(&mut self, crown: &[Point]) {
+        self.now = self.plan.cages_for_crown(crown);
+    }
+
     /// Sets every grid corner near the deformed crowns to the cage map's displacement (corners
     /// farther than two cells and the slack from every crown's box are never drawn: 0).
     ///
@@ -282,6 +287,11 @@ impl<'a> MorphFrames<'a> {
     /// The whole in-between at `t`, composed over the background into `frame`.
     pub fn frame_at(&mut self, t: f64, frame: &mut Vec<u8>) {
         self.update_cages(t);
+        self.compose(t, frame);
+    }
+
+    /// The frame of the current cages, pruned lobes faded to `1 - t`, over the background.
+    pub fn compose(&mut self, t: f64, frame: &mut Vec<u8>) {
         self.update_field();
         self.update_layer(t);
         frame.clear();

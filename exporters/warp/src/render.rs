@@ -91,6 +91,10 @@ pub struct PoseTrack {
     pub times_s: Vec<f64>,
     /// Root joint `[pitch, yaw, roll]` at each time, degrees.
     pub roots_deg: Vec<[f32; 3]>,
+    /// Every joint at each time, degrees (the cage mode skins the crown with them).
+    pub joints_deg: Vec<[[f32; 3]; 4]>,
+    /// The rig the take was recorded with (its header's).
+    pub rig_name: Option<String>,
     /// What the reader skipped in a damaged take, in words (`None` when it is sound): the track
     /// holds the readable frames.
     pub damage: Option<String>,
@@ -114,6 +118,8 @@ impl PoseTrack {
         Ok(PoseTrack {
             times_s: poses.iter().map(|p| p.t - t0).collect(),
             roots_deg: poses.iter().map(|p| p.joints_deg[0]).collect(),
+            joints_deg: poses.iter().map(|p| p.joints_deg).collect(),
+            rig_name: scan.header.as_ref().map(|h| h.rig_name.clone()),
             damage: scan.damage(),
         })
     }

@@ -316,3 +316,158 @@ fn bad_sketches_frames_and_cages_are_refused_by_name() {
     let o = go(args(&ok, &["--cage", s(&small), "-o", "x.gif"]));
     assert!(stderr(&o).contains("is for a 10x10 picture"), "{}", stderr(&o));
 }
+
+/// A take of 1 s at 100 Hz holding one pose: the root joint yawed by `yaw_deg`.
+fn write_take(path: &Path, yaw_deg: f32) {
+    use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+    use frond_motion::{HandSample, PoseFrame};
+    let mut out = Vec::new();
+    encode_file_start(&mut out);
+    let header = TakeHeader {
+        name: "lean".into(),
+        rig_name: "grass".into(),
+        calibration_id: "none".into(),
+        filter: "none".into(),
+        tick_rate_hz: 100,
+        created_unix_s: 0,
+        daemon_version: "test".into(),
+        joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
+        clock: None,
+    };
+    encode_record(&TakeRecord::Header(header), &mut out);
+    for k in 0..100u64 {
+        let t = k as f64 / 100.0;
+        let frame = TakeFrame {
+            seq: k,
+            device_time_us: k * 10_000,
+            host_ns: k * 10_000_000,
+            pose: PoseFrame { t, joints_deg: [[0.0, yaw_deg, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
+            hand: HandSample { t, wrist_deg: [0.0, yaw_deg, 0.0], thumb_deg: [0.0; 3] },
+            ..TakeFrame::default()
+        };
+        encode_record(&TakeRecord::Frame(frame), &mut out);
+    }
+    encode_record(&TakeRecord::End { frames: 100 }, &mut out);
+    std::fs::write(path, out).unwrap();
+}
+
+/// Seed 000, Eq. 1 with only the root joint turned is a rigid turn of the whole plant about the
+/// root joint; mean value coordinates reproduce it, so the picture turns rigidly: worked out here
+/// from the rig's joint heights and the crown's box, and sampled bilinearly by this test.
+#[test]
+fn the_skeleton_driven_cage_mode_turns_the_plant_with_the_take() {
+    let inp = inputs();
+    let take = inp.dir.join("lean.take");
+    let yaw = 12.0f64;
+    write_take(&take, yaw as f32);
+    let out = inp.dir.join("lean/");
+    let o = run(&[
+        "render",
+        "--mode",
+        "cage",
+        "--image",
+        s(&inp.bg),
+        "--layer",
+        s(&inp.layer),
+        "--cage",
+        s(&inp.cage),
+        "--take",
+        s(&take),
+        "--frames",
+        "2",
+        "-o",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let last = image::open(out.join("frame_00001.png")).unwrap().to_rgb8().into_raw();
+    // The skeleton stands at the crown's bottom centre; the crown's top is the top joint.
+    let (x0, x1) = inp.crown.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+    let (y0, y1) = inp.crown.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[1]), b.max(p[1])));
+    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let (h0, h3) = (rig.joints[0].height_m as f64, rig.joints[3].height_m as f64);
+    let scale = (y1 - y0) / h3;
+    let c = [(x0 + x1) / 2.0, y1 - scale * h0];
+    let (sn, cs) = yaw.to_radians().sin_cos();
+    // The source of picture point q: the inverse turn (counter-clockwise on screen).
+    let source = |q: [f64; 2]| {
+        let (dx, dy) = (q[0] - c[0], q[1] - c[1]);
+        [c[0] + cs * dx - sn * dy, c[1] + sn * dx + cs * dy]
+    };
+    let (mut checked, mut worst) = (0, 0.0f64);
+    let (mut agree, mut total) = (0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let q = [x as f64 + 0.5, y as f64 + 0.5];
+            let src = source(q);
+            let want_layer = in_blob(src[0], src[1]);
+            let is_layer = px(&last, x, y)[2] != BG[2];
+            total += 1;
+            if is_layer == want_layer {
+                agree += 1;
+            } else {
+                let edge = (0..16).any(|k| {
+                    let a = std::f64::consts::TAU * k as f64 / 16.0;
+                    in_blob(src[0] + 2.0 * a.cos(), src[1] + 2.0 * a.sin()) != want_layer
+                });
+                assert!(edge, "pixel {x},{y} (layer {is_layer}) is far from the turned outline");
+            }
+            // Bilinear sample of the texture at the source pixel position, where all four taps
+            // are well inside the blob and the stripes do not wrap between them.
+            let (sx, sy) = (src[0] - 0.5, src[1] - 0.5);
+            let (ix, iy) = (sx.floor() as i64, sy.floor() as i64);
+            let taps = [(ix, iy), (ix + 1, iy), (ix, iy + 1), (ix + 1, iy + 1)];
+            let deep = taps.iter().all(|&(tx, ty)| {
+                tx >= 0
+                    && ty >= 0
+                    && (0..8).all(|k| {
+                        let a = std::f64::consts::TAU * k as f64 / 8.0;
+                        in_blob(tx as f64 + 0.5 + 2.0 * a.cos(), ty as f64 + 0.5 + 2.0 * a.sin())
+                    })
+            });
+            if !deep {
+                continue;
+            }
+            let tex: Vec<[u8; 3]> = taps.iter().map(|&(tx, ty)| texture(tx as usize, ty as usize)).collect();
+            if (0..2).any(|ch| {
+                tex.iter().map(|t| t[ch] as i32).max().unwrap()
+                    - tex.iter().map(|t| t[ch] as i32).min().unwrap()
+                    > 40
+            }) {
+                continue; // a stripe wraps between the taps
+            }
+            let (fx, fy) = (sx - ix as f64, sy - iy as f64);
+            let got = px(&last, x, y);
+            for ch in 0..2 {
+                let v = |i: usize| tex[i][ch] as f64;
+                let want =
+                    (v(0) * (1.0 - fx) + v(1) * fx) * (1.0 - fy) + (v(2) * (1.0 - fx) + v(3) * fx) * fy;
+                worst = worst.max((got[ch] as f64 - want).abs());
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 2000, "{checked}");
+    assert!(worst <= 2.5, "the turned texture is {worst} levels from the rigid turn");
+    assert!(agree as f64 / total as f64 > 0.99, "{agree} of {total} pixels agree on the silhouette");
+    let first = image::open(out.join("frame_00000.png")).unwrap().to_rgb8().into_raw();
+    assert_eq!(first, last, "one pose, one picture");
+    // Wrong combinations are refused by name.
+    let o = run(&[
+        "render",
+        "--mode",
+        "cage",
+        "--image",
+        s(&inp.bg),
+        "--layer",
+        s(&inp.layer),
+        "--frames",
+        "2",
+        "-o",
+        "x.gif",
+        "--anchor",
+        "a,b",
+    ]);
+    let e = stderr(&o);
+    assert!(e.contains("--take") && e.contains("--anchor"), "{e}");
+}
