@@ -22,21 +22,6 @@ use frond_protocol::convention::joint_quat;
 use frond_protocol::{Hello, Pose};
 use frond_sdk::{SdkError, Subscriber};
 
-fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-        || std::env::var("FROND_REQUIRE_PYTHON").is_ok_and(|v| v == "1")
-}
-
-/// Prints why the test is skipped, or fails when the environment demands the test.
-fn skip(why: &str) {
-    assert!(!required(), "{why} (required because CI=true or FROND_REQUIRE_PYTHON=1)");
-    eprintln!("SKIPPED: {why}");
-}
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("repo root")
-}
-
 fn frond_osc() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_frond-osc"))
 }
@@ -49,17 +34,9 @@ fn frondd() -> Option<PathBuf> {
     Some(dir.join("frondd")).filter(|p| p.exists())
 }
 
-/// The tests' venv python when it can import `modules` (comma-separated, as `import` takes them).
-fn python_with(modules: &str) -> Option<PathBuf> {
-    let py = repo_root().join("tests/python/.venv/bin/python");
-    let ok = Command::new(&py)
-        .args(["-c", &format!("import {modules}")])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(py)
-}
+#[path = "../../../tests/support/python.rs"]
+mod support_python;
+use support_python::{python_with, skip};
 
 fn python() -> Option<PathBuf> {
     python_with("pythonosc")

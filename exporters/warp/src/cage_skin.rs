@@ -11,12 +11,12 @@
 use std::path::PathBuf;
 
 use frond_cage::morph::{MorphOptions, MorphPlan};
-use frond_cage::{BuildOptions, CageTree, Point, build_cage_tree};
+use frond_cage::{CageTree, Point};
 use frond_motion::skeleton::{Skeleton, skin_point};
 use glam::Vec3;
 
 use crate::Scene;
-use crate::cages::{CageCommandError, read_cage_file};
+use crate::cages::CageCommandError;
 use crate::morph::MorphFrames;
 use crate::render::{OutputKind, PoseTrack, Progress, Sink};
 
@@ -102,29 +102,11 @@ pub struct CageTakeJob {
 /// Frame `k` shows the take's last pose at or before `k / fps` seconds (looping).
 pub fn render_take(scene: &Scene, track: &PoseTrack, job: &CageTakeJob) -> Result<usize, CageCommandError> {
     let (w, h) = (scene.width, scene.height);
-    let tree = match &job.cage {
-        Some(path) => {
-            let tree = read_cage_file(path)?;
-            if tree.size != [w as u32, h as u32] {
-                return Err(CageCommandError::Argument(format!(
-                    "cage file {} is for a {}x{} picture, not {w}x{h}",
-                    path.display(),
-                    tree.size[0],
-                    tree.size[1]
-                )));
-            }
-            tree
-        }
-        None => {
-            let matte: Vec<u8> = scene.layers[0].pixels.chunks_exact(4).map(|p| p[3]).collect();
-            build_cage_tree(&matte, w, h, &BuildOptions::default())
-                .map_err(|error| CageCommandError::Build { path: scene.layers[0].name.clone(), error })?
-        }
-    };
+    let tree = crate::morph::scene_tree(scene, job.cage.as_deref())?;
     let plan = MorphPlan::driven(tree, MorphOptions { adapt: job.adapt, prune: false });
     let skin = CageSkin::new(plan.tree(), plan.crown(), job.skeleton, job.anchor);
     let mut frames = MorphFrames::new(scene, &plan);
-    let mut sink = Sink::open(&job.output, w, h, job.fps).map_err(render_err)?;
+    let mut sink = Sink::open(&job.output, w, h, job.fps).map_err(crate::morph::render_err)?;
     let progress = Progress::new(job.frames, job.quiet);
     let mut frame = Vec::with_capacity(w * h * 4);
     let duration = track.times_s.last().copied().unwrap_or(0.0);
@@ -140,15 +122,11 @@ pub fn render_take(scene: &Scene, track: &PoseTrack, job: &CageTakeJob) -> Resul
         }
         frames.set_crown(&skin.crown_at(&track.joints_deg[cursor]));
         frames.compose(0.0, &mut frame);
-        sink.push(k, &frame).map_err(render_err)?;
+        sink.push(k, &frame).map_err(crate::morph::render_err)?;
         progress.tick(k + 1);
     }
-    sink.finish().map_err(render_err)?;
+    sink.finish().map_err(crate::morph::render_err)?;
     Ok(job.frames)
-}
-
-fn render_err(e: crate::render::RenderError) -> CageCommandError {
-    CageCommandError::Argument(e.to_string())
 }
 
 #[cfg(test)]

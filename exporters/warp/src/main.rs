@@ -28,6 +28,24 @@ fn main() -> ExitCode {
     }
 }
 
+/// `--frames` in `1..=max_frames`, `--fps` in 1..=240 and the output's kind, each problem into
+/// `ck`: the checks every rendering command starts with.
+fn check_frames_and_output(
+    ck: &mut Checker,
+    frames: i64,
+    max_frames: i64,
+    fps: f32,
+    output: &std::path::Path,
+) -> Result<OutputKind, frond_warp::render::RenderError> {
+    ck.range_i64("--frames", frames, 1, max_frames);
+    ck.range_f32("--fps", fps, 1.0, 240.0);
+    let out = OutputKind::from_path(output);
+    if let Err(e) = &out {
+        ck.push("--output", output.display(), e);
+    }
+    out
+}
+
 fn load_scene(args: &SceneArgs) -> anyhow::Result<Scene> {
     Ok(Scene::load(&args.image, &args.layers, args.background.as_deref(), args.scale_map.as_deref())?)
 }
@@ -38,12 +56,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     // Every argument problem at once: output kind, frames, fps and the simulation parameters.
     let mut ck = Checker::new();
-    ck.range_i64("--frames", args.frames, 1, 100_000);
-    ck.range_f32("--fps", args.fps, 1.0, 240.0);
-    let out = OutputKind::from_path(&args.output);
-    if let Err(e) = &out {
-        ck.push("--output", args.output.display(), e);
-    }
+    let out = check_frames_and_output(&mut ck, args.frames, 100_000, args.fps, &args.output);
     let sim_wind = frond_warp::cli::sim_wind(args.wind_sim.as_deref(), &mut ck);
     let params = args.sim.to_params(args.scene.layers.len());
     let mut problems = ck.finish().err().map(|e| e.0).unwrap_or_default();
@@ -109,12 +122,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
 /// `render --mode cage --take TAKE`.
 fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     let mut ck = Checker::new();
-    ck.range_i64("--frames", args.frames, 1, 100_000);
-    ck.range_f32("--fps", args.fps, 1.0, 240.0);
-    let out = OutputKind::from_path(&args.output);
-    if let Err(e) = &out {
-        ck.push("--output", args.output.display(), e);
-    }
+    let out = check_frames_and_output(&mut ck, args.frames, 100_000, args.fps, &args.output);
     if args.take.is_none() {
         ck.push("--take", "(none)", "--mode cage needs a take: its poses bend the plant");
     }
@@ -168,12 +176,7 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
 
 fn morph(a: MorphArgs) -> anyhow::Result<()> {
     let mut ck = Checker::new();
-    ck.range_i64("--frames", a.frames, 1, 10_000);
-    ck.range_f32("--fps", a.fps, 1.0, 240.0);
-    let out = OutputKind::from_path(&a.output);
-    if let Err(e) = &out {
-        ck.push("--output", a.output.display(), e);
-    }
+    let out = check_frames_and_output(&mut ck, a.frames, 10_000, a.fps, &a.output);
     ck.finish()?;
     let job = frond_warp::morph::MorphJob {
         image: a.image,

@@ -95,30 +95,36 @@ impl MorphSummary {
 /// Reads the inputs, plans the morph and renders it.
 pub fn run(job: &MorphJob) -> Result<MorphSummary, CageCommandError> {
     let scene = Scene::load(&job.image, std::slice::from_ref(&job.layer), job.background.as_deref(), None)?;
+    let tree = scene_tree(&scene, job.cage.as_deref())?;
+    let sketch = read_sketch(&job.sketch, tree.size)?;
+    let plan = MorphPlan::new(tree, &sketch, job.opts);
+    render(&scene, &plan, job)
+}
+
+/// The cage tree of `scene`'s first layer: the file `cage` (for a picture of the scene's size),
+/// or built from the layer's alpha with the default options.
+pub fn scene_tree(scene: &Scene, cage: Option<&Path>) -> Result<CageTree, CageCommandError> {
     let (w, h) = (scene.width, scene.height);
-    let tree = match &job.cage {
+    match cage {
         Some(path) => {
             let tree = read_cage_file(path)?;
             if tree.size != [w as u32, h as u32] {
                 return Err(CageCommandError::Argument(format!(
-                    "cage file {} is for a {}x{} picture; {} is {w}x{h}",
+                    "cage file {} is for a {}x{} picture; the picture is {w}x{h}",
                     path.display(),
                     tree.size[0],
-                    tree.size[1],
-                    job.image.display()
+                    tree.size[1]
                 )));
             }
-            tree
+            Ok(tree)
         }
         None => {
-            let matte: Vec<u8> = scene.layers[0].pixels.chunks_exact(4).map(|p| p[3]).collect();
+            let layer = &scene.layers[0];
+            let matte: Vec<u8> = layer.pixels.chunks_exact(4).map(|p| p[3]).collect();
             build_cage_tree(&matte, w, h, &BuildOptions::default())
-                .map_err(|error| CageCommandError::Build { path: job.layer.display().to_string(), error })?
+                .map_err(|error| CageCommandError::Build { path: layer.name.clone(), error })
         }
-    };
-    let sketch = read_sketch(&job.sketch, tree.size)?;
-    let plan = MorphPlan::new(tree, &sketch, job.opts);
-    render(&scene, &plan, job)
+    }
 }
 
 fn read_sketch(path: &Path, size: [u32; 2]) -> Result<Sketch, CageCommandError> {
@@ -425,6 +431,6 @@ fn outline_distance(warped: &[u8], region: &[u8], w: usize, h: usize, reference:
     frechet_closed(&outline, &reference)
 }
 
-fn render_err(e: crate::render::RenderError) -> CageCommandError {
+pub(crate) fn render_err(e: crate::render::RenderError) -> CageCommandError {
     CageCommandError::Argument(e.to_string())
 }

@@ -3,22 +3,13 @@
 //! and clear errors for bad masks, options and cage files.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
+
+mod common;
+use common::{run, s, stderr};
 
 #[path = "../../../tests/support/python.rs"]
 mod python;
-
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_frond-warp")).args(args).output().expect("run frond-warp")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 const W: usize = 160;
 const H: usize = 120;

@@ -2,25 +2,12 @@
 //! a take), sample generation, and clear errors for bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
-use frond_motion::{HandSample, PoseFrame};
+mod common;
+use common::{bin, run, s, stderr, write_take_with};
 
 const W: u32 = 64;
 const H: u32 = 48;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_frond-warp"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("run frond-warp")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Writes a 64x48 picture, a grass mask (lower half, soft top row) and returns their paths.
 fn inputs(dir: &Path) -> (PathBuf, PathBuf) {
@@ -45,10 +32,6 @@ fn inputs(dir: &Path) -> (PathBuf, PathBuf) {
     image::save_buffer(&ip, &pic, W, H, image::ColorType::Rgb8).unwrap();
     image::save_buffer(&mp, &mask, W, H, image::ColorType::L8).unwrap();
     (ip, mp)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn frames(dir: &Path) -> Vec<Vec<u8>> {
@@ -142,42 +125,7 @@ fn render_is_deterministic_for_a_seed_and_gif_and_webp_are_written() {
 
 /// A take whose root joint sways +-30 degrees of yaw at 1 Hz for 2 s at 100 Hz.
 fn write_take(path: &Path) {
-    write_take_with(path, |t| 30.0 * (std::f64::consts::TAU * t).sin() as f32)
-}
-
-/// A take whose root joint's yaw is `yaw(t)` degrees, 2 s at 100 Hz.
-fn write_take_with(path: &Path, yaw: impl Fn(f64) -> f32) {
-    let mut out = Vec::new();
-    encode_file_start(&mut out);
-    encode_record(
-        &TakeRecord::Header(TakeHeader {
-            name: "sway".into(),
-            rig_name: "grass".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz: 100,
-            created_unix_s: 0,
-            daemon_version: "test".into(),
-            joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
-            clock: None,
-        }),
-        &mut out,
-    );
-    for k in 0..200u64 {
-        let t = k as f64 / 100.0;
-        let yaw = yaw(t);
-        let frame = TakeFrame {
-            seq: k,
-            device_time_us: k * 10_000,
-            host_ns: k * 10_000_000,
-            pose: PoseFrame { t, joints_deg: [[0.0, yaw, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
-            hand: HandSample { t, wrist_deg: [0.0, yaw, 0.0], thumb_deg: [0.0; 3] },
-            ..TakeFrame::default()
-        };
-        encode_record(&TakeRecord::Frame(frame), &mut out);
-    }
-    encode_record(&TakeRecord::End { frames: 200 }, &mut out);
-    std::fs::write(path, out).unwrap();
+    write_take_with(path, 200, |t| 30.0 * (std::f64::consts::TAU * t).sin() as f32)
 }
 
 /// Renders 20 frames of `pic` with `mask` as its layer on a 16-cell wind grid, with `extra`
@@ -234,7 +182,7 @@ fn the_simulation_wind_blows_the_picture() {
     // with the root yawed -24 degrees (tip towards +X, 24/40 of the full bend): two mappings
     // worked out by hand must blow the picture alike.
     let take = t.path().join("held.take");
-    write_take_with(&take, |_| -24.0);
+    write_take_with(&take, 200, |_| -24.0);
     let sim = render(&["--wind-sim", "speed=6,dir=0,gust=0,seed=1"], &t.path().join("sim/"));
     let held = render(&["--take", s(&take)], &t.path().join("held/"));
     let still = render(&["--strength", "0"], &t.path().join("still/"));

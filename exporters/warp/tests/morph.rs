@@ -3,19 +3,9 @@
 //! every pixel by the same whole offset; the target outline is a polygon tested pixel by pixel).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_frond-warp")).args(args).output().expect("run frond-warp")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::{run, s, stderr, write_take_with};
 
 const W: usize = 160;
 const H: usize = 120;
@@ -317,40 +307,6 @@ fn bad_sketches_frames_and_cages_are_refused_by_name() {
     assert!(stderr(&o).contains("is for a 10x10 picture"), "{}", stderr(&o));
 }
 
-/// A take of 1 s at 100 Hz holding one pose: the root joint yawed by `yaw_deg`.
-fn write_take(path: &Path, yaw_deg: f32) {
-    use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
-    use frond_motion::{HandSample, PoseFrame};
-    let mut out = Vec::new();
-    encode_file_start(&mut out);
-    let header = TakeHeader {
-        name: "lean".into(),
-        rig_name: "grass".into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 100,
-        created_unix_s: 0,
-        daemon_version: "test".into(),
-        joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
-        clock: None,
-    };
-    encode_record(&TakeRecord::Header(header), &mut out);
-    for k in 0..100u64 {
-        let t = k as f64 / 100.0;
-        let frame = TakeFrame {
-            seq: k,
-            device_time_us: k * 10_000,
-            host_ns: k * 10_000_000,
-            pose: PoseFrame { t, joints_deg: [[0.0, yaw_deg, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
-            hand: HandSample { t, wrist_deg: [0.0, yaw_deg, 0.0], thumb_deg: [0.0; 3] },
-            ..TakeFrame::default()
-        };
-        encode_record(&TakeRecord::Frame(frame), &mut out);
-    }
-    encode_record(&TakeRecord::End { frames: 100 }, &mut out);
-    std::fs::write(path, out).unwrap();
-}
-
 /// Seed 000, Eq. 1 with only the root joint turned is a rigid turn of the whole plant about the
 /// root joint; mean value coordinates reproduce it, so the picture turns rigidly: worked out here
 /// from the rig's joint heights and the crown's box, and sampled bilinearly by this test.
@@ -359,7 +315,7 @@ fn the_skeleton_driven_cage_mode_turns_the_plant_with_the_take() {
     let inp = inputs();
     let take = inp.dir.join("lean.take");
     let yaw = 12.0f64;
-    write_take(&take, yaw as f32);
+    write_take_with(&take, 100, |_| yaw as f32); // one pose held for 1 s
     let out = inp.dir.join("lean/");
     let o = run(&[
         "render",

@@ -2,8 +2,8 @@
 //! outcome checks, a performed take, and the tests' Python venv.
 #![allow(dead_code)] // each test binary uses its own part
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Command, Output};
 
 /// `frond` with `takes` as its takes directory (and working directory), no daemon.
 pub fn frond(takes: &Path) -> Command {
@@ -26,41 +26,17 @@ pub fn failed(out: &Output, code: i32, needle: &str) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
-/// Whether the environment demands the external tools (`CI=true`, `FROND_REQUIRE_PYTHON=1`).
-pub fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-        || std::env::var("FROND_REQUIRE_PYTHON").is_ok_and(|v| v == "1")
-}
-
-/// Says why a check is skipped, or fails when the environment demands it.
-pub fn skip(why: &str) {
-    assert!(!required(), "{why} (required because CI=true or FROND_REQUIRE_PYTHON=1)");
-    eprintln!("SKIPPED: {why}");
-}
-
-/// The tests' venv python when it can import `module`.
-pub fn python_with(module: &str) -> Option<PathBuf> {
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/python/.venv/bin/python");
-    let ok = Command::new(&py)
-        .args(["-c", &format!("import {module}")])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(py)
-}
+#[path = "../../../../tests/support/python.rs"]
+mod python;
+#[allow(unused_imports)] // each test binary uses its own part
+pub use python::{python_with, required, skip};
 
 /// Runs `tests/SCRIPT ARGS SPEC` with `py`; asserts it printed `ok:` and exited 0.
 pub fn python_check(py: &Path, script: &str, args: &[&str], spec: &Path) {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join(script);
-    let out = Command::new(py).arg(script).args(args).arg(spec).output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("ok:"),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    eprintln!("{}", stdout.lines().find(|l| l.starts_with("ok:")).unwrap_or_default());
+    let mut all: Vec<&str> = args.to_vec();
+    all.push(spec.to_str().expect("a UTF-8 path"));
+    python::python_check(py, &script, &all);
 }
 
 /// A take `wave` in `dir`: 3 s at 100 Hz of every angle moving (roll too), imported as poses.

@@ -1,0 +1,64 @@
+//! Helpers shared by frond-warp's integration tests: running the binary, and writing takes.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use frond_motion::{HandSample, PoseFrame};
+
+/// The binary under test.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_frond-warp"))
+}
+
+/// Runs it with `args`.
+pub fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run frond-warp")
+}
+
+/// Its standard error as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A path as an argument.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A take of `frames` frames at 100 Hz on the grass rig whose root joint's yaw is `yaw(t)`
+/// degrees (the hand's wrist yaw the same), other joints still.
+pub fn write_take_with(path: &Path, frames: u64, yaw: impl Fn(f64) -> f32) {
+    let mut out = Vec::new();
+    encode_file_start(&mut out);
+    encode_record(
+        &TakeRecord::Header(TakeHeader {
+            name: "sway".into(),
+            rig_name: "grass".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: 100,
+            created_unix_s: 0,
+            daemon_version: "test".into(),
+            joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
+            clock: None,
+        }),
+        &mut out,
+    );
+    for k in 0..frames {
+        let t = k as f64 / 100.0;
+        let yaw = yaw(t);
+        let frame = TakeFrame {
+            seq: k,
+            device_time_us: k * 10_000,
+            host_ns: k * 10_000_000,
+            pose: PoseFrame { t, joints_deg: [[0.0, yaw, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
+            hand: HandSample { t, wrist_deg: [0.0, yaw, 0.0], thumb_deg: [0.0; 3] },
+            ..TakeFrame::default()
+        };
+        encode_record(&TakeRecord::Frame(frame), &mut out);
+    }
+    encode_record(&TakeRecord::End { frames }, &mut out);
+    std::fs::write(path, out).unwrap();
+}
