@@ -220,6 +220,7 @@ impl<'a> MorphFrames<'a> {
         };
         let b = BLOCK_CELLS;
         let half_diag = (b * CAGE_CELL_PX) as f64 * std::f64::consts::FRAC_1_SQRT_2 + 1.0;
+        let cage_boxes: Vec<[f64; 4]> = now.iter().map(|c| bounds(c, half_diag)).collect();
         for by in (0..rows).step_by(b) {
             for bx in (0..cols).step_by(b) {
                 let (x1, y1) = ((bx + b).min(cols - 1), (by + b).min(rows - 1));
@@ -235,7 +236,14 @@ impl<'a> MorphFrames<'a> {
                 let one_cage = mapped.iter().all(|m| m.1 == mapped[0].1);
                 let smooth = one_cage
                     && (mapped[0].1 == usize::MAX
-                        || now.iter().all(|c| outline_distance_at_least(c, centre, half_diag)));
+                        || now.iter().zip(&cage_boxes).all(|(c, b)| {
+                            // A cage whose box (grown) misses the centre cannot cross the block.
+                            centre[0] < b[0]
+                                || centre[0] > b[2]
+                                || centre[1] < b[1]
+                                || centre[1] > b[3]
+                                || outline_distance_at_least(c, centre, half_diag)
+                        }));
                 for cy in by..=y1 {
                     for cx in bx..=x1 {
                         if corners.contains(&(cx, cy)) {
