@@ -197,11 +197,25 @@ impl MorphPlan {
 
     /// [`MorphPlan::inverse_map`] and the index of the cage that mapped `p`.
     pub fn inverse_map_in(&self, now: &[Vec<Point>], p: Point, weights: &mut Vec<f64>) -> (Point, usize) {
-        let cages = &self.tree.cages;
+        self.inverse_map_placed(&Placed::new(self, now), p, weights)
+    }
+
+    /// [`MorphPlan::inverse_map_in`] with the cages' boxes and motion computed once per frame
+    /// ([`Placed::new`]), for mapping many points of one in-between.
+    pub fn inverse_map_placed(
+        &self,
+        placed: &Placed<'_>,
+        p: Point,
+        weights: &mut Vec<f64>,
+    ) -> (Point, usize) {
+        let (cages, now) = (&self.tree.cages, placed.now);
         let mut at: Option<usize> = None;
         let mut level: &[usize] = &self.roots;
         // Living cages first: a pruned lobe only shows where no living one reaches.
-        let holds = |i: usize| contains(&now[i], p);
+        let holds = |i: usize| {
+            let b = placed.boxes[i];
+            p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3] && contains(&now[i], p)
+        };
         while let Some(&hit) =
             level.iter().find(|&&i| !self.pruned[i] && holds(i)).or_else(|| level.iter().find(|&&i| holds(i)))
         {
@@ -209,16 +223,42 @@ impl MorphPlan {
             level = &cages[hit].children;
         }
         let cage = at.unwrap_or_else(|| {
-            self.tree
-                .roots()
+            self.roots
+                .iter()
+                .copied()
                 .min_by(|&a, &b| outside_by(&now[a], p).total_cmp(&outside_by(&now[b], p)))
                 .expect("a tree has a root")
         });
-        if now[cage] == cages[cage].vertices {
+        if !placed.moved[cage] {
             return (p, cage);
         }
         mean_value_coordinates(&now[cage], p, weights);
         (apply(&cages[cage].vertices, weights), cage)
+    }
+}
+
+/// One in-between's cages with what point location needs: each cage's bounding box, and whether
+/// it moved from rest.
+#[derive(Debug, Clone)]
+pub struct Placed<'a> {
+    now: &'a [Vec<Point>],
+    boxes: Vec<[f64; 4]>,
+    moved: Vec<bool>,
+}
+
+impl<'a> Placed<'a> {
+    /// Indexes `now` (from [`MorphPlan::cages_at`] or [`MorphPlan::cages_for_crown`]).
+    pub fn new(plan: &MorphPlan, now: &'a [Vec<Point>]) -> Placed<'a> {
+        let boxes = now
+            .iter()
+            .map(|c| {
+                c.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
+                    [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]
+                })
+            })
+            .collect();
+        let moved = now.iter().zip(&plan.tree.cages).map(|(c, rest)| *c != rest.vertices).collect();
+        Placed { now, boxes, moved }
     }
 }
 

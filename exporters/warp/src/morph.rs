@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 
 use frond_cage::contour::{Bitmap, label_parts, trace_outer};
-use frond_cage::morph::{MorphOptions, MorphPlan};
+use frond_cage::morph::{MorphOptions, MorphPlan, Placed};
 use frond_cage::outline::{frechet_closed, resample_closed, start_nearest};
 use frond_cage::raster::fill_polygon;
 use frond_cage::sketch::Sketch;
@@ -210,12 +210,13 @@ impl<'a> MorphFrames<'a> {
         let near =
             |p: Point| boxes.iter().any(|b| p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3]);
         let (plan, now) = (self.plan, &self.now);
+        let placed = Placed::new(plan, now);
         let weights = &mut self.weights;
         let mut exact = |p: Point| -> ([f32; 2], usize) {
             if !near(p) {
                 return ([0.0, 0.0], usize::MAX);
             }
-            let (src, cage) = plan.inverse_map_in(now, p, weights);
+            let (src, cage) = plan.inverse_map_placed(&placed, p, weights);
             ([(src[0] - p[0]) as f32, (src[1] - p[1]) as f32], cage)
         };
         let b = BLOCK_CELLS;
