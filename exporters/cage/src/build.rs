@@ -205,7 +205,13 @@ impl Builder {
             if let Some(parent) = parent {
                 poly = clip_inside(&poly, parent)?;
             }
-            let cage = resample_closed(&poly, n);
+            // Clipping computes in floating point: a crown on the picture's edge may come back a
+            // hair outside it.
+            let (w, h) = (w as f64, h as f64);
+            let cage: Vec<Point> = resample_closed(&poly, n)
+                .into_iter()
+                .map(|p| [p[0].clamp(0.0, w), p[1].clamp(0.0, h)])
+                .collect();
             if signed_area2(&cage) > 0.0 && Polygon::new(to_line_string(&cage, true), vec![]).is_valid() {
                 return Some(cage);
             }
@@ -352,6 +358,14 @@ mod tests {
         assert!(t.cages.iter().all(|c| c.kind == CageKind::Leaf && c.parent.is_none()));
         // Raster order of their first pixel: the right plant reaches higher (y 15 against 20).
         assert!(t.cages[0].vertices.iter().all(|v| v[0] > 150.0), "raster order: the taller plant first");
+    }
+
+    #[test]
+    fn a_mask_covering_the_whole_picture_builds_inside_it() {
+        let t = build_cage_tree(&[255; 64 * 48], 64, 48, &BuildOptions::default()).unwrap();
+        // Resampling to 64 vertices cuts the corners by a hair.
+        assert!(signed_area2(&t.cages[0].vertices) / 2.0 > 0.99 * 64.0 * 48.0);
+        assert!(t.cages.len() > 1);
     }
 
     #[test]
