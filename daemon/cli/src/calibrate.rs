@@ -16,7 +16,7 @@ use std::io::{self, BufRead, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{anyhow, bail};
 use frond_motion::Calibration;
 use frond_motion::calibration::MAX_WRIST_DEG;
 use frond_protocol::{ControlReply, ControlRequest, paths};
@@ -292,21 +292,10 @@ pub(crate) fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
     write_atomically_bytes(path, text.as_bytes())
 }
 
-/// Writes `bytes` to `path` via a temporary file in the same directory, fsync and a rename, so
-/// readers see the old file or the new one, never a mix.
+/// Writes `bytes` to `path` atomically ([`frond_motion::rig_files::write_file_atomically`]).
 pub(crate) fn write_atomically_bytes(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
-    tmp.write_all(bytes)?;
-    if let Ok(meta) = std::fs::metadata(path) {
-        // Keep the replaced file's permissions (the temporary file is created 0600).
-        tmp.as_file().set_permissions(meta.permissions())?;
-    }
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| anyhow!("cannot write {}: {}", path.display(), e.error))?;
-    Ok(())
+    frond_motion::rig_files::write_file_atomically(path, bytes)
+        .map_err(|e| anyhow!("cannot write {}: {e}", path.display()))
 }
 
 #[cfg(test)]

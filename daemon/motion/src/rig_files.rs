@@ -145,6 +145,23 @@ pub fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
     }
 }
 
+/// Writes `bytes` to `path` through a temporary file in the same directory (created if needed),
+/// fsync and a rename, so readers (and a crash) see the old file or the whole new one; a replaced
+/// file's permissions are kept. The one way frond commands write a file they are given.
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir)?;
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    tmp.write_all(bytes)?;
+    if let Ok(meta) = std::fs::metadata(path) {
+        // Keep the replaced file's permissions (the temporary file is created 0600).
+        tmp.as_file().set_permissions(meta.permissions())?;
+    }
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map(|_| ()).map_err(|e| e.error)
+}
+
 /// Reads a small regular text file: [`read_small_file`], then UTF-8.
 pub fn read_small_text(path: &Path, max: u64) -> Result<String, FileError> {
     let bytes = read_small_file(path, max)?;

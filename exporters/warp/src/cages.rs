@@ -79,15 +79,9 @@ pub fn build_file(layer: &Path, opts: &BuildOptions) -> Result<(CageTree, String
     Ok((tree, text))
 }
 
-/// Writes `text` to `path` through a temporary file beside it and a rename: a reader (or a crash)
-/// sees the old file or the whole new one.
+/// Writes `text` to `path` atomically ([`frond_motion::rig_files::write_file_atomically`]).
 pub fn write_file(path: &Path, text: &str) -> std::io::Result<()> {
-    use std::io::Write;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-    tmp.write_all(text.as_bytes())?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map(|_| ()).map_err(|e| e.error)
+    frond_motion::rig_files::write_file_atomically(path, text.as_bytes())
 }
 
 /// Parses `X,Y` (finite numbers).
