@@ -23,7 +23,7 @@ use geo::{Area, BooleanOps, Polygon};
 use crate::Point;
 use crate::laplacian::LaplacianEditor;
 use crate::mvc::{apply, mean_value_coordinates};
-use crate::outline::{dist, resample_open, to_line_string};
+use crate::outline::{bounds, dist, resample_open, to_line_string};
 use crate::sketch::Sketch;
 use crate::tree::{CageTree, contains, outside_by};
 
@@ -76,6 +76,31 @@ impl MorphPlan {
     pub fn new(tree: CageTree, sketch: &Sketch, opts: MorphOptions) -> MorphPlan {
         let crown = pick_crown(&tree, sketch);
         let target = sketch.target_outline(&tree.cages[crown].vertices);
+        let mut pruned = vec![false; tree.cages.len()];
+        if opts.prune && sketch.closed {
+            let shape = Polygon::new(to_line_string(&sketch.points, true), vec![]);
+            prune(&tree, crown, &shape, &mut pruned);
+        }
+        MorphPlan::with(tree, crown, target, pruned, opts)
+    }
+
+    /// A plan without a sketch, for a crown moved from outside ([`MorphPlan::cages_for_crown`]):
+    /// the largest crown, nothing pruned.
+    pub fn driven(tree: CageTree, opts: MorphOptions) -> MorphPlan {
+        let crown = largest_root(&tree);
+        let (target, pruned) = (tree.cages[crown].vertices.clone(), vec![false; tree.cages.len()]);
+        MorphPlan::with(tree, crown, target, pruned, MorphOptions { prune: false, ..opts })
+    }
+
+    /// The plan of `crown` towards `target`: each finer cage's coordinates in its parent at rest
+    /// and its Eq. 1 factor, computed once.
+    fn with(
+        tree: CageTree,
+        crown: usize,
+        target: Vec<Point>,
+        pruned: Vec<bool>,
+        opts: MorphOptions,
+    ) -> MorphPlan {
         let mut weights = vec![Vec::new(); tree.cages.len()];
         let mut follow = vec![None; tree.cages.len()];
         for (i, c) in tree.cages.iter().enumerate() {
@@ -94,25 +119,8 @@ impl MorphPlan {
                 follow[i] = LaplacianEditor::new(&c.vertices, true, &all, 1.0).ok();
             }
         }
-        let mut pruned = vec![false; tree.cages.len()];
-        if opts.prune && sketch.closed {
-            let shape = Polygon::new(to_line_string(&sketch.points, true), vec![]);
-            prune(&tree, crown, &shape, &mut pruned);
-        }
         let roots = tree.roots().collect();
         MorphPlan { tree, crown, target, weights, follow, pruned, roots, opts }
-    }
-
-    /// A plan without a sketch, for a crown moved from outside ([`MorphPlan::cages_for_crown`]):
-    /// the largest crown, nothing pruned.
-    pub fn driven(tree: CageTree, opts: MorphOptions) -> MorphPlan {
-        let crown = largest_root(&tree);
-        let points = tree.cages[crown].vertices.clone();
-        let mut plan =
-            MorphPlan::new(tree, &Sketch { closed: true, points }, MorphOptions { prune: false, ..opts });
-        plan.crown = crown;
-        plan.target = plan.tree.cages[crown].vertices.clone();
-        plan
     }
 
     /// The tree at rest.
@@ -139,13 +147,18 @@ impl MorphPlan {
     /// the tree.
     pub fn cages_at(&self, t: f64) -> Vec<Vec<Point>> {
         let t = t.clamp(0.0, 1.0);
+        self.cages_with(&self.crown_at(t), t > 0.0)
+    }
+
+    /// The sketched crown at in-between `t` (clamped to [0, 1]): its rest outline moved linearly
+    /// towards the target, which is also section 6.2's reference silhouette.
+    pub fn crown_at(&self, t: f64) -> Vec<Point> {
+        let t = t.clamp(0.0, 1.0);
         let rest = &self.tree.cages[self.crown].vertices;
-        let crown: Vec<Point> = rest
-            .iter()
+        rest.iter()
             .zip(&self.target)
             .map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
-            .collect();
-        self.cages_with(&crown, t > 0.0)
+            .collect()
     }
 
     /// Every cage's vertices when the planned crown is at `crown_now` (one point per vertex) and
@@ -249,14 +262,7 @@ pub struct Placed<'a> {
 impl<'a> Placed<'a> {
     /// Indexes `now` (from [`MorphPlan::cages_at`] or [`MorphPlan::cages_for_crown`]).
     pub fn new(plan: &MorphPlan, now: &'a [Vec<Point>]) -> Placed<'a> {
-        let boxes = now
-            .iter()
-            .map(|c| {
-                c.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
-                    [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]
-                })
-            })
-            .collect();
+        let boxes = now.iter().map(|c| bounds(c)).collect();
         let moved = now.iter().zip(&plan.tree.cages).map(|(c, rest)| *c != rest.vertices).collect();
         Placed { now, boxes, moved }
     }

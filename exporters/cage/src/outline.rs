@@ -17,6 +17,13 @@ pub fn signed_area2(poly: &[Point]) -> f64 {
         .sum()
 }
 
+/// The bounding box `[x0, y0, x1, y1]` of the points (inverted, infinite, for none).
+pub fn bounds(points: &[Point]) -> [f64; 4] {
+    points.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
+        [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]
+    })
+}
+
 /// Perimeter of the closed polygon.
 pub fn perimeter(poly: &[Point]) -> f64 {
     let n = poly.len();

@@ -9,8 +9,7 @@ pub fn fill_polygon(poly: &[Point], width: usize, height: usize, mask: &mut [u8]
     if n < 3 {
         return;
     }
-    let (lo, hi) =
-        poly.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    let [_, lo, _, hi] = crate::outline::bounds(poly);
     let y0 = (lo - 0.5).ceil().max(0.0) as usize;
     let y1 = ((hi - 0.5).floor().min(height as f64 - 1.0)).max(-1.0);
     if y1 < 0.0 {

@@ -344,7 +344,8 @@ pub fn contains(poly: &[Point], p: Point) -> bool {
     inside
 }
 
-fn segment_distance(a: Point, b: Point, p: Point) -> f64 {
+/// Distance from `p` to the segment `a`-`b`.
+pub fn segment_distance(a: Point, b: Point, p: Point) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };

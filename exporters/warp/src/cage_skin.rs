@@ -35,10 +35,7 @@ impl CageSkin {
     /// centre of the crown's bounding box).
     pub fn new(tree: &CageTree, crown: usize, skeleton: Skeleton, anchor: Option<Point>) -> CageSkin {
         let rest = tree.cages[crown].vertices.clone();
-        let (x0, x1) =
-            rest.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
-        let (y0, y1) =
-            rest.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[1]), b.max(p[1])));
+        let [x0, y0, x1, y1] = frond_cage::outline::bounds(&rest);
         let anchor = anchor.unwrap_or([(x0 + x1) / 2.0, y1]);
         let top_m = f64::from(skeleton.heights_m[3]).max(1e-6);
         let px_per_m = ((anchor[1] - y0) / top_m).max(1e-6);

@@ -46,6 +46,20 @@ fn check_frames_and_output(
     out
 }
 
+/// Reads a take's poses; a damaged take is read as far as it can be, with a warning ending
+/// "`using` its N readable frames".
+fn read_take(path: &std::path::Path, using: &str) -> anyhow::Result<PoseTrack> {
+    let track = PoseTrack::from_take(path)?;
+    if let Some(damage) = &track.damage {
+        eprintln!(
+            "frond-warp: warning: take {}: {damage}; {using} its {} readable frames",
+            path.display(),
+            track.times_s.len()
+        );
+    }
+    Ok(track)
+}
+
 fn load_scene(args: &SceneArgs) -> anyhow::Result<Scene> {
     Ok(Scene::load(&args.image, &args.layers, args.background.as_deref(), args.scale_map.as_deref())?)
 }
@@ -68,16 +82,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     let (out, params) = (out?, params?);
     let scene = load_scene(&args.scene)?;
-    let track = args.take.as_deref().map(PoseTrack::from_take).transpose()?;
-    if let (Some(track), Some(path)) = (&track, &args.take)
-        && let Some(damage) = &track.damage
-    {
-        eprintln!(
-            "frond-warp: warning: take {}: {damage}; the wind follows its {} readable frames",
-            path.display(),
-            track.times_s.len()
-        );
-    }
+    let track = args.take.as_deref().map(|p| read_take(p, "the wind follows")).transpose()?;
     let mut animator = Animator::new(scene, params)?;
     let driver = match (&track, &sim_wind) {
         (Some(t), _) => WindDriver::Take(t),
@@ -142,14 +147,7 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     }
     ck.finish()?;
     let take = args.take.as_deref().expect("checked");
-    let track = PoseTrack::from_take(take)?;
-    if let Some(damage) = &track.damage {
-        eprintln!(
-            "frond-warp: warning: take {}: {damage}; using its {} readable frames",
-            take.display(),
-            track.times_s.len()
-        );
-    }
+    let track = read_take(take, "using")?;
     let rig_spec = args.rig.clone().or_else(|| track.rig_name.clone()).unwrap_or_else(|| "grass".into());
     let rig = frond_motion::rig_files::load_rig(&rig_spec).with_context(|| format!("rig {rig_spec}"))?;
     let scene = load_scene(&args.scene)?;

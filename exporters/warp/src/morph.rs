@@ -17,7 +17,7 @@ use frond_cage::morph::{MorphOptions, MorphPlan, Placed};
 use frond_cage::outline::{frechet_closed, resample_closed, start_nearest};
 use frond_cage::raster::fill_polygon;
 use frond_cage::sketch::Sketch;
-use frond_cage::tree::outside_by;
+use frond_cage::tree::{outside_by, segment_distance};
 use frond_cage::{BuildOptions, CageTree, Point, build_cage_tree};
 use frond_motion::rig_files::read_small_text;
 
@@ -282,13 +282,8 @@ impl<'a> MorphFrames<'a> {
         }
         // Only the crowns' box (grown by the slack) can be set: the rest stays 0.
         let s = self.slack as f64;
-        let b = self
-            .roots
-            .iter()
-            .map(|&r| bounds(&self.now[r], s + 1.0))
-            .fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |a, b| {
-                [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
-            });
+        let crowns: Vec<Point> = self.roots.iter().flat_map(|&r| self.now[r].iter().copied()).collect();
+        let b = bounds(&crowns, s + 1.0);
         let clamp = |v: f64, hi: usize| (v.max(0.0) as usize).min(hi);
         let (x0, y0, x1, y1) = (clamp(b[0], w), clamp(b[1], h), clamp(b[2].ceil(), w), clamp(b[3].ceil(), h));
         self.region.fill(0);
@@ -349,25 +344,13 @@ fn dilate_box(map: &[u8], tmp: &mut [u8], out: &mut [u8], w: usize, r: usize, [x
 
 /// Whether every edge of the closed polygon is at least `d` from `p`.
 fn outline_distance_at_least(poly: &[Point], p: Point, d: f64) -> bool {
-    let d2 = d * d;
     let n = poly.len();
-    (0..n).all(|i| {
-        let (a, b) = (poly[i], poly[(i + 1) % n]);
-        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
-        let len2 = ex * ex + ey * ey;
-        let t =
-            if len2 > 0.0 { (((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        let (dx, dy) = (p[0] - a[0] - t * ex, p[1] - a[1] - t * ey);
-        dx * dx + dy * dy >= d2
-    })
+    (0..n).all(|i| segment_distance(poly[i], poly[(i + 1) % n], p) >= d)
 }
 
 /// `[x0, y0, x1, y1]` of `poly` grown by `margin`.
 fn bounds(poly: &[Point], margin: f64) -> [f64; 4] {
-    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-    for p in poly {
-        b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
-    }
+    let b = frond_cage::outline::bounds(poly);
     [b[0] - margin, b[1] - margin, b[2] + margin, b[3] + margin]
 }
 
@@ -394,12 +377,7 @@ fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummar
         sink.push(k, &frame).map_err(render_err)?;
         // Section 6.2: this frame's outline against the reference in-between.
         frames.warper().remap(frames.layer(), &mut warped);
-        let reference: Vec<Point> = tree.cages[crown]
-            .vertices
-            .iter()
-            .zip(plan.target())
-            .map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
-            .collect();
+        let reference = plan.crown_at(t);
         summary.t.push(t);
         summary.frechet_px.push(outline_distance(&warped, frames.region(), w, h, &reference, n));
         progress.tick(k + 1);
