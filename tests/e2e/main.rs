@@ -22,3 +22,4 @@ mod take_tools;
 mod tap_matches_map;
 mod timecode;
 mod untrusted_time;
+mod warp_cage;

@@ -28,6 +28,9 @@ sets the wind direction and strength, the sway rate the interval. Without a daem
 a procedural wind with the page's settings and says so, or with --wind-sim to seed 003's
 simulation wind (speed=S,dir=DEG,gust=G,seed=N[,until=S], as frond take simulate --wind; strength
 = speed / 10 m/s); render takes --wind-sim too.
+`serve --mode cage` (seed 004) shows the layer's cage tree: draw a sketch on the page with the
+pointer and the plant morphs towards it (Escape resets); with no sketch the live hand bends the
+plant through its skinned crown cage.
 
 Examples:
   frond-warp make-samples rig-files/images
@@ -37,6 +40,8 @@ Examples:
       --horizon bottom --rigidity 1 --sway-margin 6 --frames 60 -o frames/
   frond-warp serve --image rig-files/images/grass.png --layer rig-files/images/grass-mask.png \\
       --listen 127.0.0.1:8080
+  frond-warp serve --mode cage --image rig-files/images/shrub-background.png \\
+      --layer rig-files/images/shrub.png
   frond-warp bench --json";
 
 /// `frond-warp`.
@@ -344,6 +349,28 @@ pub struct ServeArgs {
     /// procedural one while no hand drives the wind (time from the start of the page).
     #[arg(long, value_name = "SPEC")]
     pub wind_sim: Option<String>,
+    /// What the page shows: `wave` (seed 001: wind, waves, grid warp) or `cage` (seed 004: the
+    /// layer's cage tree; sketch on the page with the pointer, or bend it with the live hand).
+    #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
+    pub mode: RenderMode,
+    /// Cage mode: the layer's cage tree (default: built from the layer as `cage build` does).
+    #[arg(long, value_name = "FILE")]
+    pub cage: Option<PathBuf>,
+    /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
+    pub anchor: Option<String>,
+    /// Cage mode: the skeleton's rig (default: the daemon's rig, loaded by name).
+    #[arg(long, value_name = "RIG")]
+    pub rig: Option<String>,
+    /// Cage mode: how long a morph towards a sketch plays, seconds (0, 60].
+    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    pub morph_s: f64,
+    /// Cage mode: no self-adaptive cages (section 5.4.1).
+    #[arg(long)]
+    pub no_adapt: bool,
+    /// Cage mode: no pruning of lobes outside a closed sketch (section 5.4.2).
+    #[arg(long)]
+    pub no_prune: bool,
 }
 
 /// `--wind-sim SPEC` parsed (a bad spec is reported through `ck` with the others).

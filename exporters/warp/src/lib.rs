@@ -26,3 +26,4 @@ pub mod morph;
 pub mod render;
 pub mod samples;
 pub mod serve;
+pub mod serve_cage;

@@ -106,7 +106,21 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
 }
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    if args.mode == frond_warp::cli::RenderMode::Cage {
+        return serve_cage(args);
+    }
     let mut ck = Checker::new();
+    for (flag, given) in [
+        ("--cage", args.cage.is_some()),
+        ("--anchor", args.anchor.is_some()),
+        ("--rig", args.rig.is_some()),
+        ("--no-adapt", args.no_adapt),
+        ("--no-prune", args.no_prune),
+    ] {
+        if given {
+            ck.push(flag, "given", "only the cage mode uses it: add --mode cage or drop it");
+        }
+    }
     let sim_wind = frond_warp::cli::sim_wind(args.wind_sim.as_deref(), &mut ck);
     ck.finish()?;
     let params = args.sim.to_params(args.scene.layers.len())?;
@@ -120,6 +134,51 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             socket_dir,
             no_daemon: args.no_daemon,
             sim_wind,
+        },
+    )
+}
+
+/// `serve --mode cage`.
+fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
+    let mut ck = Checker::new();
+    if args.wind_sim.is_some() {
+        ck.push(
+            "--wind-sim",
+            args.wind_sim.as_deref().unwrap_or_default(),
+            "the cage mode has no wind; drop it",
+        );
+    }
+    if args.scene.layers.len() != 1 {
+        ck.push("--layer", args.scene.layers.len(), "the cage mode bends exactly one layer");
+    }
+    if !(args.morph_s > 0.0 && args.morph_s <= 60.0) {
+        ck.push("--morph-s", args.morph_s, "out of range (allowed: above 0 to 60 seconds)");
+    }
+    let anchor = args.anchor.as_deref().map(frond_warp::cages::parse_point);
+    if let Some(Err(e)) = &anchor {
+        ck.push("--anchor", args.anchor.as_deref().unwrap_or_default(), e);
+    }
+    ck.finish()?;
+    let rig = match &args.rig {
+        Some(spec) => {
+            let rig = frond_motion::rig_files::load_rig(spec).with_context(|| format!("rig {spec}"))?;
+            Some((rig.rig.name.clone(), frond_motion::skeleton::Skeleton::from_rig(&rig.rig)))
+        }
+        None => None,
+    };
+    let scene = load_scene(&args.scene)?;
+    let tree = frond_warp::morph::scene_tree(&scene, args.cage.as_deref())?;
+    frond_warp::serve_cage::serve_cage(
+        scene,
+        tree,
+        frond_warp::serve_cage::CageServeOptions {
+            listen: args.listen,
+            socket_dir: frond_protocol::paths::socket_dir(args.socket_dir.clone()),
+            no_daemon: args.no_daemon,
+            anchor: anchor.transpose().map_err(anyhow::Error::msg)?,
+            rig,
+            morph_s: args.morph_s,
+            opts: frond_cage::morph::MorphOptions { adapt: !args.no_adapt, prune: !args.no_prune },
         },
     )
 }

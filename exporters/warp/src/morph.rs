@@ -309,6 +309,21 @@ impl<'a> MorphFrames<'a> {
         self.warper.warp_over(&self.layer_t, &self.region, frame);
     }
 
+    /// The cages of the last frame (one vertex list per cage of the plan's tree).
+    pub fn cages(&self) -> &[Vec<Point>] {
+        &self.now
+    }
+
+    /// Section 6.2's quality of the last frame (composed at `t`): the Frechet distance of the
+    /// warped layer's outline to the reference in-between, pixels. `warped` is scratch.
+    pub fn outline_distance(&self, t: f64, warped: &mut Vec<u8>) -> f64 {
+        let (w, h) = (self.scene.width, self.scene.height);
+        warped.resize(w * h * 4, 0);
+        self.warper.remap(&self.layer_t, warped);
+        let n = self.plan.tree().cages[self.plan.crown()].vertices.len();
+        outline_distance(warped, &self.region, w, h, &self.plan.crown_at(t), n)
+    }
+
     /// The warper of the last frame.
     pub fn warper(&self) -> &Warper {
         &self.warper
@@ -358,12 +373,11 @@ fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummar
     let (w, h) = (scene.width, scene.height);
     let tree = plan.tree();
     let crown = plan.crown();
-    let n = tree.cages[crown].vertices.len();
     let mut frames = MorphFrames::new(scene, plan);
     let mut sink = Sink::open(&job.output, w, h, job.fps).map_err(render_err)?;
     let progress = Progress::new(job.frames, job.quiet);
     let mut frame = Vec::with_capacity(w * h * 4);
-    let mut warped = vec![0u8; w * h * 4];
+    let mut warped = Vec::new();
     let mut summary = MorphSummary {
         frames: job.frames,
         crown: tree.cages[crown].id,
@@ -376,10 +390,8 @@ fn render(scene: &Scene, plan: &MorphPlan, job: &MorphJob) -> Result<MorphSummar
         frames.frame_at(t, &mut frame);
         sink.push(k, &frame).map_err(render_err)?;
         // Section 6.2: this frame's outline against the reference in-between.
-        frames.warper().remap(frames.layer(), &mut warped);
-        let reference = plan.crown_at(t);
         summary.t.push(t);
-        summary.frechet_px.push(outline_distance(&warped, frames.region(), w, h, &reference, n));
+        summary.frechet_px.push(frames.outline_distance(t, &mut warped));
         progress.tick(k + 1);
     }
     sink.finish().map_err(render_err)?;

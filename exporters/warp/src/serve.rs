@@ -177,17 +177,7 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
             (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
             (Method::Get, "/frame") => {
                 let s = shared.lock().expect("lock");
-                let mut r = Response::from_data(s.frame.clone());
-                for (k, v) in [
-                    ("X-Width", w.to_string()),
-                    ("X-Height", h.to_string()),
-                    ("X-Frame", s.frame_no.to_string()),
-                ] {
-                    r.add_header(Header::from_bytes(k, v).expect("header"));
-                }
-                r.add_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header"));
-                r.add_header(Header::from_bytes("Cache-Control", "no-store").expect("header"));
-                r.with_status_code(200)
+                raw_frame(s.frame.clone(), w, h, s.frame_no)
             }
             (Method::Get, "/still") => Response::from_data(still.clone())
                 .with_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header")),
@@ -205,9 +195,7 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
                 text(200, &body.to_string(), "application/json")
             }
             (Method::Post, "/params") => {
-                let mut body = String::new();
-                let read = req.as_reader().take(64 * 1024).read_to_string(&mut body);
-                match read.map_err(|e| e.to_string()).and_then(|_| {
+                match read_body(&mut req, 64 * 1024).and_then(|body| {
                     serde_json::from_str::<Controls>(&body).map_err(|e| format!("bad controls JSON: {e}"))
                 }) {
                     Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
@@ -232,7 +220,37 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn text(code: u16, body: &str, ctype: &str) -> Response<std::io::Cursor<Vec<u8>>> {
+/// The request's body as UTF-8 text, refused (with the limit named) when over `limit` bytes.
+pub(crate) fn read_body(req: &mut tiny_http::Request, limit: u64) -> Result<String, String> {
+    let mut body = Vec::new();
+    req.as_reader()
+        .take(limit + 1)
+        .read_to_end(&mut body)
+        .map_err(|e| format!("cannot read the request: {e}"))?;
+    if body.len() as u64 > limit {
+        return Err(format!("request body over {limit} bytes"));
+    }
+    String::from_utf8(body).map_err(|_| "request body is not UTF-8".to_string())
+}
+
+/// A raw RGBA frame with its size and number in `X-Width`, `X-Height`, `X-Frame`.
+pub(crate) fn raw_frame(
+    rgba: Vec<u8>,
+    w: usize,
+    h: usize,
+    frame_no: u64,
+) -> Response<std::io::Cursor<Vec<u8>>> {
+    let mut r = Response::from_data(rgba);
+    for (k, v) in [("X-Width", w.to_string()), ("X-Height", h.to_string()), ("X-Frame", frame_no.to_string())]
+    {
+        r.add_header(Header::from_bytes(k, v).expect("header"));
+    }
+    r.add_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header"));
+    r.add_header(Header::from_bytes("Cache-Control", "no-store").expect("header"));
+    r.with_status_code(200)
+}
+
+pub(crate) fn text(code: u16, body: &str, ctype: &str) -> Response<std::io::Cursor<Vec<u8>>> {
     Response::from_string(body)
         .with_status_code(code)
         .with_header(Header::from_bytes("Content-Type", ctype).expect("header"))
@@ -309,40 +327,71 @@ fn sim_loop(
 }
 
 fn pose_loop(dir: PathBuf, shared: Arc<Mutex<Shared>>) {
-    let set = |connected: bool, message: String| {
+    follow_daemon(&dir, "procedural wind", |event| {
         let mut s = shared.lock().expect("lock");
-        s.daemon = DaemonState { connected, message };
-    };
+        match event {
+            DaemonEvent::State(state) => s.daemon = state,
+            DaemonEvent::Rig(_) => {}
+            DaemonEvent::Pose(p) => {
+                if p.element == 0 {
+                    s.root = Some((p.joints_deg[0], Instant::now()));
+                }
+            }
+        }
+    })
+}
+
+/// What [`follow_daemon`] reports.
+pub(crate) enum DaemonEvent<'a> {
+    /// The connection state changed.
+    State(DaemonState),
+    /// The daemon's rig (at connection and whenever it changes).
+    Rig(&'a str),
+    /// A pose arrived.
+    Pose(&'a frond_sdk::Pose),
+}
+
+/// Subscribes to the daemon in `dir` for ever (reconnecting, retrying every 2 s while it is
+/// absent) and reports its state, rig and poses to `on`. `fallback` says what the page shows
+/// while there are no poses (e.g. "procedural wind").
+pub(crate) fn follow_daemon(dir: &std::path::Path, fallback: &str, mut on: impl FnMut(DaemonEvent<'_>)) -> ! {
+    fn set(on: &mut dyn FnMut(DaemonEvent<'_>), connected: bool, message: String) {
+        on(DaemonEvent::State(DaemonState { connected, message }))
+    }
     loop {
         let opts = frond_sdk::Subscriber::options()
             .reconnect(true)
             .give_up_after(None)
             .read_timeout(Some(Duration::from_millis(500)));
-        match opts.connect(&dir) {
+        match opts.connect(dir) {
             Err(e) => {
-                set(false, format!("no daemon at {}: procedural wind ({e})", dir.display()));
+                set(&mut on, false, format!("no daemon at {}: {fallback} ({e})", dir.display()));
                 std::thread::sleep(Duration::from_secs(2));
             }
             Ok(mut sub) => {
-                set(true, format!("connected to {} (rig {})", dir.display(), sub.hello().rig_name));
+                let rig = sub.hello().rig_name.clone();
+                set(&mut on, true, format!("connected to {} (rig {rig})", dir.display()));
+                on(DaemonEvent::Rig(&rig));
                 loop {
                     match sub.next_event() {
-                        Ok(frond_sdk::Event::Pose(p)) => {
-                            if p.element == 0 {
-                                shared.lock().expect("lock").root = Some((p.joints_deg[0], Instant::now()));
-                            }
-                        }
+                        Ok(frond_sdk::Event::Pose(p)) => on(DaemonEvent::Pose(&p)),
                         Ok(frond_sdk::Event::Disconnected) => set(
+                            &mut on,
                             false,
-                            format!("daemon at {} went away; reconnecting (procedural wind)", dir.display()),
+                            format!("daemon at {} went away; reconnecting ({fallback})", dir.display()),
                         ),
-                        Ok(frond_sdk::Event::Reconnected(h)) => {
-                            set(true, format!("connected to {} (rig {})", dir.display(), h.rig_name))
+                        Ok(frond_sdk::Event::Reconnected(h)) | Ok(frond_sdk::Event::RigChanged(h)) => {
+                            set(
+                                &mut on,
+                                true,
+                                format!("connected to {} (rig {})", dir.display(), h.rig_name),
+                            );
+                            on(DaemonEvent::Rig(&h.rig_name));
                         }
                         Ok(_) => {}
                         Err(frond_sdk::SdkError::Timeout { .. }) => {}
                         Err(e) => {
-                            set(false, format!("daemon stream ended: {e}; retrying (procedural wind)"));
+                            set(&mut on, false, format!("daemon stream ended: {e}; retrying ({fallback})"));
                             std::thread::sleep(Duration::from_secs(2));
                             break;
                         }

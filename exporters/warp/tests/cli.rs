@@ -398,3 +398,41 @@ fn serve_follows_the_simulation_wind_without_a_hand() {
     assert!((wind["strength"].as_f64().unwrap() - 0.4).abs() < 1e-6, "{v}");
     assert_eq!(wind["interval_s"], 0.0);
 }
+
+#[test]
+fn serve_mode_arguments_are_checked_before_anything_starts() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    // Cage-only flags on the wave page are refused by name.
+    let o = run(&["serve", "--image", s(&pic), "--layer", s(&mask), "--cage", "x.json", "--no-prune"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("--cage") && e.contains("--no-prune") && e.contains("add --mode cage"), "{e}");
+    // The cage page: every problem at once (wind, two layers, morph time, anchor).
+    let o = run(&[
+        "serve",
+        "--mode",
+        "cage",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--layer",
+        s(&mask),
+        "--morph-s",
+        "0",
+        "--anchor",
+        "nope",
+        "--wind-sim",
+        "speed=3,dir=0",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    for want in ["--wind-sim", "the cage mode has no wind", "exactly one layer", "--morph-s", "--anchor"] {
+        assert!(e.contains(want), "{want}: {e}");
+    }
+    // A rig that does not exist is named.
+    let o = run(&["serve", "--mode", "cage", "--image", s(&pic), "--layer", s(&mask), "--rig", "oak"]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("rig oak"), "{}", stderr(&o));
+}

@@ -1,0 +1,418 @@
+//! `frond-warp serve --mode cage`: seed 004 live on a web page.
+//!
+//! The page shows the picture with the layer's multiscale cage tree drawn over it. The user
+//! draws a sketch with the pointer (mouse, pen or touch) and watches the layer morph towards it
+//! over `--morph-s` seconds (seed 004, section 5: MVC propagation, Eq. 1, adaptation, pruning);
+//! a stroke that ends near its start is closed (the new silhouette), any other is an open stroke
+//! that reshapes the side it follows. Escape (or the page's Reset) returns to the rest shape.
+//! While no sketch is shown and the daemon streams poses, the crown cage is skinned to the plant
+//! skeleton (seed 000, Eq. 1; see [`crate::cage_skin`]) and the live hand bends the plant with its
+//! shape kept.
+//!
+//! Three threads: the morph (fixed 30 Hz steps on absolute deadlines; a frame is only computed
+//! when its input changed), the pose listener ([`crate::serve::follow_daemon`]) and the HTTP
+//! server:
+//!
+//! - `GET /` the page;
+//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers);
+//!   `GET /frame?have=N` answers 204 (no body) while frame `N` is still the latest;
+//! - `GET /still` the picture at rest, raw RGBA;
+//! - `GET /cages` the current cages, JSON `{"size":[w,h],"crown":ID,"cages":[{"id":..,
+//!   "parent":..|null,"kind":"internal"|"leaf","pruned":bool,"vertices":[[x,y],...]}]}`;
+//! - `GET /status` JSON: frame, fps, `drive` (`rest`, `hand` or `sketch`), the morph's `t`, the
+//!   final frame's Frechet distance to the sketch (`frechet_px`, section 6.2), daemon state, rig;
+//! - `POST /sketch` a `sketch.json` body (as `frond-warp morph --sketch` reads), validated; a bad
+//!   one answers 400 naming the problem;
+//! - `POST /reset` back to the rest shape (and the hand).
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use frond_cage::morph::{MorphOptions, MorphPlan};
+use frond_cage::sketch::Sketch;
+use frond_cage::{CageKind, CageTree, Point};
+use frond_motion::skeleton::Skeleton;
+use tiny_http::{Method, Server};
+
+use crate::Scene;
+use crate::cage_skin::CageSkin;
+use crate::morph::{MAX_SKETCH_FILE_BYTES, MorphFrames};
+use crate::serve::{DaemonEvent, DaemonState, follow_daemon, raw_frame, read_body, text};
+
+/// Frame rate of the cage preview.
+pub const CAGE_SERVE_FPS: f64 = 30.0;
+/// Poses older than this no longer drive the plant.
+const POSE_FRESH: Duration = Duration::from_millis(500);
+
+/// Options of [`serve_cage`].
+#[derive(Debug, Clone)]
+pub struct CageServeOptions {
+    /// Address to listen on (`127.0.0.1:0` picks a free port).
+    pub listen: String,
+    /// Daemon socket directory.
+    pub socket_dir: PathBuf,
+    /// Do not try to reach the daemon at all.
+    pub no_daemon: bool,
+    /// Where the skeleton stands (default: the bottom centre of the crown).
+    pub anchor: Option<Point>,
+    /// The skeleton's rig, fixed (`--rig`); otherwise the daemon's rig, loaded by name.
+    pub rig: Option<(String, Skeleton)>,
+    /// How long a morph towards a sketch plays, seconds.
+    pub morph_s: f64,
+    /// Adaptation and pruning of sketched morphs.
+    pub opts: MorphOptions,
+}
+
+/// What drives the picture now.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Drive {
+    Rest,
+    Hand,
+    Sketch,
+}
+
+impl Drive {
+    fn name(self) -> &'static str {
+        match self {
+            Drive::Rest => "rest",
+            Drive::Hand => "hand",
+            Drive::Sketch => "sketch",
+        }
+    }
+}
+
+struct Shared {
+    frame: Vec<u8>,
+    frame_no: u64,
+    fps: f32,
+    /// A sketch to morph towards, or `None` to reset; taken by the morph thread.
+    request: Option<Option<Sketch>>,
+    daemon: DaemonState,
+    /// Latest element-0 pose and when it arrived.
+    pose: Option<([[f32; 3]; 4], Instant)>,
+    /// The skeleton the hand drives, and its rig's name.
+    skeleton: Option<(String, Skeleton)>,
+    rig_note: String,
+    drive: Drive,
+    t: f64,
+    frechet_px: Option<f64>,
+    cages: Vec<Vec<Point>>,
+    pruned: Vec<bool>,
+}
+
+/// Runs the cage preview of `scene`'s first layer with cage tree `tree` until the process ends.
+/// Prints `listening on http://ADDR/` once bound.
+pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyhow::Result<()> {
+    let server =
+        Server::http(&opts.listen).map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", opts.listen))?;
+    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| opts.listen.clone());
+    let (w, h) = (scene.width, scene.height);
+    let still = scene.still();
+    let fixed_rig = opts.rig.is_some();
+    let shared = Arc::new(Mutex::new(Shared {
+        frame: still.clone(),
+        frame_no: 0,
+        fps: 0.0,
+        request: None,
+        daemon: DaemonState { connected: false, message: "not connected yet".into() },
+        pose: None,
+        rig_note: match &opts.rig {
+            Some((name, _)) => format!("rig {name} (--rig)"),
+            None => "the daemon's rig, once connected".into(),
+        },
+        skeleton: opts.rig.clone(),
+        drive: Drive::Rest,
+        t: 0.0,
+        frechet_px: None,
+        cages: tree.cages.iter().map(|c| c.vertices.clone()).collect(),
+        pruned: vec![false; tree.cages.len()],
+    }));
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let (shared, stop, tree, opts) = (shared.clone(), stop.clone(), tree.clone(), opts.clone());
+        std::thread::Builder::new()
+            .name("warp-morph".into())
+            .spawn(move || morph_loop(&scene, &tree, &opts, &shared, &stop))?;
+    }
+    if opts.no_daemon {
+        shared.lock().expect("lock").daemon.message = "daemon disabled (--no-daemon): sketch only".into();
+    } else {
+        let (shared, dir) = (shared.clone(), opts.socket_dir.clone());
+        std::thread::Builder::new()
+            .name("warp-poses".into())
+            .spawn(move || follow_daemon(&dir, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
+    }
+    println!("listening on http://{addr}/");
+    eprintln!("frond-warp: serving a {w}x{h} cage preview on http://{addr}/");
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    let crown_id = tree.cages[frond_cage::morph::largest_root(&tree)].id;
+    for mut req in server.incoming_requests() {
+        let url = req.url().split('?').next().unwrap_or("").to_string();
+        let resp = match (req.method(), url.as_str()) {
+            (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
+            (Method::Get, "/frame") => {
+                let s = shared.lock().expect("lock");
+                if have_frame(req.url()) == Some(s.frame_no) {
+                    text(204, "", "text/plain")
+                } else {
+                    raw_frame(s.frame.clone(), w, h, s.frame_no)
+                }
+            }
+            (Method::Get, "/still") => raw_frame(still.clone(), w, h, 0),
+            (Method::Get, "/cages") => {
+                let (cages, pruned) = {
+                    let s = shared.lock().expect("lock");
+                    (s.cages.clone(), s.pruned.clone())
+                };
+                text(200, &cages_json(&tree, crown_id, &cages, &pruned), "application/json")
+            }
+            (Method::Get, "/status") => {
+                let s = shared.lock().expect("lock");
+                let body = serde_json::json!({
+                    "mode": "cage",
+                    "frame": s.frame_no,
+                    "fps": s.fps,
+                    "width": w,
+                    "height": h,
+                    "drive": s.drive.name(),
+                    "t": s.t,
+                    "frechet_px": s.frechet_px,
+                    "daemon": s.daemon,
+                    "rig": s.rig_note,
+                    "morph_s": opts.morph_s,
+                });
+                text(200, &body.to_string(), "application/json")
+            }
+            (Method::Post, "/sketch") => match read_body(&mut req, MAX_SKETCH_FILE_BYTES)
+                .and_then(|body| Sketch::from_json(&body, tree.size).map_err(|e| format!("sketch: {e}")))
+            {
+                Ok(sketch) => {
+                    shared.lock().expect("lock").request = Some(Some(sketch));
+                    text(200, "ok", "text/plain")
+                }
+                Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+            },
+            (Method::Post, "/reset") => {
+                shared.lock().expect("lock").request = Some(None);
+                text(200, "ok", "text/plain")
+            }
+            _ => text(404, "not found", "text/plain"),
+        };
+        let _ = req.respond(resp);
+    }
+    stop.store(true, Ordering::Relaxed);
+    Ok(())
+}
+
+/// The pose listener's events into the shared state: the daemon's rig is loaded by name (unless
+/// `--rig` fixed it) so the skeleton matches the poses.
+fn on_daemon(shared: &Mutex<Shared>, fixed_rig: bool, event: DaemonEvent<'_>) {
+    match event {
+        DaemonEvent::State(state) => shared.lock().expect("lock").daemon = state,
+        DaemonEvent::Rig(name) if !fixed_rig => {
+            let loaded = frond_motion::rig_files::load_rig(name);
+            let mut s = shared.lock().expect("lock");
+            match loaded {
+                Ok(rig) => {
+                    s.skeleton = Some((name.to_string(), Skeleton::from_rig(&rig.rig)));
+                    s.rig_note = format!("rig {name} (the daemon's)");
+                }
+                Err(e) => {
+                    s.skeleton = None;
+                    s.rig_note =
+                        format!("the daemon's rig {name} cannot be loaded here ({e}); pass --rig FILE");
+                }
+            }
+        }
+        DaemonEvent::Rig(_) => {}
+        DaemonEvent::Pose(p) => {
+            if p.element == 0 {
+                shared.lock().expect("lock").pose = Some((p.joints_deg, Instant::now()));
+            }
+        }
+    }
+}
+
+/// Plans each request (a sketch, or the skeleton-driven rest plan) and renders its frames.
+fn morph_loop(
+    scene: &Scene,
+    tree: &CageTree,
+    opts: &CageServeOptions,
+    shared: &Mutex<Shared>,
+    stop: &AtomicBool,
+) {
+    let period = Duration::from_secs_f64(1.0 / CAGE_SERVE_FPS);
+    let mut request: Option<Sketch> = None;
+    let mut frame = Vec::with_capacity(scene.width * scene.height * 4);
+    let mut warped = Vec::new();
+    let mut fps = FpsWindow::new();
+    while !stop.load(Ordering::Relaxed) {
+        let plan = match &request {
+            Some(sketch) => MorphPlan::new(tree.clone(), sketch, opts.opts),
+            None => MorphPlan::driven(tree.clone(), MorphOptions { adapt: opts.opts.adapt, prune: false }),
+        };
+        let mut frames = MorphFrames::new(scene, &plan);
+        let started = Instant::now();
+        let mut skin: Option<(Skeleton, CageSkin)> = None;
+        // What the last computed frame showed: a frame is only computed when this changes.
+        let mut shown: Option<FrameKey> = None;
+        let mut next = Instant::now();
+        {
+            let mut s = shared.lock().expect("lock");
+            s.pruned = plan.pruned().to_vec();
+            s.frechet_px = None;
+        }
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                return;
+            }
+            let (req, pose, skeleton) = {
+                let mut s = shared.lock().expect("lock");
+                (s.request.take(), s.pose, s.skeleton.clone())
+            };
+            if let Some(r) = req {
+                request = r;
+                break;
+            }
+            let (drive, t, joints) = if request.is_some() {
+                (Drive::Sketch, (started.elapsed().as_secs_f64() / opts.morph_s).min(1.0), None)
+            } else {
+                match (pose.filter(|(_, at)| at.elapsed() < POSE_FRESH), skeleton) {
+                    (Some((joints, _)), Some((_, sk))) => (Drive::Hand, 0.0, Some((joints, sk))),
+                    _ => (Drive::Rest, 0.0, None),
+                }
+            };
+            let key = (drive, t, joints.map(|(j, _)| j));
+            if shown != Some(key) {
+                match (drive, joints) {
+                    (Drive::Sketch, _) => frames.update_cages(t),
+                    (Drive::Hand, Some((j, sk))) => {
+                        if skin.as_ref().is_none_or(|(have, _)| *have != sk) {
+                            skin = Some((sk, CageSkin::new(plan.tree(), plan.crown(), sk, opts.anchor)));
+                        }
+                        let crown = skin.as_ref().expect("just set").1.crown_at(&j);
+                        frames.set_crown(&crown);
+                    }
+                    _ => frames.update_cages(0.0),
+                }
+                frames.compose(t, &mut frame);
+                let frechet =
+                    (drive == Drive::Sketch && t >= 1.0).then(|| frames.outline_distance(1.0, &mut warped));
+                fps.tick();
+                let mut s = shared.lock().expect("lock");
+                std::mem::swap(&mut s.frame, &mut frame);
+                s.frame_no += 1;
+                s.cages.clone_from_slice(frames.cages());
+                s.drive = drive;
+                s.t = t;
+                if frechet.is_some() {
+                    s.frechet_px = frechet;
+                }
+                shown = Some(key);
+            }
+            shared.lock().expect("lock").fps = fps.rate();
+            next += period;
+            let now = Instant::now();
+            if next > now {
+                std::thread::sleep(next - now);
+            } else {
+                next = now; // overran: do not try to catch up
+            }
+        }
+    }
+}
+
+/// What a frame shows: its drive, the morph's `t` and the pose that bent it.
+type FrameKey = (Drive, f64, Option<[[f32; 3]; 4]>);
+
+/// Frames computed per second over the last second.
+struct FpsWindow {
+    start: Instant,
+    frames: u32,
+    rate: f32,
+}
+
+impl FpsWindow {
+    fn new() -> FpsWindow {
+        FpsWindow { start: Instant::now(), frames: 0, rate: 0.0 }
+    }
+
+    fn tick(&mut self) {
+        self.frames += 1;
+    }
+
+    fn rate(&mut self) -> f32 {
+        let el = self.start.elapsed().as_secs_f32();
+        if el >= 1.0 {
+            self.rate = self.frames as f32 / el;
+            self.frames = 0;
+            self.start = Instant::now();
+        }
+        self.rate
+    }
+}
+
+/// `N` of a `?have=N` query.
+fn have_frame(url: &str) -> Option<u64> {
+    url.split_once('?')?.1.split('&').find_map(|kv| kv.strip_prefix("have=")?.parse().ok())
+}
+
+/// `GET /cages`: the tree's structure with the current vertices.
+fn cages_json(tree: &CageTree, crown: u32, now: &[Vec<Point>], pruned: &[bool]) -> String {
+    let round = |p: &Point| [(p[0] * 100.0).round() / 100.0, (p[1] * 100.0).round() / 100.0];
+    let cages: Vec<serde_json::Value> = tree
+        .cages
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            serde_json::json!({
+                "id": c.id,
+                "parent": c.parent.map(|p| tree.cages[p].id),
+                "kind": match c.kind { CageKind::Internal => "internal", CageKind::Leaf => "leaf" },
+                "pruned": pruned.get(i).copied().unwrap_or(false),
+                "vertices": now.get(i).unwrap_or(&c.vertices).iter().map(round).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    serde_json::json!({ "size": tree.size, "crown": crown, "cages": cages }).to_string()
+}
+
+const PAGE: &str = include_str!("cage_page.html");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_have_query_is_read_and_anything_else_ignored() {
+        assert_eq!(have_frame("/frame?have=12"), Some(12));
+        assert_eq!(have_frame("/frame?x=1&have=7"), Some(7));
+        assert_eq!(have_frame("/frame"), None);
+        assert_eq!(have_frame("/frame?have=-1"), None);
+        assert_eq!(have_frame("/frame?have=99999999999999999999999"), None);
+    }
+
+    #[test]
+    fn cages_json_carries_the_structure_and_the_current_vertices() {
+        let crown = vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        let lobe = vec![[1.0, 1.0], [4.0, 1.0], [4.0, 4.0]];
+        let tree = CageTree::from_parts(
+            [20, 20],
+            [(5, None, CageKind::Internal, crown.clone()), (9, Some(5), CageKind::Leaf, lobe.clone())],
+        )
+        .unwrap();
+        let moved = vec![crown.iter().map(|p| [p[0] + 0.125, p[1]]).collect(), lobe];
+        let v: serde_json::Value =
+            serde_json::from_str(&cages_json(&tree, 5, &moved, &[false, true])).unwrap();
+        assert_eq!(v["size"], serde_json::json!([20, 20]));
+        assert_eq!(v["crown"], 5);
+        assert_eq!(v["cages"][0]["parent"], serde_json::Value::Null);
+        assert_eq!(v["cages"][1]["parent"], 5);
+        assert_eq!(v["cages"][1]["kind"], "leaf");
+        assert_eq!(v["cages"][1]["pruned"], true);
+        assert_eq!(v["cages"][0]["vertices"][1], serde_json::json!([10.13, 0.0]));
+    }
+}
