@@ -325,7 +325,7 @@ pub fn outside_by(poly: &[Point], p: Point) -> f64 {
         return 0.0;
     }
     let n = poly.len();
-    (0..n).map(|i| segment_distance(poly[i], poly[(i + 1) % n], p)).fold(f64::INFINITY, f64::min)
+    (0..n).map(|i| segment_distance2(poly[i], poly[(i + 1) % n], p)).fold(f64::INFINITY, f64::min).sqrt()
 }
 
 /// Even-odd point-in-polygon test.
@@ -346,10 +346,16 @@ pub fn contains(poly: &[Point], p: Point) -> bool {
 
 /// Distance from `p` to the segment `a`-`b`.
 pub fn segment_distance(a: Point, b: Point, p: Point) -> f64 {
+    segment_distance2(a, b, p).sqrt()
+}
+
+/// The square of [`segment_distance`] (no square root: for comparisons in hot loops).
+pub fn segment_distance2(a: Point, b: Point, p: Point) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+    let (ex, ey) = (p[0] - a[0] - t * dx, p[1] - a[1] - t * dy);
+    ex * ex + ey * ey
 }
 
 #[cfg(test)]

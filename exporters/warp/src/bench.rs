@@ -234,11 +234,11 @@ pub fn bench_cage(w: usize, h: usize, iterations: usize) -> CageBench {
         frames.update_cages(t);
         row[0] = ms(t0);
         let t0 = Instant::now();
-        frames.update_field();
-        row[1] = ms(t0);
-        let t0 = Instant::now();
         frames.update_layer(t);
         row[2] = ms(t0);
+        let t0 = Instant::now();
+        frames.update_field();
+        row[1] = ms(t0);
         let t0 = Instant::now();
         frame.copy_from_slice(&scene.background);
         frames.warper().warp_over(frames.layer(), frames.region(), &mut frame);

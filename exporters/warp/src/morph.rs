@@ -17,7 +17,7 @@ use frond_cage::morph::{MorphOptions, MorphPlan, Placed};
 use frond_cage::outline::{frechet_closed, resample_closed, start_nearest};
 use frond_cage::raster::fill_polygon;
 use frond_cage::sketch::Sketch;
-use frond_cage::tree::{outside_by, segment_distance};
+use frond_cage::tree::outside_by;
 use frond_cage::{BuildOptions, CageTree, Point, build_cage_tree};
 use frond_motion::rig_files::read_small_text;
 
@@ -148,6 +148,11 @@ pub struct MorphFrames<'a> {
     /// The deformed crowns before growing, and the horizontal pass of the growing.
     filled: Vec<u8>,
     tmp: Vec<u8>,
+    near: Vec<usize>,
+    /// Grid cells holding a pixel of the region (the corners the warp reads).
+    needed: Vec<bool>,
+    /// Blocks an outline may cross.
+    crossed: Vec<bool>,
     weights: Vec<f64>,
     now: Vec<Vec<Point>>,
 }
@@ -179,6 +184,9 @@ impl<'a> MorphFrames<'a> {
             region: vec![0; w * h],
             filled: vec![0; w * h],
             tmp: vec![0; w * h],
+            near: Vec::with_capacity(w),
+            needed: Vec::new(),
+            crossed: Vec::new(),
             weights: Vec::new(),
             now: Vec::new(),
         }
@@ -194,57 +202,58 @@ impl<'a> MorphFrames<'a> {
         self.now = self.plan.cages_for_crown(crown);
     }
 
-    /// Sets every grid corner near the deformed crowns to the cage map's displacement (corners
-    /// farther than two cells and the slack from every crown's box are never drawn: 0).
+    /// Sets every grid corner that a drawn pixel uses (a corner of a cell holding a pixel of the
+    /// region, from [`MorphFrames::update_layer`], which must come first) to the cage map's
+    /// displacement; the others are never read and are left as they are.
     ///
     /// The map is smooth inside a cage, so a 16 px block whose four corners are mapped by the same
-    /// cage and which no deformed outline crosses (its centre farther from every outline than its
-    /// half diagonal) takes its inner corners by bilinear interpolation; other corners are mapped
-    /// one by one.
+    /// cage and which no deformed outline crosses takes its inner corners by bilinear
+    /// interpolation; other corners are mapped one by one.
     pub fn update_field(&mut self) {
         let (cols, rows) = self.warper.corners();
-        let margin = (2 * CAGE_CELL_PX + self.slack) as f64;
-        let boxes: Vec<[f64; 4]> = self.roots.iter().map(|&r| bounds(&self.now[r], margin)).collect();
+        self.mark_needed_cells(cols - 1, rows - 1);
+        self.mark_crossed_blocks(cols, rows);
+        let (needed, cells_x) = (&self.needed, cols - 1);
+        // A corner is read by the (up to) four cells around it.
+        let used = |cx: usize, cy: usize| {
+            let (x0, x1) = (cx.saturating_sub(1), cx.min(cells_x - 1));
+            let (y0, y1) = (cy.saturating_sub(1), cy.min(rows - 2));
+            (y0..=y1).any(|y| (x0..=x1).any(|x| needed[y * cells_x + x]))
+        };
         let corner_at =
             |cx: usize, cy: usize| [(cx * CAGE_CELL_PX) as f64 + 0.5, (cy * CAGE_CELL_PX) as f64 + 0.5];
-        let near =
-            |p: Point| boxes.iter().any(|b| p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3]);
         let (plan, now) = (self.plan, &self.now);
         let placed = Placed::new(plan, now);
         let weights = &mut self.weights;
-        let mut exact = |p: Point| -> ([f32; 2], usize) {
-            if !near(p) {
+        let mut exact = |cx: usize, cy: usize| -> ([f32; 2], usize) {
+            if !used(cx, cy) {
                 return ([0.0, 0.0], usize::MAX);
             }
+            let p = corner_at(cx, cy);
             let (src, cage) = plan.inverse_map_placed(&placed, p, weights);
             ([(src[0] - p[0]) as f32, (src[1] - p[1]) as f32], cage)
         };
         let b = BLOCK_CELLS;
-        let half_diag = (b * CAGE_CELL_PX) as f64 * std::f64::consts::FRAC_1_SQRT_2 + 1.0;
-        let cage_boxes: Vec<[f64; 4]> = now.iter().map(|c| bounds(c, half_diag)).collect();
+        let (crossed, blocks_x) = (&self.crossed, cols.div_ceil(b));
         for by in (0..rows).step_by(b) {
             for bx in (0..cols).step_by(b) {
                 let (x1, y1) = ((bx + b).min(cols - 1), (by + b).min(rows - 1));
+                // No drawn pixel reads any corner of this block.
+                let (cx0, cy0) = (bx.saturating_sub(1), by.saturating_sub(1));
+                let (cx1, cy1) = (x1.min(cells_x - 1), y1.min(rows - 2));
+                if !(cy0..=cy1).any(|y| (cx0..=cx1).any(|x| needed[y * cells_x + x])) {
+                    continue;
+                }
                 let corners = [(bx, by), (x1, by), (bx, y1), (x1, y1)];
-                let mapped = corners.map(|(cx, cy)| exact(corner_at(cx, cy)));
+                let mapped = corners.map(|(cx, cy)| exact(cx, cy));
                 for (k, &(cx, cy)) in corners.iter().enumerate() {
                     self.warper.set_corner(cx, cy, mapped[k].0);
                 }
-                let centre = [
-                    (corner_at(bx, by)[0] + corner_at(x1, y1)[0]) / 2.0,
-                    (corner_at(bx, by)[1] + corner_at(x1, y1)[1]) / 2.0,
-                ];
-                let one_cage = mapped.iter().all(|m| m.1 == mapped[0].1);
-                let smooth = one_cage
-                    && (mapped[0].1 == usize::MAX
-                        || now.iter().zip(&cage_boxes).all(|(c, b)| {
-                            // A cage whose box (grown) misses the centre cannot cross the block.
-                            centre[0] < b[0]
-                                || centre[0] > b[2]
-                                || centre[1] < b[1]
-                                || centre[1] > b[3]
-                                || outline_distance_at_least(c, centre, half_diag)
-                        }));
+                // No outline crosses the block: every point of it lies in the same cages, so
+                // one cage maps it all, smoothly.
+                let smooth = mapped[0].1 != usize::MAX
+                    && mapped.iter().all(|m| m.1 == mapped[0].1)
+                    && !crossed[(by / b) * blocks_x + bx / b];
                 for cy in by..=y1 {
                     for cx in bx..=x1 {
                         if corners.contains(&(cx, cy)) {
@@ -258,10 +267,51 @@ impl<'a> MorphFrames<'a> {
                             };
                             lerp(lerp(mapped[0].0, mapped[1].0, u), lerp(mapped[2].0, mapped[3].0, u), v)
                         } else {
-                            exact(corner_at(cx, cy)).0
+                            exact(cx, cy).0
                         };
                         self.warper.set_corner(cx, cy, d);
                     }
+                }
+            }
+        }
+    }
+
+    /// `crossed[ky * blocks_x + kx]`: whether an outline of the current cages may cross block
+    /// `(kx, ky)` (each edge marks every block its bounding box, grown by a pixel, touches).
+    fn mark_crossed_blocks(&mut self, cols: usize, rows: usize) {
+        let b = BLOCK_CELLS;
+        let (blocks_x, blocks_y) = (cols.div_ceil(b), rows.div_ceil(b));
+        let span = (b * CAGE_CELL_PX) as f64;
+        self.crossed.clear();
+        self.crossed.resize(blocks_x * blocks_y, false);
+        // Block k spans corner pixels k * span + 0.5 to (k + 1) * span + 0.5.
+        let block = |v: f64, n: usize| (((v - 0.5) / span).floor().max(0.0) as usize).min(n - 1);
+        for c in &self.now {
+            for (i, &a) in c.iter().enumerate() {
+                let z = c[(i + 1) % c.len()];
+                let (kx0, kx1) =
+                    (block(a[0].min(z[0]) - 1.0, blocks_x), block(a[0].max(z[0]) + 1.0, blocks_x));
+                let (ky0, ky1) =
+                    (block(a[1].min(z[1]) - 1.0, blocks_y), block(a[1].max(z[1]) + 1.0, blocks_y));
+                for ky in ky0..=ky1 {
+                    self.crossed[ky * blocks_x + kx0..=ky * blocks_x + kx1].fill(true);
+                }
+            }
+        }
+    }
+
+    /// `needed[cy * cells_x + cx]`: whether cell `(cx, cy)` of the grid holds a pixel of the
+    /// region.
+    fn mark_needed_cells(&mut self, cells_x: usize, cells_y: usize) {
+        let (w, h) = (self.scene.width, self.scene.height);
+        self.needed.clear();
+        self.needed.resize(cells_x * cells_y, false);
+        for y in 0..h {
+            let cy = (y / CAGE_CELL_PX).min(cells_y - 1);
+            let row = &self.region[y * w..(y + 1) * w];
+            for (cx, cell) in row.chunks(CAGE_CELL_PX).enumerate() {
+                if cell.iter().any(|&r| r != 0) {
+                    self.needed[cy * cells_x + cx.min(cells_x - 1)] = true;
                 }
             }
         }
@@ -291,7 +341,15 @@ impl<'a> MorphFrames<'a> {
         for &r in &self.roots {
             fill_polygon(&self.now[r], w, h, &mut self.filled);
         }
-        dilate_box(&self.filled, &mut self.tmp, &mut self.region, w, self.slack, [x0, y0, x1, y1]);
+        dilate_box(
+            &self.filled,
+            &mut self.tmp,
+            &mut self.region,
+            &mut self.near,
+            w,
+            self.slack,
+            [x0, y0, x1, y1],
+        );
     }
 
     /// The whole in-between at `t`, composed over the background into `frame`.
@@ -302,8 +360,8 @@ impl<'a> MorphFrames<'a> {
 
     /// The frame of the current cages, pruned lobes faded to `1 - t`, over the background.
     pub fn compose(&mut self, t: f64, frame: &mut Vec<u8>) {
-        self.update_field();
         self.update_layer(t);
+        self.update_field();
         frame.clear();
         frame.extend_from_slice(&self.scene.background);
         self.warper.warp_over(&self.layer_t, &self.region, frame);
@@ -340,27 +398,61 @@ impl<'a> MorphFrames<'a> {
     }
 }
 
-/// Square dilation of `map` by `r` into `out` inside `[x0, y0, x1, y1)` (separable running max;
-/// `map` is 0 outside that box, and so `out` is left).
-fn dilate_box(map: &[u8], tmp: &mut [u8], out: &mut [u8], w: usize, r: usize, [x0, y0, x1, y1]: [usize; 4]) {
+/// Square dilation of the binary `map` (0 or not) by `r` into `out` (255 or 0) inside
+/// `[x0, y0, x1, y1)`: a pixel is set when any pixel of `map` within `r` in x and y (inside the
+/// box) is. Separable, O(1) per pixel: each pass keeps the nearest set pixel behind and ahead
+/// (`map` is 0 outside that box, and so `out` is left). `near` is scratch, one entry per column.
+fn dilate_box(
+    map: &[u8],
+    tmp: &mut [u8],
+    out: &mut [u8],
+    near: &mut Vec<usize>,
+    w: usize,
+    r: usize,
+    [x0, y0, x1, y1]: [usize; 4],
+) {
+    const NONE: usize = usize::MAX;
+    let within = |a: usize, b: usize| a != NONE && a.abs_diff(b) <= r;
     for y in y0..y1 {
+        let row = y * w;
+        let mut last = NONE;
         for x in x0..x1 {
-            let (lo, hi) = (x.saturating_sub(r).max(x0), (x + r).min(x1 - 1));
-            tmp[y * w + x] = map[y * w + lo..=y * w + hi].iter().copied().max().unwrap_or(0);
+            if map[row + x] != 0 {
+                last = x;
+            }
+            tmp[row + x] = if within(last, x) { 255 } else { 0 };
+        }
+        let mut next = NONE;
+        for x in (x0..x1).rev() {
+            if map[row + x] != 0 {
+                next = x;
+            }
+            if within(next, x) {
+                tmp[row + x] = 255;
+            }
         }
     }
+    near.clear();
+    near.resize(w, NONE);
     for y in y0..y1 {
-        let (lo, hi) = (y.saturating_sub(r).max(y0), (y + r).min(y1 - 1));
         for x in x0..x1 {
-            out[y * w + x] = (lo..=hi).map(|yy| tmp[yy * w + x]).max().unwrap_or(0);
+            if tmp[y * w + x] != 0 {
+                near[x] = y;
+            }
+            out[y * w + x] = if within(near[x], y) { 255 } else { 0 };
         }
     }
-}
-
-/// Whether every edge of the closed polygon is at least `d` from `p`.
-fn outline_distance_at_least(poly: &[Point], p: Point, d: f64) -> bool {
-    let n = poly.len();
-    (0..n).all(|i| segment_distance(poly[i], poly[(i + 1) % n], p) >= d)
+    near.fill(NONE);
+    for y in (y0..y1).rev() {
+        for x in x0..x1 {
+            if tmp[y * w + x] != 0 {
+                near[x] = y;
+            }
+            if within(near[x], y) {
+                out[y * w + x] = 255;
+            }
+        }
+    }
 }
 
 /// `[x0, y0, x1, y1]` of `poly` grown by `margin`.
@@ -432,4 +524,46 @@ fn outline_distance(warped: &[u8], region: &[u8], w: usize, h: usize, reference:
 
 pub(crate) fn render_err(e: crate::render::RenderError) -> CageCommandError {
     CageCommandError::Argument(e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The definition, pixel by pixel: the window's maximum inside the box.
+    fn dilate_naive(map: &[u8], w: usize, r: usize, [x0, y0, x1, y1]: [usize; 4]) -> Vec<u8> {
+        let mut out = vec![0u8; map.len()];
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let any = (y.saturating_sub(r).max(y0)..=(y + r).min(y1 - 1)).any(|yy| {
+                    (x.saturating_sub(r).max(x0)..=(x + r).min(x1 - 1)).any(|xx| map[yy * w + xx] != 0)
+                });
+                out[y * w + x] = if any { 255 } else { 0 };
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_running_dilation_equals_the_windowed_maximum() {
+        let (w, h) = (37, 23);
+        let mut seed = 12345u32;
+        for case in 0..40 {
+            let bx = [case % 5, case % 3, w - case % 4, h - case % 6];
+            let mut map = vec![0u8; w * h];
+            for y in bx[1]..bx[3] {
+                for x in bx[0]..bx[2] {
+                    seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                    // Sparse: about 1 pixel in 40.
+                    if (seed >> 16).is_multiple_of(40) {
+                        map[y * w + x] = 255;
+                    }
+                }
+            }
+            let r = case % 7;
+            let (mut tmp, mut out, mut near) = (vec![0u8; w * h], vec![0u8; w * h], Vec::new());
+            dilate_box(&map, &mut tmp, &mut out, &mut near, w, r, bx);
+            assert_eq!(out, dilate_naive(&map, w, r, bx), "case {case}, r {r}, box {bx:?}");
+        }
+    }
 }

@@ -222,39 +222,63 @@ impl Warper {
         let w = self.width;
         let n = w * self.height;
         assert!(layer.len() >= n * 4 && frame.len() >= n * 4 && region.len() >= n, "buffer size");
-        // Weights sum to ONE^2 = 65536; alpha up to 255.
-        const WSUM: u64 = (ONE * ONE) as u64;
-        const DEN: u64 = WSUM * 255;
-        self.for_each_source(|x, y, sxf, syf| {
-            let p = y * w + x;
-            if region[p] == 0 {
-                return;
+        // Weights sum to ONE^2 = 65536; alpha up to 255. Every sum below fits in u32:
+        // 65536 * 255 * 255 + DEN / 2 < 2^32.
+        const WSUM: u32 = (ONE * ONE) as u32;
+        const DEN: u32 = WSUM * 255;
+        let max_x = (self.width as i32 - 1) * ONE;
+        let max_y = (self.height as i32 - 1) * ONE;
+        for run in self.runs() {
+            let row = run.y * w;
+            // Runs with nothing to draw are skipped whole (the region is mostly empty).
+            if region[row + run.x_start..row + run.x_end].iter().all(|&r| r == 0) {
+                continue;
             }
-            let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, self.width, self.height);
-            let (fx, fy) = (fx as u64, fy as u64);
-            let one = ONE as u64;
-            let wts = [(one - fx) * (one - fy), fx * (one - fy), (one - fx) * fy, fx * fy];
-            let idx = [i00, i10, i01, i11];
-            let mut a_sum = 0u64;
-            let mut c_sum = [0u64; 3];
-            for t in 0..4 {
-                let wa = wts[t] * layer[idx[t] + 3] as u64;
-                a_sum += wa;
-                for c in 0..3 {
-                    c_sum[c] += wa * layer[idx[t] + c] as u64;
+            let (mut sxa, mut sya) = (run.sx, run.sy);
+            for x in run.x_start..run.x_end {
+                let (sxf, syf) = (((sxa + 128) >> 8) as i32, ((sya + 128) >> 8) as i32);
+                sxa += run.dsx;
+                sya += run.dsy;
+                let p = row + x;
+                if region[p] == 0 {
+                    continue;
                 }
+                let (i00, i10, i01, i11, fx, fy) =
+                    taps(sxf.clamp(0, max_x), syf.clamp(0, max_y), w, self.width, self.height);
+                let (fx, fy, one) = (fx as u32, fy as u32, ONE as u32);
+                let wts = [(one - fx) * (one - fy), fx * (one - fy), (one - fx) * fy, fx * fy];
+                let idx = [i00, i10, i01, i11];
+                let o = p * 4;
+                if idx.iter().all(|&i| layer[i + 3] == 255) {
+                    // Opaque taps: (255 S + DEN / 2) / DEN = (S + WSUM / 2) / WSUM exactly, the
+                    // background does not show.
+                    for c in 0..3 {
+                        let s: u32 = (0..4).map(|t| wts[t] * layer[idx[t] + c] as u32).sum();
+                        frame[o + c] = ((s + WSUM / 2) >> 16) as u8;
+                    }
+                    frame[o + 3] = 255;
+                    continue;
+                }
+                let mut a_sum = 0u32;
+                let mut c_sum = [0u32; 3];
+                for t in 0..4 {
+                    let wa = wts[t] * layer[idx[t] + 3] as u32;
+                    a_sum += wa;
+                    for c in 0..3 {
+                        c_sum[c] += wa * layer[idx[t] + c] as u32;
+                    }
+                }
+                if a_sum == 0 {
+                    continue;
+                }
+                let keep = DEN - a_sum;
+                for c in 0..3 {
+                    let num = c_sum[c] + frame[o + c] as u32 * keep;
+                    frame[o + c] = ((num + DEN / 2) / DEN) as u8;
+                }
+                frame[o + 3] = 255;
             }
-            if a_sum == 0 {
-                return;
-            }
-            let o = p * 4;
-            let keep = DEN - a_sum;
-            for c in 0..3 {
-                let num = c_sum[c] + frame[o + c] as u64 * keep;
-                frame[o + c] = ((num + DEN / 2) / DEN) as u8;
-            }
-            frame[o + 3] = 255;
-        });
+        }
     }
 
     /// The per-pixel source map `(map_x, map_y)` in pixels, as `cv2.remap` takes it (row-major
@@ -527,6 +551,73 @@ mod tests {
             assert_eq!(round4_i64([v, 0.5, -1.5, v])[0], want, "round4_i64({v:e})");
             assert_eq!(round4_i64([1.0, 2.0, 3.0, v])[3], want, "round4_i64 lane 3 ({v:e})");
         }
+    }
+
+    /// Alpha compositing of the bilinear, alpha-weighted layer over the frame, written out
+    /// per pixel in u64 with the formula (the definition `warp_over`'s fast paths must keep).
+    fn warp_over_reference(wp: &Warper, layer: &[u8], region: &[u8], frame: &mut [u8]) {
+        const DEN: u64 = 65536 * 255;
+        let w = wp.width;
+        wp.for_each_source(|x, y, sxf, syf| {
+            let p = y * w + x;
+            if region[p] == 0 {
+                return;
+            }
+            let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, wp.width, wp.height);
+            let (fx, fy) = (fx as u64, fy as u64);
+            let wts = [(256 - fx) * (256 - fy), fx * (256 - fy), (256 - fx) * fy, fx * fy];
+            let idx = [i00, i10, i01, i11];
+            let a: u64 = (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64).sum();
+            if a == 0 {
+                return;
+            }
+            for c in 0..3 {
+                let col: u64 =
+                    (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64 * layer[idx[t] + c] as u64).sum();
+                let num = col + frame[p * 4 + c] as u64 * (DEN - a);
+                frame[p * 4 + c] = ((num + DEN / 2) / DEN) as u8;
+            }
+            frame[p * 4 + 3] = 255;
+        });
+    }
+
+    #[test]
+    fn warp_over_equals_its_definition_for_opaque_soft_and_clear_layers() {
+        let (w, h) = (41, 29);
+        let mut wp = Warper::new(w, h, 4, 4);
+        let (cols, rows) = wp.corners();
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed >> 8
+        };
+        for cy in 0..rows {
+            for cx in 0..cols {
+                let d = [(next() % 1000) as f32 / 100.0 - 5.0, (next() % 1000) as f32 / 100.0 - 5.0];
+                wp.set_corner(cx, cy, d);
+            }
+        }
+        // Opaque in the middle, soft edges, clear outside; colours arbitrary.
+        let layer: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                let a = if (8..32).contains(&x) && (6..22).contains(&y) {
+                    255
+                } else if (5..35).contains(&x) && (3..25).contains(&y) {
+                    (next() % 256) as u8
+                } else {
+                    0
+                };
+                [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
+            })
+            .collect();
+        let region: Vec<u8> =
+            (0..w * h).map(|i| if (i % w) % 9 == 4 || i % 5 == 0 { 0 } else { 255 }).collect();
+        let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
+        let (mut got, mut want) = (frame.clone(), frame);
+        wp.warp_over(&layer, &region, &mut got);
+        warp_over_reference(&wp, &layer, &region, &mut want);
+        assert_eq!(got, want);
     }
 
     #[test]

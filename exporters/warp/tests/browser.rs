@@ -99,9 +99,18 @@ fn http(port: u16, method: &str, path: &str, body: Option<&Value>) -> std::io::R
     Ok((status, out))
 }
 
+/// A WebDriver session; dropping it (also when a test fails) closes the browser, then stops
+/// chromedriver, so no Chromium outlives the test.
 struct Driver {
     port: u16,
     session: String,
+    _chromedriver: Guard,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = http(self.port, "DELETE", &format!("/session/{}", self.session), None);
+    }
 }
 
 impl Driver {
@@ -223,7 +232,7 @@ fn start_server(args: &[&str]) -> (Guard, String) {
 }
 
 /// Starts chromedriver and a headless Chromium session of `width x height` on `url`.
-fn start_session(chromium: &Path, driver: &Path, profile: &Path, window: &str, url: &str) -> (Guard, Driver) {
+fn start_session(chromium: &Path, driver: &Path, profile: &Path, window: &str, url: &str) -> Driver {
     let port = free_port();
     let wd = Command::new(driver)
         .arg(format!("--port={port}"))
@@ -252,9 +261,10 @@ fn start_session(chromium: &Path, driver: &Path, profile: &Path, window: &str, u
     let (status, body) = http(port, "POST", "/session", Some(&caps)).expect("new session");
     let v: Value = serde_json::from_slice(&body).unwrap();
     assert_eq!(status, 200, "new session: {v}");
-    let d = Driver { port, session: v["value"]["sessionId"].as_str().unwrap().to_string() };
+    let d =
+        Driver { port, session: v["value"]["sessionId"].as_str().unwrap().to_string(), _chromedriver: guard };
     d.cmd("POST", "/url", Some(json!({ "url": url })));
-    (guard, d)
+    d
 }
 
 /// Saves a screenshot: over `exporters/warp/NAME` with `FROND_UPDATE_SCREENSHOT=1` (for the
@@ -301,7 +311,7 @@ fn page_loads_animates_and_controls_change_the_output() {
         "--socket-dir",
         &sockets,
     ]);
-    let (_wd, d) = start_session(&chromium, &driver, &tmp.path().join("profile"), "1100,640", &url);
+    let d = start_session(&chromium, &driver, &tmp.path().join("profile"), "1100,640", &url);
 
     // The page loads.
     assert_eq!(d.cmd("GET", "/title", None), json!("frond-warp preview"));
@@ -346,7 +356,6 @@ fn page_loads_animates_and_controls_change_the_output() {
     // Screenshot for the README.
     std::thread::sleep(Duration::from_millis(1500));
     save_screenshot(&d, "screenshot.png");
-    let _ = http(d.port, "DELETE", &format!("/session/{}", d.session), None);
 }
 
 /// The canvas's pixels (RGBA), read back from the page.
@@ -407,7 +416,7 @@ fn cage_page_morphs_the_plant_towards_a_stroke_drawn_with_the_pointer() {
         "--socket-dir",
         &sockets,
     ]);
-    let (_wd, d) = start_session(&chromium, &driver, &tmp.path().join("profile"), "1200,760", &url);
+    let d = start_session(&chromium, &driver, &tmp.path().join("profile"), "1200,760", &url);
     assert_eq!(d.cmd("GET", "/title", None), json!("frond-warp cage preview"));
     poll("a first frame", Duration::from_secs(20), || {
         (d.script("return window.frondStats.shown;").as_u64() > Some(0)).then_some(())
@@ -497,5 +506,4 @@ fn cage_page_morphs_the_plant_towards_a_stroke_drawn_with_the_pointer() {
         (d.script("return window.frondStats.drive;") == json!("rest") && d.diff_to_still() == 0.0)
             .then_some(())
     });
-    let _ = http(d.port, "DELETE", &format!("/session/{}", d.session), None);
 }
