@@ -295,15 +295,9 @@ pub struct RenderArgs {
     /// first layer's crown cage skinned to the plant skeleton, bent by --take's poses).
     #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
     pub mode: RenderMode,
-    /// Cage mode: the layer's cage tree (default: built from the layer as `cage build` does).
-    #[arg(long, value_name = "FILE")]
-    pub cage: Option<PathBuf>,
-    /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
-    #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
-    pub anchor: Option<String>,
-    /// Cage mode: the skeleton's rig (default: the take's own rig).
-    #[arg(long, value_name = "RIG")]
-    pub rig: Option<String>,
+    /// Cage mode: the cage tree and the skeleton.
+    #[command(flatten)]
+    pub cage: CageArgs,
     /// Frames to render [1, 100000].
     #[arg(long, allow_negative_numbers = true)]
     pub frames: i64,
@@ -316,6 +310,21 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The cage mode's tree and skeleton (`render --mode cage`, `serve --mode cage`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct CageArgs {
+    /// Cage mode: the layer's cage tree (default: built from the layer as `cage build` does).
+    #[arg(long, value_name = "FILE")]
+    pub cage: Option<PathBuf>,
+    /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
+    pub anchor: Option<String>,
+    /// Cage mode: the skeleton's rig (default: the take's own rig for `render`, the daemon's,
+    /// loaded by name, for `serve`).
+    #[arg(long, value_name = "RIG")]
+    pub rig: Option<String>,
 }
 
 /// How `render` moves the picture.
@@ -353,15 +362,9 @@ pub struct ServeArgs {
     /// layer's cage tree; sketch on the page with the pointer, or bend it with the live hand).
     #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
     pub mode: RenderMode,
-    /// Cage mode: the layer's cage tree (default: built from the layer as `cage build` does).
-    #[arg(long, value_name = "FILE")]
-    pub cage: Option<PathBuf>,
-    /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
-    #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
-    pub anchor: Option<String>,
-    /// Cage mode: the skeleton's rig (default: the daemon's rig, loaded by name).
-    #[arg(long, value_name = "RIG")]
-    pub rig: Option<String>,
+    /// Cage mode: the cage tree and the skeleton.
+    #[command(flatten)]
+    pub cage: CageArgs,
     /// Cage mode: how long a morph towards a sketch plays, seconds (0, 60].
     #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub morph_s: f64,

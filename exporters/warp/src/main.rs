@@ -111,9 +111,9 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     }
     let mut ck = Checker::new();
     for (flag, given) in [
-        ("--cage", args.cage.is_some()),
-        ("--anchor", args.anchor.is_some()),
-        ("--rig", args.rig.is_some()),
+        ("--cage", args.cage.cage.is_some()),
+        ("--anchor", args.cage.anchor.is_some()),
+        ("--rig", args.cage.rig.is_some()),
         ("--no-adapt", args.no_adapt),
         ("--no-prune", args.no_prune),
     ] {
@@ -138,28 +138,36 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     )
 }
 
+/// The checks both cage modes make (no wind, one layer, a readable anchor), into `ck`; the
+/// anchor if one was given and it parses.
+fn check_cage_mode(
+    ck: &mut Checker,
+    wind_sim: Option<&str>,
+    layers: usize,
+    cage: &frond_warp::cli::CageArgs,
+) -> Option<Result<[f64; 2], String>> {
+    if let Some(spec) = wind_sim {
+        ck.push("--wind-sim", spec, "the cage mode has no wind; drop it");
+    }
+    if layers != 1 {
+        ck.push("--layer", layers, "the cage mode bends exactly one layer");
+    }
+    let anchor = cage.anchor.as_deref().map(frond_warp::cages::parse_point);
+    if let Some(Err(e)) = &anchor {
+        ck.push("--anchor", cage.anchor.as_deref().unwrap_or_default(), e);
+    }
+    anchor
+}
+
 /// `serve --mode cage`.
 fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
     let mut ck = Checker::new();
-    if args.wind_sim.is_some() {
-        ck.push(
-            "--wind-sim",
-            args.wind_sim.as_deref().unwrap_or_default(),
-            "the cage mode has no wind; drop it",
-        );
-    }
-    if args.scene.layers.len() != 1 {
-        ck.push("--layer", args.scene.layers.len(), "the cage mode bends exactly one layer");
-    }
+    let anchor = check_cage_mode(&mut ck, args.wind_sim.as_deref(), args.scene.layers.len(), &args.cage);
     if !(args.morph_s > 0.0 && args.morph_s <= 60.0) {
         ck.push("--morph-s", args.morph_s, "out of range (allowed: above 0 to 60 seconds)");
     }
-    let anchor = args.anchor.as_deref().map(frond_warp::cages::parse_point);
-    if let Some(Err(e)) = &anchor {
-        ck.push("--anchor", args.anchor.as_deref().unwrap_or_default(), e);
-    }
     ck.finish()?;
-    let rig = match &args.rig {
+    let rig = match &args.cage.rig {
         Some(spec) => {
             let rig = frond_motion::rig_files::load_rig(spec).with_context(|| format!("rig {spec}"))?;
             Some((rig.rig.name.clone(), frond_motion::skeleton::Skeleton::from_rig(&rig.rig)))
@@ -167,7 +175,7 @@ fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
         None => None,
     };
     let scene = load_scene(&args.scene)?;
-    let tree = frond_warp::morph::scene_tree(&scene, args.cage.as_deref())?;
+    let tree = frond_warp::morph::scene_tree(&scene, args.cage.cage.as_deref())?;
     frond_warp::serve_cage::serve_cage(
         scene,
         tree,
@@ -190,28 +198,15 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     if args.take.is_none() {
         ck.push("--take", "(none)", "--mode cage needs a take: its poses bend the plant");
     }
-    if args.wind_sim.is_some() {
-        ck.push(
-            "--wind-sim",
-            args.wind_sim.as_deref().unwrap_or_default(),
-            "the cage mode has no wind; drop it",
-        );
-    }
-    if args.scene.layers.len() != 1 {
-        ck.push("--layer", args.scene.layers.len(), "the cage mode bends exactly one layer");
-    }
-    let anchor = args.anchor.as_deref().map(frond_warp::cages::parse_point);
-    if let Some(Err(e)) = &anchor {
-        ck.push("--anchor", args.anchor.as_deref().unwrap_or_default(), e);
-    }
+    let anchor = check_cage_mode(&mut ck, args.wind_sim.as_deref(), args.scene.layers.len(), &args.cage);
     ck.finish()?;
     let take = args.take.as_deref().expect("checked");
     let track = read_take(take, "using")?;
-    let rig_spec = args.rig.clone().or_else(|| track.rig_name.clone()).unwrap_or_else(|| "grass".into());
+    let rig_spec = args.cage.rig.clone().or_else(|| track.rig_name.clone()).unwrap_or_else(|| "grass".into());
     let rig = frond_motion::rig_files::load_rig(&rig_spec).with_context(|| format!("rig {rig_spec}"))?;
     let scene = load_scene(&args.scene)?;
     let job = frond_warp::cage_skin::CageTakeJob {
-        cage: args.cage.clone(),
+        cage: args.cage.cage.clone(),
         anchor: anchor.transpose().map_err(anyhow::Error::msg)?,
         skeleton: frond_motion::skeleton::Skeleton::from_rig(&rig.rig),
         frames: args.frames as usize,

@@ -5,7 +5,8 @@
 //! and reports the connection state), and the HTTP server (tiny_http) serving:
 //!
 //! - `GET /` the page (canvas, controls, daemon state, frames per second);
-//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers);
+//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers;
+//!   `?have=N` answers 204, no body, while frame `N` is still the latest);
 //! - `GET /still` the unwarped composite, raw RGBA (what a still frame looks like);
 //! - `GET /status` JSON: frame number, simulation fps, daemon state, wind source, parameters;
 //! - `POST /params` JSON controls (`direction_deg`, `strength`, `interval_s`, `gamma`, `c`,
@@ -136,9 +137,7 @@ pub struct ServeOptions {
 
 /// Runs the preview until the process ends. Prints `listening on http://ADDR/` once bound.
 pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
-    let server =
-        Server::http(&opts.listen).map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", opts.listen))?;
-    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| opts.listen.clone());
+    let (server, addr) = bind(&opts.listen)?;
     let shared = Arc::new(Mutex::new(Shared {
         frame: animator.frame().to_vec(),
         frame_no: 0,
@@ -167,17 +166,14 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
         let dir = opts.socket_dir.clone();
         std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(dir, shared))?;
     }
-    println!("listening on http://{addr}/");
-    eprintln!("frond-warp: serving a {w}x{h} preview on http://{addr}/");
-    use std::io::Write;
-    let _ = std::io::stdout().flush();
+    announce(&addr, &format!("a {w}x{h} preview"));
     for mut req in server.incoming_requests() {
         let url = req.url().split('?').next().unwrap_or("").to_string();
         let resp = match (req.method(), url.as_str()) {
             (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
             (Method::Get, "/frame") => {
                 let s = shared.lock().expect("lock");
-                raw_frame(s.frame.clone(), w, h, s.frame_no)
+                latest_frame(req.url(), &s.frame, w, h, s.frame_no)
             }
             (Method::Get, "/still") => Response::from_data(still.clone())
                 .with_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header")),
@@ -220,6 +216,22 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The HTTP server on `listen`, and the address it got (a port 0 picks a free one).
+pub(crate) fn bind(listen: &str) -> anyhow::Result<(Server, String)> {
+    let server = Server::http(listen).map_err(|e| anyhow::anyhow!("cannot listen on {listen}: {e}"))?;
+    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| listen.to_string());
+    Ok((server, addr))
+}
+
+/// Prints `listening on http://ADDR/` (the line scripts and tests wait for) and says what is
+/// served on stderr.
+pub(crate) fn announce(addr: &str, what: &str) {
+    use std::io::Write;
+    println!("listening on http://{addr}/");
+    eprintln!("frond-warp: serving {what} on http://{addr}/");
+    let _ = std::io::stdout().flush();
+}
+
 /// The request's body as UTF-8 text, refused (with the limit named) when over `limit` bytes.
 pub(crate) fn read_body(req: &mut tiny_http::Request, limit: u64) -> Result<String, String> {
     let mut body = Vec::new();
@@ -231,6 +243,27 @@ pub(crate) fn read_body(req: &mut tiny_http::Request, limit: u64) -> Result<Stri
         return Err(format!("request body over {limit} bytes"));
     }
     String::from_utf8(body).map_err(|_| "request body is not UTF-8".to_string())
+}
+
+/// `GET /frame[?have=N]`: frame `frame_no` as [`raw_frame`], or 204 (no body) when the client
+/// says it has it already.
+pub(crate) fn latest_frame(
+    url: &str,
+    rgba: &[u8],
+    w: usize,
+    h: usize,
+    frame_no: u64,
+) -> Response<std::io::Cursor<Vec<u8>>> {
+    if have_frame(url) == Some(frame_no) {
+        text(204, "", "text/plain")
+    } else {
+        raw_frame(rgba.to_vec(), w, h, frame_no)
+    }
+}
+
+/// `N` of a `?have=N` query.
+fn have_frame(url: &str) -> Option<u64> {
+    url.split_once('?')?.1.split('&').find_map(|kv| kv.strip_prefix("have=")?.parse().ok())
 }
 
 /// A raw RGBA frame with its size and number in `X-Width`, `X-Height`, `X-Frame`.
@@ -403,3 +436,17 @@ pub(crate) fn follow_daemon(dir: &std::path::Path, fallback: &str, mut on: impl 
 }
 
 const PAGE: &str = include_str!("page.html");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_have_query_is_read_and_anything_else_ignored() {
+        assert_eq!(have_frame("/frame?have=12"), Some(12));
+        assert_eq!(have_frame("/frame?x=1&have=7"), Some(7));
+        assert_eq!(have_frame("/frame"), None);
+        assert_eq!(have_frame("/frame?have=-1"), None);
+        assert_eq!(have_frame("/frame?have=99999999999999999999999"), None);
+    }
+}

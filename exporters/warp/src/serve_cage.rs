@@ -14,8 +14,8 @@
 //! server:
 //!
 //! - `GET /` the page;
-//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers);
-//!   `GET /frame?have=N` answers 204 (no body) while frame `N` is still the latest;
+//! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers;
+//!   `?have=N` answers 204, no body, while frame `N` is still the latest);
 //! - `GET /still` the picture at rest, raw RGBA;
 //! - `GET /cages` the current cages, JSON `{"size":[w,h],"crown":ID,"cages":[{"id":..,
 //!   "parent":..|null,"kind":"internal"|"leaf","pruned":bool,"vertices":[[x,y],...]}]}`;
@@ -34,12 +34,14 @@ use frond_cage::morph::{MorphOptions, MorphPlan};
 use frond_cage::sketch::Sketch;
 use frond_cage::{CageKind, CageTree, Point};
 use frond_motion::skeleton::Skeleton;
-use tiny_http::{Method, Server};
+use tiny_http::Method;
 
 use crate::Scene;
 use crate::cage_skin::CageSkin;
 use crate::morph::{MAX_SKETCH_FILE_BYTES, MorphFrames};
-use crate::serve::{DaemonEvent, DaemonState, follow_daemon, raw_frame, read_body, text};
+use crate::serve::{
+    DaemonEvent, DaemonState, announce, bind, follow_daemon, latest_frame, raw_frame, read_body, text,
+};
 
 /// Frame rate of the cage preview.
 pub const CAGE_SERVE_FPS: f64 = 30.0;
@@ -105,9 +107,7 @@ struct Shared {
 /// Runs the cage preview of `scene`'s first layer with cage tree `tree` until the process ends.
 /// Prints `listening on http://ADDR/` once bound.
 pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyhow::Result<()> {
-    let server =
-        Server::http(&opts.listen).map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", opts.listen))?;
-    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| opts.listen.clone());
+    let (server, addr) = bind(&opts.listen)?;
     let (w, h) = (scene.width, scene.height);
     let still = scene.still();
     let fixed_rig = opts.rig.is_some();
@@ -144,10 +144,7 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
             .name("warp-poses".into())
             .spawn(move || follow_daemon(&dir, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
     }
-    println!("listening on http://{addr}/");
-    eprintln!("frond-warp: serving a {w}x{h} cage preview on http://{addr}/");
-    use std::io::Write;
-    let _ = std::io::stdout().flush();
+    announce(&addr, &format!("a {w}x{h} cage preview"));
     let crown_id = tree.cages[frond_cage::morph::largest_root(&tree)].id;
     for mut req in server.incoming_requests() {
         let url = req.url().split('?').next().unwrap_or("").to_string();
@@ -155,11 +152,7 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
             (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
             (Method::Get, "/frame") => {
                 let s = shared.lock().expect("lock");
-                if have_frame(req.url()) == Some(s.frame_no) {
-                    text(204, "", "text/plain")
-                } else {
-                    raw_frame(s.frame.clone(), w, h, s.frame_no)
-                }
+                latest_frame(req.url(), &s.frame, w, h, s.frame_no)
             }
             (Method::Get, "/still") => raw_frame(still.clone(), w, h, 0),
             (Method::Get, "/cages") => {
@@ -355,11 +348,6 @@ impl FpsWindow {
     }
 }
 
-/// `N` of a `?have=N` query.
-fn have_frame(url: &str) -> Option<u64> {
-    url.split_once('?')?.1.split('&').find_map(|kv| kv.strip_prefix("have=")?.parse().ok())
-}
-
 /// `GET /cages`: the tree's structure with the current vertices.
 fn cages_json(tree: &CageTree, crown: u32, now: &[Vec<Point>], pruned: &[bool]) -> String {
     let round = |p: &Point| [(p[0] * 100.0).round() / 100.0, (p[1] * 100.0).round() / 100.0];
@@ -385,15 +373,6 @@ const PAGE: &str = include_str!("cage_page.html");
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_have_query_is_read_and_anything_else_ignored() {
-        assert_eq!(have_frame("/frame?have=12"), Some(12));
-        assert_eq!(have_frame("/frame?x=1&have=7"), Some(7));
-        assert_eq!(have_frame("/frame"), None);
-        assert_eq!(have_frame("/frame?have=-1"), None);
-        assert_eq!(have_frame("/frame?have=99999999999999999999999"), None);
-    }
 
     #[test]
     fn cages_json_carries_the_structure_and_the_current_vertices() {
