@@ -22,7 +22,7 @@ use geo::{Area, BooleanOps, Polygon};
 
 use crate::Point;
 use crate::laplacian::LaplacianEditor;
-use crate::mvc::{apply, mean_value_coordinates};
+use crate::mvc::{apply, map_point, mean_value_coordinates};
 use crate::outline::{bounds, dist, resample_open, to_line_string};
 use crate::sketch::Sketch;
 use crate::tree::{CageTree, contains, outside_by};
@@ -245,8 +245,7 @@ impl MorphPlan {
         if !placed.moved[cage] {
             return (p, cage);
         }
-        mean_value_coordinates(&now[cage], p, weights);
-        (apply(&cages[cage].vertices, weights), cage)
+        (map_point(&now[cage], &cages[cage].vertices, p, weights), cage)
     }
 }
 

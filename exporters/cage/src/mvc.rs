@@ -107,6 +107,72 @@ pub fn mean_value_coordinates(cage: &[Point], x: Point, weights: &mut Vec<f64>) 
     }
 }
 
+/// Most vertices [`map_point`] takes on its fast path (more take [`mean_value_coordinates`]).
+const FAST_MAX: usize = 128;
+
+/// `apply(target, mvc(cage, x))`: the point with `x`'s mean value coordinates in `cage` applied
+/// to `target` (the same polygon elsewhere, one point per vertex), without storing the weights.
+///
+/// The same coordinates as [`mean_value_coordinates`]; away from the boundary (no vertex within
+/// 1e-9 of the polygon's size, no edge nearly through `x`) they are computed in one pass over
+/// arrays on the stack, with no stored weights and no branches per vertex; near it, and for polygons of more than 128
+/// vertices, by [`mean_value_coordinates`] with its explicit limits. `scratch` serves the latter.
+pub fn map_point(cage: &[Point], target: &[Point], x: Point, scratch: &mut Vec<f64>) -> Point {
+    let n = cage.len();
+    debug_assert_eq!(n, target.len());
+    if !(3..=FAST_MAX).contains(&n) {
+        mean_value_coordinates(cage, x, scratch);
+        return apply(target, scratch);
+    }
+    map_fast(cage, target, x).unwrap_or_else(|| {
+        mean_value_coordinates(cage, x, scratch);
+        apply(target, scratch)
+    })
+}
+
+/// The branch-free body of [`map_point`] for 3 to [`FAST_MAX`] vertices; `None` near the
+/// boundary (or on cancellation), where the explicit limits take over.
+#[inline]
+fn map_fast(cage: &[Point], target: &[Point], x: Point) -> Option<Point> {
+    let n = cage.len();
+    let (mut sx, mut sy, mut r) = ([0.0f64; FAST_MAX + 1], [0.0f64; FAST_MAX + 1], [0.0f64; FAST_MAX + 1]);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for (i, v) in cage.iter().enumerate() {
+        sx[i] = v[0] - x[0];
+        sy[i] = v[1] - x[1];
+        r[i] = (sx[i] * sx[i] + sy[i] * sy[i]).sqrt();
+        lo = [lo[0].min(v[0]), lo[1].min(v[1])];
+        hi = [hi[0].max(v[0]), hi[1].max(v[1])];
+    }
+    (sx[n], sy[n], r[n]) = (sx[0], sy[0], r[0]);
+    let scale = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let mut near = false;
+    let mut t = [0.0f64; FAST_MAX + 1];
+    for i in 0..n {
+        let (rr, d, a2) =
+            (r[i] * r[i + 1], sx[i] * sx[i + 1] + sy[i] * sy[i + 1], sx[i] * sy[i + 1] - sy[i] * sx[i + 1]);
+        // Eq. 11 in whichever of its two forms does not divide 0 by 0 (see above).
+        let pos = d >= 0.0;
+        let (num, den) = if pos { (a2, rr + d) } else { (rr - d, a2) };
+        t[i + 1] = num / den;
+        near |= (!pos) & (a2.abs() <= 1e-9 * rr);
+        near |= r[i] <= 1e-9 * scale;
+    }
+    t[0] = t[n];
+    if near {
+        return None;
+    }
+    // t[i + 1] is edge i's; w_i = (t_{i-1} + t_i) / r_i.
+    let (mut sum, mut px, mut py) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let w = (t[i] + t[i + 1]) / r[i];
+        sum += w;
+        px += w * target[i][0];
+        py += w * target[i][1];
+    }
+    (sum.is_finite() && sum != 0.0).then(|| [px / sum, py / sum])
+}
+
 /// The point with coordinates `weights` with respect to `cage`: `sum_j w_j v_j` (step 1: a finer
 /// cage's vertex follows its parent's moved vertices).
 pub fn apply(cage: &[Point], weights: &[f64]) -> Point {
@@ -262,6 +328,28 @@ mod tests {
             let moved: Vec<Point> = cage.iter().map(|&v| f(v)).collect();
             let (got, want) = (apply(&moved, &w), f([x, y]));
             prop_assert!((got[0] - want[0]).abs() < 1e-7 && (got[1] - want[1]).abs() < 1e-7);
+        }
+
+        /// The one-pass `map_point` gives the point the stored weights give, inside, outside,
+        /// on vertices and on edges (where it hands over to the explicit limits).
+        #[test]
+        fn map_point_equals_applying_the_weights(
+            n in 3usize..140,
+            seed in prop::collection::vec(0.0f64..1.0, 1..24),
+            x in -1.2f64..1.2, y in -1.2f64..1.2,
+            on in 0usize..3, k in 0usize..1000, u in 0.0f64..1.0,
+        ) {
+            let cage = star(n, &seed);
+            let target: Vec<Point> = cage.iter().map(|v| [3.0 * v[0] - v[1] + 7.0, v[0] * v[1] + 2.0 * v[1]]).collect();
+            let (a, b) = (cage[k % n], cage[(k + 1) % n]);
+            let p = match on {
+                0 => [x, y],
+                1 => a,
+                _ => [a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1])],
+            };
+            let want = apply(&target, &coords(&cage, p));
+            let got = map_point(&cage, &target, p, &mut Vec::new());
+            prop_assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9, "{got:?} {want:?}");
         }
     }
 }
