@@ -229,8 +229,10 @@ impl MorphPlan {
             let b = placed.boxes[i];
             p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3] && contains(&now[i], p)
         };
-        while let Some(&hit) =
-            level.iter().find(|&&i| !self.pruned[i] && holds(i)).or_else(|| level.iter().find(|&&i| holds(i)))
+        while let Some(&hit) = level
+            .iter()
+            .find(|&&i| !self.pruned[i] && holds(i))
+            .or_else(|| level.iter().find(|&&i| self.pruned[i] && holds(i)))
         {
             at = Some(hit);
             level = &cages[hit].children;
