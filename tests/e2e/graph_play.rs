@@ -152,6 +152,18 @@ fn walkers_play_live_and_follow_their_goal() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // A graph given by its file in the takes directory; one elsewhere is refused with the reason.
+    let file = daemon.takes_dir.join("breeze.graph.json");
+    let out =
+        daemon.frond_ok(&["graph", "play", "breeze", "--plants", "2", "--graph", file.to_str().unwrap()]);
+    assert!(out.contains("2 plants walking"), "{out}");
+    daemon.frond_ok(&["graph", "stop"]);
+    let copy = dir.path().join("breeze.graph.json");
+    std::fs::copy(&file, &copy).unwrap();
+    let out =
+        daemon.frond().args(["graph", "play", "breeze", "--graph", copy.to_str().unwrap()]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("only from its takes directory"));
 }
 
 #[test]

@@ -25,9 +25,10 @@ pub enum GraphCommand {
         /// Take names (in the takes directory), at most 8.
         #[arg(required = true, num_args = 1..)]
         takes: Vec<String>,
-        /// Graph names in the takes directory, one per take in order [default: each take's own,
-        /// TAKE.graph.json].
-        #[arg(long, value_name = "NAME")]
+        /// Graphs, one per take in order: a NAME (NAME.graph.json in the takes directory) or
+        /// the path of a graph file in that directory (the daemon reads only its own takes
+        /// directory) [default: each take's own, TAKE.graph.json].
+        #[arg(long, value_name = "NAME|FILE")]
         graph: Vec<String>,
         /// Plants walking (1..=64).
         #[arg(long, default_value_t = 8, value_name = "N")]
@@ -114,6 +115,35 @@ pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, S
     }
 }
 
+/// The graph name of a `--graph` argument: a NAME as it is, or a path (holding `/` or ending in
+/// `.graph.json`) to a graph file that lies in `takes_dir`, whose name it then gives.
+fn graph_name(arg: &str, takes_dir: &std::path::Path) -> Result<String, String> {
+    const SUFFIX: &str = ".graph.json";
+    if !arg.contains('/') && !arg.ends_with(SUFFIX) {
+        return Ok(arg.to_string());
+    }
+    let path = std::path::Path::new(arg);
+    let file = std::fs::canonicalize(path).map_err(|e| format!("cannot open the graph file: {e}"))?;
+    if !file.is_file() {
+        return Err("not a regular file".into());
+    }
+    let name = file
+        .file_name()
+        .and_then(|n| n.to_str())
+        .and_then(|n| n.strip_suffix(SUFFIX))
+        .filter(|n| !n.is_empty())
+        .ok_or_else(|| format!("a graph file is named NAME{SUFFIX} (as `frond take graph` writes it)"))?;
+    let in_takes_dir = std::fs::canonicalize(takes_dir).is_ok_and(|d| file.parent() == Some(d.as_path()));
+    if !in_takes_dir {
+        return Err(format!(
+            "the daemon reads graphs only from its takes directory {}: build the graph there \
+             (`frond take graph TAKE`, the default) or copy the file into it",
+            takes_dir.display()
+        ));
+    }
+    Ok(name.to_string())
+}
+
 /// Runs one `frond graph` command.
 pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
     match cmd {
@@ -135,9 +165,16 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
                     graph.len()
                 ));
             }
+            let takes_dir = frond_protocol::paths::takes_dir(g.takes_dir.clone());
             let mut sources = Vec::with_capacity(takes.len());
             for (i, take) in takes.iter().enumerate() {
-                let graph = graph.get(i).unwrap_or(take).clone();
+                let graph = match graph.get(i) {
+                    Some(arg) => match graph_name(arg, &takes_dir) {
+                        Ok(name) => name,
+                        Err(e) => return crate::usage(format!("--graph {arg:?}: {e}")),
+                    },
+                    None => take.clone(),
+                };
                 for (what, name) in [("take", take), ("--graph", &graph)] {
                     if let Err(e) = frond_protocol::paths::validate_take_name(name) {
                         return crate::usage(format!("{what}: {e}"));
@@ -183,6 +220,28 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn graph_arguments_are_names_or_files_in_the_takes_directory() {
+        let takes = tempfile::tempdir().unwrap();
+        let elsewhere = tempfile::tempdir().unwrap();
+        for dir in [takes.path(), elsewhere.path()] {
+            std::fs::write(dir.join("breeze.graph.json"), "{}").unwrap();
+            std::fs::write(dir.join("breeze.json"), "{}").unwrap();
+        }
+        assert_eq!(graph_name("breeze", takes.path()), Ok("breeze".into()));
+        let inside = takes.path().join("breeze.graph.json");
+        assert_eq!(graph_name(inside.to_str().unwrap(), takes.path()), Ok("breeze".into()));
+        let outside = elsewhere.path().join("breeze.graph.json");
+        let e = graph_name(outside.to_str().unwrap(), takes.path()).unwrap_err();
+        assert!(e.contains("only from its takes directory"), "{e}");
+        let e = graph_name(takes.path().join("breeze.json").to_str().unwrap(), takes.path()).unwrap_err();
+        assert!(e.contains("NAME.graph.json"), "{e}");
+        let e = graph_name(takes.path().join("gone.graph.json").to_str().unwrap(), takes.path()).unwrap_err();
+        assert!(e.contains("cannot open"), "{e}");
+        let e = graph_name(takes.path().to_str().unwrap(), takes.path()).unwrap_err();
+        assert!(e.contains("not a regular file"), "{e}");
+    }
 
     #[test]
     fn goals_parse_and_bad_ones_say_why() {
