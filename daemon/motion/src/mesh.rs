@@ -245,7 +245,11 @@ fn two_sided_strip(mesh: &mut SkinnedMesh, skel: &Skeleton, rows: &[(f32, f32)],
             if let Some((pl, pr)) = prev {
                 // Front (+Z) faces counter-clockwise; the back side reverses the winding.
                 let mut quad = |a, b, c| if side > 0.0 { mesh.tri(a, b, c) } else { mesh.tri(a, c, b) };
-                quad(pl, pr, r);
+                // A row of zero width (a leaf's base or tip) is one vertex: no triangle may
+                // repeat it, or importers find degenerate faces (Blender's USD importer did).
+                if pl != pr {
+                    quad(pl, pr, r);
+                }
                 if l != r {
                     quad(pl, r, l);
                 }
@@ -441,6 +445,12 @@ mod tests {
             assert!(m.stem.indices.len() >= 3 * 10, "{shape}");
             for e in &m.elements {
                 e.mesh.check().unwrap();
+            }
+            // No triangle repeats a vertex (importers report such faces as invalid).
+            for mesh in std::iter::once(&m.stem).chain(m.elements.iter().map(|e| &e.mesh)) {
+                for t in mesh.indices.chunks_exact(3) {
+                    assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2], "{shape}: degenerate {t:?}");
+                }
             }
             // Planted: something below ground, all of it weighted to joint 0.
             let below: Vec<_> =
