@@ -152,12 +152,21 @@ pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    let mut tmp = match std::fs::metadata(path) {
+        Ok(meta) => {
+            // Keep the replaced file's permissions.
+            let tmp = tempfile::NamedTempFile::new_in(dir)?;
+            tmp.as_file().set_permissions(meta.permissions())?;
+            tmp
+        }
+        // A new file gets what any new file gets (0666 less the umask), not the temporary
+        // file's private 0600: an export is meant to be read by other tools and users.
+        Err(_) => {
+            use std::os::unix::fs::PermissionsExt;
+            tempfile::Builder::new().permissions(std::fs::Permissions::from_mode(0o666)).tempfile_in(dir)?
+        }
+    };
     tmp.write_all(bytes)?;
-    if let Ok(meta) = std::fs::metadata(path) {
-        // Keep the replaced file's permissions (the temporary file is created 0600).
-        tmp.as_file().set_permissions(meta.permissions())?;
-    }
     tmp.as_file().sync_all()?;
     tmp.persist(path).map(|_| ()).map_err(|e| e.error)
 }
@@ -265,6 +274,22 @@ pub fn load_rig(spec: &str) -> Result<LoadedRig, RigFileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn atomic_writes_give_new_files_the_usual_mode_and_keep_a_replaced_ones() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        // The mode any new file gets here (0666 less the umask), made the ordinary way.
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, b"x").unwrap();
+        let new = dir.path().join("new.bvh");
+        write_file_atomically(&new, b"one").unwrap();
+        assert_eq!(mode(&new), mode(&plain));
+        std::fs::set_permissions(&new, std::fs::Permissions::from_mode(0o640)).unwrap();
+        write_file_atomically(&new, b"two").unwrap();
+        assert_eq!((mode(&new), std::fs::read(&new).unwrap()), (0o640, b"two".to_vec()));
+    }
 
     #[test]
     fn embedded_rigs_load_by_name_and_name_themselves() {
