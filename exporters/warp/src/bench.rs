@@ -241,7 +241,7 @@ pub fn bench_cage(w: usize, h: usize, iterations: usize) -> CageBench {
         row[1] = ms(t0);
         let t0 = Instant::now();
         frame.copy_from_slice(&scene.background);
-        frames.warper().warp_over(frames.layer(), frames.region(), &mut frame);
+        frames.warp_over(&mut frame);
         row[3] = ms(t0);
         let t0 = Instant::now();
         plain.remap(&src, &mut dst);

@@ -24,7 +24,7 @@ use frond_motion::rig_files::read_small_text;
 use crate::Scene;
 use crate::cages::{CageCommandError, read_cage_file};
 use crate::render::{OutputKind, Progress, Sink};
-use crate::warp::Warper;
+use crate::warp::{OpaqueTiles, Warper};
 
 /// Largest `sketch.json` read, bytes.
 pub const MAX_SKETCH_FILE_BYTES: u64 = 4 << 20;
@@ -144,6 +144,8 @@ pub struct MorphFrames<'a> {
     any_pruned: bool,
     warper: Warper,
     layer_t: Vec<u8>,
+    /// Which tiles of `layer_t` are opaque (the compositing's fast path).
+    opaque: OpaqueTiles,
     region: Vec<u8>,
     /// The deformed crowns before growing, and the horizontal pass of the growing.
     filled: Vec<u8>,
@@ -181,6 +183,7 @@ impl<'a> MorphFrames<'a> {
             any_pruned: plan.pruned().iter().any(|&p| p),
             warper: Warper::new(w, h, CAGE_CELL_PX, CAGE_CELL_PX),
             layer_t: layer.pixels.clone(),
+            opaque: OpaqueTiles::new(&layer.pixels, w, h),
             region: vec![0; w * h],
             filled: vec![0; w * h],
             tmp: vec![0; w * h],
@@ -329,6 +332,7 @@ impl<'a> MorphFrames<'a> {
             {
                 out[3] = if pr != 0 { (px[3] as f64 * keep).round() as u8 } else { px[3] };
             }
+            self.opaque.update(&self.layer_t, w, h);
         }
         // Only the crowns' box (grown by the slack) can be set: the rest stays 0.
         let s = self.slack as f64;
@@ -364,7 +368,12 @@ impl<'a> MorphFrames<'a> {
         self.update_field();
         frame.clear();
         frame.extend_from_slice(&self.scene.background);
-        self.warper.warp_over(&self.layer_t, &self.region, frame);
+        self.warp_over(frame);
+    }
+
+    /// Warps the layer as last drawn over `frame` in the last frame's region.
+    pub fn warp_over(&self, frame: &mut [u8]) {
+        self.warper.warp_over_opaque(&self.layer_t, &self.opaque, &self.region, frame);
     }
 
     /// The cages of the last frame (one vertex list per cage of the plan's tree).

@@ -20,8 +20,10 @@
 use crate::params::Horizon;
 
 mod kernels;
+mod over;
 
 pub use kernels::RemapKernel;
+pub use over::OpaqueTiles;
 
 /// Fraction bits of the fixed-point source coordinates.
 const FRAC_BITS: u32 = 8;
@@ -140,7 +142,27 @@ impl Warper {
     /// compiled with their own target features, inline into the loop over it.
     #[inline(always)]
     fn runs(&self) -> Runs<'_> {
-        Runs { warper: self, y: 0, cx: usize::MAX, v: 0.0, left: [0.0; 2] }
+        Runs {
+            warper: self,
+            y: 0,
+            cx: usize::MAX,
+            cx_end: usize::MAX,
+            one_row: false,
+            v: 0.0,
+            left: [0.0; 2],
+        }
+    }
+
+    /// The runs of row `y` in cell columns `cx_start..cx_end` only.
+    #[inline(always)]
+    fn row_runs(&self, y: usize, cx_start: usize, cx_end: usize) -> Runs<'_> {
+        let mut runs = Runs { warper: self, y, cx: cx_start, cx_end, one_row: true, v: 0.0, left: [0.0; 2] };
+        let cy = y / self.cell_y;
+        runs.v = (y - cy * self.cell_y) as f32 * (1.0 / self.cell_y as f32);
+        if cx_start + 1 < self.cols {
+            runs.left = runs.edge(cx_start);
+        }
+        runs
     }
 
     /// Eq. 8 for every pixel: calls `f(x, y, src_x, src_y)` with the source point in fixed point
@@ -208,75 +230,6 @@ impl Warper {
                     sxa += run.dsx;
                     sya += run.dsy;
                 }
-            }
-        }
-    }
-
-    /// Warps a straight-alpha RGBA layer and composites it over the opaque RGBA `frame`, only at
-    /// pixels where `region` is non-zero (pixels outside the region are never written).
-    ///
-    /// Colours are filtered weighted by alpha (no dark fringes) and blended in one rounding, so
-    /// where the displacement is zero and the frame already holds the layer's colour the frame
-    /// stays the same byte for byte.
-    pub fn warp_over(&self, layer: &[u8], region: &[u8], frame: &mut [u8]) {
-        let w = self.width;
-        let n = w * self.height;
-        assert!(layer.len() >= n * 4 && frame.len() >= n * 4 && region.len() >= n, "buffer size");
-        // Weights sum to ONE^2 = 65536; alpha up to 255. Every sum below fits in u32:
-        // 65536 * 255 * 255 + DEN / 2 < 2^32.
-        const WSUM: u32 = (ONE * ONE) as u32;
-        const DEN: u32 = WSUM * 255;
-        let max_x = (self.width as i32 - 1) * ONE;
-        let max_y = (self.height as i32 - 1) * ONE;
-        for run in self.runs() {
-            let row = run.y * w;
-            // Runs with nothing to draw are skipped whole (the region is mostly empty).
-            if region[row + run.x_start..row + run.x_end].iter().all(|&r| r == 0) {
-                continue;
-            }
-            let (mut sxa, mut sya) = (run.sx, run.sy);
-            for x in run.x_start..run.x_end {
-                let (sxf, syf) = (((sxa + 128) >> 8) as i32, ((sya + 128) >> 8) as i32);
-                sxa += run.dsx;
-                sya += run.dsy;
-                let p = row + x;
-                if region[p] == 0 {
-                    continue;
-                }
-                let (i00, i10, i01, i11, fx, fy) =
-                    taps(sxf.clamp(0, max_x), syf.clamp(0, max_y), w, self.width, self.height);
-                let (fx, fy, one) = (fx as u32, fy as u32, ONE as u32);
-                let wts = [(one - fx) * (one - fy), fx * (one - fy), (one - fx) * fy, fx * fy];
-                let idx = [i00, i10, i01, i11];
-                let o = p * 4;
-                if idx.iter().all(|&i| layer[i + 3] == 255) {
-                    // Opaque taps: (255 S + DEN / 2) / DEN = (S + WSUM / 2) / WSUM exactly, the
-                    // background does not show.
-                    for c in 0..3 {
-                        let s: u32 = (0..4).map(|t| wts[t] * layer[idx[t] + c] as u32).sum();
-                        frame[o + c] = ((s + WSUM / 2) >> 16) as u8;
-                    }
-                    frame[o + 3] = 255;
-                    continue;
-                }
-                let mut a_sum = 0u32;
-                let mut c_sum = [0u32; 3];
-                for t in 0..4 {
-                    let wa = wts[t] * layer[idx[t] + 3] as u32;
-                    a_sum += wa;
-                    for c in 0..3 {
-                        c_sum[c] += wa * layer[idx[t] + c] as u32;
-                    }
-                }
-                if a_sum == 0 {
-                    continue;
-                }
-                let keep = DEN - a_sum;
-                for c in 0..3 {
-                    let num = c_sum[c] + frame[o + c] as u32 * keep;
-                    frame[o + c] = ((num + DEN / 2) / DEN) as u8;
-                }
-                frame[o + 3] = 255;
             }
         }
     }
@@ -354,6 +307,10 @@ struct Runs<'a> {
     y: usize,
     /// Cell column of the next run; `usize::MAX` before the first row.
     cx: usize,
+    /// Cell column where each row's runs end (`usize::MAX`: the row's end).
+    cx_end: usize,
+    /// Only row `y` (from [`Warper::row_runs`]).
+    one_row: bool,
     /// Cell coordinate of row `y` inside its cell row.
     v: f32,
     /// Displacement of the next run's left cell edge at row `y`.
@@ -377,7 +334,14 @@ impl Iterator for Runs<'_> {
     fn next(&mut self) -> Option<Run> {
         const SUB: f32 = 65536.0;
         let wp = self.warper;
-        while self.cx == usize::MAX || self.cx + 1 >= wp.cols || self.cx * wp.cell_x >= wp.width {
+        while self.cx == usize::MAX
+            || self.cx >= self.cx_end
+            || self.cx + 1 >= wp.cols
+            || self.cx * wp.cell_x >= wp.width
+        {
+            if self.one_row {
+                return None;
+            }
             // Next row.
             self.y = if self.cx == usize::MAX { 0 } else { self.y + 1 };
             self.cx = 0;
@@ -551,73 +515,6 @@ mod tests {
             assert_eq!(round4_i64([v, 0.5, -1.5, v])[0], want, "round4_i64({v:e})");
             assert_eq!(round4_i64([1.0, 2.0, 3.0, v])[3], want, "round4_i64 lane 3 ({v:e})");
         }
-    }
-
-    /// Alpha compositing of the bilinear, alpha-weighted layer over the frame, written out
-    /// per pixel in u64 with the formula (the definition `warp_over`'s fast paths must keep).
-    fn warp_over_reference(wp: &Warper, layer: &[u8], region: &[u8], frame: &mut [u8]) {
-        const DEN: u64 = 65536 * 255;
-        let w = wp.width;
-        wp.for_each_source(|x, y, sxf, syf| {
-            let p = y * w + x;
-            if region[p] == 0 {
-                return;
-            }
-            let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, wp.width, wp.height);
-            let (fx, fy) = (fx as u64, fy as u64);
-            let wts = [(256 - fx) * (256 - fy), fx * (256 - fy), (256 - fx) * fy, fx * fy];
-            let idx = [i00, i10, i01, i11];
-            let a: u64 = (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64).sum();
-            if a == 0 {
-                return;
-            }
-            for c in 0..3 {
-                let col: u64 =
-                    (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64 * layer[idx[t] + c] as u64).sum();
-                let num = col + frame[p * 4 + c] as u64 * (DEN - a);
-                frame[p * 4 + c] = ((num + DEN / 2) / DEN) as u8;
-            }
-            frame[p * 4 + 3] = 255;
-        });
-    }
-
-    #[test]
-    fn warp_over_equals_its_definition_for_opaque_soft_and_clear_layers() {
-        let (w, h) = (41, 29);
-        let mut wp = Warper::new(w, h, 4, 4);
-        let (cols, rows) = wp.corners();
-        let mut seed = 7u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            seed >> 8
-        };
-        for cy in 0..rows {
-            for cx in 0..cols {
-                let d = [(next() % 1000) as f32 / 100.0 - 5.0, (next() % 1000) as f32 / 100.0 - 5.0];
-                wp.set_corner(cx, cy, d);
-            }
-        }
-        // Opaque in the middle, soft edges, clear outside; colours arbitrary.
-        let layer: Vec<u8> = (0..w * h)
-            .flat_map(|i| {
-                let (x, y) = (i % w, i / w);
-                let a = if (8..32).contains(&x) && (6..22).contains(&y) {
-                    255
-                } else if (5..35).contains(&x) && (3..25).contains(&y) {
-                    (next() % 256) as u8
-                } else {
-                    0
-                };
-                [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
-            })
-            .collect();
-        let region: Vec<u8> =
-            (0..w * h).map(|i| if (i % w) % 9 == 4 || i % 5 == 0 { 0 } else { 255 }).collect();
-        let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
-        let (mut got, mut want) = (frame.clone(), frame);
-        wp.warp_over(&layer, &region, &mut got);
-        warp_over_reference(&wp, &layer, &region, &mut want);
-        assert_eq!(got, want);
     }
 
     #[test]

@@ -91,7 +91,7 @@ pub(super) trait Kernel {
 }
 
 /// [`RemapKernel::Scalar`].
-struct Scalar;
+pub(super) struct Scalar;
 
 impl Kernel for Scalar {
     #[inline(always)]
@@ -114,6 +114,32 @@ pub(super) fn remap(kernel: RemapKernel, warper: &Warper, src: &[u8], dst: &mut 
             unsafe { x86::remap_avx2(warper, src, dst) }
         }
         _ => warper.remap_runs::<Scalar>(src, dst),
+    }
+}
+
+/// Runs `warper`'s compositing loop ([`Warper::warp_over_opaque`]) with `kernel` for the opaque
+/// runs, which the caller checked is available; returns how many runs the kernel wrote.
+pub(super) fn warp_over(
+    kernel: RemapKernel,
+    warper: &Warper,
+    layer: &[u8],
+    opaque: &super::OpaqueTiles,
+    region: &[u8],
+    frame: &mut [u8],
+) -> usize {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        RemapKernel::Sse2 => {
+            // SAFETY: SSE2 is part of the x86_64 baseline: every x86_64 CPU has it.
+            unsafe { x86::warp_over_sse2(warper, layer, opaque, region, frame) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        RemapKernel::Avx2 => {
+            // SAFETY: `warp_over_opaque_with` only passes Avx2 when `is_available` detected AVX2
+            // and FMA.
+            unsafe { x86::warp_over_avx2(warper, layer, opaque, region, frame) }
+        }
+        _ => warper.warp_over_runs::<Scalar>(layer, Some(opaque), region, frame),
     }
 }
 
@@ -144,6 +170,7 @@ fn interior_scalar(src: &[u8], w: usize, out: &mut [u8], run: Interior) {
 mod x86 {
     use std::arch::x86_64::*;
 
+    use super::super::OpaqueTiles;
     use super::{Interior, Kernel, Warper, interior_scalar};
 
     /// Widest row (bytes) whose offsets the SIMD kernels form with 16-bit multiplies.
@@ -187,6 +214,30 @@ mod x86 {
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn remap_avx2(warper: &Warper, src: &[u8], dst: &mut [u8]) {
         warper.remap_runs::<Avx2>(src, dst);
+    }
+
+    /// The compositing loop compiled for SSE2, the SSE2 kernel inlined into it.
+    #[target_feature(enable = "sse2")]
+    pub(super) fn warp_over_sse2(
+        warper: &Warper,
+        layer: &[u8],
+        opaque: &OpaqueTiles,
+        region: &[u8],
+        frame: &mut [u8],
+    ) -> usize {
+        warper.warp_over_runs::<Sse2>(layer, Some(opaque), region, frame)
+    }
+
+    /// The compositing loop compiled for AVX2 and FMA, the AVX2 kernel inlined into it.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn warp_over_avx2(
+        warper: &Warper,
+        layer: &[u8],
+        opaque: &OpaqueTiles,
+        region: &[u8],
+        frame: &mut [u8],
+    ) -> usize {
+        warper.warp_over_runs::<Avx2>(layer, Some(opaque), region, frame)
     }
 
     /// `2^-16`: the horizontal weights as f32 fractions of the full weight `2^16`.

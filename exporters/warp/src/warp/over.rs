@@ -1,0 +1,321 @@
+//! Compositing a warped straight-alpha layer over a frame ([`Warper::warp_over`]), and its fast
+//! path ([`Warper::warp_over_opaque`]): a run whose pixels are all drawn and whose taps are all
+//! opaque is the plain bilinear remap, exactly (with every tap's alpha 255 the alpha-weighted
+//! colour `(255 S + DEN / 2) / DEN` is `(S + 2^15) >> 16`, the remap kernels' formula, and the
+//! background's weight is 0), so it goes to the SIMD remap kernels. Both give the same bytes.
+
+use super::kernels::{self, RemapKernel};
+use super::{FRAC_BITS, ONE, Run, Warper, taps};
+
+/// Side of an [`OpaqueTiles`] tile, pixels.
+const TILE: usize = 4;
+
+/// Which `4 x 4` pixel tiles of a layer are wholly opaque (alpha 255), for
+/// [`Warper::warp_over_opaque`] to tell in a few lookups that a run samples only opaque pixels.
+#[derive(Debug, Clone, Default)]
+pub struct OpaqueTiles {
+    width: usize,
+    height: usize,
+    cols: usize,
+    tiles: Vec<bool>,
+}
+
+impl OpaqueTiles {
+    /// The tiles of the RGBA `layer` (`width x height`).
+    pub fn new(layer: &[u8], width: usize, height: usize) -> OpaqueTiles {
+        let mut tiles = OpaqueTiles::default();
+        tiles.update(layer, width, height);
+        tiles
+    }
+
+    /// Recomputes the tiles for `layer` (allocates only when the size grows).
+    pub fn update(&mut self, layer: &[u8], width: usize, height: usize) {
+        assert!(layer.len() >= width * height * 4, "buffer size");
+        let cols = width.div_ceil(TILE);
+        (self.width, self.height, self.cols) = (width, height, cols);
+        self.tiles.clear();
+        self.tiles.resize(cols * height.div_ceil(TILE), true);
+        for (y, row) in layer[..width * height * 4].chunks_exact(width * 4).enumerate() {
+            let tiles = &mut self.tiles[(y / TILE) * cols..(y / TILE + 1) * cols];
+            for (tile, px) in tiles.iter_mut().zip(row.chunks(TILE * 4)) {
+                *tile &= px.chunks_exact(4).all(|p| p[3] == 255);
+            }
+        }
+    }
+
+    /// Whether every pixel of columns `x0..=x1` and rows `y0..=y1` (inside the layer) is opaque.
+    fn covers(&self, [x0, y0, x1, y1]: [usize; 4]) -> bool {
+        (y0 / TILE..=y1 / TILE).all(|ty| (x0 / TILE..=x1 / TILE).all(|tx| self.tiles[ty * self.cols + tx]))
+    }
+}
+
+/// The pixels an interior run's taps read: columns `x0..=x1`, rows `y0..=y1`. The source point
+/// is linear along the run and rounding is monotonic, so its first and last pixels bound it.
+fn taps_box(run: &Run) -> [usize; 4] {
+    let (lx, ly) = run.last();
+    let px = |a: i64| (((a + 128) >> 8) >> FRAC_BITS) as usize;
+    let (ax, bx, ay, by) = (px(run.sx), px(lx), px(run.sy), px(ly));
+    [ax.min(bx), ay.min(by), ax.max(bx) + 1, ay.max(by) + 1]
+}
+
+impl Warper {
+    /// Warps a straight-alpha RGBA layer and composites it over the opaque RGBA `frame`, only at
+    /// pixels where `region` is non-zero (pixels outside the region are never written).
+    ///
+    /// Colours are filtered weighted by alpha (no dark fringes) and blended in one rounding, so
+    /// where the displacement is zero and the frame already holds the layer's colour the frame
+    /// stays the same byte for byte.
+    pub fn warp_over(&self, layer: &[u8], region: &[u8], frame: &mut [u8]) {
+        self.check_over_buffers(layer, region, frame);
+        self.warp_over_runs::<kernels::Scalar>(layer, None, region, frame);
+    }
+
+    /// [`Warper::warp_over`], the same bytes, faster where `opaque` (the tiles of `layer`) shows
+    /// a run samples only opaque pixels: those runs take the fastest remap kernel.
+    pub fn warp_over_opaque(&self, layer: &[u8], opaque: &OpaqueTiles, region: &[u8], frame: &mut [u8]) {
+        // Runs are one cell wide; the AVX2 kernel filters 8 pixels a step and leaves a shorter
+        // run to its scalar tail, where SSE2's 4-pixel steps still apply.
+        let kernel = match RemapKernel::best() {
+            RemapKernel::Avx2 if self.cell_x < 8 => RemapKernel::Sse2,
+            best => best,
+        };
+        self.warp_over_opaque_with(kernel, layer, opaque, region, frame);
+    }
+
+    /// [`Warper::warp_over_opaque`] with a chosen kernel (one the CPU lacks falls back to
+    /// [`RemapKernel::Scalar`]); returns how many runs the kernel wrote.
+    pub fn warp_over_opaque_with(
+        &self,
+        kernel: RemapKernel,
+        layer: &[u8],
+        opaque: &OpaqueTiles,
+        region: &[u8],
+        frame: &mut [u8],
+    ) -> usize {
+        self.check_over_buffers(layer, region, frame);
+        assert!((opaque.width, opaque.height) == (self.width, self.height), "tiles of another size");
+        let kernel = if kernel.is_available() { kernel } else { RemapKernel::Scalar };
+        kernels::warp_over(kernel, self, layer, opaque, region, frame)
+    }
+
+    fn check_over_buffers(&self, layer: &[u8], region: &[u8], frame: &[u8]) {
+        let n = self.width * self.height;
+        assert!(layer.len() >= n * 4 && frame.len() >= n * 4 && region.len() >= n, "buffer size");
+    }
+
+    /// The frame loop of the compositing with kernel `K` for the opaque runs (none without
+    /// `opaque`), inlined into each kernel's entry point; returns how many runs `K` wrote.
+    #[inline(always)]
+    pub(super) fn warp_over_runs<K: kernels::Kernel>(
+        &self,
+        layer: &[u8],
+        opaque: Option<&OpaqueTiles>,
+        region: &[u8],
+        frame: &mut [u8],
+    ) -> usize {
+        let w = self.width;
+        // Weights sum to ONE^2 = 65536; alpha up to 255. Every sum below fits in u32:
+        // 65536 * 255 * 255 + DEN / 2 < 2^32.
+        const WSUM: u32 = (ONE * ONE) as u32;
+        const DEN: u32 = WSUM * 255;
+        let max_x = (self.width as i32 - 1) * ONE;
+        let max_y = (self.height as i32 - 1) * ONE;
+        let mut fast = 0;
+        // Only the cells of each row between its first and last drawn pixel.
+        let runs = region[..w * self.height].chunks_exact(w).enumerate().flat_map(|(y, drawn)| {
+            let first = drawn.iter().position(|&r| r != 0);
+            let last = drawn.iter().rposition(|&r| r != 0);
+            let (a, b) = match (first, last) {
+                (Some(a), Some(b)) => (a / self.cell_x, b / self.cell_x + 1),
+                _ => (0, 0),
+            };
+            self.row_runs(y, a, b)
+        });
+        for run in runs {
+            let row = run.y * w;
+            let drawn = &region[row + run.x_start..row + run.x_end];
+            // Runs with nothing to draw are skipped whole (the region is mostly empty).
+            if drawn.iter().all(|&r| r == 0) {
+                continue;
+            }
+            // Every pixel drawn and every tap opaque: the alpha-weighted filter is the plain
+            // bilinear one and the background never shows, so the remap kernel writes the run.
+            if let Some(opaque) = opaque
+                && drawn.iter().all(|&r| r != 0)
+                && let Some(interior) = run.interior(w, self.height)
+                && opaque.covers(taps_box(&run))
+            {
+                K::interior(layer, w, &mut frame[(row + run.x_start) * 4..(row + run.x_end) * 4], interior);
+                fast += 1;
+                continue;
+            }
+            let (mut sxa, mut sya) = (run.sx, run.sy);
+            for x in run.x_start..run.x_end {
+                let (sxf, syf) = (((sxa + 128) >> 8) as i32, ((sya + 128) >> 8) as i32);
+                sxa += run.dsx;
+                sya += run.dsy;
+                let p = row + x;
+                if region[p] == 0 {
+                    continue;
+                }
+                let (i00, i10, i01, i11, fx, fy) =
+                    taps(sxf.clamp(0, max_x), syf.clamp(0, max_y), w, self.width, self.height);
+                let (fx, fy, one) = (fx as u32, fy as u32, ONE as u32);
+                let wts = [(one - fx) * (one - fy), fx * (one - fy), (one - fx) * fy, fx * fy];
+                let idx = [i00, i10, i01, i11];
+                let o = p * 4;
+                if idx.iter().all(|&i| layer[i + 3] == 255) {
+                    // Opaque taps: (255 S + DEN / 2) / DEN = (S + WSUM / 2) / WSUM exactly, the
+                    // background does not show.
+                    for c in 0..3 {
+                        let s: u32 = (0..4).map(|t| wts[t] * layer[idx[t] + c] as u32).sum();
+                        frame[o + c] = ((s + WSUM / 2) >> 16) as u8;
+                    }
+                    frame[o + 3] = 255;
+                    continue;
+                }
+                let mut a_sum = 0u32;
+                let mut c_sum = [0u32; 3];
+                for t in 0..4 {
+                    let wa = wts[t] * layer[idx[t] + 3] as u32;
+                    a_sum += wa;
+                    for c in 0..3 {
+                        c_sum[c] += wa * layer[idx[t] + c] as u32;
+                    }
+                }
+                if a_sum == 0 {
+                    continue;
+                }
+                let keep = DEN - a_sum;
+                for c in 0..3 {
+                    let num = c_sum[c] + frame[o + c] as u32 * keep;
+                    frame[o + c] = ((num + DEN / 2) / DEN) as u8;
+                }
+                frame[o + 3] = 255;
+            }
+        }
+        fast
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Alpha compositing of the bilinear, alpha-weighted layer over the frame, written out
+    /// per pixel in u64 with the formula (the definition `warp_over`'s fast paths must keep).
+    fn warp_over_reference(wp: &Warper, layer: &[u8], region: &[u8], frame: &mut [u8]) {
+        const DEN: u64 = 65536 * 255;
+        let w = wp.width;
+        wp.for_each_source(|x, y, sxf, syf| {
+            let p = y * w + x;
+            if region[p] == 0 {
+                return;
+            }
+            let (i00, i10, i01, i11, fx, fy) = taps(sxf, syf, w, wp.width, wp.height);
+            let (fx, fy) = (fx as u64, fy as u64);
+            let wts = [(256 - fx) * (256 - fy), fx * (256 - fy), (256 - fx) * fy, fx * fy];
+            let idx = [i00, i10, i01, i11];
+            let a: u64 = (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64).sum();
+            if a == 0 {
+                return;
+            }
+            for c in 0..3 {
+                let col: u64 =
+                    (0..4).map(|t| wts[t] * layer[idx[t] + 3] as u64 * layer[idx[t] + c] as u64).sum();
+                let num = col + frame[p * 4 + c] as u64 * (DEN - a);
+                frame[p * 4 + c] = ((num + DEN / 2) / DEN) as u8;
+            }
+            frame[p * 4 + 3] = 255;
+        });
+    }
+
+    #[test]
+    fn warp_over_equals_its_definition_for_opaque_soft_and_clear_layers() {
+        let (w, h) = (41, 29);
+        let mut wp = Warper::new(w, h, 4, 4);
+        let (cols, rows) = wp.corners();
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed >> 8
+        };
+        for cy in 0..rows {
+            for cx in 0..cols {
+                let d = [(next() % 1000) as f32 / 100.0 - 5.0, (next() % 1000) as f32 / 100.0 - 5.0];
+                wp.set_corner(cx, cy, d);
+            }
+        }
+        // Opaque in the middle, soft edges, clear outside; colours arbitrary.
+        let layer: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                let a = if (8..32).contains(&x) && (6..22).contains(&y) {
+                    255
+                } else if (5..35).contains(&x) && (3..25).contains(&y) {
+                    (next() % 256) as u8
+                } else {
+                    0
+                };
+                [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
+            })
+            .collect();
+        let region: Vec<u8> =
+            (0..w * h).map(|i| if (i % w) % 9 == 4 || i % 5 == 0 { 0 } else { 255 }).collect();
+        let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
+        let (mut got, mut want) = (frame.clone(), frame);
+        wp.warp_over(&layer, &region, &mut got);
+        warp_over_reference(&wp, &layer, &region, &mut want);
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn the_opaque_fast_path_gives_the_same_bytes_with_every_kernel() {
+        let (w, h) = (67, 45);
+        let mut wp = Warper::new(w, h, 4, 4);
+        let (cols, rows) = wp.corners();
+        let mut seed = 11u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed >> 8
+        };
+        for cy in 0..rows {
+            for cx in 0..cols {
+                let d = [(next() % 600) as f32 / 100.0 - 3.0, (next() % 600) as f32 / 100.0 - 3.0];
+                wp.set_corner(cx, cy, d);
+            }
+        }
+        // An opaque body with a soft rim and a few see-through specks inside, clear outside.
+        let layer: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                let a = if (10..57).contains(&x) && (8..37).contains(&y) {
+                    if i % 97 == 0 { 128 } else { 255 }
+                } else if (6..61).contains(&x) && (4..41).contains(&y) {
+                    (next() % 256) as u8
+                } else {
+                    0
+                };
+                [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
+            })
+            .collect();
+        // Drawn almost everywhere, with a few holes.
+        let region: Vec<u8> = (0..w * h).map(|i| if i % 53 == 0 { 0 } else { 255 }).collect();
+        let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
+        let mut want = frame.clone();
+        warp_over_reference(&wp, &layer, &region, &mut want);
+        let opaque = OpaqueTiles::new(&layer, w, h);
+        for kernel in RemapKernel::available() {
+            let mut got = frame.clone();
+            let fast = wp.warp_over_opaque_with(kernel, &layer, &opaque, &region, &mut got);
+            assert!(fast > 20, "{}: only {fast} runs took the kernel", kernel.name());
+            assert_eq!(got, want, "{}", kernel.name());
+        }
+        // Tiles follow the layer: a layer made clear takes no fast run and draws nothing.
+        let clear = vec![0u8; w * h * 4];
+        let mut got = frame.clone();
+        let tiles = OpaqueTiles::new(&clear, w, h);
+        let fast = wp.warp_over_opaque_with(RemapKernel::best(), &clear, &tiles, &region, &mut got);
+        assert_eq!((fast, got), (0, frame));
+    }
+}
