@@ -7,10 +7,13 @@ and `frond take export --usd` (USD importer). Usage:
 (with bpy from PyPI: tests/python/.venv/bin/python after exporters/osc/tests/install-python.sh).
 docs/render_exports.sh makes the three files from a simulated take and calls this."""
 
-import math
+import os
 import sys
 
 import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_stage import material, render_outdoors  # noqa: E402
 
 glb, bvh, usd, out = sys.argv[1:5]
 frame = int(sys.argv[5]) if len(sys.argv) > 5 else 30
@@ -26,13 +29,6 @@ def imported(run):
     before = set(bpy.data.objects)
     run()
     return [o for o in bpy.data.objects if o not in before and o.parent is None]
-
-
-def material(name, rgb):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*rgb, 1)
-    return mat
 
 
 def label(text, x):
@@ -100,23 +96,4 @@ for o in bpy.data.objects:
     if o.type == "MESH" and not o.data.materials and any(o in g or o.parent in g for g in groups[2:]):
         o.data.materials.append(green)
 
-bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 0))
-bpy.context.object.data.materials.append(material("ground", (0.32, 0.26, 0.18)))
-bpy.ops.object.light_add(type="SUN", location=(2, -2, 4))
-bpy.context.object.data.energy = 4.0
-bpy.context.object.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
-world = bpy.data.worlds.new("sky")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.55, 0.7, 0.9, 1)
-world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.8
-scene.world = world
-bpy.ops.object.camera_add(location=(0.0, -2.3, 0.45), rotation=(math.radians(84), 0, 0))
-scene.camera = bpy.context.object
-
-scene.render.engine = "CYCLES"
-scene.cycles.device = "CPU"
-scene.cycles.samples = 24
-scene.render.resolution_x, scene.render.resolution_y = 720, 300
-scene.render.filepath = out
-bpy.ops.render.render(write_still=True)
-print(f"wrote {out}")
+render_outdoors(out, 6, (0.0, -2.3, 0.45), 84, (720, 300))
