@@ -230,29 +230,36 @@ mod tests {
         });
     }
 
-    #[test]
-    fn warp_over_equals_its_definition_for_opaque_soft_and_clear_layers() {
-        let (w, h) = (41, 29);
+    /// A random field (displacements within `max_px`) on a `w x h` grid of 4 px cells, and a
+    /// layer of random colours: opaque in `body` (but for alpha-128 specks every `speck`
+    /// pixels), random alpha in the `rim` around it, clear outside.
+    fn random_case(
+        (w, h): (usize, usize),
+        mut seed: u32,
+        max_px: u32,
+        body: [std::ops::Range<usize>; 2],
+        rim: [std::ops::Range<usize>; 2],
+        speck: Option<usize>,
+    ) -> (Warper, Vec<u8>) {
         let mut wp = Warper::new(w, h, 4, 4);
         let (cols, rows) = wp.corners();
-        let mut seed = 7u32;
         let mut next = || {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
             seed >> 8
         };
+        let mut disp = || (next() % (200 * max_px)) as f32 / 100.0 - max_px as f32;
         for cy in 0..rows {
             for cx in 0..cols {
-                let d = [(next() % 1000) as f32 / 100.0 - 5.0, (next() % 1000) as f32 / 100.0 - 5.0];
+                let d = [disp(), disp()];
                 wp.set_corner(cx, cy, d);
             }
         }
-        // Opaque in the middle, soft edges, clear outside; colours arbitrary.
-        let layer: Vec<u8> = (0..w * h)
+        let layer = (0..w * h)
             .flat_map(|i| {
                 let (x, y) = (i % w, i / w);
-                let a = if (8..32).contains(&x) && (6..22).contains(&y) {
-                    255
-                } else if (5..35).contains(&x) && (3..25).contains(&y) {
+                let a = if body[0].contains(&x) && body[1].contains(&y) {
+                    if speck.is_some_and(|k| i % k == 0) { 128 } else { 255 }
+                } else if rim[0].contains(&x) && rim[1].contains(&y) {
                     (next() % 256) as u8
                 } else {
                     0
@@ -260,6 +267,13 @@ mod tests {
                 [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
             })
             .collect();
+        (wp, layer)
+    }
+
+    #[test]
+    fn warp_over_equals_its_definition_for_opaque_soft_and_clear_layers() {
+        let (w, h) = (41, 29);
+        let (wp, layer) = random_case((w, h), 7, 5, [8..32, 6..22], [5..35, 3..25], None);
         let region: Vec<u8> =
             (0..w * h).map(|i| if (i % w) % 9 == 4 || i % 5 == 0 { 0 } else { 255 }).collect();
         let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
@@ -272,33 +286,7 @@ mod tests {
     #[test]
     fn the_opaque_fast_path_gives_the_same_bytes_with_every_kernel() {
         let (w, h) = (67, 45);
-        let mut wp = Warper::new(w, h, 4, 4);
-        let (cols, rows) = wp.corners();
-        let mut seed = 11u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            seed >> 8
-        };
-        for cy in 0..rows {
-            for cx in 0..cols {
-                let d = [(next() % 600) as f32 / 100.0 - 3.0, (next() % 600) as f32 / 100.0 - 3.0];
-                wp.set_corner(cx, cy, d);
-            }
-        }
-        // An opaque body with a soft rim and a few see-through specks inside, clear outside.
-        let layer: Vec<u8> = (0..w * h)
-            .flat_map(|i| {
-                let (x, y) = (i % w, i / w);
-                let a = if (10..57).contains(&x) && (8..37).contains(&y) {
-                    if i % 97 == 0 { 128 } else { 255 }
-                } else if (6..61).contains(&x) && (4..41).contains(&y) {
-                    (next() % 256) as u8
-                } else {
-                    0
-                };
-                [(next() % 256) as u8, (next() % 256) as u8, (next() % 256) as u8, a]
-            })
-            .collect();
+        let (wp, layer) = random_case((w, h), 11, 3, [10..57, 8..37], [6..61, 4..41], Some(97));
         // Drawn almost everywhere, with a few holes.
         let region: Vec<u8> = (0..w * h).map(|i| if i % 53 == 0 { 0 } else { 255 }).collect();
         let frame: Vec<u8> = (0..w * h * 4).map(|i| (i * 31 % 256) as u8).collect();
