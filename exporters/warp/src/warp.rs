@@ -142,21 +142,14 @@ impl Warper {
     /// compiled with their own target features, inline into the loop over it.
     #[inline(always)]
     fn runs(&self) -> Runs<'_> {
-        Runs {
-            warper: self,
-            y: 0,
-            cx: usize::MAX,
-            cx_end: usize::MAX,
-            one_row: false,
-            v: 0.0,
-            left: [0.0; 2],
-        }
+        Runs { warper: self, y: 0, cx: usize::MAX, cx_end: usize::MAX, v: 0.0, left: [0.0; 2] }
     }
 
     /// The runs of row `y` in cell columns `cx_start..cx_end` only.
     #[inline(always)]
     fn row_runs(&self, y: usize, cx_start: usize, cx_end: usize) -> Runs<'_> {
-        let mut runs = Runs { warper: self, y, cx: cx_start, cx_end, one_row: true, v: 0.0, left: [0.0; 2] };
+        let cx_end = cx_end.min(self.cols);
+        let mut runs = Runs { warper: self, y, cx: cx_start, cx_end, v: 0.0, left: [0.0; 2] };
         let cy = y / self.cell_y;
         runs.v = (y - cy * self.cell_y) as f32 * (1.0 / self.cell_y as f32);
         if cx_start + 1 < self.cols {
@@ -307,10 +300,9 @@ struct Runs<'a> {
     y: usize,
     /// Cell column of the next run; `usize::MAX` before the first row.
     cx: usize,
-    /// Cell column where each row's runs end (`usize::MAX`: the row's end).
+    /// Cell column where row `y`'s runs end, for one row only ([`Warper::row_runs`]);
+    /// `usize::MAX` for every row, each to its end.
     cx_end: usize,
-    /// Only row `y` (from [`Warper::row_runs`]).
-    one_row: bool,
     /// Cell coordinate of row `y` inside its cell row.
     v: f32,
     /// Displacement of the next run's left cell edge at row `y`.
@@ -339,7 +331,7 @@ impl Iterator for Runs<'_> {
             || self.cx + 1 >= wp.cols
             || self.cx * wp.cell_x >= wp.width
         {
-            if self.one_row {
+            if self.cx_end != usize::MAX {
                 return None;
             }
             // Next row.

@@ -195,11 +195,17 @@ mod x86 {
     impl Kernel for Avx2 {
         #[inline(always)]
         fn interior(src: &[u8], w: usize, out: &mut [u8], run: Interior) {
-            if w * 4 <= MAX_STRIDE {
-                // SAFETY: only reached from `remap_avx2`, whose caller checked AVX2 and FMA.
-                unsafe { interior_avx2(src, w, out, run) }
-            } else {
+            if w * 4 > MAX_STRIDE {
                 interior_scalar(src, w, out, run)
+            } else if out.len() < 32 {
+                // Under one 8-pixel step (runs of small cells): the AVX2 kernel would only set
+                // up its constants and hand the run to its SSE2 tail.
+                // SAFETY: AVX2 implies SSE2, which every x86_64 CPU has anyway.
+                unsafe { interior_sse2(src, w, out, run) }
+            } else {
+                // SAFETY: only reached from `remap_avx2` and `warp_over_avx2`, whose callers
+                // checked AVX2 and FMA.
+                unsafe { interior_avx2(src, w, out, run) }
             }
         }
     }

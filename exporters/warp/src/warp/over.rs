@@ -73,13 +73,7 @@ impl Warper {
     /// [`Warper::warp_over`], the same bytes, faster where `opaque` (the tiles of `layer`) shows
     /// a run samples only opaque pixels: those runs take the fastest remap kernel.
     pub fn warp_over_opaque(&self, layer: &[u8], opaque: &OpaqueTiles, region: &[u8], frame: &mut [u8]) {
-        // Runs are one cell wide; the AVX2 kernel filters 8 pixels a step and leaves a shorter
-        // run to its scalar tail, where SSE2's 4-pixel steps still apply.
-        let kernel = match RemapKernel::best() {
-            RemapKernel::Avx2 if self.cell_x < 8 => RemapKernel::Sse2,
-            best => best,
-        };
-        self.warp_over_opaque_with(kernel, layer, opaque, region, frame);
+        self.warp_over_opaque_with(RemapKernel::best(), layer, opaque, region, frame);
     }
 
     /// [`Warper::warp_over_opaque`] with a chosen kernel (one the CPU lacks falls back to
