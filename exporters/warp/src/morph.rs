@@ -153,8 +153,12 @@ pub struct MorphFrames<'a> {
     near: Vec<usize>,
     /// Grid cells holding a pixel of the region (the corners the warp reads).
     needed: Vec<bool>,
-    /// Blocks an outline may cross.
+    /// Grid cells an outline may cross.
     crossed: Vec<bool>,
+    /// Per grid corner: the frame stamp when it was last mapped exactly, and the cage that
+    /// mapped it.
+    mapped: Vec<(u32, u32)>,
+    stamp: u32,
     weights: Vec<f64>,
     now: Vec<Vec<Point>>,
 }
@@ -190,6 +194,8 @@ impl<'a> MorphFrames<'a> {
             near: Vec::with_capacity(w),
             needed: Vec::new(),
             crossed: Vec::new(),
+            mapped: Vec::new(),
+            stamp: 0,
             weights: Vec::new(),
             now: Vec::new(),
         }
@@ -209,14 +215,15 @@ impl<'a> MorphFrames<'a> {
     /// region, from [`MorphFrames::update_layer`], which must come first) to the cage map's
     /// displacement; the others are never read and are left as they are.
     ///
-    /// The map is smooth inside a cage, so a 16 px block whose four corners are mapped by the same
-    /// cage and which no deformed outline crosses takes its inner corners by bilinear
-    /// interpolation; other corners are mapped one by one.
+    /// The map is smooth inside a cage, so a block (16 px, then its 8 px quarters) whose four
+    /// corners are mapped by the same cage and which no deformed outline crosses takes its inner
+    /// corners by bilinear interpolation; other corners are mapped one by one, each once.
     pub fn update_field(&mut self) {
         let (cols, rows) = self.warper.corners();
-        self.mark_needed_cells(cols - 1, rows - 1);
-        self.mark_crossed_blocks(cols, rows);
-        let (needed, cells_x) = (&self.needed, cols - 1);
+        let cells_x = cols - 1;
+        self.mark_needed_cells(cells_x, rows - 1);
+        self.mark_crossed_cells(cells_x, rows - 1);
+        let needed = &self.needed;
         // A corner is read by the (up to) four cells around it.
         let used = |cx: usize, cy: usize| {
             let (x0, x1) = (cx.saturating_sub(1), cx.min(cells_x - 1));
@@ -228,7 +235,7 @@ impl<'a> MorphFrames<'a> {
         let (plan, now) = (self.plan, &self.now);
         let placed = Placed::new(plan, now);
         let weights = &mut self.weights;
-        let mut exact = |cx: usize, cy: usize| -> ([f32; 2], usize) {
+        let mut map_corner = |cx: usize, cy: usize| -> ([f32; 2], usize) {
             if !used(cx, cy) {
                 return ([0.0, 0.0], usize::MAX);
             }
@@ -236,10 +243,30 @@ impl<'a> MorphFrames<'a> {
             let (src, cage) = plan.inverse_map_placed(&placed, p, weights);
             ([(src[0] - p[0]) as f32, (src[1] - p[1]) as f32], cage)
         };
+        // Blocks share their corners and edges: each corner is mapped once per frame, and a
+        // mapped corner keeps its value against a neighbour's interpolation.
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 || self.mapped.len() != cols * rows {
+            self.mapped.clear();
+            self.mapped.resize(cols * rows, (0, 0));
+            self.stamp = 1;
+        }
+        let (stamp, memo, warper, crossed) = (self.stamp, &mut self.mapped, &mut self.warper, &self.crossed);
+        let mut exact = |memo: &mut [(u32, u32)], warper: &mut Warper, cx: usize, cy: usize| {
+            let m = &mut memo[cy * cols + cx];
+            if m.0 == stamp {
+                return (warper.corner(cx, cy), m.1 as usize);
+            }
+            let (d, cage) = map_corner(cx, cy);
+            *m = (stamp, cage as u32);
+            warper.set_corner(cx, cy, d);
+            (d, cage)
+        };
         let b = BLOCK_CELLS;
-        let (crossed, blocks_x) = (&self.crossed, cols.div_ceil(b));
-        for by in (0..rows).step_by(b) {
-            for bx in (0..cols).step_by(b) {
+        // Blocks to fill, as corner ranges [x0, y0, x1, y1]: a block and its quarters (depth 2).
+        let mut todo: Vec<[usize; 4]> = Vec::with_capacity(8);
+        for by in (0..rows - 1).step_by(b) {
+            for bx in (0..cols - 1).step_by(b) {
                 let (x1, y1) = ((bx + b).min(cols - 1), (by + b).min(rows - 1));
                 // No drawn pixel reads any corner of this block.
                 let (cx0, cy0) = (bx.saturating_sub(1), by.saturating_sub(1));
@@ -247,57 +274,77 @@ impl<'a> MorphFrames<'a> {
                 if !(cy0..=cy1).any(|y| (cx0..=cx1).any(|x| needed[y * cells_x + x])) {
                     continue;
                 }
-                let corners = [(bx, by), (x1, by), (bx, y1), (x1, y1)];
-                let mapped = corners.map(|(cx, cy)| exact(cx, cy));
-                for (k, &(cx, cy)) in corners.iter().enumerate() {
-                    self.warper.set_corner(cx, cy, mapped[k].0);
-                }
-                // No outline crosses the block: every point of it lies in the same cages, so
-                // one cage maps it all, smoothly.
-                let smooth = mapped[0].1 != usize::MAX
-                    && mapped.iter().all(|m| m.1 == mapped[0].1)
-                    && !crossed[(by / b) * blocks_x + bx / b];
-                for cy in by..=y1 {
-                    for cx in bx..=x1 {
-                        if corners.contains(&(cx, cy)) {
-                            continue;
+                todo.push([bx, by, x1, y1]);
+                while let Some([x0, y0, x1, y1]) = todo.pop() {
+                    let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)];
+                    let mapped = corners.map(|(cx, cy)| exact(memo, warper, cx, cy));
+                    if x1 - x0 <= 1 && y1 - y0 <= 1 {
+                        continue;
+                    }
+                    // No outline crosses the block: every point of it lies in the same cages,
+                    // so one cage maps it all, smoothly.
+                    let smooth = mapped[0].1 != usize::MAX
+                        && mapped.iter().all(|m| m.1 == mapped[0].1)
+                        && !(y0..y1).any(|y| crossed[y * cells_x + x0..y * cells_x + x1].contains(&true));
+                    if !smooth {
+                        let (mx, my) = ((x0 + x1).div_ceil(2), (y0 + y1).div_ceil(2));
+                        for (qx0, qx1) in [(x0, mx), (mx, x1)] {
+                            for (qy0, qy1) in [(y0, my), (my, y1)] {
+                                if qx0 < qx1 && qy0 < qy1 {
+                                    todo.push([qx0, qy0, qx1, qy1]);
+                                }
+                            }
                         }
-                        let d = if smooth {
-                            let u = (cx - bx) as f32 / (x1 - bx).max(1) as f32;
-                            let v = (cy - by) as f32 / (y1 - by).max(1) as f32;
-                            let lerp = |a: [f32; 2], b: [f32; 2], t: f32| {
-                                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
-                            };
-                            lerp(lerp(mapped[0].0, mapped[1].0, u), lerp(mapped[2].0, mapped[3].0, u), v)
-                        } else {
-                            exact(cx, cy).0
-                        };
-                        self.warper.set_corner(cx, cy, d);
+                        continue;
+                    }
+                    let lerp = |a: [f32; 2], b: [f32; 2], t: f32| {
+                        [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+                    };
+                    for cy in y0..=y1 {
+                        for cx in x0..=x1 {
+                            if memo[cy * cols + cx].0 != stamp {
+                                let u = (cx - x0) as f32 / (x1 - x0) as f32;
+                                let v = (cy - y0) as f32 / (y1 - y0) as f32;
+                                let d = lerp(
+                                    lerp(mapped[0].0, mapped[1].0, u),
+                                    lerp(mapped[2].0, mapped[3].0, u),
+                                    v,
+                                );
+                                warper.set_corner(cx, cy, d);
+                            }
+                        }
                     }
                 }
             }
         }
     }
 
-    /// `crossed[ky * blocks_x + kx]`: whether an outline of the current cages may cross block
-    /// `(kx, ky)` (each edge marks every block its bounding box, grown by a pixel, touches).
-    fn mark_crossed_blocks(&mut self, cols: usize, rows: usize) {
-        let b = BLOCK_CELLS;
-        let (blocks_x, blocks_y) = (cols.div_ceil(b), rows.div_ceil(b));
-        let span = (b * CAGE_CELL_PX) as f64;
+    /// `crossed[cy * cells_x + cx]`: whether an outline of the current cages may cross cell
+    /// `(cx, cy)` (each edge marks every cell, grown by a pixel, that it passes through).
+    fn mark_crossed_cells(&mut self, cells_x: usize, cells_y: usize) {
+        let span = CAGE_CELL_PX as f64;
         self.crossed.clear();
-        self.crossed.resize(blocks_x * blocks_y, false);
-        // Block k spans corner pixels k * span + 0.5 to (k + 1) * span + 0.5.
-        let block = |v: f64, n: usize| (((v - 0.5) / span).floor().max(0.0) as usize).min(n - 1);
+        self.crossed.resize(cells_x * cells_y, false);
+        // Cell k spans corner pixels k * span + 0.5 to (k + 1) * span + 0.5.
+        let cell = |v: f64, n: usize| (((v - 0.5) / span).floor().max(0.0) as usize).min(n - 1);
         for c in &self.now {
             for (i, &a) in c.iter().enumerate() {
                 let z = c[(i + 1) % c.len()];
-                let (kx0, kx1) =
-                    (block(a[0].min(z[0]) - 1.0, blocks_x), block(a[0].max(z[0]) + 1.0, blocks_x));
-                let (ky0, ky1) =
-                    (block(a[1].min(z[1]) - 1.0, blocks_y), block(a[1].max(z[1]) + 1.0, blocks_y));
+                let (kx0, kx1) = (cell(a[0].min(z[0]) - 1.0, cells_x), cell(a[0].max(z[0]) + 1.0, cells_x));
+                let (ky0, ky1) = (cell(a[1].min(z[1]) - 1.0, cells_y), cell(a[1].max(z[1]) + 1.0, cells_y));
+                // The cells of the box whose square, grown by a pixel, the edge's line passes
+                // through (the square's corners are not all on one side of it).
+                let (dx, dy) = (z[0] - a[0], z[1] - a[1]);
+                let side = |x: f64, y: f64| dx * (y - a[1]) - dy * (x - a[0]);
                 for ky in ky0..=ky1 {
-                    self.crossed[ky * blocks_x + kx0..=ky * blocks_x + kx1].fill(true);
+                    let (y0, y1) = (ky as f64 * span - 0.5, (ky + 1) as f64 * span + 1.5);
+                    for kx in kx0..=kx1 {
+                        let (x0, x1) = (kx as f64 * span - 0.5, (kx + 1) as f64 * span + 1.5);
+                        let s = [side(x0, y0), side(x1, y0), side(x0, y1), side(x1, y1)];
+                        if !(s.iter().all(|&v| v > 0.0) || s.iter().all(|&v| v < 0.0)) {
+                            self.crossed[ky * cells_x + kx] = true;
+                        }
+                    }
                 }
             }
         }
