@@ -43,6 +43,29 @@ impl OpaqueTiles {
         }
     }
 
+    /// Recomputes only the tiles that meet the pixel box `[x0, y0, x1, y1)` after `layer` (the
+    /// one of the last [`update`](Self::update), same size) changed inside that box.
+    pub fn update_box(&mut self, layer: &[u8], [x0, y0, x1, y1]: [usize; 4]) {
+        let (w, h, cols) = (self.width, self.height, self.cols);
+        assert!(layer.len() >= w * h * 4 && x1 <= w && y1 <= h, "buffer size");
+        if x0 >= x1 || y0 >= y1 {
+            return;
+        }
+        // Whole tiles: from the first tile's first pixel to the last tile's last (inside the layer).
+        let (tx0, tx1) = (x0 / TILE, (x1 - 1) / TILE + 1);
+        let (px0, px1) = (tx0 * TILE, (tx1 * TILE).min(w));
+        for ty in y0 / TILE..(y1 - 1) / TILE + 1 {
+            let tiles = &mut self.tiles[ty * cols + tx0..ty * cols + tx1];
+            tiles.fill(true);
+            for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                let row = &layer[(y * w + px0) * 4..(y * w + px1) * 4];
+                for (tile, px) in tiles.iter_mut().zip(row.chunks(TILE * 4)) {
+                    *tile &= px.chunks_exact(4).all(|p| p[3] == 255);
+                }
+            }
+        }
+    }
+
     /// Whether every pixel of columns `x0..=x1` and rows `y0..=y1` (inside the layer) is opaque.
     fn covers(&self, [x0, y0, x1, y1]: [usize; 4]) -> bool {
         (y0 / TILE..=y1 / TILE).all(|ty| (x0 / TILE..=x1 / TILE).all(|tx| self.tiles[ty * self.cols + tx]))
@@ -262,6 +285,32 @@ mod tests {
             })
             .collect();
         (wp, layer)
+    }
+
+    #[test]
+    fn tiles_updated_in_a_box_equal_tiles_recomputed_whole() {
+        // 42 x 23: partial tiles on the right and bottom edges.
+        let (w, h) = (42, 23);
+        let (_, mut layer) = random_case((w, h), 3, 1, [0..42, 0..23], [0..0, 0..0], Some(97));
+        let mut tiles = OpaqueTiles::new(&layer, w, h);
+        for (i, [x0, y0, x1, y1]) in
+            [[5, 3, 17, 9], [0, 0, 42, 23], [39, 20, 42, 23], [7, 7, 8, 8], [9, 4, 9, 12]]
+                .into_iter()
+                .enumerate()
+        {
+            // Make the box clear, then opaque, then clear in one pixel (when not empty).
+            for alpha in [0u8, 255] {
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        layer[(y * w + x) * 4 + 3] =
+                            if alpha == 255 && (x + y + i) % 11 == 0 { 3 } else { alpha };
+                    }
+                }
+                tiles.update_box(&layer, [x0, y0, x1, y1]);
+                let whole = OpaqueTiles::new(&layer, w, h);
+                assert_eq!(tiles.tiles, whole.tiles, "box {:?} alpha {alpha}", [x0, y0, x1, y1]);
+            }
+        }
     }
 
     #[test]
