@@ -1,69 +1,27 @@
 //! Client of the daemon's control socket, and the one-shot commands built on it
 //! (`rig set`, `calibration apply`, `filter`, `mark`, `record start|stop`).
 
-use std::io;
-use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::path::Path;
 
-use anyhow::{anyhow, bail};
+use anyhow::anyhow;
 use frond_motion::{Calibration, FilterSpec, Rig};
-use frond_protocol::{
-    CONTROL_SOCKET, ControlReply, ControlRequest, FrameBuf, ReadError, RecordingStatus, StatusReport, paths,
-    read_frame, write_frame,
-};
+use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StatusReport, paths};
+use frond_sdk::ControlClient;
 
 use crate::args::Global;
 use crate::usage;
 
-/// How long to wait for one reply.
-const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
 /// Largest marker label the daemon accepts, bytes.
 const MAX_LABEL_BYTES: usize = 256;
 
-/// One connection to `control.sock`; carries any number of request/reply pairs.
-pub(crate) struct Control {
-    path: PathBuf,
-    stream: UnixStream,
-    out: FrameBuf,
-    scratch: Vec<u8>,
-}
-
-/// The explanation printed when the daemon cannot be reached.
-pub(crate) fn not_running_message(path: &Path, err: &io::Error) -> String {
-    let why = match err.kind() {
-        io::ErrorKind::NotFound => format!("no control socket at {}", path.display()),
-        io::ErrorKind::ConnectionRefused => {
-            format!("nothing listens on {} (left behind by a daemon that exited)", path.display())
-        }
-        _ => format!("cannot connect to {}: {err}", path.display()),
-    };
-    format!(
-        "the frond daemon is not running: {why}. Start it with `frondd --socket-dir {}`, or try \
-         `frond demo`; the system service (`systemctl start frondd`, systemd/frondd.service) \
-         listens in /run/frond (set FROND_SOCKET_DIR=/run/frond); if it runs elsewhere, pass \
-         --socket-dir or set FROND_SOCKET_DIR",
-        path.parent().unwrap_or(Path::new(".")).display()
-    )
-}
+/// One connection to `control.sock` (`frond_sdk::ControlClient`), with errors as `anyhow` for
+/// the commands.
+pub(crate) struct Control(ControlClient);
 
 impl Control {
     /// Connects to the control socket of the daemon in `socket_dir`.
     pub(crate) fn connect(socket_dir: &Path) -> anyhow::Result<Control> {
-        let path = socket_dir.join(CONTROL_SOCKET);
-        let stream = match UnixStream::connect(&path) {
-            Ok(s) => s,
-            Err(e) if e.kind() == io::ErrorKind::PermissionDenied => {
-                bail!(
-                    "permission denied connecting to {} (is the daemon run by another user?)",
-                    path.display()
-                )
-            }
-            Err(e) => bail!(not_running_message(&path, &e)),
-        };
-        stream.set_read_timeout(Some(REPLY_TIMEOUT))?;
-        stream.set_write_timeout(Some(REPLY_TIMEOUT))?;
-        Ok(Control { path, stream, out: FrameBuf::default(), scratch: Vec::new() })
+        Ok(Control(ControlClient::connect(socket_dir)?))
     }
 
     /// Connects using the global options.
@@ -72,28 +30,10 @@ impl Control {
     }
 
     /// Sends `req` and returns the daemon's reply; a refusal becomes an error with its message.
+    /// (A message, not an io::Error: a broken *socket* must not pass for a closed stdout, which
+    /// `frond` treats as a quiet success.)
     pub(crate) fn request(&mut self, req: &ControlRequest) -> anyhow::Result<ControlReply> {
-        if let Err(e) = write_frame(&mut self.stream, &mut self.out, req) {
-            // The daemon answers a client it does not allow at once and closes, possibly before
-            // the request is written: its refusal is still there to read.
-            if let Ok(ControlReply::Error(err)) = read_frame(&mut self.stream, &mut self.scratch) {
-                return Err(anyhow!("the daemon refused: {} ({:?})", err.message, err.kind));
-            }
-            // A message, not the io::Error: a broken *socket* must not pass for a closed stdout
-            // (which `frond` treats as a quiet success).
-            bail!("sending a request to {}: {e}", self.path.display());
-        }
-        let reply: ControlReply = read_frame(&mut self.stream, &mut self.scratch).map_err(|e| match e {
-            ReadError::Io(io) if matches!(io.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
-                anyhow!("the daemon did not answer within {REPLY_TIMEOUT:?} on {}", self.path.display())
-            }
-            ReadError::Closed => anyhow!("the daemon closed {} without answering", self.path.display()),
-            other => anyhow!("bad reply on {}: {other}", self.path.display()),
-        })?;
-        match reply {
-            ControlReply::Error(err) => Err(anyhow!("the daemon refused: {} ({:?})", err.message, err.kind)),
-            other => Ok(other),
-        }
+        self.0.request(req).map_err(|e| anyhow!("{e}"))
     }
 
     /// Sends `req` and expects a plain `Ok`.
@@ -137,14 +77,8 @@ impl Control {
 }
 
 fn unexpected(reply: &ControlReply) -> anyhow::Error {
-    let kind = match reply {
-        ControlReply::Ok => "Ok",
-        ControlReply::Status(_) => "Status",
-        ControlReply::Recording(_) => "Recording",
-        ControlReply::RawSample { .. } => "RawSample",
-        ControlReply::Error(_) => "Error",
-    };
-    anyhow!("the daemon gave an unexpected reply ({kind}); is it a different frond version?")
+    let got = frond_sdk::control::reply_kind(reply);
+    anyhow!("{}", frond_sdk::ControlClientError::Unexpected { got })
 }
 
 /// Reads a text file, naming it in the error.
@@ -246,6 +180,8 @@ pub(crate) fn record_stop(g: &Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_sdk::control::not_running_message;
+    use std::io;
 
     /// Issue 18: the hint names only what frond ships (the system unit in /run/frond), not a
     /// user unit that does not exist.

@@ -25,7 +25,7 @@ pub(crate) fn run(
 ) -> anyhow::Result<()> {
     let dir = paths::socket_dir(g.socket_dir.clone());
     let mut sub = Subscriber::options().connect(&dir).map_err(|e| match e {
-        SdkError::NotRunning { source, .. } => anyhow::anyhow!(crate::control::not_running_message(
+        SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
             &dir.join(frond_protocol::POSES_SOCKET),
             &source
         )),

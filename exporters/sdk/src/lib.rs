@@ -29,12 +29,14 @@
 #![warn(missing_docs)]
 
 mod conn;
+pub mod control;
 mod error;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+pub use control::{ControlClient, ControlClientError};
 pub use error::{ProtocolError, SdkError};
 pub use frond_protocol::{
     ElementInfo, ElementKind, ElementTable, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags, RigInfo,
