@@ -1,0 +1,285 @@
+// frond console page: the daemon's rig (as frond-gltf bakes it) driven by the live poses over
+// a WebSocket, the stage's health from /api/status, and the recording controls.
+import * as THREE from 'three';
+import { GLTFLoader } from '/vendor/three/GLTFLoader.js';
+import { OrbitControls } from '/vendor/three/OrbitControls.js';
+
+const $ = (id) => document.getElementById(id);
+
+// State read by people and by the headless-browser test (window.frondConsole).
+const state = {
+  hello: null,       // the stream's hello message
+  map: null,         // /api/scene: joint node names of the baked rig
+  received: {},      // element id -> the latest pose message received
+  applied: {},       // element id -> seq of the pose the scene shows
+  messages: 0,
+  webgl: false,
+};
+
+// ---- the protocol's rotation convention: R = R_yaw(Z) * R_pitch(X) * R_roll(Y), degrees ----
+const X = new THREE.Vector3(1, 0, 0), Y = new THREE.Vector3(0, 1, 0), Z = new THREE.Vector3(0, 0, 1);
+const qa = new THREE.Quaternion(), qb = new THREE.Quaternion();
+function jointQuat([pitch, yaw, roll], out) {
+  const d = Math.PI / 180;
+  out.setFromAxisAngle(Z, yaw * d);
+  out.multiply(qa.setFromAxisAngle(X, pitch * d));
+  out.multiply(qb.setFromAxisAngle(Y, roll * d));
+  return out;
+}
+
+// ---- 3D view ----
+const canvas = $('three');
+let renderer = null;
+try {
+  renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+  state.webgl = true;
+} catch (e) {
+  $('view-note').hidden = false;
+  $('view-note').textContent = `The 3D view needs WebGL, which this browser does not give (${e.message}). Health and controls still work.`;
+}
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x14171a);
+const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
+camera.position.set(1.2, 0.9, 1.6);
+scene.add(new THREE.HemisphereLight(0xdde8ff, 0x404030, 2.2));
+const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+sun.position.set(2, 4, 3);
+scene.add(sun);
+let grid = new THREE.GridHelper(4, 40, 0x556070, 0x2a3038);
+scene.add(grid);
+const controls = renderer ? new OrbitControls(camera, canvas) : null;
+if (controls) { controls.target.set(0, 0.4, 0); controls.update(); }
+
+let plant = null;           // gltf.scene
+let mainBones = [];         // the rig's 4 joints
+let layerBones = {};        // rig element name -> [[4 joints] per instance]
+let axes = [];
+
+function resize() {
+  const r = canvas.parentElement.getBoundingClientRect();
+  camera.aspect = Math.max(r.width, 1) / Math.max(r.height, 1);
+  camera.updateProjectionMatrix();
+  if (renderer) renderer.setSize(r.width, r.height, false);
+}
+window.addEventListener('resize', resize);
+
+async function loadRig() {
+  const map = await (await fetch('/api/scene')).json();
+  if (map.error) throw new Error(map.error);
+  const gltf = await new GLTFLoader().loadAsync('/rig.glb');
+  if (plant) scene.remove(plant);
+  plant = gltf.scene;
+  scene.add(plant);
+  const byName = (n) => {
+    const o = plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n));
+    if (!o) throw new Error(`the GLB has no node ${n}`);
+    return o;
+  };
+  mainBones = map.joints.map(byName);
+  layerBones = {};
+  for (const e of map.elements) layerBones[e.name] = e.instances.map((inst) => inst.map(byName));
+  state.map = map;
+  state.applied = {};
+  const top = map.heights_m[map.heights_m.length - 1];
+  // A ground grid of the plant's scale: 8 heights across, a line every half height.
+  const visible = grid.visible;
+  scene.remove(grid);
+  grid = new THREE.GridHelper(top * 8, 16, 0x556070, 0x2a3038);
+  grid.visible = visible;
+  scene.add(grid);
+  if (controls) { controls.target.set(0, top * 0.5, 0); camera.position.set(top * 1.8, top * 1.3, top * 3.2); controls.update(); }
+  setAxes($('axes').checked);
+  $('rig').textContent = `rig ${map.rig}`;
+  for (const p of Object.values(state.received)) apply(p);
+}
+
+function setAxes(on) {
+  for (const a of axes) a.removeFromParent();
+  axes = [];
+  if (!on || !state.map) return;
+  const size = state.map.heights_m[3] * 0.15;
+  for (const b of [...mainBones, ...Object.values(layerBones).flat(2)]) {
+    const a = new THREE.AxesHelper(size);
+    b.add(a);
+    axes.push(a);
+  }
+}
+$('axes').addEventListener('change', (e) => setAxes(e.target.checked));
+$('grid').addEventListener('change', (e) => { grid.visible = e.target.checked; });
+
+// The bones an element drives: the main skeleton for the hand / playback element of the
+// daemon's rig, every instance of a rig element for its layer.
+function bonesOf(id) {
+  const info = state.hello?.hello?.elements?.find((e) => e.id === id);
+  if (!info) return id === 0 ? [mainBones] : [];
+  if (info.kind === 'layer') return layerBones[info.name] || [];
+  if (info.kind === 'hand' || info.kind === 'playback') return info.rig === state.map?.rig ? [mainBones] : [];
+  return [];
+}
+
+function apply(p) {
+  const sets = bonesOf(p.e);
+  for (const bones of sets) {
+    bones.forEach((b, i) => jointQuat(p.j[i], b.quaternion));
+  }
+  if (sets.length) state.applied[p.e] = p.seq;
+}
+
+function frame() {
+  if (renderer) { resize(); renderer.render(scene, camera); }
+  requestAnimationFrame(frame);
+}
+requestAnimationFrame(frame);
+
+// ---- the pose stream ----
+let rigShown = null;
+function connect() {
+  const ws = new WebSocket(`ws://${location.host}/ws`);
+  ws.onmessage = (ev) => {
+    const m = JSON.parse(ev.data);
+    state.messages++;
+    if (m.type === 'hello') {
+      state.hello = m;
+      const link = $('link');
+      link.textContent = m.connected ? `daemon ${m.hello?.daemon_version ?? ''}` : `daemon not connected: ${m.why}`;
+      link.className = m.connected ? 'ok' : 'bad';
+      const rig = m.hello?.rig;
+      if (m.connected && rig && rig !== rigShown) {
+        rigShown = rig;
+        loadRig().catch((e) => { $('view-note').hidden = false; $('view-note').textContent = String(e.message || e); });
+      }
+    } else if (m.type === 'poses') {
+      for (const p of m.poses) {
+        state.received[p.e] = p;
+        if (state.map) apply(p);
+      }
+    }
+  };
+  ws.onclose = () => setTimeout(connect, 500);
+}
+connect();
+
+// ---- health ----
+const history = [];
+function fmtUs(v) { return v >= 1000 ? `${(v / 1000).toFixed(2)} ms` : `${v.toFixed(0)} µs`; }
+function drawLateness() {
+  const c = $('lateness-plot'), g = c.getContext('2d');
+  g.clearRect(0, 0, c.width, c.height);
+  if (history.length < 2) return;
+  const top = Math.max(50, ...history.map((h) => h.max_us));
+  const y = (v) => c.height - 2 - (v / top) * (c.height - 12);
+  for (const [key, color] of [['max_us', '#e5534b'], ['p99_us', '#d4a72c'], ['p50_us', '#5fbf77']]) {
+    g.strokeStyle = color; g.beginPath();
+    history.forEach((h, i) => { const x = (i / 119) * c.width; i ? g.lineTo(x, y(h[key])) : g.moveTo(x, y(h[key])); });
+    g.stroke();
+  }
+  g.fillStyle = '#8b949e'; g.fillText(fmtUs(top), 2, 10);
+}
+async function pollStatus() {
+  try {
+    const s = await (await fetch('/api/status')).json();
+    const d = s.daemon;
+    const probs = $('problems');
+    probs.replaceChildren();
+    const say = (t) => { const li = document.createElement('li'); li.textContent = t; probs.append(li); };
+    if (!d) {
+      say(s.error || 'the daemon does not answer');
+    } else {
+      for (const p of d.problems || []) say(p);
+      if (!d.source.connected) say(`the hand source (${d.source.kind} ${d.source.path}) is not connected: check the device (run \`frond doctor\`)`);
+      $('source').textContent = `${d.source.kind} ${d.source.path} — ${d.source.connected ? 'connected' : 'NOT CONNECTED'}, ${d.source.reports} reports`;
+      $('source').className = d.source.connected ? 'ok' : 'bad';
+      $('achieved').textContent = `${d.achieved_rate_hz.toFixed(1)} Hz of ${d.tick_rate_hz} Hz, ${d.publish_drops} publish drops`;
+      const l = d.lateness;
+      $('lateness').textContent = `p50 ${fmtUs(l.p50_us)}, p99 ${fmtUs(l.p99_us)}, max ${fmtUs(l.max_us)}`;
+      history.push(l); if (history.length > 120) history.shift();
+      drawLateness();
+      const tb = $('subscribers').tBodies[0];
+      tb.replaceChildren(...d.subscribers.map((sub) => {
+        const tr = document.createElement('tr');
+        for (const v of [sub.id, `${sub.connected_s.toFixed(0)} s`, sub.sent, sub.dropped]) {
+          const td = document.createElement('td'); td.textContent = v; tr.append(td);
+        }
+        if (sub.dropped > 0) tr.className = 'bad';
+        return tr;
+      }));
+      $('device-events').replaceChildren(...d.device_events.slice(-6).map((t) => { const li = document.createElement('li'); li.textContent = t; return li; }));
+      const r = d.recording;
+      $('recording').textContent = r && r.active ? `RECORDING ${r.name}: ${r.frames} frames${r.dropped ? `, ${r.dropped} dropped` : ''}` : 'not recording';
+      $('recording').className = r && r.active ? 'bad' : '';
+      $('rate').textContent = `${d.achieved_rate_hz.toFixed(0)} Hz`;
+    }
+    const c = s.console;
+    $('stream').textContent = `${c.frames} poses in, ${c.gaps} gaps (${c.missing} missing), ${c.dropped} page messages dropped`;
+  } catch (e) {
+    $('source').textContent = `console unreachable: ${e.message}`;
+  }
+  setTimeout(pollStatus, 500);
+}
+pollStatus();
+
+// ---- controls ----
+async function post(path, body) {
+  const out = $('control-result');
+  try {
+    const r = await fetch(path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body || {}) });
+    const j = await r.json();
+    out.textContent = r.ok ? (j.recording ? `${j.recording.active ? 'recording' : 'stopped'} ${j.recording.name}: ${j.recording.frames} frames` : 'done') : j.error;
+    out.className = r.ok ? 'ok' : 'bad';
+    return j;
+  } catch (e) {
+    out.textContent = e.message; out.className = 'bad';
+    return null;
+  }
+}
+$('record-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/record/start', { name: $('take-name').value.trim() }); });
+$('record-stop').addEventListener('click', () => post('/api/record/stop'));
+$('mark-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/mark', { label: $('mark-label').value }); });
+
+// ---- for tests and scripts ----
+const v = new THREE.Vector3();
+let grabbed = null;
+function canvasPixels() {
+  const c = document.createElement('canvas');
+  c.width = canvas.width; c.height = canvas.height;
+  const g = c.getContext('2d');
+  g.drawImage(canvas, 0, 0);
+  return g.getImageData(0, 0, c.width, c.height).data;
+}
+// The plant's box on screen, canvas pixels: its bones projected, grown by a fifth of its size.
+function screenBox() {
+  camera.updateMatrixWorld();
+  const pts = [...mainBones, ...Object.values(layerBones).flat(2)].map((b) => b.getWorldPosition(new THREE.Vector3()).project(camera));
+  const xs = pts.map((p) => (p.x + 1) / 2 * canvas.width), ys = pts.map((p) => (1 - p.y) / 2 * canvas.height);
+  const [x0, x1, y0, y1] = [Math.min(...xs), Math.max(...xs), Math.min(...ys), Math.max(...ys)];
+  const m = 0.2 * Math.max(x1 - x0, y1 - y0, 20);
+  return [x0 - m, y0 - m, x1 + m, y1 + m].map(Math.round);
+}
+window.frondConsole = {
+  state,
+  // The latest applied pose of `element` and the world position of each of its bones, read
+  // from the scene graph in one go.
+  snapshot(element = 0) {
+    const p = state.received[element];
+    const sets = bonesOf(element);
+    if (!p || state.applied[element] !== p.seq || !sets.length) return null;
+    plant.updateMatrixWorld(true);
+    return { pose: p, bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())) };
+  },
+  // Keeps the canvas's pixels now, for diffSinceGrab.
+  grab() { grabbed = canvasPixels(); return grabbed.length; },
+  // Pixels changed (any channel by more than 24) since grab(), inside and outside the plant's
+  // screen box.
+  diffSinceGrab() {
+    const now = canvasPixels(), w = canvas.width;
+    const [x0, y0, x1, y1] = screenBox();
+    let inside = 0, outside = 0;
+    for (let i = 0; i < now.length; i += 4) {
+      const d = Math.max(Math.abs(now[i] - grabbed[i]), Math.abs(now[i + 1] - grabbed[i + 1]), Math.abs(now[i + 2] - grabbed[i + 2]));
+      if (d <= 24) continue;
+      const x = (i / 4) % w, y = Math.floor(i / 4 / w);
+      if (x >= x0 && x <= x1 && y >= y0 && y <= y1) inside++; else outside++;
+    }
+    return { inside, outside, box: [x0, y0, x1, y1], size: [w, canvas.height] };
+  },
+};

@@ -1,0 +1,256 @@
+//! Who may use the console: pure checks on a request's headers, tested without a socket.
+//!
+//! - Bound to a loopback address (the default, `127.0.0.1`), every local request is allowed
+//!   without a token, but the `Host` header must name a loopback host (`127.0.0.1`, `[::1]`,
+//!   `localhost`): a page elsewhere cannot reach the console by pointing a DNS name at
+//!   127.0.0.1 (DNS rebinding).
+//! - Bound elsewhere, every request and WebSocket needs the token: `Authorization: Bearer T`,
+//!   the `frond_token` cookie (set when the page is opened as `/?token=T`), or `?token=T`.
+//! - Always: a request that carries an `Origin` must come from the console's own origin
+//!   (`http://` + its `Host`); a WebSocket and a control action (any `POST`) must carry one
+//!   unless they carry the token (a script, not a browser). So no other site's page can drive
+//!   the daemon through an operator's browser.
+//!
+//! Tokens are compared in constant time.
+
+use std::fmt;
+
+/// Name of the cookie that carries the token.
+pub const TOKEN_COOKIE: &str = "frond_token";
+/// Shortest token accepted from a file, bytes.
+pub const MIN_TOKEN_BYTES: usize = 16;
+/// Longest token accepted from a file, bytes.
+pub const MAX_TOKEN_BYTES: usize = 256;
+
+/// The console's access policy.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Access {
+    /// Whether the console listens only on a loopback address.
+    pub loopback: bool,
+    /// The token; required for everything when not `loopback`.
+    pub token: Option<String>,
+}
+
+impl fmt::Debug for Access {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Never print the token.
+        f.debug_struct("Access")
+            .field("loopback", &self.loopback)
+            .field("token", &self.token.is_some())
+            .finish()
+    }
+}
+
+/// What a request is, for the policy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Purpose {
+    /// Reading: the page, its scripts, JSON state, the GLB.
+    Read,
+    /// The pose WebSocket.
+    Socket,
+    /// A control action on the daemon.
+    Control,
+}
+
+/// The headers the policy looks at (raw values, as received).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RequestMeta<'a> {
+    /// `Host`.
+    pub host: Option<&'a str>,
+    /// `Origin`.
+    pub origin: Option<&'a str>,
+    /// `Authorization`.
+    pub authorization: Option<&'a str>,
+    /// `Cookie`.
+    pub cookie: Option<&'a str>,
+    /// The `token` query parameter.
+    pub query_token: Option<&'a str>,
+}
+
+/// Why a request is refused (the HTTP status and the words for the body).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Refusal {
+    /// 401: no token, or a wrong one.
+    Token(&'static str),
+    /// 403: another site's page, or a host name that is not this console's.
+    Forbidden(String),
+}
+
+impl Refusal {
+    /// The HTTP status code.
+    pub fn status(&self) -> u16 {
+        match self {
+            Refusal::Token(_) => 401,
+            Refusal::Forbidden(_) => 403,
+        }
+    }
+}
+
+impl fmt::Display for Refusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Refusal::Token(why) => write!(
+                f,
+                "{why}: this console listens beyond this machine, so every request needs the token \
+                 frond-console printed at start (open /?token=TOKEN, or send `Authorization: Bearer TOKEN`)"
+            ),
+            Refusal::Forbidden(why) => f.write_str(why),
+        }
+    }
+}
+
+/// Equal in constant time (for equal lengths; the length is not secret).
+fn same(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// The token a request presents, if any: the header, then the cookie, then the query.
+fn presented<'a>(m: &RequestMeta<'a>) -> Option<&'a str> {
+    let bearer = m.authorization.and_then(|a| a.strip_prefix("Bearer ")).map(str::trim);
+    let cookie = m.cookie.and_then(|c| {
+        c.split(';').find_map(|kv| kv.trim().strip_prefix(TOKEN_COOKIE).and_then(|v| v.strip_prefix('=')))
+    });
+    bearer.or(cookie).or(m.query_token)
+}
+
+/// The host part of a `Host` header (`[::1]:8790` -> `[::1]`, `localhost:1` -> `localhost`).
+fn host_name(host: &str) -> &str {
+    if host.starts_with('[') {
+        return host.find(']').map_or(host, |i| &host[..=i]);
+    }
+    host.rsplit_once(':').map_or(host, |(h, _)| h)
+}
+
+impl Access {
+    /// Checks one request; `Ok` lets it through.
+    pub fn check(&self, m: &RequestMeta<'_>, purpose: Purpose) -> Result<(), Refusal> {
+        let Some(host) = m.host.filter(|h| !h.is_empty()) else {
+            return Err(Refusal::Forbidden("the request has no Host header".into()));
+        };
+        if self.loopback {
+            let name = host_name(host).to_ascii_lowercase();
+            if !matches!(name.as_str(), "127.0.0.1" | "localhost" | "[::1]") && !name.starts_with("127.") {
+                return Err(Refusal::Forbidden(format!(
+                    "Host {host:?} is not this machine: the console listens on loopback only \
+                     (use http://127.0.0.1:PORT/, or --listen ADDR with a token to serve others)"
+                )));
+            }
+        }
+        let token_ok = match (&self.token, presented(m)) {
+            (Some(want), Some(got)) => {
+                if !same(want, got) {
+                    return Err(Refusal::Token("wrong token"));
+                }
+                true
+            }
+            _ => false,
+        };
+        if !self.loopback && !token_ok {
+            return Err(Refusal::Token("no token"));
+        }
+        let own = format!("http://{host}");
+        match m.origin {
+            Some(o) if o != own => Err(Refusal::Forbidden(format!(
+                "Origin {o:?} is not this console ({own}): another site's page may not use it"
+            ))),
+            None if purpose != Purpose::Read && !token_ok => Err(Refusal::Forbidden(
+                "a WebSocket or a control action needs the page's Origin header (or the token)".into(),
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Reads a token from a file's text: trimmed, printable ASCII without spaces, 16-256 bytes.
+pub fn parse_token(text: &str) -> Result<String, String> {
+    let t = text.trim();
+    if t.len() < MIN_TOKEN_BYTES || t.len() > MAX_TOKEN_BYTES {
+        return Err(format!(
+            "the token is {} bytes; it must be {MIN_TOKEN_BYTES}-{MAX_TOKEN_BYTES}",
+            t.len()
+        ));
+    }
+    if let Some(c) = t.chars().find(|c| !c.is_ascii_graphic() || *c == ';' || *c == ',') {
+        return Err(format!("the token holds {c:?}: use printable ASCII without spaces, ';' or ','"));
+    }
+    Ok(t.to_string())
+}
+
+/// A fresh random token: 32 hex digits from the operating system's generator.
+pub fn new_token() -> String {
+    let bytes: [u8; 16] = rand::random();
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T: &str = "0123456789abcdef0123";
+
+    fn meta<'a>(host: &'a str, origin: Option<&'a str>) -> RequestMeta<'a> {
+        RequestMeta { host: Some(host), origin, ..Default::default() }
+    }
+
+    #[test]
+    fn loopback_reads_need_no_token_but_a_loopback_host() {
+        let a = Access { loopback: true, token: None };
+        for h in ["127.0.0.1:8790", "localhost:8790", "[::1]:8790", "127.0.0.2:1"] {
+            assert_eq!(a.check(&meta(h, None), Purpose::Read), Ok(()), "{h}");
+        }
+        let e = a.check(&meta("evil.example:8790", None), Purpose::Read).unwrap_err();
+        assert_eq!(e.status(), 403);
+        assert!(e.to_string().contains("evil.example"), "{e}");
+        assert_eq!(a.check(&RequestMeta::default(), Purpose::Read).unwrap_err().status(), 403);
+    }
+
+    #[test]
+    fn control_and_sockets_need_the_own_origin_or_the_token() {
+        let a = Access { loopback: true, token: Some(T.into()) };
+        let own = meta("127.0.0.1:8790", Some("http://127.0.0.1:8790"));
+        assert_eq!(a.check(&own, Purpose::Control), Ok(()));
+        assert_eq!(a.check(&own, Purpose::Socket), Ok(()));
+        let other = meta("127.0.0.1:8790", Some("http://evil.example"));
+        for p in [Purpose::Read, Purpose::Socket, Purpose::Control] {
+            assert_eq!(a.check(&other, p).unwrap_err().status(), 403, "{p:?}");
+        }
+        // No Origin: a script, allowed only with the token.
+        let bare = meta("127.0.0.1:8790", None);
+        assert_eq!(a.check(&bare, Purpose::Control).unwrap_err().status(), 403);
+        let with = RequestMeta { authorization: Some("Bearer 0123456789abcdef0123"), ..bare };
+        assert_eq!(a.check(&with, Purpose::Control), Ok(()));
+    }
+
+    #[test]
+    fn beyond_loopback_every_request_needs_the_right_token() {
+        let a = Access { loopback: false, token: Some(T.into()) };
+        let m = meta("10.0.0.5:8790", None);
+        assert_eq!(a.check(&m, Purpose::Read), Err(Refusal::Token("no token")));
+        let wrong = RequestMeta { query_token: Some("0123456789abcdef0124"), ..m };
+        assert_eq!(a.check(&wrong, Purpose::Read), Err(Refusal::Token("wrong token")));
+        let short = RequestMeta { query_token: Some("0123"), ..m };
+        assert_eq!(a.check(&short, Purpose::Read), Err(Refusal::Token("wrong token")));
+        for ok in [
+            RequestMeta { query_token: Some(T), ..m },
+            RequestMeta { cookie: Some("a=b; frond_token=0123456789abcdef0123"), ..m },
+            RequestMeta { authorization: Some("Bearer 0123456789abcdef0123"), ..m },
+        ] {
+            assert_eq!(a.check(&ok, Purpose::Control), Ok(()), "{ok:?}");
+        }
+        let e = a.check(&m, Purpose::Read).unwrap_err();
+        assert!(e.to_string().contains("?token="), "{e}");
+    }
+
+    #[test]
+    fn tokens_from_files_are_checked_and_new_ones_are_random() {
+        assert_eq!(parse_token(" 0123456789abcdef0123\n").unwrap(), T);
+        assert!(parse_token("short").unwrap_err().contains("5 bytes"));
+        assert!(parse_token("0123456789abcdef 0123").unwrap_err().contains("' '"));
+        assert!(parse_token(&"x".repeat(300)).is_err());
+        let (a, b) = (new_token(), new_token());
+        assert_eq!(a.len(), 32);
+        assert_ne!(a, b);
+        assert!(parse_token(&a).is_ok());
+        assert!(!format!("{:?}", Access { loopback: false, token: Some(a.clone()) }).contains(&a));
+    }
+}

@@ -1,0 +1,18 @@
+//! frond's operator console (`frond-console`): one browser page with the plant live in 3D (the
+//! daemon's rig as frond-gltf bakes it, driven by the live poses), the stage's health, and the
+//! daemon's controls. An exporter like the others: it subscribes with `frond_sdk` (so it never
+//! slows the daemon) and acts on the control socket with its own credentials.
+//!
+//! - [`access`]: who may use it (loopback by default; a token beyond; `Origin` checks);
+//! - [`http`]: the bounded HTTP/1.1 and WebSocket handshake;
+//! - [`relay`]: the subscription, keeping each element's latest pose;
+//! - [`scene`]: the rig's GLB and node map for the 3D view;
+//! - [`server`]: the endpoints and the pose WebSocket at the display rate.
+
+#![warn(missing_docs)]
+
+pub mod access;
+pub mod http;
+pub mod relay;
+pub mod scene;
+pub mod server;

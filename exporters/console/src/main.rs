@@ -1,0 +1,85 @@
+//! `frond-console`: serves the operator's console page (see the crate docs and README.md).
+
+use std::net::{SocketAddr, TcpListener};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, bail};
+use clap::Parser;
+use frond_console::access::{self, Access};
+use frond_console::server::{Config, Console, is_loopback};
+
+/// The operator's console: the plant live in 3D, the stage's health, takes and controls, in the
+/// browser.
+#[derive(Parser, Debug)]
+#[command(name = "frond-console", version)]
+struct Args {
+    /// Address to listen on. Anything but a loopback address needs a token for every request.
+    #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8790")]
+    listen: SocketAddr,
+    /// File holding the token (16-256 printable ASCII bytes) instead of a fresh random one.
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
+    /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    #[arg(long, value_name = "DIR")]
+    socket_dir: Option<PathBuf>,
+    /// Show this rig (embedded name or file) instead of the daemon's.
+    #[arg(long, value_name = "NAME|FILE")]
+    rig: Option<String>,
+    /// Pose messages per second to each page (the display rate).
+    #[arg(long, value_name = "HZ", default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..=240))]
+    display_hz: u32,
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    let loopback = is_loopback(&args.listen);
+    let token = match &args.token_file {
+        Some(path) => {
+            let text = frond_motion::rig_files::read_small_text(path, 4096)
+                .map_err(|e| anyhow::anyhow!("--token-file {}: {}", path.display(), e.reason()))?;
+            Some(
+                access::parse_token(&text)
+                    .map_err(|e| anyhow::anyhow!("--token-file {}: {e}", path.display()))?,
+            )
+        }
+        None if loopback => None,
+        None => Some(access::new_token()),
+    };
+    let listener = TcpListener::bind(args.listen).with_context(|| format!("--listen {}", args.listen))?;
+    let addr = listener.local_addr()?;
+    let socket_dir = frond_protocol::paths::socket_dir(args.socket_dir.clone());
+    let console = Console::start(Config {
+        socket_dir: socket_dir.clone(),
+        access: Access { loopback, token: token.clone() },
+        rig: args.rig.clone(),
+        display_hz: args.display_hz,
+    })?;
+    let host = if addr.ip().is_unspecified() { format!("HOST:{}", addr.port()) } else { addr.to_string() };
+    match (&token, loopback) {
+        (Some(t), false) if args.token_file.is_none() => {
+            println!("frond-console: http://{host}/?token={t}  (daemon {})", socket_dir.display())
+        }
+        (Some(_), false) => println!(
+            "frond-console: http://{host}/?token=<the token in {}>  (daemon {})",
+            args.token_file.as_deref().unwrap_or(std::path::Path::new("?")).display(),
+            socket_dir.display()
+        ),
+        _ => println!("frond-console: http://{addr}/  (daemon {})", socket_dir.display()),
+    }
+    if !loopback && token.is_none() {
+        bail!("internal: a console beyond loopback without a token");
+    }
+    console.serve(listener);
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-console: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

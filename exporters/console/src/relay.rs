@@ -1,0 +1,211 @@
+//! The console's one subscription to the daemon: a thread reads every pose as fast as the daemon
+//! sends them (so the daemon never waits on the console; if the console fell behind, the daemon
+//! would drop frames for it alone and the SDK reports the gap) and keeps only the latest pose of
+//! each element, with the daemon's hello and element table. Page connections read that state at
+//! the display rate ([`Live::changed_since`]), so their cost does not grow with the loop rate.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use frond_sdk::{Event, Hello, Pose, Subscriber};
+
+/// Most elements whose latest pose is kept (a field of plants is at most a few hundred).
+pub const MAX_ELEMENTS: usize = 1024;
+
+/// What the subscription knows, shared with the page connections.
+#[derive(Debug, Default)]
+pub struct LiveState {
+    /// Whether the daemon is connected now.
+    pub connected: bool,
+    /// The daemon's hello, with its element table brought up to date.
+    pub hello: Option<Hello>,
+    /// Bumped whenever `hello` or `connected` changes.
+    pub version: u64,
+    /// The latest pose of each element, by element id order of arrival.
+    pub poses: Vec<Pose>,
+    /// Poses received.
+    pub frames: u64,
+    /// Gaps reported by the SDK, and the frames missing in them.
+    pub gaps: u64,
+    /// Frames missing in all gaps.
+    pub missing: u64,
+    /// Poses of elements beyond [`MAX_ELEMENTS`], not kept.
+    pub overflow: u64,
+    /// Why the daemon is not connected, in words.
+    pub why: String,
+}
+
+/// The shared state and the thread that fills it.
+#[derive(Debug, Default)]
+pub struct Live {
+    state: Mutex<LiveState>,
+    stop: AtomicBool,
+}
+
+impl Live {
+    /// Empty state: not connected.
+    pub fn new() -> Arc<Live> {
+        let live = Live::default();
+        live.lock().why = "connecting to the daemon".into();
+        Arc::new(live)
+    }
+
+    /// The state (a poisoned lock is taken over: the state is plain data).
+    pub fn lock(&self) -> MutexGuard<'_, LiveState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Asks the subscription thread to end.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Copies into `out` the latest poses whose `seq` differs from the one in `sent` (element id
+    /// -> last sent seq, updated), and returns the state version.
+    pub fn changed_since(&self, sent: &mut Vec<(u16, u64)>, out: &mut Vec<Pose>) -> u64 {
+        out.clear();
+        let s = self.lock();
+        for p in &s.poses {
+            match sent.iter_mut().find(|(e, _)| *e == p.element) {
+                Some((_, seq)) if *seq == p.seq => {}
+                Some((_, seq)) => {
+                    *seq = p.seq;
+                    out.push(*p);
+                }
+                None => {
+                    sent.push((p.element, p.seq));
+                    out.push(*p);
+                }
+            }
+        }
+        s.version
+    }
+
+    fn store(&self, pose: Pose) {
+        let mut s = self.lock();
+        s.frames += 1;
+        if let Some(slot) = s.poses.iter_mut().find(|p| p.element == pose.element) {
+            *slot = pose;
+        } else if s.poses.len() < MAX_ELEMENTS {
+            s.poses.push(pose);
+        } else {
+            s.overflow += 1;
+        }
+    }
+
+    fn set_hello(&self, hello: Hello) {
+        let mut s = self.lock();
+        // Elements that are no longer announced keep no pose.
+        s.poses.retain(|p| hello.elements.get(p.element).is_some() || p.element == 0);
+        s.hello = Some(hello);
+        s.connected = true;
+        s.why.clear();
+        s.version += 1;
+    }
+
+    fn set_down(&self, why: String) {
+        let mut s = self.lock();
+        if s.connected || s.why != why {
+            s.connected = false;
+            s.why = why;
+            s.version += 1;
+        }
+    }
+
+    /// Subscribes to the daemon in `socket_dir` on a thread, reconnecting forever.
+    pub fn spawn(self: &Arc<Live>, socket_dir: PathBuf) -> std::io::Result<std::thread::JoinHandle<()>> {
+        let live = Arc::clone(self);
+        std::thread::Builder::new().name("console-poses".into()).spawn(move || live.run(&socket_dir))
+    }
+
+    fn run(&self, socket_dir: &std::path::Path) {
+        let retry = Duration::from_millis(250);
+        while !self.stop.load(Ordering::Relaxed) {
+            let opts = Subscriber::options()
+                .give_up_after(None)
+                .read_timeout(Some(Duration::from_millis(500)))
+                .max_retry_interval(Duration::from_millis(500));
+            let mut sub = match opts.connect(socket_dir) {
+                Ok(s) => s,
+                Err(e) => {
+                    self.set_down(e.to_string());
+                    std::thread::sleep(retry);
+                    continue;
+                }
+            };
+            let mut hello = sub.hello().clone();
+            self.set_hello(hello.clone());
+            while !self.stop.load(Ordering::Relaxed) {
+                match sub.next_event() {
+                    Ok(Event::Pose(p)) => self.store(p),
+                    Ok(Event::Gap { expected, got }) => {
+                        let mut s = self.lock();
+                        s.gaps += 1;
+                        s.missing += got.saturating_sub(expected);
+                    }
+                    Ok(Event::RigChanged(h)) | Ok(Event::Reconnected(h)) => {
+                        hello = h;
+                        self.set_hello(hello.clone());
+                    }
+                    Ok(Event::Elements(table)) => {
+                        hello.elements = table;
+                        self.set_hello(hello.clone());
+                    }
+                    Ok(Event::Disconnected) => self.set_down("the daemon closed the pose stream".into()),
+                    Err(frond_sdk::SdkError::Timeout { .. }) => {}
+                    Err(e) => {
+                        self.set_down(e.to_string());
+                        std::thread::sleep(retry);
+                        break;
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose(element: u16, seq: u64) -> Pose {
+        Pose {
+            seq,
+            device_time_us: 0,
+            host_monotonic_ns: 0,
+            flags: Default::default(),
+            element,
+            joints_deg: [[0.0; 3]; 4],
+            hand: Default::default(),
+        }
+    }
+
+    #[test]
+    fn only_the_latest_new_pose_of_each_element_goes_out() {
+        let live = Live::new();
+        let (mut sent, mut out) = (Vec::new(), Vec::new());
+        live.store(pose(0, 1));
+        live.store(pose(0, 2));
+        live.store(pose(3, 2));
+        live.changed_since(&mut sent, &mut out);
+        assert_eq!(out.iter().map(|p| (p.element, p.seq)).collect::<Vec<_>>(), [(0, 2), (3, 2)]);
+        live.changed_since(&mut sent, &mut out);
+        assert!(out.is_empty(), "nothing new: nothing sent");
+        live.store(pose(3, 5));
+        live.changed_since(&mut sent, &mut out);
+        assert_eq!(out.iter().map(|p| (p.element, p.seq)).collect::<Vec<_>>(), [(3, 5)]);
+        assert_eq!(live.lock().frames, 4);
+    }
+
+    #[test]
+    fn elements_beyond_the_bound_are_counted_not_kept() {
+        let live = Live::new();
+        for e in 0..(MAX_ELEMENTS as u16 + 5) {
+            live.store(pose(e, 1));
+        }
+        let s = live.lock();
+        assert_eq!((s.poses.len(), s.overflow), (MAX_ELEMENTS, 5));
+    }
+}

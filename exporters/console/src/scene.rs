@@ -1,0 +1,109 @@
+//! What the 3D view shows: the daemon's rig baked by frond-gltf (the same document `frond-gltf`
+//! writes, so the page skins the mesh exactly as every other tool does), at rest, as GLB, and
+//! the map from the stream's elements to the document's joint nodes.
+//!
+//! frond-gltf names the main joints after the rig's joints and the joints of secondary element
+//! instance `i` of rig element `k` (named `leaf`, ...) `{leaf}{i}_joint{j}`; a layer element of
+//! the stream (kind `layer`, named after the rig element) drives every instance of it, as a
+//! layered take's bake does. The node rotations are the protocol's `joint_quat` of each pose
+//! (`R = R_yaw R_pitch R_roll`), the page computes the same quaternion.
+
+use frond_gltf::{BakeOptions, Baker, LoadedRig, TakeInput};
+use frond_motion::{HandSample, JOINTS, PoseFrame, TakeFrame};
+use serde_json::{Value, json};
+
+/// The baked rig and its node map.
+#[derive(Debug, Clone)]
+pub struct RigScene {
+    /// The rig's name.
+    pub rig: String,
+    /// Where the rig came from (`embedded rig grass`, a path).
+    pub origin: String,
+    /// The GLB.
+    pub glb: Vec<u8>,
+    /// `{"rig", "joints": [4 names], "heights_m": [4], "elements": [{"name", "instances": [[4 node names]]}]}`.
+    pub map: Value,
+}
+
+/// Bakes `rig` at rest.
+pub fn bake(rig: &LoadedRig) -> Result<RigScene, frond_gltf::BakeError> {
+    let model = rig.model()?;
+    let rest = TakeFrame {
+        seq: 0,
+        device_time_us: 0,
+        host_ns: 0,
+        flags: 0,
+        element: 0,
+        pose: PoseFrame { t: 0.0, joints_deg: [[0.0; 3]; JOINTS] },
+        hand: HandSample { t: 0.0, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
+    };
+    let take = TakeInput { name: "rest".into(), frames: vec![rest], ended: true, ..Default::default() };
+    let baked = Baker::new().bake_take(rig, &model, &take, &BakeOptions::default(), &mut |_, _| {})?;
+    let mut glb = Vec::new();
+    frond_gltf::encode_glb(&baked, &mut glb)?;
+    let names: Vec<&str> = rig.rig.elements.iter().map(|e| e.name.as_str()).collect();
+    let elements: Vec<Value> = names
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let instances: Vec<Value> = model
+                .elements
+                .iter()
+                .filter(|e| e.element == k)
+                .map(|e| {
+                    json!((0..JOINTS).map(|j| format!("{name}{}_joint{j}", e.instance)).collect::<Vec<_>>())
+                })
+                .collect();
+            json!({ "name": name, "instances": instances })
+        })
+        .collect();
+    let map = json!({
+        "rig": rig.rig.name,
+        "origin": rig.origin,
+        "joints": rig.rig.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>(),
+        "heights_m": model.skeleton.heights_m,
+        "elements": elements,
+    });
+    Ok(RigScene { rig: rig.rig.name.clone(), origin: rig.origin.clone(), glb, map })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The node names the map promises are the document's own (read back with the gltf crate).
+    #[test]
+    fn every_mapped_joint_is_a_node_of_the_glb() {
+        for name in ["grass", "flower", "shrub"] {
+            let rig = LoadedRig::embedded(name).unwrap().unwrap();
+            let scene = bake(&rig).unwrap();
+            let doc = gltf::Gltf::from_slice(&scene.glb).unwrap();
+            let nodes: Vec<String> = doc.nodes().filter_map(|n| n.name().map(String::from)).collect();
+            let mut want: Vec<String> = scene.map["joints"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap().to_string())
+                .collect();
+            for e in scene.map["elements"].as_array().unwrap() {
+                for inst in e["instances"].as_array().unwrap() {
+                    want.extend(inst.as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()));
+                }
+            }
+            assert!(want.len() >= 4);
+            for w in &want {
+                assert!(nodes.contains(w), "{name}: {w} not in {nodes:?}");
+            }
+            assert_eq!(doc.skins().count(), 1, "{name}");
+        }
+    }
+
+    #[test]
+    fn the_flower_maps_its_leaf_layer_to_every_leaf_instance() {
+        let rig = LoadedRig::embedded("flower").unwrap().unwrap();
+        let scene = bake(&rig).unwrap();
+        let els = scene.map["elements"].as_array().unwrap();
+        assert!(!els.is_empty(), "the flower has secondary elements: {}", scene.map);
+        assert!(els.iter().any(|e| !e["instances"].as_array().unwrap().is_empty()), "{}", scene.map);
+    }
+}

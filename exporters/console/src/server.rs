@@ -1,0 +1,414 @@
+//! The console's server: one thread accepts, each connection gets a short-lived thread (at most
+//! [`MAX_CONNECTIONS`] at once, the rest answered 503), and each page's pose WebSocket a thread
+//! that sends the latest poses at the display rate.
+//!
+//! Endpoints (all behind [`crate::access`]):
+//! - `GET /` the page; `/console.js`, `/console.css`; three.js under `/vendor/`;
+//! - `GET /rig.glb` the daemon's rig baked by frond-gltf at rest, `GET /api/scene` its node map;
+//! - `GET /api/hello` the stream's hello and element table, `GET /api/status` the daemon's status
+//!   (as `frond status --json` has it) with the console's own counters;
+//! - `POST /api/record/start {"name"}`, `POST /api/record/stop`, `POST /api/mark {"label"}`: control
+//!   actions, sent on the control socket with the console's own credentials (the daemon's
+//!   allow-list decides);
+//! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
+//!   element table or the connection changes, and `{"type":"poses","poses":[...]}` at most at the
+//!   display rate with each element's latest pose that the page does not have yet.
+
+use std::collections::HashMap;
+use std::io;
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use frond_gltf::LoadedRig;
+use frond_protocol::{ControlReply, ControlRequest, Pose, paths};
+use frond_sdk::{ControlClient, Hello};
+use serde_json::{Value, json};
+use tungstenite::protocol::{Role, WebSocketConfig};
+use tungstenite::{Message, WebSocket};
+
+use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
+use crate::http::{self, Request, Response};
+use crate::relay::Live;
+use crate::scene::{self, RigScene};
+
+/// Most connections served at once.
+pub const MAX_CONNECTIONS: usize = 64;
+/// Most pose WebSockets at once.
+pub const MAX_SOCKETS: usize = 16;
+/// How long a connection may take to send its request, and a write may block.
+const IO_TIMEOUT: Duration = Duration::from_secs(10);
+/// Most bytes queued for a slow page before its frames are dropped (the latest still follows).
+const MAX_QUEUED_BYTES: usize = 256 * 1024;
+
+/// What the server was asked.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The daemon's socket directory.
+    pub socket_dir: PathBuf,
+    /// Who may use the console.
+    pub access: Access,
+    /// A rig to show instead of the daemon's (name or file), `--rig`.
+    pub rig: Option<String>,
+    /// Pose messages per second to each page.
+    pub display_hz: u32,
+}
+
+/// Counters of the console itself.
+#[derive(Debug, Default)]
+struct Counters {
+    sockets: AtomicUsize,
+    connections: AtomicUsize,
+    messages: AtomicU64,
+    poses_sent: AtomicU64,
+    dropped: AtomicU64,
+    refused: AtomicU64,
+}
+
+/// The running console.
+pub struct Console {
+    config: Config,
+    live: Arc<Live>,
+    counters: Counters,
+    scenes: Mutex<HashMap<String, Result<Arc<RigScene>, String>>>,
+}
+
+const INDEX_HTML: &str = include_str!("../page/index.html");
+const CONSOLE_JS: &str = include_str!("../page/console.js");
+const CONSOLE_CSS: &str = include_str!("../page/console.css");
+
+/// The vendored three.js files: (URL path, body).
+const VENDOR: [(&str, &str); 5] = [
+    ("/vendor/three/three.module.min.js", include_str!("../vendor/three/three.module.min.js")),
+    ("/vendor/three/three.core.min.js", include_str!("../vendor/three/three.core.min.js")),
+    ("/vendor/three/GLTFLoader.js", include_str!("../vendor/three/GLTFLoader.js")),
+    ("/vendor/three/OrbitControls.js", include_str!("../vendor/three/OrbitControls.js")),
+    ("/vendor/utils/BufferGeometryUtils.js", include_str!("../vendor/three/BufferGeometryUtils.js")),
+];
+
+impl Console {
+    /// A console for `config`, its subscription started.
+    pub fn start(config: Config) -> io::Result<Arc<Console>> {
+        let live = Live::new();
+        live.spawn(config.socket_dir.clone())?;
+        Ok(Arc::new(Console { config, live, counters: Counters::default(), scenes: Mutex::default() }))
+    }
+
+    /// Serves `listener` until the process ends.
+    pub fn serve(self: &Arc<Console>, listener: TcpListener) {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            if self.counters.connections.fetch_add(1, Ordering::AcqRel) >= MAX_CONNECTIONS {
+                self.counters.connections.fetch_sub(1, Ordering::AcqRel);
+                let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
+                let _ = Response::error(503, "too many connections; try again").write_to(&mut stream);
+                continue;
+            }
+            let me = Arc::clone(self);
+            let spawned = std::thread::Builder::new().name("console-conn".into()).spawn(move || {
+                me.connection(stream);
+                me.counters.connections.fetch_sub(1, Ordering::AcqRel);
+            });
+            if spawned.is_err() {
+                self.counters.connections.fetch_sub(1, Ordering::AcqRel);
+            }
+        }
+    }
+
+    fn connection(&self, mut stream: TcpStream) {
+        let _ = stream.set_read_timeout(Some(IO_TIMEOUT));
+        let _ = stream.set_write_timeout(Some(IO_TIMEOUT));
+        let req = match http::read_request(&mut stream) {
+            Ok(r) => r,
+            Err(e) => {
+                if let Some(status) = e.status() {
+                    let _ = Response::error(status, e.to_string()).write_to(&mut stream);
+                }
+                return;
+            }
+        };
+        let purpose = match (req.method.as_str(), req.is_websocket()) {
+            (_, true) => Purpose::Socket,
+            ("POST", _) => Purpose::Control,
+            _ => Purpose::Read,
+        };
+        let meta = RequestMeta {
+            host: req.header("host"),
+            origin: req.header("origin"),
+            authorization: req.header("authorization"),
+            cookie: req.header("cookie"),
+            query_token: req.param("token"),
+        };
+        if let Err(refusal) = self.config.access.check(&meta, purpose) {
+            self.counters.refused.fetch_add(1, Ordering::Relaxed);
+            let _ = Response::error(refusal.status(), refusal.to_string()).write_to(&mut stream);
+            return;
+        }
+        if purpose == Purpose::Socket {
+            self.socket(req, stream);
+            return;
+        }
+        let resp = self.route(&req);
+        let _ = resp.write_to(&mut stream);
+    }
+
+    fn route(&self, req: &Request) -> Response {
+        let get = req.method == "GET" || req.method == "HEAD";
+        match (get, req.path.as_str()) {
+            (true, "/") => {
+                let mut r = Response::new(200, "text/html; charset=utf-8", INDEX_HTML);
+                if let Some(t) = req.param("token") {
+                    // The check passed, so this is the token: keep it for the page's requests.
+                    r = r
+                        .with("Set-Cookie", format!("{TOKEN_COOKIE}={t}; Path=/; HttpOnly; SameSite=Strict"));
+                }
+                r
+            }
+            (true, "/console.js") => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
+            (true, "/console.css") => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
+            (true, "/api/hello") => Response::json(200, &self.hello_json()),
+            (true, "/api/status") => self.status(),
+            (true, "/api/scene") => match self.scene() {
+                Ok(s) => Response::json(200, &s.map),
+                Err(e) => Response::error(503, e),
+            },
+            (true, "/rig.glb") => match self.scene() {
+                Ok(s) => Response::new(200, "model/gltf-binary", s.glb.clone()),
+                Err(e) => Response::error(503, e),
+            },
+            (true, p) => match VENDOR.iter().find(|(path, _)| *path == p) {
+                Some((_, body)) => Response::new(200, "text/javascript; charset=utf-8", *body)
+                    .with("Cache-Control", "max-age=3600"),
+                None => Response::error(404, format!("no {p} here")),
+            },
+            (false, "/api/record/start" | "/api/record/stop" | "/api/mark") if req.method == "POST" => {
+                self.control(req)
+            }
+            (false, p) => {
+                Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
+            }
+        }
+    }
+
+    /// The rig to show: `--rig`, else the daemon's.
+    fn scene(&self) -> Result<Arc<RigScene>, String> {
+        let name = match (&self.config.rig, &self.live.lock().hello) {
+            (Some(r), _) => r.clone(),
+            (None, Some(h)) => h.rig_name.clone(),
+            (None, None) => return Err("the daemon is not connected yet: its rig is not known".into()),
+        };
+        let mut cache = self.scenes.lock().unwrap_or_else(|e| e.into_inner());
+        cache
+            .entry(name.clone())
+            .or_insert_with(|| {
+                let rig = LoadedRig::resolve(&name)
+                    .map_err(|e| format!("rig {name:?}: {e} (pass --rig NAME|FILE)"))?;
+                scene::bake(&rig).map(Arc::new).map_err(|e| format!("baking rig {name:?}: {e}"))
+            })
+            .clone()
+    }
+
+    fn hello_json(&self) -> Value {
+        let s = self.live.lock();
+        json!({
+            "type": "hello",
+            "connected": s.connected,
+            "why": s.why,
+            "hello": s.hello.as_ref().map(hello_value),
+            "frames": s.frames,
+            "gaps": s.gaps,
+            "missing": s.missing,
+        })
+    }
+
+    fn status(&self) -> Response {
+        let console = {
+            let s = self.live.lock();
+            json!({
+                "connected": s.connected,
+                "why": s.why,
+                "frames": s.frames,
+                "gaps": s.gaps,
+                "missing": s.missing,
+                "sockets": self.counters.sockets.load(Ordering::Relaxed),
+                "messages": self.counters.messages.load(Ordering::Relaxed),
+                "poses_sent": self.counters.poses_sent.load(Ordering::Relaxed),
+                "dropped": self.counters.dropped.load(Ordering::Relaxed),
+                "refused": self.counters.refused.load(Ordering::Relaxed),
+            })
+        };
+        let daemon = ControlClient::connect_with_timeout(&self.config.socket_dir, Duration::from_secs(2))
+            .and_then(|mut c| c.status());
+        match daemon {
+            Ok(report) => match serde_json::to_value(&report) {
+                Ok(v) => Response::json(200, &json!({ "daemon": v, "console": console })),
+                Err(e) => Response::error(502, format!("the daemon's status does not encode: {e}")),
+            },
+            Err(e) => {
+                Response::json(200, &json!({ "daemon": null, "error": e.to_string(), "console": console }))
+            }
+        }
+    }
+
+    fn control(&self, req: &Request) -> Response {
+        let body: Value = if req.body.is_empty() {
+            json!({})
+        } else {
+            match serde_json::from_slice(&req.body) {
+                Ok(v) => v,
+                Err(e) => return Response::error(400, format!("the body is not JSON: {e}")),
+            }
+        };
+        let text = |key: &str| body.get(key).and_then(Value::as_str).map(str::to_string);
+        let request = match req.path.as_str() {
+            "/api/record/start" => {
+                let Some(name) = text("name") else {
+                    return Response::error(400, "record start needs {\"name\": \"...\"}");
+                };
+                if let Err(e) = paths::validate_take_name(&name) {
+                    return Response::error(400, e.to_string());
+                }
+                ControlRequest::RecordStart { name }
+            }
+            "/api/record/stop" => ControlRequest::RecordStop,
+            _ => {
+                let Some(label) = text("label") else {
+                    return Response::error(400, "mark needs {\"label\": \"...\"}");
+                };
+                if label.is_empty() || label.len() > 256 {
+                    return Response::error(
+                        400,
+                        format!("a marker label is 1-256 bytes, not {}", label.len()),
+                    );
+                }
+                ControlRequest::Mark { label }
+            }
+        };
+        let reply = ControlClient::connect(&self.config.socket_dir).and_then(|mut c| c.request(&request));
+        match reply {
+            Ok(ControlReply::Recording(r)) => Response::json(
+                200,
+                &json!({"ok": true, "recording": {"name": r.name, "path": r.path, "frames": r.frames, "dropped": r.dropped, "active": r.active}}),
+            ),
+            Ok(_) => Response::json(200, &json!({ "ok": true })),
+            Err(e @ frond_sdk::ControlClientError::Refused { .. }) => Response::error(409, e.to_string()),
+            Err(e) => Response::error(502, e.to_string()),
+        }
+    }
+
+    fn socket(&self, req: Request, mut stream: TcpStream) {
+        if self.counters.sockets.fetch_add(1, Ordering::AcqRel) >= MAX_SOCKETS {
+            self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+            let _ =
+                Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
+            return;
+        }
+        if http::accept_websocket(&req, &mut stream).is_ok() && stream.set_nonblocking(true).is_ok() {
+            let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
+            let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
+            self.stream_poses(&mut ws);
+        }
+        self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+    }
+
+    /// Sends the page its poses until it goes away: at most `display_hz` messages a second, each
+    /// with every element's latest pose it has not had; a page that reads too slowly loses
+    /// messages (counted), never delays another.
+    fn stream_poses(&self, ws: &mut WebSocket<TcpStream>) {
+        let period = Duration::from_secs_f64(1.0 / f64::from(self.config.display_hz));
+        let (mut sent, mut poses) = (Vec::new(), Vec::new());
+        let mut version = u64::MAX;
+        let mut next = Instant::now();
+        loop {
+            // Close frames and pings from the page (pongs are queued by tungstenite).
+            loop {
+                match ws.read() {
+                    Ok(Message::Close(_)) => return,
+                    Ok(_) => {}
+                    Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => break,
+                    Err(_) => return,
+                }
+            }
+            let now_version = self.live.changed_since(&mut sent, &mut poses);
+            if now_version != version {
+                version = now_version;
+                if !self.send(ws, self.hello_json().to_string()) {
+                    return;
+                }
+            }
+            if !poses.is_empty() {
+                let n = poses.len() as u64;
+                let msg =
+                    json!({ "type": "poses", "poses": poses.iter().map(pose_value).collect::<Vec<_>>() });
+                if !self.send(ws, msg.to_string()) {
+                    return;
+                }
+                self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
+            }
+            match ws.flush() {
+                Ok(()) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(_) => return,
+            }
+            next += period;
+            let now = Instant::now();
+            if next > now {
+                std::thread::sleep(next - now);
+            } else {
+                next = now;
+            }
+        }
+    }
+
+    /// Queues one message; false when the page is gone.
+    fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> bool {
+        // A page that has not taken what is queued loses this message; the next one carries the
+        // latest poses again (the `sent` map is not rewound, so only newer ones follow).
+        match ws.send(Message::text(text)) {
+            Ok(()) => {
+                self.counters.messages.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            // Queued, the rest goes out at the next flush.
+            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
+                self.counters.messages.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(tungstenite::Error::WriteBufferFull(_)) => {
+                self.counters.dropped.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+}
+
+fn hello_value(h: &Hello) -> Value {
+    json!({
+        "rig": h.rig_name,
+        "joints": h.joint_names,
+        "tick_rate_hz": h.tick_rate_hz,
+        "daemon_version": h.daemon_version,
+        "elements": h.elements.elements.iter().map(|e| json!({
+            "id": e.id, "name": e.name, "kind": e.kind.as_str(), "source": e.source, "rig": e.rig,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn pose_value(p: &Pose) -> Value {
+    json!({
+        "e": p.element,
+        "seq": p.seq,
+        "j": p.joints_deg,
+        "flags": p.flags.0,
+        "dev_us": p.device_time_us,
+        "host_ns": p.host_monotonic_ns,
+    })
+}
+
+/// Whether `addr` is a loopback address (the console then needs no token).
+pub fn is_loopback(addr: &SocketAddr) -> bool {
+    addr.ip().is_loopback()
+}

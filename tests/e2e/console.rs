@@ -1,0 +1,261 @@
+//! `frond-console` on a real daemon (issue 19): the page's 3D scene follows the live poses
+//! (bones' world positions read back from the page against forward kinematics of the poses the
+//! page received, computed here from the rig's heights and the protocol's rotation convention),
+//! the recording controls leave a take on disk, and the access rules refuse what they must.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use frond_e2e::{Daemon, Proc, bin, wait_for};
+use frond_protocol::convention::joint_matrix;
+use frond_webdriver::{Driver, browser, poll, start_session};
+use serde_json::{Value, json};
+
+/// Starts `frond-console ARGS` on `daemon` and returns it with its URL and the whole first line.
+fn start_console(daemon: &Daemon, args: &[&str]) -> (Proc, String, String) {
+    let mut child = Command::new(bin("frond-console"))
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start frond-console");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let url = line
+        .strip_prefix("frond-console: ")
+        .and_then(|r| r.split_whitespace().next())
+        .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+        .to_string();
+    (Proc { child, name: "frond-console".into() }, url, line)
+}
+
+/// One request to `addr` with extra header lines; status, head and body.
+fn request(addr: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, String, String) {
+    let mut s = TcpStream::connect(addr).expect("connect to frond-console");
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let text = String::from_utf8_lossy(&raw).to_string();
+    let (head, body) = text.split_once("\r\n\r\n").expect("HTTP head");
+    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    (status, head.to_string(), body.to_string())
+}
+
+/// World positions of the 4 joints of a chain standing at the origin: joint `i` sits at
+/// `heights[i] - heights[i - 1]` along its parent's +Y, each joint rotated by `joint_matrix` of
+/// its `[pitch, yaw, roll]` relative to its parent (the protocol's convention).
+fn forward_kinematics(heights: &[f64; 4], joints_deg: &[[f32; 3]; 4]) -> [[f64; 3]; 4] {
+    let mut rot = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let mut pos = [0.0f64; 3];
+    let mut out = [[0.0; 3]; 4];
+    for i in 0..4 {
+        let step = heights[i] - if i == 0 { 0.0 } else { heights[i - 1] };
+        // pos += rot * (0, step, 0)
+        for (r, p) in pos.iter_mut().enumerate() {
+            *p += rot[r][1] * step;
+        }
+        out[i] = pos;
+        let m = joint_matrix(joints_deg[i]);
+        let mut next = [[0.0; 3]; 3];
+        for r in 0..3 {
+            for c in 0..3 {
+                next[r][c] = (0..3).map(|k| rot[r][k] * m[k][c]).sum();
+            }
+        }
+        rot = next;
+    }
+    out
+}
+
+fn joints_of(v: &Value) -> [[f32; 3]; 4] {
+    std::array::from_fn(|i| std::array::from_fn(|k| v[i][k].as_f64().unwrap() as f32))
+}
+
+/// Reads `snapshot(element)` from the page until it has one, and checks every bone set of it
+/// against forward kinematics of the pose; returns the pose's joints.
+fn check_bones(d: &Driver, element: u16, heights: &[f64; 4]) -> [[f32; 3]; 4] {
+    let snap = poll(&format!("a snapshot of element {element}"), Duration::from_secs(30), || {
+        let v = d
+            .script(&format!("return window.frondConsole ? window.frondConsole.snapshot({element}) : null;"));
+        (!v.is_null()).then_some(v)
+    });
+    let joints = joints_of(&snap["pose"]["j"]);
+    let sets = snap["bones"].as_array().unwrap();
+    assert!(!sets.is_empty());
+    for set in sets {
+        // A set's own root: the main skeleton stands at the origin; an element instance's
+        // chain is compared relative to its first joint, in its attach frame, so only the main
+        // skeleton is compared absolutely here.
+        if element != 0 {
+            continue;
+        }
+        let want = forward_kinematics(heights, &joints);
+        for (i, w) in want.iter().enumerate() {
+            for k in 0..3 {
+                let got = set[i][k].as_f64().unwrap();
+                assert!(
+                    (got - w[k]).abs() <= 1e-4 * heights[3],
+                    "element {element} joint {i} axis {k}: page {got}, forward kinematics {} (pose {joints:?})",
+                    w[k]
+                );
+            }
+        }
+    }
+    joints
+}
+
+fn heights(d: &Driver) -> [f64; 4] {
+    let h = d.async_script(
+        "const done = arguments[arguments.length - 1]; fetch('/api/scene').then(r => r.json()).then(m => done(m.heights_m));",
+    );
+    std::array::from_fn(|i| h[i].as_f64().unwrap())
+}
+
+#[test]
+fn the_page_shows_the_live_plant_and_records_a_take() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1200,760", &url);
+    let h = heights(&d);
+    assert!((h[3] - 0.24).abs() < 1e-6, "the grass rig's top joint: {h:?}");
+    // Three snapshots: each matches its pose; the sway moves the plant between them.
+    let first = check_bones(&d, 0, &h);
+    std::thread::sleep(Duration::from_millis(400));
+    check_bones(&d, 0, &h);
+    std::thread::sleep(Duration::from_millis(400));
+    let third = check_bones(&d, 0, &h);
+    assert_ne!(first, third, "the virtual glove sways: the poses differ");
+    // The health panel names the source and the rate.
+    let source = poll("the health panel", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('source').textContent;");
+        t.as_str().filter(|s| s.contains("connected")).map(str::to_string)
+    });
+    assert!(source.contains("in-process"), "{source}");
+    // Record from the page, then stop: the take is on disk with the frames the daemon counted.
+    d.script(
+        "document.getElementById('take-name').value = 'console_take';
+         document.getElementById('record-start').click();",
+    );
+    assert!(wait_for(Duration::from_secs(10), || daemon.status().recording.is_some_and(|r| r.active)));
+    std::thread::sleep(Duration::from_millis(300));
+    d.script("document.getElementById('record-stop').click();");
+    let said = poll("the stop result", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('control-result').textContent;");
+        t.as_str().filter(|s| s.starts_with("stopped")).map(str::to_string)
+    });
+    let frames: u64 = said.split_whitespace().nth(2).and_then(|n| n.parse().ok()).expect(&said);
+    let take = daemon.takes_dir.join("console_take.take");
+    let bytes = std::fs::read(&take).expect("the take file");
+    let scan = frond_motion::scan_take(&bytes).expect("a sound take");
+    assert!(scan.ended, "the take is closed");
+    assert_eq!(scan.frames.len() as u64, frames, "{said}");
+    assert!(frames > 100, "0.3 s at 1 kHz: {said}");
+    // The picture (WebGL on SwiftShader): two times differ where the plant is, and only there.
+    let webgl = d.script("return window.frondConsole.state.webgl;");
+    assert_eq!(webgl, json!(true), "the headless browser gives WebGL (SwiftShader)");
+    d.script("return window.frondConsole.grab();");
+    let diff = poll("the plant to move on screen", Duration::from_secs(10), || {
+        let v = d.script("return window.frondConsole.diffSinceGrab();");
+        (v["inside"].as_u64().unwrap() > 200).then_some(v)
+    });
+    let (inside, outside) = (diff["inside"].as_u64().unwrap(), diff["outside"].as_u64().unwrap());
+    assert!(outside * 20 < inside, "changes outside the plant's box: {diff}");
+    save_screenshot(&d, "screenshot.png");
+}
+
+/// Saves a screenshot: over `exporters/console/NAME` with `FROND_UPDATE_SCREENSHOT=1` (the
+/// README's picture), else into the temporary directory.
+fn save_screenshot(d: &Driver, name: &str) {
+    let png = d.screenshot_png();
+    let shot = if std::env::var_os("FROND_UPDATE_SCREENSHOT").is_some_and(|v| v == "1") {
+        frond_e2e::repo_root().join("exporters/console").join(name)
+    } else {
+        std::env::temp_dir().join(format!("frond-console-{}-{name}", std::process::id()))
+    };
+    std::fs::write(&shot, &png).unwrap();
+    eprintln!("screenshot: {}", shot.display());
+}
+
+#[test]
+fn beyond_loopback_every_request_needs_the_token_and_control_needs_the_origin() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let token = "tok-0123456789abcdef";
+    std::fs::write(dir.path().join("token"), format!("{token}\n")).unwrap();
+    let token_file = dir.path().join("token");
+    let (_console, url, line) =
+        start_console(&daemon, &["--listen", "0.0.0.0:0", "--token-file", token_file.to_str().unwrap()]);
+    assert!(
+        line.contains("?token=<the token in") && !line.contains(token),
+        "the file's token is not printed: {line}"
+    );
+    let port = url.split("HOST:").nth(1).and_then(|r| r.split('/').next()).expect(&url).to_string();
+    let addr = format!("127.0.0.1:{port}");
+    let host = format!("Host: {addr}\r\n");
+    let (s, _, body) = request(&addr, "GET", "/", &host, "");
+    assert_eq!(s, 401, "{body}");
+    assert!(body.contains("token"), "{body}");
+    let (s, _, _) = request(&addr, "GET", "/api/hello?token=wrong-0123456789abcdef", &host, "");
+    assert_eq!(s, 401);
+    let (s, head, _) = request(&addr, "GET", &format!("/?token={token}"), &host, "");
+    assert_eq!(s, 200);
+    assert!(head.contains(&format!("Set-Cookie: frond_token={token}")), "{head}");
+    let cookie = format!("{host}Cookie: frond_token={token}\r\n");
+    let (s, _, _) = request(&addr, "GET", "/api/status", &cookie, "");
+    assert_eq!(s, 200);
+    // A control action: refused without the token, and from another site's page.
+    let mark = r#"{"label":"from the console"}"#;
+    let (s, _, _) = request(&addr, "POST", "/api/mark", &host, mark);
+    assert_eq!(s, 401);
+    let evil = format!("{cookie}Origin: http://evil.example\r\n");
+    let (s, _, body) = request(&addr, "POST", "/api/mark", &evil, mark);
+    assert_eq!(s, 403, "{body}");
+    // With the token: the daemon answers (no recording: a mark is refused as wrong state, or
+    // taken; either way it is the daemon's answer, not the console's refusal).
+    let bearer = format!("{host}Authorization: Bearer {token}\r\n");
+    let (s, _, body) = request(&addr, "POST", "/api/mark", &bearer, mark);
+    assert!(s == 200 || (s == 409 && body.contains("the daemon refused")), "{s} {body}");
+    assert!(wait_for(Duration::from_secs(5), || daemon.status().ticks > 0));
+}
+
+#[test]
+fn on_loopback_another_host_name_or_origin_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let host = format!("Host: {addr}\r\n");
+    let (s, _, body) = request(&addr, "GET", "/api/hello", &host, "");
+    assert_eq!(s, 200, "{body}");
+    let hello: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(hello["type"], "hello");
+    // DNS rebinding: a page on another name that resolves to 127.0.0.1.
+    let (s, _, body) = request(&addr, "GET", "/api/hello", "Host: rebind.example:80\r\n", "");
+    assert_eq!(s, 403, "{body}");
+    // A control action needs the page's own Origin.
+    let (s, _, _) = request(&addr, "POST", "/api/record/stop", &host, "");
+    assert_eq!(s, 403);
+    let other = format!("{host}Origin: http://evil.example\r\n");
+    let (s, _, _) = request(&addr, "POST", "/api/record/stop", &other, "");
+    assert_eq!(s, 403);
+    let own = format!("{host}Origin: http://{addr}\r\n");
+    let (s, _, body) = request(&addr, "POST", "/api/record/stop", &own, "");
+    assert_eq!(s, 409, "not recording: the daemon's own refusal: {body}");
+    assert!(body.contains("no take is being recorded"), "{body}");
+    let (s, _, body) = request(&addr, "POST", "/api/record/start", &own, r#"{"name":"../x"}"#);
+    assert_eq!(s, 400, "{body}");
+    let (s, _, _) = request(&addr, "GET", "/nothing", &host, "");
+    assert_eq!(s, 404);
+}
