@@ -9,6 +9,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use frond_e2e::{Daemon, Proc, bin, wait_for};
+use frond_motion::mesh::PlantModel;
 use frond_protocol::convention::joint_matrix;
 use frond_webdriver::{Driver, browser, poll, start_session};
 use serde_json::{Value, json};
@@ -51,28 +52,47 @@ fn request(addr: &str, method: &str, path: &str, headers: &str, body: &str) -> (
     (status, head.to_string(), body.to_string())
 }
 
-/// World positions of the 4 joints of a chain standing at the origin: joint `i` sits at
-/// `heights[i] - heights[i - 1]` along its parent's +Y, each joint rotated by `joint_matrix` of
-/// its `[pitch, yaw, roll]` relative to its parent (the protocol's convention).
-fn forward_kinematics(heights: &[f64; 4], joints_deg: &[[f32; 3]; 4]) -> [[f64; 3]; 4] {
-    let mut rot = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    let mut pos = [0.0f64; 3];
-    let mut out = [[0.0; 3]; 4];
-    for i in 0..4 {
-        let step = heights[i] - if i == 0 { 0.0 } else { heights[i - 1] };
-        // pos += rot * (0, step, 0)
+/// A rigid frame: rotation (row-major) and origin.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    rot: [[f64; 3]; 3],
+    pos: [f64; 3],
+}
+
+impl Frame {
+    const IDENTITY: Frame = Frame { rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], pos: [0.0; 3] };
+
+    /// `self * T(offset) * R(m)`: a child frame at `offset` in this frame, turned by `m`.
+    fn child(&self, offset: [f64; 3], m: [[f64; 3]; 3]) -> Frame {
+        let mut pos = self.pos;
         for (r, p) in pos.iter_mut().enumerate() {
-            *p += rot[r][1] * step;
+            *p += (0..3).map(|k| self.rot[r][k] * offset[k]).sum::<f64>();
         }
-        out[i] = pos;
-        let m = joint_matrix(joints_deg[i]);
-        let mut next = [[0.0; 3]; 3];
-        for r in 0..3 {
-            for c in 0..3 {
-                next[r][c] = (0..3).map(|k| rot[r][k] * m[k][c]).sum();
-            }
-        }
-        rot = next;
+        let rot = std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| self.rot[r][k] * m[k][c]).sum()));
+        Frame { rot, pos }
+    }
+}
+
+/// The rotation matrix of a unit quaternion `[x, y, z, w]`.
+fn quat_matrix([x, y, z, w]: [f32; 4]) -> [[f64; 3]; 3] {
+    let (x, y, z, w) = (f64::from(x), f64::from(y), f64::from(z), f64::from(w));
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
+/// The frames of a 4-joint chain from `base`: joint `i` sits at `heights[i] - heights[i - 1]`
+/// along its parent's +Y (joint 0 at `heights[0]`), turned by `joint_matrix` of its
+/// `[pitch, yaw, roll]` relative to its parent (the protocol's convention).
+fn chain(base: Frame, heights: &[f32; 4], joints_deg: &[[f32; 3]; 4]) -> [Frame; 4] {
+    let mut out = [base; 4];
+    let mut parent = base;
+    for i in 0..4 {
+        let step = f64::from(heights[i]) - if i == 0 { 0.0 } else { f64::from(heights[i - 1]) };
+        out[i] = parent.child([0.0, step, 0.0], joint_matrix(joints_deg[i]));
+        parent = out[i];
     }
     out
 }
@@ -82,36 +102,52 @@ fn joints_of(v: &Value) -> [[f32; 3]; 4] {
 }
 
 /// Reads `snapshot(element)` from the page until it has one, and checks every bone set of it
-/// against forward kinematics of the pose; returns the pose's joints.
-fn check_bones(d: &Driver, element: u16, heights: &[f64; 4]) -> [[f32; 3]; 4] {
+/// against forward kinematics (here, from the rig's model and the poses the page received);
+/// returns the element's joints.
+fn check_bones(d: &Driver, element: u16, model: &PlantModel) -> [[f32; 3]; 4] {
     let snap = poll(&format!("a snapshot of element {element}"), Duration::from_secs(30), || {
-        let v = d
-            .script(&format!("return window.frondConsole ? window.frondConsole.snapshot({element}) : null;"));
+        let v = d.script(&format!("return window.frondConsole ? window.frondConsole.snapshot({element}) : null;"));
         (!v.is_null()).then_some(v)
     });
     let joints = joints_of(&snap["pose"]["j"]);
+    let main = chain(Frame::IDENTITY, &model.skeleton.heights_m, &joints_of(&snap["main"]["j"]));
+    // The chains the element drives: the main skeleton, or each instance of a rig element
+    // (its layer id is the element's index + 1), hung from its attach joint.
+    let want: Vec<[Frame; 4]> = if element == 0 {
+        vec![main]
+    } else {
+        model
+            .elements
+            .iter()
+            .filter(|e| e.element + 1 == usize::from(element))
+            .map(|e| {
+                let offset = e.offset_m.map(f64::from);
+                let attach = main[usize::from(e.attach_joint)].child(offset, quat_matrix(e.rotation));
+                chain(attach, &e.skeleton.heights_m, &joints)
+            })
+            .collect()
+    };
     let sets = snap["bones"].as_array().unwrap();
-    assert!(!sets.is_empty());
-    for set in sets {
-        // A set's own root: the main skeleton stands at the origin; an element instance's
-        // chain is compared relative to its first joint, in its attach frame, so only the main
-        // skeleton is compared absolutely here.
-        if element != 0 {
-            continue;
-        }
-        let want = forward_kinematics(heights, &joints);
-        for (i, w) in want.iter().enumerate() {
+    assert_eq!(sets.len(), want.len(), "bone sets of element {element}");
+    let tol = 1e-4 * f64::from(model.skeleton.heights_m[3]);
+    for (s, (set, frames)) in sets.iter().zip(&want).enumerate() {
+        for (i, f) in frames.iter().enumerate() {
             for k in 0..3 {
                 let got = set[i][k].as_f64().unwrap();
                 assert!(
-                    (got - w[k]).abs() <= 1e-4 * heights[3],
-                    "element {element} joint {i} axis {k}: page {got}, forward kinematics {} (pose {joints:?})",
-                    w[k]
+                    (got - f.pos[k]).abs() <= tol,
+                    "element {element} set {s} joint {i} axis {k}: page {got}, forward kinematics {} (pose {joints:?})",
+                    f.pos[k]
                 );
             }
         }
     }
     joints
+}
+
+fn model(rig: &str) -> PlantModel {
+    let loaded = frond_motion::rig_files::embedded_rig(rig).unwrap().unwrap();
+    frond_motion::rig_files::plant_model(&loaded).unwrap()
 }
 
 fn heights(d: &Driver) -> [f64; 4] {
@@ -130,12 +166,13 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1200,760", &url);
     let h = heights(&d);
     assert!((h[3] - 0.24).abs() < 1e-6, "the grass rig's top joint: {h:?}");
+    let grass = model("grass");
     // Three snapshots: each matches its pose; the sway moves the plant between them.
-    let first = check_bones(&d, 0, &h);
+    let first = check_bones(&d, 0, &grass);
     std::thread::sleep(Duration::from_millis(400));
-    check_bones(&d, 0, &h);
+    check_bones(&d, 0, &grass);
     std::thread::sleep(Duration::from_millis(400));
-    let third = check_bones(&d, 0, &h);
+    let third = check_bones(&d, 0, &grass);
     assert_ne!(first, third, "the virtual glove sways: the poses differ");
     // The health panel names the source and the rate.
     let source = poll("the health panel", Duration::from_secs(10), || {
@@ -258,4 +295,23 @@ fn on_loopback_another_host_name_or_origin_is_refused() {
     assert_eq!(s, 400, "{body}");
     let (s, _, _) = request(&addr, "GET", "/nothing", &host, "");
     assert_eq!(s, 404);
+}
+
+#[test]
+fn the_flower_and_its_leaf_layer_follow_their_two_hands() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--rig", "flower", "--hand", "main=in-process", "--hand", "leaf=in-process,element=leaf"],
+    );
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,700", &url);
+    let flower = model("flower");
+    assert_eq!(flower.elements.iter().filter(|e| e.element == 0).count(), 2, "the flower has two leaves");
+    for _ in 0..3 {
+        check_bones(&d, 0, &flower);
+        check_bones(&d, 1, &flower);
+        std::thread::sleep(Duration::from_millis(300));
+    }
 }

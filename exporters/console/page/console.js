@@ -264,7 +264,8 @@ window.frondConsole = {
     const sets = bonesOf(element);
     if (!p || state.applied[element] !== p.seq || !sets.length) return null;
     plant.updateMatrixWorld(true);
-    return { pose: p, bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())) };
+    // The main skeleton's pose too: an element's bones hang from it.
+    return { pose: p, main: state.received[0] ?? null, bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())) };
   },
   // Keeps the canvas's pixels now, for diffSinceGrab.
   grab() { grabbed = canvasPixels(); return grabbed.length; },
