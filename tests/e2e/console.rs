@@ -19,6 +19,8 @@ fn start_console(daemon: &Daemon, args: &[&str]) -> (Proc, String, String) {
     let mut child = Command::new(bin("frond-console"))
         .arg("--socket-dir")
         .arg(&daemon.socket_dir)
+        .arg("--takes-dir")
+        .arg(&daemon.takes_dir)
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
@@ -68,7 +70,8 @@ impl Frame {
         for (r, p) in pos.iter_mut().enumerate() {
             *p += (0..3).map(|k| self.rot[r][k] * offset[k]).sum::<f64>();
         }
-        let rot = std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| self.rot[r][k] * m[k][c]).sum()));
+        let rot =
+            std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| self.rot[r][k] * m[k][c]).sum()));
         Frame { rot, pos }
     }
 }
@@ -106,7 +109,8 @@ fn joints_of(v: &Value) -> [[f32; 3]; 4] {
 /// returns the element's joints.
 fn check_bones(d: &Driver, element: u16, model: &PlantModel) -> [[f32; 3]; 4] {
     let snap = poll(&format!("a snapshot of element {element}"), Duration::from_secs(30), || {
-        let v = d.script(&format!("return window.frondConsole ? window.frondConsole.snapshot({element}) : null;"));
+        let v = d
+            .script(&format!("return window.frondConsole ? window.frondConsole.snapshot({element}) : null;"));
         (!v.is_null()).then_some(v)
     });
     let joints = joints_of(&snap["pose"]["j"]);
@@ -199,6 +203,59 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     assert!(scan.ended, "the take is closed");
     assert_eq!(scan.frames.len() as u64, frames, "{said}");
     assert!(frames > 100, "0.3 s at 1 kHz: {said}");
+    // The takes panel lists it with that frame count; playing it shows the take's poses.
+    let row = poll("the take in the list", Duration::from_secs(10), || {
+        let v = d.script(
+            "const tr = document.querySelector('#take-list tr[data-take=\"console_take\"]');
+             return tr ? [...tr.children].map(td => td.textContent) : null;",
+        );
+        (!v.is_null()).then_some(v)
+    });
+    assert_eq!(row[1].as_str().unwrap(), frames.to_string(), "{row}");
+    assert_eq!(row[3], "complete", "{row}");
+    d.script("document.querySelector('#take-list tr[data-take=\"console_take\"] .take-play').click();");
+    let main: Vec<_> = scan.frames.iter().filter(|f| f.element == 0).map(|f| f.pose).collect();
+    for _ in 0..3 {
+        let snap = poll("the take playing", Duration::from_secs(10), || {
+            let v = d.script("return window.frondConsole.snapshot(0);");
+            (v["pose"]["take"] == "console_take").then_some(v)
+        });
+        // Frame k of the playback is the take at k / 60 s from its first pose: the recorded
+        // poses bracketing that time (1 ms apart) agree with it within their own change.
+        let k = snap["pose"]["k"].as_u64().unwrap() as f64;
+        let t = main[0].t + k / 60.0;
+        let j = joints_of(&snap["pose"]["j"]);
+        let after = main.iter().position(|p| p.t >= t - 1e-9).unwrap_or(main.len() - 1);
+        let before = after.saturating_sub(1);
+        for i in 0..4 {
+            for a in 0..3 {
+                let (lo, hi) = (main[before].joints_deg[i][a], main[after].joints_deg[i][a]);
+                let (lo, hi) = (lo.min(hi) - 1e-3, lo.max(hi) + 1e-3);
+                assert!(
+                    (lo..=hi).contains(&j[i][a]),
+                    "frame {k} joint {i}.{a}: {} not within [{lo}, {hi}]",
+                    j[i][a]
+                );
+            }
+        }
+        check_bones(&d, 0, &grass);
+        std::thread::sleep(Duration::from_millis(150));
+    }
+    // Downloads: the GLB frond-gltf bakes (its animation named after the take) and the JSONL.
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let host = format!("Host: {addr}\r\n");
+    let (s, head, _) = request(&addr, "GET", "/api/takes/console_take.glb", &host, "");
+    assert_eq!(s, 200);
+    assert!(head.contains("filename=\"console_take.glb\""), "{head}");
+    let (s, _, body) = request(&addr, "GET", "/api/takes/console_take.jsonl", &host, "");
+    assert_eq!(s, 200);
+    let held = scan
+        .frames
+        .iter()
+        .filter(|f| f.element == 0 && f.flags & frond_protocol::PoseFlags::HELD.0 != 0)
+        .count();
+    assert_eq!(body.lines().count(), main.len() - held, "one line per pose, held ones left out");
+    d.script("document.getElementById('player-live').click();");
     // The picture (WebGL on SwiftShader): two times differ where the plant is, and only there.
     let webgl = d.script("return window.frondConsole.state.webgl;");
     assert_eq!(webgl, json!(true), "the headless browser gives WebGL (SwiftShader)");

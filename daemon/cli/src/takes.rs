@@ -120,18 +120,14 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
     };
     match read_scan(path) {
         Ok((scan, size)) => {
-            let poses = scan.poses();
-            info.frames = poses.len() as u64;
-            info.duration_s = match (poses.first(), poses.last()) {
-                (Some(a), Some(b)) => b.t - a.t,
-                _ => 0.0,
-            };
+            info.frames = scan.frames.iter().filter(|f| f.element == 0).count() as u64;
+            info.duration_s = scan.duration_s();
             info.size_bytes = size;
             info.torn_bytes = scan.torn_bytes;
             info.skipped_bytes = scan.skipped_bytes();
             info.damage = scan.damage();
             info.markers = scan.markers.len() as u64;
-            info.state = state(&scan, size);
+            info.state = scan.state(size);
             info.rig = scan.header.map(|h| h.rig_name);
         }
         Err(e) => {
@@ -140,20 +136,6 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
         }
     }
     info
-}
-
-fn state(scan: &TakeScan, size: u64) -> &'static str {
-    if size == 0 {
-        "empty"
-    } else if !scan.skipped.is_empty() {
-        "damaged"
-    } else if scan.torn_bytes > 0 {
-        "torn"
-    } else if scan.ended {
-        "complete"
-    } else {
-        "open"
-    }
 }
 
 /// `12 B`, `3.4 KiB`, `5.6 MiB`.
@@ -549,7 +531,7 @@ mod tests {
     #[test]
     fn states() {
         let frames = [frame(0, 0.0, PoseFlags::default()), frame(1, 0.1, PoseFlags::default())];
-        let st = |b: &[u8]| state(&scan_take(b).unwrap(), b.len() as u64);
+        let st = |b: &[u8]| scan_take(b).unwrap().state(b.len() as u64);
         assert_eq!(st(&take(&frames, true)), "complete");
         assert_eq!(st(&take(&frames, false)), "open");
         let mut torn = take(&frames, false);

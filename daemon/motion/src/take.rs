@@ -478,6 +478,31 @@ impl TakeScan {
     pub fn poses(&self) -> Vec<PoseFrame> {
         self.frames.iter().filter(|f| f.element == 0).map(|f| f.pose).collect()
     }
+
+    /// Time from the first to the last main-skeleton pose, seconds (0 with fewer than two).
+    pub fn duration_s(&self) -> f64 {
+        let mut main = self.frames.iter().filter(|f| f.element == 0);
+        match (main.next(), main.last()) {
+            (Some(a), Some(b)) => b.pose.t - a.pose.t,
+            _ => 0.0,
+        }
+    }
+
+    /// The take's state as `frond take list` names it, for a file of `size` bytes: `empty`,
+    /// `damaged` (stretches skipped), `torn` (a torn tail), `complete` (End record) or `open`.
+    pub fn state(&self, size: u64) -> &'static str {
+        if size == 0 {
+            "empty"
+        } else if !self.skipped.is_empty() {
+            "damaged"
+        } else if self.torn_bytes > 0 {
+            "torn"
+        } else if self.ended {
+            "complete"
+        } else {
+            "open"
+        }
+    }
 }
 
 /// Reads a whole take (or the part written so far), skipping damaged records (listed in

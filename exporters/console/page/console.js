@@ -118,6 +118,8 @@ function bonesOf(id) {
 }
 
 function apply(p) {
+  // While a take plays in the view, the main skeleton shows the take, not the live hand.
+  if (player && p.e === 0) return;
   const sets = bonesOf(p.e);
   for (const bones of sets) {
     bones.forEach((b, i) => jointQuat(p.j[i], b.quaternion));
@@ -126,6 +128,7 @@ function apply(p) {
 }
 
 function frame() {
+  if (player) showTakeFrame();
   if (renderer) { resize(); renderer.render(scene, camera); }
   requestAnimationFrame(frame);
 }
@@ -233,8 +236,65 @@ async function post(path, body) {
   }
 }
 $('record-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/record/start', { name: $('take-name').value.trim() }); });
-$('record-stop').addEventListener('click', () => post('/api/record/stop'));
+$('record-stop').addEventListener('click', () => post('/api/record/stop').then(listTakes));
 $('mark-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/mark', { label: $('mark-label').value }); });
+
+// ---- takes: list, play in the view with a scrubber, downloads, loop on the daemon ----
+let player = null; // {name, fps, frames, t0, paused, k}
+function showTakeFrame() {
+  const n = player.frames.length;
+  if (!player.paused) player.k = Math.floor(((performance.now() - player.t0) / 1000) * player.fps) % n;
+  $('scrubber').value = player.k;
+  mainBones.forEach((b, i) => jointQuat(player.frames[player.k][i], b.quaternion));
+}
+async function play(name) {
+  const r = await fetch(`/api/takes/${encodeURIComponent(name)}/play`);
+  const j = await r.json();
+  if (!r.ok) { $('control-result').textContent = j.error; $('control-result').className = 'bad'; return; }
+  player = { name, fps: j.fps, frames: j.frames, t0: performance.now(), paused: false, k: 0 };
+  $('player').hidden = false;
+  $('player-title').textContent = `playing ${name} (${(j.frames.length / j.fps).toFixed(1)} s)`;
+  $('scrubber').max = j.frames.length - 1;
+  $('player-pause').textContent = 'Pause';
+}
+$('scrubber').addEventListener('input', (e) => {
+  if (!player) return;
+  player.paused = true; player.k = Number(e.target.value);
+  $('player-pause').textContent = 'Play';
+});
+$('player-pause').addEventListener('click', () => {
+  if (!player) return;
+  player.paused = !player.paused;
+  if (!player.paused) player.t0 = performance.now() - (player.k / player.fps) * 1000;
+  $('player-pause').textContent = player.paused ? 'Play' : 'Pause';
+});
+$('player-live').addEventListener('click', () => {
+  player = null; $('player').hidden = true;
+  if (state.received[0]) apply(state.received[0]);
+});
+async function listTakes() {
+  const j = await (await fetch('/api/takes')).json();
+  $('takes-dir').textContent = j.error || `in ${j.dir}${j.left_out ? ` (${j.left_out} more not listed)` : ''}`;
+  const tb = $('take-list').tBodies[0];
+  tb.replaceChildren(...j.takes.map((t) => {
+    const tr = document.createElement('tr');
+    tr.dataset.take = t.name;
+    const cells = [t.name, t.frames ?? '', t.duration_s != null ? `${t.duration_s.toFixed(1)} s` : '', t.state];
+    for (const c of cells) { const td = document.createElement('td'); td.textContent = c; tr.append(td); }
+    if (t.damage || t.error) tr.title = t.damage || t.error;
+    const td = document.createElement('td');
+    const btn = (label, title, fn) => { const b = document.createElement('button'); b.type = 'button'; b.textContent = label; b.title = title; b.className = `take-${label.toLowerCase()}`; b.onclick = fn; td.append(b); };
+    const link = (label, href) => { const a = document.createElement('a'); a.textContent = label; a.href = href; a.download = ''; td.append(a); };
+    btn('Play', 'play in the view', () => play(t.name));
+    btn('Loop', 'loop on the daemon (every subscriber sees it)', () => post('/api/playback', { take: t.name }));
+    link('GLB', `/api/takes/${encodeURIComponent(t.name)}.glb`);
+    link('JSONL', `/api/takes/${encodeURIComponent(t.name)}.jsonl`);
+    tr.append(td);
+    return tr;
+  }));
+}
+$('takes-refresh').addEventListener('click', listTakes);
+listTakes();
 
 // ---- for tests and scripts ----
 const v = new THREE.Vector3();
@@ -260,6 +320,12 @@ window.frondConsole = {
   // The latest applied pose of `element` and the world position of each of its bones, read
   // from the scene graph in one go.
   snapshot(element = 0) {
+    if (player && element === 0) {
+      showTakeFrame();
+      const p = { e: 0, j: player.frames[player.k], k: player.k, take: player.name };
+      plant.updateMatrixWorld(true);
+      return { pose: p, main: p, bones: [mainBones.map((b) => b.getWorldPosition(v).toArray())] };
+    }
     const p = state.received[element];
     const sets = bonesOf(element);
     if (!p || state.applied[element] !== p.seq || !sets.length) return null;

@@ -7,7 +7,8 @@
 //! - [`http`]: the bounded HTTP/1.1 and WebSocket handshake;
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
-//! - [`server`]: the endpoints and the pose WebSocket at the display rate.
+//! - [`server`]: the endpoints and the pose WebSocket at the display rate;
+//! - [`takes`]: the takes panel's list, playback and downloads.
 
 #![warn(missing_docs)]
 
@@ -16,3 +17,4 @@ pub mod http;
 pub mod relay;
 pub mod scene;
 pub mod server;
+pub mod takes;

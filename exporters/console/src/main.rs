@@ -23,6 +23,9 @@ struct Args {
     /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
     #[arg(long, value_name = "DIR")]
     socket_dir: Option<PathBuf>,
+    /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
+    #[arg(long, value_name = "DIR")]
+    takes_dir: Option<PathBuf>,
     /// Show this rig (embedded name or file) instead of the daemon's.
     #[arg(long, value_name = "NAME|FILE")]
     rig: Option<String>,
@@ -50,6 +53,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let socket_dir = frond_protocol::paths::socket_dir(args.socket_dir.clone());
     let console = Console::start(Config {
         socket_dir: socket_dir.clone(),
+        takes_dir: frond_protocol::paths::takes_dir(args.takes_dir.clone()),
         access: Access { loopback, token: token.clone() },
         rig: args.rig.clone(),
         display_hz: args.display_hz,

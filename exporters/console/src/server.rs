@@ -7,7 +7,10 @@
 //! - `GET /rig.glb` the daemon's rig baked by frond-gltf at rest, `GET /api/scene` its node map;
 //! - `GET /api/hello` the stream's hello and element table, `GET /api/status` the daemon's status
 //!   (as `frond status --json` has it) with the console's own counters;
-//! - `POST /api/record/start {"name"}`, `POST /api/record/stop`, `POST /api/mark {"label"}`: control
+//! - `GET /api/takes` the takes (as `frond take list --json`), `GET /api/takes/NAME/play` a take's
+//!   main skeleton at 60 FPS for the view, `/api/takes/NAME.glb` and `.jsonl` as downloads;
+//! - `POST /api/record/start {"name"}`, `POST /api/record/stop`, `POST /api/mark {"label"}`,
+//!   `POST /api/playback {"take"}` (the daemon loops it), `POST /api/playback/stop`: control
 //!   actions, sent on the control socket with the console's own credentials (the daemon's
 //!   allow-list decides);
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
@@ -23,7 +26,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_gltf::LoadedRig;
-use frond_protocol::{ControlReply, ControlRequest, Pose, paths};
+use frond_protocol::{ControlReply, ControlRequest, Pose, StageSpec, paths};
 use frond_sdk::{ControlClient, Hello};
 use serde_json::{Value, json};
 use tungstenite::protocol::{Role, WebSocketConfig};
@@ -33,6 +36,7 @@ use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
 use crate::http::{self, Request, Response};
 use crate::relay::Live;
 use crate::scene::{self, RigScene};
+use crate::takes;
 
 /// Most connections served at once.
 pub const MAX_CONNECTIONS: usize = 64;
@@ -48,6 +52,8 @@ const MAX_QUEUED_BYTES: usize = 256 * 1024;
 pub struct Config {
     /// The daemon's socket directory.
     pub socket_dir: PathBuf,
+    /// The takes directory (the daemon's, for the takes panel).
+    pub takes_dir: PathBuf,
     /// Who may use the console.
     pub access: Access,
     /// A rig to show instead of the daemon's (name or file), `--rig`.
@@ -178,17 +184,44 @@ impl Console {
                 Ok(s) => Response::new(200, "model/gltf-binary", s.glb.clone()),
                 Err(e) => Response::error(503, e),
             },
+            (true, "/api/takes") => Response::json(200, &takes::list(&self.config.takes_dir)),
+            (true, p) if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
             (true, p) => match VENDOR.iter().find(|(path, _)| *path == p) {
                 Some((_, body)) => Response::new(200, "text/javascript; charset=utf-8", *body)
                     .with("Cache-Control", "max-age=3600"),
                 None => Response::error(404, format!("no {p} here")),
             },
-            (false, "/api/record/start" | "/api/record/stop" | "/api/mark") if req.method == "POST" => {
-                self.control(req)
-            }
+            (
+                false,
+                "/api/record/start" | "/api/record/stop" | "/api/mark" | "/api/playback"
+                | "/api/playback/stop",
+            ) if req.method == "POST" => self.control(req),
             (false, p) => {
                 Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
             }
+        }
+    }
+
+    /// `/api/takes/NAME/play`, `/api/takes/NAME.glb`, `/api/takes/NAME.jsonl`.
+    fn take_file(&self, rest: &str) -> Response {
+        let answer = |r: Result<Response, takes::TakeError>| {
+            r.unwrap_or_else(|e| Response::error(e.status, e.message))
+        };
+        if let Some(name) = rest.strip_suffix("/play") {
+            answer(takes::playback(&self.config.takes_dir, name).map(|v| Response::json(200, &v)))
+        } else if let Some(name) = rest.strip_suffix(".jsonl") {
+            answer(takes::jsonl(&self.config.takes_dir, name).map(|t| {
+                Response::new(200, "application/x-ndjson", t)
+                    .with("Content-Disposition", format!("attachment; filename=\"{name}.jsonl\""))
+            }))
+        } else if let Some(name) = rest.strip_suffix(".glb") {
+            let rig = self.live.lock().hello.as_ref().map(|h| h.rig_name.clone());
+            answer(takes::glb(&self.config.takes_dir, name, rig.as_deref()).map(|b| {
+                Response::new(200, "model/gltf-binary", b)
+                    .with("Content-Disposition", format!("attachment; filename=\"{name}.glb\""))
+            }))
+        } else {
+            Response::error(404, format!("no /api/takes/{rest} here (NAME/play, NAME.glb, NAME.jsonl)"))
         }
     }
 
@@ -273,6 +306,16 @@ impl Console {
                 ControlRequest::RecordStart { name }
             }
             "/api/record/stop" => ControlRequest::RecordStop,
+            "/api/playback" => {
+                let Some(take) = text("take") else {
+                    return Response::error(400, "playback needs {\"take\": \"...\"}");
+                };
+                if let Err(e) = paths::validate_take_name(&take) {
+                    return Response::error(400, e.to_string());
+                }
+                ControlRequest::StageStart { name: None, spec: StageSpec::Playback { take, seed: 0 } }
+            }
+            "/api/playback/stop" => ControlRequest::StageStop { name: "playback".into() },
             _ => {
                 let Some(label) = text("label") else {
                     return Response::error(400, "mark needs {\"label\": \"...\"}");

@@ -1,0 +1,168 @@
+//! The takes panel: the takes directory listed as `frond take list` has it, a take's main
+//! skeleton resampled for playback in the 3D view, and downloads: the GLB frond-gltf bakes and
+//! the JSONL `frond take export` prints. Names are checked (`paths::validate_take_name`) before
+//! any path is built; files are read only if regular and within the take size limit.
+
+use std::path::{Path, PathBuf};
+
+use frond_gltf::{BakeOptions, Baker, LoadedRig, TakeInput};
+use frond_motion::jsonl::write_pose_line;
+use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
+use frond_protocol::{PoseFlags, paths};
+use serde_json::{Value, json};
+
+/// Most takes listed (the newest by name order beyond are left out, and said so).
+pub const MAX_LISTED: usize = 1000;
+/// Playback rate of a take in the page, frames per second.
+pub const PLAY_FPS: f64 = 60.0;
+/// Longest playback sent to the page: 30 minutes at [`PLAY_FPS`].
+pub const MAX_PLAY_FRAMES: u64 = 30 * 60 * 60;
+
+/// A takes request that cannot be answered: HTTP status and words.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TakeError {
+    /// 400, 404, 413 or 500.
+    pub status: u16,
+    /// What is wrong.
+    pub message: String,
+}
+
+fn err(status: u16, message: impl Into<String>) -> TakeError {
+    TakeError { status, message: message.into() }
+}
+
+/// The path of take `name` in `dir`, the name checked first.
+fn take_path(dir: &Path, name: &str) -> Result<PathBuf, TakeError> {
+    paths::validate_take_name(name).map_err(|e| err(400, e.to_string()))?;
+    Ok(dir.join(format!("{name}.take")))
+}
+
+fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
+    let path = take_path(dir, name)?;
+    let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| match &e {
+        frond_motion::rig_files::FileError::Read { source, .. }
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            err(404, format!("no take {name:?} in {}", dir.display()))
+        }
+        _ => err(500, e.to_string()),
+    })?;
+    let scan = scan_take(&bytes).map_err(|e| err(500, format!("{}: {e}", path.display())))?;
+    Ok((scan, bytes.len() as u64))
+}
+
+/// The takes of `dir`: `{"dir", "takes": [{"name", "frames", "duration_s", "size_bytes",
+/// "state", "rig", "damage", "markers"}], "left_out"}`, sorted by name.
+pub fn list(dir: &Path) -> Value {
+    let mut names: Vec<String> = match std::fs::read_dir(dir) {
+        Ok(rd) => rd
+            .filter_map(Result::ok)
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+            .filter_map(|e| e.file_name().to_str()?.strip_suffix(".take").map(str::to_string))
+            .filter(|n| paths::validate_take_name(n).is_ok())
+            .collect(),
+        Err(e) => {
+            return json!({ "dir": dir.display().to_string(), "takes": [], "error": format!("cannot list {}: {e}", dir.display()) });
+        }
+    };
+    names.sort();
+    let left_out = names.len().saturating_sub(MAX_LISTED);
+    names.truncate(MAX_LISTED);
+    let takes: Vec<Value> = names
+        .iter()
+        .map(|name| match read(dir, name) {
+            Ok((scan, size)) => json!({
+                "name": name,
+                "frames": scan.frames.iter().filter(|f| f.element == 0).count(),
+                "duration_s": scan.duration_s(),
+                "size_bytes": size,
+                "state": scan.state(size),
+                "rig": scan.header.as_ref().map(|h| h.rig_name.clone()),
+                "damage": scan.damage(),
+                "markers": scan.markers.len(),
+            }),
+            Err(e) => json!({ "name": name, "state": "corrupt", "error": e.message }),
+        })
+        .collect();
+    json!({ "dir": dir.display().to_string(), "takes": takes, "left_out": left_out })
+}
+
+/// Take `name`'s main skeleton resampled to [`PLAY_FPS`] for the page: `{"name", "rig", "fps",
+/// "frames": [[[pitch, yaw, roll] x 4], ...]}`.
+pub fn playback(dir: &Path, name: &str) -> Result<Value, TakeError> {
+    let (scan, _) = read(dir, name)?;
+    let poses = scan.poses();
+    if poses.is_empty() {
+        return Err(err(400, format!("take {name:?} has no frames of the main skeleton")));
+    }
+    resample_plan(&poses, PLAY_FPS).check(PLAY_FPS, MAX_PLAY_FRAMES).map_err(|e| {
+        err(413, format!("take {name:?}: {e}: longer than the page plays (export it instead)"))
+    })?;
+    let frames: Vec<_> = resample(&poses, PLAY_FPS).iter().map(|p| p.joints_deg).collect();
+    Ok(json!({
+        "name": name,
+        "rig": scan.header.as_ref().map(|h| h.rig_name.clone()),
+        "fps": PLAY_FPS,
+        "frames": frames,
+    }))
+}
+
+/// Take `name` as JSONL, one pose per line, as `frond take export NAME` prints it (main
+/// skeleton, held frames left out, at the recorded times).
+pub fn jsonl(dir: &Path, name: &str) -> Result<String, TakeError> {
+    let (scan, _) = read(dir, name)?;
+    let mut out = String::new();
+    let poses: Vec<(u64, PoseFrame)> = scan
+        .frames
+        .iter()
+        .filter(|f| f.element == 0 && !PoseFlags(f.flags).contains(PoseFlags::HELD))
+        .map(|f| (f.seq, f.pose))
+        .collect();
+    for (seq, pose) in &poses {
+        write_pose_line(pose, Some(*seq), &mut out);
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Take `name` baked by frond-gltf on its rig (the header's, else `fallback_rig`), as GLB.
+pub fn glb(dir: &Path, name: &str, fallback_rig: Option<&str>) -> Result<Vec<u8>, TakeError> {
+    let path = take_path(dir, name)?;
+    let take = TakeInput::resolve(&path.display().to_string(), dir).map_err(|e| err(500, e.to_string()))?;
+    let rig_name = take.header.as_ref().map(|h| h.rig_name.clone()).or(fallback_rig.map(str::to_string));
+    let Some(rig_name) = rig_name else {
+        return Err(err(400, format!("take {name:?} names no rig and the daemon's is not known")));
+    };
+    let rig = LoadedRig::resolve(&rig_name).map_err(|e| err(500, format!("rig {rig_name:?}: {e}")))?;
+    let model = rig.model().map_err(|e| err(500, e.to_string()))?;
+    let baked = Baker::new()
+        .bake_take(&rig, &model, &take, &BakeOptions::default(), &mut |_, _| {})
+        .map_err(|e| err(500, e.to_string()))?;
+    let mut out = Vec::new();
+    frond_gltf::encode_glb(&baked, &mut out).map_err(|e| err(500, e.to_string()))?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked_before_any_path_is_built() {
+        let dir = tempfile::tempdir().unwrap();
+        for bad in ["../x", "a/b", "", ".hidden"] {
+            let e = playback(dir.path(), bad).unwrap_err();
+            assert_eq!(e.status, 400, "{bad:?}: {e:?}");
+        }
+        let e = playback(dir.path(), "missing").unwrap_err();
+        assert_eq!(e.status, 404);
+        assert!(e.message.contains("no take \"missing\""), "{e:?}");
+    }
+
+    #[test]
+    fn a_directory_that_is_not_there_lists_nothing_and_says_why() {
+        let v = list(Path::new("/nonexistent/frond-takes"));
+        assert_eq!(v["takes"], json!([]));
+        assert!(v["error"].as_str().unwrap().contains("cannot list"), "{v}");
+    }
+}
