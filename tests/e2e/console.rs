@@ -227,15 +227,11 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
         let j = joints_of(&snap["pose"]["j"]);
         let after = main.iter().position(|p| p.t >= t - 1e-9).unwrap_or(main.len() - 1);
         let before = after.saturating_sub(1);
-        for i in 0..4 {
-            for a in 0..3 {
+        for (i, joint) in j.iter().enumerate() {
+            for (a, &got) in joint.iter().enumerate() {
                 let (lo, hi) = (main[before].joints_deg[i][a], main[after].joints_deg[i][a]);
                 let (lo, hi) = (lo.min(hi) - 1e-3, lo.max(hi) + 1e-3);
-                assert!(
-                    (lo..=hi).contains(&j[i][a]),
-                    "frame {k} joint {i}.{a}: {} not within [{lo}, {hi}]",
-                    j[i][a]
-                );
+                assert!((lo..=hi).contains(&got), "frame {k} joint {i}.{a}: {got} not within [{lo}, {hi}]");
             }
         }
         check_bones(&d, 0, &grass);
@@ -371,4 +367,61 @@ fn the_flower_and_its_leaf_layer_follow_their_two_hands() {
         check_bones(&d, 1, &flower);
         std::thread::sleep(Duration::from_millis(300));
     }
+}
+
+#[test]
+fn the_health_panel_shows_an_unplugged_glove_with_the_fix_within_a_second() {
+    if !frond_e2e::fuse_available() {
+        eprintln!("skipped: no /dev/fuse");
+        return;
+    }
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let node = dir.path().join("vhid").join("hidraw-glove");
+    // The glove goes away 2.5 s after its first report, for 4 s.
+    let (_glove, node, _out) = frond_e2e::start_vhid(&[
+        "--sway",
+        "--rate",
+        "1000",
+        "--node",
+        node.to_str().unwrap(),
+        "--unplug-at-ms",
+        "2500",
+        "--unplug-ms",
+        "4000",
+    ]);
+    let daemon = Daemon::start(dir.path(), &["--hand", &format!("glove=hid:{}", node.display())]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,700", &url);
+    let problems =
+        || d.script("return document.getElementById('problems').textContent;").as_str().unwrap().to_string();
+    poll("the page's health panel", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('source').textContent;");
+        t.as_str().filter(|s| s.contains("connected")).map(|_| ())
+    });
+    assert!(!problems().contains("not connected"), "the glove is there: {}", problems());
+    // The daemon sees the unplug; the page says so within a second, with the fix.
+    assert!(
+        wait_for(Duration::from_secs(15), || !daemon.status().source.connected),
+        "the daemon never saw the glove go"
+    );
+    let lost_at = std::time::Instant::now();
+    let said = poll("the unplug on the page", Duration::from_secs(5), || {
+        let t = problems();
+        t.contains("is not connected").then_some(t)
+    });
+    let took = lost_at.elapsed();
+    assert!(took < Duration::from_secs(1), "the page showed the unplug after {took:?}");
+    assert!(
+        said.contains("hand source glove (fuse-hidraw") && said.contains("frond-vhid) is gone"),
+        "{said}"
+    );
+    // And clears it when the glove is back.
+    assert!(
+        wait_for(Duration::from_secs(15), || daemon.status().source.connected),
+        "the glove never came back"
+    );
+    poll("the problem to clear", Duration::from_secs(5), || {
+        (!problems().contains("not connected")).then_some(())
+    });
 }

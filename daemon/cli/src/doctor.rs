@@ -46,30 +46,40 @@ fn check(name: &'static str, verdict: Verdict, found: String, fix: Option<String
     Check { name, verdict, found, fix }
 }
 
-fn daemon(g: &Global) -> Check {
+/// The daemon, and what its status says needs the operator (`frond_sdk::health`, as the
+/// console shows it): one check each.
+fn daemon(g: &Global) -> Vec<Check> {
     let dir = paths::socket_dir(g.socket_dir.clone());
     let status = Control::connect(&dir).and_then(|mut c| c.request(&ControlRequest::Status));
     match status {
-        Ok(ControlReply::Status(s)) => check(
-            "daemon",
-            Verdict::Ok,
-            format!(
-                "frondd {} at {} ({} source {}, {} subscribers)",
-                s.daemon_version,
-                dir.display(),
-                s.source.kind,
-                s.source.path,
-                s.subscribers.len()
-            ),
-            None,
-        ),
-        Ok(other) => check("daemon", Verdict::Problem, format!("unexpected reply {other:?}"), None),
-        Err(e) => check(
+        Ok(ControlReply::Status(s)) => {
+            let mut out = vec![check(
+                "daemon",
+                Verdict::Ok,
+                format!(
+                    "frondd {} at {} ({} source {}, {} subscribers)",
+                    s.daemon_version,
+                    dir.display(),
+                    s.source.kind,
+                    s.source.path,
+                    s.subscribers.len()
+                ),
+                None,
+            )];
+            out.extend(
+                frond_sdk::health::problems(&s)
+                    .into_iter()
+                    .map(|p| check("stage", Verdict::Problem, p.what, Some(p.fix))),
+            );
+            out
+        }
+        Ok(other) => vec![check("daemon", Verdict::Problem, format!("unexpected reply {other:?}"), None)],
+        Err(e) => vec![check(
             "daemon",
             Verdict::Problem,
             format!("no daemon answers at {}", dir.display()),
             Some(frond_protocol::error_text(e.as_ref())),
-        ),
+        )],
     }
 }
 
@@ -294,7 +304,9 @@ fn exporters() -> Check {
 
 /// Every check, in order.
 pub fn checks(g: &Global) -> Vec<Check> {
-    vec![daemon(g), socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service(), exporters()]
+    let mut all = daemon(g);
+    all.extend([socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service(), exporters()]);
+    all
 }
 
 /// Runs `frond doctor`; `Ok(false)` when something needs fixing.

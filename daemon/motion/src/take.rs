@@ -482,7 +482,7 @@ impl TakeScan {
     /// Time from the first to the last main-skeleton pose, seconds (0 with fewer than two).
     pub fn duration_s(&self) -> f64 {
         let mut main = self.frames.iter().filter(|f| f.element == 0);
-        match (main.next(), main.last()) {
+        match (main.next(), main.next_back()) {
             (Some(a), Some(b)) => b.pose.t - a.pose.t,
             _ => 0.0,
         }

@@ -184,12 +184,15 @@ async function pollStatus() {
     const d = s.daemon;
     const probs = $('problems');
     probs.replaceChildren();
-    const say = (t) => { const li = document.createElement('li'); li.textContent = t; probs.append(li); };
-    if (!d) {
-      say(s.error || 'the daemon does not answer');
-    } else {
-      for (const p of d.problems || []) say(p);
-      if (!d.source.connected) say(`the hand source (${d.source.kind} ${d.source.path}) is not connected: check the device (run \`frond doctor\`)`);
+    // What is wrong, in words, with the fix (the same words as `frond doctor`).
+    for (const p of s.health || []) {
+      const li = document.createElement('li');
+      const what = document.createElement('b'); what.textContent = p.what;
+      const fix = document.createElement('div'); fix.className = 'fix'; fix.textContent = `fix: ${p.fix}`;
+      li.append(what, fix);
+      probs.append(li);
+    }
+    if (d) {
       $('source').textContent = `${d.source.kind} ${d.source.path} — ${d.source.connected ? 'connected' : 'NOT CONNECTED'}, ${d.source.reports} reports`;
       $('source').className = d.source.connected ? 'ok' : 'bad';
       $('achieved').textContent = `${d.achieved_rate_hz.toFixed(1)} Hz of ${d.tick_rate_hz} Hz, ${d.publish_drops} publish drops`;
@@ -217,7 +220,7 @@ async function pollStatus() {
   } catch (e) {
     $('source').textContent = `console unreachable: ${e.message}`;
   }
-  setTimeout(pollStatus, 500);
+  setTimeout(pollStatus, 250);
 }
 pollStatus();
 

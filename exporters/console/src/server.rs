@@ -276,7 +276,13 @@ impl Console {
             .and_then(|mut c| c.status());
         match daemon {
             Ok(report) => match serde_json::to_value(&report) {
-                Ok(v) => Response::json(200, &json!({ "daemon": v, "console": console })),
+                Ok(v) => {
+                    let health: Vec<Value> = frond_sdk::health::problems(&report)
+                        .into_iter()
+                        .map(|p| json!({ "what": p.what, "fix": p.fix }))
+                        .collect();
+                    Response::json(200, &json!({ "daemon": v, "health": health, "console": console }))
+                }
                 Err(e) => Response::error(502, format!("the daemon's status does not encode: {e}")),
             },
             Err(e) => {

@@ -31,6 +31,7 @@
 mod conn;
 pub mod control;
 mod error;
+pub mod health;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};

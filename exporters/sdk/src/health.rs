@@ -1,0 +1,107 @@
+//! What is wrong with a stage, in words, with the fix: read from the daemon's
+//! [`StatusReport`], so `frond doctor` and the console say the same thing.
+
+use frond_protocol::{SourceStatus, StatusReport};
+
+/// Below this share of the nominal tick rate the loop is reported as slow.
+pub const SLOW_RATE_SHARE: f64 = 0.95;
+
+/// One problem and how to fix it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problem {
+    /// What is wrong.
+    pub what: String,
+    /// What to do about it.
+    pub fix: String,
+}
+
+/// How to bring back a hand source of `kind` that is not connected.
+pub fn source_fix(kind: &str) -> &'static str {
+    match kind {
+        k if k.starts_with("hid") => {
+            "plug the glove in (USB or Bluetooth); the daemon reopens it by itself. If it stays \
+             away, `frond doctor` checks the hidraw node, its permissions and the udev rule"
+        }
+        "fuse-hidraw" | "virtual" => {
+            "the virtual glove (frond-vhid) is gone: start it again, or run the daemon on \
+             `--source in-process`"
+        }
+        k if k.starts_with("osc") => {
+            "no hand packets arrive: start the tracker bridge that sends /frond/hand (see \
+             `frond-vhid --osc` for a reference sender) and check its address and port"
+        }
+        k if k.starts_with("leap") => {
+            "the Leap / Ultraleap tracking service does not answer: start it (its WebSocket on \
+             port 6437); the daemon reconnects by itself"
+        }
+        k if k.starts_with("replay") => {
+            "the replay ended or its file cannot be read: give another --replay file"
+        }
+        _ => "check the hand source in frondd.toml or on frondd's command line (`frond doctor`)",
+    }
+}
+
+fn source_problem(name: &str, s: &SourceStatus) -> Option<Problem> {
+    (!s.connected).then(|| Problem {
+        what: format!("hand source {name} ({} {}) is not connected", s.kind, s.path),
+        fix: source_fix(&s.kind).to_string(),
+    })
+}
+
+/// Everything in `report` that needs the operator, most urgent first.
+pub fn problems(report: &StatusReport) -> Vec<Problem> {
+    let mut out = Vec::new();
+    if report.hands.is_empty() {
+        out.extend(source_problem("hand", &report.source));
+    } else {
+        out.extend(report.hands.iter().filter_map(|h| source_problem(&h.name, &h.source)));
+    }
+    if let Some(e) = &report.recorder_error {
+        out.push(Problem {
+            what: format!("the recording cannot be written: {e}"),
+            fix: "free space or fix the takes directory, then `frond record stop`; every complete frame so far \
+                  is readable"
+                .into(),
+        });
+    }
+    for p in &report.problems {
+        out.push(Problem { what: p.clone(), fix: "see the daemon's log (journalctl -u frondd)".into() });
+    }
+    let nominal = f64::from(report.tick_rate_hz);
+    if report.uptime_s > 2.0 && nominal > 0.0 && report.achieved_rate_hz < SLOW_RATE_SHARE * nominal {
+        out.push(Problem {
+            what: format!(
+                "the loop runs at {:.0} Hz of its {} Hz",
+                report.achieved_rate_hz, report.tick_rate_hz
+            ),
+            fix: "the machine is overloaded or the loop has no realtime priority: set realtime.priority in \
+                  frondd.toml (`frond doctor` checks the limits)"
+                .into(),
+        });
+    }
+    for s in report.subscribers.iter().filter(|s| s.dropped > 0) {
+        out.push(Problem {
+            what: format!("subscriber {} lost {} frames (it reads too slowly)", s.id, s.dropped),
+            fix: "only that subscriber loses frames; give it more CPU or have it read faster".into(),
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_source_kind_has_its_own_fix() {
+        let fixes: Vec<&str> =
+            ["hidraw", "fuse-hidraw", "osc", "leap", "replay", "in-process"].map(source_fix).into();
+        for (i, a) in fixes.iter().enumerate() {
+            for b in &fixes[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        assert!(source_fix("hidraw").contains("plug the glove in"));
+        assert!(source_fix("fuse-hidraw").contains("frond-vhid"));
+    }
+}
