@@ -1,5 +1,6 @@
 //! `frond demo`, the README's first command: daemon on the built-in virtual glove, a recorded
-//! take left on disk, baked to a GLB, and no daemon left behind.
+//! take left on disk, baked to a GLB, the console's URL printed, and no daemon or console left
+//! behind.
 
 use std::process::Command;
 
@@ -27,14 +28,19 @@ fn demo_records_a_take_bakes_a_glb_and_leaves_no_daemon() {
     assert!(stdout.contains("e2e-demo.glb"), "{stdout}");
     let gif = std::fs::read(dir.path().join("e2e-demo.gif")).expect("warp preview rendered");
     assert_eq!(&gif[..6], b"GIF89a", "not a GIF");
-    // The daemon it started is gone: no frondd has our takes dir on its command line.
-    let ours = std::fs::read_dir("/proc")
-        .unwrap()
-        .filter_map(|e| std::fs::read(e.ok()?.path().join("cmdline")).ok())
-        .filter(|c| {
-            let c = String::from_utf8_lossy(c);
-            c.contains("frondd") && c.contains(dir.path().to_str().unwrap())
-        })
-        .count();
-    assert_eq!(ours, 0, "frond demo left a daemon running");
+    // It started the console beside the daemon and said where.
+    assert!(stdout.contains("console:    http://127.0.0.1:"), "{stdout}");
+    // The daemon and the console it started are gone: none has our takes dir on its command line.
+    for program in ["frondd", "frond-console"] {
+        let ours = std::fs::read_dir("/proc")
+            .unwrap()
+            .filter_map(|e| std::fs::read(e.ok()?.path().join("cmdline")).ok())
+            .filter(|c| {
+                let c = String::from_utf8_lossy(c);
+                c.split('\0').next().is_some_and(|argv0| argv0.ends_with(program))
+                    && c.contains(dir.path().to_str().unwrap())
+            })
+            .count();
+        assert_eq!(ours, 0, "frond demo left {program} running");
+    }
 }

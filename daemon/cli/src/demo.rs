@@ -51,7 +51,12 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
     println!("starting {} (sockets in {})", frondd.display(), socket_dir.path().display());
     let mut daemon = Daemon::spawn(&frondd, socket_dir.path(), &takes_dir)?;
     daemon.wait_ready()?;
+    let console = start_console(socket_dir.path(), &takes_dir);
+    if let Some((_, url)) = &console {
+        println!("console:    {url}  (the plant live in 3D, health and takes; open it while the demo runs)");
+    }
     let result = demo_session(&mut daemon, socket_dir.path(), &takes_dir, &name, seconds);
+    drop(console);
     let stopped = daemon.stop();
     match (&result, stopped) {
         (_, Ok(status)) if !status.success() => {
@@ -284,12 +289,76 @@ fn is_executable(p: &Path) -> bool {
     std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
 }
 
+/// A program `frond demo` started: in its own process group (the terminal's Ctrl-C reaches only
+/// `frond`), with `PR_SET_PDEATHSIG` (it dies with `frond`), stopped on drop.
+struct Managed {
+    child: Child,
+    name: &'static str,
+    exited: Option<ExitStatus>,
+}
+
+impl Managed {
+    fn spawn(name: &'static str, mut cmd: Command) -> anyhow::Result<Managed> {
+        cmd.process_group(0);
+        // SAFETY: the closure runs in the forked child before exec and only calls prctl(2),
+        // which is async-signal-safe, and allocates nothing.
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM as libc::c_ulong) != 0 {
+                    return Err(io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child =
+            cmd.spawn().with_context(|| format!("cannot start {}", cmd.get_program().to_string_lossy()))?;
+        Ok(Managed { child, name, exited: None })
+    }
+
+    fn try_wait(&mut self) -> io::Result<Option<ExitStatus>> {
+        if self.exited.is_none() {
+            self.exited = self.child.try_wait()?;
+        }
+        Ok(self.exited)
+    }
+
+    /// SIGTERM, wait up to [`STOP_TIMEOUT`], then SIGKILL.
+    fn stop(&mut self) -> anyhow::Result<ExitStatus> {
+        if let Some(status) = self.try_wait()? {
+            return Ok(status);
+        }
+        let pid = self.child.id() as libc::pid_t;
+        // SAFETY: kill(2) on our own child's pid, which has not been reaped (try_wait above
+        // returned None), so the pid cannot have been reused.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+        let start = Instant::now();
+        while start.elapsed() < STOP_TIMEOUT {
+            if let Some(status) = self.try_wait()? {
+                return Ok(status);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        eprintln!("frond: {} ignored SIGTERM for {STOP_TIMEOUT:?}; killing it", self.name);
+        self.child.kill()?;
+        let status = self.child.wait()?;
+        self.exited = Some(status);
+        Ok(status)
+    }
+}
+
+impl Drop for Managed {
+    fn drop(&mut self) {
+        if let Err(e) = self.stop() {
+            eprintln!("frond: could not stop {} (pid {}): {e:#}", self.name, self.child.id());
+        }
+    }
+}
+
 /// The child daemon; stopped on drop.
 struct Daemon {
-    child: Child,
+    process: Managed,
     socket_dir: PathBuf,
     log_path: PathBuf,
-    exited: Option<ExitStatus>,
 }
 
 impl Daemon {
@@ -307,27 +376,17 @@ impl Daemon {
             .env_remove(paths::TAKES_DIR_ENV)
             .stdin(Stdio::null())
             .stdout(log.try_clone()?)
-            .stderr(log)
-            .process_group(0);
-        // SAFETY: the closure runs in the forked child before exec and only calls prctl(2),
-        // which is async-signal-safe, and allocates nothing.
-        unsafe {
-            cmd.pre_exec(|| {
-                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM as libc::c_ulong) != 0 {
-                    return Err(io::Error::last_os_error());
-                }
-                Ok(())
-            });
-        }
-        let child = cmd.spawn().with_context(|| format!("cannot start {}", frondd.display()))?;
-        Ok(Daemon { child, socket_dir: socket_dir.to_owned(), log_path, exited: None })
+            .stderr(log);
+        let process = Managed::spawn("frondd", cmd)?;
+        Ok(Daemon { process, socket_dir: socket_dir.to_owned(), log_path })
     }
 
     fn try_wait(&mut self) -> io::Result<Option<ExitStatus>> {
-        if self.exited.is_none() {
-            self.exited = self.child.try_wait()?;
-        }
-        Ok(self.exited)
+        self.process.try_wait()
+    }
+
+    fn stop(&mut self) -> anyhow::Result<ExitStatus> {
+        self.process.stop()
     }
 
     /// Waits until both sockets accept connections.
@@ -350,29 +409,6 @@ impl Daemon {
         }
     }
 
-    /// SIGTERM, wait up to [`STOP_TIMEOUT`], then SIGKILL.
-    fn stop(&mut self) -> anyhow::Result<ExitStatus> {
-        if let Some(status) = self.try_wait()? {
-            return Ok(status);
-        }
-        let pid = self.child.id() as libc::pid_t;
-        // SAFETY: kill(2) on our own child's pid, which has not been reaped (try_wait above
-        // returned None), so the pid cannot have been reused.
-        unsafe { libc::kill(pid, libc::SIGTERM) };
-        let start = Instant::now();
-        while start.elapsed() < STOP_TIMEOUT {
-            if let Some(status) = self.try_wait()? {
-                return Ok(status);
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        eprintln!("frond: frondd ignored SIGTERM for {STOP_TIMEOUT:?}; killing it");
-        self.child.kill()?;
-        let status = self.child.wait()?;
-        self.exited = Some(status);
-        Ok(status)
-    }
-
     /// The last lines of the daemon's log, for error messages.
     fn log_tail(&self) -> String {
         let text = std::fs::read_to_string(&self.log_path).unwrap_or_default();
@@ -382,10 +418,41 @@ impl Daemon {
     }
 }
 
-impl Drop for Daemon {
-    fn drop(&mut self) {
-        if let Err(e) = self.stop() {
-            eprintln!("frond: could not stop frondd (pid {}): {e:#}", self.child.id());
+/// The console beside the demo's daemon (`frond-console`), on 127.0.0.1:8790 if free, else on
+/// a port the system picks; returns it with the URL it printed. `None` (after saying why) when
+/// it is not installed or does not start: the demo goes on without it.
+fn start_console(socket_dir: &Path, takes_dir: &Path) -> Option<(Managed, String)> {
+    let program = match find_program("frond-console") {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("frond: note: no console: {e:#}");
+            return None;
+        }
+    };
+    for listen in ["127.0.0.1:8790", "127.0.0.1:0"] {
+        let mut cmd = Command::new(&program);
+        cmd.arg("--socket-dir")
+            .arg(socket_dir)
+            .arg("--takes-dir")
+            .arg(takes_dir)
+            .args(["--listen", listen])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null());
+        let Ok(mut console) = Managed::spawn("frond-console", cmd) else { continue };
+        let mut line = String::new();
+        let read = console
+            .child
+            .stdout
+            .take()
+            .map(|out| io::BufRead::read_line(&mut io::BufReader::new(out), &mut line));
+        if let (Some(Ok(n)), Some(url)) = (read, line.strip_prefix("frond-console: "))
+            && n > 0
+        {
+            let url = url.split_whitespace().next().unwrap_or_default().to_string();
+            return Some((console, url));
         }
     }
+    eprintln!("frond: note: frond-console did not start; the demo goes on without it");
+    None
 }
