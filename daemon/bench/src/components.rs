@@ -58,6 +58,9 @@ pub fn components(o: &Options) -> Section {
             crate::plant_motion::graph_walk(o)
         }),
         part("osc", "OSC latency: daemon stamp -> UDP receiver, vs a pose-socket subscriber", || osc(o)),
+        part("console", "frond-console's CPU at 1 kHz with 2 pages, vs frond tap on the same stream", || {
+            console(o)
+        }),
     ];
     let mut s = Section::ok("components", "motion toolkit and exporters", Vec::new(), Value::Null);
     s.parts = parts;
@@ -447,5 +450,110 @@ fn osc(o: &Options) -> Part {
         "OSC latency: daemon stamp -> UDP receiver, vs a pose-socket subscriber",
         measurements,
         json!({"frond_osc": reports, "subscriber": base, "seconds_per_run": seconds}),
+    ))
+}
+
+/// A page's pose WebSocket to the console at `addr`, read and discarded on a thread until
+/// `stop`; returns the bytes received.
+fn console_page(
+    addr: std::net::SocketAddr,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> Result<std::thread::JoinHandle<u64>, String> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).map_err(|e| format!("connect to frond-console: {e}"))?;
+    write!(
+        s,
+        "GET /ws HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    )
+    .map_err(|e| e.to_string())?;
+    s.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| e.to_string())?;
+    Ok(std::thread::spawn(move || {
+        let mut buf = [0u8; 16384];
+        let mut total = 0u64;
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            match s.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => total += n as u64,
+                Err(e)
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(_) => break,
+            }
+        }
+        total
+    }))
+}
+
+/// Issue 19: the console next to a 1 kHz daemon with two pages open costs a small fraction of a
+/// core; against `frond tap --jsonl` (a plain subscriber printing every frame) on the same
+/// stream, measured over the same window.
+fn console(o: &Options) -> Part {
+    use std::io::BufRead;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let bin = find_bin(o, "frond-console").map_err(|e| (Status::NotAvailable, e))?;
+    let frond = find_bin(o, "frond").map_err(|e| (Status::NotAvailable, e))?;
+    let (warm, window) = if o.quick {
+        (Duration::from_millis(500), Duration::from_secs(2))
+    } else {
+        (Duration::from_secs(2), Duration::from_secs(10))
+    };
+    let daemon =
+        Daemon::start(o, &["--source", "in-process", "--rate", "1000"]).map_err(|e| (Status::Error, e))?;
+    let err = |e: String| (Status::Error, e);
+    let mut child = Command::new(&bin)
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(["--listen", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| err(format!("cannot start frond-console: {e}")))?;
+    let mut line = String::new();
+    let out = child.stdout.take().ok_or_else(|| err("frond-console: no stdout".into()))?;
+    std::io::BufReader::new(out).read_line(&mut line).map_err(|e| err(e.to_string()))?;
+    let console = crate::procs::Proc { child };
+    let addr: std::net::SocketAddr = line
+        .strip_prefix("frond-console: http://")
+        .and_then(|r| r.split('/').next())
+        .and_then(|a| a.parse().ok())
+        .ok_or_else(|| err(format!("frond-console printed {line:?}")))?;
+    let tap = Command::new(&frond)
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(["tap", "--jsonl"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| err(format!("cannot start frond tap: {e}")))?;
+    let tap = crate::procs::Proc { child: tap };
+    let stop = Arc::new(AtomicBool::new(false));
+    let pages =
+        [console_page(addr, stop.clone()).map_err(err)?, console_page(addr, stop.clone()).map_err(err)?];
+    std::thread::sleep(warm);
+    let cpu = |pid| crate::procs::process_cpu_ns(pid).map_err(err);
+    let (c0, t0, w0) = (cpu(console.pid())?, cpu(tap.pid())?, monotonic_ns());
+    std::thread::sleep(window);
+    let (c1, t1, w1) = (cpu(console.pid())?, cpu(tap.pid())?, monotonic_ns());
+    stop.store(true, Ordering::Relaxed);
+    let bytes: Vec<u64> = pages.into_iter().map(|p| p.join().unwrap_or(0)).collect();
+    let wall = (w1 - w0) as f64;
+    let (console_cpu, tap_cpu) = ((c1 - c0) as f64 / wall, (t1 - t0) as f64 / wall);
+    if bytes.contains(&0) {
+        return Err(err(format!("a page received nothing from frond-console ({bytes:?} bytes)")));
+    }
+    let m = Measurement::new(
+        "console_cpu_1000hz_2_pages",
+        "fraction_of_core",
+        console_cpu,
+        "frond tap --jsonl on the same 1 kHz stream (prints every frame), same window",
+        tap_cpu,
+    )
+    .with_target("frond-console under 5 % of a core at 1 kHz with 2 pages", Bound::MaxMeasured, 0.05);
+    Ok(Section::ok(
+        "console",
+        "frond-console's CPU at 1 kHz with 2 pages, vs frond tap on the same stream",
+        vec![m],
+        json!({ "window_s": wall / 1e9, "page_bytes_per_s": bytes.iter().map(|&b| b as f64 / (wall / 1e9)).collect::<Vec<_>>() }),
     ))
 }

@@ -20,10 +20,11 @@ const SECTIONS: [&str; 8] = [
     "osc_latency",
     "hidraw_latency",
 ];
-const PARTS: [&str; 9] = [
+const PARTS: [&str; 10] = [
     "field_playback",
     "loop_synthesis",
     "gltf_bake",
+    "console",
     "warp",
     "cage_warp",
     "sim_step",
@@ -149,7 +150,7 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
             other => panic!("{key}: unknown status {other}"),
         }
     }
-    for part in ["field_playback", "loop_synthesis"] {
+    for part in ["field_playback", "loop_synthesis", "console"] {
         assert_eq!(parts[part]["status"], "ok", "{part} is in this workspace: {}", parts[part]["reason"]);
     }
 
