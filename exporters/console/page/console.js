@@ -214,6 +214,8 @@ async function pollStatus() {
       $('recording').textContent = r && r.active ? `RECORDING ${r.name}: ${r.frames} frames${r.dropped ? `, ${r.dropped} dropped` : ''}` : 'not recording';
       $('recording').className = r && r.active ? 'bad' : '';
       $('rate').textContent = `${d.achieved_rate_hz.toFixed(0)} Hz`;
+      $('stages').textContent = [`rig ${d.rig_name}`, `filter ${d.filter}`, `calibration ${d.calibration_id}`, ...(d.modes || [])].join(' · ');
+      if (document.activeElement !== $('rig-select') && rigShown) $('rig-select').value = rigShown;
     }
     const c = s.console;
     $('stream').textContent = `${c.frames} poses in, ${c.gaps} gaps (${c.missing} missing), ${c.dropped} page messages dropped`;
@@ -298,6 +300,33 @@ async function listTakes() {
 }
 $('takes-refresh').addEventListener('click', listTakes);
 listTakes();
+
+// ---- stage controls: rig, filter, calibration, guided motion, field keys ----
+async function listRigs() {
+  const rigs = await (await fetch('/api/rigs')).json();
+  $('rig-select').replaceChildren(...rigs.map((r) => { const o = document.createElement('option'); o.value = o.textContent = r; return o; }));
+  if (rigShown) $('rig-select').value = rigShown;
+}
+listRigs();
+$('rig-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/rig', { rig: $('rig-select').value }); });
+$('filter-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/filter', { spec: $('filter-spec').value }); });
+$('guided-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/guided', { spec: $('guided-spec').value.trim() || 'off' }); });
+$('calibration-form').addEventListener('submit', async (e) => {
+  e.preventDefault();
+  const f = $('calibration-file').files[0];
+  if (!f) { $('control-result').textContent = 'choose a calibration file first'; $('control-result').className = 'bad'; return; }
+  if (f.size > 60000) { $('control-result').textContent = `${f.name} is ${f.size} bytes: not a calibration`; $('control-result').className = 'bad'; return; }
+  post('/api/calibration', { toml: await f.text() });
+});
+for (const b of document.querySelectorAll('#field-keys [data-key]')) b.addEventListener('click', () => post('/api/field/key', { key: b.dataset.key }));
+$('field-stop').addEventListener('click', () => post('/api/field/stop'));
+$('playback-stop').addEventListener('click', () => post('/api/playback/stop'));
+const KEYS = { ArrowLeft: 'left', ArrowRight: 'right', ArrowUp: 'up', ArrowDown: 'down', '+': 'stronger', '=': 'stronger', '-': 'weaker' };
+window.addEventListener('keydown', (e) => {
+  if (e.target.closest('input, select, textarea') || !KEYS[e.key]) return;
+  e.preventDefault();
+  post('/api/field/key', { key: KEYS[e.key] });
+});
 
 // ---- for tests and scripts ----
 const v = new THREE.Vector3();

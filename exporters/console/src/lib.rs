@@ -4,6 +4,7 @@
 //! slows the daemon) and acts on the control socket with its own credentials.
 //!
 //! - [`access`]: who may use it (loopback by default; a token beyond; `Origin` checks);
+//! - [`actions`]: the page's control actions, as the requests `frond` sends;
 //! - [`http`]: the bounded HTTP/1.1 and WebSocket handshake;
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
@@ -13,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod access;
+pub mod actions;
 pub mod http;
 pub mod relay;
 pub mod scene;

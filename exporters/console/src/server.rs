@@ -9,10 +9,10 @@
 //!   (as `frond status --json` has it) with the console's own counters;
 //! - `GET /api/takes` the takes (as `frond take list --json`), `GET /api/takes/NAME/play` a take's
 //!   main skeleton at 60 FPS for the view, `/api/takes/NAME.glb` and `.jsonl` as downloads;
-//! - `POST /api/record/start {"name"}`, `POST /api/record/stop`, `POST /api/mark {"label"}`,
-//!   `POST /api/playback {"take"}` (the daemon loops it), `POST /api/playback/stop`: control
-//!   actions, sent on the control socket with the console's own credentials (the daemon's
-//!   allow-list decides);
+//! - `POST /api/...`: control actions ([`crate::actions`]: recording, markers, playback, rig,
+//!   filter, calibration, field keys, guided motion), sent on the control socket with the
+//!   console's own credentials (the daemon's allow-list decides);
+//! - `GET /api/rigs` the embedded rigs the page offers;
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
 //!   element table or the connection changes, and `{"type":"poses","poses":[...]}` at most at the
 //!   display rate with each element's latest pose that the page does not have yet.
@@ -26,13 +26,14 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_gltf::LoadedRig;
-use frond_protocol::{ControlReply, ControlRequest, Pose, StageSpec, paths};
+use frond_protocol::{ControlReply, Pose};
 use frond_sdk::{ControlClient, Hello};
 use serde_json::{Value, json};
 use tungstenite::protocol::{Role, WebSocketConfig};
 use tungstenite::{Message, WebSocket};
 
 use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
+use crate::actions;
 use crate::http::{self, Request, Response};
 use crate::relay::Live;
 use crate::scene::{self, RigScene};
@@ -184,6 +185,10 @@ impl Console {
                 Ok(s) => Response::new(200, "model/gltf-binary", s.glb.clone()),
                 Err(e) => Response::error(503, e),
             },
+            (true, "/api/rigs") => Response::json(
+                200,
+                &json!(frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
+            ),
             (true, "/api/takes") => Response::json(200, &takes::list(&self.config.takes_dir)),
             (true, p) if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
             (true, p) => match VENDOR.iter().find(|(path, _)| *path == p) {
@@ -191,11 +196,7 @@ impl Console {
                     .with("Cache-Control", "max-age=3600"),
                 None => Response::error(404, format!("no {p} here")),
             },
-            (
-                false,
-                "/api/record/start" | "/api/record/stop" | "/api/mark" | "/api/playback"
-                | "/api/playback/stop",
-            ) if req.method == "POST" => self.control(req),
+            (false, p) if req.method == "POST" && actions::PATHS.contains(&p) => self.control(req),
             (false, p) => {
                 Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
             }
@@ -300,40 +301,9 @@ impl Console {
                 Err(e) => return Response::error(400, format!("the body is not JSON: {e}")),
             }
         };
-        let text = |key: &str| body.get(key).and_then(Value::as_str).map(str::to_string);
-        let request = match req.path.as_str() {
-            "/api/record/start" => {
-                let Some(name) = text("name") else {
-                    return Response::error(400, "record start needs {\"name\": \"...\"}");
-                };
-                if let Err(e) = paths::validate_take_name(&name) {
-                    return Response::error(400, e.to_string());
-                }
-                ControlRequest::RecordStart { name }
-            }
-            "/api/record/stop" => ControlRequest::RecordStop,
-            "/api/playback" => {
-                let Some(take) = text("take") else {
-                    return Response::error(400, "playback needs {\"take\": \"...\"}");
-                };
-                if let Err(e) = paths::validate_take_name(&take) {
-                    return Response::error(400, e.to_string());
-                }
-                ControlRequest::StageStart { name: None, spec: StageSpec::Playback { take, seed: 0 } }
-            }
-            "/api/playback/stop" => ControlRequest::StageStop { name: "playback".into() },
-            _ => {
-                let Some(label) = text("label") else {
-                    return Response::error(400, "mark needs {\"label\": \"...\"}");
-                };
-                if label.is_empty() || label.len() > 256 {
-                    return Response::error(
-                        400,
-                        format!("a marker label is 1-256 bytes, not {}", label.len()),
-                    );
-                }
-                ControlRequest::Mark { label }
-            }
+        let request = match actions::request(&req.path, &body) {
+            Ok(r) => r,
+            Err(e) => return Response::error(400, e),
         };
         let reply = ControlClient::connect(&self.config.socket_dir).and_then(|mut c| c.request(&request));
         match reply {
