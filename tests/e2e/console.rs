@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use frond_e2e::{Daemon, Proc, bin, wait_for};
 use frond_motion::mesh::PlantModel;
+use frond_protocol::ElementKind;
 use frond_protocol::convention::joint_matrix;
 use frond_webdriver::{Driver, browser, poll, start_session};
 use serde_json::{Value, json};
@@ -447,4 +448,69 @@ fn the_health_panel_shows_an_unplugged_glove_with_the_fix_within_a_second() {
     poll("the problem to clear", Duration::from_secs(5), || {
         (!problems().contains("not connected")).then_some(())
     });
+}
+
+#[test]
+fn a_field_started_from_the_page_stands_its_plants_where_the_field_puts_them() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    // A take to play: two seconds of the glove.
+    daemon.frond_ok(&["record", "start", "sway"]);
+    std::thread::sleep(Duration::from_millis(2000));
+    daemon.frond_ok(&["record", "stop"]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,700", &url);
+    poll("the take in the list", Duration::from_secs(10), || {
+        let v = d.script("return !!document.querySelector('#take-list tr[data-take=\"sway\"] .take-field');");
+        (v == json!(true)).then_some(())
+    });
+    d.script("document.querySelector('#take-list tr[data-take=\"sway\"] .take-field').click();");
+    // The daemon plays the field: 16 field-plant elements announced.
+    let ids = poll("the field's plants in the element table", Duration::from_secs(10), || {
+        let ids: Vec<u16> = daemon
+            .status()
+            .elements
+            .iter()
+            .filter(|e| e.kind == ElementKind::FieldPlant)
+            .map(|e| e.id)
+            .collect();
+        (ids.len() == 16).then_some(ids)
+    });
+    // The field as the console laid it out, and as `frond take field` would (same parameters).
+    let field: Value = serde_json::from_str(&request_json(&url, "/api/field")).unwrap();
+    assert_eq!(field["take"], "sway");
+    let grass = model("grass");
+    for &id in ids.iter().step_by(5) {
+        let snap = poll(&format!("field plant {id} in the view"), Duration::from_secs(20), || {
+            let v = d.script(&format!("return window.frondConsole.snapshot({id});"));
+            (!v.is_null() && !v["placement"].is_null()).then_some(v)
+        });
+        let i = snap["placement"]["index"].as_u64().unwrap() as usize;
+        let at = &field["positions_m"][i];
+        let scale = field["scales"][i].as_f64().unwrap();
+        assert_eq!(snap["placement"]["position"], *at, "plant {i} stands where the field puts it");
+        let (x, z) = (at[0].as_f64().unwrap(), at[1].as_f64().unwrap());
+        let frames = chain(Frame::IDENTITY, &grass.skeleton.heights_m, &joints_of(&snap["pose"]["j"]));
+        let bones = &snap["bones"][0];
+        for (j, f) in frames.iter().enumerate() {
+            let want = [x + scale * f.pos[0], scale * f.pos[1], z + scale * f.pos[2]];
+            for k in 0..3 {
+                let got = bones[j][k].as_f64().unwrap();
+                assert!(
+                    (got - want[k]).abs() <= 1e-4 * 0.24,
+                    "plant {i} joint {j} axis {k}: page {got}, want {}",
+                    want[k]
+                );
+            }
+        }
+    }
+}
+
+/// `GET path` from the console at `url`, the body.
+fn request_json(url: &str, path: &str) -> String {
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let (s, _, body) = request(&addr, "GET", path, &format!("Host: {addr}\r\n"), "");
+    assert_eq!(s, 200, "{path}: {body}");
+    body
 }

@@ -3,6 +3,7 @@
 import * as THREE from 'three';
 import { GLTFLoader } from '/vendor/three/GLTFLoader.js';
 import { OrbitControls } from '/vendor/three/OrbitControls.js';
+import { clone as cloneSkinned } from '/vendor/three/SkeletonUtils.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -80,6 +81,8 @@ async function loadRig() {
   for (const e of map.elements) layerBones[e.name] = e.instances.map((inst) => inst.map(byName));
   state.map = map;
   state.applied = {};
+  for (const f of Object.values(fieldPlants)) f.root.removeFromParent();
+  fieldPlants = {};
   const top = map.heights_m[map.heights_m.length - 1];
   // A ground grid of the plant's scale: 8 heights across, a line every half height.
   const visible = grid.visible;
@@ -90,7 +93,39 @@ async function loadRig() {
   if (controls) { controls.target.set(0, top * 0.5, 0); camera.position.set(top * 1.8, top * 1.3, top * 3.2); controls.update(); }
   setAxes($('axes').checked);
   $('rig').textContent = `rig ${map.rig}`;
+  await syncField();
   for (const p of Object.values(state.received)) apply(p);
+}
+
+// ---- field plants (seed 000, section 6.2) and graph walks: one instance of the plant each ----
+let fieldPlants = {}; // element id -> {root, bones, index, position, scale}
+let syncing = null;
+function syncField() {
+  syncing = (syncing || Promise.resolve()).then(syncFieldNow).catch(() => {});
+  return syncing;
+}
+async function syncFieldNow() {
+  const els = (state.hello?.hello?.elements || []).filter((e) => e.kind === 'field-plant' && e.rig === state.map?.rig);
+  for (const id of Object.keys(fieldPlants)) {
+    if (!els.some((e) => e.id === Number(id))) { fieldPlants[id].root.removeFromParent(); delete fieldPlants[id]; }
+  }
+  if (!els.length || !plant) return;
+  // The layout of a field this console started; any other field's plants stand on a grid.
+  const layout = await (await fetch('/api/field')).json();
+  for (const e of els) {
+    if (fieldPlants[e.id]) continue;
+    const i = Number((e.name.match(/(\d+)$/) || [0, '0'])[1]);
+    const spacing = state.map.heights_m[3] * 1.5;
+    const position = layout?.positions_m?.[i] ?? [(i % 8) * spacing, Math.floor(i / 8) * spacing];
+    const scale = layout?.scales?.[i] ?? 1;
+    const root = cloneSkinned(plant);
+    root.position.set(position[0], 0, position[1]);
+    root.scale.setScalar(scale);
+    scene.add(root);
+    const bones = state.map.joints.map((n) => root.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n)));
+    fieldPlants[e.id] = { root, bones, index: i, position, scale };
+  }
+  // The hand's own plant stays where it is; the field stands around it.
 }
 
 function setAxes(on) {
@@ -114,6 +149,7 @@ function bonesOf(id) {
   if (!info) return id === 0 ? [mainBones] : [];
   if (info.kind === 'layer') return layerBones[info.name] || [];
   if (info.kind === 'hand' || info.kind === 'playback') return info.rig === state.map?.rig ? [mainBones] : [];
+  if (info.kind === 'field-plant' && fieldPlants[id]) return [fieldPlants[id].bones];
   return [];
 }
 
@@ -150,6 +186,8 @@ function connect() {
       if (m.connected && rig && rig !== rigShown) {
         rigShown = rig;
         loadRig().catch((e) => { $('view-note').hidden = false; $('view-note').textContent = String(e.message || e); });
+      } else if (state.map) {
+        syncField();
       }
     } else if (m.type === 'poses') {
       for (const p of m.poses) {
@@ -292,6 +330,7 @@ async function listTakes() {
     const link = (label, href) => { const a = document.createElement('a'); a.textContent = label; a.href = href; a.download = ''; td.append(a); };
     btn('Play', 'play in the view', () => play(t.name));
     btn('Loop', 'loop on the daemon (every subscriber sees it)', () => post('/api/playback', { take: t.name }));
+    btn('Field', 'play a 4 x 4 field of it on the daemon (seed 000, section 6.2)', () => post('/api/field/start', { take: t.name }));
     link('GLB', `/api/takes/${encodeURIComponent(t.name)}.glb`);
     link('JSONL', `/api/takes/${encodeURIComponent(t.name)}.jsonl`);
     tr.append(td);
@@ -362,8 +401,14 @@ window.frondConsole = {
     const sets = bonesOf(element);
     if (!p || state.applied[element] !== p.seq || !sets.length) return null;
     plant.updateMatrixWorld(true);
-    // The main skeleton's pose too: an element's bones hang from it.
-    return { pose: p, main: state.received[0] ?? null, bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())) };
+    // The main skeleton's pose too: an element's bones hang from it; a field plant's placement.
+    const f = fieldPlants[element];
+    for (const r of Object.values(fieldPlants)) r.root.updateMatrixWorld(true);
+    return {
+      pose: p, main: state.received[0] ?? null,
+      placement: f ? { index: f.index, position: f.position, scale: f.scale } : null,
+      bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())),
+    };
   },
   // Keeps the canvas's pixels now, for diffSinceGrab.
   grab() { grabbed = canvasPixels(); return grabbed.length; },

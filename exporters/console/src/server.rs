@@ -26,7 +26,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_gltf::LoadedRig;
-use frond_protocol::{ControlReply, Pose};
+use frond_protocol::{ControlReply, ControlRequest, Pose, StageSpec};
 use frond_sdk::{ControlClient, Hello};
 use serde_json::{Value, json};
 use tungstenite::protocol::{Role, WebSocketConfig};
@@ -80,6 +80,8 @@ pub struct Console {
     live: Arc<Live>,
     counters: Counters,
     scenes: Mutex<HashMap<String, Result<Arc<RigScene>, String>>>,
+    /// The plants' ground positions of the field this console started, `[x, z]` metres.
+    field: Mutex<Option<Value>>,
 }
 
 const INDEX_HTML: &str = include_str!("../page/index.html");
@@ -87,12 +89,13 @@ const CONSOLE_JS: &str = include_str!("../page/console.js");
 const CONSOLE_CSS: &str = include_str!("../page/console.css");
 
 /// The vendored three.js files: (URL path, body).
-const VENDOR: [(&str, &str); 5] = [
+const VENDOR: [(&str, &str); 6] = [
     ("/vendor/three/three.module.min.js", include_str!("../vendor/three/three.module.min.js")),
     ("/vendor/three/three.core.min.js", include_str!("../vendor/three/three.core.min.js")),
     ("/vendor/three/GLTFLoader.js", include_str!("../vendor/three/GLTFLoader.js")),
     ("/vendor/three/OrbitControls.js", include_str!("../vendor/three/OrbitControls.js")),
     ("/vendor/utils/BufferGeometryUtils.js", include_str!("../vendor/three/BufferGeometryUtils.js")),
+    ("/vendor/three/SkeletonUtils.js", include_str!("../vendor/three/SkeletonUtils.js")),
 ];
 
 impl Console {
@@ -100,7 +103,13 @@ impl Console {
     pub fn start(config: Config) -> io::Result<Arc<Console>> {
         let live = Live::new();
         live.spawn(config.socket_dir.clone())?;
-        Ok(Arc::new(Console { config, live, counters: Counters::default(), scenes: Mutex::default() }))
+        Ok(Arc::new(Console {
+            config,
+            live,
+            counters: Counters::default(),
+            scenes: Mutex::default(),
+            field: Mutex::default(),
+        }))
     }
 
     /// Serves `listener` until the process ends.
@@ -189,6 +198,10 @@ impl Console {
                 200,
                 &json!(frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
             ),
+            (true, "/api/field") => Response::json(
+                200,
+                self.field.lock().unwrap_or_else(|e| e.into_inner()).as_ref().unwrap_or(&Value::Null),
+            ),
             (true, "/api/takes") => Response::json(200, &takes::list(&self.config.takes_dir)),
             (true, p) if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
             (true, p) => match VENDOR.iter().find(|(path, _)| *path == p) {
@@ -196,6 +209,7 @@ impl Console {
                     .with("Cache-Control", "max-age=3600"),
                 None => Response::error(404, format!("no {p} here")),
             },
+            (false, "/api/field/start") if req.method == "POST" => self.field_start(req),
             (false, p) if req.method == "POST" && actions::PATHS.contains(&p) => self.control(req),
             (false, p) => {
                 Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
@@ -292,20 +306,61 @@ impl Console {
         }
     }
 
+    /// `POST /api/field/start {"take", "plants"?, "rows"?, "cols"?, "cell_m"?}`: builds the field
+    /// ([`takes::field`]), keeps its layout for the view, and has the daemon play it.
+    fn field_start(&self, req: &Request) -> Response {
+        let body = match json_body(req) {
+            Ok(b) => b,
+            Err(r) => return r,
+        };
+        let Some(take) = body.get("take").and_then(Value::as_str) else {
+            return Response::error(400, "field start needs {\"take\": \"...\"}");
+        };
+        let int = |k: &str, default: u64, max: u64| match body.get(k) {
+            None => Ok(default),
+            Some(v) => v.as_u64().filter(|n| (1..=max).contains(n)).ok_or(format!("{k} must be 1..={max}")),
+        };
+        let (rows, cols, plants) = match (int("rows", 4, 16), int("cols", 4, 16), int("plants", 16, 64)) {
+            (Ok(r), Ok(c), Ok(p)) => (r as usize, c as usize, p as u16),
+            (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return Response::error(400, e),
+        };
+        let cell_m = body.get("cell_m").and_then(Value::as_f64).unwrap_or(0.3);
+        let field = match takes::field(&self.config.takes_dir, take, rows, cols, cell_m) {
+            Ok(f) => f,
+            Err(e) => return Response::error(e.status, e.message),
+        };
+        let plants = plants.min(field.plants.len() as u16);
+        let layout = json!({
+            "take": take,
+            "positions_m": field.plants.iter().take(usize::from(plants)).map(|p| p.position_m).collect::<Vec<_>>(),
+            "scales": field.plants.iter().take(usize::from(plants)).map(|p| p.scale).collect::<Vec<_>>(),
+        });
+        let request = ControlRequest::StageStart {
+            name: None,
+            spec: StageSpec::Field { take: take.to_string(), field_json: field.to_json(), plants, seed: 1 },
+        };
+        let answer = self.act(&request);
+        if answer.status == 200 {
+            *self.field.lock().unwrap_or_else(|e| e.into_inner()) = Some(layout);
+        }
+        answer
+    }
+
     fn control(&self, req: &Request) -> Response {
-        let body: Value = if req.body.is_empty() {
-            json!({})
-        } else {
-            match serde_json::from_slice(&req.body) {
-                Ok(v) => v,
-                Err(e) => return Response::error(400, format!("the body is not JSON: {e}")),
-            }
+        let body = match json_body(req) {
+            Ok(b) => b,
+            Err(r) => return r,
         };
         let request = match actions::request(&req.path, &body) {
             Ok(r) => r,
             Err(e) => return Response::error(400, e),
         };
-        let reply = ControlClient::connect(&self.config.socket_dir).and_then(|mut c| c.request(&request));
+        self.act(&request)
+    }
+
+    /// Sends one control request; the daemon's answer as the page's.
+    fn act(&self, request: &ControlRequest) -> Response {
+        let reply = ControlClient::connect(&self.config.socket_dir).and_then(|mut c| c.request(request));
         match reply {
             Ok(ControlReply::Recording(r)) => Response::json(
                 200,
@@ -402,6 +457,14 @@ impl Console {
             Err(_) => false,
         }
     }
+}
+
+/// The request's JSON body (`{}` when empty).
+fn json_body(req: &Request) -> Result<Value, Response> {
+    if req.body.is_empty() {
+        return Ok(json!({}));
+    }
+    serde_json::from_slice(&req.body).map_err(|e| Response::error(400, format!("the body is not JSON: {e}")))
 }
 
 fn hello_value(h: &Hello) -> Value {

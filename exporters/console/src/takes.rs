@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use frond_gltf::{BakeOptions, Baker, LoadedRig, TakeInput};
+use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::jsonl::write_pose_line;
 use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
 use frond_protocol::{PoseFlags, paths};
@@ -105,6 +106,26 @@ pub fn playback(dir: &Path, name: &str) -> Result<Value, TakeError> {
         "fps": PLAY_FPS,
         "frames": frames,
     }))
+}
+
+/// Rate a field started from the page samples its take at, frames per second (as `frond take
+/// field`'s default).
+pub const FIELD_FPS: f64 = 30.0;
+
+/// A field of take `name` for the page's "Field" button (seed 000, section 6.2): a `rows x cols`
+/// grid of `cell_m` cells, the force along +X at 1.5 m/s, every cell planted; as
+/// `frond take field NAME --rows R --cols C --cell M --speed 1.5` writes it.
+pub fn field(dir: &Path, name: &str, rows: usize, cols: usize, cell_m: f64) -> Result<Field, TakeError> {
+    let (scan, _) = read(dir, name)?;
+    let poses = scan.poses();
+    if poses.is_empty() {
+        return Err(err(400, format!("take {name:?} has no frames of the main skeleton")));
+    }
+    let plan = resample_plan(&poses, FIELD_FPS);
+    plan.check(FIELD_FPS, MAX_PLAY_FRAMES).map_err(|e| err(413, format!("take {name:?}: {e}")))?;
+    let params =
+        FieldParams { rows, cols, cell_m, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 1 };
+    make_field(&params, name, plan.frames as usize, FIELD_FPS).map_err(|e| err(400, e.to_string()))
 }
 
 /// Take `name` as JSONL, one pose per line, as `frond take export NAME` prints it (main
