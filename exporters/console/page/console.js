@@ -340,6 +340,38 @@ async function listTakes() {
 $('takes-refresh').addEventListener('click', listTakes);
 listTakes();
 
+// ---- the seed-001 warp preview: JPEG frames over a binary WebSocket ----
+const warp = { ws: null, frames: 0, bytes: 0, since: performance.now(), state: null };
+state.warp = warp;
+function warpConnect() {
+  if (!$('warp-on').checked || warp.ws) return;
+  const ws = new WebSocket(`ws://${location.host}/ws/warp`);
+  ws.binaryType = 'blob';
+  warp.ws = ws;
+  ws.onmessage = async (ev) => {
+    if (typeof ev.data === 'string') {
+      const m = JSON.parse(ev.data);
+      warp.state = m.state;
+      const w = m.state.wind;
+      const secs = (performance.now() - warp.since) / 1000;
+      $('warp-state').textContent = `wind from the ${m.state.source === 'hand' ? 'hand' : 'procedural gusts (no hand moves)'}: ` +
+        `${w.direction_deg.toFixed(0)}°, strength ${w.strength.toFixed(2)}, every ${w.interval_s.toFixed(2)} s · ` +
+        `${m.state.fps.toFixed(0)} FPS, ${(warp.bytes / 1024 / Math.max(secs, 0.001)).toFixed(0)} KB/s`;
+      return;
+    }
+    warp.frames++; warp.bytes += ev.data.size;
+    const bmp = await createImageBitmap(ev.data);
+    $('warp-view').getContext('2d').drawImage(bmp, 0, 0);
+    bmp.close();
+  };
+  ws.onclose = () => { warp.ws = null; setTimeout(warpConnect, 1000); };
+}
+$('warp-on').addEventListener('change', (e) => {
+  $('warp-view').hidden = !e.target.checked;
+  if (e.target.checked) warpConnect(); else if (warp.ws) { const ws = warp.ws; warp.ws = null; ws.onclose = null; ws.close(); }
+});
+warpConnect();
+
 // ---- stage controls: rig, filter, calibration, guided motion, field keys ----
 async function listRigs() {
   const rigs = await (await fetch('/api/rigs')).json();
@@ -370,6 +402,7 @@ window.addEventListener('keydown', (e) => {
 // ---- for tests and scripts ----
 const v = new THREE.Vector3();
 let grabbed = null;
+let warpGrabbed = null;
 function canvasPixels() {
   const c = document.createElement('canvas');
   c.width = canvas.width; c.height = canvas.height;
@@ -409,6 +442,17 @@ window.frondConsole = {
       placement: f ? { index: f.index, position: f.position, scale: f.scale } : null,
       bones: sets.map((bones) => bones.map((b) => b.getWorldPosition(v).toArray())),
     };
+  },
+  // Keeps the warp panel's pixels now, for warpDiff.
+  warpGrab() { const c = $('warp-view'); warpGrabbed = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; return warp.frames; },
+  // Pixels of the warp panel changed by more than 30 levels (any channel) since warpGrab().
+  warpDiff() {
+    const c = $('warp-view'), now = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let n = 0;
+    for (let i = 0; i < now.length; i += 4) {
+      if (Math.max(Math.abs(now[i] - warpGrabbed[i]), Math.abs(now[i + 1] - warpGrabbed[i + 1]), Math.abs(now[i + 2] - warpGrabbed[i + 2])) > 30) n++;
+    }
+    return { changed: n, pixels: now.length / 4, frames: warp.frames, bytes: warp.bytes };
   },
   // Keeps the canvas's pixels now, for diffSinceGrab.
   grab() { grabbed = canvasPixels(); return grabbed.length; },

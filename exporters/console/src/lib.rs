@@ -9,7 +9,8 @@
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
 //! - [`server`]: the endpoints and the pose WebSocket at the display rate;
-//! - [`takes`]: the takes panel's list, playback and downloads.
+//! - [`takes`]: the takes panel's list, playback and downloads;
+//! - [`warp_panel`]: the seed-001 warp preview, JPEG frames over a WebSocket.
 
 #![warn(missing_docs)]
 
@@ -20,3 +21,4 @@ pub mod relay;
 pub mod scene;
 pub mod server;
 pub mod takes;
+pub mod warp_panel;

@@ -32,6 +32,9 @@ struct Args {
     /// Pose messages per second to each page (the display rate).
     #[arg(long, value_name = "HZ", default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..=240))]
     display_hz: u32,
+    /// Leave out the seed-001 warp preview panel (it only runs while a page shows it).
+    #[arg(long)]
+    no_warp: bool,
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
@@ -57,6 +60,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         access: Access { loopback, token: token.clone() },
         rig: args.rig.clone(),
         display_hz: args.display_hz,
+        warp: !args.no_warp,
     })?;
     let host = if addr.ip().is_unspecified() { format!("HOST:{}", addr.port()) } else { addr.to_string() };
     match (&token, loopback) {

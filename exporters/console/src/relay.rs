@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use frond_sdk::{Event, Hello, Pose, Subscriber};
 
@@ -35,6 +35,8 @@ pub struct LiveState {
     pub overflow: u64,
     /// Why the daemon is not connected, in words.
     pub why: String,
+    /// When element 0's latest pose arrived.
+    pub main_at: Option<Instant>,
 }
 
 /// The shared state and the thread that fills it.
@@ -83,9 +85,22 @@ impl Live {
         s.version
     }
 
+    /// Element 0's latest joint 0 (the root), if it arrived within `fresh`.
+    pub fn root_pose(&self, fresh: Duration) -> Option<[f32; 3]> {
+        let s = self.lock();
+        let at = s.main_at?;
+        if at.elapsed() > fresh || !s.connected {
+            return None;
+        }
+        s.poses.iter().find(|p| p.element == 0).map(|p| p.joints_deg[0])
+    }
+
     fn store(&self, pose: Pose) {
         let mut s = self.lock();
         s.frames += 1;
+        if pose.element == 0 {
+            s.main_at = Some(Instant::now());
+        }
         if let Some(slot) = s.poses.iter_mut().find(|p| p.element == pose.element) {
             *slot = pose;
         } else if s.poses.len() < MAX_ELEMENTS {

@@ -13,6 +13,8 @@
 //!   filter, calibration, field keys, guided motion), sent on the control socket with the
 //!   console's own credentials (the daemon's allow-list decides);
 //! - `GET /api/rigs` the embedded rigs the page offers;
+//! - `GET /ws/warp` the seed-001 warp preview's WebSocket ([`crate::warp_panel`]): binary JPEG
+//!   frames at 30 Hz and `{"type":"warp","state":{...}}` twice a second;
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
 //!   element table or the connection changes, and `{"type":"poses","poses":[...]}` at most at the
 //!   display rate with each element's latest pose that the page does not have yet.
@@ -38,6 +40,7 @@ use crate::http::{self, Request, Response};
 use crate::relay::Live;
 use crate::scene::{self, RigScene};
 use crate::takes;
+use crate::warp_panel::{self, WarpPanel};
 
 /// Most connections served at once.
 pub const MAX_CONNECTIONS: usize = 64;
@@ -61,6 +64,8 @@ pub struct Config {
     pub rig: Option<String>,
     /// Pose messages per second to each page.
     pub display_hz: u32,
+    /// Run the seed-001 warp preview panel (`--no-warp` turns it off).
+    pub warp: bool,
 }
 
 /// Counters of the console itself.
@@ -82,6 +87,8 @@ pub struct Console {
     scenes: Mutex<HashMap<String, Result<Arc<RigScene>, String>>>,
     /// The plants' ground positions of the field this console started, `[x, z]` metres.
     field: Mutex<Option<Value>>,
+    /// The warp preview panel, when on.
+    warp: Option<Arc<WarpPanel>>,
 }
 
 const INDEX_HTML: &str = include_str!("../page/index.html");
@@ -103,12 +110,22 @@ impl Console {
     pub fn start(config: Config) -> io::Result<Arc<Console>> {
         let live = Live::new();
         live.spawn(config.socket_dir.clone())?;
+        let warp = if config.warp {
+            let scene = warp_panel::sample_scene().map_err(io::Error::other)?;
+            Some(
+                WarpPanel::start(Arc::clone(&live), scene, warp_panel::panel_params())
+                    .map_err(io::Error::other)?,
+            )
+        } else {
+            None
+        };
         Ok(Arc::new(Console {
             config,
             live,
             counters: Counters::default(),
             scenes: Mutex::default(),
             field: Mutex::default(),
+            warp,
         }))
     }
 
@@ -379,10 +396,31 @@ impl Console {
                 Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
             return;
         }
+        let warp = match (req.path.as_str(), &self.warp) {
+            ("/ws", _) => None,
+            ("/ws/warp", Some(w)) => Some(Arc::clone(w)),
+            (p, _) => {
+                self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+                let why = if p == "/ws/warp" {
+                    "the warp panel is off (--no-warp)".to_string()
+                } else {
+                    format!("no WebSocket at {p}")
+                };
+                let _ = Response::error(404, why).write_to(&mut stream);
+                return;
+            }
+        };
         if http::accept_websocket(&req, &mut stream).is_ok() && stream.set_nonblocking(true).is_ok() {
             let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
             let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
-            self.stream_poses(&mut ws);
+            match warp {
+                None => self.stream_poses(&mut ws),
+                Some(w) => {
+                    w.viewers.fetch_add(1, Ordering::AcqRel);
+                    self.stream_warp(&mut ws, &w);
+                    w.viewers.fetch_sub(1, Ordering::AcqRel);
+                }
+            }
         }
         self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
     }
@@ -397,13 +435,8 @@ impl Console {
         let mut next = Instant::now();
         loop {
             // Close frames and pings from the page (pongs are queued by tungstenite).
-            loop {
-                match ws.read() {
-                    Ok(Message::Close(_)) => return,
-                    Ok(_) => {}
-                    Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => break,
-                    Err(_) => return,
-                }
+            if !self.drain_reads(ws) {
+                return;
             }
             let now_version = self.live.changed_since(&mut sent, &mut poses);
             if now_version != version {
@@ -436,11 +469,59 @@ impl Console {
         }
     }
 
-    /// Queues one message; false when the page is gone.
+    /// Sends the warp panel's frames (binary JPEG messages, each new frame once) and its state
+    /// (a text message twice a second) until the page goes away.
+    fn stream_warp(&self, ws: &mut WebSocket<TcpStream>, panel: &WarpPanel) {
+        let period = Duration::from_secs_f32(1.0 / warp_panel::WARP_FPS / 2.0);
+        let (mut sent, mut last_state) = (0u64, Instant::now() - Duration::from_secs(1));
+        loop {
+            if !self.drain_reads(ws) {
+                return;
+            }
+            let (number, jpeg, state) = panel.latest();
+            if number != sent && number > 0 {
+                sent = number;
+                if !self.queue(ws, Message::binary(jpeg.to_vec())) {
+                    return;
+                }
+            }
+            if last_state.elapsed() >= Duration::from_millis(500) && number > 0 {
+                last_state = Instant::now();
+                if !self.send(ws, json!({ "type": "warp", "state": state }).to_string()) {
+                    return;
+                }
+            }
+            match ws.flush() {
+                Ok(()) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(_) => return,
+            }
+            std::thread::sleep(period);
+        }
+    }
+
+    /// Reads what the page sent (close frames, pings); false when it is gone.
+    fn drain_reads(&self, ws: &mut WebSocket<TcpStream>) -> bool {
+        loop {
+            match ws.read() {
+                Ok(Message::Close(_)) => return false,
+                Ok(_) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => return true,
+                Err(_) => return false,
+            }
+        }
+    }
+
+    /// Queues one text message; false when the page is gone.
     fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> bool {
+        self.queue(ws, Message::text(text))
+    }
+
+    /// Queues one message; false when the page is gone.
+    fn queue(&self, ws: &mut WebSocket<TcpStream>, msg: Message) -> bool {
         // A page that has not taken what is queued loses this message; the next one carries the
         // latest poses again (the `sent` map is not rewound, so only newer ones follow).
-        match ws.send(Message::text(text)) {
+        match ws.send(msg) {
             Ok(()) => {
                 self.counters.messages.fetch_add(1, Ordering::Relaxed);
                 true
