@@ -19,6 +19,7 @@
 
 pub mod align;
 pub mod bvh;
+pub mod calibrate;
 pub mod calibration;
 pub mod clip;
 pub mod controls;

@@ -5,6 +5,7 @@
 //!
 //! - [`access`]: who may use it (loopback by default; a token beyond; `Origin` checks);
 //! - [`actions`]: the page's control actions, as the requests `frond` sends;
+//! - [`calibrate`]: the guided calibration, `frond calibrate`'s steps from the page;
 //! - [`http`]: the bounded HTTP/1.1 and WebSocket handshake;
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
@@ -16,6 +17,7 @@
 
 pub mod access;
 pub mod actions;
+pub mod calibrate;
 pub mod http;
 pub mod relay;
 pub mod scene;

@@ -13,6 +13,8 @@
 //!   filter, calibration, field keys, guided motion), sent on the control socket with the
 //!   console's own credentials (the daemon's allow-list decides);
 //! - `GET /api/rigs` the embedded rigs the page offers;
+//! - `GET /api/calibrate`, `POST /api/calibrate/{start,step,apply,cancel}` the guided
+//!   calibration ([`crate::calibrate`]);
 //! - `GET /ws/warp` the seed-001 warp preview's WebSocket ([`crate::warp_panel`]): binary JPEG
 //!   frames at 30 Hz and `{"type":"warp","state":{...}}` twice a second;
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
@@ -36,6 +38,7 @@ use tungstenite::{Message, WebSocket};
 
 use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
 use crate::actions;
+use crate::calibrate::Calibrations;
 use crate::http::{self, Request, Response};
 use crate::relay::Live;
 use crate::scene::{self, RigScene};
@@ -89,6 +92,8 @@ pub struct Console {
     field: Mutex<Option<Value>>,
     /// The warp preview panel, when on.
     warp: Option<Arc<WarpPanel>>,
+    /// The guided calibration.
+    calibrations: Arc<Calibrations>,
 }
 
 const INDEX_HTML: &str = include_str!("../page/index.html");
@@ -126,6 +131,7 @@ impl Console {
             scenes: Mutex::default(),
             field: Mutex::default(),
             warp,
+            calibrations: Arc::default(),
         }))
     }
 
@@ -215,6 +221,7 @@ impl Console {
                 200,
                 &json!(frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
             ),
+            (true, "/api/calibrate") => Response::json(200, &self.calibrations.state()),
             (true, "/api/field") => Response::json(
                 200,
                 self.field.lock().unwrap_or_else(|e| e.into_inner()).as_ref().unwrap_or(&Value::Null),
@@ -227,6 +234,7 @@ impl Console {
                 None => Response::error(404, format!("no {p} here")),
             },
             (false, "/api/field/start") if req.method == "POST" => self.field_start(req),
+            (false, p) if req.method == "POST" && p.starts_with("/api/calibrate/") => self.calibrate(req),
             (false, p) if req.method == "POST" && actions::PATHS.contains(&p) => self.control(req),
             (false, p) => {
                 Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
@@ -361,6 +369,29 @@ impl Console {
             *self.field.lock().unwrap_or_else(|e| e.into_inner()) = Some(layout);
         }
         answer
+    }
+
+    /// The guided calibration's actions ([`crate::calibrate`]).
+    fn calibrate(&self, req: &Request) -> Response {
+        let body = match json_body(req) {
+            Ok(b) => b,
+            Err(r) => return r,
+        };
+        let c = &self.calibrations;
+        let done = match req.path.as_str() {
+            "/api/calibrate/start" => c.start(self.config.socket_dir.clone(), &body),
+            "/api/calibrate/step" => c.step(),
+            "/api/calibrate/cancel" => Ok(c.cancel()),
+            "/api/calibrate/apply" => match c.apply_request() {
+                Ok(request) => return self.act(&request),
+                Err(e) => Err(e),
+            },
+            p => return Response::error(404, format!("no {p} here (start, step, apply, cancel)")),
+        };
+        match done {
+            Ok(state) => Response::json(200, &state),
+            Err(e) => Response::error(409, e),
+        }
     }
 
     fn control(&self, req: &Request) -> Response {
