@@ -206,6 +206,12 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
         t.as_str().filter(|s| s.contains("connected")).map(str::to_string)
     });
     assert!(source.contains("in-process"), "{source}");
+    // The delivery latency, measured by the console on every pose, with its histogram.
+    let delivery = poll("the delivery latency", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('delivery').textContent;");
+        t.as_str().filter(|s| s.starts_with("daemon → console p50")).map(str::to_string)
+    });
+    assert!(delivery.contains("p99"), "{delivery}");
     // Record from the page, then stop: the take is on disk with the frames the daemon counted.
     d.script(
         "document.getElementById('take-name').value = 'console_take';

@@ -216,6 +216,15 @@ function drawLateness() {
   }
   g.fillStyle = '#8b949e'; g.fillText(fmtUs(top), 2, 10);
 }
+function drawHistogram(buckets) {
+  const c = $('latency-hist'), g = c.getContext('2d');
+  g.clearRect(0, 0, c.width, c.height);
+  const top = Math.max(1, ...buckets.map((b) => b.count)), w = c.width / buckets.length;
+  g.fillStyle = '#5f8fbf';
+  buckets.forEach((b, i) => { const h = (b.count / top) * (c.height - 12); g.fillRect(i * w + 1, c.height - 12 - h, w - 2, h); });
+  g.fillStyle = '#8b949e';
+  for (const [i, b] of buckets.entries()) if (i % 4 === 0 && b.le_us) g.fillText(fmtUs(b.le_us), i * w, c.height - 1);
+}
 async function pollStatus() {
   try {
     const s = await (await fetch('/api/status')).json();
@@ -256,6 +265,11 @@ async function pollStatus() {
       if (document.activeElement !== $('rig-select') && rigShown) $('rig-select').value = rigShown;
     }
     const c = s.console;
+    const lat = c.latency;
+    if (lat && lat.samples) {
+      $('delivery').textContent = `daemon → console p50 ${fmtUs(lat.p50_us)}, p99 ${fmtUs(lat.p99_us)}, max ${fmtUs(lat.max_us)}`;
+      drawHistogram(lat.histogram);
+    }
     $('stream').textContent = `${c.frames} poses in, ${c.gaps} gaps (${c.missing} missing), ${c.dropped} page messages dropped`;
   } catch (e) {
     $('source').textContent = `console unreachable: ${e.message}`;

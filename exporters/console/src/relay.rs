@@ -37,6 +37,37 @@ pub struct LiveState {
     pub why: String,
     /// When element 0's latest pose arrived.
     pub main_at: Option<Instant>,
+    /// Delivery latency of the last [`LATENCY_RING`] poses (daemon publish to this console),
+    /// microseconds, a ring.
+    pub latency_us: Vec<u32>,
+    /// Next slot of `latency_us`.
+    pub latency_next: usize,
+}
+
+/// Poses whose delivery latency is kept for the health panel.
+pub const LATENCY_RING: usize = 2048;
+
+impl LiveState {
+    /// `{"p50_us", "p99_us", "max_us", "samples", "histogram": [{"le_us", "count"}]}` of the
+    /// kept delivery latencies (log-spaced buckets from 16 us to 1 s).
+    pub fn latency_json(&self) -> serde_json::Value {
+        let mut v = self.latency_us.clone();
+        v.sort_unstable();
+        let q = |p: f64| v.get(((v.len() as f64 - 1.0) * p).round() as usize).copied();
+        let mut histogram = Vec::new();
+        let mut le = 16u32;
+        let mut from = 0;
+        while le <= 1_000_000 {
+            let to = v.partition_point(|&x| x <= le);
+            histogram.push(serde_json::json!({ "le_us": le, "count": to - from }));
+            from = to;
+            le *= 2;
+        }
+        histogram.push(serde_json::json!({ "le_us": null, "count": v.len() - from }));
+        serde_json::json!({
+            "p50_us": q(0.5), "p99_us": q(0.99), "max_us": v.last(), "samples": v.len(), "histogram": histogram,
+        })
+    }
 }
 
 /// The shared state and the thread that fills it.
@@ -101,6 +132,16 @@ impl Live {
         if pose.element == 0 {
             s.main_at = Some(Instant::now());
         }
+        // Same machine, same clock: the pose's publish stamp to its arrival here.
+        let latency = frond_sdk::clock::monotonic_ns().saturating_sub(pose.host_monotonic_ns) / 1000;
+        let latency = u32::try_from(latency).unwrap_or(u32::MAX);
+        if s.latency_us.len() < LATENCY_RING {
+            s.latency_us.push(latency);
+        } else {
+            let i = s.latency_next;
+            s.latency_us[i] = latency;
+        }
+        s.latency_next = (s.latency_next + 1) % LATENCY_RING;
         if let Some(slot) = s.poses.iter_mut().find(|p| p.element == pose.element) {
             *slot = pose;
         } else if s.poses.len() < MAX_ELEMENTS {
@@ -212,6 +253,23 @@ mod tests {
         live.changed_since(&mut sent, &mut out);
         assert_eq!(out.iter().map(|p| (p.element, p.seq)).collect::<Vec<_>>(), [(3, 5)]);
         assert_eq!(live.lock().frames, 4);
+    }
+
+    #[test]
+    fn latency_percentiles_and_histogram_come_from_the_kept_poses() {
+        let live = Live::new();
+        let mut s = live.lock();
+        s.latency_us = (1..=100).map(|k| k * 10).collect(); // 10 .. 1000 us
+        let j = s.latency_json();
+        assert_eq!(j["samples"], 100);
+        assert_eq!(j["p50_us"], 510); // index round(99 * 0.5) = 50 -> 510
+        assert_eq!(j["p99_us"], 990);
+        assert_eq!(j["max_us"], 1000);
+        let h = j["histogram"].as_array().unwrap();
+        assert_eq!(h[0]["le_us"], 16);
+        assert_eq!(h[0]["count"], 1, "10 us");
+        assert_eq!(h[1]["count"], 2, "20, 30 us in (16, 32]");
+        assert_eq!(h.iter().map(|b| b["count"].as_u64().unwrap()).sum::<u64>(), 100);
     }
 
     #[test]

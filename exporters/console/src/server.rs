@@ -310,6 +310,7 @@ impl Console {
                 "poses_sent": self.counters.poses_sent.load(Ordering::Relaxed),
                 "dropped": self.counters.dropped.load(Ordering::Relaxed),
                 "refused": self.counters.refused.load(Ordering::Relaxed),
+                "latency": s.latency_json(),
             })
         };
         let daemon = ControlClient::connect_with_timeout(&self.config.socket_dir, Duration::from_secs(2))
