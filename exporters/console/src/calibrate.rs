@@ -218,11 +218,7 @@ impl Calibrations {
                     Err(e) => s.error = Some(e.to_string()),
                 }
             }
-            next += POLL;
-            match next.checked_duration_since(Instant::now()) {
-                Some(wait) => std::thread::sleep(wait),
-                None => next = Instant::now(),
-            }
+            crate::pace(&mut next, POLL);
         }
     }
 }

@@ -24,3 +24,15 @@ pub mod scene;
 pub mod server;
 pub mod takes;
 pub mod warp_panel;
+
+/// Sleeps until `*next + period` and moves `*next` there: a loop paced on absolute deadlines,
+/// which skips ahead instead of catching up after an overrun.
+pub(crate) fn pace(next: &mut std::time::Instant, period: std::time::Duration) {
+    *next += period;
+    let now = std::time::Instant::now();
+    if *next > now {
+        std::thread::sleep(*next - now);
+    } else {
+        *next = now;
+    }
+}

@@ -4,8 +4,8 @@
 //! moves, stepped at 30 Hz only while a page watches, each frame sent as one JPEG over a binary
 //! WebSocket (a few tens of KB a frame instead of the 300 KB of raw RGBA the warp page polls).
 //!
-//! The defaults show visible motion at the page's size: the layer's displacement scale is three
-//! times `frond-warp`'s (lambda 36 x 12 pixels) and the procedural wind blows at full strength.
+//! The defaults show visible motion at the page's size: the layer's displacement scale is four
+//! times `frond-warp`'s (lambda 48 x 16 pixels), four and the procedural wind blows at full strength.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -55,7 +55,7 @@ pub fn sample_scene() -> Result<Scene, String> {
 pub fn panel_params() -> SceneParams {
     let mut p = SceneParams::default();
     p.wind.strength = 1.0;
-    p.layers = vec![LayerParams { lambda_x: 36.0, lambda_y: 12.0, ..LayerParams::default() }];
+    p.layers = vec![LayerParams { lambda_x: 48.0, lambda_y: 16.0, ..LayerParams::default() }];
     p
 }
 
@@ -135,13 +135,7 @@ impl WarpPanel {
                 *self.latest.lock().unwrap_or_else(|e| e.into_inner()) =
                     WarpFrame { number, jpeg: Arc::new(jpeg), state };
             }
-            next += period;
-            let now = Instant::now();
-            if next > now {
-                std::thread::sleep(next - now);
-            } else {
-                next = now;
-            }
+            crate::pace(&mut next, period);
         }
     }
 }
