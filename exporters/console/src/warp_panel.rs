@@ -5,7 +5,7 @@
 //! WebSocket (a few tens of KB a frame instead of the 300 KB of raw RGBA the warp page polls).
 //!
 //! The defaults show visible motion at the page's size: the layer's displacement scale is four
-//! times `frond-warp`'s (lambda 48 x 16 pixels), four and the procedural wind blows at full strength.
+//! times `frond-warp`'s (lambda 48 x 16 pixels) and the procedural wind blows at full strength.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
