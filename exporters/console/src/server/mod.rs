@@ -1,4 +1,4 @@
-//! The console's server: one thread accepts, each connection gets a short-lived thread (at most
+//! The console's server (the pose and warp WebSockets in [`sockets`]): one thread accepts, each connection gets a short-lived thread (at most
 //! [`MAX_CONNECTIONS`] at once, the rest answered 503), and each page's pose WebSocket a thread
 //! that sends the latest poses at the display rate.
 //!
@@ -27,14 +27,14 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use frond_gltf::LoadedRig;
-use frond_protocol::{ControlReply, ControlRequest, Pose, StageSpec};
+use frond_protocol::{ControlReply, ControlRequest, StageSpec};
 use frond_sdk::{ControlClient, Hello};
 use serde_json::{Value, json};
-use tungstenite::protocol::{Role, WebSocketConfig};
-use tungstenite::{Message, WebSocket};
+
+mod sockets;
 
 use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
 use crate::actions;
@@ -96,18 +96,18 @@ pub struct Console {
     calibrations: Arc<Calibrations>,
 }
 
-const INDEX_HTML: &str = include_str!("../page/index.html");
-const CONSOLE_JS: &str = include_str!("../page/console.js");
-const CONSOLE_CSS: &str = include_str!("../page/console.css");
+const INDEX_HTML: &str = include_str!("../../page/index.html");
+const CONSOLE_JS: &str = include_str!("../../page/console.js");
+const CONSOLE_CSS: &str = include_str!("../../page/console.css");
 
 /// The vendored three.js files: (URL path, body).
 const VENDOR: [(&str, &str); 6] = [
-    ("/vendor/three/three.module.min.js", include_str!("../vendor/three/three.module.min.js")),
-    ("/vendor/three/three.core.min.js", include_str!("../vendor/three/three.core.min.js")),
-    ("/vendor/three/GLTFLoader.js", include_str!("../vendor/three/GLTFLoader.js")),
-    ("/vendor/three/OrbitControls.js", include_str!("../vendor/three/OrbitControls.js")),
-    ("/vendor/utils/BufferGeometryUtils.js", include_str!("../vendor/three/BufferGeometryUtils.js")),
-    ("/vendor/three/SkeletonUtils.js", include_str!("../vendor/three/SkeletonUtils.js")),
+    ("/vendor/three/three.module.min.js", include_str!("../../vendor/three/three.module.min.js")),
+    ("/vendor/three/three.core.min.js", include_str!("../../vendor/three/three.core.min.js")),
+    ("/vendor/three/GLTFLoader.js", include_str!("../../vendor/three/GLTFLoader.js")),
+    ("/vendor/three/OrbitControls.js", include_str!("../../vendor/three/OrbitControls.js")),
+    ("/vendor/utils/BufferGeometryUtils.js", include_str!("../../vendor/three/BufferGeometryUtils.js")),
+    ("/vendor/three/SkeletonUtils.js", include_str!("../../vendor/three/SkeletonUtils.js")),
 ];
 
 impl Console {
@@ -420,150 +420,6 @@ impl Console {
             Err(e) => Response::error(502, e.to_string()),
         }
     }
-
-    fn socket(&self, req: Request, mut stream: TcpStream) {
-        if self.counters.sockets.fetch_add(1, Ordering::AcqRel) >= MAX_SOCKETS {
-            self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
-            let _ =
-                Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
-            return;
-        }
-        let warp = match (req.path.as_str(), &self.warp) {
-            ("/ws", _) => None,
-            ("/ws/warp", Some(w)) => Some(Arc::clone(w)),
-            (p, _) => {
-                self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
-                let why = if p == "/ws/warp" {
-                    "the warp panel is off (--no-warp)".to_string()
-                } else {
-                    format!("no WebSocket at {p}")
-                };
-                let _ = Response::error(404, why).write_to(&mut stream);
-                return;
-            }
-        };
-        if http::accept_websocket(&req, &mut stream).is_ok() && stream.set_nonblocking(true).is_ok() {
-            let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
-            let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
-            match warp {
-                None => self.stream_poses(&mut ws),
-                Some(w) => {
-                    w.viewers.fetch_add(1, Ordering::AcqRel);
-                    self.stream_warp(&mut ws, &w);
-                    w.viewers.fetch_sub(1, Ordering::AcqRel);
-                }
-            }
-        }
-        self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
-    }
-
-    /// Sends the page its poses until it goes away: at most `display_hz` messages a second, each
-    /// with every element's latest pose it has not had; a page that reads too slowly loses
-    /// messages (counted), never delays another.
-    fn stream_poses(&self, ws: &mut WebSocket<TcpStream>) {
-        let period = Duration::from_secs_f64(1.0 / f64::from(self.config.display_hz));
-        let (mut sent, mut poses) = (Vec::new(), Vec::new());
-        let mut version = u64::MAX;
-        let mut next = Instant::now();
-        loop {
-            // Close frames and pings from the page (pongs are queued by tungstenite).
-            if !self.drain_reads(ws) {
-                return;
-            }
-            let now_version = self.live.changed_since(&mut sent, &mut poses);
-            if now_version != version {
-                version = now_version;
-                if !self.send(ws, self.hello_json().to_string()) {
-                    return;
-                }
-            }
-            if !poses.is_empty() {
-                let n = poses.len() as u64;
-                let msg =
-                    json!({ "type": "poses", "poses": poses.iter().map(pose_value).collect::<Vec<_>>() });
-                if !self.send(ws, msg.to_string()) {
-                    return;
-                }
-                self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
-            }
-            match ws.flush() {
-                Ok(()) => {}
-                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(_) => return,
-            }
-            crate::pace(&mut next, period);
-        }
-    }
-
-    /// Sends the warp panel's frames (binary JPEG messages, each new frame once) and its state
-    /// (a text message twice a second) until the page goes away.
-    fn stream_warp(&self, ws: &mut WebSocket<TcpStream>, panel: &WarpPanel) {
-        let period = Duration::from_secs_f32(1.0 / warp_panel::WARP_FPS / 2.0);
-        let (mut sent, mut last_state) = (0u64, Instant::now() - Duration::from_secs(1));
-        loop {
-            if !self.drain_reads(ws) {
-                return;
-            }
-            let (number, jpeg, state) = panel.latest();
-            if number != sent && number > 0 {
-                sent = number;
-                if !self.queue(ws, Message::binary(jpeg.to_vec())) {
-                    return;
-                }
-            }
-            if last_state.elapsed() >= Duration::from_millis(500) && number > 0 {
-                last_state = Instant::now();
-                if !self.send(ws, json!({ "type": "warp", "state": state }).to_string()) {
-                    return;
-                }
-            }
-            match ws.flush() {
-                Ok(()) => {}
-                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(_) => return,
-            }
-            std::thread::sleep(period);
-        }
-    }
-
-    /// Reads what the page sent (close frames, pings); false when it is gone.
-    fn drain_reads(&self, ws: &mut WebSocket<TcpStream>) -> bool {
-        loop {
-            match ws.read() {
-                Ok(Message::Close(_)) => return false,
-                Ok(_) => {}
-                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => return true,
-                Err(_) => return false,
-            }
-        }
-    }
-
-    /// Queues one text message; false when the page is gone.
-    fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> bool {
-        self.queue(ws, Message::text(text))
-    }
-
-    /// Queues one message; false when the page is gone.
-    fn queue(&self, ws: &mut WebSocket<TcpStream>, msg: Message) -> bool {
-        // A page that has not taken what is queued loses this message; the next one carries the
-        // latest poses again (the `sent` map is not rewound, so only newer ones follow).
-        match ws.send(msg) {
-            Ok(()) => {
-                self.counters.messages.fetch_add(1, Ordering::Relaxed);
-                true
-            }
-            // Queued, the rest goes out at the next flush.
-            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
-                self.counters.messages.fetch_add(1, Ordering::Relaxed);
-                true
-            }
-            Err(tungstenite::Error::WriteBufferFull(_)) => {
-                self.counters.dropped.fetch_add(1, Ordering::Relaxed);
-                true
-            }
-            Err(_) => false,
-        }
-    }
 }
 
 /// The request's JSON body (`{}` when empty).
@@ -574,7 +430,7 @@ fn json_body(req: &Request) -> Result<Value, Response> {
     serde_json::from_slice(&req.body).map_err(|e| Response::error(400, format!("the body is not JSON: {e}")))
 }
 
-fn hello_value(h: &Hello) -> Value {
+pub(super) fn hello_value(h: &Hello) -> Value {
     json!({
         "rig": h.rig_name,
         "joints": h.joint_names,
@@ -583,17 +439,6 @@ fn hello_value(h: &Hello) -> Value {
         "elements": h.elements.elements.iter().map(|e| json!({
             "id": e.id, "name": e.name, "kind": e.kind.as_str(), "source": e.source, "rig": e.rig,
         })).collect::<Vec<_>>(),
-    })
-}
-
-fn pose_value(p: &Pose) -> Value {
-    json!({
-        "e": p.element,
-        "seq": p.seq,
-        "j": p.joints_deg,
-        "flags": p.flags.0,
-        "dev_us": p.device_time_us,
-        "host_ns": p.host_monotonic_ns,
     })
 }
 

@@ -1,0 +1,175 @@
+//! The pose and warp WebSockets of [`Console`]: each page's own thread, sending at its rate,
+//! dropping (and counting) what a slow page cannot take, never blocking another page or the
+//! subscription.
+
+use std::io;
+use std::net::TcpStream;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use frond_protocol::Pose;
+use serde_json::{Value, json};
+use tungstenite::protocol::{Role, WebSocketConfig};
+use tungstenite::{Message, WebSocket};
+
+use super::{Console, MAX_QUEUED_BYTES, MAX_SOCKETS};
+use crate::http::{self, Request, Response};
+use crate::warp_panel::{self, WarpPanel};
+
+impl Console {
+    pub(super) fn socket(&self, req: Request, mut stream: TcpStream) {
+        if self.counters.sockets.fetch_add(1, Ordering::AcqRel) >= MAX_SOCKETS {
+            self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+            let _ =
+                Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
+            return;
+        }
+        let warp = match (req.path.as_str(), &self.warp) {
+            ("/ws", _) => None,
+            ("/ws/warp", Some(w)) => Some(Arc::clone(w)),
+            (p, _) => {
+                self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+                let why = if p == "/ws/warp" {
+                    "the warp panel is off (--no-warp)".to_string()
+                } else {
+                    format!("no WebSocket at {p}")
+                };
+                let _ = Response::error(404, why).write_to(&mut stream);
+                return;
+            }
+        };
+        if http::accept_websocket(&req, &mut stream).is_ok() && stream.set_nonblocking(true).is_ok() {
+            let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
+            let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
+            match warp {
+                None => self.stream_poses(&mut ws),
+                Some(w) => {
+                    w.viewers.fetch_add(1, Ordering::AcqRel);
+                    self.stream_warp(&mut ws, &w);
+                    w.viewers.fetch_sub(1, Ordering::AcqRel);
+                }
+            }
+        }
+        self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+    }
+
+    /// Sends the page its poses until it goes away: at most `display_hz` messages a second, each
+    /// with every element's latest pose it has not had; a page that reads too slowly loses
+    /// messages (counted), never delays another.
+    fn stream_poses(&self, ws: &mut WebSocket<TcpStream>) {
+        let period = Duration::from_secs_f64(1.0 / f64::from(self.config.display_hz));
+        let (mut sent, mut poses) = (Vec::new(), Vec::new());
+        let mut version = u64::MAX;
+        let mut next = Instant::now();
+        loop {
+            // Close frames and pings from the page (pongs are queued by tungstenite).
+            if !self.drain_reads(ws) {
+                return;
+            }
+            let now_version = self.live.changed_since(&mut sent, &mut poses);
+            if now_version != version {
+                version = now_version;
+                if !self.send(ws, self.hello_json().to_string()) {
+                    return;
+                }
+            }
+            if !poses.is_empty() {
+                let n = poses.len() as u64;
+                let msg =
+                    json!({ "type": "poses", "poses": poses.iter().map(pose_value).collect::<Vec<_>>() });
+                if !self.send(ws, msg.to_string()) {
+                    return;
+                }
+                self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
+            }
+            match ws.flush() {
+                Ok(()) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(_) => return,
+            }
+            crate::pace(&mut next, period);
+        }
+    }
+
+    /// Sends the warp panel's frames (binary JPEG messages, each new frame once) and its state
+    /// (a text message twice a second) until the page goes away.
+    fn stream_warp(&self, ws: &mut WebSocket<TcpStream>, panel: &WarpPanel) {
+        let period = Duration::from_secs_f32(1.0 / warp_panel::WARP_FPS / 2.0);
+        let (mut sent, mut last_state) = (0u64, Instant::now() - Duration::from_secs(1));
+        loop {
+            if !self.drain_reads(ws) {
+                return;
+            }
+            let (number, jpeg, state) = panel.latest();
+            if number != sent && number > 0 {
+                sent = number;
+                if !self.queue(ws, Message::binary(jpeg.to_vec())) {
+                    return;
+                }
+            }
+            if last_state.elapsed() >= Duration::from_millis(500) && number > 0 {
+                last_state = Instant::now();
+                if !self.send(ws, json!({ "type": "warp", "state": state }).to_string()) {
+                    return;
+                }
+            }
+            match ws.flush() {
+                Ok(()) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(_) => return,
+            }
+            std::thread::sleep(period);
+        }
+    }
+
+    /// Reads what the page sent (close frames, pings); false when it is gone.
+    fn drain_reads(&self, ws: &mut WebSocket<TcpStream>) -> bool {
+        loop {
+            match ws.read() {
+                Ok(Message::Close(_)) => return false,
+                Ok(_) => {}
+                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => return true,
+                Err(_) => return false,
+            }
+        }
+    }
+
+    /// Queues one text message; false when the page is gone.
+    fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> bool {
+        self.queue(ws, Message::text(text))
+    }
+
+    /// Queues one message; false when the page is gone.
+    fn queue(&self, ws: &mut WebSocket<TcpStream>, msg: Message) -> bool {
+        // A page that has not taken what is queued loses this message; the next one carries the
+        // latest poses again (the `sent` map is not rewound, so only newer ones follow).
+        match ws.send(msg) {
+            Ok(()) => {
+                self.counters.messages.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            // Queued, the rest goes out at the next flush.
+            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
+                self.counters.messages.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(tungstenite::Error::WriteBufferFull(_)) => {
+                self.counters.dropped.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+}
+
+fn pose_value(p: &Pose) -> Value {
+    json!({
+        "e": p.element,
+        "seq": p.seq,
+        "j": p.joints_deg,
+        "flags": p.flags.0,
+        "dev_us": p.device_time_us,
+        "host_ns": p.host_monotonic_ns,
+    })
+}
