@@ -1,0 +1,242 @@
+//! The 3D view on a real daemon: the live plant, its layers and a field's plants against
+//! forward kinematics; recording, takes, stage controls and the warp panel from the page.
+
+use std::time::Duration;
+
+use frond_e2e::{Daemon, wait_for};
+use frond_protocol::ElementKind;
+use frond_webdriver::{browser, poll, start_session};
+use serde_json::{Value, json};
+
+use super::kinematics::{Frame, chain, check_bones, heights, joints_of, model};
+use super::{request, request_json, save_screenshot, start_console};
+
+#[test]
+fn the_page_shows_the_live_plant_and_records_a_take() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1200,760", &url);
+    let h = heights(&d);
+    assert!((h[3] - 0.24).abs() < 1e-6, "the grass rig's top joint: {h:?}");
+    let grass = model("grass");
+    // Three snapshots: each matches its pose; the sway moves the plant between them.
+    let first = check_bones(&d, 0, &grass);
+    std::thread::sleep(Duration::from_millis(400));
+    check_bones(&d, 0, &grass);
+    std::thread::sleep(Duration::from_millis(400));
+    let third = check_bones(&d, 0, &grass);
+    assert_ne!(first, third, "the virtual glove sways: the poses differ");
+    // The warp preview: the hand drives its wind (the readout says so), and the grass visibly
+    // moves (more than 4 % of the pixels by more than 30 levels within 3 s; the old preview
+    // moved 574 of 76,800, 0.75 %), at well under the old preview's 7 MB/s.
+    let warp_state = poll("the warp panel driven by the hand", Duration::from_secs(15), || {
+        let v = d.script("return window.frondConsole.state.warp.state;");
+        (v["source"] == "hand").then_some(v)
+    });
+    assert!(warp_state["wind"]["strength"].as_f64().is_some(), "{warp_state}");
+    let readout = poll("the wind readout", Duration::from_secs(5), || {
+        let t = d.script("return document.getElementById('warp-state').textContent;");
+        t.as_str().filter(|s| s.starts_with("wind from the hand")).map(str::to_string)
+    });
+    assert!(readout.contains("strength"), "{readout}");
+    d.script("return window.frondConsole.warpGrab();");
+    std::thread::sleep(Duration::from_secs(3));
+    let moved = d.script("return window.frondConsole.warpDiff();");
+    let (changed, pixels) = (moved["changed"].as_u64().unwrap(), moved["pixels"].as_u64().unwrap());
+    assert!(changed * 25 > pixels, "only {changed} of {pixels} pixels moved visibly: {moved}");
+    // Each frame is one JPEG: at 30 FPS under 1.2 MB/s (raw RGBA was 9.2 MB/s at 30 FPS).
+    let per_frame = moved["bytes"].as_f64().unwrap() / moved["frames"].as_f64().unwrap();
+    assert!(per_frame < 40_000.0, "{per_frame} bytes a frame");
+    // The health panel names the source and the rate.
+    let source = poll("the health panel", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('source').textContent;");
+        t.as_str().filter(|s| s.contains("connected")).map(str::to_string)
+    });
+    assert!(source.contains("in-process"), "{source}");
+    // The delivery latency, measured by the console on every pose, with its histogram.
+    let delivery = poll("the delivery latency", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('delivery').textContent;");
+        t.as_str().filter(|s| s.starts_with("daemon → console p50")).map(str::to_string)
+    });
+    assert!(delivery.contains("p99"), "{delivery}");
+    // Record from the page, then stop: the take is on disk with the frames the daemon counted.
+    d.script(
+        "document.getElementById('take-name').value = 'console_take';
+         document.getElementById('record-start').click();",
+    );
+    assert!(wait_for(Duration::from_secs(10), || daemon.status().recording.is_some_and(|r| r.active)));
+    std::thread::sleep(Duration::from_millis(300));
+    d.script("document.getElementById('record-stop').click();");
+    let said = poll("the stop result", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('control-result').textContent;");
+        t.as_str().filter(|s| s.starts_with("stopped")).map(str::to_string)
+    });
+    let frames: u64 = said.split_whitespace().nth(2).and_then(|n| n.parse().ok()).expect(&said);
+    let take = daemon.takes_dir.join("console_take.take");
+    let bytes = std::fs::read(&take).expect("the take file");
+    let scan = frond_motion::scan_take(&bytes).expect("a sound take");
+    assert!(scan.ended, "the take is closed");
+    assert_eq!(scan.frames.len() as u64, frames, "{said}");
+    assert!(frames > 100, "0.3 s at 1 kHz: {said}");
+    // The takes panel lists it with that frame count; playing it shows the take's poses.
+    let row = poll("the take in the list", Duration::from_secs(10), || {
+        let v = d.script(
+            "const tr = document.querySelector('#take-list tr[data-take=\"console_take\"]');
+             return tr ? [...tr.children].map(td => td.textContent) : null;",
+        );
+        (!v.is_null()).then_some(v)
+    });
+    assert_eq!(row[1].as_str().unwrap(), frames.to_string(), "{row}");
+    assert_eq!(row[3], "complete", "{row}");
+    d.script("document.querySelector('#take-list tr[data-take=\"console_take\"] .take-play').click();");
+    let main: Vec<_> = scan.frames.iter().filter(|f| f.element == 0).map(|f| f.pose).collect();
+    for _ in 0..3 {
+        let snap = poll("the take playing", Duration::from_secs(10), || {
+            let v = d.script("return window.frondConsole.snapshot(0);");
+            (v["pose"]["take"] == "console_take").then_some(v)
+        });
+        // Frame k of the playback is the take at k / 60 s from its first pose: the recorded
+        // poses bracketing that time (1 ms apart) agree with it within their own change.
+        let k = snap["pose"]["k"].as_u64().unwrap() as f64;
+        let t = main[0].t + k / 60.0;
+        let j = joints_of(&snap["pose"]["j"]);
+        let after = main.iter().position(|p| p.t >= t - 1e-9).unwrap_or(main.len() - 1);
+        let before = after.saturating_sub(1);
+        for (i, joint) in j.iter().enumerate() {
+            for (a, &got) in joint.iter().enumerate() {
+                let (lo, hi) = (main[before].joints_deg[i][a], main[after].joints_deg[i][a]);
+                let (lo, hi) = (lo.min(hi) - 1e-3, lo.max(hi) + 1e-3);
+                assert!((lo..=hi).contains(&got), "frame {k} joint {i}.{a}: {got} not within [{lo}, {hi}]");
+            }
+        }
+        check_bones(&d, 0, &grass);
+        std::thread::sleep(Duration::from_millis(150));
+    }
+    // Downloads: the GLB frond-gltf bakes (its animation named after the take) and the JSONL.
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let host = format!("Host: {addr}\r\n");
+    let (s, head, _) = request(&addr, "GET", "/api/takes/console_take.glb", &host, "");
+    assert_eq!(s, 200);
+    assert!(head.contains("filename=\"console_take.glb\""), "{head}");
+    let (s, _, body) = request(&addr, "GET", "/api/takes/console_take.jsonl", &host, "");
+    assert_eq!(s, 200);
+    let held = scan
+        .frames
+        .iter()
+        .filter(|f| f.element == 0 && f.flags & frond_protocol::PoseFlags::HELD.0 != 0)
+        .count();
+    assert_eq!(body.lines().count(), main.len() - held, "one line per pose, held ones left out");
+    d.script("document.getElementById('player-live').click();");
+    // The picture (WebGL on SwiftShader): two times differ where the plant is, and only there.
+    let webgl = d.script("return window.frondConsole.state.webgl;");
+    assert_eq!(webgl, json!(true), "the headless browser gives WebGL (SwiftShader)");
+    d.script("return window.frondConsole.grab();");
+    let diff = poll("the plant to move on screen", Duration::from_secs(10), || {
+        let v = d.script("return window.frondConsole.diffSinceGrab();");
+        (v["inside"].as_u64().unwrap() > 200).then_some(v)
+    });
+    let (inside, outside) = (diff["inside"].as_u64().unwrap(), diff["outside"].as_u64().unwrap());
+    assert!(outside * 4 < inside, "changes outside the plant's box: {diff}");
+    save_screenshot(&d, "screenshot.png");
+    // Stage controls: the filter and the rig, set from the page, are the daemon's; the view
+    // follows the new rig (the flower's bones against its own forward kinematics).
+    d.script(
+        "document.getElementById('filter-spec').value = 'lowpass';
+         document.querySelector('#filter-form button').click();",
+    );
+    let ok = wait_for(Duration::from_secs(10), || daemon.status().filter.starts_with("lowpass"));
+    assert!(
+        ok,
+        "filter not set: {} ({})",
+        daemon.status().filter,
+        d.script("return document.getElementById('control-result').textContent;")
+    );
+    d.script(
+        "document.getElementById('rig-select').value = 'flower';
+         document.querySelector('#rig-form button').click();",
+    );
+    assert!(wait_for(Duration::from_secs(10), || daemon.status().rig_name == "flower"), "rig not set");
+    poll("the view to show the flower", Duration::from_secs(20), || {
+        (d.script("return window.frondConsole.state.map && window.frondConsole.state.map.rig;") == "flower")
+            .then_some(())
+    });
+    check_bones(&d, 0, &model("flower"));
+}
+
+#[test]
+fn the_flower_and_its_leaf_layer_follow_their_two_hands() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--rig", "flower", "--hand", "main=in-process", "--hand", "leaf=in-process,element=leaf"],
+    );
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,700", &url);
+    let flower = model("flower");
+    assert_eq!(flower.elements.iter().filter(|e| e.element == 0).count(), 2, "the flower has two leaves");
+    for _ in 0..3 {
+        check_bones(&d, 0, &flower);
+        check_bones(&d, 1, &flower);
+        std::thread::sleep(Duration::from_millis(300));
+    }
+}
+
+#[test]
+fn a_field_started_from_the_page_stands_its_plants_where_the_field_puts_them() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    // A take to play: two seconds of the glove.
+    daemon.frond_ok(&["record", "start", "sway"]);
+    std::thread::sleep(Duration::from_millis(2000));
+    daemon.frond_ok(&["record", "stop"]);
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,700", &url);
+    poll("the take in the list", Duration::from_secs(10), || {
+        let v = d.script("return !!document.querySelector('#take-list tr[data-take=\"sway\"] .take-field');");
+        (v == json!(true)).then_some(())
+    });
+    d.script("document.querySelector('#take-list tr[data-take=\"sway\"] .take-field').click();");
+    // The daemon plays the field: 16 field-plant elements announced.
+    let ids = poll("the field's plants in the element table", Duration::from_secs(10), || {
+        let ids: Vec<u16> = daemon
+            .status()
+            .elements
+            .iter()
+            .filter(|e| e.kind == ElementKind::FieldPlant)
+            .map(|e| e.id)
+            .collect();
+        (ids.len() == 16).then_some(ids)
+    });
+    // The field as the console laid it out, and as `frond take field` would (same parameters).
+    let field: Value = serde_json::from_str(&request_json(&url, "/api/field")).unwrap();
+    assert_eq!(field["take"], "sway");
+    let grass = model("grass");
+    for &id in ids.iter().step_by(5) {
+        let snap = poll(&format!("field plant {id} in the view"), Duration::from_secs(20), || {
+            let v = d.script(&format!("return window.frondConsole.snapshot({id});"));
+            (!v.is_null() && !v["placement"].is_null()).then_some(v)
+        });
+        let i = snap["placement"]["index"].as_u64().unwrap() as usize;
+        let at = &field["positions_m"][i];
+        let scale = field["scales"][i].as_f64().unwrap();
+        assert_eq!(snap["placement"]["position"], *at, "plant {i} stands where the field puts it");
+        let (x, z) = (at[0].as_f64().unwrap(), at[1].as_f64().unwrap());
+        let frames = chain(Frame::IDENTITY, &grass.skeleton.heights_m, &joints_of(&snap["pose"]["j"]));
+        let bones = &snap["bones"][0];
+        for (j, f) in frames.iter().enumerate() {
+            let want = [x + scale * f.pos[0], scale * f.pos[1], z + scale * f.pos[2]];
+            for k in 0..3 {
+                let got = bones[j][k].as_f64().unwrap();
+                assert!(
+                    (got - want[k]).abs() <= 1e-4 * 0.24,
+                    "plant {i} joint {j} axis {k}: page {got}, want {}",
+                    want[k]
+                );
+            }
+        }
+    }
+}
