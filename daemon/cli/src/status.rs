@@ -221,6 +221,7 @@ mod tests {
             hands: vec![],
             problems: vec![],
             recorder_error: None,
+            lateness_histogram: Vec::new(),
         }
     }
 

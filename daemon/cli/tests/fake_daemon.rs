@@ -64,6 +64,7 @@ fn status_report() -> StatusReport {
         hands: vec![],
         problems: vec![],
         recorder_error: None,
+        lateness_histogram: Vec::new(),
     }
 }
 

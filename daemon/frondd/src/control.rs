@@ -525,6 +525,7 @@ impl ControlContext {
             hands,
             problems: state.problems.clone(),
             recorder_error: self.recorder_counters.fault(),
+            lateness_histogram: s.lateness.log2_buckets_us(),
         }
     }
 }

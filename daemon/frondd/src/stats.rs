@@ -2,7 +2,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering::Relaxed};
 
-use frond_protocol::LatencySummary;
+use frond_protocol::{HistogramBucket, LatencySummary};
 
 const SUB_BITS: u32 = 4;
 const SUB: usize = 1 << SUB_BITS;
@@ -84,6 +84,35 @@ impl LatencyHistogram {
             }
         }
         self.max_ns.load(Relaxed)
+    }
+
+    /// The values in log2 buckets of microseconds: upper bounds 1, 2, 4, ... up to 2^20 us (about
+    /// 1 s), then one unbounded bucket; each fine bucket counted in the coarse one that holds its
+    /// middle.
+    pub fn log2_buckets_us(&self) -> Vec<HistogramBucket> {
+        const TOP: u32 = 20;
+        let mut counts = vec![0u64; TOP as usize + 2];
+        for (i, b) in self.buckets.iter().enumerate() {
+            let n = b.load(Relaxed);
+            if n == 0 {
+                continue;
+            }
+            // The fine bucket's middle, as `quantile_ns` reports it; the smallest k with
+            // middle <= 2^k us.
+            let lo = Self::lower(i);
+            let hi = if i + 1 < self.buckets.len() { Self::lower(i + 1) } else { lo };
+            let mid = (lo + hi.saturating_sub(1).max(lo)) / 2;
+            let k = (0..=TOP).find(|&k| mid <= 1000u64 << k).unwrap_or(TOP + 1);
+            counts[k as usize] += n;
+        }
+        counts
+            .iter()
+            .enumerate()
+            .map(|(k, &count)| HistogramBucket {
+                le_us: (k as u32 <= TOP).then(|| f64::from(1u32 << k)),
+                count,
+            })
+            .collect()
     }
 
     /// p50/p99/p99.9/max in microseconds.
@@ -200,6 +229,21 @@ pub struct HandStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn log2_buckets_count_every_value_once_where_it_falls() {
+        let h = LatencyHistogram::new();
+        for ns in [400, 700, 3_000, 3_000, 900_000, 5_000_000_000] {
+            h.record(ns);
+        }
+        let b = h.log2_buckets_us();
+        assert_eq!(b.len(), 22);
+        assert_eq!(b.iter().map(|x| x.count).sum::<u64>(), 6);
+        assert_eq!((b[0].le_us, b[0].count), (Some(1.0), 2), "0.4 and 0.7 us");
+        assert_eq!((b[2].le_us, b[2].count), (Some(4.0), 2), "3 us twice");
+        assert_eq!(b[10].count, 1, "900 us is at most 1024 us");
+        assert_eq!((b[21].le_us, b[21].count), (None, 1), "5 s past the last bound");
+    }
 
     #[test]
     fn bucket_bounds_contain_their_values() {

@@ -379,6 +379,20 @@ pub struct StatusReport {
     /// The current take's write fault (path, error, frames kept and lost), until `record stop`.
     #[serde(default)]
     pub recorder_error: Option<String>,
+    /// The loop's wake-up lateness since start as a histogram: buckets with upper bounds 1, 2, 4,
+    /// ... microseconds (doubling up to about 1 s), then one for everything later.
+    #[serde(default)]
+    pub lateness_histogram: Vec<HistogramBucket>,
+}
+
+/// One bucket of a latency histogram.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HistogramBucket {
+    /// Upper bound of the bucket, microseconds (values at most this and above the previous
+    /// bucket's); `None` for the last, unbounded bucket.
+    pub le_us: Option<f64>,
+    /// Values in the bucket.
+    pub count: u64,
 }
 
 /// One hand source: where it reads, what it drives, and its own counters and history.

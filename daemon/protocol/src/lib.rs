@@ -24,8 +24,8 @@ pub mod pose;
 
 pub use control::{
     ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource, HandStatus,
-    LatencySummary, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec,
-    StageStatus, StatusReport, SubscriberStatus,
+    HistogramBucket, LatencySummary, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput, StageKey,
+    StageSpec, StageStatus, StatusReport, SubscriberStatus,
 };
 pub use errors::error_text;
 pub use frame::{

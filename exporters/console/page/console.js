@@ -216,8 +216,8 @@ function drawLateness() {
   }
   g.fillStyle = '#8b949e'; g.fillText(fmtUs(top), 2, 10);
 }
-function drawHistogram(buckets) {
-  const c = $('latency-hist'), g = c.getContext('2d');
+function drawHistogram(buckets, id = 'latency-hist') {
+  const c = $(id), g = c.getContext('2d');
   g.clearRect(0, 0, c.width, c.height);
   const top = Math.max(1, ...buckets.map((b) => b.count)), w = c.width / buckets.length;
   g.fillStyle = '#5f8fbf';
@@ -228,6 +228,7 @@ function drawHistogram(buckets) {
 async function pollStatus() {
   try {
     const s = await (await fetch('/api/status')).json();
+    state.status = s;
     const d = s.daemon;
     const probs = $('problems');
     probs.replaceChildren();
@@ -247,6 +248,7 @@ async function pollStatus() {
       $('lateness').textContent = `p50 ${fmtUs(l.p50_us)}, p99 ${fmtUs(l.p99_us)}, max ${fmtUs(l.max_us)}`;
       history.push(l); if (history.length > 120) history.shift();
       drawLateness();
+      if (d.lateness_histogram?.length) drawHistogram(d.lateness_histogram, 'lateness-hist');
       const tb = $('subscribers').tBodies[0];
       tb.replaceChildren(...d.subscribers.map((sub) => {
         const tr = document.createElement('tr');

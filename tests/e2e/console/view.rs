@@ -61,6 +61,14 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
         t.as_str().filter(|s| s.starts_with("daemon → console p50")).map(str::to_string)
     });
     assert!(delivery.contains("p99"), "{delivery}");
+    // The daemon's lateness histogram since start, as the page got it: every tick in a bucket
+    // (the count and the buckets are read a moment apart while the loop runs).
+    let hist = d.script("return window.frondConsole.state.status.daemon.lateness_histogram;");
+    let counted: u64 = hist.as_array().unwrap().iter().map(|b| b["count"].as_u64().unwrap()).sum();
+    let samples =
+        d.script("return window.frondConsole.state.status.daemon.lateness.samples;").as_u64().unwrap();
+    let close = counted.abs_diff(samples) <= samples / 100 + 10;
+    assert!(counted > 100 && close, "{counted} in the histogram, {samples} samples");
     // Record from the page, then stop: the take is on disk with the frames the daemon counted.
     d.script(
         "document.getElementById('take-name').value = 'console_take';
