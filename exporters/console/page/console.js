@@ -267,6 +267,10 @@ async function pollStatus() {
       if (document.activeElement !== $('rig-select') && rigShown) $('rig-select').value = rigShown;
     }
     const c = s.console;
+    const gl = c.glove_latency;
+    $('glove-latency').textContent = gl && gl.samples
+      ? `glove → console p50 ${fmtUs(gl.p50_us)}, p99 ${fmtUs(gl.p99_us)}, max ${fmtUs(gl.max_us)}`
+      : c.glove_clock_foreign ? 'the glove keeps its own clock: glove → console cannot be measured (delivery below)' : '–';
     const lat = c.latency;
     if (lat && lat.samples) {
       $('delivery').textContent = `daemon → console p50 ${fmtUs(lat.p50_us)}, p99 ${fmtUs(lat.p99_us)}, max ${fmtUs(lat.max_us)}`;

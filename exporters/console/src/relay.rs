@@ -42,32 +42,65 @@ pub struct LiveState {
     pub latency_us: Vec<u32>,
     /// Next slot of `latency_us`.
     pub latency_next: usize,
+    /// Glove-to-console latency of the last [`LATENCY_RING`] fresh poses, microseconds, a ring:
+    /// the report's device time to its arrival here, kept only while the glove's clock is the
+    /// host's `CLOCK_MONOTONIC` (the virtual gloves: `frond-vhid --clock monotonic`, the
+    /// in-process glove); another clock is its own and cannot be compared.
+    pub glove_us: Vec<u32>,
+    /// Next slot of `glove_us`.
+    pub glove_next: usize,
+    /// Fresh poses whose device time was not within a second of the host's clock.
+    pub glove_foreign: u64,
 }
 
 /// Poses whose delivery latency is kept for the health panel.
 pub const LATENCY_RING: usize = 2048;
 
-impl LiveState {
-    /// `{"p50_us", "p99_us", "max_us", "samples", "histogram": [{"le_us", "count"}]}` of the
-    /// kept delivery latencies (log-spaced buckets from 16 us to 1 s).
-    pub fn latency_json(&self) -> serde_json::Value {
-        let mut v = self.latency_us.clone();
-        v.sort_unstable();
-        let q = |p: f64| v.get(((v.len() as f64 - 1.0) * p).round() as usize).copied();
-        let mut histogram = Vec::new();
-        let mut le = 16u32;
-        let mut from = 0;
-        while le <= 1_000_000 {
-            let to = v.partition_point(|&x| x <= le);
-            histogram.push(serde_json::json!({ "le_us": le, "count": to - from }));
-            from = to;
-            le *= 2;
-        }
-        histogram.push(serde_json::json!({ "le_us": null, "count": v.len() - from }));
-        serde_json::json!({
-            "p50_us": q(0.5), "p99_us": q(0.99), "max_us": v.last(), "samples": v.len(), "histogram": histogram,
-        })
+/// Pushes `v` into the ring `ring` (at most [`LATENCY_RING`]) at `*next`.
+fn push_ring(ring: &mut Vec<u32>, next: &mut usize, v: u32) {
+    if ring.len() < LATENCY_RING {
+        ring.push(v);
+    } else {
+        ring[*next] = v;
     }
+    *next = (*next + 1) % LATENCY_RING;
+}
+
+impl LiveState {
+    /// The delivery latencies' summary ([`latency_json_of`]).
+    pub fn latency_json(&self) -> serde_json::Value {
+        latency_json_of(&self.latency_us)
+    }
+
+    /// The glove-to-console latencies' summary, or `null` when the glove's clock is not the
+    /// host's (then `glove_foreign` says how many poses could not be compared).
+    pub fn glove_json(&self) -> serde_json::Value {
+        if self.glove_us.is_empty() {
+            return serde_json::Value::Null;
+        }
+        latency_json_of(&self.glove_us)
+    }
+}
+
+/// `{"p50_us", "p99_us", "max_us", "samples", "histogram": [{"le_us", "count"}]}` of latencies
+/// in microseconds (log-spaced buckets from 16 us to 1 s).
+pub fn latency_json_of(values: &[u32]) -> serde_json::Value {
+    let mut v = values.to_vec();
+    v.sort_unstable();
+    let q = |p: f64| v.get(((v.len() as f64 - 1.0) * p).round() as usize).copied();
+    let mut histogram = Vec::new();
+    let mut le = 16u32;
+    let mut from = 0;
+    while le <= 1_000_000 {
+        let to = v.partition_point(|&x| x <= le);
+        histogram.push(serde_json::json!({ "le_us": le, "count": to - from }));
+        from = to;
+        le *= 2;
+    }
+    histogram.push(serde_json::json!({ "le_us": null, "count": v.len() - from }));
+    serde_json::json!({
+        "p50_us": q(0.5), "p99_us": q(0.99), "max_us": v.last(), "samples": v.len(), "histogram": histogram,
+    })
 }
 
 /// The shared state and the thread that fills it.
@@ -133,15 +166,19 @@ impl Live {
             s.main_at = Some(Instant::now());
         }
         // Same machine, same clock: the pose's publish stamp to its arrival here.
-        let latency = frond_sdk::clock::monotonic_ns().saturating_sub(pose.host_monotonic_ns) / 1000;
-        let latency = u32::try_from(latency).unwrap_or(u32::MAX);
-        if s.latency_us.len() < LATENCY_RING {
-            s.latency_us.push(latency);
-        } else {
-            let i = s.latency_next;
-            s.latency_us[i] = latency;
+        let now_ns = frond_sdk::clock::monotonic_ns();
+        let latency = u32::try_from(now_ns.saturating_sub(pose.host_monotonic_ns) / 1000).unwrap_or(u32::MAX);
+        let state = &mut *s;
+        push_ring(&mut state.latency_us, &mut state.latency_next, latency);
+        // The report's device time (32-bit microseconds, wrapping) against the host's clock.
+        if !pose.flags.contains(frond_sdk::PoseFlags::HELD) {
+            let glove = ((now_ns / 1000) as u32).wrapping_sub(pose.device_time_us as u32);
+            if glove < 1_000_000 {
+                push_ring(&mut state.glove_us, &mut state.glove_next, glove);
+            } else {
+                state.glove_foreign += 1;
+            }
         }
-        s.latency_next = (s.latency_next + 1) % LATENCY_RING;
         if let Some(slot) = s.poses.iter_mut().find(|p| p.element == pose.element) {
             *slot = pose;
         } else if s.poses.len() < MAX_ELEMENTS {

@@ -17,9 +17,12 @@ fn the_health_panel_shows_an_unplugged_glove_with_the_fix_within_a_second() {
     let Some((chromium, driver)) = browser() else { return };
     let dir = tempfile::tempdir().unwrap();
     let node = dir.path().join("vhid").join("hidraw-glove");
-    // The glove goes away 5 s after its first report (the page is up by then), for 4 s.
+    // The glove goes away 5 s after its first report (the page is up by then), for 4 s. Its
+    // reports carry the host's CLOCK_MONOTONIC, so the page measures glove-to-console latency.
     let (_glove, node, _out) = frond_e2e::start_vhid(&[
         "--sway",
+        "--clock",
+        "monotonic",
         "--rate",
         "1000",
         "--node",
@@ -39,6 +42,17 @@ fn the_health_panel_shows_an_unplugged_glove_with_the_fix_within_a_second() {
         t.as_str().filter(|s| s.contains("— connected")).map(|_| ())
     });
     assert!(!problems().contains("not connected"), "the glove is there: {}", problems());
+    let glove = poll("the glove latency", Duration::from_secs(4), || {
+        let v =
+            d.script("return window.frondConsole.state.status && window.frondConsole.state.status.console;");
+        (!v.is_null() && !v["glove_latency"].is_null()).then_some(v)
+    });
+    let (g50, d50) =
+        (glove["glove_latency"]["p50_us"].as_f64().unwrap(), glove["latency"]["p50_us"].as_f64().unwrap());
+    // The report comes before its publish: the glove's part is at least the delivery's.
+    assert!(g50 >= d50 && g50 < 100_000.0, "glove p50 {g50} us, delivery p50 {d50} us");
+    let shown = d.script("return document.getElementById('glove-latency').textContent;");
+    assert!(shown.as_str().unwrap().starts_with("glove → console p50"), "{shown}");
     // The daemon sees the unplug; the page says so within a second, with the fix.
     assert!(
         wait_for(Duration::from_secs(15), || !daemon.status().source.connected),

@@ -61,6 +61,14 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
         t.as_str().filter(|s| s.starts_with("daemon → console p50")).map(str::to_string)
     });
     assert!(delivery.contains("p99"), "{delivery}");
+    // The in-process glove keeps its own clock (from 0 at start): the page says glove-to-console
+    // latency cannot be measured (the FUSE glove with the host's clock is measured in
+    // calibration.rs).
+    let shown = poll("the glove latency line", Duration::from_secs(10), || {
+        let t = d.script("return document.getElementById('glove-latency').textContent;");
+        t.as_str().filter(|s| s.starts_with("the glove keeps its own clock")).map(str::to_string)
+    });
+    assert!(shown.contains("cannot be measured"), "{shown}");
     // The daemon's lateness histogram since start, as the page got it: every tick in a bucket
     // (the count and the buckets are read a moment apart while the loop runs).
     let hist = d.script("return window.frondConsole.state.status.daemon.lateness_histogram;");

@@ -311,6 +311,8 @@ impl Console {
                 "dropped": self.counters.dropped.load(Ordering::Relaxed),
                 "refused": self.counters.refused.load(Ordering::Relaxed),
                 "latency": s.latency_json(),
+                "glove_latency": s.glove_json(),
+                "glove_clock_foreign": s.glove_foreign,
             })
         };
         let daemon = ControlClient::connect_with_timeout(&self.config.socket_dir, Duration::from_secs(2))
