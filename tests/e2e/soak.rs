@@ -89,7 +89,14 @@ fn soak_under_faults() {
     let x = &r["faults"];
     assert!(num(x, "discontinuities") >= 2.0, "clock jump not counted: {x}");
     assert!(num(x, "pause_ms") >= 1000.0, "{x}");
-    assert!(num(x, "stale_skipped") > 0.0, "nothing skipped after the pause: {x}");
+    // Resuming after the pause skips what the glove queued and starts a new timeline (a third
+    // discontinuity after the jump's two); under load the glove may have had nothing queued at
+    // that moment, and then the new timeline alone shows the pause was noticed (as `frond soak`
+    // judges it, soak/faults.rs).
+    assert!(
+        num(x, "stale_skipped") > 0.0 || num(x, "discontinuities") >= 3.0,
+        "after the pause nothing was skipped and no new timeline started: {x}"
+    );
     assert!(x["disk_error"].as_str().is_some_and(|e| !e.is_empty()), "the disk never filled: {x}");
     assert!(num(x, "disk_error_at_s") < num(x, "disk_freed_at_s"), "{x}");
     assert!(x["first_take_stop"].as_str().is_some_and(|m| m.contains("refused")), "{x}");
