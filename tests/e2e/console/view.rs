@@ -70,11 +70,12 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     });
     assert!(shown.contains("cannot be measured"), "{shown}");
     // The daemon's lateness histogram since start, as the page got it: every tick in a bucket
-    // (the count and the buckets are read a moment apart while the loop runs).
-    let hist = d.script("return window.frondConsole.state.status.daemon.lateness_histogram;");
+    // (one status report, read in one go; the daemon reads its count and its buckets a moment
+    // apart while the loop runs).
+    let daemon_status = d.script("return window.frondConsole.state.status.daemon;");
+    let hist = &daemon_status["lateness_histogram"];
     let counted: u64 = hist.as_array().unwrap().iter().map(|b| b["count"].as_u64().unwrap()).sum();
-    let samples =
-        d.script("return window.frondConsole.state.status.daemon.lateness.samples;").as_u64().unwrap();
+    let samples = daemon_status["lateness"]["samples"].as_u64().unwrap();
     let close = counted.abs_diff(samples) <= samples / 100 + 10;
     assert!(counted > 100 && close, "{counted} in the histogram, {samples} samples");
     // Record from the page, then stop: the take is on disk with the frames the daemon counted.
