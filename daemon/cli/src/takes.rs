@@ -16,8 +16,9 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, anyhow, bail};
 use frond_motion::jsonl::write_pose_line;
-use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES, RecordAt, TakeRecord, encode_record};
-use frond_motion::{PoseFrame, Skipped, TakeScan, resample, resample_plan, scan_take, scan_take_salvaging};
+use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES};
+use frond_motion::take_repair::Repaired;
+use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
 use frond_protocol::{PoseFlags, paths};
 use serde::Serialize;
 
@@ -27,7 +28,7 @@ use crate::usage;
 
 /// A take without an End record modified more recently than this may still be recording;
 /// `repair` leaves it alone.
-const RECENT: Duration = Duration::from_secs(5);
+const RECENT: Duration = frond_motion::take_repair::MAY_BE_RECORDING;
 /// `take export --fps` and the baker refuse to resample to more frames than this unless
 /// `--force` (10 hours at 30 FPS); [`MAX_RESAMPLED_FRAMES`] is the limit even with `--force`.
 pub(crate) const MAX_EXPORT_FRAMES: u64 = 1_080_000;
@@ -310,93 +311,14 @@ pub(crate) fn export(
     Ok(())
 }
 
-/// What `repair` did.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct Repaired {
-    /// Torn bytes cut from the end.
-    pub dropped_bytes: u64,
-    /// Damaged stretches and non-finite frames left out.
-    pub skipped: Vec<Skipped>,
-    /// Frames lost: non-finite frames left out, plus those the End record counted that could not
-    /// be read.
-    pub lost_frames: u64,
-    /// Frames kept.
-    pub frames: u64,
-    /// Whether an End record was added to a take that had none.
-    pub closed: bool,
-}
-
-/// The repaired bytes: the readable records, byte for byte, without damaged stretches,
-/// non-finite frames and the torn tail, closed with an End record counting what is kept.
-/// `None` when there is nothing to repair.
+/// The repaired bytes of a take (`frond_motion::take_repair`), errors as `anyhow`.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
-    if bytes.is_empty() {
-        bail!("the take is empty (0 bytes): nothing was ever written, there is nothing to keep; delete it");
-    }
-    let scan = scan_take_salvaging(bytes).map_err(|e| anyhow!("{e}; this cannot be repaired"))?;
-    if scan.torn_bytes == 0 && scan.ended && scan.skipped.is_empty() {
-        return Ok(None);
-    }
-    if scan.valid_len < frond_motion::take::MAGIC.len() as u64 {
-        bail!("the take is too short to hold even its 8-byte signature; nothing can be kept");
-    }
-    // The readable part, without the old End record (its count no longer holds).
-    let mut keep_until = scan.valid_len as usize;
-    if scan.ended {
-        let end_at = keep_until - frond_motion::take::RECORD_HEAD_LEN - 9;
-        match frond_motion::take::read_record_at(bytes, end_at) {
-            Ok(RecordAt::Record { record: TakeRecord::End { .. }, next }) if next == keep_until => {
-                keep_until = end_at
-            }
-            _ => bail!("internal error: the take's End record is not where the reader ended"),
-        }
-    }
-    let mut out = Vec::with_capacity(keep_until);
-    let mut at = 0usize;
-    for s in &scan.skipped {
-        out.extend_from_slice(&bytes[at..s.offset as usize]);
-        at = (s.offset + s.len) as usize;
-    }
-    out.extend_from_slice(&bytes[at..keep_until]);
-    let frames = scan.frames.len() as u64;
-    encode_record(&TakeRecord::End { frames }, &mut out);
-    // The result must read back as a complete, sound take with the same frames.
-    let check =
-        scan_take(&out).map_err(|e| anyhow!("internal error: the repaired take does not read back: {e}"))?;
-    if !check.ended || check.torn_bytes != 0 || !check.skipped.is_empty() || check.frames != scan.frames {
-        bail!("internal error: the repaired take does not read back identically");
-    }
-    let repaired = Repaired {
-        dropped_bytes: scan.torn_bytes,
-        lost_frames: scan.lost_frames() + scan.missing_frames(),
-        skipped: scan.skipped,
-        frames,
-        closed: !scan.ended,
-    };
-    Ok(Some((out, repaired)))
+    frond_motion::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
 }
 
 /// `repair`'s report: exactly what was dropped.
 pub(crate) fn repair_report(path: &Path, r: &Repaired) -> String {
-    let mut dropped = Vec::new();
-    for s in &r.skipped {
-        dropped.push(format!("{s}"));
-    }
-    if r.dropped_bytes > 0 {
-        dropped.push(format!("{} torn bytes at the end", r.dropped_bytes));
-    }
-    let lost = if r.lost_frames > 0 || !r.skipped.is_empty() {
-        format!("; {} frame{} lost", r.lost_frames, if r.lost_frames == 1 { "" } else { "s" })
-    } else {
-        String::new()
-    };
-    format!(
-        "repaired {}: dropped {}{lost}; kept {} frames{}",
-        path.display(),
-        dropped.join(", "),
-        r.frames,
-        if r.closed { ", closed with an End record" } else { "" }
-    )
+    r.report(&path.display().to_string())
 }
 
 pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
@@ -423,13 +345,6 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
     write_atomically_bytes(&path, &fixed)?;
     println!("{}", repair_report(&path, &r));
     Ok(())
-}
-
-impl Repaired {
-    /// Whether the take had its End record already (so no recorder is appending to it).
-    fn closed_before(&self) -> bool {
-        !self.closed
-    }
 }
 
 /// A take to write as a file of another format (`--bvh`, `--usd`): its path, its scan (damage
@@ -499,7 +414,7 @@ pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyho
 
 #[cfg(test)]
 mod tests {
-    use frond_motion::take::encode_file_start;
+    use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
     use frond_motion::{HandSample, TakeFrame};
 
     use super::*;

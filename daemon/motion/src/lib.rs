@@ -45,6 +45,7 @@ pub mod sample;
 pub mod sim;
 pub mod skeleton;
 pub mod take;
+pub mod take_repair;
 pub mod timecode;
 pub mod usd;
 

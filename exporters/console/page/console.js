@@ -351,6 +351,13 @@ async function listTakes() {
     btn('Play', 'play in the view', () => play(t.name));
     btn('Loop', 'loop on the daemon (every subscriber sees it)', () => post('/api/playback', { take: t.name }));
     btn('Field', 'play a 4 x 4 field of it on the daemon (seed 000, section 6.2)', () => post('/api/field/start', { take: t.name }));
+    if (t.state === 'torn' || t.state === 'damaged' || t.state === 'open') {
+      btn('Repair', 'keep the readable records and close the take, as frond take repair', async () => {
+        const j = await post('/api/takes/repair', { take: t.name });
+        if (j && j.message) $('control-result').textContent = j.message;
+        listTakes();
+      });
+    }
     link('GLB', `/api/takes/${encodeURIComponent(t.name)}.glb`);
     link('JSONL', `/api/takes/${encodeURIComponent(t.name)}.jsonl`);
     tr.append(td);

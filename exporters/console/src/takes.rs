@@ -128,6 +128,37 @@ pub fn field(dir: &Path, name: &str, rows: usize, cols: usize, cell_m: f64) -> R
     make_field(&params, name, plan.frames as usize, FIELD_FPS).map_err(|e| err(400, e.to_string()))
 }
 
+/// Repairs take `name` as `frond take repair NAME` does (`frond_motion::take_repair`): the
+/// readable records kept, the rest dropped, closed with an End record; refused while it may
+/// still be recording. `{"repaired": bool, "message"}`.
+pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {
+    use frond_motion::take_repair::{MAY_BE_RECORDING, repaired_bytes};
+    let path = take_path(dir, name)?;
+    let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| err(404, e.to_string()))?;
+    let Some((fixed, r)) =
+        repaired_bytes(&bytes).map_err(|e| err(409, format!("{}: {e}", path.display())))?
+    else {
+        return Ok(json!({ "repaired": false, "message": format!("{name} is complete; nothing to repair") }));
+    };
+    let age = std::fs::metadata(&path)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|m| std::time::SystemTime::now().duration_since(m).ok())
+        .unwrap_or(std::time::Duration::MAX);
+    if !r.closed_before() && age < MAY_BE_RECORDING {
+        return Err(err(
+            409,
+            format!(
+                "{name} was modified {:.1} s ago and may still be recording; stop the recording first",
+                age.as_secs_f64()
+            ),
+        ));
+    }
+    frond_motion::rig_files::write_file_atomically(&path, &fixed)
+        .map_err(|e| err(500, format!("cannot write {}: {e}", path.display())))?;
+    Ok(json!({ "repaired": true, "message": r.report(&path.display().to_string()) }))
+}
+
 /// Take `name` as JSONL, one pose per line, as `frond take export NAME` prints it (main
 /// skeleton, held frames left out, at the recorded times).
 pub fn jsonl(dir: &Path, name: &str) -> Result<String, TakeError> {

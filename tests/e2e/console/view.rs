@@ -257,3 +257,44 @@ fn a_field_started_from_the_page_stands_its_plants_where_the_field_puts_them() {
         }
     }
 }
+
+#[test]
+fn a_torn_take_is_listed_torn_and_repaired_from_the_page() {
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    daemon.frond_ok(&["record", "start", "cut"]);
+    std::thread::sleep(Duration::from_millis(500));
+    daemon.frond_ok(&["record", "stop"]);
+    // A crash mid-record: the End record gone and half a record after the last frame.
+    let path = daemon.takes_dir.join("cut.take");
+    let bytes = std::fs::read(&path).unwrap();
+    let sound = frond_motion::scan_take(&bytes).unwrap();
+    let end = sound.valid_len as usize - frond_motion::take::RECORD_HEAD_LEN - 9;
+    let mut torn = bytes[..end].to_vec();
+    torn.extend_from_slice(&bytes[end - 20..end - 3]);
+    std::fs::write(&path, &torn).unwrap();
+    // Old enough not to look like a recording in progress.
+    let old = std::time::SystemTime::now() - Duration::from_secs(60);
+    std::fs::File::options().write(true).open(&path).unwrap().set_modified(old).unwrap();
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1000,800", &url);
+    let row = |d: &frond_webdriver::Driver| {
+        d.script(
+            "const tr = document.querySelector('#take-list tr[data-take=\"cut\"]');
+             return tr ? [...tr.children].map(td => td.textContent) : null;",
+        )
+    };
+    poll("the torn take", Duration::from_secs(10), || (row(&d)[3] == "torn").then_some(()));
+    d.script("document.querySelector('#take-list tr[data-take=\"cut\"] .take-repair').click();");
+    let fixed = poll("the repaired take", Duration::from_secs(10), || {
+        let r = row(&d);
+        (r[3] == "complete").then_some(r)
+    });
+    assert_eq!(fixed[1].as_str().unwrap(), sound.frames.len().to_string(), "every frame kept: {fixed}");
+    let after = frond_motion::scan_take(&std::fs::read(&path).unwrap()).unwrap();
+    assert!(after.ended && after.torn_bytes == 0, "{after:?}");
+    assert_eq!(after.frames, sound.frames);
+    let said = d.script("return document.getElementById('control-result').textContent;");
+    assert!(said.as_str().unwrap().contains("torn bytes at the end"), "{said}");
+}

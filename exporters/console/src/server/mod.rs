@@ -234,6 +234,16 @@ impl Console {
                 None => Response::error(404, format!("no {p} here")),
             },
             (false, "/api/field/start") if req.method == "POST" => self.field_start(req),
+            (false, "/api/takes/repair") if req.method == "POST" => {
+                match json_body(req).map(|b| b.get("take").and_then(Value::as_str).map(str::to_string)) {
+                    Ok(Some(take)) => match takes::repair(&self.config.takes_dir, &take) {
+                        Ok(v) => Response::json(200, &v),
+                        Err(e) => Response::error(e.status, e.message),
+                    },
+                    Ok(None) => Response::error(400, "repair needs {\"take\": \"...\"}"),
+                    Err(r) => r,
+                }
+            }
             (false, p) if req.method == "POST" && p.starts_with("/api/calibrate/") => self.calibrate(req),
             (false, p) if req.method == "POST" && actions::PATHS.contains(&p) => self.control(req),
             (false, p) => {

@@ -1,0 +1,112 @@
+//! Repairing a take (`frond take repair`, the console's Repair): the readable records, byte
+//! for byte, without damaged stretches, non-finite frames and a torn tail, closed with an End
+//! record counting what is kept. Pure: the callers read and write the file.
+
+use std::time::Duration;
+
+use crate::take::{RecordAt, TakeRecord, encode_record};
+use crate::{Skipped, scan_take, scan_take_salvaging};
+
+/// A take without an End record modified more recently than this may still be recording:
+/// repair leaves it alone.
+pub const MAY_BE_RECORDING: Duration = Duration::from_secs(5);
+
+/// What `repair` did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Repaired {
+    /// Torn bytes cut from the end.
+    pub dropped_bytes: u64,
+    /// Damaged stretches and non-finite frames left out.
+    pub skipped: Vec<Skipped>,
+    /// Frames lost: non-finite frames left out, plus those the End record counted that could not
+    /// be read.
+    pub lost_frames: u64,
+    /// Frames kept.
+    pub frames: u64,
+    /// Whether an End record was added to a take that had none.
+    pub closed: bool,
+}
+
+/// The repaired bytes: the readable records, byte for byte, without damaged stretches,
+/// non-finite frames and the torn tail, closed with an End record counting what is kept.
+/// `None` when there is nothing to repair.
+pub fn repaired_bytes(bytes: &[u8]) -> Result<Option<(Vec<u8>, Repaired)>, String> {
+    if bytes.is_empty() {
+        return Err(
+            "the take is empty (0 bytes): nothing was ever written, there is nothing to keep; delete it"
+                .into(),
+        );
+    }
+    let scan = scan_take_salvaging(bytes).map_err(|e| format!("{e}; this cannot be repaired"))?;
+    if scan.torn_bytes == 0 && scan.ended && scan.skipped.is_empty() {
+        return Ok(None);
+    }
+    if scan.valid_len < crate::take::MAGIC.len() as u64 {
+        return Err("the take is too short to hold even its 8-byte signature; nothing can be kept".into());
+    }
+    // The readable part, without the old End record (its count no longer holds).
+    let mut keep_until = scan.valid_len as usize;
+    if scan.ended {
+        let end_at = keep_until - crate::take::RECORD_HEAD_LEN - 9;
+        match crate::take::read_record_at(bytes, end_at) {
+            Ok(RecordAt::Record { record: TakeRecord::End { .. }, next }) if next == keep_until => {
+                keep_until = end_at
+            }
+            _ => return Err("internal error: the take's End record is not where the reader ended".into()),
+        }
+    }
+    let mut out = Vec::with_capacity(keep_until);
+    let mut at = 0usize;
+    for s in &scan.skipped {
+        out.extend_from_slice(&bytes[at..s.offset as usize]);
+        at = (s.offset + s.len) as usize;
+    }
+    out.extend_from_slice(&bytes[at..keep_until]);
+    let frames = scan.frames.len() as u64;
+    encode_record(&TakeRecord::End { frames }, &mut out);
+    // The result must read back as a complete, sound take with the same frames.
+    let check =
+        scan_take(&out).map_err(|e| format!("internal error: the repaired take does not read back: {e}"))?;
+    if !check.ended || check.torn_bytes != 0 || !check.skipped.is_empty() || check.frames != scan.frames {
+        return Err("internal error: the repaired take does not read back identically".into());
+    }
+    let repaired = Repaired {
+        dropped_bytes: scan.torn_bytes,
+        lost_frames: scan.lost_frames() + scan.missing_frames(),
+        skipped: scan.skipped,
+        frames,
+        closed: !scan.ended,
+    };
+    Ok(Some((out, repaired)))
+}
+
+impl Repaired {
+    /// Whether the take had its End record already (so no recorder is appending to it).
+    pub fn closed_before(&self) -> bool {
+        !self.closed
+    }
+
+    /// `frond take repair`'s report of what was dropped, for the take at `path`.
+    pub fn report(&self, path: &str) -> String {
+        let r = self;
+        let mut dropped = Vec::new();
+        for s in &r.skipped {
+            dropped.push(format!("{s}"));
+        }
+        if r.dropped_bytes > 0 {
+            dropped.push(format!("{} torn bytes at the end", r.dropped_bytes));
+        }
+        let lost = if r.lost_frames > 0 || !r.skipped.is_empty() {
+            format!("; {} frame{} lost", r.lost_frames, if r.lost_frames == 1 { "" } else { "s" })
+        } else {
+            String::new()
+        };
+        format!(
+            "repaired {}: dropped {}{lost}; kept {} frames{}",
+            path,
+            dropped.join(", "),
+            r.frames,
+            if r.closed { ", closed with an End record" } else { "" }
+        )
+    }
+}
