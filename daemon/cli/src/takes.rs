@@ -19,7 +19,7 @@ use frond_motion::jsonl::write_pose_line;
 use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES};
 use frond_motion::take_repair::Repaired;
 use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
-use frond_protocol::{PoseFlags, paths};
+use frond_protocol::paths;
 use serde::Serialize;
 
 use crate::args::Global;
@@ -202,19 +202,10 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The main-skeleton poses `export` prints, held frames dropped unless asked for.
-fn export_source(scan: &TakeScan, include_held: bool) -> Vec<PoseFrame> {
-    scan.frames
-        .iter()
-        .filter(|f| f.element == 0 && (include_held || !PoseFlags(f.flags).contains(PoseFlags::HELD)))
-        .map(|f| f.pose)
-        .collect()
-}
-
 /// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
 /// when `fps` is given.
 pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool) -> Vec<PoseFrame> {
-    let poses = export_source(scan, include_held);
+    let poses = scan.main_poses(include_held);
     match fps {
         Some(fps) => resample(&poses, fps),
         None => poses,
@@ -273,7 +264,7 @@ pub(crate) fn export(
             path.display()
         );
     }
-    let mut poses = export_source(&scan, include_held);
+    let mut poses = scan.main_poses(include_held);
     if let Some(fps) = fps {
         check_resample(&path.display().to_string(), &poses, fps, force)?;
         poses = resample(&poses, fps);
@@ -416,6 +407,7 @@ pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyho
 mod tests {
     use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
     use frond_motion::{HandSample, TakeFrame};
+    use frond_protocol::PoseFlags;
 
     use super::*;
 

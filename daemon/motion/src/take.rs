@@ -476,7 +476,17 @@ impl std::fmt::Display for Skipped {
 impl TakeScan {
     /// The poses of the main skeleton (element 0), in order.
     pub fn poses(&self) -> Vec<PoseFrame> {
-        self.frames.iter().filter(|f| f.element == 0).map(|f| f.pose).collect()
+        self.main_poses(true)
+    }
+
+    /// The poses of the main skeleton, in order, held frames (no new report) left out unless
+    /// `include_held`: what `frond take export` prints.
+    pub fn main_poses(&self, include_held: bool) -> Vec<PoseFrame> {
+        self.frames
+            .iter()
+            .filter(|f| f.element == 0 && (include_held || f.flags & crate::layers::FLAG_HELD == 0))
+            .map(|f| f.pose)
+            .collect()
     }
 
     /// Time from the first to the last main-skeleton pose, seconds (0 with fewer than two).

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use frond_gltf::{BakeOptions, Baker, LoadedRig, TakeInput};
 use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::jsonl::write_pose_line;
-use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
-use frond_protocol::{PoseFlags, paths};
+use frond_motion::{TakeScan, resample, resample_plan, scan_take};
+use frond_protocol::paths;
 use serde_json::{Value, json};
 
 /// Most takes listed (the newest by name order beyond are left out, and said so).
@@ -164,14 +164,8 @@ pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {
 pub fn jsonl(dir: &Path, name: &str) -> Result<String, TakeError> {
     let (scan, _) = read(dir, name)?;
     let mut out = String::new();
-    let poses: Vec<(u64, PoseFrame)> = scan
-        .frames
-        .iter()
-        .filter(|f| f.element == 0 && !PoseFlags(f.flags).contains(PoseFlags::HELD))
-        .map(|f| (f.seq, f.pose))
-        .collect();
-    for (seq, pose) in &poses {
-        write_pose_line(pose, Some(*seq), &mut out);
+    for pose in &scan.main_poses(false) {
+        write_pose_line(pose, None, &mut out);
         out.push('\n');
     }
     Ok(out)
