@@ -69,24 +69,28 @@ impl Console {
             }
             let now_version = self.live.changed_since(&mut sent, &mut poses);
             if now_version != version {
-                version = now_version;
-                if !self.send(ws, self.hello_json().to_string()) {
-                    return;
+                match self.send(ws, self.hello_json().to_string()) {
+                    Sent::Queued => version = now_version,
+                    Sent::Dropped => {} // sent again next time
+                    Sent::Gone => return,
                 }
             }
             if !poses.is_empty() {
                 let n = poses.len() as u64;
                 let msg =
                     json!({ "type": "poses", "poses": poses.iter().map(pose_value).collect::<Vec<_>>() });
-                if !self.send(ws, msg.to_string()) {
-                    return;
+                match self.send(ws, msg.to_string()) {
+                    Sent::Queued => {
+                        self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
+                    }
+                    // The page lost these: every element's latest pose goes again next time,
+                    // so the latest frame always reaches it.
+                    Sent::Dropped => sent.clear(),
+                    Sent::Gone => return,
                 }
-                self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
             }
-            match ws.flush() {
-                Ok(()) => {}
-                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(_) => return,
+            if !self.flush(ws) {
+                return;
             }
             crate::pace(&mut next, period);
         }
@@ -104,20 +108,18 @@ impl Console {
             let (number, jpeg, state) = panel.latest();
             if number != sent && number > 0 {
                 sent = number;
-                if !self.queue(ws, Message::binary(jpeg.to_vec())) {
+                if self.queue(ws, Message::binary(jpeg.to_vec())) == Sent::Gone {
                     return;
                 }
             }
             if last_state.elapsed() >= Duration::from_millis(500) && number > 0 {
                 last_state = Instant::now();
-                if !self.send(ws, json!({ "type": "warp", "state": state }).to_string()) {
+                if self.send(ws, json!({ "type": "warp", "state": state }).to_string()) == Sent::Gone {
                     return;
                 }
             }
-            match ws.flush() {
-                Ok(()) => {}
-                Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(_) => return,
+            if !self.flush(ws) {
+                return;
             }
             std::thread::sleep(period);
         }
@@ -135,32 +137,46 @@ impl Console {
         }
     }
 
-    /// Queues one text message; false when the page is gone.
-    fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> bool {
+    /// Queues one text message.
+    fn send(&self, ws: &mut WebSocket<TcpStream>, text: String) -> Sent {
         self.queue(ws, Message::text(text))
     }
 
-    /// Queues one message; false when the page is gone.
-    fn queue(&self, ws: &mut WebSocket<TcpStream>, msg: Message) -> bool {
-        // A page that has not taken what is queued loses this message; the next one carries the
-        // latest poses again (the `sent` map is not rewound, so only newer ones follow).
+    /// Queues one message; a page that has not taken what is queued loses it (counted).
+    fn queue(&self, ws: &mut WebSocket<TcpStream>, msg: Message) -> Sent {
         match ws.send(msg) {
-            Ok(()) => {
-                self.counters.messages.fetch_add(1, Ordering::Relaxed);
-                true
-            }
-            // Queued, the rest goes out at the next flush.
-            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
-                self.counters.messages.fetch_add(1, Ordering::Relaxed);
-                true
-            }
+            // Queued (the rest goes out at the next flush when the socket is full).
+            Ok(()) => {}
+            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {}
             Err(tungstenite::Error::WriteBufferFull(_)) => {
                 self.counters.dropped.fetch_add(1, Ordering::Relaxed);
-                true
+                return Sent::Dropped;
             }
+            Err(_) => return Sent::Gone,
+        }
+        self.counters.messages.fetch_add(1, Ordering::Relaxed);
+        Sent::Queued
+    }
+
+    /// Sends what is queued as far as the socket takes it; false when the page is gone.
+    fn flush(&self, ws: &mut WebSocket<TcpStream>) -> bool {
+        match ws.flush() {
+            Ok(()) => true,
+            Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => true,
             Err(_) => false,
         }
     }
+}
+
+/// What became of a message handed to the page's socket.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sent {
+    /// On its way.
+    Queued,
+    /// Left out: the page has not taken what is queued.
+    Dropped,
+    /// The page is gone.
+    Gone,
 }
 
 fn pose_value(p: &Pose) -> Value {
