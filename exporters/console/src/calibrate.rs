@@ -37,14 +37,14 @@ struct Session {
     result: Option<Result<(String, Vec<String>), String>>,
     /// Why polling the daemon failed, if it did.
     error: Option<String>,
+    /// The session's poller: it stops when this is set or another session has replaced it.
+    poller: Arc<AtomicBool>,
 }
 
 /// The console's calibration sessions (one at a time).
 #[derive(Debug, Default)]
 pub struct Calibrations {
     session: Mutex<Option<Session>>,
-    /// Set to end the poller of the current session.
-    cancel: Mutex<Option<Arc<AtomicBool>>>,
 }
 
 impl Calibrations {
@@ -62,8 +62,8 @@ impl Calibrations {
             return Err(format!("seconds_per_step must be between 0.2 and 120, got {secs}"));
         }
         let mut control = ControlClient::connect(&socket_dir).map_err(|e| e.to_string())?;
-        self.stop_poller();
-        *self.lock() = Some(Session {
+        let cancel = Arc::new(AtomicBool::new(false));
+        let old = self.lock().replace(Session {
             user: user.to_string(),
             step_len: Duration::from_secs_f64(secs),
             recorded: Vec::new(),
@@ -71,21 +71,17 @@ impl Calibrations {
             live: None,
             result: None,
             error: None,
+            poller: Arc::clone(&cancel),
         });
-        let cancel = Arc::new(AtomicBool::new(false));
-        *self.cancel.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::clone(&cancel));
+        if let Some(old) = old {
+            old.poller.store(true, Ordering::Relaxed);
+        }
         let me = Arc::clone(self);
         std::thread::Builder::new()
             .name("console-calibrate".into())
             .spawn(move || me.poll(&mut control, &cancel))
             .map_err(|e| e.to_string())?;
         Ok(self.state())
-    }
-
-    fn stop_poller(&self) {
-        if let Some(c) = self.cancel.lock().unwrap_or_else(|e| e.into_inner()).take() {
-            c.store(true, Ordering::Relaxed);
-        }
     }
 
     /// Records the next step.
@@ -108,8 +104,9 @@ impl Calibrations {
 
     /// Ends the session.
     pub fn cancel(&self) -> Value {
-        self.stop_poller();
-        *self.lock() = None;
+        if let Some(old) = self.lock().take() {
+            old.poller.store(true, Ordering::Relaxed);
+        }
         self.state()
     }
 
@@ -180,13 +177,14 @@ impl Calibrations {
         })
     }
 
-    fn poll(&self, control: &mut ControlClient, cancel: &AtomicBool) {
+    fn poll(&self, control: &mut ControlClient, cancel: &Arc<AtomicBool>) {
         let mut next = Instant::now();
         while !cancel.load(Ordering::Relaxed) {
             let sample = control.request(&ControlRequest::RawSample);
             {
                 let mut guard = self.lock();
-                let Some(s) = guard.as_mut() else { return };
+                // Only this poller's own session (not one that replaced it).
+                let Some(s) = guard.as_mut().filter(|s| Arc::ptr_eq(&s.poller, cancel)) else { return };
                 match sample {
                     Ok(ControlReply::RawSample { t, wrist_deg, thumb_deg, fresh }) => {
                         let raw = Raw { t, wrist_deg, thumb_deg };
