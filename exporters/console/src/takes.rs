@@ -38,7 +38,8 @@ fn take_path(dir: &Path, name: &str) -> Result<PathBuf, TakeError> {
     Ok(dir.join(format!("{name}.take")))
 }
 
-fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
+/// Take `name`'s path and bytes (a regular file within the take size limit; 404 when absent).
+fn read_bytes(dir: &Path, name: &str) -> Result<(PathBuf, Vec<u8>), TakeError> {
     let path = take_path(dir, name)?;
     let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| match &e {
         frond_motion::rig_files::FileError::Read { source, .. }
@@ -48,6 +49,11 @@ fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
         }
         _ => err(500, e.to_string()),
     })?;
+    Ok((path, bytes))
+}
+
+fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
+    let (path, bytes) = read_bytes(dir, name)?;
     let scan = scan_take(&bytes).map_err(|e| err(500, format!("{}: {e}", path.display())))?;
     Ok((scan, bytes.len() as u64))
 }
@@ -133,8 +139,7 @@ pub fn field(dir: &Path, name: &str, rows: usize, cols: usize, cell_m: f64) -> R
 /// still be recording. `{"repaired": bool, "message"}`.
 pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {
     use frond_motion::take_repair::{MAY_BE_RECORDING, repaired_bytes};
-    let path = take_path(dir, name)?;
-    let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| err(404, e.to_string()))?;
+    let (path, bytes) = read_bytes(dir, name)?;
     let Some((fixed, r)) =
         repaired_bytes(&bytes).map_err(|e| err(409, format!("{}: {e}", path.display())))?
     else {
@@ -173,8 +178,9 @@ pub fn jsonl(dir: &Path, name: &str) -> Result<String, TakeError> {
 
 /// Take `name` baked by frond-gltf on its rig (the header's, else `fallback_rig`), as GLB.
 pub fn glb(dir: &Path, name: &str, fallback_rig: Option<&str>) -> Result<Vec<u8>, TakeError> {
-    let path = take_path(dir, name)?;
-    let take = TakeInput::resolve(&path.display().to_string(), dir).map_err(|e| err(500, e.to_string()))?;
+    let (path, bytes) = read_bytes(dir, name)?;
+    let take = TakeInput::from_bytes(&bytes, name, &path.display().to_string())
+        .map_err(|e| err(500, e.to_string()))?;
     let rig_name = take.header.as_ref().map(|h| h.rig_name.clone()).or(fallback_rig.map(str::to_string));
     let Some(rig_name) = rig_name else {
         return Err(err(400, format!("take {name:?} names no rig and the daemon's is not known")));
