@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use clap::Parser;
 use frond_console::access::{self, Access};
-use frond_console::server::{Config, Console, is_loopback};
+use frond_console::server::{Config, Console};
 
 /// The operator's console: the plant live in 3D, the stage's health, takes and controls, in the
 /// browser.
@@ -38,7 +38,8 @@ struct Args {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let loopback = is_loopback(&args.listen);
+    // On a loopback address the console needs no token.
+    let loopback = args.listen.ip().is_loopback();
     let token = match &args.token_file {
         Some(path) => {
             let text = frond_motion::rig_files::read_small_text(path, 4096)

@@ -5,7 +5,6 @@
 //! the display rate ([`Live::changed_since`]), so their cost does not grow with the loop rate.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -37,18 +36,12 @@ pub struct LiveState {
     pub why: String,
     /// When element 0's latest pose arrived.
     pub main_at: Option<Instant>,
-    /// Delivery latency of the last [`LATENCY_RING`] poses (daemon publish to this console),
-    /// microseconds, a ring.
-    pub latency_us: Vec<u32>,
-    /// Next slot of `latency_us`.
-    pub latency_next: usize,
-    /// Glove-to-console latency of the last [`LATENCY_RING`] fresh poses, microseconds, a ring:
-    /// the report's device time to its arrival here, kept only while the glove's clock is the
-    /// host's `CLOCK_MONOTONIC` (the virtual gloves: `frond-vhid --clock monotonic`, the
-    /// in-process glove); another clock is its own and cannot be compared.
-    pub glove_us: Vec<u32>,
-    /// Next slot of `glove_us`.
-    pub glove_next: usize,
+    /// Delivery latency of the last poses (daemon publish to this console).
+    pub latency: LatencyRing,
+    /// Glove-to-console latency of the last fresh poses: the report's device time to its arrival
+    /// here, kept only while the glove's clock is the host's `CLOCK_MONOTONIC` (the virtual
+    /// gloves: `frond-vhid --clock monotonic`); another clock is its own and cannot be compared.
+    pub glove: LatencyRing,
     /// Fresh poses whose device time was not within a second of the host's clock.
     pub glove_foreign: u64,
 }
@@ -56,29 +49,23 @@ pub struct LiveState {
 /// Poses whose delivery latency is kept for the health panel.
 pub const LATENCY_RING: usize = 2048;
 
-/// Pushes `v` into the ring `ring` (at most [`LATENCY_RING`]) at `*next`.
-fn push_ring(ring: &mut Vec<u32>, next: &mut usize, v: u32) {
-    if ring.len() < LATENCY_RING {
-        ring.push(v);
-    } else {
-        ring[*next] = v;
-    }
-    *next = (*next + 1) % LATENCY_RING;
+/// The last [`LATENCY_RING`] latencies, microseconds.
+#[derive(Debug, Clone, Default)]
+pub struct LatencyRing {
+    /// The values, oldest overwritten first.
+    pub values: Vec<u32>,
+    next: usize,
 }
 
-impl LiveState {
-    /// The delivery latencies' summary ([`latency_json_of`]).
-    pub fn latency_json(&self) -> serde_json::Value {
-        latency_json_of(&self.latency_us)
-    }
-
-    /// The glove-to-console latencies' summary, or `null` when the glove's clock is not the
-    /// host's (then `glove_foreign` says how many poses could not be compared).
-    pub fn glove_json(&self) -> serde_json::Value {
-        if self.glove_us.is_empty() {
-            return serde_json::Value::Null;
+impl LatencyRing {
+    /// Keeps `v`, dropping the oldest once full.
+    pub fn push(&mut self, v: u32) {
+        if self.values.len() < LATENCY_RING {
+            self.values.push(v);
+        } else {
+            self.values[self.next] = v;
         }
-        latency_json_of(&self.glove_us)
+        self.next = (self.next + 1) % LATENCY_RING;
     }
 }
 
@@ -107,7 +94,6 @@ pub fn latency_json_of(values: &[u32]) -> serde_json::Value {
 #[derive(Debug, Default)]
 pub struct Live {
     state: Mutex<LiveState>,
-    stop: AtomicBool,
 }
 
 impl Live {
@@ -121,11 +107,6 @@ impl Live {
     /// The state (a poisoned lock is taken over: the state is plain data).
     pub fn lock(&self) -> MutexGuard<'_, LiveState> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    /// Asks the subscription thread to end.
-    pub fn stop(&self) {
-        self.stop.store(true, Ordering::Relaxed);
     }
 
     /// Copies into `out` the latest poses whose `seq` differs from the one in `sent` (element id
@@ -168,15 +149,14 @@ impl Live {
         // Same machine, same clock: the pose's publish stamp to its arrival here.
         let now_ns = frond_sdk::clock::monotonic_ns();
         let latency = u32::try_from(now_ns.saturating_sub(pose.host_monotonic_ns) / 1000).unwrap_or(u32::MAX);
-        let state = &mut *s;
-        push_ring(&mut state.latency_us, &mut state.latency_next, latency);
+        s.latency.push(latency);
         // The report's device time (32-bit microseconds, wrapping) against the host's clock.
         if !pose.flags.contains(frond_sdk::PoseFlags::HELD) {
             let glove = ((now_ns / 1000) as u32).wrapping_sub(pose.device_time_us as u32);
             if glove < 1_000_000 {
-                push_ring(&mut state.glove_us, &mut state.glove_next, glove);
+                s.glove.push(glove);
             } else {
-                state.glove_foreign += 1;
+                s.glove_foreign += 1;
             }
         }
         if let Some(slot) = s.poses.iter_mut().find(|p| p.element == pose.element) {
@@ -215,7 +195,7 @@ impl Live {
 
     fn run(&self, socket_dir: &std::path::Path) {
         let retry = Duration::from_millis(250);
-        while !self.stop.load(Ordering::Relaxed) {
+        loop {
             let opts = Subscriber::options()
                 .give_up_after(None)
                 .read_timeout(Some(Duration::from_millis(500)))
@@ -230,7 +210,7 @@ impl Live {
             };
             let mut hello = sub.hello().clone();
             self.set_hello(hello.clone());
-            while !self.stop.load(Ordering::Relaxed) {
+            loop {
                 match sub.next_event() {
                     Ok(Event::Pose(p)) => self.store(p),
                     Ok(Event::Gap { expected, got }) => {
@@ -294,10 +274,8 @@ mod tests {
 
     #[test]
     fn latency_percentiles_and_histogram_come_from_the_kept_poses() {
-        let live = Live::new();
-        let mut s = live.lock();
-        s.latency_us = (1..=100).map(|k| k * 10).collect(); // 10 .. 1000 us
-        let j = s.latency_json();
+        let values: Vec<u32> = (1..=100).map(|k| k * 10).collect(); // 10 .. 1000 us
+        let j = latency_json_of(&values);
         assert_eq!(j["samples"], 100);
         assert_eq!(j["p50_us"], 510); // index round(99 * 0.5) = 50 -> 510
         assert_eq!(j["p99_us"], 990);

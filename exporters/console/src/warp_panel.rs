@@ -7,7 +7,7 @@
 //! The defaults show visible motion at the page's size: the layer's displacement scale is four
 //! times `frond-warp`'s (lambda 48 x 16 pixels) and the procedural wind blows at full strength.
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -41,7 +41,6 @@ pub struct WarpPanel {
     latest: Mutex<WarpFrame>,
     /// Pages watching; the animator sleeps when none is.
     pub viewers: AtomicUsize,
-    stop: AtomicBool,
 }
 
 /// The panel's scene: the sample grass picture (320 x 240) and its matte.
@@ -78,11 +77,6 @@ impl WarpPanel {
         (f.number, Arc::clone(&f.jpeg), f.state.clone())
     }
 
-    /// Ends the thread.
-    pub fn stop(&self) {
-        self.stop.store(true, Ordering::Relaxed);
-    }
-
     fn run(&self, mut animator: Animator, live: &Live) {
         let dt = 1.0 / WARP_FPS;
         let period = Duration::from_secs_f32(dt);
@@ -92,7 +86,7 @@ impl WarpPanel {
         let mut next = Instant::now();
         let (mut number, mut window, mut window_frames, mut fps) = (0u64, Instant::now(), 0u32, 0.0f32);
         let mut rgb = vec![0u8; w * h * 3];
-        while !self.stop.load(Ordering::Relaxed) {
+        loop {
             if self.viewers.load(Ordering::Relaxed) == 0 {
                 std::thread::sleep(Duration::from_millis(100));
                 next = Instant::now();

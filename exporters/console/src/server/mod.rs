@@ -23,7 +23,7 @@
 
 use std::collections::HashMap;
 use std::io;
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -40,7 +40,7 @@ use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
 use crate::actions;
 use crate::calibrate::Calibrations;
 use crate::http::{self, Request, Response};
-use crate::relay::Live;
+use crate::relay::{Live, latency_json_of};
 use crate::scene::{self, RigScene};
 use crate::takes;
 use crate::warp_panel::{self, WarpPanel};
@@ -307,9 +307,11 @@ impl Console {
     }
 
     fn status(&self) -> Response {
-        let console = {
+        // The rings are copied under the lock and summarised (sorted) outside it: the
+        // subscription takes the lock for every pose.
+        let (mut console, latency, glove) = {
             let s = self.live.lock();
-            json!({
+            let console = json!({
                 "connected": s.connected,
                 "why": s.why,
                 "frames": s.frames,
@@ -320,11 +322,13 @@ impl Console {
                 "poses_sent": self.counters.poses_sent.load(Ordering::Relaxed),
                 "dropped": self.counters.dropped.load(Ordering::Relaxed),
                 "refused": self.counters.refused.load(Ordering::Relaxed),
-                "latency": s.latency_json(),
-                "glove_latency": s.glove_json(),
                 "glove_clock_foreign": s.glove_foreign,
-            })
+            });
+            (console, s.latency.values.clone(), s.glove.values.clone())
         };
+        console["latency"] = latency_json_of(&latency);
+        // `null` when the glove's clock is not the host's (`glove_clock_foreign` counts those).
+        console["glove_latency"] = if glove.is_empty() { Value::Null } else { latency_json_of(&glove) };
         let daemon = ControlClient::connect_with_timeout(&self.config.socket_dir, Duration::from_secs(2))
             .and_then(|mut c| c.status());
         match daemon {
@@ -452,9 +456,4 @@ pub(super) fn hello_value(h: &Hello) -> Value {
             "id": e.id, "name": e.name, "kind": e.kind.as_str(), "source": e.source, "rig": e.rig,
         })).collect::<Vec<_>>(),
     })
-}
-
-/// Whether `addr` is a loopback address (the console then needs no token).
-pub fn is_loopback(addr: &SocketAddr) -> bool {
-    addr.ip().is_loopback()
 }
