@@ -24,3 +24,4 @@ mod tap_matches_map;
 mod timecode;
 mod untrusted_time;
 mod warp_cage;
+mod zenoh;

@@ -36,6 +36,10 @@ pub enum Command {
         /// Print the full status report as JSON.
         #[arg(long)]
         json: bool,
+        /// Ask a daemon on another host through its frond-zenoh bridge:
+        /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).
+        #[arg(long, value_name = "ADDRESS")]
+        from: Option<frond_sdk::Source>,
     },
     /// Print live poses. Frames that only repeat the previous pose (flag `held`) are skipped
     /// unless --include-held is given, so each line is one new device sample.
@@ -54,6 +58,10 @@ pub enum Command {
         /// Default: every element (the global one, hands' layers, field plants, walkers).
         #[arg(long, value_name = "ID|NAME")]
         element: Option<String>,
+        /// Read the poses of a daemon on another host through its frond-zenoh bridge:
+        /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).
+        #[arg(long, value_name = "ADDRESS")]
+        from: Option<frond_sdk::Source>,
     },
     /// Map a hand recording (JSONL on stdin) to poses (JSONL on stdout), offline, with the
     /// daemon's own mapping code. Bad lines are reported on stderr with their line number and

@@ -128,9 +128,9 @@ pub(crate) fn is_broken_pipe(e: &anyhow::Error) -> bool {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match cli.command {
-        Command::Status { json } => status::run(g, json),
-        Command::Tap { jsonl, count, include_held, element } => {
-            tap::run(g, jsonl, count, include_held, element.as_deref())
+        Command::Status { json, from } => status::run(g, json, from.as_ref()),
+        Command::Tap { jsonl, count, include_held, element, from } => {
+            tap::run(g, jsonl, count, include_held, element.as_deref(), from.as_ref())
         }
         Command::Map { rig, calibration, filter, input } => {
             map::run(&rig, calibration.as_deref(), filter.as_deref(), input.as_deref())

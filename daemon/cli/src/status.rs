@@ -7,9 +7,15 @@ use frond_protocol::{StatusReport, paths};
 use crate::args::Global;
 use crate::control::Control;
 
-pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<()> {
-    let socket_dir = paths::socket_dir(g.socket_dir.clone());
-    let report = Control::connect(&socket_dir)?.status()?;
+/// How long `frond status --from zenoh:...` waits for a bridge to answer.
+const STATUS_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
+pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> anyhow::Result<()> {
+    let report = match from {
+        Some(frond_sdk::Source::Zenoh(addr)) => frond_sdk::zenoh::query_status(addr, STATUS_WAIT)?,
+        Some(frond_sdk::Source::Socket(dir)) => Control::connect(dir)?.status()?,
+        None => Control::connect(&paths::socket_dir(g.socket_dir.clone()))?.status()?,
+    };
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

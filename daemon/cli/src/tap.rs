@@ -22,9 +22,11 @@ pub(crate) fn run(
     count: Option<u64>,
     include_held: bool,
     element: Option<&str>,
+    from: Option<&frond_sdk::Source>,
 ) -> anyhow::Result<()> {
     let dir = paths::socket_dir(g.socket_dir.clone());
-    let mut sub = Subscriber::options().connect(&dir).map_err(|e| match e {
+    let source = from.cloned().unwrap_or_else(|| frond_sdk::Source::Socket(dir.clone()));
+    let mut sub = Subscriber::options().subscribe(&source).map_err(|e| match e {
         SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
             &dir.join(frond_protocol::POSES_SOCKET),
             &source

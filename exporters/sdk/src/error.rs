@@ -76,6 +76,34 @@ pub enum SdkError {
     /// The subscriber is finished (disconnected without reconnection, or after a fatal error).
     #[error("the subscription is closed")]
     Closed,
+    /// No `frond-zenoh` bridge answered for the source within the hello timeout.
+    #[error(
+        "no frond-zenoh bridge answered for {source_key} within {waited:?} (is `frond-zenoh` running \
+         beside the daemon with this --stage and --source, and can this host reach it? add \
+         ?connect=tcp/HOST:7447 to the address when scouting cannot find it)"
+    )]
+    NoBridge {
+        /// The source address.
+        source_key: String,
+        /// How long it waited.
+        waited: Duration,
+    },
+    /// A wildcard source address matches several sources; a subscription follows one.
+    #[error("{selector} matches {} sources ({}); name one of them", matches.len(), matches.join(", "))]
+    AmbiguousSource {
+        /// The address as given.
+        selector: String,
+        /// The sources that answered.
+        matches: Vec<String>,
+    },
+    /// The Zenoh session could not be set up (configuration, endpoints).
+    #[error("{source_key}: {reason}")]
+    Zenoh {
+        /// The source address.
+        source_key: String,
+        /// What Zenoh said.
+        reason: String,
+    },
 }
 
 impl SdkError {
@@ -83,7 +111,10 @@ impl SdkError {
     pub fn is_fatal(&self) -> bool {
         match self {
             SdkError::Protocol { error, .. } => error.is_fatal(),
-            SdkError::ReconnectFailed { .. } | SdkError::Closed => true,
+            SdkError::ReconnectFailed { .. }
+            | SdkError::Closed
+            | SdkError::AmbiguousSource { .. }
+            | SdkError::Zenoh { .. } => true,
             _ => false,
         }
     }

@@ -33,6 +33,9 @@ mod conn;
 pub mod control;
 mod error;
 pub mod health;
+pub mod source;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -43,6 +46,7 @@ pub use error::{ProtocolError, SdkError};
 pub use frond_protocol::{
     ElementInfo, ElementKind, ElementTable, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags, RigInfo,
 };
+pub use source::{Source, SourceError, ZenohAddr};
 
 use conn::{Conn, ReadOutcome};
 use frond_protocol::ServerMessage;
@@ -154,17 +158,66 @@ impl SubscriberOptions {
     pub fn connect(self, dir: impl AsRef<Path>) -> Result<Subscriber, SdkError> {
         Subscriber::with_options(dir, self)
     }
+    /// Subscribes to `source` (a socket directory or a Zenoh address) with these options.
+    pub fn subscribe(self, source: &Source) -> Result<Subscriber, SdkError> {
+        Subscriber::open(source, self)
+    }
+}
+
+/// One open connection.
+enum Wire {
+    Unix(Box<Conn>),
+    #[cfg(feature = "zenoh")]
+    Zenoh(Box<zenoh::ZenohConn>),
 }
 
 enum State {
-    Connected(Box<Conn>),
-    Disconnected,
+    Connected(Wire),
+    /// The connection ended; a Zenoh subscription keeps its session to rejoin on.
+    Disconnected(Option<Wire>),
     Finished,
+}
+
+/// Opens `source`, reusing a Zenoh session kept from before a disconnect.
+fn open_wire(
+    source: &Source,
+    opts: &SubscriberOptions,
+    kept: &mut Option<Wire>,
+) -> Result<(Wire, Hello), SdkError> {
+    match source {
+        Source::Socket(dir) => {
+            let (conn, hello) = Conn::open(&dir.join(frond_protocol::POSES_SOCKET), opts)?;
+            Ok((Wire::Unix(Box::new(conn)), hello))
+        }
+        #[cfg(feature = "zenoh")]
+        Source::Zenoh(addr) => match kept {
+            // A failed rejoin keeps the session for the next attempt.
+            Some(Wire::Zenoh(conn)) => {
+                let hello = conn.rejoin(opts)?;
+                let wire = kept.take().expect("matched Some above");
+                Ok((wire, hello))
+            }
+            _ => {
+                let (conn, hello) = zenoh::ZenohConn::open(addr, opts)?;
+                Ok((Wire::Zenoh(Box::new(conn)), hello))
+            }
+        },
+        #[cfg(not(feature = "zenoh"))]
+        Source::Zenoh(addr) => {
+            let _ = kept;
+            Err(SdkError::Zenoh {
+                source_key: addr.to_string(),
+                reason: "this program was built without Zenoh (frond-sdk's `zenoh` feature)".into(),
+            })
+        }
+    }
 }
 
 /// A subscription to the daemon's pose stream. Also an iterator of poses (see the
 /// [`Iterator`] impl).
 pub struct Subscriber {
+    source: Source,
+    /// The pose socket, or the Zenoh source key: what errors and logs name.
     path: PathBuf,
     opts: SubscriberOptions,
     state: State,
@@ -205,15 +258,30 @@ impl Subscriber {
 
     /// Connects with `opts`.
     pub fn with_options(dir: impl AsRef<Path>, opts: SubscriberOptions) -> Result<Subscriber, SdkError> {
-        let path = dir.as_ref().join(frond_protocol::POSES_SOCKET);
-        let (conn, hello) = Conn::open(&path, &opts)?;
+        Self::open(&Source::Socket(dir.as_ref().to_owned()), opts)
+    }
+
+    /// Subscribes to `source`: the socket directory of a daemon on this host, or a
+    /// `frond-zenoh` bridge's source over Zenoh (see [`Source`]). The same events either way:
+    /// over Zenoh, [`Event::Disconnected`] is the bridge's liveliness token going away (the
+    /// bridge lost its daemon, stopped, or its host is unreachable past Zenoh's lease) and
+    /// [`Event::Reconnected`] its return; a subscription starts at the first pose that reaches it.
+    pub fn open(source: &Source, opts: SubscriberOptions) -> Result<Subscriber, SdkError> {
+        let (wire, hello) = open_wire(source, &opts, &mut None)?;
+        let path = match (&wire, source) {
+            #[cfg(feature = "zenoh")]
+            (Wire::Zenoh(conn), _) => PathBuf::from(format!("{}{}", source::ZENOH_SCHEME, conn.key())),
+            (_, Source::Socket(dir)) => dir.join(frond_protocol::POSES_SOCKET),
+            (_, other) => PathBuf::from(other.to_string()),
+        };
         Ok(Subscriber {
+            source: source.clone(),
             path,
             expected_seq: hello.next_seq,
             elements: hello.elements.clone(),
             hello,
             opts,
-            state: State::Connected(Box::new(conn)),
+            state: State::Connected(wire),
             pending: VecDeque::new(),
             stats: Stats::default(),
             iter_done: false,
@@ -236,9 +304,27 @@ impl Subscriber {
         self.stats
     }
 
-    /// Path of the pose socket.
+    /// Path of the pose socket (for a Zenoh source, `zenoh:<source key>`).
     pub fn socket_path(&self) -> &Path {
         &self.path
+    }
+
+    /// Where this subscription reads from.
+    pub fn source(&self) -> &Source {
+        &self.source
+    }
+
+    /// Poses the transport delivered that this subscriber's queue had no room for (a Zenoh
+    /// subscription that reads too slowly; they also show as gaps). Always 0 on the socket,
+    /// where the daemon counts them.
+    pub fn overflow(&self) -> u64 {
+        match &self.state {
+            #[cfg(feature = "zenoh")]
+            State::Connected(Wire::Zenoh(conn)) | State::Disconnected(Some(Wire::Zenoh(conn))) => {
+                conn.overflow()
+            }
+            _ => 0,
+        }
     }
 
     /// True while a connection is open.
@@ -259,15 +345,20 @@ impl Subscriber {
         }
         match self.state {
             State::Finished => return Err(SdkError::Closed),
-            State::Disconnected if !self.opts.reconnect => {
+            State::Disconnected(_) if !self.opts.reconnect => {
                 self.state = State::Finished;
                 return Err(SdkError::Closed);
             }
-            State::Disconnected => return self.reconnect(),
+            State::Disconnected(_) => return self.reconnect(),
             State::Connected(_) => {}
         }
-        let State::Connected(conn) = &mut self.state else { unreachable!("checked above") };
-        match conn.read_message(&self.path, self.opts.read_timeout) {
+        let State::Connected(wire) = &mut self.state else { unreachable!("checked above") };
+        let outcome = match wire {
+            Wire::Unix(conn) => conn.read_message(&self.path, self.opts.read_timeout),
+            #[cfg(feature = "zenoh")]
+            Wire::Zenoh(conn) => conn.read_message(self.opts.read_timeout),
+        };
+        match outcome {
             ReadOutcome::Message(ServerMessage::Pose(pose)) => self.on_pose(pose),
             ReadOutcome::Message(ServerMessage::Elements(table)) => {
                 self.elements = table.clone();
@@ -332,7 +423,12 @@ impl Subscriber {
     }
 
     fn drop_connection(&mut self) {
-        self.state = State::Disconnected;
+        let kept = match std::mem::replace(&mut self.state, State::Finished) {
+            #[cfg(feature = "zenoh")]
+            State::Connected(wire @ Wire::Zenoh(_)) => Some(wire),
+            _ => None,
+        };
+        self.state = State::Disconnected(kept);
         self.stats.disconnects += 1;
     }
 
@@ -351,12 +447,16 @@ impl Subscriber {
         let start = Instant::now();
         let mut delay = self.opts.retry_interval;
         let mut attempts = 0u32;
+        let mut kept = match std::mem::replace(&mut self.state, State::Disconnected(None)) {
+            State::Disconnected(kept) => kept,
+            _ => None,
+        };
         loop {
             attempts += 1;
-            match Conn::open(&self.path, &self.opts) {
-                Ok((conn, hello)) => {
+            match open_wire(&self.source, &self.opts, &mut kept) {
+                Ok((wire, hello)) => {
                     tracing::info!(path = %self.path.display(), attempts, "reconnected");
-                    self.state = State::Connected(Box::new(conn));
+                    self.state = State::Connected(wire);
                     self.expected_seq = hello.next_seq;
                     self.hello = hello.clone();
                     self.elements = hello.elements.clone();

@@ -1,0 +1,470 @@
+//! frond on Zenoh: the key expressions a `frond-zenoh` bridge publishes, the session
+//! configuration both sides build, and the subscriber's end of a Zenoh source.
+//!
+//! Under a source's key `frond/<stage>/<source>` (see [`keys`]):
+//!
+//! | key          | what                                                              | how            |
+//! |--------------|-------------------------------------------------------------------|----------------|
+//! | `.../poses`  | every pose the daemon publishes                                   | put, drop when congested |
+//! | `.../elements` | the element table, when it changes                              | put + queryable (latest) |
+//! | `.../hello`  | the daemon's hello (rig, joints, elements, `next_seq`)            | put on change + queryable (latest) |
+//! | `.../status` | the daemon's status report, a few times a second                  | put + queryable (latest) |
+//! | `.../alive`  | a liveliness token, held while the bridge is connected to its daemon | liveliness |
+//!
+//! Every payload is one frame of the socket protocol, byte for byte what `poses.sock` carries:
+//! a `u32` little-endian length, the protocol version byte, a MessagePack body (a
+//! `ServerMessage` for poses, elements and hello; a `StatusReport` for status), so a reader in
+//! any language decodes it with a plain MessagePack library after skipping five bytes.
+
+use std::io::Read;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use ::zenoh::Wait;
+use ::zenoh::sample::SampleKind;
+use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TryRecvError, bounded};
+use frond_protocol::{Hello, Pose, ServerMessage, decode_frame};
+
+use crate::conn::ReadOutcome;
+use crate::error::{ProtocolError, SdkError};
+use crate::source::ZenohAddr;
+use crate::{SubscriberOptions, check_hello};
+
+/// Key expressions below a source's key.
+pub mod keys {
+    /// Every pose.
+    pub const POSES: &str = "poses";
+    /// The element table.
+    pub const ELEMENTS: &str = "elements";
+    /// The daemon's hello.
+    pub const HELLO: &str = "hello";
+    /// The daemon's status report.
+    pub const STATUS: &str = "status";
+    /// The bridge's liveliness token.
+    pub const ALIVE: &str = "alive";
+
+    /// `<source_key>/<leaf>`.
+    pub fn under(source_key: &str, leaf: &str) -> String {
+        format!("{source_key}/{leaf}")
+    }
+}
+
+/// Largest Zenoh configuration file read, bytes.
+pub const MAX_CONFIG_FILE: u64 = 256 * 1024;
+/// Poses buffered between Zenoh's receive thread and a subscriber that reads too slowly; past
+/// it the newest are dropped (and show as a gap).
+pub const FRAME_QUEUE: usize = 4096;
+
+/// Why a Zenoh session could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum ZenohSetupError {
+    /// The configuration file could not be read or is not a small regular file.
+    #[error("Zenoh configuration {}: {why}", path.display())]
+    ConfigFile {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        why: String,
+    },
+    /// Zenoh refused the configuration or could not open the session.
+    #[error("Zenoh: {0}")]
+    Zenoh(String),
+}
+
+/// Builds a Zenoh configuration: the file (if any, checked to be a regular file of at most
+/// [`MAX_CONFIG_FILE`] bytes), then `mode`, the endpoints to connect to and listen on, and
+/// `extra` key/JSON5-value pairs (e.g. `("timestamping/enabled", "true")`).
+pub fn config(
+    file: Option<&Path>,
+    mode: Option<&str>,
+    connect: &[String],
+    listen: &[String],
+    extra: &[(&str, &str)],
+) -> Result<::zenoh::Config, ZenohSetupError> {
+    let mut config = match file {
+        Some(path) => {
+            let bad = |why: String| ZenohSetupError::ConfigFile { path: path.to_owned(), why };
+            let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+            let meta = file.metadata().map_err(|e| bad(e.to_string()))?;
+            if !meta.is_file() {
+                return Err(bad("not a regular file".into()));
+            }
+            if meta.len() > MAX_CONFIG_FILE {
+                return Err(bad(format!("{} bytes; at most {MAX_CONFIG_FILE}", meta.len())));
+            }
+            let mut text = String::new();
+            file.take(MAX_CONFIG_FILE).read_to_string(&mut text).map_err(|e| bad(e.to_string()))?;
+            ::zenoh::Config::from_json5(&text).map_err(|e| bad(e.to_string()))?
+        }
+        None => ::zenoh::Config::default(),
+    };
+    let set = |config: &mut ::zenoh::Config, key: &str, value: &str| {
+        config.insert_json5(key, value).map_err(|e| ZenohSetupError::Zenoh(format!("{key} = {value}: {e}")))
+    };
+    if let Some(mode) = mode {
+        set(&mut config, "mode", &json_string(mode))?;
+    }
+    if !connect.is_empty() {
+        set(&mut config, "connect/endpoints", &json_list(connect))?;
+    }
+    if !listen.is_empty() {
+        set(&mut config, "listen/endpoints", &json_list(listen))?;
+    }
+    for (key, value) in extra {
+        set(&mut config, key, value)?;
+    }
+    Ok(config)
+}
+
+fn json_string(s: &str) -> String {
+    serde_json::Value::String(s.to_owned()).to_string()
+}
+
+fn json_list(items: &[String]) -> String {
+    serde_json::Value::Array(items.iter().map(|s| serde_json::Value::String(s.clone())).collect()).to_string()
+}
+
+/// Opens a session with [`config`].
+pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSetupError> {
+    ::zenoh::open(config).wait().map_err(|e| ZenohSetupError::Zenoh(e.to_string()))
+}
+
+/// What Zenoh's receive threads hand to the subscriber.
+struct Frame {
+    bytes: Vec<u8>,
+}
+
+/// A subscription to one source over Zenoh. Survives its bridge going away: the session stays
+/// open, and [`ZenohConn::rejoin`] waits for the bridge's token and hello again.
+pub(crate) struct ZenohConn {
+    session: ::zenoh::Session,
+    /// The concrete source key (`frond/<stage>/<source>`).
+    key: String,
+    _frames_sub: ::zenoh::pubsub::Subscriber<()>,
+    _alive_sub: ::zenoh::pubsub::Subscriber<()>,
+    frames: Receiver<Frame>,
+    alive: Receiver<bool>,
+    /// Poses dropped because the queue was full.
+    overflow: Arc<AtomicU64>,
+    /// Poses numbered below this predate the hello and are skipped.
+    floor: u64,
+    /// The first pose after the hello, read while opening.
+    first: Option<Pose>,
+    /// The bridge's token is gone: the source is disconnected until it comes back.
+    closed: bool,
+}
+
+impl ZenohConn {
+    /// Opens a session, finds the one source `addr` names, subscribes and reads its hello.
+    pub(crate) fn open(addr: &ZenohAddr, opts: &SubscriberOptions) -> Result<(ZenohConn, Hello), SdkError> {
+        let setup =
+            |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
+        let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
+        let session = open_session(cfg).map_err(setup)?;
+        let key = resolve(&session, addr, opts.hello_timeout)?;
+        let (frame_tx, frames) = bounded(FRAME_QUEUE);
+        let (alive_tx, alive) = bounded(64);
+        let overflow = Arc::new(AtomicU64::new(0));
+        let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: key.clone(), reason: e.to_string() };
+        let frames_sub = {
+            let overflow = overflow.clone();
+            let tx: Sender<Frame> = frame_tx;
+            session
+                .declare_subscriber(keys::under(&key, "*"))
+                .callback(move |sample| {
+                    let leaf = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
+                    if !matches!(leaf, keys::POSES | keys::ELEMENTS | keys::HELLO) {
+                        return;
+                    }
+                    let frame = Frame { bytes: sample.payload().to_bytes().into_owned() };
+                    if tx.try_send(frame).is_err() {
+                        overflow.fetch_add(1, Ordering::Relaxed);
+                    }
+                })
+                .wait()
+                .map_err(zerr)?
+        };
+        let alive_sub = session
+            .liveliness()
+            .declare_subscriber(keys::under(&key, keys::ALIVE))
+            .history(true)
+            .callback(move |sample| {
+                // Never blocks Zenoh's thread; a full queue only loses repeated news.
+                let _ = alive_tx.try_send(sample.kind() == SampleKind::Put);
+            })
+            .wait()
+            .map_err(zerr)?;
+        let mut conn = ZenohConn {
+            session,
+            key,
+            _frames_sub: frames_sub,
+            _alive_sub: alive_sub,
+            frames,
+            alive,
+            overflow,
+            floor: 0,
+            first: None,
+            closed: false,
+        };
+        let hello = conn.rejoin(opts)?;
+        Ok((conn, hello))
+    }
+
+    /// The source key this connection follows.
+    pub(crate) fn key(&self) -> &str {
+        &self.key
+    }
+
+    /// Poses Zenoh delivered that the queue had no room for.
+    pub(crate) fn overflow(&self) -> u64 {
+        self.overflow.load(Ordering::Relaxed)
+    }
+
+    /// Reads the bridge's hello (again) and the first pose after it: the subscription starts
+    /// at the first pose that reaches this subscriber after the hello, so a late joiner's
+    /// first pose is not a gap.
+    pub(crate) fn rejoin(&mut self, opts: &SubscriberOptions) -> Result<Hello, SdkError> {
+        let deadline = Instant::now() + opts.hello_timeout;
+        let mut hello = loop {
+            match query_hello(&self.session, &self.key, deadline)? {
+                Some((_, hello)) => break hello,
+                None if Instant::now() >= deadline => return Err(self.no_bridge(opts.hello_timeout)),
+                None => std::thread::sleep(Duration::from_millis(50)),
+            }
+        };
+        // Everything queued before the hello is stale.
+        while self.alive.try_recv().is_ok() {}
+        self.closed = false;
+        self.floor = hello.next_seq;
+        self.first = None;
+        while self.first.is_none() {
+            let left = deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(200));
+            match self.frames.recv_timeout(left) {
+                Ok(frame) => match decode_frame::<ServerMessage>(&frame.bytes) {
+                    Ok(Some((ServerMessage::Pose(pose), _))) if pose.seq >= self.floor => {
+                        self.first = Some(pose)
+                    }
+                    Ok(Some((ServerMessage::Elements(table), _))) => hello.elements = table,
+                    _ => {}
+                },
+                Err(_) => break,
+            }
+        }
+        if let Some(first) = &self.first {
+            hello.next_seq = first.seq;
+            self.floor = first.seq;
+        }
+        Ok(hello)
+    }
+
+    fn no_bridge(&self, waited: Duration) -> SdkError {
+        SdkError::NoBridge { source_key: self.key.clone(), waited }
+    }
+
+    /// The next message, or why not.
+    pub(crate) fn read_message(&mut self, timeout: Option<Duration>) -> ReadOutcome {
+        if let Some(pose) = self.first.take() {
+            return ReadOutcome::Message(ServerMessage::Pose(pose));
+        }
+        if self.closed {
+            return ReadOutcome::Closed;
+        }
+        let deadline = timeout.map(|t| Instant::now() + t);
+        loop {
+            // Frames that arrived before the token went away come first.
+            let frame = match self.frames.try_recv() {
+                Ok(frame) => frame,
+                Err(TryRecvError::Disconnected) => return ReadOutcome::Closed,
+                Err(TryRecvError::Empty) => {
+                    if let Ok(false) = self.alive.try_recv() {
+                        self.closed = true;
+                        return ReadOutcome::Closed;
+                    }
+                    let left = match deadline {
+                        Some(d) => d.saturating_duration_since(Instant::now()),
+                        None => Duration::from_millis(100),
+                    };
+                    match self.frames.recv_timeout(left.min(Duration::from_millis(100))) {
+                        Ok(frame) => frame,
+                        Err(RecvTimeoutError::Disconnected) => return ReadOutcome::Closed,
+                        Err(RecvTimeoutError::Timeout) => {
+                            if deadline.is_some_and(|d| Instant::now() >= d) {
+                                return ReadOutcome::Err(SdkError::Timeout {
+                                    path: self.key.clone().into(),
+                                    timeout: timeout.unwrap_or_default(),
+                                });
+                            }
+                            continue;
+                        }
+                    }
+                }
+            };
+            match decode_payload(&frame.bytes) {
+                Ok(ServerMessage::Pose(pose)) if pose.seq < self.floor => continue,
+                Ok(msg) => return ReadOutcome::Message(msg),
+                Err(error) => {
+                    return ReadOutcome::Err(SdkError::Protocol { path: self.key.clone().into(), error });
+                }
+            }
+        }
+    }
+}
+
+/// One payload is exactly one frame.
+fn decode_payload(bytes: &[u8]) -> Result<ServerMessage, ProtocolError> {
+    match decode_frame::<ServerMessage>(bytes)? {
+        Some((msg, used)) if used == bytes.len() => Ok(msg),
+        Some((_, used)) => {
+            Err(ProtocolError::Frame(frond_protocol::DecodeError::TrailingBytes(bytes.len() - used)))
+        }
+        None => Err(ProtocolError::Frame(frond_protocol::DecodeError::Malformed(format!(
+            "a Zenoh sample of {} bytes holds a partial frame",
+            bytes.len()
+        )))),
+    }
+}
+
+/// Asks `<key>/hello`; returns the answering source's key and its hello, or `None` when no
+/// bridge answered. Several sources answering a wildcard key is an error naming them.
+fn query_hello(
+    session: &::zenoh::Session,
+    key: &str,
+    deadline: Instant,
+) -> Result<Option<(String, Hello)>, SdkError> {
+    let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: key.to_owned(), reason: e.to_string() };
+    let timeout = deadline
+        .saturating_duration_since(Instant::now())
+        .clamp(Duration::from_millis(100), Duration::from_secs(2));
+    let replies = session.get(keys::under(key, keys::HELLO)).timeout(timeout).wait().map_err(zerr)?;
+    let mut found: Vec<(String, Hello)> = Vec::new();
+    while let Ok(reply) = replies.recv() {
+        let Ok(sample) = reply.result() else { continue };
+        let source_key = sample
+            .key_expr()
+            .as_str()
+            .strip_suffix("/hello")
+            .unwrap_or(sample.key_expr().as_str())
+            .to_owned();
+        let bytes = sample.payload().to_bytes();
+        let protocol = |error| SdkError::Protocol { path: source_key.clone().into(), error };
+        match decode_payload(&bytes).map_err(protocol)? {
+            ServerMessage::Hello(hello) => {
+                check_hello(&hello).map_err(protocol)?;
+                if !found.iter().any(|(k, _)| *k == source_key) {
+                    found.push((source_key, hello));
+                }
+            }
+            ServerMessage::Refused(reason) => {
+                return Err(SdkError::Refused { path: source_key.into(), reason });
+            }
+            _ => return Err(protocol(ProtocolError::ExpectedHello)),
+        }
+    }
+    match found.len() {
+        0 => Ok(None),
+        1 => Ok(found.pop()),
+        _ => {
+            let mut names: Vec<String> = found.into_iter().map(|(k, _)| k).collect();
+            names.sort();
+            Err(SdkError::AmbiguousSource { selector: key.to_owned(), matches: names })
+        }
+    }
+}
+
+/// Finds the one source `addr` names (its key may hold wildcards), waiting up to `timeout` for
+/// a bridge to answer.
+fn resolve(session: &::zenoh::Session, addr: &ZenohAddr, timeout: Duration) -> Result<String, SdkError> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some((key, _)) = query_hello(session, &addr.key, deadline)? {
+            return Ok(key);
+        }
+        if Instant::now() >= deadline {
+            return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout });
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Asks the bridge of `addr` (one source) for its daemon's latest status report.
+pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protocol::StatusReport, SdkError> {
+    let setup = |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
+    let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
+    let session = open_session(cfg).map_err(setup)?;
+    let deadline = Instant::now() + timeout;
+    let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
+    loop {
+        let wait = deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(100));
+        let replies = session.get(keys::under(&addr.key, keys::STATUS)).timeout(wait).wait().map_err(zerr)?;
+        let mut found: Vec<(String, frond_protocol::StatusReport)> = Vec::new();
+        while let Ok(reply) = replies.recv() {
+            let Ok(sample) = reply.result() else { continue };
+            let key = sample.key_expr().as_str().to_owned();
+            let bytes = sample.payload().to_bytes();
+            let bad = |error: ProtocolError| SdkError::Protocol { path: key.clone().into(), error };
+            match decode_frame::<frond_protocol::ControlReply>(&bytes).map_err(|e| bad(e.into()))? {
+                Some((frond_protocol::ControlReply::Status(report), used)) if used == bytes.len() => {
+                    found.push((key, *report));
+                }
+                _ => {
+                    return Err(bad(ProtocolError::Frame(frond_protocol::DecodeError::Malformed(
+                        "a status sample that is not one status frame".into(),
+                    ))));
+                }
+            }
+        }
+        match found.len() {
+            1 => return Ok(found.pop().expect("one").1),
+            0 if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(50)),
+            0 => return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout }),
+            _ => {
+                let mut matches: Vec<String> =
+                    found.into_iter().map(|(k, _)| k.trim_end_matches("/status").to_owned()).collect();
+                matches.sort();
+                return Err(SdkError::AmbiguousSource { selector: addr.key.clone(), matches });
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_payload_is_exactly_one_frame() {
+        let mut bytes = Vec::new();
+        frond_protocol::encode_frame(&ServerMessage::Pose(Pose { seq: 7, ..Pose::default() }), &mut bytes);
+        assert!(matches!(decode_payload(&bytes), Ok(ServerMessage::Pose(p)) if p.seq == 7));
+        assert!(decode_payload(&bytes[..bytes.len() - 1]).is_err());
+        let mut two = bytes.clone();
+        two.extend_from_slice(&bytes);
+        assert!(matches!(decode_payload(&two), Err(ProtocolError::Frame(_))));
+        assert!(decode_payload(&[]).is_err());
+    }
+
+    #[test]
+    fn configs_take_endpoints_and_refuse_odd_files() {
+        let c = config(
+            None,
+            Some("peer"),
+            &["tcp/127.0.0.1:7447".into()],
+            &[],
+            &[("timestamping/enabled", "true")],
+        );
+        assert!(c.is_ok());
+        let dir = tempfile::tempdir().unwrap();
+        let err = config(Some(dir.path()), None, &[], &[], &[]).unwrap_err().to_string();
+        assert!(err.contains("not a regular file"), "{err}");
+        let big = dir.path().join("big.json5");
+        std::fs::write(&big, vec![b' '; MAX_CONFIG_FILE as usize + 1]).unwrap();
+        assert!(config(Some(&big), None, &[], &[], &[]).unwrap_err().to_string().contains("at most"));
+        let bad = dir.path().join("bad.json5");
+        std::fs::write(&bad, "{ mode: 42 }").unwrap();
+        assert!(config(Some(&bad), None, &[], &[], &[]).is_err());
+        let err = config(None, None, &["not an endpoint".into()], &[], &[]).unwrap_err().to_string();
+        assert!(err.contains("connect/endpoints"), "{err}");
+    }
+}

@@ -1,0 +1,412 @@
+//! `frond-zenoh`: carries one daemon's streams onto Zenoh, so exporters, recorders and tools on
+//! other hosts subscribe to them with the same SDK (`--from zenoh:frond/<stage>/<source>`).
+//!
+//! The bridge is an exporter like the others: it reads `poses.sock` through [`frond_sdk`] and
+//! polls `control.sock` for status; the daemon's realtime loop never touches the network. What it
+//! publishes, under `frond/<stage>/<source>` ([`frond_sdk::zenoh::keys`]):
+//!
+//! - `poses`: every pose, one socket-protocol frame a sample, congestion control *drop* and
+//!   express (never batched), so a slow or far peer loses samples instead of backing the bridge up;
+//! - `elements` and `hello`: put when they change, and answered to late joiners by queryables
+//!   with the latest value (the hello's `next_seq` is the next pose the bridge will publish);
+//! - `status`: the daemon's status report (a `ControlReply::Status` frame) every
+//!   [`BridgeConfig::status_interval`], and answered by a queryable;
+//! - `alive`: a liveliness token, held while the bridge is connected to its daemon. Subscribers
+//!   see it go when the daemon stops, the bridge stops, or its host becomes unreachable.
+//!
+//! Samples carry Zenoh timestamps (hybrid logical clock of the bridge's host): the stage-wide
+//! clock beside each pose's host-monotonic time.
+
+#![warn(missing_docs)]
+
+mod status;
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use frond_protocol::{ElementTable, FrameBuf, Hello, ServerMessage};
+use frond_sdk::zenoh::{ZenohSetupError, keys};
+use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
+use zenoh::Wait;
+use zenoh::qos::{CongestionControl, Priority};
+
+/// How often the daemon's status is published by default.
+pub const DEFAULT_STATUS_INTERVAL: Duration = Duration::from_millis(250);
+/// Accepted status intervals.
+pub const STATUS_INTERVAL_RANGE: std::ops::RangeInclusive<Duration> =
+    Duration::from_millis(50)..=Duration::from_secs(10);
+
+/// What the bridge needs; built and validated by the binary.
+#[derive(Debug, Clone)]
+pub struct BridgeConfig {
+    /// The daemon's socket directory.
+    pub socket_dir: PathBuf,
+    /// Where to publish: `frond/<stage>/<source>` (no wildcard).
+    pub addr: ZenohAddr,
+    /// How often the daemon's status is published.
+    pub status_interval: Duration,
+}
+
+/// What can stop the bridge.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    /// The Zenoh session could not be opened or an entity not declared.
+    #[error(transparent)]
+    Setup(#[from] ZenohSetupError),
+    /// Declaring a publisher, queryable or token failed.
+    #[error("Zenoh: declaring {what}: {reason}")]
+    Declare {
+        /// What was being declared.
+        what: String,
+        /// Zenoh's error.
+        reason: String,
+    },
+    /// The pose stream failed in a way no reconnection cures (a protocol version mismatch).
+    #[error(transparent)]
+    Stream(#[from] SdkError),
+}
+
+/// Counters since the bridge started.
+#[derive(Debug, Default)]
+pub struct BridgeStats {
+    /// Poses received from the daemon.
+    pub poses: AtomicU64,
+    /// Poses Zenoh refused to take (the session is closing).
+    pub put_errors: AtomicU64,
+    /// Gaps in the daemon's stream (the bridge itself read too slowly).
+    pub gaps: AtomicU64,
+    /// Element tables and hellos published.
+    pub announcements: AtomicU64,
+    /// Status reports published.
+    pub statuses: AtomicU64,
+    /// Queries answered (hello, elements, status).
+    pub queries: AtomicU64,
+    /// Times the daemon connection was re-established.
+    pub reconnects: AtomicU64,
+}
+
+impl std::fmt::Display for BridgeStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        write!(
+            f,
+            "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={}",
+            g(&self.poses),
+            g(&self.put_errors),
+            g(&self.gaps),
+            g(&self.announcements),
+            g(&self.statuses),
+            g(&self.queries),
+            g(&self.reconnects)
+        )
+    }
+}
+
+/// The latest values the queryables answer with.
+#[derive(Default)]
+struct Latest {
+    /// The daemon's hello while connected (its `next_seq` is overwritten when answering).
+    hello: Option<Hello>,
+    /// The last status frame.
+    status: Option<Vec<u8>>,
+}
+
+struct Shared {
+    latest: Mutex<Latest>,
+    /// Sequence number of the next pose (written per pose, so not behind the mutex).
+    next_seq: AtomicU64,
+    stats: Arc<BridgeStats>,
+}
+
+impl Shared {
+    fn latest(&self) -> std::sync::MutexGuard<'_, Latest> {
+        self.latest.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// A running bridge: a Zenoh session with its publishers, queryables and token.
+pub struct Bridge {
+    config: BridgeConfig,
+    session: zenoh::Session,
+    poses: zenoh::pubsub::Publisher<'static>,
+    elements: zenoh::pubsub::Publisher<'static>,
+    hello: zenoh::pubsub::Publisher<'static>,
+    _queryables: Vec<zenoh::query::Queryable<()>>,
+    token: Option<zenoh::liveliness::LivelinessToken>,
+    shared: Arc<Shared>,
+    frame: FrameBuf,
+}
+
+fn declare_err(what: &str) -> impl Fn(zenoh::Error) -> BridgeError + '_ {
+    move |e| BridgeError::Declare { what: what.to_owned(), reason: e.to_string() }
+}
+
+impl Bridge {
+    /// Opens the Zenoh session (peer mode unless the configuration file says otherwise, with
+    /// timestamping on) and declares the publishers and queryables.
+    pub fn open(config: BridgeConfig) -> Result<Bridge, BridgeError> {
+        let zconfig = frond_sdk::zenoh::config(
+            config.addr.config.as_deref(),
+            None,
+            &config.addr.connect,
+            &config.addr.listen,
+            &[("timestamping/enabled", "true")],
+        )?;
+        let session = frond_sdk::zenoh::open_session(zconfig)?;
+        let key = config.addr.key.clone();
+        let publisher = |leaf: &str, priority: Priority| {
+            let k = keys::under(&key, leaf);
+            session
+                .declare_publisher(k.clone())
+                .congestion_control(CongestionControl::Drop)
+                .priority(priority)
+                .express(true)
+                .wait()
+                .map_err(declare_err(&k))
+        };
+        // One priority for everything a subscriber reads in order (poses, tables, hellos).
+        let poses = publisher(keys::POSES, Priority::RealTime)?;
+        let elements = publisher(keys::ELEMENTS, Priority::RealTime)?;
+        let hello = publisher(keys::HELLO, Priority::RealTime)?;
+        let shared = Arc::new(Shared {
+            latest: Mutex::new(Latest::default()),
+            next_seq: AtomicU64::new(0),
+            stats: Arc::default(),
+        });
+        let mut queryables = Vec::new();
+        for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS] {
+            let k = keys::under(&key, leaf);
+            let shared = shared.clone();
+            let reply_key = k.clone();
+            let q = session
+                .declare_queryable(k.clone())
+                .callback(move |query| {
+                    let next_seq = shared.next_seq.load(Ordering::Relaxed);
+                    let bytes = answer(&shared.latest(), next_seq, leaf);
+                    if let Some(bytes) = bytes {
+                        shared.stats.queries.fetch_add(1, Ordering::Relaxed);
+                        if let Err(e) = query.reply(reply_key.clone(), bytes).wait() {
+                            tracing::debug!(error = %e, "reply failed");
+                        }
+                    }
+                })
+                .wait()
+                .map_err(declare_err(&k))?;
+            queryables.push(q);
+        }
+        Ok(Bridge {
+            config,
+            session,
+            poses,
+            elements,
+            hello,
+            _queryables: queryables,
+            token: None,
+            shared,
+            frame: FrameBuf::with_capacity(1024),
+        })
+    }
+
+    /// The bridge's counters.
+    pub fn stats(&self) -> &BridgeStats {
+        &self.shared.stats
+    }
+
+    /// The counters, to read from another thread while [`Bridge::run`] goes on.
+    pub fn stats_handle(&self) -> Arc<BridgeStats> {
+        self.shared.stats.clone()
+    }
+
+    /// The Zenoh id of the bridge's session.
+    pub fn zid(&self) -> String {
+        self.session.zid().to_string()
+    }
+
+    /// Streams until `stop` is set: connects to the daemon (waiting for it when it is not
+    /// running, and again whenever it stops), publishes its streams and polls its status.
+    pub fn run(&mut self, stop: &AtomicBool) -> Result<(), BridgeError> {
+        let status = status::spawn(
+            self.config.socket_dir.clone(),
+            self.session.clone(),
+            keys::under(&self.config.addr.key, keys::STATUS),
+            self.config.status_interval,
+            self.shared.clone(),
+        )
+        .map_err(|reason| BridgeError::Declare { what: "the status publisher".into(), reason })?;
+        let result = self.stream(stop);
+        status.stop();
+        self.set_alive(false);
+        result
+    }
+
+    fn stream(&mut self, stop: &AtomicBool) -> Result<(), BridgeError> {
+        let mut waiting_since: Option<Instant> = None;
+        while !stop.load(Ordering::Relaxed) {
+            let opts = Subscriber::options()
+                .give_up_after(None)
+                .max_retry_interval(Duration::from_millis(500))
+                .read_timeout(Some(Duration::from_millis(200)));
+            let mut sub = match opts.connect(&self.config.socket_dir) {
+                Ok(sub) => sub,
+                Err(e) if e.is_fatal() => return Err(e.into()),
+                Err(e) => {
+                    if waiting_since.is_none() {
+                        tracing::warn!(error = %e, "waiting for the daemon");
+                        waiting_since = Some(Instant::now());
+                    }
+                    std::thread::sleep(Duration::from_millis(200));
+                    continue;
+                }
+            };
+            if waiting_since.take().is_some() {
+                self.shared.stats.reconnects.fetch_add(1, Ordering::Relaxed);
+            }
+            tracing::info!(key = %self.config.addr.key, rig = %sub.hello().rig_name, "publishing");
+            self.on_hello(sub.hello().clone());
+            self.pump(&mut sub, stop)?;
+        }
+        Ok(())
+    }
+
+    /// Forwards one subscription's events until `stop`, or until it fails for good.
+    fn pump(&mut self, sub: &mut Subscriber, stop: &AtomicBool) -> Result<(), BridgeError> {
+        while !stop.load(Ordering::Relaxed) {
+            match sub.next_event() {
+                Ok(Event::Pose(pose)) => {
+                    self.shared.stats.poses.fetch_add(1, Ordering::Relaxed);
+                    self.shared.next_seq.store(pose.seq + 1, Ordering::Relaxed);
+                    let bytes = self.frame.encode(&ServerMessage::Pose(pose)).to_vec();
+                    if self.poses.put(bytes).wait().is_err() {
+                        self.shared.stats.put_errors.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                Ok(Event::Gap { .. }) => {
+                    self.shared.stats.gaps.fetch_add(1, Ordering::Relaxed);
+                }
+                Ok(Event::Elements(table)) => self.on_elements(table),
+                Ok(Event::RigChanged(hello)) => self.announce_hello(hello),
+                Ok(Event::Reconnected(hello)) => {
+                    self.shared.stats.reconnects.fetch_add(1, Ordering::Relaxed);
+                    tracing::info!(rig = %hello.rig_name, "the daemon is back");
+                    self.on_hello(hello);
+                }
+                Ok(Event::Disconnected) => {
+                    tracing::warn!("the daemon went away; subscribers see this source as disconnected");
+                    self.shared.latest().hello = None;
+                    self.set_alive(false);
+                }
+                Err(SdkError::Timeout { .. }) => {}
+                Err(e) if e.is_fatal() => return Err(e.into()),
+                Err(e) => tracing::warn!(error = %e, "pose stream"),
+            }
+        }
+        Ok(())
+    }
+
+    /// A (new) daemon connection: its hello is the latest, and the token says the source is up.
+    fn on_hello(&mut self, hello: Hello) {
+        self.shared.next_seq.store(hello.next_seq, Ordering::Relaxed);
+        self.shared.latest().hello = Some(hello.clone());
+        self.publish(Which::Hello, &ServerMessage::Hello(hello));
+        self.set_alive(true);
+    }
+
+    fn announce_hello(&mut self, hello: Hello) {
+        self.shared.latest().hello = Some(hello.clone());
+        self.publish(Which::Hello, &ServerMessage::Hello(hello));
+    }
+
+    fn on_elements(&mut self, table: ElementTable) {
+        if let Some(hello) = self.shared.latest().hello.as_mut() {
+            hello.elements = table.clone();
+        }
+        self.publish(Which::Elements, &ServerMessage::Elements(table));
+    }
+
+    fn publish(&mut self, which: Which, msg: &ServerMessage) {
+        let bytes = self.frame.encode(msg).to_vec();
+        let publisher = match which {
+            Which::Hello => &self.hello,
+            Which::Elements => &self.elements,
+        };
+        self.shared.stats.announcements.fetch_add(1, Ordering::Relaxed);
+        if let Err(e) = publisher.put(bytes).wait() {
+            tracing::warn!(error = %e, "publishing an announcement");
+        }
+    }
+
+    fn set_alive(&mut self, alive: bool) {
+        if alive == self.token.is_some() {
+            return;
+        }
+        if !alive {
+            if let Some(token) = self.token.take()
+                && let Err(e) = token.undeclare().wait()
+            {
+                tracing::warn!(error = %e, "withdrawing the liveliness token");
+            }
+            return;
+        }
+        let key = keys::under(&self.config.addr.key, keys::ALIVE);
+        match self.session.liveliness().declare_token(key).wait() {
+            Ok(token) => self.token = Some(token),
+            Err(e) => tracing::warn!(error = %e, "declaring the liveliness token"),
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Which {
+    Hello,
+    Elements,
+}
+
+/// The frame a queryable answers with, if it has one.
+fn answer(latest: &Latest, next_seq: u64, leaf: &str) -> Option<Vec<u8>> {
+    let mut out = Vec::new();
+    match leaf {
+        keys::HELLO => {
+            let hello = Hello { next_seq, ..latest.hello.clone()? };
+            frond_protocol::encode_frame(&ServerMessage::Hello(hello), &mut out);
+        }
+        keys::ELEMENTS => {
+            let table = latest.hello.as_ref()?.elements.clone();
+            frond_protocol::encode_frame(&ServerMessage::Elements(table), &mut out);
+        }
+        keys::STATUS => return latest.status.clone(),
+        _ => return None,
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn queryables_answer_only_what_they_have() {
+        let mut latest = Latest::default();
+        assert!(answer(&latest, 0, keys::HELLO).is_none());
+        assert!(answer(&latest, 0, keys::ELEMENTS).is_none());
+        assert!(answer(&latest, 0, keys::STATUS).is_none());
+        latest.hello = Some(Hello {
+            protocol_version: frond_protocol::PROTOCOL_VERSION,
+            daemon_version: "test".into(),
+            rig_name: "grass".into(),
+            joint_names: vec!["root".into()],
+            tick_rate_hz: 1000,
+            elements: ElementTable::default(),
+            next_seq: 3,
+        });
+        let bytes = answer(&latest, 42, keys::HELLO).unwrap();
+        let (msg, used) = frond_protocol::decode_frame::<ServerMessage>(&bytes).unwrap().unwrap();
+        assert_eq!(used, bytes.len());
+        match msg {
+            ServerMessage::Hello(h) => assert_eq!((h.rig_name.as_str(), h.next_seq), ("grass", 42)),
+            other => panic!("{other:?}"),
+        }
+        assert!(answer(&latest, 42, "poses").is_none());
+    }
+}

@@ -1,0 +1,148 @@
+//! `frond-zenoh`: publishes one daemon's streams on Zenoh (see the crate docs and README).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+use frond_sdk::{ZenohAddr, source};
+use frond_zenoh::{Bridge, BridgeConfig, DEFAULT_STATUS_INTERVAL, STATUS_INTERVAL_RANGE};
+
+/// Publishes the frond daemon's poses, elements, hello and status on Zenoh under
+/// frond/<stage>/<source>, for subscribers on other hosts (`--from zenoh:frond/<stage>/<source>`).
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Args {
+    /// Stage name: every daemon of one performance space shares it.
+    #[arg(long, env = "FROND_STAGE", default_value = "default", value_name = "NAME")]
+    stage: String,
+    /// Source name, unique on the stage (e.g. the performer's glove). Default: this host's name.
+    #[arg(long, env = "FROND_SOURCE", value_name = "NAME")]
+    source: Option<String>,
+    /// Zenoh endpoint to listen on (repeatable), e.g. tcp/0.0.0.0:7447. Default: Zenoh's
+    /// (a peer listens on a free TCP port and is found by scouting).
+    #[arg(long, value_name = "ENDPOINT")]
+    listen: Vec<String>,
+    /// Zenoh endpoint to connect to (repeatable): another peer, or a router (zenohd).
+    #[arg(long, value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// Zenoh configuration file (JSON5): mode, scouting, TLS, user/password; the endpoint flags
+    /// apply on top of it.
+    #[arg(long = "zenoh-config", value_name = "FILE")]
+    zenoh_config: Option<PathBuf>,
+    /// Milliseconds between two status publications (50 to 10000).
+    #[arg(long, value_name = "MS")]
+    status_interval_ms: Option<u64>,
+    /// The daemon's socket directory.
+    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    socket_dir: Option<PathBuf>,
+    /// Print the bridge's counters to stderr every second and at exit.
+    #[arg(long)]
+    stats: bool,
+    /// Log filter (error, warn, info, debug, trace).
+    #[arg(long, default_value = "info", value_name = "LEVEL")]
+    log_level: String,
+}
+
+/// Arguments that parse but are not valid (every problem, one per line): exit status 2.
+#[derive(Debug, thiserror::Error)]
+#[error("invalid arguments:\n  {0}")]
+struct InvalidArguments(String);
+
+/// This host's name as a key chunk (characters a name may not hold become `-`).
+fn host_name() -> String {
+    let raw = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let name: String = raw
+        .trim()
+        .chars()
+        .take(source::MAX_NAME_LEN)
+        .map(|c| if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') { c } else { '-' })
+        .collect();
+    if name.is_empty() { "frond".into() } else { name }
+}
+
+fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
+    let mut problems = Vec::new();
+    let source_name = args.source.clone().unwrap_or_else(host_name);
+    let mut addr = match ZenohAddr::new(&args.stage, &source_name) {
+        Ok(addr) => addr,
+        Err(e) => {
+            problems.push(format!("--stage/--source: {e}"));
+            ZenohAddr::new("default", "frond").expect("valid names")
+        }
+    };
+    // The endpoints go through the same checks as a subscriber's address.
+    let mut spec = format!("zenoh:{}", addr.key);
+    let mut sep = '?';
+    for (name, list) in [("connect", &args.connect), ("listen", &args.listen)] {
+        for endpoint in list {
+            spec.push(sep);
+            spec.push_str(&format!("{name}={endpoint}"));
+            sep = '&';
+        }
+    }
+    match spec.parse::<frond_sdk::Source>() {
+        Ok(frond_sdk::Source::Zenoh(parsed)) if problems.is_empty() => addr = parsed,
+        Ok(_) => {}
+        Err(e) => problems.push(e.to_string()),
+    }
+    addr.config = args.zenoh_config.clone();
+    let status_interval = match args.status_interval_ms {
+        None => DEFAULT_STATUS_INTERVAL,
+        Some(ms) if STATUS_INTERVAL_RANGE.contains(&Duration::from_millis(ms)) => Duration::from_millis(ms),
+        Some(ms) => {
+            problems.push(format!("--status-interval-ms {ms}: must be between 50 and 10000"));
+            DEFAULT_STATUS_INTERVAL
+        }
+    };
+    if !problems.is_empty() {
+        return Err(InvalidArguments(problems.join("\n  ")).into());
+    }
+    let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
+    Ok(BridgeConfig { socket_dir, addr, status_interval })
+}
+
+fn run(args: &Args) -> anyhow::Result<()> {
+    let config = validate(args)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop)).context("install signal handler")?;
+    }
+    let key = config.addr.key.clone();
+    let mut bridge = Bridge::open(config).context("opening the Zenoh session")?;
+    tracing::info!(%key, zid = %bridge.zid(), "frond-zenoh up");
+    let printer = args.stats.then(|| {
+        let stop = stop.clone();
+        let stats = bridge.stats_handle();
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_secs(1));
+                eprintln!("frond-zenoh stats: {stats}");
+            }
+        })
+    });
+    let result = bridge.run(&stop);
+    stop.store(true, Ordering::Relaxed);
+    if let Some(p) = printer {
+        let _ = p.join();
+    }
+    eprintln!("frond-zenoh stats: {}", bridge.stats());
+    Ok(result?)
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-zenoh: {e:#}");
+            if e.downcast_ref::<InvalidArguments>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
+        }
+    }
+}

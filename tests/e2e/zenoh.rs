@@ -1,0 +1,106 @@
+//! frond on Zenoh, on one host (loopback): a `frond-zenoh` bridge beside the daemon, and a
+//! subscriber that reads the same poses over Zenoh as a socket subscriber reads from the daemon,
+//! sees the daemon stop as a disconnect and its return as a reconnection.
+
+use std::collections::HashMap;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use frond_e2e::{Daemon, Proc, bin};
+use frond_sdk::{Event, Pose, Source, Subscriber};
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+fn start_bridge(daemon: &Daemon, stage: &str, port: u16) -> Proc {
+    let child = Command::new(bin("frond-zenoh"))
+        .args(["--stage", stage, "--source", "glove-a", "--listen", &format!("tcp/127.0.0.1:{port}")])
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(["--log-level", "warn"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start frond-zenoh");
+    Proc { child, name: "frond-zenoh".into() }
+}
+
+fn poses(sub: &mut Subscriber, n: usize) -> Vec<Pose> {
+    let mut out = Vec::new();
+    while out.len() < n {
+        if let Event::Pose(p) = sub.next_event().expect("pose stream") {
+            out.push(p);
+        }
+    }
+    out
+}
+
+#[test]
+fn a_zenoh_subscriber_reads_the_sockets_poses_and_follows_a_daemon_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let port = free_port();
+    let stage = format!("e2e{}", std::process::id());
+    let _bridge = start_bridge(&daemon, &stage, port);
+    let source: Source = format!("zenoh:frond/{stage}/glove-a?connect=tcp/127.0.0.1:{port}").parse().unwrap();
+    let opts = || Subscriber::options().hello_timeout(Duration::from_secs(10));
+    let mut remote = opts().subscribe(&source).expect("subscribe over Zenoh");
+    let mut local = Subscriber::connect(&daemon.socket_dir).unwrap();
+    assert_eq!(remote.hello().rig_name, local.hello().rig_name);
+    assert_eq!(remote.hello().joint_names, local.hello().joint_names);
+    assert_eq!(remote.elements(), local.elements());
+
+    // The same frames, byte for byte in value, where their sequence numbers overlap.
+    let remote_poses = poses(&mut remote, 500);
+    let local_poses: HashMap<u64, Pose> = poses(&mut local, 1500).into_iter().map(|p| (p.seq, p)).collect();
+    let common: Vec<&Pose> = remote_poses.iter().filter(|p| local_poses.contains_key(&p.seq)).collect();
+    assert!(common.len() > 100, "only {} poses in common", common.len());
+    for p in common {
+        assert_eq!(*p, local_poses[&p.seq], "pose {} differs over Zenoh", p.seq);
+    }
+    assert!(remote_poses.windows(2).all(|w| w[1].seq > w[0].seq), "out of order over Zenoh");
+
+    // The daemon stops: the bridge withdraws its token and the subscriber sees a disconnect;
+    // a new daemon on the same sockets is a reconnection, with its poses after it.
+    daemon.proc.terminate(Duration::from_secs(5)).expect("frondd exits on SIGTERM");
+    let deadline = Instant::now() + Duration::from_secs(15);
+    loop {
+        match remote.next_event().expect("event") {
+            Event::Disconnected => break,
+            _ => assert!(Instant::now() < deadline, "no disconnect within 15 s of the daemon stopping"),
+        }
+    }
+    let again = Daemon::start(dir.path(), &["--source", "in-process"]);
+    match remote.next_event().expect("reconnect") {
+        Event::Reconnected(hello) => assert_eq!(hello.rig_name, again_rig(&again)),
+        other => panic!("expected a reconnection, got {other:?}"),
+    }
+    assert_eq!(poses(&mut remote, 50).len(), 50);
+    assert_eq!((remote.stats().disconnects, remote.stats().reconnects), (1, 1));
+
+    // `frond tap` and `frond status` take the same address.
+    let tap = Command::new(bin("frond"))
+        .args(["tap", "--count", "3", "--include-held", "--from", &source.to_string()])
+        .output()
+        .unwrap();
+    assert!(tap.status.success(), "{}", String::from_utf8_lossy(&tap.stderr));
+    assert_eq!(String::from_utf8_lossy(&tap.stdout).lines().count(), 3);
+    let status = Command::new(bin("frond"))
+        .args(["status", "--json", "--from", &source.to_string()])
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    assert_eq!(report["rig_name"].as_str(), Some(again.status().rig_name.as_str()), "{report}");
+    assert!(report["ticks"].as_u64().is_some_and(|t| t > 0), "{report}");
+
+    // A source nobody publishes is a clear error, not a hang.
+    let missing: Source = format!("zenoh:frond/{stage}/nobody?connect=tcp/127.0.0.1:{port}").parse().unwrap();
+    let err = Subscriber::options().hello_timeout(Duration::from_secs(2)).subscribe(&missing).unwrap_err();
+    assert!(err.to_string().contains("no frond-zenoh bridge answered"), "{err}");
+}
+
+fn again_rig(daemon: &Daemon) -> String {
+    Subscriber::connect(&daemon.socket_dir).unwrap().hello().rig_name.clone()
+}
