@@ -18,6 +18,7 @@ mod slow_subscriber;
 mod soak;
 mod socket_dir;
 mod stage;
+mod stage_net;
 mod systemd;
 mod take_tools;
 mod tap_matches_map;

@@ -15,6 +15,8 @@ use std::time::{Duration, Instant};
 
 use frond_protocol::{ControlReply, ControlRequest, FrameBuf, read_frame, write_frame};
 
+pub mod netns;
+
 /// Path of a workspace binary, or a panic that says how to build it.
 pub fn bin(name: &str) -> PathBuf {
     let dir = match std::env::var_os("FROND_BIN_DIR") {
@@ -115,9 +117,18 @@ impl Daemon {
 
     /// [`Daemon::start`] with the daemon's log (stderr) going to `stderr`, e.g. a file to read.
     pub fn start_with_stderr(root: &Path, args: &[&str], stderr: Stdio) -> Daemon {
+        Self::start_command(Command::new(bin("frondd")), root, args, stderr)
+    }
+
+    /// [`Daemon::start`] on another "host": inside `host`'s network namespace.
+    pub fn start_on(host: &netns::Host, root: &Path, args: &[&str]) -> Daemon {
+        Self::start_command(host.command(bin("frondd")), root, args, Stdio::inherit())
+    }
+
+    fn start_command(mut cmd: Command, root: &Path, args: &[&str], stderr: Stdio) -> Daemon {
         let socket_dir = root.join("run");
         let takes_dir = root.join("takes");
-        let child = Command::new(bin("frondd"))
+        let child = cmd
             .arg("--socket-dir")
             .arg(&socket_dir)
             .arg("--takes-dir")

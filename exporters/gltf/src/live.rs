@@ -5,14 +5,13 @@
 //! `frond_sdk::Subscriber`, polling a stop flag (Ctrl-C) between reads; on a stop it first drains
 //! the poses already waiting in the socket, so the last frames before the signal are kept.
 
-use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
 use frond_protocol::{Hello, Pose, PoseFlags};
-use frond_sdk::{Event, SdkError, Subscriber};
+use frond_sdk::{Event, SdkError, Source, Subscriber};
 use thiserror::Error;
 
 use crate::input::TakeInput;
@@ -140,16 +139,17 @@ pub fn take_frame(p: &Pose) -> TakeFrame {
 /// How long to keep reading after a stop request for poses already sent.
 pub const DRAIN: Duration = Duration::from_millis(300);
 
-/// Subscribes to the daemon in `socket_dir` and captures until recording stops (or, in
+/// Subscribes to the daemon at `source` (its socket directory, or a `frond-zenoh` bridge on
+/// another host) and captures until recording stops (or, in
 /// [`LiveMode::All`], until `stop`); on `stop` drains what was already sent, then returns.
 /// `status` gets one line per state change. Returns the capture and the last hello.
 pub fn capture(
-    socket_dir: &Path,
+    source: &Source,
     mode: LiveMode,
     stop: &Arc<AtomicBool>,
     status: &mut dyn FnMut(&str),
 ) -> Result<(LiveCapture, Hello), LiveError> {
-    let mut sub = Subscriber::options().read_timeout(Some(Duration::from_millis(100))).connect(socket_dir)?;
+    let mut sub = Subscriber::options().read_timeout(Some(Duration::from_millis(100))).subscribe(source)?;
     let mut hello = sub.hello().clone();
     status(&format!(
         "connected to frondd {} (rig `{}`, {} Hz); {}",

@@ -86,6 +86,10 @@ struct LiveArgs {
     /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
     #[arg(long, value_name = "DIR")]
     socket_dir: Option<PathBuf>,
+    /// Capture a daemon on another host through its frond-zenoh bridge:
+    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` [default: this host's daemon].
+    #[arg(long, value_name = "ADDRESS", conflicts_with = "socket_dir")]
+    from: Option<frond_sdk::Source>,
     /// Animation name [default: the output file's stem].
     #[arg(long, value_name = "NAME")]
     name: Option<String>,
@@ -208,7 +212,10 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop)).context("installing the signal handler")?;
     }
-    let socket_dir = frond_protocol::paths::socket_dir(a.socket_dir.clone());
+    let source = match &a.from {
+        Some(source) => source.clone(),
+        None => frond_sdk::Source::Socket(frond_protocol::paths::socket_dir(a.socket_dir.clone())),
+    };
     let quiet = a.common.quiet;
     let mut status = |line: &str| {
         if !quiet {
@@ -216,8 +223,8 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
         }
     };
     let mode = if a.all { LiveMode::All } else { LiveMode::Recording };
-    let (cap, hello) = capture(&socket_dir, mode, &stop, &mut status)
-        .with_context(|| format!("live capture from {}", socket_dir.display()))?;
+    let (cap, hello) =
+        capture(&source, mode, &stop, &mut status).with_context(|| format!("live capture from {source}"))?;
     if cap.missing > 0 {
         eprintln!(
             "frond-gltf: note: the daemon dropped {} frames for this subscriber during the capture",

@@ -67,7 +67,8 @@ pub fn run(socket_dir: &Path, targets: usize, duration: Duration) -> Result<Late
         let stop = Arc::clone(&stop);
         receivers.push(std::thread::spawn(move || receive(&socket, offset, &stop)));
     }
-    let mut config = BridgeConfig::new(socket_dir.to_path_buf(), Protocol::Frond, addrs);
+    let mut config =
+        BridgeConfig::new(frond_sdk::Source::Socket(socket_dir.to_path_buf()), Protocol::Frond, addrs);
     config.clock_offset = offset;
     let mut bridge = Bridge::connect(&config)?;
     let started = Instant::now();

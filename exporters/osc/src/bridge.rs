@@ -4,14 +4,13 @@
 //! (or each resampled tick) once and sends it to every target.
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
 use frond_protocol::{ElementTable, Hello, Pose};
-use frond_sdk::{Event, SdkError, Subscriber};
+use frond_sdk::{Event, SdkError, Source, Subscriber};
 use thiserror::Error;
 
 use crate::encode::{
@@ -32,8 +31,9 @@ pub enum Protocol {
 /// Everything the bridge needs.
 #[derive(Debug, Clone)]
 pub struct BridgeConfig {
-    /// The daemon's socket directory.
-    pub socket_dir: PathBuf,
+    /// Where the poses come from: the daemon's socket directory on this host, or a
+    /// `frond-zenoh` bridge on another (`--from zenoh:frond/<stage>/<source>`).
+    pub source: Source,
     /// Dialect.
     pub protocol: Protocol,
     /// Destinations.
@@ -56,10 +56,10 @@ pub struct BridgeConfig {
 }
 
 impl BridgeConfig {
-    /// A configuration with defaults for everything but the socket directory, dialect and targets.
-    pub fn new(socket_dir: PathBuf, protocol: Protocol, targets: Vec<SocketAddr>) -> BridgeConfig {
+    /// A configuration with defaults for everything but the source, dialect and targets.
+    pub fn new(source: Source, protocol: Protocol, targets: Vec<SocketAddr>) -> BridgeConfig {
         BridgeConfig {
-            socket_dir,
+            source,
             protocol,
             targets,
             bind: None,
@@ -188,7 +188,7 @@ impl Bridge {
     /// starts the subscriber thread. After that the subscriber reconnects for ever.
     pub fn connect(config: &BridgeConfig) -> Result<Bridge, BridgeError> {
         let sender = Sender::new(&config.targets, config.bind)?;
-        let sub = Subscriber::options().give_up_after(None).connect(&config.socket_dir)?;
+        let sub = Subscriber::options().give_up_after(None).subscribe(&config.source)?;
         let mut vmc_rig = config.vmc_rig.clone();
         if !config.vmc_names_fixed {
             apply_hello_names(&mut vmc_rig, sub.hello());

@@ -37,7 +37,7 @@ struct Args {
     #[arg(long, value_name = "HZ|every")]
     rate: Option<String>,
     /// Bundle timetags: `immediately` (apply on receipt) or `publish` (the frame's publish time,
-    /// NTP). Default: immediately for vmc, publish for frond.
+    /// NTP). Default: immediately for vmc and for any --from zenoh:..., publish for frond.
     #[arg(long, value_name = "WHEN")]
     timetag: Option<String>,
     /// Local address to send from, e.g. 0.0.0.0:0 or 192.168.1.5:0.
@@ -50,6 +50,12 @@ struct Args {
     /// The daemon's socket directory.
     #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
     socket_dir: Option<PathBuf>,
+    /// Read the poses of a daemon on another host through its frond-zenoh bridge:
+    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon,
+    /// --socket-dir). Over Zenoh, timetags default to `immediately` for both dialects: a
+    /// frame's publish time is the other host's clock.
+    #[arg(long, value_name = "ADDRESS", conflicts_with = "socket_dir")]
+    from: Option<frond_sdk::Source>,
     /// Rig for VMC joint offsets and, if it has a [vmc] table, bone names: an embedded rig
     /// (grass, flower, shrub) or a rig file (rig-files/plants/*.toml). Default: the grass rig's
     /// heights.
@@ -117,6 +123,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         },
     };
     let timetags = match (args.timetag.as_deref(), protocol) {
+        (None, _) if matches!(args.from, Some(frond_sdk::Source::Zenoh(_))) => Timetags::Immediately,
         (Some("immediately"), _) | (None, Protocol::Vmc) => Timetags::Immediately,
         (Some("publish"), _) | (None, Protocol::Frond) => Timetags::Publish,
         (Some(other), _) => {
@@ -154,8 +161,19 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
     if !problems.is_empty() {
         return Err(InvalidArguments(problems.join("\n  ")).into());
     }
-    let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
-    let mut config = BridgeConfig::new(socket_dir, protocol, targets);
+    if args.bench && args.from.is_some() {
+        return Err(InvalidArguments(
+            "--bench measures from this host's daemon (--socket-dir), not --from".into(),
+        )
+        .into());
+    }
+    let source = match &args.from {
+        Some(source) => source.clone(),
+        None => frond_sdk::Source::Socket(
+            args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir),
+        ),
+    };
+    let mut config = BridgeConfig::new(source, protocol, targets);
     config.bind = bind;
     config.rate_hz = rate_hz;
     config.timetags = timetags;
@@ -168,7 +186,8 @@ fn run(args: &Args) -> anyhow::Result<()> {
     let config = validate(args)?;
     if args.bench {
         for n in [1, 4] {
-            let report = bench::run(&config.socket_dir, n, Duration::from_secs_f64(args.bench_seconds))
+            let frond_sdk::Source::Socket(dir) = &config.source else { unreachable!("checked in validate") };
+            let report = bench::run(dir, n, Duration::from_secs_f64(args.bench_seconds))
                 .with_context(|| format!("bench with {n} target(s)"))?;
             println!("{}", report.to_json());
         }

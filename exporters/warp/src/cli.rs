@@ -351,6 +351,10 @@ pub struct ServeArgs {
     /// Socket directory of frondd.
     #[arg(long, env = "FROND_SOCKET_DIR")]
     pub socket_dir: Option<PathBuf>,
+    /// Follow a daemon on another host through its frond-zenoh bridge:
+    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).
+    #[arg(long, value_name = "ADDRESS", conflicts_with_all = ["socket_dir", "no_daemon"])]
+    pub from: Option<frond_sdk::Source>,
     /// Do not connect to the daemon (procedural wind only).
     #[arg(long)]
     pub no_daemon: bool,
@@ -374,6 +378,16 @@ pub struct ServeArgs {
     /// Cage mode: no pruning of lobes outside a closed sketch (section 5.4.2).
     #[arg(long)]
     pub no_prune: bool,
+}
+
+impl ServeArgs {
+    /// Where the preview reads poses: `--from`, else the daemon's socket directory.
+    pub fn pose_source(&self) -> frond_sdk::Source {
+        match &self.from {
+            Some(source) => source.clone(),
+            None => frond_sdk::Source::Socket(frond_protocol::paths::socket_dir(self.socket_dir.clone())),
+        }
+    }
 }
 
 /// `--wind-sim SPEC` parsed (a bad spec is reported through `ck` with the others).

@@ -126,15 +126,10 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let params = args.sim.to_params(args.scene.layers.len())?;
     let scene = load_scene(&args.scene)?;
     let animator = Animator::new(scene, params)?;
-    let socket_dir = frond_protocol::paths::socket_dir(args.socket_dir.clone());
+    let source = args.pose_source();
     frond_warp::serve::serve(
         animator,
-        frond_warp::serve::ServeOptions {
-            listen: args.listen,
-            socket_dir,
-            no_daemon: args.no_daemon,
-            sim_wind,
-        },
+        frond_warp::serve::ServeOptions { listen: args.listen, source, no_daemon: args.no_daemon, sim_wind },
     )
 }
 
@@ -176,12 +171,13 @@ fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
     };
     let scene = load_scene(&args.scene)?;
     let tree = frond_warp::morph::scene_tree(&scene, args.cage.cage.as_deref())?;
+    let source = args.pose_source();
     frond_warp::serve_cage::serve_cage(
         scene,
         tree,
         frond_warp::serve_cage::CageServeOptions {
             listen: args.listen,
-            socket_dir: frond_protocol::paths::socket_dir(args.socket_dir.clone()),
+            source,
             no_daemon: args.no_daemon,
             anchor: anchor.transpose().map_err(anyhow::Error::msg)?,
             rig,

@@ -20,7 +20,6 @@
 //! page's settings (and says so).
 
 use std::io::Read;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -127,8 +126,8 @@ struct Shared {
 pub struct ServeOptions {
     /// Address to listen on (`127.0.0.1:0` picks a free port).
     pub listen: String,
-    /// Daemon socket directory.
-    pub socket_dir: PathBuf,
+    /// Where the poses come from: the daemon's socket directory, or a `frond-zenoh` bridge.
+    pub source: frond_sdk::Source,
     /// Do not try to reach the daemon at all.
     pub no_daemon: bool,
     /// Seed 003's simulation wind for when no hand drives the wind (`--wind-sim`).
@@ -163,8 +162,8 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
         shared.lock().expect("lock").daemon.message = "daemon disabled (--no-daemon): procedural wind".into();
     } else {
         let shared = shared.clone();
-        let dir = opts.socket_dir.clone();
-        std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(dir, shared))?;
+        let source = opts.source.clone();
+        std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(source, shared))?;
     }
     announce(&addr, &format!("a {w}x{h} preview"));
     for mut req in server.incoming_requests() {
@@ -359,8 +358,8 @@ fn sim_loop(
     }
 }
 
-fn pose_loop(dir: PathBuf, shared: Arc<Mutex<Shared>>) {
-    follow_daemon(&dir, "procedural wind", |event| {
+fn pose_loop(source: frond_sdk::Source, shared: Arc<Mutex<Shared>>) {
+    follow_daemon(&source, "procedural wind", |event| {
         let mut s = shared.lock().expect("lock");
         match event {
             DaemonEvent::State(state) => s.daemon = state,
@@ -384,10 +383,14 @@ pub(crate) enum DaemonEvent<'a> {
     Pose(&'a frond_sdk::Pose),
 }
 
-/// Subscribes to the daemon in `dir` for ever (reconnecting, retrying every 2 s while it is
+/// Subscribes to the daemon at `source` for ever (reconnecting, retrying every 2 s while it is
 /// absent) and reports its state, rig and poses to `on`. `fallback` says what the page shows
 /// while there are no poses (e.g. "procedural wind").
-pub(crate) fn follow_daemon(dir: &std::path::Path, fallback: &str, mut on: impl FnMut(DaemonEvent<'_>)) -> ! {
+pub(crate) fn follow_daemon(
+    source: &frond_sdk::Source,
+    fallback: &str,
+    mut on: impl FnMut(DaemonEvent<'_>),
+) -> ! {
     fn set(on: &mut dyn FnMut(DaemonEvent<'_>), connected: bool, message: String) {
         on(DaemonEvent::State(DaemonState { connected, message }))
     }
@@ -396,14 +399,14 @@ pub(crate) fn follow_daemon(dir: &std::path::Path, fallback: &str, mut on: impl 
             .reconnect(true)
             .give_up_after(None)
             .read_timeout(Some(Duration::from_millis(500)));
-        match opts.connect(dir) {
+        match opts.subscribe(source) {
             Err(e) => {
-                set(&mut on, false, format!("no daemon at {}: {fallback} ({e})", dir.display()));
+                set(&mut on, false, format!("no daemon at {source}: {fallback} ({e})"));
                 std::thread::sleep(Duration::from_secs(2));
             }
             Ok(mut sub) => {
                 let rig = sub.hello().rig_name.clone();
-                set(&mut on, true, format!("connected to {} (rig {rig})", dir.display()));
+                set(&mut on, true, format!("connected to {source} (rig {rig})"));
                 on(DaemonEvent::Rig(&rig));
                 loop {
                     match sub.next_event() {
@@ -411,14 +414,10 @@ pub(crate) fn follow_daemon(dir: &std::path::Path, fallback: &str, mut on: impl 
                         Ok(frond_sdk::Event::Disconnected) => set(
                             &mut on,
                             false,
-                            format!("daemon at {} went away; reconnecting ({fallback})", dir.display()),
+                            format!("daemon at {source} went away; reconnecting ({fallback})"),
                         ),
                         Ok(frond_sdk::Event::Reconnected(h)) | Ok(frond_sdk::Event::RigChanged(h)) => {
-                            set(
-                                &mut on,
-                                true,
-                                format!("connected to {} (rig {})", dir.display(), h.rig_name),
-                            );
+                            set(&mut on, true, format!("connected to {source} (rig {})", h.rig_name));
                             on(DaemonEvent::Rig(&h.rig_name));
                         }
                         Ok(_) => {}

@@ -25,7 +25,6 @@
 //!   one answers 400 naming the problem;
 //! - `POST /reset` back to the rest shape (and the hand).
 
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -54,7 +53,7 @@ pub struct CageServeOptions {
     /// Address to listen on (`127.0.0.1:0` picks a free port).
     pub listen: String,
     /// Daemon socket directory.
-    pub socket_dir: PathBuf,
+    pub source: frond_sdk::Source,
     /// Do not try to reach the daemon at all.
     pub no_daemon: bool,
     /// Where the skeleton stands (default: the bottom centre of the crown).
@@ -139,10 +138,10 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
     if opts.no_daemon {
         shared.lock().expect("lock").daemon.message = "daemon disabled (--no-daemon): sketch only".into();
     } else {
-        let (shared, dir) = (shared.clone(), opts.socket_dir.clone());
+        let (shared, source) = (shared.clone(), opts.source.clone());
         std::thread::Builder::new()
             .name("warp-poses".into())
-            .spawn(move || follow_daemon(&dir, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
+            .spawn(move || follow_daemon(&source, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
     }
     announce(&addr, &format!("a {w}x{h} cage preview"));
     let crown_id = tree.cages[frond_cage::morph::largest_root(&tree)].id;
