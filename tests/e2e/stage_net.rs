@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_e2e::netns::{self, Host, Lan};
-use frond_e2e::{Daemon, Proc, bin, wait_for};
+use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 
 const PORT: u16 = 7447;
 
@@ -25,17 +25,7 @@ fn lan(hosts: usize) -> Option<Lan> {
 }
 
 fn bridge(host: &Host, daemon: &Daemon, stage: &str, source: &str) -> Proc {
-    let child = host
-        .command(bin("frond-zenoh"))
-        .args(["--stage", stage, "--source", source, "--listen", &host.endpoint(PORT)])
-        .arg("--socket-dir")
-        .arg(&daemon.socket_dir)
-        .args(["--log-level", "warn"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start frond-zenoh");
-    Proc { child, name: format!("frond-zenoh {source}") }
+    start_zenoh_bridge(host.command(bin("frond-zenoh")), daemon, stage, source, &host.endpoint(PORT))
 }
 
 /// The lines a `frond tap --jsonl` prints, each with the time it arrived, and its stderr.

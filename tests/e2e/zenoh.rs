@@ -3,10 +3,10 @@
 //! sees the daemon stop as a disconnect and its return as a reconnection.
 
 use std::collections::HashMap;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-use frond_e2e::{Daemon, Proc, bin};
+use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge};
 use frond_sdk::{Event, Pose, Source, Subscriber};
 
 fn free_port() -> u16 {
@@ -14,16 +14,13 @@ fn free_port() -> u16 {
 }
 
 fn start_bridge(daemon: &Daemon, stage: &str, port: u16) -> Proc {
-    let child = Command::new(bin("frond-zenoh"))
-        .args(["--stage", stage, "--source", "glove-a", "--listen", &format!("tcp/127.0.0.1:{port}")])
-        .arg("--socket-dir")
-        .arg(&daemon.socket_dir)
-        .args(["--log-level", "warn"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start frond-zenoh");
-    Proc { child, name: "frond-zenoh".into() }
+    start_zenoh_bridge(
+        Command::new(bin("frond-zenoh")),
+        daemon,
+        stage,
+        "glove-a",
+        &format!("tcp/127.0.0.1:{port}"),
+    )
 }
 
 fn poses(sub: &mut Subscriber, n: usize) -> Vec<Pose> {

@@ -81,6 +81,27 @@ impl Drop for Proc {
     }
 }
 
+/// Starts a `frond-zenoh` bridge (`cmd` runs `bin("frond-zenoh")`, here or on a namespace's
+/// host) beside `daemon`, publishing it as `frond/<stage>/<source>` and listening on `listen`.
+pub fn start_zenoh_bridge(
+    mut cmd: Command,
+    daemon: &Daemon,
+    stage: &str,
+    source: &str,
+    listen: &str,
+) -> Proc {
+    let child = cmd
+        .args(["--stage", stage, "--source", source, "--listen", listen])
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .args(["--log-level", "warn"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start frond-zenoh");
+    Proc { child, name: format!("frond-zenoh {source}") }
+}
+
 /// Starts `frond-vhid` with `args` and waits for the node path it prints first.
 pub fn start_vhid(args: &[&str]) -> (Proc, PathBuf, BufReader<std::process::ChildStdout>) {
     let mut child = Command::new(bin("frond-vhid"))
