@@ -13,6 +13,8 @@ mod live_modes;
 mod no_color;
 mod osc_input;
 mod plausible;
+#[path = "../support/python.rs"]
+mod python;
 mod rt_syscalls;
 mod slow_subscriber;
 mod soak;

@@ -28,28 +28,20 @@ fn bridge(host: &Host, daemon: &Daemon, stage: &str, source: &str) -> Proc {
     start_zenoh_bridge(host.command(bin("frond-zenoh")), daemon, stage, source, &host.endpoint(PORT))
 }
 
-/// The lines a `frond tap --jsonl` prints, each with the time it arrived, and its stderr.
+/// The lines a process prints on stdout, each with the time it arrived, and its stderr.
 #[derive(Default)]
 struct Tapped {
     lines: Vec<(Instant, String)>,
     stderr: Vec<String>,
 }
 
-/// Starts `frond [global] tap --jsonl --include-held [tap_args]` (on `host`, or here when
-/// `None`) and collects its output on two threads.
-fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mutex<Tapped>>) {
-    let mut cmd = match host {
-        Some(h) => h.command(bin("frond")),
-        None => Command::new(bin("frond")),
-    };
+/// Starts `cmd` and collects its stdout and stderr lines on two threads.
+fn collect(mut cmd: Command, name: &str) -> (Proc, Arc<Mutex<Tapped>>) {
     let mut child = cmd
-        .args(global)
-        .args(["tap", "--jsonl", "--include-held"])
-        .args(tap_args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("start frond tap");
+        .unwrap_or_else(|e| panic!("start {name}: {e}"));
     let out = Arc::new(Mutex::new(Tapped::default()));
     let (stdout, stderr) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
     let o = out.clone();
@@ -64,7 +56,18 @@ fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mu
             o.lock().unwrap().stderr.push(line);
         }
     });
-    (Proc { child, name: "frond tap".into() }, out)
+    (Proc { child, name: name.into() }, out)
+}
+
+/// Starts `frond [global] tap --jsonl --include-held [tap_args]` (on `host`, or here when
+/// `None`) and collects its output.
+fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mutex<Tapped>>) {
+    let mut cmd = match host {
+        Some(h) => h.command(bin("frond")),
+        None => Command::new(bin("frond")),
+    };
+    cmd.args(global).args(["tap", "--jsonl", "--include-held"]).args(tap_args);
+    collect(cmd, "frond tap")
 }
 
 fn seq_of(line: &str) -> u64 {
@@ -246,4 +249,139 @@ fn joints_of(line: &str) -> Vec<f32> {
         .iter()
         .flat_map(|j| j.as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32))
         .collect()
+}
+
+/// The flags' names, from the README's table (independent of frond's `PoseFlags::names`).
+fn flag_names(bits: u64) -> Vec<&'static str> {
+    let table = [(1, "held"), (2, "device_lost"), (4, "filtered"), (8, "recording"), (16, "playback")];
+    table.iter().filter(|(bit, _)| bits & bit != 0).map(|(_, name)| *name).collect()
+}
+
+/// Asserts a line of `zenoh_reader.py` (from the MessagePack frame, decoded in Python) says
+/// what the daemon host's `frond tap --jsonl` line says about the same frame.
+fn assert_same_frame(python: &serde_json::Value, tap: &serde_json::Value) {
+    let what = format!("python {python} vs tap {tap}");
+    assert_eq!(python["seq"], tap["seq"], "{what}");
+    assert_eq!(python["t"].as_f64(), tap["t"].as_f64(), "{what}");
+    let angles = |v: &serde_json::Value| -> Vec<f32> {
+        let joints = v["joints"].as_array().unwrap_or_else(|| panic!("no joints: {what}"));
+        joints.iter().flat_map(|j| j.as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32)).collect()
+    };
+    assert_eq!(angles(python), angles(tap), "{what}");
+    assert_eq!(python["element"].as_u64().unwrap(), tap["element"].as_u64().unwrap_or(0), "{what}");
+    let tap_flags: Vec<&str> =
+        tap["flags"].as_array().map_or(Vec::new(), |f| f.iter().map(|n| n.as_str().unwrap()).collect());
+    assert_eq!(flag_names(python["flags"].as_u64().unwrap()), tap_flags, "{what}");
+}
+
+/// Issue 20's independent reader: a Python `eclipse-zenoh` subscriber on another host decodes
+/// the published frames with a plain MessagePack library; order, gaps (its link is cut for 3 s)
+/// and values agree with `frond tap` on the daemon's host, while a third host subscribes and
+/// never reads, which slows nobody.
+#[test]
+fn a_python_reader_on_another_host_agrees_with_tap_beside_a_peer_that_never_reads() {
+    let Some(py) = crate::python::python_with("zenoh, msgpack") else {
+        return crate::python::skip(
+            "no eclipse-zenoh in tests/python/.venv (run exporters/zenoh/tests/install-python.sh)",
+        );
+    };
+    let Some(lan) = lan(3) else { return };
+    let (performer, reader_host, idle_host) = (&lan.hosts[0], &lan.hosts[1], &lan.hosts[2]);
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start_on(performer, dir.path(), &["--source", "in-process"]);
+    let bridge = bridge(performer, &daemon, "stage1", "glove-a");
+    let script =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../exporters/zenoh/tests/zenoh_reader.py");
+    let reader_args = |host: &Host, seconds: &str, extra: &[&str]| {
+        let mut cmd = host.command(&py);
+        cmd.arg(&script)
+            .args([
+                "--connect",
+                &performer.endpoint(PORT),
+                "--key",
+                "frond/stage1/glove-a",
+                "--seconds",
+                seconds,
+            ])
+            .args(extra);
+        cmd
+    };
+    let (_tap, local) = tap(None, &["--socket-dir", daemon.socket_dir.to_str().unwrap()], &[]);
+
+    // The peer that never reads subscribes first and stays for the whole run.
+    let (mut idle, idle_out) = collect(reader_args(idle_host, "40", &["--never-read"]), "never-reading peer");
+    assert!(
+        wait_for(Duration::from_secs(20), || idle_out
+            .lock()
+            .unwrap()
+            .stderr
+            .iter()
+            .any(|l| l.contains("subscribed"))),
+        "the never-reading peer did not subscribe: {:?}",
+        idle_out.lock().unwrap().stderr
+    );
+    std::thread::sleep(Duration::from_secs(1));
+
+    let (mut reader, out) = collect(reader_args(reader_host, "14", &[]), "zenoh_reader.py");
+    assert!(
+        wait_for(Duration::from_secs(20), || lines(&out) > 1500),
+        "the Python reader got {} frames in 20 s; stderr {:?}",
+        lines(&out),
+        out.lock().unwrap().stderr
+    );
+    let cut = Instant::now();
+    reader_host.set_link(false);
+    std::thread::sleep(Duration::from_secs(3));
+    let restored = Instant::now();
+    reader_host.set_link(true);
+    let status = wait_for(Duration::from_secs(40), || reader.child.try_wait().ok().flatten().is_some());
+    assert!(status, "the Python reader did not finish");
+    let out = out.lock().unwrap();
+    assert!(out.stderr.iter().any(|l| l.starts_with("ok:")), "the Python reader failed: {:?}", out.stderr);
+    let hello = out.stderr.iter().find(|l| l.starts_with("hello:")).expect("a hello line");
+    assert!(hello.contains("rate=1000") && hello.contains("protocol=2"), "{hello}");
+    assert_eq!(
+        hello.split("joints=").nth(1).unwrap().split(' ').next().unwrap().split(',').count(),
+        4,
+        "{hello}"
+    );
+
+    // Order and values: every frame the reader decoded that the daemon's host tapped is the same.
+    let local: HashMap<u64, serde_json::Value> = local
+        .lock()
+        .unwrap()
+        .lines
+        .iter()
+        .map(|(_, l)| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .map(|v| (v["seq"].as_u64().unwrap(), v))
+        .collect();
+    let frames: Vec<serde_json::Value> =
+        out.lines.iter().map(|(_, l)| serde_json::from_str(l).unwrap()).collect();
+    let common = frames.iter().filter(|f| local.contains_key(&f["seq"].as_u64().unwrap()));
+    let checked = common.inspect(|f| assert_same_frame(f, &local[&f["seq"].as_u64().unwrap()])).count();
+    assert!(checked > 3000, "only {checked} of the Python reader's frames matched the daemon's host");
+
+    // Gaps: the cut lost frames, the reader said how many, and it resumed afterwards.
+    let missing = missing(&out.lines);
+    assert!(missing > 0, "a 3 s cut at 1 kHz lost no frame?");
+    assert_eq!(missing, reported_missing(&out.stderr), "{:?}", out.stderr);
+    let after = out.lines.iter().filter(|(t, _)| *t > restored + Duration::from_secs(1)).count();
+    assert!(after > 1000, "the Python reader got {after} frames after the link came back");
+    // The reader's stream before the cut never stalled, though one peer never read.
+    let before: Vec<Instant> = out.lines.iter().map(|(t, _)| *t).filter(|t| *t < cut).collect();
+    let stall = before.windows(2).map(|w| w[1] - w[0]).max().unwrap();
+    assert!(stall < Duration::from_secs(1), "the reader's stream stalled for {stall:?} beside the idle peer");
+    eprintln!(
+        "python reader: {} frames, {checked} checked against tap, {missing} missing (reported)",
+        frames.len()
+    );
+
+    // The never-reading peer is still subscribed, and the bridge still runs.
+    assert!(
+        idle.child.try_wait().unwrap().is_none(),
+        "the never-reading peer exited: {:?}",
+        idle_out.lock().unwrap().stderr
+    );
+    let mut bridge = bridge;
+    assert!(bridge.child.try_wait().unwrap().is_none(), "the bridge exited");
 }
