@@ -272,6 +272,7 @@ fn take_bytes(frames: u64, marker: bool, end: bool) -> Vec<u8> {
             daemon_version: "0.1.0".into(),
             joint_names: ["a", "b", "c", "d"].map(String::from).to_vec(),
             clock: None,
+            stage: None,
         }),
         &mut out,
     );

@@ -76,6 +76,7 @@ fn header(name: &str) -> TakeHeader {
         daemon_version: "test".into(),
         joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
         clock: None,
+        stage: None,
     }
 }
 
@@ -182,7 +183,7 @@ fn a_full_disk_mid_recording_keeps_every_record_closes_when_space_returns_and_re
     // One warning for the fault (it lasted seconds, retried every second), not one per retry.
     let log = std::fs::read_to_string(&log).unwrap();
     let warnings =
-        log.lines().filter(|l| l.contains("WARN frondd::recorder") && l.contains("full.take")).count();
+        log.lines().filter(|l| l.contains("WARN frond_recorder") && l.contains("full.take")).count();
     assert_eq!(warnings, 1, "{warnings} warnings about the take:\n{log}");
     assert!(log.contains("the disk takes writes again: the take was closed"), "{log}");
 }

@@ -385,3 +385,77 @@ fn a_python_reader_on_another_host_agrees_with_tap_beside_a_peer_that_never_read
     let mut bridge = bridge;
     assert!(bridge.child.try_wait().unwrap().is_none(), "the bridge exited");
 }
+
+/// Issue 20's several performers on one timeline: performer B's host has a clock 250 ms ahead
+/// (the bridge's test hook), a recorder on a third host records the whole stage, one take per
+/// performer, and `frond take export --align` puts both takes on one timeline. The truth to
+/// check it against is independent of frond: the namespaces share this machine's
+/// `CLOCK_MONOTONIC`, so a frame's place on the timeline minus its monotonic stamp must be the
+/// same for every frame of both takes, within 1 ms (without the correction it is 250 ms apart).
+#[test]
+fn a_remote_recorder_puts_two_performers_on_one_timeline_despite_a_clock_offset() {
+    const OFFSET_NS: i64 = 250_000_000;
+    let Some(lan) = lan(3) else { return };
+    let (a, b, recorder) = (&lan.hosts[0], &lan.hosts[1], &lan.hosts[2]);
+    let (dir_a, dir_b, takes) =
+        (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let daemon_a = Daemon::start_on(a, dir_a.path(), &["--source", "in-process"]);
+    let daemon_b = Daemon::start_on(b, dir_b.path(), &["--source", "in-process"]);
+    let _bridge_a = bridge(a, &daemon_a, "stage1", "glove-a");
+    let mut skewed = b.command(bin("frond-zenoh"));
+    skewed.env("FROND_TEST_CLOCK_OFFSET_NS", OFFSET_NS.to_string());
+    let _bridge_b = start_zenoh_bridge(skewed, &daemon_b, "stage1", "glove-b", &b.endpoint(PORT));
+    // Both bridges up before the recording starts (it records whoever is on the stage).
+    for (host, source) in [(a, "glove-a"), (b, "glove-b")] {
+        let from = format!("zenoh:frond/stage1/{source}?connect={}", host.endpoint(PORT));
+        let out = recorder
+            .command(bin("frond"))
+            .args(["tap", "--jsonl", "--count", "5", "--from", &from])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{source}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+
+    let takes_dir = takes.path().to_str().unwrap();
+    let out = recorder
+        .command(bin("frond"))
+        .args(["--takes-dir", takes_dir, "record", "start", "take1", "--stage", "stage1"])
+        .args(["--connect", &a.endpoint(PORT), "--connect", &b.endpoint(PORT), "--for", "4"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "the stage recording failed:\n{stdout}\n{stderr}");
+    eprintln!("{stdout}{stderr}");
+    // The recorder measured B's clock 250 ms ahead and A's in step, each within 1 ms.
+    let measured = |source: &str| -> f64 {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("recording {source} ")))
+            .unwrap_or_else(|| panic!("{stdout}"));
+        line.split("its clock is ").nth(1).unwrap().split(" ms").next().unwrap().parse().unwrap()
+    };
+    assert!(measured("glove-a").abs() < 1.0, "{stdout}");
+    assert!((measured("glove-b") - OFFSET_NS as f64 / 1e6).abs() < 1.0, "{stdout}");
+
+    let out = Command::new(bin("frond"))
+        .args(["--takes-dir", takes_dir, "take", "export", "--align", "take1-glove-a", "take1-glove-b"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mut per_take: HashMap<String, Vec<i128>> = HashMap::new();
+    let mut last_stage = 0u64;
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let stage_ns = v["stage_ns"].as_u64().unwrap();
+        assert!(stage_ns >= last_stage, "aligned frames out of timeline order at {line}");
+        last_stage = stage_ns;
+        let d = i128::from(stage_ns) - i128::from(v["host_ns"].as_u64().unwrap());
+        per_take.entry(v["take"].as_str().unwrap().to_owned()).or_default().push(d);
+    }
+    let (da, db) = (&per_take["take1-glove-a"], &per_take["take1-glove-b"]);
+    assert!(da.len() > 2000 && db.len() > 2000, "{} and {} aligned frames", da.len(), db.len());
+    let all = da.iter().chain(db.iter());
+    let spread = all.clone().max().unwrap() - all.min().unwrap();
+    eprintln!("aligned: {} + {} frames, timeline minus monotonic spread {spread} ns", da.len(), db.len());
+    assert!(spread <= 1_000_000, "the aligned takes disagree with the shared clock by {spread} ns");
+}

@@ -246,10 +246,29 @@ pub enum RigCommand {
 /// `frond record ...`
 #[derive(Debug, Subcommand)]
 pub enum RecordCommand {
-    /// Start recording a take NAME into the daemon's takes directory.
+    /// Start recording a take NAME into the daemon's takes directory. With --stage: record
+    /// every source of a stage over Zenoh, from this host, each to its own take NAME-<source>
+    /// in --takes-dir, on one timeline (see `frond take export --align`), until Ctrl-C or --for.
     Start {
         /// Take name: letters, digits, '-', '_', '.'.
         name: String,
+        /// Record every source of this Zenoh stage (its frond-zenoh bridges) instead of the
+        /// local daemon; runs in the foreground.
+        #[arg(long, value_name = "STAGE")]
+        stage: Option<String>,
+        /// Zenoh endpoint to connect to, e.g. tcp/10.0.0.5:7447 (repeatable; default: find the
+        /// bridges by scouting).
+        #[arg(long, value_name = "ENDPOINT", requires = "stage")]
+        connect: Vec<String>,
+        /// A Zenoh configuration file (mode, routers, TLS, credentials).
+        #[arg(long, value_name = "FILE", requires = "stage")]
+        zenoh_config: Option<PathBuf>,
+        /// Stop after this many seconds (default: at Ctrl-C).
+        #[arg(long = "for", value_name = "SECONDS", requires = "stage")]
+        duration_s: Option<f64>,
+        /// How long to wait for the stage's first source, seconds.
+        #[arg(long, value_name = "SECONDS", default_value_t = 10.0, requires = "stage")]
+        wait: f64,
     },
     /// Stop the current recording and print the take's path and frame count.
     Stop,
@@ -313,6 +332,15 @@ pub enum TakeCommand {
     Export {
         /// Take name (or a path to a .take file).
         name: String,
+        /// With --align: the other takes to put on the same timeline.
+        #[arg(value_name = "TAKE", requires = "align")]
+        more: Vec<String>,
+        /// Put NAME and the TAKEs on one stage timeline (the takes of one `record start
+        /// --stage`, or takes of one host): every main-skeleton frame of all of them in time
+        /// order, {"seq","t","joints","take","stage_ns","host_ns"} a line, `t` in seconds from
+        /// the first frame of any.
+        #[arg(long, conflicts_with_all = ["bvh", "usd", "fps", "timecode", "timecode_start"])]
+        align: bool,
         /// JSON Lines output on stdout (the default).
         #[arg(long, conflicts_with_all = ["bvh", "usd"])]
         jsonl: bool,

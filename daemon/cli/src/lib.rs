@@ -18,7 +18,9 @@ mod live;
 mod map;
 mod signals;
 mod soak;
+mod stage_record;
 mod status;
+mod take_align;
 mod take_bvh;
 mod take_graph;
 mod take_sim;
@@ -142,7 +144,37 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Rig(args::RigCommand::Set { file }) => control::set_rig(g, &file),
         Command::Filter { spec } => control::set_filter(g, &spec),
         Command::Mark { label } => control::mark(g, &label),
-        Command::Record(args::RecordCommand::Start { name }) => control::record_start(g, &name),
+        Command::Record(args::RecordCommand::Start { name, stage: None, .. }) => {
+            control::record_start(g, &name)
+        }
+        Command::Record(args::RecordCommand::Start {
+            name,
+            stage: Some(stage),
+            connect,
+            zenoh_config,
+            duration_s,
+            wait,
+        }) => {
+            let seconds = |what: &str, s: f64| match s {
+                s if s.is_finite() && s > 0.0 && s <= 7.0 * 86_400.0 => {
+                    Ok(std::time::Duration::from_secs_f64(s))
+                }
+                _ => usage(format!("{what} {s}: seconds, more than 0 and at most a week")),
+            };
+            let duration = duration_s.map(|s| seconds("--for", s)).transpose()?;
+            let wait = seconds("--wait", wait)?;
+            stage_record::run(
+                g,
+                &stage_record::StageRecord {
+                    name: &name,
+                    stage: &stage,
+                    connect: &connect,
+                    zenoh_config: zenoh_config.as_deref(),
+                    duration,
+                    wait,
+                },
+            )
+        }
         Command::Record(args::RecordCommand::Stop) => control::record_stop(g),
         Command::Record(args::RecordCommand::Layer { name, layer, over, seed }) => {
             live::record_layer(g, &name, &layer, over, seed)
@@ -158,8 +190,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(cmd) => graph_live::sim(g, cmd),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
+        Command::Take(args::TakeCommand::Export { name, more, align: true, include_held, .. }) => {
+            let names: Vec<String> = std::iter::once(name).chain(more).collect();
+            take_align::export_aligned(g, &names, include_held)
+        }
         Command::Take(args::TakeCommand::Export {
             name,
+            more: _,
+            align: _,
             jsonl: _,
             bvh,
             usd,

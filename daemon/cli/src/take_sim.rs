@@ -101,6 +101,7 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
         daemon_version: format!("frond {} (simulate)", env!("CARGO_PKG_VERSION")),
         joint_names: rig.joint_names(),
         clock: None,
+        stage: None,
     };
     let mut take = Take::new(header);
     take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));

@@ -425,6 +425,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                     .as_ref()
                     .map_or_else(|| (0..4).map(|i| format!("joint{i}")).collect(), |r| r.joint_names()),
                 clock: None,
+                stage: None,
             };
             let mut take = Take::new(header);
             take.set_layer(GLOBAL_LAYER, None, frames);

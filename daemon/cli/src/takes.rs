@@ -57,7 +57,7 @@ pub(crate) fn read_take_bytes(path: &Path) -> anyhow::Result<Vec<u8>> {
         .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))
 }
 
-fn read_scan(path: &Path) -> anyhow::Result<(TakeScan, u64)> {
+pub(crate) fn read_scan(path: &Path) -> anyhow::Result<(TakeScan, u64)> {
     let bytes = read_take_bytes(path)?;
     let scan = scan_take(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     Ok((scan, bytes.len() as u64))

@@ -57,6 +57,7 @@ fn take_start(name: &str, tick_rate_hz: u32) -> Vec<u8> {
             daemon_version: "0.1.0".into(),
             joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
             clock: None,
+            stage: None,
         }),
         &mut bytes,
     );

@@ -370,6 +370,7 @@ impl ControlContext {
                     .unwrap_or(0),
                 host_ns: crate::clock::monotonic_ns(),
             }),
+            stage: None,
         };
         let elements: Vec<String> = state.rig.elements.iter().map(|e| e.name.clone()).collect();
         let (tx, rx) = bounded(1);

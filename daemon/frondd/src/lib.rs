@@ -22,7 +22,8 @@ pub mod log_limit;
 pub mod notify;
 pub mod publisher;
 pub mod realtime;
-pub mod recorder;
+/// The take writer (its own crate, shared with the stage recorder of `frond record start --stage`).
+pub use frond_recorder as recorder;
 pub mod source;
 pub mod stage;
 pub mod stats;

@@ -178,6 +178,7 @@ fn take_bytes() -> Vec<u8> {
         daemon_version: "test".into(),
         joint_names: vec![],
         clock: None,
+        stage: None,
     };
     let mut take = Take::new(header);
     let frames = (0..3000u64).map(|k| {

@@ -279,6 +279,7 @@ mod tests {
             daemon_version: "test".into(),
             joint_names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
             clock: None,
+            stage: None,
         }
     }
 

@@ -47,6 +47,7 @@ pub mod skeleton;
 pub mod take;
 pub mod take_repair;
 pub mod timecode;
+pub mod timeline;
 pub mod usd;
 
 pub use calibration::{Calibration, CalibrationError, CalibrationParams};

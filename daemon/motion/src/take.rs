@@ -79,6 +79,25 @@ pub struct TakeHeader {
     /// wall-clock time (and timecode); absent in takes made offline or before frond wrote it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clock: Option<TakeClock>,
+    /// For a take recorded from a stage over Zenoh (`frond record start NAME --stage STAGE`):
+    /// where it came from and how its host's clock compared with the recorder's. Its `clock` is
+    /// then on the recorder's clock already (the offset subtracted), so the takes of one
+    /// recording share one timeline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stage: Option<TakeStage>,
+}
+
+/// Where a stage take came from (issue 20), see [`TakeHeader::stage`].
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TakeStage {
+    /// The stage's name.
+    pub stage: String,
+    /// The source (performer) on it.
+    pub source: String,
+    /// The source host's realtime clock minus the recorder's, nanoseconds, as measured.
+    pub clock_offset_ns: i64,
+    /// How far that measurement may be off (half its round trip), nanoseconds.
+    pub clock_uncertainty_ns: u64,
 }
 
 impl TakeHeader {
@@ -281,6 +300,8 @@ pub fn encode_record(record: &TakeRecord, out: &mut Vec<u8>) {
 
 /// The result of reading one record at an offset.
 #[derive(Debug, Clone, PartialEq)]
+// A take holds one header record; boxing it would cost every reader an indirection for nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum RecordAt {
     /// A complete, checksummed record and the offset after it.
     Record {

@@ -38,6 +38,7 @@ fn header() -> TakeHeader {
         daemon_version: "test".into(),
         joint_names: Vec::new(),
         clock: None,
+        stage: None,
     }
 }
 

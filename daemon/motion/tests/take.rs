@@ -19,6 +19,7 @@ fn header() -> TakeHeader {
         daemon_version: "0.1.0".into(),
         joint_names: vec!["root".into(), "lower".into(), "middle".into(), "tip".into()],
         clock: None,
+        stage: None,
     }
 }
 

@@ -81,6 +81,7 @@ pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
             daemon_version: "bench".to_string(),
             joint_names: Vec::new(),
             clock: None,
+            stage: None,
         }),
         frames,
         ..TakeInput::default()

@@ -112,6 +112,7 @@ impl LiveCapture {
                 daemon_version: hello.daemon_version.clone(),
                 joint_names: hello.joint_names.clone(),
                 clock: None,
+                stage: None,
             }),
             element_names: Vec::new(),
             frames: self.frames,

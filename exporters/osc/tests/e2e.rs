@@ -405,6 +405,7 @@ fn blender_addon_drives_the_armature_and_records() {
         daemon_version: "test".into(),
         joint_names: Vec::new(),
         clock: None,
+        stage: None,
     });
     let rest: Vec<frond_motion::PoseFrame> =
         (0..3).map(|k| frond_motion::PoseFrame { t: k as f64 / 30.0, joints_deg: [[0.0; 3]; 4] }).collect();

@@ -35,7 +35,11 @@ mod error;
 pub mod health;
 pub mod source;
 #[cfg(feature = "zenoh")]
+pub mod stage_time;
+#[cfg(feature = "zenoh")]
 pub mod zenoh;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_stage;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -286,6 +290,18 @@ impl Subscriber {
             stats: Stats::default(),
             iter_done: false,
         })
+    }
+
+    /// The stage time of the pose most recently read from the wire (the one an [`Event::Pose`]
+    /// just returned, or the one an [`Event::Gap`] announces): its instant on the source host's
+    /// realtime clock, nanoseconds since 1970, as the `frond-zenoh` bridge stamps it (see
+    /// [`stage_time`]). `None` for socket sources and bridges that do not stamp it.
+    pub fn stage_time_ns(&self) -> Option<u64> {
+        match &self.state {
+            #[cfg(feature = "zenoh")]
+            State::Connected(Wire::Zenoh(conn)) => conn.stage_time_ns(),
+            _ => None,
+        }
     }
 
     /// The latest hello from the daemon (updated on reconnect and rig change).

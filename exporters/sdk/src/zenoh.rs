@@ -44,6 +44,8 @@ pub mod keys {
     pub const STATUS: &str = "status";
     /// The bridge's liveliness token.
     pub const ALIVE: &str = "alive";
+    /// The bridge host's clocks (a queryable, see `crate::stage_time`).
+    pub const CLOCK: &str = "clock";
 
     /// `<source_key>/<leaf>`.
     pub fn under(source_key: &str, leaf: &str) -> String {
@@ -134,6 +136,8 @@ pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSe
 /// What Zenoh's receive threads hand to the subscriber.
 struct Frame {
     bytes: Vec<u8>,
+    /// The sample's stage time (its attachment), for poses a bridge stamped.
+    stage_ns: Option<u64>,
 }
 
 /// A subscription to one source over Zenoh. Survives its bridge going away: the session stays
@@ -150,8 +154,10 @@ pub(crate) struct ZenohConn {
     overflow: Arc<AtomicU64>,
     /// Poses numbered below this predate the hello and are skipped.
     floor: u64,
-    /// The first pose after the hello, read while opening.
-    first: Option<Pose>,
+    /// The first pose after the hello, read while opening, with its stage time.
+    first: Option<(Pose, Option<u64>)>,
+    /// The stage time of the pose last returned.
+    stage_ns: Option<u64>,
     /// The bridge's token is gone: the source is disconnected until it comes back.
     closed: bool,
 }
@@ -178,7 +184,9 @@ impl ZenohConn {
                     if !matches!(leaf, keys::POSES | keys::ELEMENTS | keys::HELLO) {
                         return;
                     }
-                    let frame = Frame { bytes: sample.payload().to_bytes().into_owned() };
+                    let stage_ns =
+                        sample.attachment().and_then(|a| crate::stage_time::decode_attachment(&a.to_bytes()));
+                    let frame = Frame { bytes: sample.payload().to_bytes().into_owned(), stage_ns };
                     if tx.try_send(frame).is_err() {
                         overflow.fetch_add(1, Ordering::Relaxed);
                     }
@@ -206,6 +214,7 @@ impl ZenohConn {
             overflow,
             floor: 0,
             first: None,
+            stage_ns: None,
             closed: false,
         };
         let hello = conn.rejoin(opts)?;
@@ -215,6 +224,11 @@ impl ZenohConn {
     /// The source key this connection follows.
     pub(crate) fn key(&self) -> &str {
         &self.key
+    }
+
+    /// The stage time of the pose last returned by [`ZenohConn::read_message`].
+    pub(crate) fn stage_time_ns(&self) -> Option<u64> {
+        self.stage_ns
     }
 
     /// Poses Zenoh delivered that the queue had no room for.
@@ -244,7 +258,7 @@ impl ZenohConn {
             match self.frames.recv_timeout(left) {
                 Ok(frame) => match decode_frame::<ServerMessage>(&frame.bytes) {
                     Ok(Some((ServerMessage::Pose(pose), _))) if pose.seq >= self.floor => {
-                        self.first = Some(pose)
+                        self.first = Some((pose, frame.stage_ns))
                     }
                     Ok(Some((ServerMessage::Elements(table), _))) => hello.elements = table,
                     _ => {}
@@ -252,7 +266,7 @@ impl ZenohConn {
                 Err(_) => break,
             }
         }
-        if let Some(first) = &self.first {
+        if let Some((first, _)) = &self.first {
             hello.next_seq = first.seq;
             self.floor = first.seq;
         }
@@ -265,7 +279,8 @@ impl ZenohConn {
 
     /// The next message, or why not.
     pub(crate) fn read_message(&mut self, timeout: Option<Duration>) -> ReadOutcome {
-        if let Some(pose) = self.first.take() {
+        if let Some((pose, stage_ns)) = self.first.take() {
+            self.stage_ns = stage_ns;
             return ReadOutcome::Message(ServerMessage::Pose(pose));
         }
         if self.closed {
@@ -303,6 +318,10 @@ impl ZenohConn {
             };
             match decode_payload(&frame.bytes) {
                 Ok(ServerMessage::Pose(pose)) if pose.seq < self.floor => continue,
+                Ok(msg @ ServerMessage::Pose(_)) => {
+                    self.stage_ns = frame.stage_ns;
+                    return ReadOutcome::Message(msg);
+                }
                 Ok(msg) => return ReadOutcome::Message(msg),
                 Err(error) => {
                     return ReadOutcome::Err(SdkError::Protocol { path: self.key.clone().into(), error });

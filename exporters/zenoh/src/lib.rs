@@ -14,8 +14,14 @@
 //! - `alive`: a liveliness token, held while the bridge is connected to its daemon. Subscribers
 //!   see it go when the daemon stops, the bridge stops, or its host becomes unreachable.
 //!
-//! Samples carry Zenoh timestamps (hybrid logical clock of the bridge's host): the stage-wide
-//! clock beside each pose's host-monotonic time.
+//! - `clock`: a queryable answering this host's realtime and monotonic clocks read together
+//!   (JSON `{"unix_ns":..,"monotonic_ns":..}`), so a stage recorder measures how far this host's
+//!   clock is from its own.
+//!
+//! Every pose sample carries its **stage time** as its attachment (8 bytes, `u64` little-endian):
+//! the pose's `host_monotonic_ns` on this host's realtime clock, nanoseconds since 1970
+//! ([`frond_sdk::stage_time`]). Samples also carry Zenoh timestamps (the session's hybrid logical
+//! clock, the time of the put).
 
 #![warn(missing_docs)]
 
@@ -27,6 +33,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use frond_protocol::{ElementTable, FrameBuf, Hello, ServerMessage};
+use frond_sdk::stage_time::{ClockReading, encode_attachment, realtime_ns};
 use frond_sdk::zenoh::{ZenohSetupError, keys};
 use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
 use zenoh::Wait;
@@ -47,6 +54,10 @@ pub struct BridgeConfig {
     pub addr: ZenohAddr,
     /// How often the daemon's status is published.
     pub status_interval: Duration,
+    /// Added to every realtime clock reading the bridge reports (pose stage times, `.../clock`
+    /// answers): 0, except under the test hook `FROND_TEST_CLOCK_OFFSET_NS`, which makes this
+    /// host's clock look that far off, as a host without NTP would.
+    pub clock_offset_ns: i64,
 }
 
 /// What can stop the bridge.
@@ -118,6 +129,17 @@ struct Shared {
     /// Sequence number of the next pose (written per pose, so not behind the mutex).
     next_seq: AtomicU64,
     stats: Arc<BridgeStats>,
+    /// [`BridgeConfig::clock_offset_ns`].
+    clock_offset_ns: i64,
+}
+
+impl Shared {
+    /// This host's clocks read back to back, the test hook's offset added to the realtime one.
+    fn clock(&self) -> ClockReading {
+        let monotonic_ns = frond_sdk::clock::monotonic_ns();
+        let unix_ns = realtime_ns().saturating_add_signed(self.clock_offset_ns);
+        ClockReading { unix_ns, monotonic_ns }
+    }
 }
 
 impl Shared {
@@ -137,7 +159,13 @@ pub struct Bridge {
     token: Option<zenoh::liveliness::LivelinessToken>,
     shared: Arc<Shared>,
     frame: FrameBuf,
+    /// This host's clocks, re-read every [`CLOCK_REFRESH`]: stage time of a pose.
+    clock: ClockReading,
+    clock_read_at: Instant,
 }
+
+/// How often the bridge re-reads its host's clocks (the realtime clock may be slewed by NTP).
+const CLOCK_REFRESH: Duration = Duration::from_secs(1);
 
 fn declare_err(what: &str) -> impl Fn(zenoh::Error) -> BridgeError + '_ {
     move |e| BridgeError::Declare { what: what.to_owned(), reason: e.to_string() }
@@ -174,17 +202,21 @@ impl Bridge {
             latest: Mutex::new(Latest::default()),
             next_seq: AtomicU64::new(0),
             stats: Arc::default(),
+            clock_offset_ns: config.clock_offset_ns,
         });
         let mut queryables = Vec::new();
-        for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS] {
+        for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS, keys::CLOCK] {
             let k = keys::under(&key, leaf);
             let shared = shared.clone();
             let reply_key = k.clone();
             let q = session
                 .declare_queryable(k.clone())
                 .callback(move |query| {
-                    let next_seq = shared.next_seq.load(Ordering::Relaxed);
-                    let bytes = answer(&shared.latest(), next_seq, leaf);
+                    let bytes = if leaf == keys::CLOCK {
+                        Some(shared.clock().to_json().into_bytes())
+                    } else {
+                        answer(&shared.latest(), shared.next_seq.load(Ordering::Relaxed), leaf)
+                    };
                     if let Some(bytes) = bytes {
                         shared.stats.queries.fetch_add(1, Ordering::Relaxed);
                         if let Err(e) = query.reply(reply_key.clone(), bytes).wait() {
@@ -204,6 +236,8 @@ impl Bridge {
             hello,
             _queryables: queryables,
             token: None,
+            clock: shared.clock(),
+            clock_read_at: Instant::now(),
             shared,
             frame: FrameBuf::with_capacity(1024),
         })
@@ -277,8 +311,13 @@ impl Bridge {
                 Ok(Event::Pose(pose)) => {
                     self.shared.stats.poses.fetch_add(1, Ordering::Relaxed);
                     self.shared.next_seq.store(pose.seq + 1, Ordering::Relaxed);
+                    if self.clock_read_at.elapsed() >= CLOCK_REFRESH {
+                        self.clock = self.shared.clock();
+                        self.clock_read_at = Instant::now();
+                    }
+                    let stage = encode_attachment(self.clock.stage_ns_of(pose.host_monotonic_ns));
                     let bytes = self.frame.encode(&ServerMessage::Pose(pose)).to_vec();
-                    if self.poses.put(bytes).wait().is_err() {
+                    if self.poses.put(bytes).attachment(stage.to_vec()).wait().is_err() {
                         self.shared.stats.put_errors.fetch_add(1, Ordering::Relaxed);
                     }
                 }

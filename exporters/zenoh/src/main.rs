@@ -64,6 +64,11 @@ fn host_name() -> String {
     if name.is_empty() { "frond".into() } else { name }
 }
 
+/// The test hook's environment variable (see [`BridgeConfig::clock_offset_ns`]).
+const CLOCK_OFFSET_ENV: &str = "FROND_TEST_CLOCK_OFFSET_NS";
+/// Largest offset the hook accepts: one day.
+const MAX_TEST_CLOCK_OFFSET_NS: u64 = 86_400_000_000_000;
+
 fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
     let mut problems = Vec::new();
     let source_name = args.source.clone().unwrap_or_else(host_name);
@@ -98,11 +103,24 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
             DEFAULT_STATUS_INTERVAL
         }
     };
+    // Test hook: pretend this host's realtime clock is off by this much (stage-time tests).
+    let clock_offset_ns = match std::env::var(CLOCK_OFFSET_ENV) {
+        Err(_) => 0,
+        Ok(text) => match text.parse::<i64>() {
+            Ok(ns) if ns.unsigned_abs() <= MAX_TEST_CLOCK_OFFSET_NS => ns,
+            _ => {
+                problems.push(format!(
+                    "{CLOCK_OFFSET_ENV}={text:?}: nanoseconds, an integer within +-{MAX_TEST_CLOCK_OFFSET_NS}"
+                ));
+                0
+            }
+        },
+    };
     if !problems.is_empty() {
         return Err(InvalidArguments(problems.join("\n  ")).into());
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
-    Ok(BridgeConfig { socket_dir, addr, status_interval })
+    Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns })
 }
 
 fn run(args: &Args) -> anyhow::Result<()> {

@@ -37,6 +37,7 @@ pub fn header(name: &str, rig: &str) -> TakeHeader {
         daemon_version: "0.1.0".to_string(),
         joint_names: Vec::new(),
         clock: None,
+        stage: None,
     }
 }
 

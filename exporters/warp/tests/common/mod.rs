@@ -43,6 +43,7 @@ pub fn write_take_with(path: &Path, frames: u64, yaw: impl Fn(f64) -> f32) {
             daemon_version: "test".into(),
             joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
             clock: None,
+            stage: None,
         }),
         &mut out,
     );

@@ -1,4 +1,5 @@
-//! The recorder thread: writes takes off the realtime thread.
+//! The recorder thread: writes takes off the realtime thread (frondd's recorder, and the stage
+//! recorder of `frond record start NAME --stage STAGE`, which writes what it receives over Zenoh).
 //!
 //! A take file is append-only (see `frond_motion::take`): every record is length-prefixed and
 //! checksummed, so a reader can follow it while it grows and a crash leaves at most a torn tail.
