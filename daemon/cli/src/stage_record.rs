@@ -16,16 +16,17 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{Context, anyhow, bail};
 use crossbeam_channel::bounded;
-use frond_motion::take::{TakeClock, TakeFrame, TakeHeader, TakeStage};
-use frond_motion::{HandSample, PoseFrame};
+use frond_motion::take::{TakeClock, TakeHeader, TakeStage};
 use frond_protocol::{ElementKind, Hello, Pose};
-use frond_recorder::{RECORDER_RING_FRAMES, RecorderCounters, RecorderMsg, frame_ring, spawn_recorder};
+use frond_recorder::{
+    RECORDER_RING_FRAMES, RecorderCounters, RecorderMsg, frame_ring, spawn_recorder, take_frame,
+};
 use frond_sdk::stage_time::ClockOffset;
 use frond_sdk::zenoh_stage::Stage;
 use frond_sdk::{Event, SdkError, Source, Subscriber, ZenohAddr};
@@ -207,7 +208,7 @@ impl SourceJob {
             .subscribe(&Source::Zenoh(self.addr.clone()))?;
         let status = frond_sdk::zenoh::query_status(&self.addr, Duration::from_secs(2)).ok();
         // The first pose with a stage time fixes the take's clock.
-        let first = loop {
+        let (pose, stage_ns) = loop {
             if stop.load(Ordering::SeqCst) {
                 bail!("stopped before the first pose arrived");
             }
@@ -222,7 +223,6 @@ impl SourceJob {
                 Err(e) => return Err(e.into()),
             }
         };
-        let (pose, stage_ns) = first;
         let unix_ns =
             (i128::from(stage_ns) - i128::from(self.offset.offset_ns)).clamp(0, i128::from(u64::MAX));
         let header = self.header(
@@ -247,13 +247,13 @@ impl SourceJob {
         .map_err(|_| anyhow!("the take writer stopped"))?;
         reply_rx.recv().map_err(|_| anyhow!("the take writer stopped"))??;
 
-        let dropped = AtomicU64::new(0);
+        let mut dropped = 0u64;
         let mut push = |pose: &Pose| {
             if pose.element > MAX_LAYER_ID {
                 return; // live stages and field plants are not part of the performer's take
             }
             if ring.push(take_frame(pose)).is_err() {
-                dropped.fetch_add(1, Ordering::Relaxed);
+                dropped += 1;
             }
         };
         push(&pose);
@@ -279,13 +279,7 @@ impl SourceJob {
         let _ = writer.join();
         result?;
         let stats = sub.stats();
-        Ok(Finished {
-            path: self.path,
-            frames,
-            gaps: stats.gaps,
-            missing: stats.missing,
-            dropped: dropped.load(Ordering::Relaxed),
-        })
+        Ok(Finished { path: self.path, frames, gaps: stats.gaps, missing: stats.missing, dropped })
     }
 
     fn header(
@@ -329,17 +323,4 @@ fn layer_names(hello: &Hello) -> Vec<String> {
         .collect();
     layers.sort();
     layers.into_iter().map(|(_, name)| name).collect()
-}
-
-/// A pose as the daemon's recorder stores it.
-fn take_frame(pose: &Pose) -> TakeFrame {
-    TakeFrame {
-        seq: pose.seq,
-        device_time_us: pose.device_time_us,
-        host_ns: pose.host_monotonic_ns,
-        flags: pose.flags.0,
-        element: pose.element,
-        pose: PoseFrame { t: pose.hand.t, joints_deg: pose.joints_deg },
-        hand: HandSample { t: pose.hand.t, wrist_deg: pose.hand.wrist_deg, thumb_deg: pose.hand.thumb_deg },
-    }
 }

@@ -33,6 +33,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use frond_motion::take::{
     RECORD_HEAD_LEN, TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record,
 };
+use frond_motion::{HandSample, PoseFrame};
 use rtrb::{Consumer, Producer, RingBuffer};
 use tracing::{error, info, warn};
 
@@ -46,6 +47,21 @@ const WRITE_BATCH: usize = 192 * 1024;
 const END_RECORD_LEN: usize = RECORD_HEAD_LEN + 1 + 8;
 /// While a write fault lasts, it is logged again this often (with the count of failed retries).
 const FAULT_LOG_EVERY: Duration = Duration::from_secs(60);
+
+/// A pose off the wire as a take stores it: the pose's time is the hand sample's (device) time,
+/// as in the daemon's recorder. For writers of takes from a subscription (the stage recorder,
+/// `frond-gltf live`).
+pub fn take_frame(p: &frond_protocol::Pose) -> TakeFrame {
+    TakeFrame {
+        seq: p.seq,
+        device_time_us: p.device_time_us,
+        host_ns: p.host_monotonic_ns,
+        flags: p.flags.0,
+        element: p.element,
+        pose: PoseFrame { t: p.hand.t, joints_deg: p.joints_deg },
+        hand: HandSample { t: p.hand.t, wrist_deg: p.hand.wrist_deg, thumb_deg: p.hand.thumb_deg },
+    }
+}
 
 /// The loop's end and the recorder's end of the frame ring.
 pub fn frame_ring(frames: usize) -> (Producer<TakeFrame>, Consumer<TakeFrame>) {

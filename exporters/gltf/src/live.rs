@@ -9,8 +9,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
+use frond_motion::{TakeFrame, TakeHeader};
 use frond_protocol::{Hello, Pose, PoseFlags};
+use frond_recorder::take_frame;
 use frond_sdk::{Event, SdkError, Source, Subscriber};
 use thiserror::Error;
 
@@ -120,20 +121,6 @@ impl LiveCapture {
             ended: true,
             damage: None,
         }
-    }
-}
-
-/// A pose as a take frame: the pose's time is the hand sample's (device) time, as in the
-/// daemon's recorder.
-pub fn take_frame(p: &Pose) -> TakeFrame {
-    TakeFrame {
-        seq: p.seq,
-        device_time_us: p.device_time_us,
-        host_ns: p.host_monotonic_ns,
-        flags: p.flags.0,
-        element: p.element,
-        pose: PoseFrame { t: p.hand.t, joints_deg: p.joints_deg },
-        hand: HandSample { t: p.hand.t, wrist_deg: p.hand.wrist_deg, thumb_deg: p.hand.thumb_deg },
     }
 }
 
