@@ -26,6 +26,18 @@ pub struct Global {
     /// Directory of recorded takes [default: $XDG_DATA_HOME/frond/takes].
     #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR")]
     pub takes_dir: Option<PathBuf>,
+    /// Send control commands (status, record, mark, rig set, filter, stage ...) to a daemon on
+    /// another host, through its frond-zenoh bridge started with --control:
+    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]`. Needs --as and --key-file.
+    #[arg(long, global = true, env = "FROND_REMOTE", value_name = "ADDRESS")]
+    pub remote: Option<frond_sdk::Source>,
+    /// The principal remote control requests are signed as (a name in the bridge's --control
+    /// file).
+    #[arg(long = "as", global = true, env = "FROND_REMOTE_AS", value_name = "NAME")]
+    pub remote_as: Option<String>,
+    /// The principal's key: a file holding its hex key, readable by its owner only.
+    #[arg(long = "key-file", global = true, env = "FROND_REMOTE_KEY_FILE", value_name = "FILE")]
+    pub remote_key_file: Option<PathBuf>,
 }
 
 /// `frond` commands.

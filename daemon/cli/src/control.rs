@@ -7,6 +7,8 @@ use anyhow::anyhow;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StatusReport, paths};
 use frond_sdk::ControlClient;
+use frond_sdk::control_auth::ControlKey;
+use frond_sdk::zenoh_control::RemoteControl;
 
 use crate::args::Global;
 use crate::usage;
@@ -14,26 +16,53 @@ use crate::usage;
 /// Largest marker label the daemon accepts, bytes.
 const MAX_LABEL_BYTES: usize = 256;
 
-/// One connection to `control.sock` (`frond_sdk::ControlClient`), with errors as `anyhow` for
-/// the commands.
-pub(crate) struct Control(ControlClient);
+/// One connection to `control.sock` (`frond_sdk::ControlClient`), or to a daemon on another
+/// host through its bridge (`--remote`, `frond_sdk::zenoh_control::RemoteControl`), with errors
+/// as `anyhow` for the commands.
+pub(crate) enum Control {
+    /// This host's daemon.
+    Local(ControlClient),
+    /// Another host's daemon, through its frond-zenoh bridge.
+    Remote(Box<RemoteControl>),
+}
 
 impl Control {
     /// Connects to the control socket of the daemon in `socket_dir`.
     pub(crate) fn connect(socket_dir: &Path) -> anyhow::Result<Control> {
-        Ok(Control(ControlClient::connect(socket_dir)?))
+        Ok(Control::Local(ControlClient::connect(socket_dir)?))
     }
 
-    /// Connects using the global options.
+    /// Connects using the global options: the remote daemon `--remote` names, else this host's.
     pub(crate) fn from_global(g: &Global) -> anyhow::Result<Control> {
-        Control::connect(&paths::socket_dir(g.socket_dir.clone()))
+        let Some(remote) = &g.remote else {
+            return Control::connect(&paths::socket_dir(g.socket_dir.clone()));
+        };
+        let frond_sdk::Source::Zenoh(addr) = remote else {
+            return usage(format!(
+                "--remote {remote}: a zenoh:frond/<stage>/<source> address (a local daemon needs no --remote)"
+            ));
+        };
+        let (Some(principal), Some(key_file)) = (&g.remote_as, &g.remote_key_file) else {
+            return usage(
+                "--remote needs --as NAME and --key-file FILE (a principal of the bridge's --control file)",
+            );
+        };
+        let key = match ControlKey::read_file(key_file) {
+            Ok(key) => key,
+            Err(e) => return usage(e.to_string()),
+        };
+        Ok(Control::Remote(Box::new(RemoteControl::open(addr, principal, key)?)))
     }
 
     /// Sends `req` and returns the daemon's reply; a refusal becomes an error with its message.
     /// (A message, not an io::Error: a broken *socket* must not pass for a closed stdout, which
     /// `frond` treats as a quiet success.)
     pub(crate) fn request(&mut self, req: &ControlRequest) -> anyhow::Result<ControlReply> {
-        self.0.request(req).map_err(|e| anyhow!("{e}"))
+        match self {
+            Control::Local(c) => c.request(req),
+            Control::Remote(c) => c.request(req),
+        }
+        .map_err(|e| anyhow!("{e}"))
     }
 
     /// Sends `req` and expects a plain `Ok`.

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use frond_protocol::{StatusReport, paths};
+use frond_protocol::StatusReport;
 
 use crate::args::Global;
 use crate::control::Control;
@@ -14,7 +14,7 @@ pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> a
     let report = match from {
         Some(frond_sdk::Source::Zenoh(addr)) => frond_sdk::zenoh::query_status(addr, STATUS_WAIT)?,
         Some(frond_sdk::Source::Socket(dir)) => Control::connect(dir)?.status()?,
-        None => Control::connect(&paths::socket_dir(g.socket_dir.clone()))?.status()?,
+        None => Control::from_global(g)?.status()?,
     };
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);

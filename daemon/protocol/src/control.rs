@@ -91,6 +91,29 @@ pub enum ControlRequest {
     PanicForTest,
 }
 
+impl ControlRequest {
+    /// The request's name in messages, logs and the remote-control allow-list (`status`,
+    /// `set-rig`, `record-start`, ...).
+    pub fn name(&self) -> &'static str {
+        match self {
+            ControlRequest::Status => "status",
+            ControlRequest::SetRig { .. } => "set-rig",
+            ControlRequest::SetCalibration { .. } => "set-calibration",
+            ControlRequest::SetFilter { .. } => "set-filter",
+            ControlRequest::RecordStart { .. } => "record-start",
+            ControlRequest::RecordStop => "record-stop",
+            ControlRequest::Mark { .. } => "mark",
+            ControlRequest::RawSample => "raw-sample",
+            ControlRequest::RecordLayer { .. } => "record-layer",
+            ControlRequest::StageStart { .. } => "stage-start",
+            ControlRequest::StageStop { .. } => "stage-stop",
+            ControlRequest::StageInput { .. } => "stage-input",
+            ControlRequest::FreezeLoop { .. } => "freeze-loop",
+            ControlRequest::PanicForTest => "panic-for-test",
+        }
+    }
+}
+
 /// What a live stage runs, with its parameters. Every kind of stage is one variant.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum StageSpec {

@@ -75,6 +75,14 @@ pub enum ControlClientError {
         /// The daemon's explanation.
         message: String,
     },
+    /// A remote daemon (over Zenoh, through its bridge) could not be asked.
+    #[error("remote control of {key}: {reason}")]
+    Remote {
+        /// The source's key expression.
+        key: String,
+        /// What went wrong.
+        reason: String,
+    },
     /// The daemon answered, but not with the kind of reply the request calls for.
     #[error("the daemon gave an unexpected reply ({got}); is it a different frond version?")]
     Unexpected {

@@ -31,6 +31,8 @@
 pub mod clock;
 mod conn;
 pub mod control;
+#[cfg(feature = "zenoh")]
+pub mod control_auth;
 mod error;
 pub mod health;
 pub mod source;
@@ -38,6 +40,8 @@ pub mod source;
 pub mod stage_time;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_control;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_stage;
 

@@ -46,6 +46,9 @@ pub mod keys {
     pub const ALIVE: &str = "alive";
     /// The bridge host's clocks (a queryable, see `crate::stage_time`).
     pub const CLOCK: &str = "clock";
+    /// Remote control (a queryable, only on bridges started with `--control FILE`; requests
+    /// are signed, see `crate::control_auth`).
+    pub const CONTROL: &str = "control";
 
     /// `<source_key>/<leaf>`.
     pub fn under(source_key: &str, leaf: &str) -> String {

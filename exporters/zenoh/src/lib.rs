@@ -14,6 +14,8 @@
 //! - `alive`: a liveliness token, held while the bridge is connected to its daemon. Subscribers
 //!   see it go when the daemon stops, the bridge stops, or its host becomes unreachable.
 //!
+//! - `control`: remote control, a queryable declared only when the bridge is given an allow-list
+//!   (`--control FILE`, [`control`]): signed control requests, answered with the daemon's reply.
 //! - `clock`: a queryable answering this host's realtime and monotonic clocks read together
 //!   (JSON `{"unix_ns":..,"monotonic_ns":..}`), so a stage recorder measures how far this host's
 //!   clock is from its own.
@@ -25,6 +27,7 @@
 
 #![warn(missing_docs)]
 
+pub mod control;
 mod status;
 
 use std::path::PathBuf;
@@ -58,6 +61,8 @@ pub struct BridgeConfig {
     /// answers): 0, except under the test hook `FROND_TEST_CLOCK_OFFSET_NS`, which makes this
     /// host's clock look that far off, as a host without NTP would.
     pub clock_offset_ns: i64,
+    /// Remote control's allow-list; `None` (the default) declares no control queryable.
+    pub control: Option<control::ControlPolicy>,
 }
 
 /// What can stop the bridge.
@@ -96,6 +101,11 @@ pub struct BridgeStats {
     pub queries: AtomicU64,
     /// Times the daemon connection was re-established.
     pub reconnects: AtomicU64,
+    /// Remote control requests handed to the daemon and answered with its reply.
+    pub control_answered: AtomicU64,
+    /// Remote control requests refused by the bridge (not signed, unknown principal, wrong key,
+    /// stale, replayed, not allowed, malformed, busy).
+    pub control_refused: AtomicU64,
 }
 
 impl std::fmt::Display for BridgeStats {
@@ -103,14 +113,17 @@ impl std::fmt::Display for BridgeStats {
         let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
         write!(
             f,
-            "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={}",
+            "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={} \
+             control_answered={} control_refused={}",
             g(&self.poses),
             g(&self.put_errors),
             g(&self.gaps),
             g(&self.announcements),
             g(&self.statuses),
             g(&self.queries),
-            g(&self.reconnects)
+            g(&self.reconnects),
+            g(&self.control_answered),
+            g(&self.control_refused)
         )
     }
 }
@@ -156,6 +169,7 @@ pub struct Bridge {
     elements: zenoh::pubsub::Publisher<'static>,
     hello: zenoh::pubsub::Publisher<'static>,
     _queryables: Vec<zenoh::query::Queryable<()>>,
+    _control: Option<control::RemoteControl>,
     token: Option<zenoh::liveliness::LivelinessToken>,
     shared: Arc<Shared>,
     frame: FrameBuf,
@@ -228,6 +242,13 @@ impl Bridge {
                 .map_err(declare_err(&k))?;
             queryables.push(q);
         }
+        let remote_control = match config.control.clone() {
+            None => None,
+            Some(policy) => Some(
+                control::RemoteControl::start(&session, &key, &config.socket_dir, policy, shared.clone())
+                    .map_err(declare_err(&keys::under(&key, keys::CONTROL)))?,
+            ),
+        };
         Ok(Bridge {
             config,
             session,
@@ -235,6 +256,7 @@ impl Bridge {
             elements,
             hello,
             _queryables: queryables,
+            _control: remote_control,
             token: None,
             clock: shared.clock(),
             clock_read_at: Instant::now(),

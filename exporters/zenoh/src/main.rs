@@ -33,6 +33,10 @@ struct Args {
     /// apply on top of it.
     #[arg(long = "zenoh-config", value_name = "FILE")]
     zenoh_config: Option<PathBuf>,
+    /// Answer remote control requests (`frond --remote ...`) signed by the principals this
+    /// allow-list file names (TOML, see the README's "Remote control"); off without it.
+    #[arg(long, value_name = "FILE")]
+    control: Option<PathBuf>,
     /// Milliseconds between two status publications (50 to 10000).
     #[arg(long, value_name = "MS")]
     status_interval_ms: Option<u64>,
@@ -116,11 +120,21 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
             }
         },
     };
+    let control = match &args.control {
+        None => None,
+        Some(path) => match frond_zenoh::control::ControlPolicy::read(path) {
+            Ok(policy) => Some(policy),
+            Err(e) => {
+                problems.push(format!("--control: {e}"));
+                None
+            }
+        },
+    };
     if !problems.is_empty() {
         return Err(InvalidArguments(problems.join("\n  ")).into());
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
-    Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns })
+    Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns, control })
 }
 
 fn run(args: &Args) -> anyhow::Result<()> {
