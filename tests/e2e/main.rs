@@ -20,6 +20,7 @@ mod slow_subscriber;
 mod soak;
 mod socket_dir;
 mod stage;
+mod stage_control;
 mod stage_net;
 mod systemd;
 mod take_tools;

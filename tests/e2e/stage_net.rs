@@ -13,10 +13,10 @@ use std::time::{Duration, Instant};
 use frond_e2e::netns::{self, Host, Lan};
 use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 
-const PORT: u16 = 7447;
+pub(crate) const PORT: u16 = 7447;
 
 /// Skips (with the reason on stderr) where namespaces cannot be made.
-fn lan(hosts: usize) -> Option<Lan> {
+pub(crate) fn lan(hosts: usize) -> Option<Lan> {
     if let Some(why) = netns::unavailable() {
         eprintln!("skipped: {why}");
         return None;
@@ -30,13 +30,13 @@ fn bridge(host: &Host, daemon: &Daemon, stage: &str, source: &str) -> Proc {
 
 /// The lines a process prints on stdout, each with the time it arrived, and its stderr.
 #[derive(Default)]
-struct Tapped {
-    lines: Vec<(Instant, String)>,
-    stderr: Vec<String>,
+pub(crate) struct Tapped {
+    pub(crate) lines: Vec<(Instant, String)>,
+    pub(crate) stderr: Vec<String>,
 }
 
 /// Starts `cmd` and collects its stdout and stderr lines on two threads.
-fn collect(mut cmd: Command, name: &str) -> (Proc, Arc<Mutex<Tapped>>) {
+pub(crate) fn collect(mut cmd: Command, name: &str) -> (Proc, Arc<Mutex<Tapped>>) {
     let mut child = cmd
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -362,7 +362,7 @@ impl RefusalLog {
         if seen.len() < MAX_LOGGED && seen.insert(pair) {
             tracing::warn!(
                 %key,
-                principal = r.principal.as_deref().unwrap_or("-"),
+                principal = %r.principal.as_deref().unwrap_or("-"),
                 reason = ?r.reason,
                 message = %r.error.message,
                 "remote control request refused (further refusals like it are counted, not logged)"
