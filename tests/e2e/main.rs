@@ -22,6 +22,7 @@ mod socket_dir;
 mod stage;
 mod stage_control;
 mod stage_net;
+mod stage_router;
 mod systemd;
 mod take_tools;
 mod tap_matches_map;

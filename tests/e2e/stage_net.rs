@@ -61,7 +61,7 @@ pub(crate) fn collect(mut cmd: Command, name: &str) -> (Proc, Arc<Mutex<Tapped>>
 
 /// Starts `frond [global] tap --jsonl --include-held [tap_args]` (on `host`, or here when
 /// `None`) and collects its output.
-fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mutex<Tapped>>) {
+pub(crate) fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mutex<Tapped>>) {
     let mut cmd = match host {
         Some(h) => h.command(bin("frond")),
         None => Command::new(bin("frond")),
@@ -70,12 +70,12 @@ fn tap(host: Option<&Host>, global: &[&str], tap_args: &[&str]) -> (Proc, Arc<Mu
     collect(cmd, "frond tap")
 }
 
-fn seq_of(line: &str) -> u64 {
+pub(crate) fn seq_of(line: &str) -> u64 {
     let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{line}: {e}"));
     v["seq"].as_u64().unwrap_or_else(|| panic!("no seq in {line}"))
 }
 
-fn lines(t: &Arc<Mutex<Tapped>>) -> usize {
+pub(crate) fn lines(t: &Arc<Mutex<Tapped>>) -> usize {
     t.lock().unwrap().lines.len()
 }
 
@@ -89,6 +89,20 @@ fn missing(lines: &[(Instant, String)]) -> u64 {
 /// Frames missing according to `frond tap`'s "gap: N frames missing" lines.
 fn reported_missing(stderr: &[String]) -> u64 {
     stderr.iter().filter_map(|l| l.split("gap: ").nth(1)?.split(' ').next()?.parse::<u64>().ok()).sum()
+}
+
+/// Every line a remote tap printed whose frame the daemon's own host also tapped is that very
+/// line, and there are more than 500 such frames.
+pub(crate) fn assert_same_lines(remote: &Arc<Mutex<Tapped>>, local: &Arc<Mutex<Tapped>>, who: &str) {
+    let local: HashMap<u64, String> =
+        local.lock().unwrap().lines.iter().map(|(_, l)| (seq_of(l), l.clone())).collect();
+    let remote = remote.lock().unwrap();
+    let common: Vec<&String> =
+        remote.lines.iter().map(|(_, l)| l).filter(|l| local.contains_key(&seq_of(l))).collect();
+    assert!(common.len() > 500, "{who}: only {} frames in common with the daemon's host", common.len());
+    for l in common {
+        assert_eq!(l, &local[&seq_of(l)], "{who}: a frame differs between the hosts");
+    }
 }
 
 #[test]
@@ -137,17 +151,8 @@ fn two_performers_one_workstation_and_a_link_that_goes_down_and_up() {
     );
 
     // Over Zenoh, the very lines the daemon's own host prints, where their frames overlap.
-    for (remote, local, who) in [(&remote_a, &local_a, "glove-a"), (&remote_b, &local_b, "glove-b")] {
-        let local: HashMap<u64, String> =
-            local.lock().unwrap().lines.iter().map(|(_, l)| (seq_of(l), l.clone())).collect();
-        let remote = remote.lock().unwrap();
-        let common: Vec<&String> =
-            remote.lines.iter().map(|(_, l)| l).filter(|l| local.contains_key(&seq_of(l))).collect();
-        assert!(common.len() > 500, "{who}: only {} frames in common with the daemon's host", common.len());
-        for l in common {
-            assert_eq!(l, &local[&seq_of(l)], "{who}: a frame differs between the hosts");
-        }
-    }
+    assert_same_lines(&remote_a, &local_a, "glove-a");
+    assert_same_lines(&remote_b, &local_b, "glove-b");
 
     // The OSC receiver on the workstation gets performer B's frames, with the values its host sees.
     let osc = receive_osc_poses(&receiver, 200);

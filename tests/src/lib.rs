@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use frond_protocol::{ControlReply, ControlRequest, FrameBuf, read_frame, write_frame};
 
-pub mod netns;
+pub use frond_netns as netns;
 
 /// Path of a workspace binary, or a panic that says how to build it.
 pub fn bin(name: &str) -> PathBuf {

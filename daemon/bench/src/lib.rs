@@ -5,7 +5,8 @@
 //! [`tick::tick_cost`] (3), [`timing::max_rate`] (4), [`resources::daemon_resources`] (5) and
 //! [`components::components`] (6), [`osc_latency::osc_latency`] (7: the OSC source against a
 //! do-nothing relay, `frond-relay`, see [`relay`]) and [`hidraw_latency::hidraw_latency`] (8: a
-//! hidraw node's reports through frondd against the same relay reading the node). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! hidraw node's reports through frondd against the same relay reading the node) and
+//! [`zenoh::zenoh`] (9: poses over Zenoh between network namespaces against plain UDP). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
@@ -24,6 +25,7 @@ pub mod resources;
 pub mod rig;
 pub mod tick;
 pub mod timing;
+pub mod zenoh;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -31,7 +33,7 @@ use std::time::Instant;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
-pub const SECTIONS: [&str; 8] = [
+pub const SECTIONS: [&str; 9] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -40,6 +42,7 @@ pub const SECTIONS: [&str; 8] = [
     "components",
     "osc_latency",
     "hidraw_latency",
+    "zenoh",
 ];
 
 /// What to run.
@@ -70,6 +73,7 @@ fn title(name: &str) -> &'static str {
         "daemon_resources" => "frondd CPU and memory at 1 kHz with 4 subscribers",
         "osc_latency" => "OSC hand sample -> subscriber receipt vs a do-nothing relay",
         "hidraw_latency" => "hidraw report -> subscriber receipt vs a do-nothing relay",
+        "zenoh" => zenoh::TITLE,
         _ => "motion toolkit and exporters",
     }
 }
@@ -100,6 +104,7 @@ pub fn run(options: &Options) -> Report {
             "daemon_resources" => resources::daemon_resources(options),
             "osc_latency" => osc_latency::osc_latency(options),
             "hidraw_latency" => hidraw_latency::hidraw_latency(options),
+            "zenoh" => zenoh::zenoh(options),
             _ => Ok(components::components(options)),
         };
         let mut section =

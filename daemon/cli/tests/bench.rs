@@ -10,7 +10,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const SECTIONS: [&str; 8] = [
+const SECTIONS: [&str; 9] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -19,6 +19,7 @@ const SECTIONS: [&str; 8] = [
     "components",
     "osc_latency",
     "hidraw_latency",
+    "zenoh",
 ];
 const PARTS: [&str; 10] = [
     "field_playback",
@@ -64,6 +65,29 @@ fn measurements<'a>(key: &str, section: &'a Value, out: &mut Vec<(String, &'a Va
     if let Some(parts) = section.get("parts").and_then(Value::as_object) {
         for (name, p) in parts {
             measurements(&format!("{key}.{name}"), p, out);
+        }
+    }
+}
+
+/// The Zenoh section has every setting of the issue (1/4/16 subscribers, 4/8 sources), and each
+/// row's value is the one in the section's details (what the subscribers measured).
+fn check_zenoh_section(section: &Value) {
+    let rows = section["measurements"].as_array().unwrap();
+    let row = |name: &str| {
+        rows.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("zenoh: no row {name}: {rows:?}"))
+    };
+    for tag in ["1_subscribers", "4_subscribers", "16_subscribers", "4_sources", "8_sources"] {
+        let d = &section["details"][tag];
+        for q in ["p50", "p99"] {
+            let m = row(&format!("zenoh_latency_{q}_{tag}"));
+            assert_eq!(m["measured"], d["zenoh"][format!("{q}_us")], "zenoh {tag} {q}");
+            assert_eq!(m["baseline"], d["udp"][format!("{q}_us")], "udp {tag} {q}");
+            assert!(m["target"]["limit"].as_f64().unwrap() >= 2.0, "{tag} {q}: the issue's goal");
+        }
+        let cpu = row(&format!("bridge_cpu_{tag}"));
+        assert_eq!(cpu["measured"], d["zenoh"]["bridge_cpu_fraction_of_core"]);
+        for path in ["zenoh", "udp"] {
+            assert!(d[path]["samples"].as_u64().unwrap() > 100, "{tag} {path}: {}", d[path]);
         }
     }
 }
@@ -124,6 +148,9 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
             must_be_ok.push("glove_latency");
             must_be_ok.push("hidraw_latency");
         }
+        if frond_netns::unavailable().is_none() {
+            must_be_ok.push("zenoh");
+        }
     }
     for (key, s) in sections {
         let status = s["status"].as_str().unwrap();
@@ -149,6 +176,9 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
             }
             other => panic!("{key}: unknown status {other}"),
         }
+    }
+    if sections["zenoh"]["status"] == "ok" {
+        check_zenoh_section(&sections["zenoh"]);
     }
     for part in ["field_playback", "loop_synthesis", "console"] {
         assert_eq!(parts[part]["status"], "ok", "{part} is in this workspace: {}", parts[part]["reason"]);

@@ -1,0 +1,205 @@
+//! `frond-bench-peer`: the remote end of `frond bench`'s `zenoh` section, one process per
+//! subscriber, started inside a network namespace (`ip netns exec NS frond-bench-peer ...`) so
+//! its sockets live on that "host".
+//!
+//! Usage:
+//! - `frond-bench-peer zenoh-sub ADDRESS`: subscribes to `ADDRESS` (`zenoh:frond/<stage>/<source>?connect=...`)
+//!   with `frond_sdk`, exactly as an exporter on another host does;
+//! - `frond-bench-peer udp-sub BIND`: receives poses as plain UDP datagrams on `BIND`, one
+//!   socket-protocol frame a datagram (the baseline);
+//! - `frond-bench-peer udp-forward SOCKET_DIR ADDR [ADDR ...]`: reads the daemon's pose stream
+//!   with `frond_sdk` as `frond-zenoh` does, and sends each pose, re-encoded as `frond-zenoh`
+//!   re-encodes it, in one UDP datagram to every `ADDR` (the baseline's bridge).
+//!
+//! Each prints `ready` once poses flow. A subscriber then obeys its standard input: `record`
+//! starts recording each pose's latency (receipt time minus the daemon's `host_monotonic_ns`; one
+//! `CLOCK_MONOTONIC` serves every namespace of a machine, so the difference is a real latency),
+//! `report` prints one JSON line (`{"frames","gaps","missing","latency_us":[...]}`, held frames
+//! left out) and stops recording. Every process exits when its standard input closes.
+
+use std::io::{BufRead, Write};
+use std::net::{SocketAddr, UdpSocket};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+use frond_protocol::{FrameBuf, Pose, PoseFlags, ServerMessage, decode_frame};
+use frond_sdk::clock::monotonic_ns;
+use frond_sdk::{Event, Source, Subscriber};
+
+/// Most latencies one subscriber keeps (a 60 s window at 1 kHz); later ones are counted only.
+const MAX_SAMPLES: usize = 60_000;
+
+/// What a subscriber records between `record` and `report`.
+#[derive(Default)]
+struct Record {
+    frames: u64,
+    gaps: u64,
+    missing: u64,
+    latency_us: Vec<f64>,
+}
+
+/// The recording a subscriber shares with its standard-input thread.
+#[derive(Default)]
+struct Recorder {
+    on: AtomicBool,
+    record: Mutex<Record>,
+}
+
+impl Recorder {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Record> {
+        self.record.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn pose(&self, pose: &Pose, now_ns: u64) {
+        if !self.on.load(Relaxed) || pose.flags.contains(PoseFlags::HELD) {
+            return;
+        }
+        let mut r = self.lock();
+        r.frames += 1;
+        if r.latency_us.len() < MAX_SAMPLES {
+            r.latency_us.push(now_ns.saturating_sub(pose.host_monotonic_ns) as f64 / 1e3);
+        }
+    }
+
+    fn gap(&self, missing: u64) {
+        if self.on.load(Relaxed) {
+            let mut r = self.lock();
+            r.gaps += 1;
+            r.missing += missing;
+        }
+    }
+
+    /// Obeys standard input until it closes, then exits the process.
+    fn serve_stdin(self: Arc<Self>) {
+        std::thread::spawn(move || {
+            for line in std::io::stdin().lock().lines() {
+                let Ok(line) = line else { break };
+                match line.trim() {
+                    "record" => self.on.store(true, Relaxed),
+                    "report" => {
+                        self.on.store(false, Relaxed);
+                        let r = std::mem::take(&mut *self.lock());
+                        let json = serde_json::json!({
+                            "frames": r.frames, "gaps": r.gaps, "missing": r.missing, "latency_us": r.latency_us,
+                        });
+                        say(&json.to_string());
+                    }
+                    other => eprintln!("frond-bench-peer: unknown command {other:?} (record, report)"),
+                }
+            }
+            std::process::exit(0);
+        });
+    }
+}
+
+fn say(line: &str) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{line}");
+    let _ = out.flush();
+}
+
+/// Exits when standard input closes (the forwarder reads no commands).
+fn exit_on_stdin_eof() {
+    std::thread::spawn(|| {
+        let mut sink = String::new();
+        while matches!(std::io::stdin().lock().read_line(&mut sink), Ok(n) if n > 0) {
+            sink.clear();
+        }
+        std::process::exit(0);
+    });
+}
+
+fn zenoh_sub(address: &str) -> Result<(), String> {
+    let source: Source = address.parse().map_err(|e| format!("{address}: {e}"))?;
+    let opts = Subscriber::options().give_up_after(None).hello_timeout(Duration::from_secs(20));
+    let mut sub = opts.subscribe(&source).map_err(|e| format!("{address}: {e}"))?;
+    let recorder = Arc::new(Recorder::default());
+    let mut ready = false;
+    loop {
+        match sub.next_event().map_err(|e| e.to_string())? {
+            Event::Pose(p) => {
+                recorder.pose(&p, monotonic_ns());
+                if !ready {
+                    ready = true;
+                    recorder.clone().serve_stdin();
+                    say("ready");
+                }
+            }
+            Event::Gap { expected, got } => recorder.gap(got.saturating_sub(expected)),
+            _ => {}
+        }
+    }
+}
+
+fn udp_sub(bind: &str) -> Result<(), String> {
+    let socket = UdpSocket::bind(bind).map_err(|e| format!("{bind}: {e}"))?;
+    let recorder = Arc::new(Recorder::default());
+    let mut buf = vec![0u8; 65_536];
+    let mut next_seq: Option<u64> = None;
+    let mut ready = false;
+    loop {
+        let n = socket.recv(&mut buf).map_err(|e| e.to_string())?;
+        let now = monotonic_ns();
+        let Ok(Some((ServerMessage::Pose(p), _))) = decode_frame::<ServerMessage>(&buf[..n]) else {
+            continue;
+        };
+        if let Some(expected) = next_seq.filter(|&e| p.seq > e) {
+            recorder.gap(p.seq - expected);
+        }
+        next_seq = Some(p.seq + 1);
+        recorder.pose(&p, now);
+        if !ready {
+            ready = true;
+            recorder.clone().serve_stdin();
+            say("ready");
+        }
+    }
+}
+
+fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
+    let to: Vec<SocketAddr> =
+        to.iter().map(|a| a.parse().map_err(|e| format!("{a}: {e}"))).collect::<Result<_, _>>()?;
+    let socket = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
+    let mut sub = Subscriber::connect(socket_dir).map_err(|e| format!("{socket_dir}: {e}"))?;
+    let mut frame = FrameBuf::default();
+    let mut ready = false;
+    exit_on_stdin_eof();
+    loop {
+        if let Event::Pose(p) = sub.next_event().map_err(|e| e.to_string())? {
+            // As frond-zenoh: one owned buffer per pose, re-encoded from the decoded pose.
+            let bytes = frame.encode(&ServerMessage::Pose(p)).to_vec();
+            for addr in &to {
+                // A full socket buffer or an unreachable host loses the datagram, as UDP does.
+                let _ = socket.send_to(&bytes, addr);
+            }
+            if !ready {
+                ready = true;
+                say("ready");
+            }
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
+        ["zenoh-sub", address] => zenoh_sub(address),
+        ["udp-sub", bind] => udp_sub(bind),
+        ["udp-forward", dir, to @ ..] if !to.is_empty() => udp_forward(dir, &args[2..]),
+        _ => {
+            eprintln!(
+                "usage: frond-bench-peer zenoh-sub ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...]"
+            );
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("frond-bench-peer: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

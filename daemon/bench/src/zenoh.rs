@@ -1,0 +1,374 @@
+//! Section 9: frond on Zenoh between hosts (issue 20). Pose latency from the daemon's stamp to a
+//! subscriber in another network namespace through `frond-zenoh`, against the same poses carried
+//! as plain UDP datagrams between the same namespaces in the same run; the bridge's CPU; and how
+//! both grow with 1, 4 and 16 remote subscribers and with 1, 4 and 8 sources.
+//!
+//! The stage: [`frond_netns::Lan`] of four namespaces on one switch. Host 0 is the performers'
+//! (each source's `frond-zenoh`, or the baseline's forwarder), hosts 1-3 the subscribers'
+//! (`frond-bench-peer`, one process each, spread over them in turn). The daemons
+//! (`frondd --source in-process`, 1 kHz) need no network and run beside this process.
+//!
+//! Both paths do the same work but for the transport: a process on host 0 reads the daemon's
+//! socket with `frond_sdk` and re-encodes each pose (`frond-zenoh`, or `frond-bench-peer
+//! udp-forward`), and a process on a subscriber host decodes it (`frond_sdk` over Zenoh, or
+//! `frond-bench-peer udp-sub`). The latency is receipt time minus the pose's `host_monotonic_ns`:
+//! one `CLOCK_MONOTONIC` serves every namespace of a machine. The UDP phase of each setting runs
+//! first, then the Zenoh phase, never both at once, and each phase starts its own processes.
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::{ChildStdin, Stdio};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, RecvTimeoutError};
+use frond_netns::{Host, Lan};
+use serde::Deserialize;
+use serde_json::json;
+
+use crate::Options;
+use crate::procs::{Daemon, Proc, find_bin, process_cpu_ns};
+use crate::report::{Bound, Measurement, Section};
+
+/// The section's title.
+pub const TITLE: &str = "pose latency daemon -> subscriber in another network namespace: frond-zenoh vs plain UDP; bridge CPU; 1/4/16 subscribers, 1/4/8 sources";
+
+/// Subscriber counts (one source).
+pub const SUBSCRIBERS: [usize; 3] = [1, 4, 16];
+/// Source counts (one subscriber each).
+pub const SOURCES: [usize; 3] = [1, 4, 8];
+/// The issue's goals: Zenoh's p50 within 2x and p99 within 3x of plain UDP's.
+const P50_LIMIT: f64 = 2.0;
+const P99_LIMIT: f64 = 3.0;
+/// First TCP port of the bridges (source `i` listens on `BRIDGE_PORT + i`).
+const BRIDGE_PORT: u16 = 7447;
+/// First UDP port of the baseline's receivers.
+const UDP_PORT: u16 = 41_000;
+/// How long a process may take to see its first pose.
+const READY_WITHIN: Duration = Duration::from_secs(30);
+
+/// One subscriber's figures over a recording window (`frond-bench-peer`'s `report` line).
+#[derive(Debug, Default, Deserialize)]
+struct PeerReport {
+    frames: u64,
+    gaps: u64,
+    missing: u64,
+    latency_us: Vec<f64>,
+}
+
+/// A process on a host whose standard output is read line by line on a thread of its own, so
+/// waiting for a line has a deadline even when the process hangs.
+struct Peer {
+    proc: Proc,
+    stdin: ChildStdin,
+    lines: Receiver<String>,
+    what: String,
+}
+
+impl Peer {
+    fn spawn(o: &Options, host: &Host, program: &str, args: &[String]) -> Result<Peer, String> {
+        let what = format!("{program} {} on {}", args.first().map_or("", String::as_str), host.ns);
+        let mut child = host
+            .command(find_bin(o, program)?)
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .map_err(|e| format!("cannot start {what}: {e}"))?;
+        let stdin = child.stdin.take().ok_or("no stdin")?;
+        let stdout = BufReader::new(child.stdout.take().ok_or("no stdout")?);
+        let (tx, lines) = crossbeam_channel::unbounded();
+        thread::spawn(move || {
+            for line in stdout.lines() {
+                let Ok(line) = line else { return };
+                if tx.send(line).is_err() {
+                    return;
+                }
+            }
+        });
+        Ok(Peer { proc: Proc { child }, stdin, lines, what })
+    }
+
+    /// The next line, waiting at most `within`.
+    fn line(&mut self, within: Duration) -> Result<String, String> {
+        match self.lines.recv_timeout(within) {
+            Ok(line) => Ok(line),
+            Err(RecvTimeoutError::Timeout) => Err(format!("{}: no answer within {within:?}", self.what)),
+            Err(RecvTimeoutError::Disconnected) => {
+                let status = self.proc.child.wait().map(|s| s.to_string()).unwrap_or_default();
+                Err(format!("{} ended ({status}); see its error above", self.what))
+            }
+        }
+    }
+
+    fn wait_ready(&mut self) -> Result<(), String> {
+        match self.line(READY_WITHIN)? {
+            l if l == "ready" => Ok(()),
+            other => Err(format!("{} said {other:?} instead of ready", self.what)),
+        }
+    }
+
+    fn send(&mut self, command: &str) -> Result<(), String> {
+        writeln!(self.stdin, "{command}")
+            .and_then(|()| self.stdin.flush())
+            .map_err(|e| format!("{}: {e}", self.what))
+    }
+
+    fn report(&mut self) -> Result<PeerReport, String> {
+        let line = self.line(Duration::from_secs(20))?;
+        serde_json::from_str(&line).map_err(|e| format!("{}: report {line:?}: {e}", self.what))
+    }
+}
+
+/// What one phase measured.
+struct Phase {
+    /// Every subscriber's latencies together, sorted, µs.
+    latency_us: Vec<f64>,
+    frames: u64,
+    gaps: u64,
+    missing: u64,
+    /// CPU of the host-0 processes (bridges or forwarders) together, fraction of one core.
+    cpu: f64,
+}
+
+impl Phase {
+    fn percentile(&self, q: f64) -> f64 {
+        percentile(&self.latency_us, q)
+    }
+
+    fn json(&self) -> serde_json::Value {
+        json!({
+            "p50_us": self.percentile(0.5), "p99_us": self.percentile(0.99), "p999_us": self.percentile(0.999),
+            "max_us": self.latency_us.last().copied().unwrap_or(0.0), "samples": self.latency_us.len(),
+            "frames": self.frames, "gaps": self.gaps, "missing": self.missing, "bridge_cpu_fraction_of_core": self.cpu,
+        })
+    }
+}
+
+/// Nearest-rank percentile of sorted values (0 when there are none).
+pub fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let rank = (q * sorted.len() as f64).ceil() as usize;
+    sorted[rank.clamp(1, sorted.len()) - 1]
+}
+
+/// Records on every subscriber for `window` while the host-0 processes `pids` run; their CPU
+/// over the same window.
+fn measure(subs: &mut [Peer], pids: &[u32], window: Duration) -> Result<Phase, String> {
+    let cpu = || pids.iter().map(|&p| process_cpu_ns(p)).sum::<Result<u64, String>>();
+    let (cpu0, t0) = (cpu()?, Instant::now());
+    for s in subs.iter_mut() {
+        s.send("record")?;
+    }
+    thread::sleep(window);
+    for s in subs.iter_mut() {
+        s.send("report")?;
+    }
+    let (cpu1, wall) = (cpu()?, t0.elapsed());
+    let mut phase = Phase { latency_us: Vec::new(), frames: 0, gaps: 0, missing: 0, cpu: 0.0 };
+    for s in subs.iter_mut() {
+        let r = s.report()?;
+        if r.frames == 0 {
+            return Err(format!("{} received no pose while recording", s.what));
+        }
+        phase.frames += r.frames;
+        phase.gaps += r.gaps;
+        phase.missing += r.missing;
+        phase.latency_us.extend(r.latency_us);
+    }
+    phase.latency_us.sort_by(f64::total_cmp);
+    phase.cpu = cpu1.saturating_sub(cpu0) as f64 / wall.as_nanos() as f64;
+    Ok(phase)
+}
+
+/// The stage the phases run on.
+struct Stage<'a> {
+    o: &'a Options,
+    lan: Lan,
+    daemons: Vec<Daemon>,
+    window: Duration,
+}
+
+impl Stage<'_> {
+    fn performer(&self) -> &Host {
+        &self.lan.hosts[0]
+    }
+
+    /// Subscriber `i`'s host (hosts 1-3 in turn).
+    fn listener(&self, i: usize) -> &Host {
+        &self.lan.hosts[1 + i % (self.lan.hosts.len() - 1)]
+    }
+
+    fn ensure_daemons(&mut self, n: usize) -> Result<(), String> {
+        while self.daemons.len() < n {
+            self.daemons.push(Daemon::start(self.o, &["--source", "in-process", "--rate", "1000"])?);
+        }
+        Ok(())
+    }
+
+    /// Plain UDP: one forwarder per source on host 0, `per_source` receivers for each.
+    fn udp(&mut self, sources: usize, per_source: usize) -> Result<Phase, String> {
+        self.ensure_daemons(sources)?;
+        let mut subs = Vec::new();
+        let mut forwarders = Vec::new();
+        for s in 0..sources {
+            let mut to = Vec::new();
+            for k in 0..per_source {
+                let i = s * per_source + k;
+                let port = UDP_PORT + i as u16;
+                let host = self.listener(i);
+                to.push(format!("{}:{port}", host.addr));
+                subs.push(Peer::spawn(
+                    self.o,
+                    host,
+                    "frond-bench-peer",
+                    &["udp-sub".into(), format!("0.0.0.0:{port}")],
+                )?);
+            }
+            // Receivers bind before the forwarder sends.
+            thread::sleep(Duration::from_millis(100));
+            let mut args = vec!["udp-forward".to_string(), self.daemons[s].socket_dir.display().to_string()];
+            args.extend(to);
+            forwarders.push(Peer::spawn(self.o, self.performer(), "frond-bench-peer", &args)?);
+        }
+        for p in forwarders.iter_mut().chain(subs.iter_mut()) {
+            p.wait_ready()?;
+        }
+        let pids: Vec<u32> = forwarders.iter().map(|p| p.proc.pid()).collect();
+        measure(&mut subs, &pids, self.window)
+    }
+
+    /// Zenoh: one `frond-zenoh` per source on host 0, `per_source` SDK subscribers for each.
+    fn zenoh(&mut self, sources: usize, per_source: usize) -> Result<Phase, String> {
+        self.ensure_daemons(sources)?;
+        let zenoh_bin = find_bin(self.o, "frond-zenoh")?;
+        let mut bridges = Vec::new();
+        let mut subs = Vec::new();
+        for s in 0..sources {
+            let listen = self.performer().endpoint(BRIDGE_PORT + s as u16);
+            let child = self
+                .performer()
+                .command(&zenoh_bin)
+                .args(["--stage", "bench", "--source", &format!("src{s}"), "--listen", &listen])
+                .arg("--socket-dir")
+                .arg(&self.daemons[s].socket_dir)
+                .args(["--log-level", "error"])
+                .stdin(Stdio::null())
+                .stdout(Stdio::null())
+                // Its counters at exit would crowd the report; a bridge that fails shows as
+                // subscribers that never see a pose.
+                .stderr(Stdio::null())
+                .spawn()
+                .map_err(|e| format!("cannot start frond-zenoh: {e}"))?;
+            bridges.push(Proc { child });
+            for k in 0..per_source {
+                let i = s * per_source + k;
+                let address = format!("zenoh:frond/bench/src{s}?connect={listen}");
+                subs.push(Peer::spawn(
+                    self.o,
+                    self.listener(i),
+                    "frond-bench-peer",
+                    &["zenoh-sub".into(), address],
+                )?);
+            }
+        }
+        for p in subs.iter_mut() {
+            p.wait_ready()?;
+        }
+        let pids: Vec<u32> = bridges.iter().map(Proc::pid).collect();
+        measure(&mut subs, &pids, self.window)
+    }
+}
+
+/// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the issue's targets,
+/// and the bridges' CPU against the forwarders'.
+fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
+    let mut out = Vec::new();
+    for (q, limit) in [(0.5, P50_LIMIT), (0.99, P99_LIMIT)] {
+        let name = if q == 0.5 { "p50" } else { "p99" };
+        out.push(
+            Measurement::new(
+                format!("zenoh_latency_{name}_{tag}"),
+                "us",
+                z.percentile(q),
+                format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
+                u.percentile(q),
+            )
+            .with_target(
+                format!("Zenoh pose latency {name} <= {limit}x plain UDP's, {what}"),
+                Bound::MaxRatio,
+                limit,
+            ),
+        );
+    }
+    out.push(Measurement::new(
+        format!("bridge_cpu_{tag}"),
+        "fraction_of_core",
+        z.cpu,
+        format!("the UDP forwarders' CPU (read the socket, re-encode, send), {what}"),
+        u.cpu,
+    ));
+    out
+}
+
+/// Section 9.
+pub fn zenoh(o: &Options) -> Result<Section, String> {
+    if let Some(why) = frond_netns::unavailable() {
+        return Ok(Section::unavailable(
+            "zenoh",
+            TITLE,
+            crate::report::Status::NotAvailable,
+            format!("needs network namespaces: {why}"),
+        ));
+    }
+    for bin in ["frondd", "frond-zenoh", "frond-bench-peer"] {
+        find_bin(o, bin)?;
+    }
+    let window = if o.quick { Duration::from_millis(1500) } else { Duration::from_secs(5) };
+    let mut stage = Stage { o, lan: Lan::new(4), daemons: Vec::new(), window };
+    let mut measurements = Vec::new();
+    let mut details = serde_json::Map::new();
+    for n in SUBSCRIBERS {
+        let u = stage.udp(1, n)?;
+        let z = stage.zenoh(1, n)?;
+        let what = format!("1 source, {n} subscriber{}", if n == 1 { "" } else { "s" });
+        measurements.extend(rows(&format!("{n}_subscribers"), &what, &z, &u));
+        details.insert(format!("{n}_subscribers"), json!({ "zenoh": z.json(), "udp": u.json() }));
+    }
+    for k in SOURCES.into_iter().filter(|&k| k > 1) {
+        let u = stage.udp(k, 1)?;
+        let z = stage.zenoh(k, 1)?;
+        let what = format!("{k} sources, one subscriber each");
+        measurements.extend(rows(&format!("{k}_sources"), &what, &z, &u));
+        details.insert(format!("{k}_sources"), json!({ "zenoh": z.json(), "udp": u.json() }));
+    }
+    details.insert(
+        "setup".into(),
+        json!(format!(
+            "{} namespaces on a veth switch; daemons frondd --source in-process at 1 kHz; {} s windows; \
+             host 0 runs frond-zenoh (or the UDP forwarder), hosts 1-3 the subscribers in turn; \
+             1 source = the 1-subscriber phase",
+            stage.lan.hosts.len(),
+            window.as_secs_f64()
+        )),
+    );
+    Ok(Section::ok("zenoh", TITLE, measurements, serde_json::Value::Object(details)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rank_percentiles_by_hand() {
+        let v: Vec<f64> = (1..=10).map(f64::from).collect();
+        assert_eq!(percentile(&v, 0.5), 5.0);
+        assert_eq!(percentile(&v, 0.99), 10.0);
+        assert_eq!(percentile(&v, 0.1), 1.0);
+        assert_eq!(percentile(&v, 0.0), 1.0);
+        assert_eq!(percentile(&[], 0.5), 0.0);
+        assert_eq!(percentile(&[7.0], 0.99), 7.0);
+    }
+}
