@@ -464,3 +464,77 @@ fn a_remote_recorder_puts_two_performers_on_one_timeline_despite_a_clock_offset(
     eprintln!("aligned: {} + {} frames, timeline minus monotonic spread {spread} ns", da.len(), db.len());
     assert!(spread <= 1_000_000, "the aligned takes disagree with the shared clock by {spread} ns");
 }
+
+/// Issue 20's "selector over several sources": `frond tap --from 'zenoh:frond/stage1/*'` on the
+/// workstation follows every performer of the stage, including one whose bridge joins after the
+/// tap started, each line tagged with its source and otherwise the very line the performer's own
+/// host prints; `frond status --from` the same selector answers for both.
+#[test]
+fn a_selector_follows_every_performer_including_one_that_joins_later() {
+    let Some(lan) = lan(3) else { return };
+    let (a, b, ws) = (&lan.hosts[0], &lan.hosts[1], &lan.hosts[2]);
+    let (dir_a, dir_b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let daemon_a = Daemon::start_on(a, dir_a.path(), &["--source", "in-process"]);
+    let _bridge_a = bridge(a, &daemon_a, "stage1", "glove-a");
+    let selector = format!("zenoh:frond/stage1/*?connect={},{}", a.endpoint(PORT), b.endpoint(PORT));
+    let (_tap, remote) = tap(Some(ws), &[], &["--from", &selector]);
+    let (_tap_a, local_a) = tap(None, &["--socket-dir", daemon_a.socket_dir.to_str().unwrap()], &[]);
+    let source_lines = |source: &str| {
+        remote
+            .lock()
+            .unwrap()
+            .lines
+            .iter()
+            .filter(|(_, l)| l.starts_with(&format!("{{\"source\":\"stage1/{source}\",")))
+            .count()
+    };
+    assert!(
+        wait_for(Duration::from_secs(30), || source_lines("glove-a") > 500),
+        "no poses of glove-a through the selector: {:?}",
+        remote.lock().unwrap().stderr
+    );
+
+    // Performer B joins the stage while the tap runs.
+    let daemon_b = Daemon::start_on(b, dir_b.path(), &["--source", "in-process"]);
+    let _bridge_b = bridge(b, &daemon_b, "stage1", "glove-b");
+    let (_tap_b, local_b) = tap(None, &["--socket-dir", daemon_b.socket_dir.to_str().unwrap()], &[]);
+    assert!(
+        wait_for(Duration::from_secs(30), || source_lines("glove-b") > 500 && source_lines("glove-a") > 1500),
+        "glove-b ({}) was not followed after it joined; stderr {:?}",
+        source_lines("glove-b"),
+        remote.lock().unwrap().stderr
+    );
+
+    // Each tagged line, without its tag, is the line the performer's host printed for that frame.
+    for (source, local) in [("glove-a", &local_a), ("glove-b", &local_b)] {
+        let tag = format!("{{\"source\":\"stage1/{source}\",");
+        let untagged = Arc::new(Mutex::new(Tapped::default()));
+        untagged.lock().unwrap().lines = remote
+            .lock()
+            .unwrap()
+            .lines
+            .iter()
+            .filter_map(|(t, l)| l.strip_prefix(&tag).map(|rest| (*t, format!("{{{rest}"))))
+            .collect();
+        assert_same_lines(&untagged, local, source);
+        // What it missed (if anything, on a loaded machine), it reported for that source.
+        let stderr = remote.lock().unwrap().stderr.clone();
+        let own: Vec<String> =
+            stderr.iter().filter(|l| l.contains(&format!("stage1/{source}: gap: "))).cloned().collect();
+        assert_eq!(missing(&untagged.lock().unwrap().lines), reported_missing(&own), "{source}: {stderr:?}");
+    }
+    let stderr = remote.lock().unwrap().stderr.join("\n");
+    assert!(
+        stderr.contains("following stage1/glove-a") && stderr.contains("following stage1/glove-b"),
+        "{stderr}"
+    );
+
+    let out = ws.command(bin("frond")).args(["status", "--json", "--from", &selector]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let keys: Vec<&String> = v.as_object().expect("an object of reports").keys().collect();
+    assert_eq!(keys, ["stage1/glove-a", "stage1/glove-b"]);
+    for key in keys {
+        assert_eq!(v[key]["tick_rate_hz"], 1000, "{key}: {}", v[key]);
+    }
+}

@@ -43,6 +43,8 @@ const P99_LIMIT: f64 = 3.0;
 const BRIDGE_PORT: u16 = 7447;
 /// First UDP port of the baseline's receivers.
 const UDP_PORT: u16 = 41_000;
+/// How long the processes of a phase run before it is measured.
+const SETTLE: Duration = Duration::from_secs(1);
 /// How long a process may take to see its first pose.
 const READY_WITHIN: Duration = Duration::from_secs(30);
 
@@ -157,6 +159,9 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
 /// Records on every subscriber for `window` while the host-0 processes `pids` run; their CPU
 /// over the same window.
 fn measure(subs: &mut [Peer], pids: &[u32], window: Duration) -> Result<Phase, String> {
+    // Every subscriber has a pose; Zenoh peers still find one another for a moment (scouting,
+    // gossip). Steady state is what is measured.
+    thread::sleep(SETTLE);
     let cpu = || pids.iter().map(|&p| process_cpu_ns(p)).sum::<Result<u64, String>>();
     let (cpu0, t0) = (cpu()?, Instant::now());
     for s in subs.iter_mut() {
@@ -240,8 +245,9 @@ impl Stage<'_> {
         measure(&mut subs, &pids, self.window)
     }
 
-    /// Zenoh: one `frond-zenoh` per source on host 0, `per_source` SDK subscribers for each.
-    fn zenoh(&mut self, sources: usize, per_source: usize) -> Result<Phase, String> {
+    /// Zenoh: one `frond-zenoh` per source on host 0, `per_source` subscribers for each
+    /// (`frond-bench-peer MODE`: `zenoh-sub`, the SDK, or `zenoh-raw`, Zenoh's callback).
+    fn zenoh(&mut self, sources: usize, per_source: usize, mode: &str) -> Result<Phase, String> {
         self.ensure_daemons(sources)?;
         let zenoh_bin = find_bin(self.o, "frond-zenoh")?;
         let mut bridges = Vec::new();
@@ -270,7 +276,7 @@ impl Stage<'_> {
                     self.o,
                     self.listener(i),
                     "frond-bench-peer",
-                    &["zenoh-sub".into(), address],
+                    &[mode.into(), address],
                 )?);
             }
         }
@@ -332,14 +338,20 @@ pub fn zenoh(o: &Options) -> Result<Section, String> {
     let mut details = serde_json::Map::new();
     for n in SUBSCRIBERS {
         let u = stage.udp(1, n)?;
-        let z = stage.zenoh(1, n)?;
+        let z = stage.zenoh(1, n, "zenoh-sub")?;
         let what = format!("1 source, {n} subscriber{}", if n == 1 { "" } else { "s" });
         measurements.extend(rows(&format!("{n}_subscribers"), &what, &z, &u));
-        details.insert(format!("{n}_subscribers"), json!({ "zenoh": z.json(), "udp": u.json() }));
+        let mut d = json!({ "zenoh": z.json(), "udp": u.json() });
+        if n == 1 {
+            // Where the time goes: the same path read in Zenoh's own callback, without the SDK's
+            // hand-off to the reading thread.
+            d["zenoh_callback"] = stage.zenoh(1, 1, "zenoh-raw")?.json();
+        }
+        details.insert(format!("{n}_subscribers"), d);
     }
     for k in SOURCES.into_iter().filter(|&k| k > 1) {
         let u = stage.udp(k, 1)?;
-        let z = stage.zenoh(k, 1)?;
+        let z = stage.zenoh(k, 1, "zenoh-sub")?;
         let what = format!("{k} sources, one subscriber each");
         measurements.extend(rows(&format!("{k}_sources"), &what, &z, &u));
         details.insert(format!("{k}_sources"), json!({ "zenoh": z.json(), "udp": u.json() }));

@@ -50,6 +50,8 @@ pub enum Command {
         json: bool,
         /// Ask a daemon on another host through its frond-zenoh bridge:
         /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).
+        /// With `*` for the stage or the source, every source it matches, each under its name
+        /// (with --json, an object from `<stage>/<source>` to its report).
         #[arg(long, value_name = "ADDRESS")]
         from: Option<frond_sdk::Source>,
     },
@@ -72,6 +74,8 @@ pub enum Command {
         element: Option<String>,
         /// Read the poses of a daemon on another host through its frond-zenoh bridge:
         /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).
+        /// With `*` for the stage or the source, every source it matches, now and as they join,
+        /// each line tagged with its source ("source":"<stage>/<source>" first in JSON Lines).
         #[arg(long, value_name = "ADDRESS")]
         from: Option<frond_sdk::Source>,
     },

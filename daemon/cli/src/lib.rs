@@ -28,6 +28,7 @@ mod take_tools;
 mod take_usd;
 mod takes;
 mod tap;
+mod tap_stage;
 
 use std::ffi::OsString;
 use std::fmt;

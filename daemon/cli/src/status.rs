@@ -11,6 +11,11 @@ use crate::control::Control;
 const STATUS_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> anyhow::Result<()> {
+    if let Some(frond_sdk::Source::Zenoh(addr)) = from
+        && !addr.is_concrete()
+    {
+        return run_stage(addr, json);
+    }
     let report = match from {
         Some(frond_sdk::Source::Zenoh(addr)) => frond_sdk::zenoh::query_status(addr, STATUS_WAIT)?,
         Some(frond_sdk::Source::Socket(dir)) => Control::connect(dir)?.status()?,
@@ -20,6 +25,30 @@ pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> a
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print!("{}", render(&report));
+    }
+    Ok(())
+}
+
+/// `frond status --from 'zenoh:frond/<stage>/*'`: every source the selector matches. JSON: an
+/// object from each source (`<stage>/<source>`) to its report; readable: each report under a
+/// `== <stage>/<source>` heading.
+fn run_stage(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
+    let reports = frond_sdk::zenoh::query_statuses(addr, STATUS_WAIT)?;
+    let short = |key: &str| key.strip_prefix("frond/").unwrap_or(key).to_owned();
+    if json {
+        let map: serde_json::Map<String, serde_json::Value> = reports
+            .iter()
+            .map(|(k, r)| Ok((short(k), serde_json::to_value(r)?)))
+            .collect::<Result<_, serde_json::Error>>()?;
+        println!("{}", serde_json::to_string_pretty(&map)?);
+    } else {
+        for (i, (key, report)) in reports.iter().enumerate() {
+            if i > 0 {
+                println!();
+            }
+            println!("== {}", short(key));
+            print!("{}", render(report));
+        }
     }
     Ok(())
 }

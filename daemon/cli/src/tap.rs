@@ -24,6 +24,11 @@ pub(crate) fn run(
     element: Option<&str>,
     from: Option<&frond_sdk::Source>,
 ) -> anyhow::Result<()> {
+    if let Some(frond_sdk::Source::Zenoh(addr)) = from
+        && !addr.is_concrete()
+    {
+        return crate::tap_stage::run(addr, jsonl, count, include_held, element);
+    }
     let dir = paths::socket_dir(g.socket_dir.clone());
     let source = from.cloned().unwrap_or_else(|| frond_sdk::Source::Socket(dir.clone()));
     let mut sub = Subscriber::options().subscribe(&source).map_err(|e| match e {

@@ -43,6 +43,8 @@ pub mod zenoh;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_control;
 #[cfg(feature = "zenoh")]
+pub mod zenoh_many;
+#[cfg(feature = "zenoh")]
 pub mod zenoh_stage;
 
 use std::collections::VecDeque;
@@ -276,13 +278,30 @@ impl Subscriber {
     /// [`Event::Reconnected`] its return; a subscription starts at the first pose that reaches it.
     pub fn open(source: &Source, opts: SubscriberOptions) -> Result<Subscriber, SdkError> {
         let (wire, hello) = open_wire(source, &opts, &mut None)?;
+        Ok(Self::from_wire(source, wire, hello, opts))
+    }
+
+    /// [`Subscriber::open`] for a Zenoh source in a session that is already open, so that many
+    /// subscriptions of one process share one session (as [`zenoh_many::StageSubscriber`]'s do):
+    /// `addr`'s endpoints and configuration file are not used, the session's are.
+    #[cfg(feature = "zenoh")]
+    pub fn open_in_session(
+        session: ::zenoh::Session,
+        addr: &ZenohAddr,
+        opts: SubscriberOptions,
+    ) -> Result<Subscriber, SdkError> {
+        let (conn, hello) = zenoh::ZenohConn::open_in(session, addr, &opts)?;
+        Ok(Self::from_wire(&Source::Zenoh(addr.clone()), Wire::Zenoh(Box::new(conn)), hello, opts))
+    }
+
+    fn from_wire(source: &Source, wire: Wire, hello: Hello, opts: SubscriberOptions) -> Subscriber {
         let path = match (&wire, source) {
             #[cfg(feature = "zenoh")]
             (Wire::Zenoh(conn), _) => PathBuf::from(format!("{}{}", source::ZENOH_SCHEME, conn.key())),
             (_, Source::Socket(dir)) => dir.join(frond_protocol::POSES_SOCKET),
             (_, other) => PathBuf::from(other.to_string()),
         };
-        Ok(Subscriber {
+        Subscriber {
             source: source.clone(),
             path,
             expected_seq: hello.next_seq,
@@ -293,7 +312,7 @@ impl Subscriber {
             pending: VecDeque::new(),
             stats: Stats::default(),
             iter_done: false,
-        })
+        }
     }
 
     /// The stage time of the pose most recently read from the wire (the one an [`Event::Pose`]

@@ -20,8 +20,10 @@ pub const MAX_ENDPOINTS: usize = 16;
 ///
 /// - a directory: the daemon's socket directory on this host (`poses.sock` inside it);
 /// - `zenoh:frond/<stage>/<source>`: the streams a `frond-zenoh` bridge publishes, reached over
-///   Zenoh; `*` in place of the stage or the source matches any, as long as exactly one source
-///   answers. `zenoh:` alone is `zenoh:frond/*/*`. Parameters after `?`, joined by `&`, say how
+///   Zenoh; `*` in place of the stage or the source matches any: a [`crate::Subscriber`]
+///   follows one source and refuses a selector that several answer
+///   ([`crate::SdkError::AmbiguousSource`]), a [`crate::zenoh_many::StageSubscriber`] follows
+///   every source it matches (`frond tap`, `frond status`). `zenoh:` alone is `zenoh:frond/*/*`. Parameters after `?`, joined by `&`, say how
 ///   to reach the network, in Zenoh's endpoint syntax: `connect=tcp/10.0.0.1:7447` (repeat it or
 ///   separate endpoints with `,`), `listen=tcp/0.0.0.0:7447`, `config=/etc/frond/zenoh.json5`
 ///   (a Zenoh configuration file: mode, routers, TLS, credentials). Without any, the session is

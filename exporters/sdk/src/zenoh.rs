@@ -172,6 +172,16 @@ impl ZenohConn {
             |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
         let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
         let session = open_session(cfg).map_err(setup)?;
+        Self::open_in(session, addr, opts)
+    }
+
+    /// [`ZenohConn::open`] in a session that is already open (shared with other subscriptions;
+    /// `addr`'s endpoints and configuration file are not used).
+    pub(crate) fn open_in(
+        session: ::zenoh::Session,
+        addr: &ZenohAddr,
+        opts: &SubscriberOptions,
+    ) -> Result<(ZenohConn, Hello), SdkError> {
         let key = resolve(&session, addr, opts.hello_timeout)?;
         let (frame_tx, frames) = bounded(FRAME_QUEUE);
         let (alive_tx, alive) = bounded(64);
@@ -412,6 +422,21 @@ fn resolve(session: &::zenoh::Session, addr: &ZenohAddr, timeout: Duration) -> R
 
 /// Asks the bridge of `addr` (one source) for its daemon's latest status report.
 pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protocol::StatusReport, SdkError> {
+    let mut found = query_statuses(addr, timeout)?;
+    if found.len() > 1 {
+        let matches = found.into_iter().map(|(k, _)| k).collect();
+        return Err(SdkError::AmbiguousSource { selector: addr.key.clone(), matches });
+    }
+    Ok(found.pop().expect("query_statuses returns at least one").1)
+}
+
+/// Asks every bridge `addr`'s key matches (`frond/stage1/*`: every source of stage1) for its
+/// daemon's latest status report; waits up to `timeout` for the first answer. The reports
+/// with their sources' keys (`frond/<stage>/<source>`), sorted by key, at least one.
+pub fn query_statuses(
+    addr: &ZenohAddr,
+    timeout: Duration,
+) -> Result<Vec<(String, frond_protocol::StatusReport)>, SdkError> {
     let setup = |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
     let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
     let session = open_session(cfg).map_err(setup)?;
@@ -428,7 +453,12 @@ pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protoco
             let bad = |error: ProtocolError| SdkError::Protocol { path: key.clone().into(), error };
             match decode_frame::<frond_protocol::ControlReply>(&bytes).map_err(|e| bad(e.into()))? {
                 Some((frond_protocol::ControlReply::Status(report), used)) if used == bytes.len() => {
-                    found.push((key, *report));
+                    let source = key.trim_end_matches("/status").to_owned();
+                    if !found.iter().any(|(k, _)| *k == source)
+                        && found.len() < crate::zenoh_stage::MAX_STAGE_SOURCES
+                    {
+                        found.push((source, *report));
+                    }
                 }
                 _ => {
                     return Err(bad(ProtocolError::Frame(frond_protocol::DecodeError::Malformed(
@@ -437,17 +467,14 @@ pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protoco
                 }
             }
         }
-        match found.len() {
-            1 => return Ok(found.pop().expect("one").1),
-            0 if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(50)),
-            0 => return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout }),
-            _ => {
-                let mut matches: Vec<String> =
-                    found.into_iter().map(|(k, _)| k.trim_end_matches("/status").to_owned()).collect();
-                matches.sort();
-                return Err(SdkError::AmbiguousSource { selector: addr.key.clone(), matches });
-            }
+        if !found.is_empty() {
+            found.sort_by(|a, b| a.0.cmp(&b.0));
+            return Ok(found);
         }
+        if Instant::now() >= deadline {
+            return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout });
+        }
+        std::thread::sleep(Duration::from_millis(50));
     }
 }
 

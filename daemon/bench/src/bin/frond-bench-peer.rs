@@ -5,6 +5,8 @@
 //! Usage:
 //! - `frond-bench-peer zenoh-sub ADDRESS`: subscribes to `ADDRESS` (`zenoh:frond/<stage>/<source>?connect=...`)
 //!   with `frond_sdk`, exactly as an exporter on another host does;
+//! - `frond-bench-peer zenoh-raw ADDRESS`: a bare Zenoh subscriber on the source's `poses` key,
+//!   recording in Zenoh's callback (a diagnostic: the pose's cost up to Zenoh's receive thread);
 //! - `frond-bench-peer udp-sub BIND`: receives poses as plain UDP datagrams on `BIND`, one
 //!   socket-protocol frame a datagram (the baseline);
 //! - `frond-bench-peer udp-forward SOCKET_DIR ADDR [ADDR ...]`: reads the daemon's pose stream
@@ -133,6 +135,47 @@ fn zenoh_sub(address: &str) -> Result<(), String> {
     }
 }
 
+/// A bare Zenoh subscriber on the source's `poses` key that records each sample in Zenoh's own
+/// callback: what the pose costs up to Zenoh's receive thread, without the SDK's hand-off to the
+/// reading thread (a diagnostic beside [`zenoh_sub`]).
+fn zenoh_raw(address: &str) -> Result<(), String> {
+    use frond_sdk::zenoh::{config, keys, open_session};
+    use zenoh::Wait;
+    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
+        return Err(format!("{address}: not a zenoh: address"));
+    };
+    let cfg =
+        config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(|e| e.to_string())?;
+    let session = open_session(cfg).map_err(|e| e.to_string())?;
+    let recorder = Arc::new(Recorder::default());
+    let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<()>(1);
+    let rec = recorder.clone();
+    // Zenoh calls back from one receive task per link; the expected sequence number is shared.
+    let next_seq = std::sync::atomic::AtomicU64::new(u64::MAX);
+    let _sub = session
+        .declare_subscriber(keys::under(&addr.key, keys::POSES))
+        .callback(move |sample| {
+            let now = monotonic_ns();
+            let bytes = sample.payload().to_bytes();
+            if let Ok(Some((ServerMessage::Pose(p), _))) = decode_frame::<ServerMessage>(&bytes) {
+                let expected = next_seq.swap(p.seq + 1, Relaxed);
+                if expected != u64::MAX && p.seq > expected {
+                    rec.gap(p.seq - expected);
+                }
+                rec.pose(&p, now);
+                let _ = ready_tx.try_send(());
+            }
+        })
+        .wait()
+        .map_err(|e| e.to_string())?;
+    ready_rx.recv().map_err(|e| e.to_string())?;
+    recorder.serve_stdin();
+    say("ready");
+    loop {
+        std::thread::park();
+    }
+}
+
 fn udp_sub(bind: &str) -> Result<(), String> {
     let socket = UdpSocket::bind(bind).map_err(|e| format!("{bind}: {e}"))?;
     let recorder = Arc::new(Recorder::default());
@@ -186,11 +229,12 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
         ["zenoh-sub", address] => zenoh_sub(address),
+        ["zenoh-raw", address] => zenoh_raw(address),
         ["udp-sub", bind] => udp_sub(bind),
         ["udp-forward", dir, to @ ..] if !to.is_empty() => udp_forward(dir, &args[2..]),
         _ => {
             eprintln!(
-                "usage: frond-bench-peer zenoh-sub ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...]"
+                "usage: frond-bench-peer zenoh-sub ADDRESS | zenoh-raw ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...]"
             );
             return ExitCode::from(2);
         }

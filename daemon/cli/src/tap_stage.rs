@@ -1,0 +1,171 @@
+//! `frond tap --from 'zenoh:frond/<stage>/*'`: every source a selector matches, in one stream
+//! (issue 20, "a selector over several sources"). Each line is what `frond tap` prints for one
+//! source, tagged with the source (`<stage>/<source>`): a `"source"` key first in JSON Lines, a
+//! `stage1/glove-a: ` prefix in readable lines. Sources whose bridges join later are followed
+//! from when they join; gaps, disconnects and reconnects are reported per source on stderr.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use frond_protocol::{ElementTable, PoseFlags};
+use frond_sdk::zenoh_many::{StageEvent, StageSubscriber};
+use frond_sdk::{Event, Subscriber, ZenohAddr};
+
+use crate::tap::{pose_human, pose_jsonl};
+
+/// How long to wait for the first source before saying none answers.
+const FIRST_SOURCE_WAIT: Duration = Duration::from_secs(10);
+
+/// What is known of one followed source.
+struct Followed {
+    names: Vec<String>,
+    table: ElementTable,
+    /// `--element` resolved in this source's table (`None`: every element).
+    only: Option<u16>,
+}
+
+/// The element id `want` (an id, or a name in `table`) stands for; `Err` names the known ones.
+fn pick(want: Option<&str>, table: &ElementTable) -> Result<Option<u16>, String> {
+    let Some(want) = want else { return Ok(None) };
+    if let Ok(id) = want.parse::<u16>() {
+        return Ok(Some(id));
+    }
+    table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| {
+        let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
+        format!("no element {want:?} (announced: {})", known.join(", "))
+    })
+}
+
+/// `{"source":"<source>",` in place of the line's opening `{`.
+fn tag_jsonl(source: &str, line: &mut String, start: usize) {
+    let tag = format!("{{\"source\":{},", serde_json::Value::String(source.to_owned()));
+    line.replace_range(start..start + 1, &tag);
+}
+
+pub(crate) fn run(
+    addr: &ZenohAddr,
+    jsonl: bool,
+    count: Option<u64>,
+    include_held: bool,
+    element: Option<&str>,
+) -> anyhow::Result<()> {
+    if count == Some(0) {
+        return Ok(());
+    }
+    let stage = StageSubscriber::open(addr, Subscriber::options())?;
+    let mut followed: HashMap<String, Followed> = HashMap::new();
+    let started = Instant::now();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let mut line = String::with_capacity(256);
+    let mut printed = 0u64;
+    loop {
+        let wait = if followed.is_empty() && printed == 0 {
+            let left = FIRST_SOURCE_WAIT.saturating_sub(started.elapsed());
+            if left.is_zero() {
+                anyhow::bail!("no frond-zenoh bridge answers {} within {FIRST_SOURCE_WAIT:?}", addr);
+            }
+            Some(left)
+        } else {
+            None
+        };
+        let Some(ev) = stage.next_event(wait)? else { continue };
+        match ev {
+            StageEvent::Joined { source, hello } => {
+                let only = pick(element, &hello.elements).unwrap_or_else(|why| {
+                    eprintln!("frond tap: {source}: --element: {why}; its poses are left out");
+                    Some(u16::MAX)
+                });
+                eprintln!(
+                    "frond tap: following {source} (daemon {}, rig {})",
+                    hello.daemon_version, hello.rig_name
+                );
+                followed.insert(source, Followed { names: hello.joint_names, table: hello.elements, only });
+            }
+            StageEvent::Lost { source, error } => {
+                eprintln!("frond tap: {source}: {error}; followed again when its bridge comes back");
+                followed.remove(&source);
+            }
+            StageEvent::Event { source, event } => {
+                let Some(f) = followed.get_mut(&source) else { continue };
+                match event {
+                    Event::Pose(pose) => {
+                        if (pose.flags.contains(PoseFlags::HELD) && !include_held)
+                            || f.only.is_some_and(|id| id != pose.element)
+                        {
+                            continue;
+                        }
+                        line.clear();
+                        if jsonl {
+                            pose_jsonl(&pose, &mut line);
+                            tag_jsonl(&source, &mut line, 0);
+                        } else {
+                            let _ = write!(line, "{source}: ");
+                            if pose.element != 0 {
+                                let name = f.table.get(pose.element).map_or("?", |e| e.name.as_str());
+                                let _ = write!(line, "[{name}] ");
+                            }
+                            pose_human(&pose, &f.names, &mut line);
+                        }
+                        line.push('\n');
+                        out.write_all(line.as_bytes())?;
+                        out.flush()?;
+                        printed += 1;
+                        if count.is_some_and(|n| printed >= n) {
+                            return Ok(());
+                        }
+                    }
+                    Event::Gap { expected, got } => eprintln!(
+                        "frond tap: {source}: gap: {} frames missing (seq {expected}..{})",
+                        got - expected,
+                        got - 1
+                    ),
+                    Event::RigChanged(h) => {
+                        eprintln!("frond tap: {source}: rig changed to {}", h.rig_name);
+                        f.names = h.joint_names;
+                    }
+                    Event::Reconnected(h) => {
+                        eprintln!(
+                            "frond tap: {source}: reconnected (daemon {}, rig {})",
+                            h.daemon_version, h.rig_name
+                        );
+                        f.names = h.joint_names;
+                    }
+                    Event::Elements(table) => {
+                        if element.is_some_and(|e| e.parse::<u16>().is_err()) {
+                            f.only = pick(element, &table).unwrap_or(Some(u16::MAX));
+                        }
+                        f.table = table;
+                    }
+                    Event::Disconnected => {
+                        eprintln!("frond tap: {source}: the daemon closed the stream; reconnecting")
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tagged_line_is_the_pose_line_with_its_source_first() {
+        let mut s = String::from(r#"{"seq":42,"t":1.5,"joints":[]}"#);
+        tag_jsonl("stage1/glove-a", &mut s, 0);
+        assert_eq!(s, r#"{"source":"stage1/glove-a","seq":42,"t":1.5,"joints":[]}"#);
+        let v: serde_json::Value = serde_json::from_str(&s).unwrap();
+        assert_eq!(v["source"], "stage1/glove-a");
+    }
+
+    #[test]
+    fn elements_are_picked_by_id_or_by_name() {
+        let table = ElementTable::default();
+        assert_eq!(pick(None, &table), Ok(None));
+        assert_eq!(pick(Some("3"), &table), Ok(Some(3)));
+        assert!(pick(Some("leaf"), &table).unwrap_err().contains("no element \"leaf\""));
+    }
+}
