@@ -43,7 +43,7 @@ struct Args {
     /// The daemon's socket directory.
     #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
     socket_dir: Option<PathBuf>,
-    /// Print the bridge's counters to stderr every second and at exit.
+    /// Print the bridge's counters to stderr every second (they are printed once at exit anyway).
     #[arg(long)]
     stats: bool,
     /// Log filter (error, warn, info, debug, trace).
