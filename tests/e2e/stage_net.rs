@@ -25,7 +25,13 @@ pub(crate) fn lan(hosts: usize) -> Option<Lan> {
 }
 
 fn bridge(host: &Host, daemon: &Daemon, stage: &str, source: &str) -> Proc {
-    start_zenoh_bridge(host.command(bin("frond-zenoh")), daemon, stage, source, &host.endpoint(PORT))
+    start_zenoh_bridge(
+        host.command(bin("frond-zenoh")),
+        daemon,
+        stage,
+        source,
+        &["--listen", &host.endpoint(PORT)],
+    )
 }
 
 /// The lines a process prints on stdout, each with the time it arrived, and its stderr.
@@ -409,7 +415,8 @@ fn a_remote_recorder_puts_two_performers_on_one_timeline_despite_a_clock_offset(
     let _bridge_a = bridge(a, &daemon_a, "stage1", "glove-a");
     let mut skewed = b.command(bin("frond-zenoh"));
     skewed.env("FROND_TEST_CLOCK_OFFSET_NS", OFFSET_NS.to_string());
-    let _bridge_b = start_zenoh_bridge(skewed, &daemon_b, "stage1", "glove-b", &b.endpoint(PORT));
+    let _bridge_b =
+        start_zenoh_bridge(skewed, &daemon_b, "stage1", "glove-b", &["--listen", &b.endpoint(PORT)]);
     // Both bridges up before the recording starts (it records whoever is on the stage).
     for (host, source) in [(a, "glove-a"), (b, "glove-b")] {
         let from = format!("zenoh:frond/stage1/{source}?connect={}", host.endpoint(PORT));

@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_e2e::netns::Host;
-use frond_e2e::{Daemon, Proc, bin, wait_for};
+use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 
 use crate::stage_net::{PORT, Tapped, assert_same_lines, collect, lan, lines, tap};
 
@@ -56,21 +56,10 @@ fn a_stage_through_the_documented_router_survives_the_router_going_and_coming_ba
 
     let dir = tempfile::tempdir().unwrap();
     let daemon = Daemon::start_on(performer, dir.path(), &["--source", "in-process"]);
-    let mut bridge = Proc {
-        child: performer
-            .command(bin("frond-zenoh"))
-            .args(["--stage", "stage1", "--source", "glove-a", "--connect", &router])
-            .arg("--zenoh-config")
-            .arg(&client)
-            .arg("--socket-dir")
-            .arg(&daemon.socket_dir)
-            .args(["--log-level", "warn"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start frond-zenoh"),
-        name: "frond-zenoh".into(),
-    };
+    let client_file = client.to_str().unwrap();
+    let network = ["--connect", router.as_str(), "--zenoh-config", client_file];
+    let mut bridge =
+        start_zenoh_bridge(performer.command(bin("frond-zenoh")), &daemon, "stage1", "glove-a", &network);
     let from = format!("zenoh:frond/stage1/glove-a?connect={router}&config={}", client.display());
     let (_local_tap, local) = tap(None, &["--socket-dir", daemon.socket_dir.to_str().unwrap()], &[]);
     let (mut remote_tap, remote) = tap(Some(ws), &[], &["--from", &from]);

@@ -19,7 +19,7 @@ fn start_bridge(daemon: &Daemon, stage: &str, port: u16) -> Proc {
         daemon,
         stage,
         "glove-a",
-        &format!("tcp/127.0.0.1:{port}"),
+        &["--listen", &format!("tcp/127.0.0.1:{port}")],
     )
 }
 

@@ -82,16 +82,18 @@ impl Drop for Proc {
 }
 
 /// Starts a `frond-zenoh` bridge (`cmd` runs `bin("frond-zenoh")`, here or on a namespace's
-/// host) beside `daemon`, publishing it as `frond/<stage>/<source>` and listening on `listen`.
+/// host) beside `daemon`, publishing it as `frond/<stage>/<source>`; `network` says how it
+/// reaches the others (`["--listen", "tcp/ADDR:PORT"]`, `["--connect", .., "--zenoh-config", ..]`).
 pub fn start_zenoh_bridge(
     mut cmd: Command,
     daemon: &Daemon,
     stage: &str,
     source: &str,
-    listen: &str,
+    network: &[&str],
 ) -> Proc {
     let child = cmd
-        .args(["--stage", stage, "--source", source, "--listen", listen])
+        .args(["--stage", stage, "--source", source])
+        .args(network)
         .arg("--socket-dir")
         .arg(&daemon.socket_dir)
         .args(["--log-level", "warn"])

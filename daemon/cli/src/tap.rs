@@ -55,10 +55,7 @@ pub(crate) fn run(
     };
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    let mut line = String::with_capacity(256);
-    let mut printed = 0u64;
+    let mut printer = Printer::new(jsonl, count);
     if count == Some(0) {
         return Ok(());
     }
@@ -70,21 +67,7 @@ pub(crate) fn run(
                 {
                     continue;
                 }
-                line.clear();
-                if jsonl {
-                    pose_jsonl(&pose, &mut line);
-                } else {
-                    if pose.element != 0 {
-                        let name = table.get(pose.element).map_or("?", |e| e.name.as_str());
-                        let _ = write!(line, "[{name}] ");
-                    }
-                    pose_human(&pose, &names, &mut line);
-                }
-                line.push('\n');
-                out.write_all(line.as_bytes())?;
-                out.flush()?;
-                printed += 1;
-                if count.is_some_and(|n| printed >= n) {
+                if printer.print(&pose, &names, &table, None)? {
                     return Ok(());
                 }
             }
@@ -110,6 +93,56 @@ pub(crate) fn run(
             }
             Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
         }
+    }
+}
+
+/// Prints `frond tap`'s lines, one flushed write each, and counts them against `--count`.
+pub(crate) struct Printer {
+    out: std::io::StdoutLock<'static>,
+    line: String,
+    jsonl: bool,
+    printed: u64,
+    count: Option<u64>,
+}
+
+impl Printer {
+    pub(crate) fn new(jsonl: bool, count: Option<u64>) -> Printer {
+        Printer { out: std::io::stdout().lock(), line: String::with_capacity(256), jsonl, printed: 0, count }
+    }
+
+    /// Prints `pose`'s line: JSON Lines, or readable with `[element]` for any element but the
+    /// global one and the joints' `names`. `source` tags it: `"source"` first in JSON Lines, a
+    /// `source: ` prefix otherwise. True once `--count` lines are printed.
+    pub(crate) fn print(
+        &mut self,
+        pose: &Pose,
+        names: &[String],
+        table: &frond_protocol::ElementTable,
+        source: Option<&str>,
+    ) -> std::io::Result<bool> {
+        let line = &mut self.line;
+        line.clear();
+        if self.jsonl {
+            pose_jsonl(pose, line);
+            if let Some(source) = source {
+                let tag = format!("{{\"source\":{},", serde_json::Value::String(source.to_owned()));
+                line.replace_range(0..1, &tag);
+            }
+        } else {
+            if let Some(source) = source {
+                let _ = write!(line, "{source}: ");
+            }
+            if pose.element != 0 {
+                let name = table.get(pose.element).map_or("?", |e| e.name.as_str());
+                let _ = write!(line, "[{name}] ");
+            }
+            pose_human(pose, names, line);
+        }
+        line.push('\n');
+        self.out.write_all(line.as_bytes())?;
+        self.out.flush()?;
+        self.printed += 1;
+        Ok(self.count.is_some_and(|n| self.printed >= n))
     }
 }
 
@@ -196,6 +229,17 @@ mod tests {
             s,
             r#"{"seq":42,"t":1.5,"joints":[[1.5,-2.0,0.0],[0.1,0.0,0.0],[0.0,0.0,0.0],[0.0,0.0,-3.25]]}"#
         );
+    }
+
+    #[test]
+    fn a_tagged_jsonl_line_is_the_pose_line_with_its_source_first() {
+        let mut printer = Printer::new(true, Some(1));
+        printer.print(&pose(PoseFlags::default()), &[], &Default::default(), Some("stage1/glove-a")).unwrap();
+        let mut plain = String::new();
+        pose_jsonl(&pose(PoseFlags::default()), &mut plain);
+        assert_eq!(printer.line.trim_end(), format!("{{\"source\":\"stage1/glove-a\",{}", &plain[1..]));
+        let v: serde_json::Value = serde_json::from_str(&printer.line).unwrap();
+        assert_eq!(v["source"], "stage1/glove-a");
     }
 
     #[test]

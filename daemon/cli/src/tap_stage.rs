@@ -5,15 +5,13 @@
 //! from when they join; gaps, disconnects and reconnects are reported per source on stderr.
 
 use std::collections::HashMap;
-use std::fmt::Write as _;
-use std::io::Write;
 use std::time::{Duration, Instant};
 
 use frond_protocol::{ElementTable, PoseFlags};
 use frond_sdk::zenoh_many::{StageEvent, StageSubscriber};
 use frond_sdk::{Event, Subscriber, ZenohAddr};
 
-use crate::tap::{pose_human, pose_jsonl};
+use crate::tap::Printer;
 
 /// How long to wait for the first source before saying none answers.
 const FIRST_SOURCE_WAIT: Duration = Duration::from_secs(10);
@@ -38,12 +36,6 @@ fn pick(want: Option<&str>, table: &ElementTable) -> Result<Option<u16>, String>
     })
 }
 
-/// `{"source":"<source>",` in place of the line's opening `{`.
-fn tag_jsonl(source: &str, line: &mut String, start: usize) {
-    let tag = format!("{{\"source\":{},", serde_json::Value::String(source.to_owned()));
-    line.replace_range(start..start + 1, &tag);
-}
-
 pub(crate) fn run(
     addr: &ZenohAddr,
     jsonl: bool,
@@ -57,12 +49,10 @@ pub(crate) fn run(
     let stage = StageSubscriber::open(addr, Subscriber::options())?;
     let mut followed: HashMap<String, Followed> = HashMap::new();
     let started = Instant::now();
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    let mut line = String::with_capacity(256);
-    let mut printed = 0u64;
+    let mut printer = Printer::new(jsonl, count);
+    let mut printed = false;
     loop {
-        let wait = if followed.is_empty() && printed == 0 {
+        let wait = if followed.is_empty() && !printed {
             let left = FIRST_SOURCE_WAIT.saturating_sub(started.elapsed());
             if left.is_zero() {
                 anyhow::bail!("no frond-zenoh bridge answers {} within {FIRST_SOURCE_WAIT:?}", addr);
@@ -97,25 +87,10 @@ pub(crate) fn run(
                         {
                             continue;
                         }
-                        line.clear();
-                        if jsonl {
-                            pose_jsonl(&pose, &mut line);
-                            tag_jsonl(&source, &mut line, 0);
-                        } else {
-                            let _ = write!(line, "{source}: ");
-                            if pose.element != 0 {
-                                let name = f.table.get(pose.element).map_or("?", |e| e.name.as_str());
-                                let _ = write!(line, "[{name}] ");
-                            }
-                            pose_human(&pose, &f.names, &mut line);
-                        }
-                        line.push('\n');
-                        out.write_all(line.as_bytes())?;
-                        out.flush()?;
-                        printed += 1;
-                        if count.is_some_and(|n| printed >= n) {
+                        if printer.print(&pose, &f.names, &f.table, Some(&source))? {
                             return Ok(());
                         }
+                        printed = true;
                     }
                     Event::Gap { expected, got } => eprintln!(
                         "frond tap: {source}: gap: {} frames missing (seq {expected}..{})",
@@ -151,15 +126,6 @@ pub(crate) fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_tagged_line_is_the_pose_line_with_its_source_first() {
-        let mut s = String::from(r#"{"seq":42,"t":1.5,"joints":[]}"#);
-        tag_jsonl("stage1/glove-a", &mut s, 0);
-        assert_eq!(s, r#"{"source":"stage1/glove-a","seq":42,"t":1.5,"joints":[]}"#);
-        let v: serde_json::Value = serde_json::from_str(&s).unwrap();
-        assert_eq!(v["source"], "stage1/glove-a");
-    }
 
     #[test]
     fn elements_are_picked_by_id_or_by_name() {
