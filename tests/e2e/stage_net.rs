@@ -429,10 +429,17 @@ fn a_remote_recorder_puts_two_performers_on_one_timeline_despite_a_clock_offset(
     }
 
     let takes_dir = takes.path().to_str().unwrap();
+    // The recorder's host also listens (a peer others may connect to), from a Zenoh configuration
+    // file: every source's subscription shares one session, so the port is bound once.
+    let zenoh_config = takes.path().join("recorder.json5");
+    std::fs::write(&zenoh_config, r#"{ mode: "peer", listen: { endpoints: ["tcp/0.0.0.0:7450"] } }"#)
+        .unwrap();
     let out = recorder
         .command(bin("frond"))
         .args(["--takes-dir", takes_dir, "record", "start", "take1", "--stage", "stage1"])
         .args(["--connect", &a.endpoint(PORT), "--connect", &b.endpoint(PORT), "--for", "4"])
+        .arg("--zenoh-config")
+        .arg(&zenoh_config)
         .output()
         .unwrap();
     let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

@@ -29,7 +29,7 @@ use frond_recorder::{
 };
 use frond_sdk::stage_time::ClockOffset;
 use frond_sdk::zenoh_stage::Stage;
-use frond_sdk::{Event, SdkError, Source, Subscriber, ZenohAddr};
+use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
 
 use crate::args::Global;
 use crate::control::check_take_name;
@@ -137,8 +137,15 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
                 offset.offset_ns as f64 / 1e6,
                 offset.rtt_ns as f64 / 2e6
             );
-            let job =
-                SourceJob { stage: a.stage.to_owned(), source: source.clone(), addr, take, path, offset };
+            let job = SourceJob {
+                stage: a.stage.to_owned(),
+                source: source.clone(),
+                addr,
+                session: stage.session().clone(),
+                take,
+                path,
+                offset,
+            };
             let stop = stop.clone();
             let handle = std::thread::Builder::new()
                 .name(format!("record-{source}"))
@@ -194,6 +201,8 @@ struct SourceJob {
     stage: String,
     source: String,
     addr: ZenohAddr,
+    /// The stage's one session, shared by every source's subscription.
+    session: frond_sdk::zenoh::Session,
     take: String,
     path: PathBuf,
     offset: ClockOffset,
@@ -201,12 +210,15 @@ struct SourceJob {
 
 impl SourceJob {
     fn record(self, stop: &AtomicBool) -> anyhow::Result<Finished> {
-        let mut sub = Subscriber::options()
+        let opts = Subscriber::options()
             .give_up_after(None)
             .hello_timeout(SOURCE_TIMEOUT)
-            .read_timeout(Some(Duration::from_millis(200)))
-            .subscribe(&Source::Zenoh(self.addr.clone()))?;
-        let status = frond_sdk::zenoh::query_status(&self.addr, Duration::from_secs(2)).ok();
+            .read_timeout(Some(Duration::from_millis(200)));
+        let mut sub = Subscriber::open_in_session(self.session.clone(), &self.addr, opts)?;
+        let status = frond_sdk::zenoh::query_statuses_in(&self.session, &self.addr, Duration::from_secs(2))
+            .ok()
+            .and_then(|mut found| found.pop())
+            .map(|(_, report)| report);
         // The first pose with a stage time fixes the take's clock.
         let (pose, stage_ns) = loop {
             if stop.load(Ordering::SeqCst) {

@@ -32,6 +32,9 @@ use crate::error::{ProtocolError, SdkError};
 use crate::source::ZenohAddr;
 use crate::{SubscriberOptions, check_hello};
 
+/// Zenoh's session, as the functions here take it (the SDK's Zenoh version).
+pub use ::zenoh::Session;
+
 /// Key expressions below a source's key.
 pub mod keys {
     /// Every pose.
@@ -440,6 +443,16 @@ pub fn query_statuses(
     let setup = |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
     let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
     let session = open_session(cfg).map_err(setup)?;
+    query_statuses_in(&session, addr, timeout)
+}
+
+/// [`query_statuses`] in a session that is already open (`addr`'s endpoints and configuration
+/// file are not used).
+pub fn query_statuses_in(
+    session: &::zenoh::Session,
+    addr: &ZenohAddr,
+    timeout: Duration,
+) -> Result<Vec<(String, frond_protocol::StatusReport)>, SdkError> {
     let deadline = Instant::now() + timeout;
     let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
     loop {

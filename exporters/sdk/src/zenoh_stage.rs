@@ -48,6 +48,13 @@ impl Stage {
         &self.stage
     }
 
+    /// The stage's session, for the subscriptions and queries of its sources
+    /// ([`crate::Subscriber::open_in_session`], [`crate::zenoh::query_statuses_in`]): one
+    /// process, one session, so a configuration file that listens binds its port once.
+    pub fn session(&self) -> &::zenoh::Session {
+        &self.session
+    }
+
     fn zerr(&self, e: ::zenoh::Error) -> SdkError {
         SdkError::Zenoh { source_key: format!("{KEY_ROOT}/{}", self.stage), reason: e.to_string() }
     }
