@@ -171,10 +171,13 @@ fn two_performers_one_workstation_and_a_link_that_goes_down_and_up() {
         .count();
     assert!(checked > 50, "only {checked} OSC frames matched the daemon's host");
 
-    // Performer B's host drops off the network for 4 s, then comes back.
+    // Performer B's host drops off the network for 4 s, then comes back. Meanwhile its daemon
+    // changes rig: the new element table and hello are published while nobody can hear them.
     let cut = Instant::now();
     b.set_link(false);
-    std::thread::sleep(Duration::from_secs(4));
+    std::thread::sleep(Duration::from_millis(500));
+    daemon_b.frond_ok(&["rig", "set", "flower"]);
+    std::thread::sleep(Duration::from_millis(3500));
     let restored = Instant::now();
     b.set_link(true);
 
@@ -221,6 +224,18 @@ fn two_performers_one_workstation_and_a_link_that_goes_down_and_up() {
         t.stderr
     );
     drop(t);
+    // The subscriber asked again for the table after the gap, and so learnt of the rig change it
+    // missed (the link came back within Zenoh's lease: no rejoin, no new hello on its own).
+    assert!(
+        wait_for(Duration::from_secs(10), || remote_b
+            .lock()
+            .unwrap()
+            .stderr
+            .iter()
+            .any(|l| l.contains("rig changed to flower"))),
+        "the workstation never learnt of performer B's rig change: {:?}",
+        remote_b.lock().unwrap().stderr
+    );
     // The OSC receiver gets frames again too.
     assert!(!receive_osc_poses(&receiver, 50).is_empty());
 }

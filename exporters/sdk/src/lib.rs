@@ -455,6 +455,11 @@ impl Subscriber {
         if pose.seq > expected {
             self.stats.gaps += 1;
             self.stats.missing += pose.seq - expected;
+            // Over Zenoh, an element table published during the loss may be lost with it.
+            #[cfg(feature = "zenoh")]
+            if let State::Connected(Wire::Zenoh(conn)) = &self.state {
+                conn.refresh_elements();
+            }
             self.pending.push_back(Event::Pose(pose));
             return Ok(Event::Gap { expected, got: pose.seq });
         }

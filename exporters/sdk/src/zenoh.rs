@@ -144,6 +144,8 @@ struct Frame {
     bytes: Vec<u8>,
     /// The sample's stage time (its attachment), for poses a bridge stamped.
     stage_ns: Option<u64>,
+    /// An answer to [`ZenohConn::refresh_elements`]: passed on only if the table changed.
+    refresh: bool,
 }
 
 /// A subscription to one source over Zenoh. Survives its bridge going away: the session stays
@@ -155,6 +157,10 @@ pub(crate) struct ZenohConn {
     _frames_sub: ::zenoh::pubsub::Subscriber<()>,
     _alive_sub: ::zenoh::pubsub::Subscriber<()>,
     frames: Receiver<Frame>,
+    /// Where answers to [`ZenohConn::refresh_elements`] join the frames.
+    refresh_tx: Sender<Frame>,
+    /// The element table last passed on (from the hello or an `elements` sample).
+    table: Option<frond_protocol::ElementTable>,
     alive: Receiver<bool>,
     /// Poses dropped because the queue was full.
     overflow: Arc<AtomicU64>,
@@ -190,6 +196,7 @@ impl ZenohConn {
         let (alive_tx, alive) = bounded(64);
         let overflow = Arc::new(AtomicU64::new(0));
         let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: key.clone(), reason: e.to_string() };
+        let refresh_tx = frame_tx.clone();
         let frames_sub = {
             let overflow = overflow.clone();
             let tx: Sender<Frame> = frame_tx;
@@ -202,7 +209,8 @@ impl ZenohConn {
                     }
                     let stage_ns =
                         sample.attachment().and_then(|a| crate::stage_time::decode_attachment(&a.to_bytes()));
-                    let frame = Frame { bytes: sample.payload().to_bytes().into_owned(), stage_ns };
+                    let frame =
+                        Frame { bytes: sample.payload().to_bytes().into_owned(), stage_ns, refresh: false };
                     if tx.try_send(frame).is_err() {
                         overflow.fetch_add(1, Ordering::Relaxed);
                     }
@@ -226,6 +234,8 @@ impl ZenohConn {
             _frames_sub: frames_sub,
             _alive_sub: alive_sub,
             frames,
+            refresh_tx,
+            table: None,
             alive,
             overflow,
             floor: 0,
@@ -286,7 +296,35 @@ impl ZenohConn {
             hello.next_seq = first.seq;
             self.floor = first.seq;
         }
+        self.table = Some(hello.elements.clone());
         Ok(hello)
+    }
+
+    /// Asks the bridge for its element table again, without waiting: the answer joins the
+    /// frames and is passed on only if it differs from the table last passed on. Called after a
+    /// gap: `elements` samples are dropped like poses when the path is congested, and a table
+    /// that changed during the loss would otherwise stay unknown until the next rejoin.
+    pub(crate) fn refresh_elements(&self) {
+        let tx = self.refresh_tx.clone();
+        let overflow = self.overflow.clone();
+        // A query that cannot be sent now is asked again at the next gap.
+        let _ = self
+            .session
+            .get(keys::under(&self.key, keys::ELEMENTS))
+            .timeout(Duration::from_secs(2))
+            .callback(move |reply| {
+                if let Ok(sample) = reply.result() {
+                    let frame = Frame {
+                        bytes: sample.payload().to_bytes().into_owned(),
+                        stage_ns: None,
+                        refresh: true,
+                    };
+                    if tx.try_send(frame).is_err() {
+                        overflow.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            })
+            .wait();
     }
 
     fn no_bridge(&self, waited: Duration) -> SdkError {
@@ -337,6 +375,17 @@ impl ZenohConn {
                 Ok(msg @ ServerMessage::Pose(_)) => {
                     self.stage_ns = frame.stage_ns;
                     return ReadOutcome::Message(msg);
+                }
+                Ok(ServerMessage::Elements(table)) => {
+                    if frame.refresh && self.table.as_ref() == Some(&table) {
+                        continue;
+                    }
+                    self.table = Some(table.clone());
+                    return ReadOutcome::Message(ServerMessage::Elements(table));
+                }
+                Ok(ServerMessage::Hello(hello)) => {
+                    self.table = Some(hello.elements.clone());
+                    return ReadOutcome::Message(ServerMessage::Hello(hello));
                 }
                 Ok(msg) => return ReadOutcome::Message(msg),
                 Err(error) => {
