@@ -365,8 +365,8 @@ pub enum TakeCommand {
         /// R = R_yaw R_pitch R_roll), at --fps (default 30).
         #[arg(long, requires = "output", group = "file_format")]
         bvh: bool,
-        /// USD (UsdSkel) text layer into -o FILE.usda: the rig's skinned mesh, skeleton and the
-        /// take's animation, Y up, metres, time codes at --fps (default 30).
+        /// USD (UsdSkel) layer into -o FILE.usda (text) or FILE.usdc (binary): the rig's skinned
+        /// mesh, skeleton and the take's animation, Y up, metres, time codes at --fps (default 30).
         #[arg(long, requires = "output", group = "file_format", conflicts_with = "field")]
         usd: bool,
         /// Output file (with --bvh or --usd).

@@ -1,6 +1,7 @@
-//! `frond take export NAME --usd -o FILE.usda`: a take as a USD (UsdSkel) layer
+//! `frond take export NAME --usd -o FILE.usda|FILE.usdc`: a take as a USD (UsdSkel) layer
 //! (`frond_motion::usd`): the rig's skinned mesh, skeleton and the take's animation at `--fps`
-//! (default 30), on the take's rig (or `--rig`).
+//! (default 30), on the take's rig (or `--rig`). The binary form is the same layer in USD's crate
+//! format, written by openusd (vendored with a fix, `vendor/openusd`).
 
 use std::path::Path;
 
@@ -23,16 +24,23 @@ pub(crate) struct UsdExport<'a> {
 
 /// Writes the USD layer.
 pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
-    match a.output.extension().and_then(|e| e.to_str()) {
-        Some("usda") => {}
-        Some("usdc" | "usd" | "usdz") => {
+    let binary = match a.output.extension().and_then(|e| e.to_str()) {
+        Some("usda") => false,
+        Some("usdc") => true,
+        Some("usd" | "usdz") => {
             return usage(format!(
-                "{}: frond writes USD's text form; name it .usda (and convert with `usdcat IN.usda -o OUT.usdc` if a binary layer is wanted)",
+                "{}: name the layer .usda (text) or .usdc (binary), so every tool knows which it is; \
+                 a .usdz package is not written",
                 a.output.display()
             ));
         }
-        _ => return usage(format!("{}: a USD layer is named .usda", a.output.display())),
-    }
+        _ => {
+            return usage(format!(
+                "{}: a USD layer is named .usda (text) or .usdc (binary)",
+                a.output.display()
+            ));
+        }
+    };
     let fps = TakeForFile::fps(a.fps, "USD")?;
     let take = take_for_file(g, a.name, a.rig)?;
     let (scan, loaded) = (&take.scan, &take.rig);
@@ -54,7 +62,31 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     let take = UsdTake { name: &loaded.rig.name, joint_names: &joint_names, fps, info: &info };
     let mut out = String::new();
     write_usda(&take, &model, &poses, &mut out);
-    crate::calibrate::write_atomically_bytes(a.output, out.as_bytes())?;
+    let bytes = if binary { usdc_bytes(&out)? } else { out.into_bytes() };
+    crate::calibrate::write_atomically_bytes(a.output, &bytes)?;
     println!("{}", a.output.display());
     Ok(())
+}
+
+/// The layer `text` (frond's own USDA) in USD's binary crate form: parsed by openusd, with
+/// `elementSize` made the `int` USD declares it (openusd's text parser reads untyped metadata
+/// numbers as `int64`, and usd-core then sees 1 influence per point instead of 4), and written by
+/// openusd's crate writer.
+fn usdc_bytes(text: &str) -> anyhow::Result<Vec<u8>> {
+    use openusd::sdf::Value;
+    let mut data = openusd::usda::parse(text).map_err(|e| anyhow!("converting the layer to USDC: {e}"))?;
+    let paths: Vec<openusd::sdf::Path> = data.iter().map(|(p, _)| p.clone()).collect();
+    for path in &paths {
+        let Some(spec) = data.spec_mut(path) else { continue };
+        for (name, value) in &mut spec.fields {
+            if name == "elementSize"
+                && let Value::Int64(n) = *value
+            {
+                *value = Value::Int(i32::try_from(n).map_err(|_| anyhow!("{path}: elementSize {n}"))?);
+            }
+        }
+    }
+    let mut out = std::io::Cursor::new(Vec::new());
+    openusd::usdc::CrateWriter::write(&data, &mut out).map_err(|e| anyhow!("writing the USDC layer: {e}"))?;
+    Ok(out.into_inner())
 }

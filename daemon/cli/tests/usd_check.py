@@ -5,7 +5,7 @@ frond's Rust code, and optionally with Blender's USD importer (bpy, another proc
 Usage: python usd_check.py SPEC.json      (prints "ok ..." and exits 0, or says why and exits 1)
        python usd_check.py --blender SPEC.json
 
-SPEC: {"usd": FILE.usda, "poses": JSONL FILE (`frond take export --fps F`: {"t", "joints"} lines),
+SPEC: {"usd": FILE.usda or FILE.usdc, "same_as": optional FILE.usda (every attribute compared), "poses": JSONL FILE (`frond take export --fps F`: {"t", "joints"} lines),
        "names": [4 joint names], "heights_m": [h0, h1, h2, h3], "fps": F}
 
 usd-core: the layer passes every validator of USD's validation registry (what `usdchecker`
@@ -87,8 +87,49 @@ def check_usd(spec, poses):
     skinned = points
     if not skinning.ComputeSkinnedPoints(xforms, skinned, Usd.TimeCode(len(poses) - 1)):
         fail("UsdSkel could not skin the mesh")
+    same = ""
+    if spec.get("same_as"):
+        same = f"; {same_layers(stage, Usd.Stage.Open(spec['same_as']))} attributes equal to {spec['same_as']}'s"
     print(f"ok: usd-core: {len(validators)} validators clean; {len(poses)} time codes, joints within {worst:.1e} m; "
-          f"{len(points)} points skinned", flush=True)
+          f"{len(points)} points skinned{same}", flush=True)
+
+
+def same_layers(stage, other):
+    """Every prim, its type, every attribute with its metadata, default and time samples, equal in
+    both stages (usd-core reads each from its own file); the number of attributes compared."""
+    from pxr import Usd
+
+    prims = [p.GetPath() for p in stage.Traverse()]
+    if prims != [p.GetPath() for p in other.Traverse()]:
+        fail(f"prims differ: {prims} vs {[p.GetPath() for p in other.Traverse()]}")
+    if stage.GetRootLayer().customLayerData != other.GetRootLayer().customLayerData:
+        fail("customLayerData differs")
+    n = 0
+    for path in prims:
+        a, b = stage.GetPrimAtPath(path), other.GetPrimAtPath(path)
+        if a.GetTypeName() != b.GetTypeName():
+            fail(f"{path}: type {a.GetTypeName()} vs {b.GetTypeName()}")
+        names = sorted(x.GetName() for x in a.GetAuthoredAttributes())
+        if names != sorted(x.GetName() for x in b.GetAuthoredAttributes()):
+            fail(f"{path}: attributes {names} vs {sorted(x.GetName() for x in b.GetAuthoredAttributes())}")
+        for name in names:
+            x, y = a.GetAttribute(name), b.GetAttribute(name)
+            what = f"{path}.{name}"
+            if x.GetTypeName() != y.GetTypeName() or x.GetVariability() != y.GetVariability():
+                fail(f"{what}: type or variability differs")
+            if x.GetAllMetadata() != y.GetAllMetadata():
+                fail(f"{what}: metadata {x.GetAllMetadata()} vs {y.GetAllMetadata()}")
+            times = x.GetTimeSamples()
+            if times != y.GetTimeSamples():
+                fail(f"{what}: time samples at {times[:5]}.. vs {y.GetTimeSamples()[:5]}..")
+            for t in [Usd.TimeCode.Default()] + [Usd.TimeCode(t) for t in times]:
+                if x.Get(t) != y.Get(t):
+                    fail(f"{what} at {t}: {x.Get(t)} vs {y.Get(t)}")
+            n += 1
+        for rel in a.GetAuthoredRelationships():
+            if rel.GetTargets() != b.GetRelationship(rel.GetName()).GetTargets():
+                fail(f"{path}.{rel.GetName()}: targets differ")
+    return n
 
 
 def check_blender(spec, poses):
