@@ -34,11 +34,11 @@ pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> a
 /// `== <stage>/<source>` heading.
 fn run_stage(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
     let reports = frond_sdk::zenoh::query_statuses(addr, STATUS_WAIT)?;
-    let short = |key: &str| key.strip_prefix("frond/").unwrap_or(key).to_owned();
+    let short = frond_sdk::zenoh_many::short;
     if json {
         let map: serde_json::Map<String, serde_json::Value> = reports
             .iter()
-            .map(|(k, r)| Ok((short(k), serde_json::to_value(r)?)))
+            .map(|(k, r)| Ok((short(k).to_owned(), serde_json::to_value(r)?)))
             .collect::<Result<_, serde_json::Error>>()?;
         println!("{}", serde_json::to_string_pretty(&map)?);
     } else {

@@ -40,19 +40,7 @@ pub(crate) fn run(
     })?;
     let mut names = sub.hello().joint_names.clone();
     // `--element`: an id, or a name looked up in the element table (again when it changes).
-    let pick = |table: &frond_protocol::ElementTable| -> anyhow::Result<Option<u16>> {
-        let Some(want) = element else { return Ok(None) };
-        if let Ok(id) = want.parse::<u16>() {
-            return Ok(Some(id));
-        }
-        match table.elements.iter().find(|e| e.name == want) {
-            Some(e) => Ok(Some(e.id)),
-            None => {
-                let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
-                crate::usage(format!("--element {want:?}: no such element (announced: {})", known.join(", ")))
-            }
-        }
-    };
+    let pick = |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::usage);
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
     let mut printer = Printer::new(jsonl, count);
@@ -94,6 +82,22 @@ pub(crate) fn run(
             Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
         }
     }
+}
+
+/// The element id `--element` (`want`: an id, or a name in `table`) stands for; `None` without
+/// `--element`. `Err` says the name is not in the table and names those that are.
+pub(crate) fn pick_element(
+    want: Option<&str>,
+    table: &frond_protocol::ElementTable,
+) -> Result<Option<u16>, String> {
+    let Some(want) = want else { return Ok(None) };
+    if let Ok(id) = want.parse::<u16>() {
+        return Ok(Some(id));
+    }
+    table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| {
+        let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
+        format!("--element {want:?}: no such element (announced: {})", known.join(", "))
+    })
 }
 
 /// Prints `frond tap`'s lines, one flushed write each, and counts them against `--count`.
@@ -229,6 +233,14 @@ mod tests {
             s,
             r#"{"seq":42,"t":1.5,"joints":[[1.5,-2.0,0.0],[0.1,0.0,0.0],[0.0,0.0,0.0],[0.0,0.0,-3.25]]}"#
         );
+    }
+
+    #[test]
+    fn elements_are_picked_by_id_or_by_name() {
+        let table = frond_protocol::ElementTable::default();
+        assert_eq!(pick_element(None, &table), Ok(None));
+        assert_eq!(pick_element(Some("3"), &table), Ok(Some(3)));
+        assert!(pick_element(Some("leaf"), &table).unwrap_err().contains("\"leaf\": no such element"));
     }
 
     #[test]

@@ -11,7 +11,7 @@ use frond_protocol::{ElementTable, PoseFlags};
 use frond_sdk::zenoh_many::{StageEvent, StageSubscriber};
 use frond_sdk::{Event, Subscriber, ZenohAddr};
 
-use crate::tap::Printer;
+use crate::tap::{Printer, pick_element};
 
 /// How long to wait for the first source before saying none answers.
 const FIRST_SOURCE_WAIT: Duration = Duration::from_secs(10);
@@ -22,18 +22,6 @@ struct Followed {
     table: ElementTable,
     /// `--element` resolved in this source's table (`None`: every element).
     only: Option<u16>,
-}
-
-/// The element id `want` (an id, or a name in `table`) stands for; `Err` names the known ones.
-fn pick(want: Option<&str>, table: &ElementTable) -> Result<Option<u16>, String> {
-    let Some(want) = want else { return Ok(None) };
-    if let Ok(id) = want.parse::<u16>() {
-        return Ok(Some(id));
-    }
-    table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| {
-        let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
-        format!("no element {want:?} (announced: {})", known.join(", "))
-    })
 }
 
 pub(crate) fn run(
@@ -64,8 +52,8 @@ pub(crate) fn run(
         let Some(ev) = stage.next_event(wait)? else { continue };
         match ev {
             StageEvent::Joined { source, hello } => {
-                let only = pick(element, &hello.elements).unwrap_or_else(|why| {
-                    eprintln!("frond tap: {source}: --element: {why}; its poses are left out");
+                let only = pick_element(element, &hello.elements).unwrap_or_else(|why| {
+                    eprintln!("frond tap: {source}: {why}; its poses are left out");
                     Some(u16::MAX)
                 });
                 eprintln!(
@@ -110,7 +98,7 @@ pub(crate) fn run(
                     }
                     Event::Elements(table) => {
                         if element.is_some_and(|e| e.parse::<u16>().is_err()) {
-                            f.only = pick(element, &table).unwrap_or(Some(u16::MAX));
+                            f.only = pick_element(element, &table).unwrap_or(Some(u16::MAX));
                         }
                         f.table = table;
                     }
@@ -120,18 +108,5 @@ pub(crate) fn run(
                 }
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn elements_are_picked_by_id_or_by_name() {
-        let table = ElementTable::default();
-        assert_eq!(pick(None, &table), Ok(None));
-        assert_eq!(pick(Some("3"), &table), Ok(Some(3)));
-        assert!(pick(Some("leaf"), &table).unwrap_err().contains("no element \"leaf\""));
     }
 }

@@ -189,8 +189,8 @@ fn source_key_of(token: &str) -> Option<String> {
     Some(format!("{KEY_ROOT}/{stage}/{source}"))
 }
 
-/// `<stage>/<source>` of `frond/<stage>/<source>`.
-fn short(key: &str) -> &str {
+/// `<stage>/<source>` of a source key `frond/<stage>/<source>`: how a source is named to people.
+pub fn short(key: &str) -> &str {
     key.strip_prefix(KEY_ROOT).and_then(|k| k.strip_prefix('/')).unwrap_or(key)
 }
 
