@@ -21,6 +21,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError};
+use frond_motion::quantile::nearest_rank;
 use frond_netns::{Host, Lan};
 use serde::Deserialize;
 use serde_json::json;
@@ -135,7 +136,7 @@ struct Phase {
 
 impl Phase {
     fn percentile(&self, q: f64) -> f64 {
-        percentile(&self.latency_us, q)
+        nearest_rank(&self.latency_us, q)
     }
 
     fn json(&self) -> serde_json::Value {
@@ -145,15 +146,6 @@ impl Phase {
             "frames": self.frames, "gaps": self.gaps, "missing": self.missing, "bridge_cpu_fraction_of_core": self.cpu,
         })
     }
-}
-
-/// Nearest-rank percentile of sorted values (0 when there are none).
-pub fn percentile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let rank = (q * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
 /// Records on every subscriber for `window` while the host-0 processes `pids` run; their CPU
@@ -367,20 +359,4 @@ pub fn zenoh(o: &Options) -> Result<Section, String> {
         )),
     );
     Ok(Section::ok("zenoh", TITLE, measurements, serde_json::Value::Object(details)))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn nearest_rank_percentiles_by_hand() {
-        let v: Vec<f64> = (1..=10).map(f64::from).collect();
-        assert_eq!(percentile(&v, 0.5), 5.0);
-        assert_eq!(percentile(&v, 0.99), 10.0);
-        assert_eq!(percentile(&v, 0.1), 1.0);
-        assert_eq!(percentile(&v, 0.0), 1.0);
-        assert_eq!(percentile(&[], 0.5), 0.0);
-        assert_eq!(percentile(&[7.0], 0.99), 7.0);
-    }
 }

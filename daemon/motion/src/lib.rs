@@ -37,6 +37,7 @@ pub mod mapping;
 pub mod mesh;
 pub mod plausible;
 pub mod problems;
+pub mod quantile;
 pub mod rig;
 pub mod rig_files;
 mod rig_mesh;

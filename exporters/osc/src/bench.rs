@@ -10,6 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use frond_motion::quantile::nearest_rank;
 use rosc::OscPacket;
 
 use crate::bridge::{Bridge, BridgeConfig, BridgeError, Protocol};
@@ -40,15 +41,6 @@ impl LatencyReport {
             self.targets, self.samples, self.input_rate_hz, self.p50_us, self.p99_us, self.max_us
         )
     }
-}
-
-/// The `q`-quantile (0..=1) of sorted `values` (nearest rank).
-pub fn quantile(sorted: &[u64], q: f64) -> u64 {
-    if sorted.is_empty() {
-        return 0;
-    }
-    let rank = (q * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
 /// Streams from the daemon at `socket_dir` to `targets` loopback receivers for `duration` and
@@ -92,8 +84,8 @@ pub fn run(socket_dir: &Path, targets: usize, duration: Duration) -> Result<Late
         targets: targets.max(1),
         samples: all.len(),
         input_rate_hz: bridge.stats().received as f64 / elapsed.max(1e-9),
-        p50_us: us(quantile(&all, 0.50)),
-        p99_us: us(quantile(&all, 0.99)),
+        p50_us: us(nearest_rank(&all, 0.50)),
+        p99_us: us(nearest_rank(&all, 0.99)),
         max_us: us(all.last().copied().unwrap_or(0)),
     })
 }
@@ -116,16 +108,6 @@ fn receive(socket: &UdpSocket, offset: ClockOffset, stop: &AtomicBool) -> Vec<u6
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn nearest_rank_quantiles() {
-        let v: Vec<u64> = (1..=100).collect();
-        assert_eq!(quantile(&v, 0.5), 50);
-        assert_eq!(quantile(&v, 0.99), 99);
-        assert_eq!(quantile(&v, 1.0), 100);
-        assert_eq!(quantile(&[7], 0.99), 7);
-        assert_eq!(quantile(&[], 0.5), 0);
-    }
 
     #[test]
     fn report_json() {
