@@ -22,7 +22,7 @@
 use std::io::{BufRead, Write};
 use std::net::{SocketAddr, UdpSocket};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
@@ -43,10 +43,17 @@ struct Record {
 }
 
 /// The recording a subscriber shares with its standard-input thread.
-#[derive(Default)]
 struct Recorder {
     on: AtomicBool,
     record: Mutex<Record>,
+    /// The sequence number due next where the subscriber sees raw poses (`u64::MAX`: none yet).
+    next_seq: AtomicU64,
+}
+
+impl Default for Recorder {
+    fn default() -> Self {
+        Recorder { on: AtomicBool::new(false), record: Mutex::default(), next_seq: AtomicU64::new(u64::MAX) }
+    }
 }
 
 impl Recorder {
@@ -63,6 +70,15 @@ impl Recorder {
         if r.latency_us.len() < MAX_SAMPLES {
             r.latency_us.push(now_ns.saturating_sub(pose.host_monotonic_ns) as f64 / 1e3);
         }
+    }
+
+    /// A pose read off the wire without the SDK: a gap if numbers were skipped, then the pose.
+    fn raw_pose(&self, pose: &Pose, now_ns: u64) {
+        let expected = self.next_seq.swap(pose.seq + 1, Relaxed);
+        if expected != u64::MAX && pose.seq > expected {
+            self.gap(pose.seq - expected);
+        }
+        self.pose(pose, now_ns);
     }
 
     fn gap(&self, missing: u64) {
@@ -150,19 +166,13 @@ fn zenoh_raw(address: &str) -> Result<(), String> {
     let recorder = Arc::new(Recorder::default());
     let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<()>(1);
     let rec = recorder.clone();
-    // Zenoh calls back from one receive task per link; the expected sequence number is shared.
-    let next_seq = std::sync::atomic::AtomicU64::new(u64::MAX);
     let _sub = session
         .declare_subscriber(keys::under(&addr.key, keys::POSES))
         .callback(move |sample| {
             let now = monotonic_ns();
             let bytes = sample.payload().to_bytes();
             if let Ok(Some((ServerMessage::Pose(p), _))) = decode_frame::<ServerMessage>(&bytes) {
-                let expected = next_seq.swap(p.seq + 1, Relaxed);
-                if expected != u64::MAX && p.seq > expected {
-                    rec.gap(p.seq - expected);
-                }
-                rec.pose(&p, now);
+                rec.raw_pose(&p, now);
                 let _ = ready_tx.try_send(());
             }
         })
@@ -180,7 +190,6 @@ fn udp_sub(bind: &str) -> Result<(), String> {
     let socket = UdpSocket::bind(bind).map_err(|e| format!("{bind}: {e}"))?;
     let recorder = Arc::new(Recorder::default());
     let mut buf = vec![0u8; 65_536];
-    let mut next_seq: Option<u64> = None;
     let mut ready = false;
     loop {
         let n = socket.recv(&mut buf).map_err(|e| e.to_string())?;
@@ -188,11 +197,7 @@ fn udp_sub(bind: &str) -> Result<(), String> {
         let Ok(Some((ServerMessage::Pose(p), _))) = decode_frame::<ServerMessage>(&buf[..n]) else {
             continue;
         };
-        if let Some(expected) = next_seq.filter(|&e| p.seq > e) {
-            recorder.gap(p.seq - expected);
-        }
-        next_seq = Some(p.seq + 1);
-        recorder.pose(&p, now);
+        recorder.raw_pose(&p, now);
         if !ready {
             ready = true;
             recorder.clone().serve_stdin();
