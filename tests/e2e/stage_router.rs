@@ -22,7 +22,7 @@ fn config(name: &str) -> PathBuf {
 }
 
 /// Starts the router on `host` from the documented file and waits until it routes.
-fn start_router(py: &std::path::Path, host: &Host) -> (Proc, Arc<Mutex<Tapped>>) {
+fn start_router(py: &std::path::Path, host: &Host) -> Proc {
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../exporters/zenoh/tests/zenoh_router.py");
     let mut cmd = host.command(py);
     // Its standard input stays open (held by the child handle) for as long as it is to route.
@@ -38,7 +38,7 @@ fn start_router(py: &std::path::Path, host: &Host) -> (Proc, Arc<Mutex<Tapped>>)
         "the router did not start: {:?}",
         out.lock().unwrap().stderr
     );
-    (proc, out)
+    proc
 }
 
 #[test]
@@ -52,7 +52,7 @@ fn a_stage_through_the_documented_router_survives_the_router_going_and_coming_ba
     let (router_host, performer, ws) = (&lan.hosts[0], &lan.hosts[1], &lan.hosts[2]);
     let router = router_host.endpoint(PORT);
     let client = config("client.json5");
-    let (mut router_proc, _) = start_router(&py, router_host);
+    let mut router_proc = start_router(&py, router_host);
 
     let dir = tempfile::tempdir().unwrap();
     let daemon = Daemon::start_on(performer, dir.path(), &["--source", "in-process"]);
@@ -122,7 +122,7 @@ fn a_stage_through_the_documented_router_survives_the_router_going_and_coming_ba
     let stop_noticed = gone.elapsed();
     // A router comes back on the same address: the bridge and the tap reconnect by themselves.
     let back = Instant::now();
-    let (_router_again, _) = start_router(&py, router_host);
+    let _router_again = start_router(&py, router_host);
     assert!(
         wait_for(Duration::from_secs(40), || resumed_since(back, 1000)),
         "the stream did not resume within 40 s of the router coming back; stderr {:?}",
