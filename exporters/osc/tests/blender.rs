@@ -1,0 +1,248 @@
+//! frond-osc into Blender (`bpy` from PyPI, headless) onto the armature a user has: the GLB
+//! frond-gltf bakes for the daemon's rig, imported by Blender's own glTF importer. Two receivers:
+//! frond's add-on (`blender/frond_receiver.py`, checked by `blender_check.py`) on the `frond`
+//! namespace, and a third-party VMC receiver, the VMC4B add-on (vendored unchanged in
+//! `third_party/VMC4B`, driven by `vmc4b_check.py`) on frond-osc's default VMC stream. Bone world
+//! positions are compared with forward kinematics of the poses a `frond_sdk` subscriber got from
+//! the same daemon.
+//!
+//! Needs `target/<profile>/frondd` and `frond-gltf` (`cargo build --workspace --bins`) and bpy in
+//! the venv (`install-python.sh`); missing one, a test skips, unless `CI=true` or
+//! `FROND_REQUIRE_PYTHON=1`, where it fails.
+
+mod support;
+
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use frond_motion::rig::Rig;
+use frond_protocol::Pose;
+use support::*;
+
+/// Bakes a three-frame rest take of `rig` with frond-gltf into `dir/<rig>.glb` (only its armature
+/// and mesh matter to the receivers).
+fn bake_rest_glb(gltf: &Path, rig: &str, dir: &Path) -> PathBuf {
+    let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader {
+        name: "rest".into(),
+        rig_name: rig.into(),
+        calibration_id: "none".into(),
+        filter: "none".into(),
+        tick_rate_hz: 30,
+        created_unix_s: 0,
+        daemon_version: "test".into(),
+        joint_names: Vec::new(),
+        clock: None,
+        stage: None,
+    });
+    let rest: Vec<frond_motion::PoseFrame> =
+        (0..3).map(|k| frond_motion::PoseFrame { t: k as f64 / 30.0, joints_deg: [[0.0; 3]; 4] }).collect();
+    let clip = frond_motion::clip::Clip { fps: 30.0, frames: rest };
+    take.set_layer(0, None, frond_motion::layers::frames_from_clip(&clip, 0, 0, None));
+    let take_path = dir.join(format!("{rig}-rest.take"));
+    std::fs::write(&take_path, take.to_bytes()).unwrap();
+    let glb = dir.join(format!("{rig}.glb"));
+    let baked = Command::new(gltf)
+        .args(["bake", "-q", "--rig", rig, "--take"])
+        .arg(&take_path)
+        .arg("-o")
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    glb
+}
+
+/// Forward kinematics of a pose in frond's convention (stem +Y, each joint's matrix chained root
+/// to top, joints at the rig's heights), in Blender's Z-up world ((x, y, z) -> (x, -z, y)): each
+/// joint's head and the direction its bone points.
+fn blender_fk(joints_deg: [[f32; 3]; 4], rig: &Rig) -> ([[f64; 3]; 4], [[f64; 3]; 4]) {
+    let to_blender = |v: [f64; 3]| [v[0], -v[2], v[1]];
+    let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
+    let mut p = [0.0, f64::from(rig.joints[0].height_m), 0.0];
+    let mut heads = [[0.0; 3]; 4];
+    let mut dirs = [[0.0; 3]; 4];
+    for i in 0..4 {
+        heads[i] = to_blender(p);
+        let m = frond_protocol::convention::joint_matrix(joints_deg[i]);
+        r = std::array::from_fn(|a| std::array::from_fn(|b| (0..3).map(|k| r[a][k] * m[k][b]).sum()));
+        // R (0, 1, 0): the second column.
+        let stem = [r[0][1], r[1][1], r[2][1]];
+        dirs[i] = to_blender(stem);
+        if i + 1 < 4 {
+            let seg = f64::from(rig.joints[i + 1].height_m - rig.joints[i].height_m);
+            p = std::array::from_fn(|a| p[a] + stem[a] * seg);
+        }
+    }
+    (heads, dirs)
+}
+
+fn close(got: &[f64], want: &[f64; 3], tol: f64, what: &str) {
+    assert_eq!(got.len(), 3, "{what}: {got:?}");
+    assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < tol), "{what}: {got:?} vs {want:?}");
+}
+
+fn f64s(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().expect("array").iter().map(|x| x.as_f64().expect("number")).collect()
+}
+
+/// The Blender add-on, headless (bpy from PyPI): frond-osc drives its armature; the bone
+/// rotations Blender reports equal the daemon's joints in frond's convention, and Record keys the
+/// frames into an action (`blender_check.py` checks geometry and keys itself).
+#[test]
+fn blender_addon_drives_the_armature_and_records() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python_with("bpy") else {
+        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let gltf = frondd.with_file_name("frond-gltf");
+    if !gltf.exists() {
+        return skip("frond-gltf is not built (cargo build --workspace --bins)");
+    }
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    // The armature a user has: frond-gltf's GLB of the daemon's rig (grass), imported by Blender.
+    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let glb = bake_rest_glb(&gltf, "grass", tmp.path());
+    let flower = bake_rest_glb(&gltf, "flower", tmp.path());
+    let heights: Vec<String> = rig.joints.iter().map(|j| j.height_m.to_string()).collect();
+    let out = tmp.path().join("blender.jsonl");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_check.py");
+    let mut child = Command::new(&py)
+        .arg(script)
+        .args(["--frames", "300", "--record", "200", "--timeout", "90", "--out"])
+        .arg(&out)
+        .arg("--glb")
+        .arg(&glb)
+        .arg("--flower-glb")
+        .arg(&flower)
+        .args(["--heights", &heights.join(",")])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start blender_check.py");
+    // The importer logs on stdout too: the port is the line `port N`.
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    let port: u16 = loop {
+        line.clear();
+        if reader.read_line(&mut line).expect("blender port") == 0 {
+            panic!("blender_check ended without printing its port");
+        }
+        if let Some(p) = line.trim().strip_prefix("port ") {
+            break p.parse().unwrap_or_else(|_| panic!("blender_check printed `{line}`"));
+        }
+    };
+    let mut blender = Proc(child);
+    let collector = Collector::start(&daemon.socket_dir);
+    let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    let (_, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    let by_seq: HashMap<u32, &Pose> = poses.iter().map(|p| (p.seq as u32, p)).collect();
+    let frames = read_jsonl(&out);
+    assert!(!frames.is_empty());
+    for f in &frames {
+        let seq = f["seq"].as_i64().unwrap() as u32;
+        let pose = by_seq.get(&seq).unwrap_or_else(|| panic!("frame {seq} unknown to the SDK subscriber"));
+        let (want, _) = blender_fk(pose.joints_deg, &rig);
+        for (i, head) in f["heads"].as_array().unwrap().iter().enumerate() {
+            let got: Vec<f64> = head.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            close(&got, &want[i], 1e-4, &format!("Blender's head of joint {i} at {seq}"));
+        }
+    }
+}
+
+/// A third-party VMC receiver in Blender: VMC4B, set up as its README and frond-osc's README say
+/// (target armature = the grass GLB as imported, humanoid bones Hips/Spine/Chest/Neck mapped to
+/// `root/lower/middle/tip`, its Connect button), receives frond-osc's VMC stream with every
+/// default (60 Hz, humanoid names, timetags "immediately", no `--rig`). The four bones' world heads
+/// and directions, as Blender computes them after VMC4B applied a frame, equal forward kinematics
+/// of the daemon's pose at that frame's device time; the virtual glove moves enough that a
+/// receiver ignoring a bone would fail.
+#[test]
+fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python_with("bpy") else {
+        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let gltf = frondd.with_file_name("frond-gltf");
+    if !gltf.exists() {
+        return skip("frond-gltf is not built (cargo build --workspace --bins)");
+    }
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let glb = bake_rest_glb(&gltf, "grass", tmp.path());
+    let bones: Vec<String> = ["Hips", "Spine", "Chest", "Neck"]
+        .iter()
+        .zip(&rig.joints)
+        .map(|(humanoid, joint)| format!("{humanoid}={}", joint.name))
+        .collect();
+    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let out = tmp.path().join("vmc4b.jsonl");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vmc4b_check.py");
+    let mut child = Command::new(&py)
+        .arg(script)
+        .arg("--glb")
+        .arg(&glb)
+        .args(["--port", &port.to_string(), "--bones", &bones.join(","), "--frames", "120"])
+        .args(["--timeout", "60", "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start vmc4b_check.py");
+    // Blender's importer logs on stdout too: VMC4B listens once `listening` is printed.
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    loop {
+        line.clear();
+        if reader.read_line(&mut line).expect("vmc4b_check's output") == 0 {
+            let mut err = String::new();
+            child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+            panic!("vmc4b_check ended before VMC4B listened: {err}");
+        }
+        if line.trim() == "listening" {
+            break;
+        }
+    }
+    let mut blender = Proc(child);
+    let collector = Collector::start(&daemon.socket_dir);
+    let osc = start_osc(&daemon.socket_dir, &["--protocol", "vmc", "--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    let (_, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    // VMC carries T as f32 seconds of device time: frames are matched to the SDK's poses by it.
+    let by_t: HashMap<u32, &Pose> = poses.iter().map(|p| ((p.hand.t as f32).to_bits(), p)).collect();
+    let frames = read_jsonl(&out);
+    assert_eq!(frames.len(), 120);
+    let (mut matched, mut bent) = (0, 0);
+    for f in &frames {
+        let t = f["t"].as_f64().unwrap() as f32;
+        let Some(pose) = by_t.get(&t.to_bits()) else { continue };
+        matched += 1;
+        let (heads, dirs) = blender_fk(pose.joints_deg, &rig);
+        for i in 0..4 {
+            let name = &rig.joints[i].name;
+            close(&f64s(&f["heads"][i]), &heads[i], 1e-4, &format!("world head of {name} at t={t}"));
+            close(&f64s(&f["dirs"][i]), &dirs[i], 1e-4, &format!("world direction of {name} at t={t}"));
+        }
+        // The top bone leaning more than 5 degrees off the rest pose's vertical.
+        if dirs[3][2] < 5f64.to_radians().cos() {
+            bent += 1;
+        }
+    }
+    assert!(
+        matched >= frames.len() * 9 / 10,
+        "only {matched} of {} frames matched an SDK pose",
+        frames.len()
+    );
+    assert!(
+        bent >= matched / 4,
+        "only {bent} of {matched} frames bend the plant: the check would not see a bone ignored"
+    );
+}
