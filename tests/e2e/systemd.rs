@@ -84,7 +84,8 @@ fn frondd_service_exposure_is_at_most_2() {
         "StateDirectory=frond",
         "LimitRTPRIO=",
         "LimitMEMLOCK=",
-        "PrivateNetwork=yes",
+        "IPAddressDeny=any",
+        "IPAddressAllow=localhost",
         "ProtectSystem=strict",
         "ProtectHome=yes",
         "NoNewPrivileges=yes",
@@ -163,6 +164,33 @@ fn the_units_command_line_runs_on_a_fresh_machine_and_admits_the_group() {
     }
     let code = daemon.terminate(std::time::Duration::from_secs(5)).expect("frondd stops on SIGTERM");
     assert!(code.success(), "{code}");
+}
+
+/// The shipped sysusers.d file creates the `frond` group the unit and the udev rule name, as
+/// `systemd-sysusers` applies it on a fresh machine (here into an empty root).
+#[test]
+fn the_sysusers_file_creates_the_frond_group() {
+    if !require_analyze() {
+        return;
+    }
+    let root = tempfile::tempdir().unwrap();
+    std::fs::create_dir(root.path().join("etc")).unwrap();
+    for f in ["passwd", "group", "shadow", "gshadow"] {
+        std::fs::write(root.path().join("etc").join(f), "").unwrap();
+    }
+    let out = Command::new("systemd-sysusers")
+        .arg(format!("--root={}", root.path().display()))
+        .arg(repo_root().join("systemd/frond.sysusers"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "systemd-sysusers: {}", String::from_utf8_lossy(&out.stderr));
+    let group = std::fs::read_to_string(root.path().join("etc/group")).unwrap();
+    let line =
+        group.lines().find(|l| l.starts_with("frond:")).unwrap_or_else(|| panic!("no frond group: {group}"));
+    let gid: u32 = line.split(':').nth(2).unwrap().parse().unwrap();
+    assert!(gid < 1000, "a system group: {line}");
+    let unit = std::fs::read_to_string(repo_root().join("systemd/frondd.service")).unwrap();
+    assert!(unit.contains("Group=frond"), "the unit runs in the group the file creates");
 }
 
 /// The udev rule (issue 18): hidraw nodes of the glove over USB (vendor and product attributes)
