@@ -389,9 +389,10 @@ pub enum TakeCommand {
         /// Also print held frames (every recorded tick); ignored with --fps.
         #[arg(long)]
         include_held: bool,
-        /// SMPTE timecode of the first frame, HH:MM:SS:FF at --fps (with --usd) [default: the
-        /// time of day, UTC, the take's first frame was recorded at, when the take knows it].
-        #[arg(long, value_name = "HH:MM:SS:FF")]
+        /// SMPTE timecode of the first frame, HH:MM:SS:FF at --fps (with --usd or --timecode;
+        /// BVH has no timecode field) [default: the time of day, UTC, the take's first frame was
+        /// recorded at, when the take knows it].
+        #[arg(long, value_name = "HH:MM:SS:FF", conflicts_with = "bvh")]
         timecode_start: Option<String>,
         /// JSON Lines: add each frame's SMPTE timecode ("tc": "HH:MM:SS:FF", at --fps) from the
         /// take's recording clock or --timecode-start.

@@ -79,6 +79,12 @@ fn bad_bvh_arguments_are_usage_errors() {
     let out = code(&["take", "export", "wave", "--bvh", "-o", "x.bvh", "--fps", "0", "--rig", "grass"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--fps must be above 0"));
+    for tc in [&["--timecode-start", "01:00:00:00"][..], &["--timecode"][..]] {
+        let out = code(&[&["take", "export", "wave", "--bvh", "-o", "x.bvh"][..], tc].concat());
+        assert_eq!(out.status.code(), Some(2), "{tc:?} with --bvh");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("cannot be used with") && err.contains("'--bvh'"), "{tc:?}: {err}");
+    }
     let out = code(&["take", "export", "wave", "--bvh", "-o", "x.bvh", "--rig", "nope"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(
