@@ -1,5 +1,6 @@
 //! End-to-end tests: real `frondd`, `frond` and `frond-vhid` processes.
 
+mod cli_habits;
 mod console;
 mod demo;
 mod doctor;

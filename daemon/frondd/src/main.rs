@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use frond_protocol::paths;
 use frondd::config::{Config, DEFAULT_CONFIG, RawConfig, RawHand};
 use frondd::daemon::{ConfigLoader, Dirs, RunOptions, run};
@@ -68,30 +68,24 @@ struct Args {
     /// Enable testing aids on the control socket (FreezeLoop). Never on a stage.
     #[arg(long, hide = true)]
     test_hooks: bool,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
 
 fn main() -> ExitCode {
+    if let Some(code) = frond_binmain::DocsArgs::early("frondd", Args::command) {
+        return code;
+    }
     let args = Args::parse();
     if args.print_default_config {
         print!("{DEFAULT_CONFIG}");
         return ExitCode::SUCCESS;
     }
-    let filter = match tracing_subscriber::EnvFilter::try_new(&args.log_level) {
-        Ok(f) => f,
-        Err(e) => {
-            eprintln!("frondd: error: --log-level {:?}: {e}", args.log_level);
-            return ExitCode::from(2);
-        }
-    };
-    use std::io::IsTerminal;
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        // Colour only on a terminal, and never with NO_COLOR set (no-color.org).
-        .with_ansi(
-            std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty()),
-        )
-        .init();
+    if let Err(code) = frond_binmain::logging("frondd", &args.log_level) {
+        return code;
+    }
 
     let source = args.source.clone().or_else(|| {
         if args.replay.is_some() {

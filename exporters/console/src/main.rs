@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, bail};
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use frond_console::access::{self, Access};
 use frond_console::server::{Config, Console};
 
@@ -35,6 +35,10 @@ struct Args {
     /// Leave out the seed-001 warp preview panel (it only runs while a page shows it).
     #[arg(long)]
     no_warp: bool,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
@@ -83,12 +87,8 @@ fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-console: error: {e:#}");
-            ExitCode::FAILURE
-        }
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-console", Args::command) {
+        return code;
     }
+    frond_binmain::exit("frond-console", run(Args::parse()))
 }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::{Context, bail};
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use frond_gltf::live::{LiveMode, capture};
@@ -21,6 +21,10 @@ use frond_gltf::{BakeOptions, Baked, Baker, Field, Format, LoadedRig, TakeInput,
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
 
 #[derive(Subcommand)]
@@ -101,23 +105,20 @@ struct LiveArgs {
 }
 
 fn main() -> ExitCode {
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-gltf", Cli::command) {
+        return code;
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Bake(a) => bake(a),
         Command::Live(a) => live(a),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-gltf: error: {}", frond_protocol::error_text(e.as_ref()));
-            ExitCode::FAILURE
-        }
-    }
+    frond_binmain::exit("frond-gltf", result)
 }
 
 fn options(c: &Common) -> anyhow::Result<(BakeOptions, Format)> {
     if let Err(reason) = frond_gltf::anim::check_fps(c.fps) {
-        bail!("--fps {reason}");
+        return Err(frond_binmain::usage(format!("--fps {reason}")));
     }
     let format = if c.gltf { Format::Gltf } else { Format::Glb };
     Ok((BakeOptions { fps: c.fps, seed: c.seed, force: c.force }, format))
@@ -139,13 +140,20 @@ fn bake(a: BakeArgs) -> anyhow::Result<()> {
     let rig = LoadedRig::resolve(&a.common.rig)?;
     let takes_dir = frond_protocol::paths::takes_dir(a.takes_dir.clone());
     if a.field.is_some() && a.take.len() > 1 {
-        bail!("--field bakes one take on every plant of the field, got {} takes", a.take.len());
+        return Err(frond_binmain::usage(format!(
+            "--field bakes one take on every plant of the field, got {} takes",
+            a.take.len()
+        )));
     }
     if a.spacing.is_some() && a.take.len() < 2 {
-        bail!("--spacing places the plants of a grove: give two or more takes");
+        return Err(frond_binmain::usage("--spacing places the plants of a grove: give two or more takes"));
     }
     if a.take.len() > frond_gltf::grove::MAX_GROVE_PLANTS {
-        bail!("a grove has at most {} takes, got {}", frond_gltf::grove::MAX_GROVE_PLANTS, a.take.len());
+        return Err(frond_binmain::usage(format!(
+            "a grove has at most {} takes, got {}",
+            frond_gltf::grove::MAX_GROVE_PLANTS,
+            a.take.len()
+        )));
     }
     let takes = a.take.iter().map(|t| TakeInput::resolve(t, &takes_dir)).collect::<Result<Vec<_>, _>>()?;
     let field = a.field.as_deref().map(Field::read).transpose()?;

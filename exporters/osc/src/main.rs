@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::{Parser, ValueEnum};
+use clap::{CommandFactory, Parser, ValueEnum};
 use frond_osc::encode::{Timetags, VmcRig};
 use frond_osc::resample::RATE_RANGE_HZ;
 use frond_osc::{Bridge, BridgeConfig, DEFAULT_FROND_PORT, DEFAULT_VMC_PORT, Protocol, bench, rig, sender};
@@ -76,6 +76,10 @@ struct Args {
     /// Log filter (error, warn, info, debug, trace).
     #[arg(long, default_value = "info", value_name = "LEVEL")]
     log_level: String,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
 
 /// Validates the raw arguments into a bridge configuration, reporting every problem at once.
@@ -159,13 +163,12 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         None => vmc_rig.bone_names = frond_osc::encode::vmc_humanoid_names(),
     }
     if !problems.is_empty() {
-        return Err(InvalidArguments(problems.join("\n  ")).into());
+        return Err(frond_binmain::usage(format!("invalid arguments:\n  {}", problems.join("\n  "))));
     }
     if args.bench && args.from.is_some() {
-        return Err(InvalidArguments(
-            "--bench measures from this host's daemon (--socket-dir), not --from".into(),
-        )
-        .into());
+        return Err(frond_binmain::usage(
+            "--bench measures from this host's daemon (--socket-dir), not --from",
+        ));
     }
     let source = match &args.from {
         Some(source) => source.clone(),
@@ -212,30 +215,13 @@ fn run(args: &Args) -> anyhow::Result<()> {
     Ok(result?)
 }
 
-/// Arguments that parse but are not valid (every problem, one per line): exit status 2, as for
-/// clap's own usage errors and every other frond binary.
-#[derive(Debug, thiserror::Error)]
-#[error("invalid arguments:\n  {0}")]
-struct InvalidArguments(String);
-
 fn main() -> ExitCode {
-    let args = Args::parse();
-    let filter = match tracing_subscriber::EnvFilter::try_new(&args.log_level) {
-        Ok(f) => f,
-        Err(e) => {
-            eprintln!("frond-osc: error: --log-level {:?}: {e}", args.log_level);
-            return ExitCode::from(2);
-        }
-    };
-    // Colour only on a terminal, and never with NO_COLOR set (no-color.org).
-    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr())
-        && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_ansi(ansi).init();
-    match run(&args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-osc: error: {}", frond_protocol::error_text(e.as_ref()));
-            if e.downcast_ref::<InvalidArguments>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
-        }
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-osc", Args::command) {
+        return code;
     }
+    let args = Args::parse();
+    if let Err(code) = frond_binmain::logging("frond-osc", &args.log_level) {
+        return code;
+    }
+    frond_binmain::exit("frond-osc", run(&args))
 }

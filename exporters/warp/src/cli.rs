@@ -51,6 +51,9 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// `--man DIR`, `--completions SHELL`: handled by `DocsArgs::early` before parsing.
+    #[command(flatten)]
+    pub docs: frond_binmain::DocsArgs,
 }
 
 /// Subcommands.

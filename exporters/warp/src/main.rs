@@ -3,13 +3,16 @@
 use std::process::ExitCode;
 
 use anyhow::Context;
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use frond_warp::cli::{BenchArgs, CageCommand, Cli, Command, MorphArgs, RenderArgs, SceneArgs, ServeArgs};
 use frond_warp::params::Checker;
 use frond_warp::render::{OutputKind, PoseTrack, WindDriver};
 use frond_warp::{Animator, Scene};
 
 fn main() -> ExitCode {
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-warp", Cli::command) {
+        return code;
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
@@ -19,13 +22,16 @@ fn main() -> ExitCode {
         Command::Cage(cmd) => cage(cmd),
         Command::Morph(args) => morph(args),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-warp: error: {}", frond_protocol::error_text(e.as_ref()));
-            ExitCode::from(2)
+    // Parameters out of range (the Checker's report, every problem at once) are usage errors;
+    // failures while running (a file that cannot be written, a daemon gone) are not.
+    let result = result.map_err(|e| {
+        if e.chain().any(|c| c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()) {
+            frond_binmain::usage(frond_protocol::error_text(e.as_ref()))
+        } else {
+            e
         }
-    }
+    });
+    frond_binmain::exit("frond-warp", result)
 }
 
 /// `--frames` in `1..=max_frames`, `--fps` in 1..=240 and the output's kind, each problem into

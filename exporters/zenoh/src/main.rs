@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use frond_sdk::{ZenohAddr, source};
 use frond_zenoh::{Bridge, BridgeConfig, DEFAULT_STATUS_INTERVAL, STATUS_INTERVAL_RANGE};
 
@@ -49,12 +49,11 @@ struct Args {
     /// Log filter (error, warn, info, debug, trace).
     #[arg(long, default_value = "info", value_name = "LEVEL")]
     log_level: String,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
-
-/// Arguments that parse but are not valid (every problem, one per line): exit status 2.
-#[derive(Debug, thiserror::Error)]
-#[error("invalid arguments:\n  {0}")]
-struct InvalidArguments(String);
 
 /// This host's name as a key chunk (characters a name may not hold become `-`).
 fn host_name() -> String {
@@ -131,7 +130,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         },
     };
     if !problems.is_empty() {
-        return Err(InvalidArguments(problems.join("\n  ")).into());
+        return Err(frond_binmain::usage(format!("invalid arguments:\n  {}", problems.join("\n  "))));
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
     Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns, control })
@@ -166,18 +165,12 @@ fn run(args: &Args) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    // Colour only on a terminal, and never with NO_COLOR set (no-color.org).
-    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr())
-        && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_ansi(ansi).init();
-    match run(&args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-zenoh: {e:#}");
-            if e.downcast_ref::<InvalidArguments>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
-        }
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-zenoh", Args::command) {
+        return code;
     }
+    let args = Args::parse();
+    if let Err(code) = frond_binmain::logging("frond-zenoh", &args.log_level) {
+        return code;
+    }
+    frond_binmain::exit("frond-zenoh", run(&args))
 }

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use clap::{Parser, ValueEnum};
+use clap::{CommandFactory, Parser, ValueEnum};
 use frond_device::vhid::{
     self, DeviceClock, FaultPlan, GloveSource, UnplugPlan, VhidStats, VirtualGloveConfig, uhid::UhidGlove,
 };
@@ -114,6 +114,10 @@ struct Args {
     /// Log level (error, warn, info, debug, trace).
     #[arg(long, default_value = "info")]
     log_level: String,
+    /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
+    #[allow(dead_code)]
+    #[command(flatten)]
+    docs: frond_binmain::DocsArgs,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -166,9 +170,9 @@ fn config(args: &Args) -> Result<VirtualGloveConfig> {
             time_jump: match (args.time_jump_at_ms, args.time_jump_ms, args.time_jump_s) {
                 (Some(at_ms), Some(duration_ms), Some(s)) => {
                     if !(s.is_finite() && s.abs() <= 4294.0) {
-                        bail!(
+                        return Err(frond_binmain::usage(format!(
                             "--time-jump-s must be within +-4294 s (the 32-bit microsecond clock), got {s}"
-                        );
+                        )));
                     }
                     Some(vhid::TimeJump { at_ms, duration_ms, by_us: (s * 1e6).round() as i64 })
                 }
@@ -227,11 +231,9 @@ fn run(args: Args) -> Result<()> {
     };
     let glove = if let Some(target) = &args.osc {
         use std::net::ToSocketAddrs;
-        let addr = target
-            .to_socket_addrs()
-            .ok()
-            .and_then(|mut a| a.next())
-            .with_context(|| format!("--osc {target:?}: expected HOST:PORT, e.g. 127.0.0.1:9001"))?;
+        let addr = target.to_socket_addrs().ok().and_then(|mut a| a.next()).ok_or_else(|| {
+            frond_binmain::usage(format!("--osc {target:?}: expected HOST:PORT, e.g. 127.0.0.1:9001"))
+        })?;
         Glove::Osc(
             vhid::OscGlove::start(config, addr).context("cannot start the OSC sender")?,
             target.clone(),
@@ -292,23 +294,12 @@ fn run(args: Args) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    let filter = tracing_subscriber::EnvFilter::try_new(&args.log_level)
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        // Colour only on a terminal, and never with NO_COLOR set (no-color.org).
-        .with_ansi(
-            std::io::IsTerminal::is_terminal(&std::io::stderr())
-                && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty()),
-        )
-        .init();
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("frond-vhid: error: {e:#}");
-            ExitCode::FAILURE
-        }
+    if let Some(code) = frond_binmain::DocsArgs::early("frond-vhid", Args::command) {
+        return code;
     }
+    let args = Args::parse();
+    if let Err(code) = frond_binmain::logging("frond-vhid", &args.log_level) {
+        return code;
+    }
+    frond_binmain::exit("frond-vhid", run(args))
 }

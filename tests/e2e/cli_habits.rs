@@ -1,0 +1,135 @@
+//! Issue 18, CLI habits, for every binary beside `frond` (whose own are in
+//! `daemon/cli/tests/docs.rs`): `--man DIR` writes pages that the real `man` renders,
+//! `--completions bash` is a script bash sources and that registers the binary, a bad
+//! `--log-level` is a usage error (exit 2), usage errors found after parsing exit 2 and failures
+//! while running exit 1, and an error is printed once, on one line.
+
+use std::process::Command;
+
+use frond_e2e::bin;
+
+/// The binaries a user runs, with one option their man page must mention.
+const BINARIES: [(&str, &str); 7] = [
+    ("frondd", "--socket-dir"),
+    ("frond-vhid", "--osc"),
+    ("frond-osc", "--vmc-bones"),
+    ("frond-gltf", "--man"),
+    ("frond-warp", "--completions"),
+    ("frond-console", "--token-file"),
+    ("frond-zenoh", "--zenoh-config"),
+];
+
+fn run(name: &str, args: &[&str]) -> std::process::Output {
+    Command::new(bin(name)).args(args).env("NO_COLOR", "1").output().unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+#[test]
+fn every_binary_writes_man_pages_and_bash_completions() {
+    let man_here = Command::new("man").arg("--version").output().is_ok_and(|o| o.status.success());
+    for (name, option) in BINARIES {
+        let dir = tempfile::tempdir().unwrap();
+        let out = run(name, &["--man", dir.path().to_str().unwrap()]);
+        assert!(out.status.success(), "{name} --man: {}", String::from_utf8_lossy(&out.stderr));
+        let page = dir.path().join(format!("{name}.1"));
+        let text = std::fs::read_to_string(&page).unwrap_or_else(|e| panic!("{}: {e}", page.display()));
+        assert!(text.contains(&format!(".TH {name} 1")), "{name}.1 header: {text}");
+        assert!(text.contains(&option.replace('-', "\\-")), "{name}.1 lacks {option}");
+        if man_here {
+            let man = Command::new("man").args(["-l", "-P", "cat"]).arg(&page).output().unwrap();
+            let shown = String::from_utf8_lossy(&man.stdout);
+            assert!(
+                man.status.success() && shown.contains("NAME") && shown.contains(option),
+                "{name}: {shown}"
+            );
+        }
+
+        let out = run(name, &["--completions", "bash"]);
+        assert!(out.status.success(), "{name} --completions: {}", String::from_utf8_lossy(&out.stderr));
+        let script = dir.path().join("completion.bash");
+        std::fs::write(&script, &out.stdout).unwrap();
+        let check = Command::new("bash")
+            .arg("-c")
+            .arg(format!("set -e; source {}; complete -p {name}", script.display()))
+            .output()
+            .expect("bash");
+        let said = String::from_utf8_lossy(&check.stdout);
+        assert!(
+            check.status.success() && said.contains(name),
+            "{name}: {said}{}",
+            String::from_utf8_lossy(&check.stderr)
+        );
+        // --man takes no other argument.
+        let out = run(name, &["--man", dir.path().to_str().unwrap(), "--version"]);
+        assert_eq!(out.status.code(), Some(2), "{name}: --man with another argument");
+    }
+    if !man_here {
+        eprintln!("skipped the rendering: no man here");
+    }
+}
+
+#[test]
+fn a_bad_log_level_is_a_usage_error_everywhere() {
+    for name in ["frondd", "frond-vhid", "frond-osc", "frond-zenoh"] {
+        let out = run(name, &["--log-level", "frond[{"]);
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with(&format!("{name}: error: --log-level")), "{name}: {err}");
+    }
+}
+
+/// One line, the program's name once, no cause said twice (`X: X`).
+fn said_once(name: &str, err: &str) {
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{name}: {err}");
+    assert_eq!(err.matches(&format!("{name}:")).count(), 1, "{name}: {err}");
+    let parts: Vec<&str> = lines[0].split(": ").collect();
+    for w in parts.windows(2) {
+        assert_ne!(w[0], w[1], "{name} repeats a cause: {err}");
+    }
+}
+
+#[test]
+fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let glb = d.join("x.glb").display().to_string();
+    let png = d.join("x.gif").display().to_string();
+    let unwritable = d.join("no/such/dir/x.gif").display().to_string();
+    let node = d.join("g/hidraw-frond").display().to_string();
+    let image = frond_e2e::repo_root().join("rig-files/images/grass.png").display().to_string();
+    // Usage errors found after clap parsed the arguments.
+    let usage: [(&str, Vec<String>); 4] = [
+        ("frond-vhid", ["--osc", "no-port-here"].map(String::from).to_vec()),
+        ("frond-osc", ["--rate", "0"].map(String::from).to_vec()),
+        (
+            "frond-gltf",
+            ["bake", "--rig", "grass", "--take", "x.take", "--fps", "0", "-o", &glb]
+                .map(String::from)
+                .to_vec(),
+        ),
+        ("frond-warp", ["render", "--image", &image, "--frames", "0", "-o", &png].map(String::from).to_vec()),
+    ];
+    for (name, args) in &usage {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = run(name, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name} {args:?}: {err}");
+    }
+    // Failures while running: a file that is not there, a directory that cannot be written.
+    let missing = d.join("missing.take").display().to_string();
+    let failures: [(&str, Vec<String>); 3] = [
+        ("frond-gltf", ["bake", "--rig", "grass", "--take", &missing, "-o", &glb].map(String::from).to_vec()),
+        (
+            "frond-warp",
+            ["render", "--image", &image, "--frames", "2", "-o", &unwritable].map(String::from).to_vec(),
+        ),
+        ("frond-vhid", ["--play", &missing, "--backend", "fuse", "--node", &node].map(String::from).to_vec()),
+    ];
+    for (name, args) in &failures {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = run(name, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name} {args:?}: {err}");
+        said_once(name, &err);
+    }
+}
