@@ -3,7 +3,9 @@
 //! WebSocket server writes them, of hand poses known here. The daemon's poses must equal
 //! `frond map` of the hand samples those poses are (worked out by hand from the geometry the
 //! frames were built from); it reconnects when the service restarts, and holds (then flags the
-//! device lost) while the hand is out of view.
+//! device lost) while the hand is out of view. Then frames a real controller produced (Leap
+//! Motion's own recordings, `leap_recorded/`): one hand, and a left and a right hand as two
+//! sources, each sample checked against the LeapJS angles worked out here from the frame.
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
@@ -243,4 +245,202 @@ fn bad_leap_addresses_are_refused_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("hand=both") && err.contains("hand=left or hand=right"), "{err}");
+}
+
+/// Frames a real Leap Motion controller produced (`leap_recorded/README.md`), one JSON object a
+/// line.
+fn recorded(file: &str) -> Vec<Value> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("e2e/leap_recorded").join(file);
+    std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// The `which` hand of a recorded frame as a frond hand sample, worked out here from the JSON
+/// as LeapJS defines it (a second implementation beside `frond_motion::leap`): `Hand.pitch`
+/// `atan2(d.y, -d.z)`, `yaw` `atan2(d.x, -d.z)`, `roll` `atan2(n.x, -n.y)` of the palm direction
+/// and normal; the thumb's bends are the angles between its successive bones' directions
+/// (`Bone.direction`: the negated third row of the bone's basis).
+fn sample_of(frame: &Value, which: &str) -> Known {
+    let v3 = |v: &Value| -> [f64; 3] { std::array::from_fn(|i| v[i].as_f64().unwrap()) };
+    let hand = frame["hands"].as_array().unwrap().iter().find(|h| h["type"] == which).expect("the hand");
+    let (d, n) = (v3(&hand["direction"]), v3(&hand["palmNormal"]));
+    let wrist = [d[1].atan2(-d[2]), d[0].atan2(-d[2]), n[0].atan2(-n[1])].map(f64::to_degrees);
+    let thumb = frame["pointables"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["handId"] == hand["id"] && p["type"] == 0)
+        .expect("the hand's thumb");
+    let dirs: Vec<[f64; 3]> = (0..4).map(|b| norm(v3(&thumb["bases"][b][2]).map(|c| -c))).collect();
+    let bend = |i: usize| {
+        let dot: f64 = (0..3).map(|k| dirs[i][k] * dirs[i + 1][k]).sum();
+        dot.clamp(-1.0, 1.0).acos().to_degrees()
+    };
+    Known { t: frame["timestamp"].as_f64().unwrap() / 1e6, wrist, thumb: [bend(0), bend(1), bend(2)] }
+}
+
+/// A fake service that gives every connection `{"version": 6}`, then each of `frames` 5 ms
+/// apart, then frames without hands until stopped.
+fn replay_to_each(
+    listener: TcpListener,
+    frames: Vec<String>,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<()> {
+    listener.set_nonblocking(true).unwrap();
+    let frames = Arc::new(frames);
+    std::thread::spawn(move || {
+        let mut conns = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            let Ok((stream, _)) = listener.accept() else {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            };
+            let (frames, stop) = (Arc::clone(&frames), Arc::clone(&stop));
+            conns.push(std::thread::spawn(move || {
+                stream.set_nonblocking(false).unwrap();
+                stream.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+                let Ok(mut ws) = tungstenite::accept(stream) else { return };
+                let _ =
+                    ws.send(tungstenite::Message::text(r#"{"serviceVersion":"2.1.5+22699","version":6}"#));
+                let mut id = 2_000_000;
+                let mut next = frames.iter();
+                while !stop.load(Ordering::Relaxed) {
+                    let _ = ws.read();
+                    let text = next.next().cloned().unwrap_or_else(|| {
+                        id += 1;
+                        frame(id, None)
+                    });
+                    if ws.send(tungstenite::Message::text(text)).is_err() {
+                        break;
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            }));
+        }
+        for c in conns {
+            let _ = c.join();
+        }
+    })
+}
+
+fn close(got: f64, want: f64, tol: f64, what: &str) {
+    assert!((got - want).abs() < tol, "{what}: {got} vs {want}");
+}
+
+/// Each fresh pose's hand sample against the sample worked out from the frame it came from.
+fn check_hands(poses: &[frond_sdk::Pose], want: &[Known], what: &str) {
+    assert_eq!(poses.len(), want.len(), "{what}: one fresh pose per recorded frame");
+    for (p, k) in poses.iter().zip(want) {
+        assert_eq!(p.hand.t, k.t, "{what}: the frame's device time");
+        for i in 0..3 {
+            close(
+                f64::from(p.hand.wrist_deg[i]),
+                k.wrist[i],
+                1e-3,
+                &format!("{what} wrist {i} at t={}", k.t),
+            );
+            close(
+                f64::from(p.hand.thumb_deg[i]),
+                k.thumb[i],
+                1e-3,
+                &format!("{what} thumb {i} at t={}", k.t),
+            );
+        }
+    }
+}
+
+/// Recorded frames of a real controller (a right hand tapping a finger, Leap Motion's own
+/// recording): the daemon's hand samples equal the LeapJS angles worked out here from each frame,
+/// and its poses equal `frond map` of those samples.
+#[test]
+fn recorded_frames_of_a_real_controller_give_the_sdks_angles() {
+    let frames = recorded("finger-tap-54fps.ndjson");
+    let want: Vec<Known> = frames.iter().map(|f| sample_of(f, "right")).collect();
+    let spread = |k: usize| {
+        let v: Vec<f64> = want.iter().map(|w| w.thumb[k]).collect();
+        v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    assert!(spread(0) > 5.0 && spread(2) > 5.0, "the recorded thumb moves");
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let source = format!("leap://127.0.0.1:{}?hand=right", listener.local_addr().unwrap().port());
+    let daemon = Daemon::start(dir.path(), &["--source", &source, "--rig", "grass", "--filter", "none"]);
+    let mut sub = frond_sdk::Subscriber::connect(&daemon.socket_dir).unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = replay_to_each(listener, frames.iter().map(Value::to_string).collect(), Arc::clone(&stop));
+    let fresh = frond_e2e::fresh_poses(&mut sub, want.len(), Duration::from_secs(20));
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
+    check_hands(&fresh, &want, "right hand");
+    let expected = frond_e2e::frond_map(&["--filter", "none", "--rig", "grass"], &hand_jsonl(&want));
+    assert!(expected.status.success(), "{}", String::from_utf8_lossy(&expected.stderr));
+    let expected: Vec<Value> = String::from_utf8(expected.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(expected.len(), fresh.len());
+    for (p, e) in fresh.iter().zip(&expected) {
+        for j in 0..4 {
+            for c in 0..3 {
+                let want = e["joints"][j][c].as_f64().unwrap();
+                close(f64::from(p.joints_deg[j][c]), want, 2e-3, &format!("joint {j}.{c} at t={}", p.hand.t));
+            }
+        }
+    }
+}
+
+/// Both hands of one controller as two sources (`--hand` with `hand=left` and `hand=right`):
+/// each recorded frame carries a real left hand (Leap Motion's 110 fps recording) beside a real
+/// right hand (the 54 fps one); the left drives the flower, the right its leaves, each with its
+/// own hand's angles.
+#[test]
+fn both_hands_of_recorded_frames_drive_two_elements() {
+    let (right, left) = (recorded("finger-tap-54fps.ndjson"), recorded("finger-tap-110fps.ndjson"));
+    let frames: Vec<Value> = right
+        .iter()
+        .zip(&left)
+        .map(|(r, l)| {
+            let mut f = r.clone();
+            f["hands"].as_array_mut().unwrap().extend(l["hands"].as_array().unwrap().iter().cloned());
+            f["pointables"]
+                .as_array_mut()
+                .unwrap()
+                .extend(l["pointables"].as_array().unwrap().iter().cloned());
+            f
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let at = format!("leap://127.0.0.1:{}", listener.local_addr().unwrap().port());
+    let (left_flag, right_flag) =
+        (format!("left={at}?hand=left"), format!("right={at}?hand=right,element=leaf"));
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--rig", "flower", "--filter", "none", "--hand", &left_flag, "--hand", &right_flag],
+    );
+    let mut sub = frond_sdk::Subscriber::connect(&daemon.socket_dir).unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = replay_to_each(listener, frames.iter().map(Value::to_string).collect(), Arc::clone(&stop));
+    let mut fresh: [Vec<frond_sdk::Pose>; 2] = [Vec::new(), Vec::new()];
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while fresh.iter().any(|f| f.len() < frames.len()) && Instant::now() < deadline {
+        if let frond_sdk::Event::Pose(p) = sub.next_event().expect("the pose stream")
+            && !p.flags.contains(PoseFlags::HELD)
+            && let Some(list) = fresh.get_mut(usize::from(p.element))
+            && list.len() < frames.len()
+        {
+            list.push(p);
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
+    let t = |f: &Value| f["timestamp"].as_f64().unwrap() / 1e6;
+    let want_left: Vec<Known> = frames.iter().map(|f| Known { t: t(f), ..sample_of(f, "left") }).collect();
+    let want_right: Vec<Known> = frames.iter().map(|f| sample_of(f, "right")).collect();
+    check_hands(&fresh[0], &want_left, "left hand, element 0 (the flower)");
+    check_hands(&fresh[1], &want_right, "right hand, element 1 (its leaves)");
 }
