@@ -181,6 +181,9 @@ impl Output {
 struct StageSink<'a> {
     out: &'a mut Output,
     device_time_us: u64,
+    /// The primary hand's device time this tick, seconds: a stage's frames carry it as their
+    /// `hand.t`, so every element's frames share one timeline (receivers key them by it).
+    hand_t: f64,
 }
 
 impl FrameSink for StageSink<'_> {
@@ -192,6 +195,7 @@ impl FrameSink for StageSink<'_> {
             joints_deg,
             flags,
             device_time_us: self.device_time_us,
+            hand: HandWire { t: self.hand_t, ..HandWire::default() },
             ..Pose::default()
         });
     }
@@ -578,7 +582,8 @@ impl Engine {
         let primary = &self.hands[self.primary];
         let ctx =
             TickContext { now_ns, device_time_us: primary.last.device_time_us, hand: primary.last_hand };
-        let mut sink = StageSink { out: &mut self.out, device_time_us: ctx.device_time_us };
+        let mut sink =
+            StageSink { out: &mut self.out, device_time_us: ctx.device_time_us, hand_t: ctx.hand.t };
         for stage in self.stages.iter_mut().flatten() {
             stage.tick(&ctx, &mut sink);
         }

@@ -238,4 +238,22 @@ fn the_slow_lane_sends_a_new_table_right_before_its_first_frame() {
     let ServerMessage::Pose(next) = &seen[at + 1] else { panic!("a pose follows the table") };
     assert_eq!(next.seq, from_seq, "the table comes right before the first frame under it");
     assert!(seen[at..].iter().any(|m| matches!(m, ServerMessage::Pose(p) if p.element == 40)));
+    // A stage's frames carry the device time of the hand sample their tick worked from (one
+    // timeline for every element; receivers key frames by it).
+    let mut hand_t = None;
+    let mut stage_times = Vec::new();
+    for m in &seen {
+        match m {
+            ServerMessage::Pose(p) if p.element == 0 => hand_t = Some(p.hand.t),
+            ServerMessage::Pose(p) if p.element == 40 => {
+                assert_eq!(Some(p.hand.t), hand_t, "frame {} of the stage", p.seq);
+                stage_times.push(p.hand.t);
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        stage_times.windows(2).any(|w| w[1] > w[0]),
+        "the stage's frames advance in time: {stage_times:?}"
+    );
 }

@@ -180,7 +180,9 @@ impl std::ops::BitOr for PoseFlags {
 /// The calibrated hand sample a pose was mapped from (degrees; `t` in seconds of device time).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct HandWire {
-    /// Device time of the sample in seconds.
+    /// Device time of the sample in seconds. A frame a stage publishes (flagged `PLAYBACK`:
+    /// a loop, a field plant, a walker) carries the primary hand's device time at that tick, so
+    /// all elements share one timeline; its wrist and thumb angles are zero.
     pub t: f64,
     /// Calibrated wrist `[pitch, yaw, roll]` (`W` of seed 000, Eq. 2), degrees.
     pub wrist_deg: [f32; 3],
