@@ -10,7 +10,11 @@ Listen. The bones are found by the joint names frond-osc announces (`/frond/rig`
 rig and its four joint names, root first, repeated every second), so an armature imported from
 frond-gltf's GLB of any rig (`root/lower/middle/tip` for grass, `root/stem_low/stem_high/head` for
 the flower, ...) is driven as it is; before any announcement, or for bones missing from the
-armature, the names `joint0` .. `joint3` are tried. Every received frame sets the bones'
+armature, the names `joint0` .. `joint3` are tried. Secondary elements: a layer (`leaf`,
+`leaf#2`) drives every instance of its kind in the picked armature (`leaf0_joint0`, ...); a field
+plant (`plant<i>` of `frond field start`) or a graph walker (`walker<i>` of `frond walk`) drives
+the armature of plant i wherever it is in the scene, as Blender imports a field or grove GLB from
+frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. Every received frame sets the bones'
 rotations from `/frond/joint/<i>/quat`; Record keys each received frame into a new action at the
 frame given by the pose's device time `t` (`start frame + (t - t0) * scene fps`, fractional frames
 kept so no frame is lost; frames flagged held, which repeat the previous pose, are applied but not
@@ -221,7 +225,7 @@ class Receiver:
 
 # ---------------------------------------------------------------- Blender side
 
-_state = {"receiver": None, "frames": 0, "lost": 0, "last_seq": None, "t0": None, "keyed": 0}
+_state = {"receiver": None, "frames": 0, "lost": 0, "last_seq": None, "t0": None, "keyed": 0, "recorded": set()}
 
 
 def _armature(scene):
@@ -229,13 +233,17 @@ def _armature(scene):
     return obj if obj is not None and obj.type == "ARMATURE" else None
 
 
+def element_info(element):
+    receiver = _state["receiver"]
+    return receiver.elements.get(element) if receiver is not None else None
+
+
 def element_bones(obj, element):
     """The joint sets a secondary element drives: every instance of its kind in frond-gltf's
     naming (`leaf0_joint0` .. `leaf0_joint3`, `leaf1_joint0`, ...; a layer `leaf#2` is a `leaf`),
     as announced by `/frond/element/<e>/info` (kind `layer`)."""
-    receiver = _state["receiver"]
-    info = receiver.elements.get(element) if receiver is not None else None
-    if info is None or info["kind"] != "layer":
+    info = element_info(element)
+    if obj is None or info is None or info["kind"] != "layer":
         return []
     kind = info["name"].split("#")[0]
     sets = []
@@ -246,12 +254,41 @@ def element_bones(obj, element):
     return sets
 
 
-def frame_bones(obj, frame):
-    """The joint sets a frame drives: the main skeleton for the global element, a layer's
-    instances for a secondary element."""
-    if frame.get("element", 0) == 0:
-        return [bone_names(obj)]
-    return element_bones(obj, frame["element"])
+def _plant_number(name, prefix):
+    """`i` of an element named `PREFIX<i>` or an object named `PREFIX<i>` (zero-padded, with
+    Blender's `.001` suffix for a second import), else None."""
+    base = name.split(".")[0]
+    digits = base[len(prefix):]
+    return int(digits) if base.startswith(prefix) and digits.isdigit() else None
+
+
+def plant_armature(scene, element):
+    """The armature a field plant (`plant<i>`, `frond field start`) or graph walker
+    (`walker<i>`, `frond walk`) drives: plant i of a field or grove frond-gltf baked, which
+    Blender's glTF importer names `<rig>_<i>` with the index zero-padded (`grass_03`)."""
+    info = element_info(element)
+    if info is None or info["kind"] != "field-plant":
+        return None
+    i = next((n for n in (_plant_number(info["name"], p) for p in ("plant", "walker")) if n is not None), None)
+    if i is None:
+        return None
+    for obj in scene.objects:
+        if obj.type == "ARMATURE" and _plant_number(obj.name, info["rig"] + "_") == i:
+            return obj
+    return None
+
+
+def frame_targets(scene, obj, frame):
+    """What a frame drives, as (armature, joint sets): the picked armature's main skeleton for
+    the global element, a layer's instances in it, or a field plant's own armature."""
+    element = frame.get("element", 0)
+    if element == 0:
+        return [(obj, [bone_names(obj)])] if obj is not None else []
+    plant = plant_armature(scene, element)
+    if plant is not None:
+        joints = element_info(element)["joints"]
+        return [(plant, [[name if name in plant.pose.bones else None for name in joints]])]
+    return [(obj, element_bones(obj, element))] if obj is not None else []
 
 
 def bone_names(obj):
@@ -265,28 +302,40 @@ def bone_names(obj):
     return names
 
 
-def apply_frame(obj, frame):
-    """Sets the pose bones' rotations from the frame's joint quaternions."""
-    for names in frame_bones(obj, frame):
-        for name, (x, y, z, w) in zip(names, frame["quats"]):
-            pb = obj.pose.bones.get(name) if name else None
-            if pb is None:
-                continue
-            pb.rotation_mode = "QUATERNION"
-            pb.rotation_quaternion = (w, x, y, z)
+def apply_frame(scene, obj, frame):
+    """Sets the pose bones' rotations from the frame's joint quaternions; whether it drove any."""
+    driven = False
+    for target, sets in frame_targets(scene, obj, frame):
+        for names in sets:
+            for name, (x, y, z, w) in zip(names, frame["quats"]):
+                pb = target.pose.bones.get(name) if name else None
+                if pb is None:
+                    continue
+                pb.rotation_mode = "QUATERNION"
+                pb.rotation_quaternion = (w, x, y, z)
+                driven = True
+    return driven
 
 
 def key_frame(obj, scene, frame):
-    """Keys the bones' rotations at the frame's device time (see the module docs)."""
+    """Keys the bones' rotations at the frame's device time (see the module docs). An armature
+    keyed for the first time in this recording (a field plant's) gets its own new action."""
     if _state["t0"] is None:
         _state["t0"] = frame["t"]  # any element's: device time is shared
     fps = scene.render.fps / scene.render.fps_base
     at = scene.frond_receiver.record_start + (frame["t"] - _state["t0"]) * fps
-    for names in frame_bones(obj, frame):
-        for name in names:
-            pb = obj.pose.bones.get(name) if name else None
-            if pb is not None:
-                pb.keyframe_insert("rotation_quaternion", frame=at, group=name)
+    for target, sets in frame_targets(scene, obj, frame):
+        if target.name not in _state["recorded"]:
+            _state["recorded"].add(target.name)
+            if target is not obj:
+                if target.animation_data is None:
+                    target.animation_data_create()
+                target.animation_data.action = bpy.data.actions.new(f"frond_take_{target.name}")
+        for names in sets:
+            for name in names:
+                pb = target.pose.bones.get(name) if name else None
+                if pb is not None:
+                    pb.keyframe_insert("rotation_quaternion", frame=at, group=name)
     _state["keyed"] += 1
 
 
@@ -300,9 +349,8 @@ def process(scene, frames):
         if frame["flags"] & DEVICE_LOST:
             _state["lost"] += 1
             continue
-        if obj is None:
+        if not apply_frame(scene, obj, frame):
             continue
-        apply_frame(obj, frame)
         applied += 1
         # A held frame repeats the previous pose at the same device time: nothing new to key.
         if scene.frond_receiver.recording and not frame["flags"] & HELD:
@@ -331,18 +379,20 @@ def stop():
 
 
 def start_recording(scene):
-    """Assigns a new action to the armature and starts keying received frames into it."""
+    """Starts keying received frames: into a new action on the picked armature (returned; None
+    when none is picked) and on every other armature a frame drives (a field plant's), created
+    when it is first keyed."""
     obj = _armature(scene)
-    if obj is None:
-        return None
-    if obj.animation_data is None:
-        obj.animation_data_create()
-    action = bpy.data.actions.new("frond_take")
-    obj.animation_data.action = action
+    action = None
+    if obj is not None:
+        if obj.animation_data is None:
+            obj.animation_data_create()
+        action = bpy.data.actions.new("frond_take")
+        obj.animation_data.action = action
     props = scene.frond_receiver
     props.record_start = scene.frame_current
     props.recording = True
-    _state.update(t0=None, keyed=0)
+    _state.update(t0=None, keyed=0, recorded={obj.name} if obj is not None else set())
     return action
 
 
@@ -411,8 +461,7 @@ if bpy is not None:
             if scene.frond_receiver.recording:
                 stop_recording(scene)
             elif start_recording(scene) is None:
-                self.report({"ERROR"}, "pick an armature first")
-                return {"CANCELLED"}
+                self.report({"INFO"}, "no armature picked: recording field plants and walkers only")
             return {"FINISHED"}
 
     class FROND_PT_panel(bpy.types.Panel):

@@ -21,11 +21,11 @@ use frond_motion::rig::Rig;
 use frond_protocol::Pose;
 use support::*;
 
-/// Bakes a three-frame rest take of `rig` with frond-gltf into `dir/<rig>.glb` (only its armature
-/// and mesh matter to the receivers).
-fn bake_rest_glb(gltf: &Path, rig: &str, dir: &Path) -> PathBuf {
+/// Writes a take of `rig` named `name` into `dir`: `frames` frames at 30 FPS of each joint
+/// swaying on all three axes (`joints_deg(t)`), or the rest pose.
+fn write_take(dir: &Path, name: &str, rig: &str, frames: usize, sway: bool) -> PathBuf {
     let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader {
-        name: "rest".into(),
+        name: name.into(),
         rig_name: rig.into(),
         calibration_id: "none".into(),
         filter: "none".into(),
@@ -36,12 +36,30 @@ fn bake_rest_glb(gltf: &Path, rig: &str, dir: &Path) -> PathBuf {
         clock: None,
         stage: None,
     });
-    let rest: Vec<frond_motion::PoseFrame> =
-        (0..3).map(|k| frond_motion::PoseFrame { t: k as f64 / 30.0, joints_deg: [[0.0; 3]; 4] }).collect();
-    let clip = frond_motion::clip::Clip { fps: 30.0, frames: rest };
+    let pose = |t: f64| -> [[f32; 3]; 4] {
+        std::array::from_fn(|j| {
+            let phase = t * std::f64::consts::TAU * 0.7 + j as f64;
+            [25.0 * phase.sin(), 15.0 * phase.cos(), 10.0 * (2.0 * phase).sin()].map(|a| a as f32)
+        })
+    };
+    let frames: Vec<frond_motion::PoseFrame> = (0..frames)
+        .map(|k| {
+            let t = k as f64 / 30.0;
+            frond_motion::PoseFrame { t, joints_deg: if sway { pose(t) } else { [[0.0; 3]; 4] } }
+        })
+        .collect();
+    let clip = frond_motion::clip::Clip { fps: 30.0, frames };
     take.set_layer(0, None, frond_motion::layers::frames_from_clip(&clip, 0, 0, None));
-    let take_path = dir.join(format!("{rig}-rest.take"));
-    std::fs::write(&take_path, take.to_bytes()).unwrap();
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(format!("{name}.take"));
+    std::fs::write(&path, take.to_bytes()).unwrap();
+    path
+}
+
+/// Bakes a three-frame rest take of `rig` with frond-gltf into `dir/<rig>.glb` (only its armature
+/// and mesh matter to the receivers).
+fn bake_rest_glb(gltf: &Path, rig: &str, dir: &Path) -> PathBuf {
+    let take_path = write_take(dir, &format!("{rig}-rest"), rig, 3, false);
     let glb = dir.join(format!("{rig}.glb"));
     let baked = Command::new(gltf)
         .args(["bake", "-q", "--rig", rig, "--take"])
@@ -245,4 +263,108 @@ fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
         bent >= matched / 4,
         "only {bent} of {matched} frames bend the plant: the check would not see a bone ignored"
     );
+}
+
+/// A live field into Blender: `frond field start` plays a known take (each joint swaying) on four
+/// plants of a field; frond-gltf bakes the same field file; Blender imports it (one armature per
+/// plant) and frond's add-on, with no armature picked, drives each plant's armature from its
+/// `plant<i>` element. Every reported plant pose (bone heads and directions in its armature's
+/// space) equals forward kinematics of the daemon's pose of that element and sequence number, all
+/// four plants are driven, and Record gives each plant its own action.
+#[test]
+fn blender_addon_drives_the_plants_of_a_live_field() {
+    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
+    let Some(py) = python_with("bpy") else {
+        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+    };
+    let (gltf, frond) = (frondd.with_file_name("frond-gltf"), frondd.with_file_name("frond"));
+    if !gltf.exists() || !frond.exists() {
+        return skip("frond-gltf or frond is not built (cargo build --workspace --bins)");
+    }
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
+    let run_frond = |args: &[&str]| {
+        let out = Command::new(&frond)
+            .args(args)
+            .env("FROND_SOCKET_DIR", &daemon.socket_dir)
+            .env("FROND_TAKES_DIR", &daemon.takes_dir)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let field = tmp.path().join("field.json");
+    let field_s = field.to_str().unwrap();
+    run_frond(&[
+        "take", "field", "sway", "--rows", "2", "--cols", "2", "--cell", "1", "--speed", "2", "-o", field_s,
+    ]);
+    let glb = tmp.path().join("field.glb");
+    let baked = Command::new(&gltf)
+        .args(["bake", "-q", "--rig", "grass", "--take"])
+        .arg(&take)
+        .args(["--field", field_s, "--duration", "1", "-o"])
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    let out = tmp.path().join("field.jsonl");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_field_check.py");
+    let mut child = Command::new(&py)
+        .arg(script)
+        .arg("--glb")
+        .arg(&glb)
+        .args(["--plants", "4", "--frames", "200", "--record", "120", "--timeout", "60", "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start blender_field_check.py");
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    let port: u16 = loop {
+        line.clear();
+        if reader.read_line(&mut line).expect("blender port") == 0 {
+            let mut err = String::new();
+            child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+            panic!("blender_field_check ended without printing its port: {err}");
+        }
+        if let Some(p) = line.trim().strip_prefix("port ") {
+            break p.parse().unwrap();
+        }
+    };
+    let mut blender = Proc(child);
+    let collector = Collector::start(&daemon.socket_dir);
+    run_frond(&["field", "start", "--take", "sway", "--field", field_s, "--plants", "4"]);
+    let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    let (_, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    let by_key: HashMap<(u16, u32), &Pose> = poses.iter().map(|p| ((p.element, p.seq as u32), p)).collect();
+    let frames = read_jsonl(&out);
+    assert_eq!(frames.len(), 200);
+    let mut armatures = std::collections::BTreeMap::new();
+    let mut moving = 0;
+    for f in &frames {
+        let (element, seq) = (f["element"].as_u64().unwrap() as u16, f["seq"].as_u64().unwrap() as u32);
+        let name = f["name"].as_str().unwrap();
+        let pose =
+            by_key.get(&(element, seq)).unwrap_or_else(|| panic!("{name} frame {seq} unknown to the SDK"));
+        // plant<i> drives grass_<i>, whatever its element id.
+        let i: usize = name.strip_prefix("plant").unwrap().parse().unwrap();
+        let armature = f["armature"].as_str().unwrap();
+        assert_eq!(armature.strip_prefix("grass_").map(|d| d.parse::<usize>().unwrap()), Some(i), "{name}");
+        armatures.insert(armature.to_string(), ());
+        let (heads, dirs) = blender_fk(pose.joints_deg, &rig);
+        for j in 0..4 {
+            close(&f64s(&f["heads"][j]), &heads[j], 1e-4, &format!("{name} head of joint {j} at {seq}"));
+            close(&f64s(&f["dirs"][j]), &dirs[j], 1e-4, &format!("{name} direction of joint {j} at {seq}"));
+        }
+        if dirs[3][2] < 5f64.to_radians().cos() {
+            moving += 1;
+        }
+    }
+    assert_eq!(armatures.len(), 4, "every plant's armature driven: {armatures:?}");
+    assert!(moving >= frames.len() / 4, "only {moving} of {} plant frames bend the plant", frames.len());
 }

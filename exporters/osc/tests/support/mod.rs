@@ -66,6 +66,7 @@ impl Drop for Proc {
 pub struct Daemon {
     _proc: Proc,
     pub socket_dir: PathBuf,
+    pub takes_dir: PathBuf,
     _dir: tempfile::TempDir,
 }
 
@@ -90,7 +91,7 @@ pub fn start_daemon(frondd: &Path) -> Daemon {
         assert!(Instant::now() < deadline, "frondd's pose socket did not come up within 20 s");
         std::thread::sleep(Duration::from_millis(25));
     }
-    Daemon { _proc: proc, socket_dir, _dir: dir }
+    Daemon { _proc: proc, socket_dir, takes_dir: dir.path().join("takes"), _dir: dir }
 }
 
 /// A `frond_sdk` subscriber collecting every pose until stopped.
