@@ -1,7 +1,8 @@
 //! `frond doctor [--json]`: checks what a stage set-up needs and explains each problem with its
 //! fix: the daemon and its socket directory, the glove's hidraw node and its permissions, the udev
 //! rule and the `frond` group, FUSE for the virtual glove, realtime limits, the service's state,
-//! and the exporters beside `frond`. Exit status 0 when nothing needs fixing, 1 otherwise.
+//! and the exporters: installed beside `frond`, able to subscribe as this user, connected now
+//! (named by process), their services. Exit status 0 when nothing needs fixing, 1 otherwise.
 
 use std::path::{Path, PathBuf};
 
@@ -48,9 +49,8 @@ fn check(name: &'static str, verdict: Verdict, found: String, fix: Option<String
 
 /// The daemon, and what its status says needs the operator (`frond_sdk::health`, as the
 /// console shows it): one check each.
-fn daemon(g: &Global) -> Vec<Check> {
+fn daemon(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
     let dir = paths::socket_dir(g.socket_dir.clone());
-    let status = Control::connect(&dir).and_then(|mut c| c.request(&ControlRequest::Status));
     match status {
         Ok(ControlReply::Status(s)) => {
             let mut out = vec![check(
@@ -67,7 +67,7 @@ fn daemon(g: &Global) -> Vec<Check> {
                 None,
             )];
             out.extend(
-                frond_sdk::health::problems(&s)
+                frond_sdk::health::problems(s)
                     .into_iter()
                     .map(|p| check("stage", Verdict::Problem, p.what, Some(p.fix))),
             );
@@ -281,17 +281,22 @@ fn service() -> Check {
     }
 }
 
-fn exporters() -> Check {
+/// The exporters a stage uses, beside `frond` or on PATH.
+const EXPORTERS: [&str; 5] = ["frond-gltf", "frond-osc", "frond-warp", "frond-console", "frond-zenoh"];
+
+/// The exporters: installed; able to reach the daemon (this user may subscribe to its pose
+/// socket: an exporter run as this user can); which are connected now (the daemon's subscribers,
+/// named by their process); and the state of any `frond-exporter@` service.
+fn exporters(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
     let here = std::env::current_exe().ok().and_then(|p| p.parent().map(Path::to_path_buf));
     let on_path = |name: &str| {
         here.as_ref().is_some_and(|d| d.join(name).is_file())
             || std::env::var_os("PATH")
                 .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()))
     };
-    let missing: Vec<&str> =
-        ["frond-gltf", "frond-osc", "frond-warp"].into_iter().filter(|n| !on_path(n)).collect();
-    if missing.is_empty() {
-        check("exporters", Verdict::Ok, "frond-gltf, frond-osc and frond-warp are installed".into(), None)
+    let missing: Vec<&str> = EXPORTERS.into_iter().filter(|n| !on_path(n)).collect();
+    let mut out = vec![if missing.is_empty() {
+        check("exporters", Verdict::Ok, format!("{} are installed", EXPORTERS.join(", ")), None)
     } else {
         check(
             "exporters",
@@ -299,13 +304,114 @@ fn exporters() -> Check {
             format!("not found beside frond or on PATH: {}", missing.join(", ")),
             Some("install them with frond (`cargo install --path exporters/<name>`)".into()),
         )
+    }];
+    if let Ok(ControlReply::Status(s)) = status {
+        out.push(reachable(g, s));
     }
+    out.extend(exporter_units());
+    out
+}
+
+/// Whether an exporter run as this user reaches the daemon: a subscription to the pose socket
+/// gets its hello. Lists the subscribers connected now by process name.
+fn reachable(g: &Global, s: &frond_protocol::StatusReport) -> Check {
+    let dir = paths::socket_dir(g.socket_dir.clone());
+    let connected: Vec<String> = s
+        .subscribers
+        .iter()
+        .map(|sub| {
+            let name = std::fs::read_to_string(format!("/proc/{}/comm", sub.pid))
+                .ok()
+                .filter(|_| sub.pid != 0)
+                .map(|n| n.trim().to_string())
+                .unwrap_or_else(|| "a subscriber".into());
+            let dropped =
+                if sub.dropped > 0 { format!(", {} frames dropped", sub.dropped) } else { String::new() };
+            format!("{name} (pid {}{dropped})", sub.pid)
+        })
+        .collect();
+    let now = if connected.is_empty() {
+        "none connected now".to_string()
+    } else {
+        format!("connected: {}", connected.join(", "))
+    };
+    match frond_sdk::Subscriber::options().read_timeout(Some(std::time::Duration::from_secs(2))).connect(&dir)
+    {
+        Ok(_) => check(
+            "reach",
+            Verdict::Ok,
+            format!("exporters run as you can subscribe at {}; {now}", dir.display()),
+            None,
+        ),
+        Err(e) => {
+            let fix = match &e {
+                frond_sdk::SdkError::Refused { .. } => format!(
+                    "raise `max_subscribers` under [publisher] in the daemon's config (now {} connected), or stop a subscriber that is not needed",
+                    s.subscribers.len()
+                ),
+                frond_sdk::SdkError::NotRunning { source, .. }
+                    if source.kind() == std::io::ErrorKind::PermissionDenied =>
+                {
+                    "join the daemon's group (`sudo usermod -aG frond $USER`, then log in again) or run the exporter as the daemon's user".into()
+                }
+                _ => "see the daemon check above; `frond status` shows the publisher's state".into(),
+            };
+            check(
+                "reach",
+                Verdict::Problem,
+                format!(
+                    "an exporter run as you cannot subscribe at {}: {}",
+                    dir.display(),
+                    frond_protocol::error_text(&e)
+                ),
+                Some(fix),
+            )
+        }
+    }
+}
+
+/// Installed `frond-exporter@NAME` services: a failed one is a problem, with where its log is.
+fn exporter_units() -> Vec<Check> {
+    let Ok(out) = std::process::Command::new("systemctl")
+        .args(["list-units", "frond-exporter@*", "--all", "--plain", "--no-legend", "--no-pager"])
+        .output()
+    else {
+        return Vec::new();
+    };
+    if !out.status.success() {
+        return Vec::new();
+    }
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|line| {
+            let mut cols = line.split_whitespace();
+            let (unit, _load, active, sub) = (cols.next()?, cols.next()?, cols.next()?, cols.next()?);
+            Some(match active {
+                "active" => check("exporter", Verdict::Ok, format!("{unit} is {sub}"), None),
+                "failed" => check(
+                    "exporter",
+                    Verdict::Problem,
+                    format!("{unit} failed"),
+                    Some(format!("see `journalctl -u {unit}`, then `systemctl restart {unit}`")),
+                ),
+                other => check(
+                    "exporter",
+                    Verdict::Warn,
+                    format!("{unit} is {other}"),
+                    Some(format!("`systemctl start {unit}`")),
+                ),
+            })
+        })
+        .collect()
 }
 
 /// Every check, in order.
 pub fn checks(g: &Global) -> Vec<Check> {
-    let mut all = daemon(g);
-    all.extend([socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service(), exporters()]);
+    let dir = paths::socket_dir(g.socket_dir.clone());
+    let status = Control::connect(&dir).and_then(|mut c| c.request(&ControlRequest::Status));
+    let mut all = daemon(g, &status);
+    all.extend([socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service()]);
+    all.extend(exporters(g, &status));
     all
 }
 

@@ -240,7 +240,7 @@ mod tests {
                 max_us: 120.0,
                 samples: 1000,
             },
-            subscribers: vec![SubscriberStatus { id: 7, connected_s: 65.0, sent: 4321, dropped: 3 }],
+            subscribers: vec![SubscriberStatus { id: 7, connected_s: 65.0, sent: 4321, dropped: 3, pid: 0 }],
             recording: Some(RecordingStatus {
                 name: "take1".into(),
                 path: "/d/take1.take".into(),

@@ -54,7 +54,7 @@ fn status_report() -> StatusReport {
         device_wakes: 0,
         publish_drops: 0,
         lateness: LatencySummary { p50_us: 8.0, p99_us: 31.0, p999_us: 52.0, max_us: 70.0, samples: 1000 },
-        subscribers: vec![SubscriberStatus { id: 3, connected_s: 2.0, sent: 2000, dropped: 1 }],
+        subscribers: vec![SubscriberStatus { id: 3, connected_s: 2.0, sent: 2000, dropped: 1, pid: 0 }],
         recording: None,
         device_events: vec!["opened virtual glove".into()],
         realtime: "normal".into(),

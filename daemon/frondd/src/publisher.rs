@@ -54,6 +54,8 @@ pub struct SubscriberCounters {
 /// Registry entry for status reporting.
 struct Registered {
     id: u64,
+    /// The client's process id (`SO_PEERCRED` at accept; 0 if the socket would not say).
+    pid: u32,
     since: Instant,
     counters: Arc<SubscriberCounters>,
 }
@@ -87,6 +89,7 @@ impl SubscriberRegistry {
                 connected_s: e.since.elapsed().as_secs_f64(),
                 sent: e.counters.sent.load(Relaxed),
                 dropped: e.counters.dropped.load(Relaxed),
+                pid: e.pid,
             })
             .collect()
     }
@@ -142,6 +145,7 @@ pub fn spawn_acceptor(
             }
             let id = next_id;
             next_id += 1;
+            let pid = crate::access::peer_cred(&stream).map_or(0, |c| u32::try_from(c.pid).unwrap_or(0));
             // Subscribers only read: anything they send is discarded unread.
             let _ = stream.shutdown(std::net::Shutdown::Read);
             let counters = Arc::new(SubscriberCounters::default());
@@ -156,10 +160,11 @@ pub fn spawn_acceptor(
             }
             registry.entries.lock().unwrap_or_else(|e| e.into_inner()).push(Registered {
                 id,
+                pid,
                 since: Instant::now(),
                 counters,
             });
-            info!(id, "pose subscriber connected");
+            info!(id, pid, "pose subscriber connected");
         }
     })
 }

@@ -510,6 +510,11 @@ pub struct SubscriberStatus {
     pub sent: u64,
     /// Frames dropped because its queue was full.
     pub dropped: u64,
+    /// The subscriber's process id as the socket reported it when it connected (`SO_PEERCRED`;
+    /// 0 when unknown, or from a daemon that did not send it), so `frond doctor` can name the
+    /// exporters that are connected.
+    #[serde(default)]
+    pub pid: u32,
 }
 
 /// A recording's state.
@@ -541,5 +546,21 @@ mod tests {
         joints_deg[2][1] = f32::INFINITY;
         assert!(GraphGoal::Pose { joints_deg }.check().unwrap_err().contains("not finite"));
         assert!(GraphGoal::Frame { frame: u32::MAX }.check().is_ok());
+    }
+
+    #[test]
+    fn a_subscriber_status_from_a_daemon_without_pids_reads_as_pid_0() {
+        #[derive(Serialize)]
+        struct Before {
+            id: u64,
+            connected_s: f64,
+            sent: u64,
+            dropped: u64,
+        }
+        let mut bytes = Vec::new();
+        let mut ser = rmp_serde::Serializer::new(&mut bytes).with_struct_map();
+        Before { id: 3, connected_s: 1.5, sent: 10, dropped: 2 }.serialize(&mut ser).unwrap();
+        let s: SubscriberStatus = rmp_serde::from_slice(&bytes).unwrap();
+        assert_eq!(s, SubscriberStatus { id: 3, connected_s: 1.5, sent: 10, dropped: 2, pid: 0 });
     }
 }
