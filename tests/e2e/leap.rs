@@ -249,7 +249,7 @@ fn bad_leap_addresses_are_refused_by_name() {
 
 /// Frames a real Leap Motion controller produced (`leap_recorded/README.md`), one JSON object a
 /// line.
-fn recorded(file: &str) -> Vec<Value> {
+pub(crate) fn recorded(file: &str) -> Vec<Value> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("e2e/leap_recorded").join(file);
     std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -284,7 +284,7 @@ fn sample_of(frame: &Value, which: &str) -> Known {
 
 /// A fake service that gives every connection `{"version": 6}`, then each of `frames` 5 ms
 /// apart, then frames without hands until stopped.
-fn replay_to_each(
+pub(crate) fn replay_to_each(
     listener: TcpListener,
     frames: Vec<String>,
     stop: Arc<AtomicBool>,

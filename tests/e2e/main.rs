@@ -25,6 +25,7 @@ mod stage_control;
 mod stage_net;
 mod stage_router;
 mod systemd;
+mod systemd_boot;
 mod take_tools;
 mod tap_matches_map;
 mod timecode;
