@@ -113,6 +113,13 @@ fn main() -> ExitCode {
         Command::Bake(a) => bake(a),
         Command::Live(a) => live(a),
     };
+    // An option out of range (`BakeError::Option`, found once the inputs are known) is a usage
+    // error like clap's own; a take or file that cannot be used is a failure.
+    let result = result.map_err(|e| {
+        let option =
+            e.chain().any(|c| matches!(c.downcast_ref(), Some(frond_gltf::BakeError::Option { .. })));
+        if option { frond_binmain::usage(frond_protocol::error_text(e.as_ref())) } else { e }
+    });
     frond_binmain::exit("frond-gltf", result)
 }
 

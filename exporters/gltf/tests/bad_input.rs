@@ -7,12 +7,22 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 
-/// Runs a failing bake into `dir/out.glb`; returns stderr. Checks that `dir` holds nothing new.
+/// Runs a bake that fails on its input (exit 1) into `dir/out.glb`; returns stderr. Checks that
+/// `dir` holds nothing new.
 fn fails(dir: &Path, args: &[&str]) -> String {
+    fails_with(1, dir, args)
+}
+
+/// Runs a bake with an option out of range (a usage error: exit 2), as [`fails`].
+fn refused(dir: &Path, args: &[&str]) -> String {
+    fails_with(2, dir, args)
+}
+
+fn fails_with(code: i32, dir: &Path, args: &[&str]) -> String {
     let before: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     let out = run(args);
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    assert_eq!(out.status.code(), Some(code), "{args:?}: {stderr}");
     assert!(stderr.starts_with("frond-gltf: error: "), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     let after: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
@@ -186,7 +196,7 @@ fn bad_options_and_fields() {
     let o = o.to_str().unwrap();
 
     for fps in ["0", "-3", "nan", "5000"] {
-        let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o, &format!("--fps={fps}")]);
+        let e = refused(&keep, &["bake", "--take", t, "--rig", "grass", "-o", o, &format!("--fps={fps}")]);
         assert!(e.contains("--fps must be"), "{e}");
     }
     let good = field_json(dir.path(), 2, 0.0);
@@ -205,18 +215,18 @@ fn bad_options_and_fields() {
     );
     assert!(e.contains("field /no/f.json: cannot read"), "{e}");
     let g = good.to_str().unwrap();
-    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--field", g, "--duration=-1", "-o", o]);
+    let e = refused(&keep, &["bake", "--take", t, "--rig", "grass", "--field", g, "--duration=-1", "-o", o]);
     assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
 
     // A grove: several takes, never with a field; --spacing only for a grove, and sane.
     let e =
-        fails(&keep, &["bake", "--take", t, t, "--rig", "grass", "--field", g, "--duration", "1", "-o", o]);
+        refused(&keep, &["bake", "--take", t, t, "--rig", "grass", "--field", g, "--duration", "1", "-o", o]);
     assert!(e.contains("--field bakes one take on every plant of the field, got 2 takes"), "{e}");
-    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--spacing", "1", "-o", o]);
+    let e = refused(&keep, &["bake", "--take", t, "--rig", "grass", "--spacing", "1", "-o", o]);
     assert!(e.contains("--spacing places the plants of a grove"), "{e}");
     for bad in ["0", "-1", "nan", "1e9"] {
         let e =
-            fails(&keep, &["bake", "--take", t, t, "--rig", "grass", &format!("--spacing={bad}"), "-o", o]);
+            refused(&keep, &["bake", "--take", t, t, "--rig", "grass", &format!("--spacing={bad}"), "-o", o]);
         assert!(e.contains("--spacing: must be metres above 0"), "{bad}: {e}");
     }
     let e = fails(&keep, &["bake", "--take", t, "/no/such.take", "--rig", "grass", "-o", o]);

@@ -22,10 +22,15 @@ fn main() -> ExitCode {
         Command::Cage(cmd) => cage(cmd),
         Command::Morph(args) => morph(args),
     };
-    // Parameters out of range (the Checker's report, every problem at once) are usage errors;
-    // failures while running (a file that cannot be written, a daemon gone) are not.
+    // Parameters out of range (the Checker's report, every problem at once) and a missing
+    // --layer are usage errors; inputs that cannot be used (an unreadable image, a bad take or
+    // sketch) and failures while running (a file that cannot be written) are not.
     let result = result.map_err(|e| {
-        if e.chain().any(|c| c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()) {
+        let usage = e.chain().any(|c| {
+            c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()
+                || matches!(c.downcast_ref(), Some(frond_warp::layers::SceneError::NoLayers))
+        });
+        if usage {
             frond_binmain::usage(frond_protocol::error_text(e.as_ref()))
         } else {
             e

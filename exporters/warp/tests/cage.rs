@@ -113,7 +113,7 @@ fn bad_masks_options_and_cage_files_are_refused_by_name() {
     let empty = write_mask(t.path(), "empty.png", &vec![0; W * H]);
     let out = t.path().join("cage.json");
     let o = run(&["cage", "build", "--layer", s(&empty), "-o", s(&out)]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("marks no vegetation part of at least 16 pixels"), "{}", stderr(&o));
     assert!(!out.exists(), "nothing written on failure");
     let mask = write_mask(t.path(), "mask.png", &matte());
@@ -153,7 +153,7 @@ fn bad_masks_options_and_cage_files_are_refused_by_name() {
     .unwrap();
     let o = run(&["cage", "coords", "--cage", s(&bad), "--id", "1", "--at", "5,5"]);
     let e = stderr(&o);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(e.contains("cages[1] (id 2): vertices run clockwise"), "{e}");
     assert!(e.contains("cages[2] (id 3) vertex 1: [95, 20] lies outside its parent cage id 1"), "{e}");
     let o = run(&["cage", "coords", "--cage", s(&bad), "--id", "1", "--at", "5;5"]);

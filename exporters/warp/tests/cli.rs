@@ -169,7 +169,7 @@ fn a_take_drives_the_wind_deterministically() {
         s(&a),
         "--quiet",
     ]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("cannot read take") && stderr(&o).contains("bad.take"), "{}", stderr(&o));
 }
 
@@ -241,7 +241,7 @@ fn bad_input_gives_clear_errors() {
     let junk = t.path().join("junk.png");
     std::fs::write(&junk, b"this is no png").unwrap();
     let o = run(&["render", "--image", s(&junk), "--layer", s(&mask), "--frames", "2", "-o", s(&out)]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("cannot read image") && stderr(&o).contains("junk.png"), "{}", stderr(&o));
     assert_eq!(stderr(&o).matches("could not be determined").count(), 1, "said once: {}", stderr(&o));
     let missing = t.path().join("missing.png");
@@ -261,7 +261,7 @@ fn bad_input_gives_clear_errors() {
     for (flag, path, what) in [("--image", s(&fifo), "a FIFO"), ("--layer", "/dev/zero", "a device")] {
         let (image, layer) = if flag == "--image" { (path, s(&mask)) } else { (s(&pic), path) };
         let o = run(&["render", "--image", image, "--layer", layer, "--frames", "2", "-o", s(&out)]);
-        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         assert!(stderr(&o).contains(path) && stderr(&o).contains(what), "{}", stderr(&o));
     }
 
@@ -269,7 +269,7 @@ fn bad_input_gives_clear_errors() {
     let small = t.path().join("small.png");
     image::save_buffer(&small, &vec![255u8; 32 * 24], 32, 24, image::ColorType::L8).unwrap();
     let o = run(&["render", "--image", s(&pic), "--layer", s(&small), "--frames", "2", "-o", s(&out)]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
     assert!(e.contains("small.png") && e.contains("32x24") && e.contains("64x48"), "{e}");
 

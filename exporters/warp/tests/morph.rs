@@ -295,7 +295,7 @@ fn bad_sketches_frames_and_cages_are_refused_by_name() {
         run(&a)
     };
     let o = go(args(&bad, &["-o", "x.gif"]));
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("point 1: [500, 1] is not a point of the 160x120 picture"), "{}", stderr(&o));
     let o = go(args(&bad, &["--frames", "0", "--fps", "0", "-o", "x.bmp"]));
     let e = stderr(&o);
