@@ -134,6 +134,13 @@ fn knowns(t0: f64, n: usize) -> Vec<Known> {
         .collect()
 }
 
+/// `frond map --filter none --rig grass` of the hand samples: the poses the daemon must publish.
+fn grass_poses_of(ks: &[Known]) -> Vec<Value> {
+    let out = frond_e2e::frond_map(&["--filter", "none", "--rig", "grass"], &hand_jsonl(ks));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+}
+
 fn hand_jsonl(ks: &[Known]) -> String {
     ks.iter()
         .map(|k| {
@@ -165,13 +172,7 @@ fn leap_frames_drive_the_daemon_like_frond_map_and_it_reconnects() {
     std::thread::sleep(Duration::from_millis(300)); // let tap subscribe
     let server = serve(listener, Arc::clone(&script), Arc::clone(&stop));
 
-    let expected = frond_e2e::frond_map(&["--filter", "none", "--rig", "grass"], &hand_jsonl(&first));
-    assert!(expected.status.success(), "{}", String::from_utf8_lossy(&expected.stderr));
-    let expected: Vec<Value> = String::from_utf8(expected.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let expected = grass_poses_of(&first);
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         for line in lines {
@@ -375,13 +376,7 @@ fn recorded_frames_of_a_real_controller_give_the_sdks_angles() {
     stop.store(true, Ordering::Relaxed);
     server.join().unwrap();
     check_hands(&fresh, &want, "right hand");
-    let expected = frond_e2e::frond_map(&["--filter", "none", "--rig", "grass"], &hand_jsonl(&want));
-    assert!(expected.status.success(), "{}", String::from_utf8_lossy(&expected.stderr));
-    let expected: Vec<Value> = String::from_utf8(expected.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let expected = grass_poses_of(&want);
     assert_eq!(expected.len(), fresh.len());
     for (p, e) in fresh.iter().zip(&expected) {
         for j in 0..4 {

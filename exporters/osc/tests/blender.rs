@@ -96,6 +96,59 @@ fn blender_fk(joints_deg: [[f32; 3]; 4], rig: &Rig) -> ([[f64; 3]; 4], [[f64; 3]
     (heads, dirs)
 }
 
+/// What every test here needs: frondd, frond-gltf (beside it) and the venv's python with bpy;
+/// `None` after saying why the test is skipped.
+fn blender_tools() -> Option<(PathBuf, PathBuf, PathBuf)> {
+    let Some(frondd) = frondd() else {
+        skip("frondd is not built (cargo build --workspace --bins)");
+        return None;
+    };
+    let Some(py) = python_with("bpy") else {
+        skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
+        return None;
+    };
+    let gltf = frondd.with_file_name("frond-gltf");
+    if !gltf.exists() {
+        skip("frond-gltf is not built (cargo build --workspace --bins)");
+        return None;
+    }
+    Some((frondd, py, gltf))
+}
+
+/// Starts `tests/SCRIPT ARGS` with `py` and reads its stdout until a line starting with
+/// `ready` (Blender's importer logs on stdout too); returns the process and the rest of that
+/// line (`port N` gives `N`).
+fn start_script(py: &Path, script: &str, args: &[&std::ffi::OsStr], ready: &str) -> (Proc, String) {
+    // In a Proc at once: dropped (on a panic below too), it is killed and reaped.
+    let mut proc = Proc(
+        Command::new(py)
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join(script))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("start {script}: {e}")),
+    );
+    let mut reader = BufReader::new(proc.0.stdout.take().unwrap());
+    let mut line = String::new();
+    loop {
+        line.clear();
+        if reader.read_line(&mut line).unwrap_or_else(|e| panic!("{script}'s output: {e}")) == 0 {
+            let mut err = String::new();
+            proc.0.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+            panic!("{script} ended before printing `{ready}`: {err}");
+        }
+        if let Some(rest) = line.trim().strip_prefix(ready) {
+            return (proc, rest.trim().to_string());
+        }
+    }
+}
+
+/// `OsStr` arguments for [`start_script`].
+fn os<'a>(args: &[&'a str]) -> Vec<&'a std::ffi::OsStr> {
+    args.iter().map(|a| std::ffi::OsStr::new(*a)).collect()
+}
+
 fn close(got: &[f64], want: &[f64; 3], tol: f64, what: &str) {
     assert_eq!(got.len(), 3, "{what}: {got:?}");
     assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < tol), "{what}: {got:?} vs {want:?}");
@@ -110,14 +163,7 @@ fn f64s(v: &serde_json::Value) -> Vec<f64> {
 /// frames into an action (`blender_check.py` checks geometry and keys itself).
 #[test]
 fn blender_addon_drives_the_armature_and_records() {
-    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
-    let Some(py) = python_with("bpy") else {
-        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
-    };
-    let gltf = frondd.with_file_name("frond-gltf");
-    if !gltf.exists() {
-        return skip("frond-gltf is not built (cargo build --workspace --bins)");
-    }
+    let Some((frondd, py, gltf)) = blender_tools() else { return };
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
     // The armature a user has: frond-gltf's GLB of the daemon's rig (grass), imported by Blender.
@@ -125,34 +171,18 @@ fn blender_addon_drives_the_armature_and_records() {
     let glb = bake_rest_glb(&gltf, "grass", tmp.path());
     let flower = bake_rest_glb(&gltf, "flower", tmp.path());
     let heights: Vec<String> = rig.joints.iter().map(|j| j.height_m.to_string()).collect();
+    let heights = heights.join(",");
     let out = tmp.path().join("blender.jsonl");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_check.py");
-    let mut child = Command::new(&py)
-        .arg(script)
-        .args(["--frames", "300", "--record", "200", "--timeout", "90", "--out"])
-        .arg(&out)
-        .arg("--glb")
-        .arg(&glb)
-        .arg("--flower-glb")
-        .arg(&flower)
-        .args(["--heights", &heights.join(",")])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start blender_check.py");
-    // The importer logs on stdout too: the port is the line `port N`.
-    let mut reader = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    let port: u16 = loop {
-        line.clear();
-        if reader.read_line(&mut line).expect("blender port") == 0 {
-            panic!("blender_check ended without printing its port");
-        }
-        if let Some(p) = line.trim().strip_prefix("port ") {
-            break p.parse().unwrap_or_else(|_| panic!("blender_check printed `{line}`"));
-        }
-    };
-    let mut blender = Proc(child);
+    let args = ["--frames", "300", "--record", "200", "--timeout", "90", "--heights", &heights, "--out"];
+    let mut args = os(&args);
+    args.extend([
+        out.as_os_str(),
+        "--glb".as_ref(),
+        glb.as_os_str(),
+        "--flower-glb".as_ref(),
+        flower.as_os_str(),
+    ]);
+    let (mut blender, port) = start_script(&py, "blender_check.py", &args, "port ");
     let collector = Collector::start(&daemon.socket_dir);
     let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
     wait_receiver(&mut blender);
@@ -182,14 +212,7 @@ fn blender_addon_drives_the_armature_and_records() {
 /// receiver ignoring a bone would fail.
 #[test]
 fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
-    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
-    let Some(py) = python_with("bpy") else {
-        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
-    };
-    let gltf = frondd.with_file_name("frond-gltf");
-    if !gltf.exists() {
-        return skip("frond-gltf is not built (cargo build --workspace --bins)");
-    }
+    let Some((frondd, py, gltf)) = blender_tools() else { return };
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
     let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
@@ -199,35 +222,15 @@ fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
         .zip(&rig.joints)
         .map(|(humanoid, joint)| format!("{humanoid}={}", joint.name))
         .collect();
-    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let (bones, port) =
+        (bones.join(","), std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port());
+    let port_s = port.to_string();
     let out = tmp.path().join("vmc4b.jsonl");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vmc4b_check.py");
-    let mut child = Command::new(&py)
-        .arg(script)
-        .arg("--glb")
-        .arg(&glb)
-        .args(["--port", &port.to_string(), "--bones", &bones.join(","), "--frames", "120"])
-        .args(["--timeout", "60", "--out"])
-        .arg(&out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start vmc4b_check.py");
-    // Blender's importer logs on stdout too: VMC4B listens once `listening` is printed.
-    let mut reader = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    loop {
-        line.clear();
-        if reader.read_line(&mut line).expect("vmc4b_check's output") == 0 {
-            let mut err = String::new();
-            child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
-            panic!("vmc4b_check ended before VMC4B listened: {err}");
-        }
-        if line.trim() == "listening" {
-            break;
-        }
-    }
-    let mut blender = Proc(child);
+    let args = ["--port", &port_s, "--bones", &bones, "--frames", "120", "--timeout", "60", "--out"];
+    let mut args = os(&args);
+    args.extend([out.as_os_str(), "--glb".as_ref(), glb.as_os_str()]);
+    // VMC4B listens once `listening` is printed.
+    let (mut blender, _) = start_script(&py, "vmc4b_check.py", &args, "listening");
     let collector = Collector::start(&daemon.socket_dir);
     let osc = start_osc(&daemon.socket_dir, &["--protocol", "vmc", "--target", &format!("127.0.0.1:{port}")]);
     wait_receiver(&mut blender);
@@ -273,14 +276,8 @@ fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
 /// four plants are driven, and Record gives each plant its own action.
 #[test]
 fn blender_addon_drives_the_plants_of_a_live_field() {
-    let Some(frondd) = frondd() else { return skip("frondd is not built (cargo build --workspace --bins)") };
-    let Some(py) = python_with("bpy") else {
-        return skip("no bpy in tests/python/.venv (run exporters/osc/tests/install-python.sh)");
-    };
-    let (gltf, frond) = (frondd.with_file_name("frond-gltf"), frondd.with_file_name("frond"));
-    if !gltf.exists() || !frond.exists() {
-        return skip("frond-gltf or frond is not built (cargo build --workspace --bins)");
-    }
+    let Some((frondd, py, gltf)) = blender_tools() else { return };
+    let frond = frondd.with_file_name("frond");
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
     let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
@@ -309,31 +306,10 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
         .unwrap();
     assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
     let out = tmp.path().join("field.jsonl");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/blender_field_check.py");
-    let mut child = Command::new(&py)
-        .arg(script)
-        .arg("--glb")
-        .arg(&glb)
-        .args(["--plants", "4", "--frames", "200", "--record", "120", "--timeout", "60", "--out"])
-        .arg(&out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start blender_field_check.py");
-    let mut reader = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    let port: u16 = loop {
-        line.clear();
-        if reader.read_line(&mut line).expect("blender port") == 0 {
-            let mut err = String::new();
-            child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
-            panic!("blender_field_check ended without printing its port: {err}");
-        }
-        if let Some(p) = line.trim().strip_prefix("port ") {
-            break p.parse().unwrap();
-        }
-    };
-    let mut blender = Proc(child);
+    let args = ["--plants", "4", "--frames", "200", "--record", "120", "--timeout", "60", "--out"];
+    let mut args = os(&args);
+    args.extend([out.as_os_str(), "--glb".as_ref(), glb.as_os_str()]);
+    let (mut blender, port) = start_script(&py, "blender_field_check.py", &args, "port ");
     let collector = Collector::start(&daemon.socket_dir);
     run_frond(&["field", "start", "--take", "sway", "--field", field_s, "--plants", "4"]);
     let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);

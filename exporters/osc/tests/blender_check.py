@@ -29,14 +29,12 @@ here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "blender"))
 sys.path.insert(0, os.path.join(here, "..", "..", "..", "tests", "python"))
 import frond_receiver  # noqa: E402
+from bpy_pump import failer, pump as pump_until  # noqa: E402
 from frond_convention import joint_matrix, mat_mul  # noqa: E402
 
 
 
-def fail(msg):
-    print(f"blender check failed: {msg}", file=sys.stderr, flush=True)
-    # Not sys.exit: bpy's shutdown can hang with the add-on still registered.
-    os._exit(1)
+fail = failer("blender check")
 
 
 def import_glb(path):
@@ -127,17 +125,13 @@ def check_layer(scene, flower_glb):
 
 
 def pump(scene, receiver, want, deadline, on_frames):
-    got = 0
-    while got < want:
-        if time.monotonic() > deadline:
-            fail(f"timeout: {got} of {want} frames")
-        frames = receiver.poll()
-        if not frames:
-            time.sleep(0.002)
-            continue
-        frond_receiver.process(scene, frames)
+    got = [0]
+
+    def count(frames):
         on_frames(frames)
-        got += len(frames)
+        got[0] += len(frames)
+
+    pump_until(scene, receiver, deadline, fail, lambda: got[0] >= want, count, lambda: f"{got[0]} of {want} frames")
 
 
 def main():

@@ -23,12 +23,11 @@ import bpy
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "blender"))
+sys.path.insert(0, here)
 import frond_receiver  # noqa: E402
+from bpy_pump import failer, pump  # noqa: E402
 
-
-def fail(msg):
-    print(f"blender field check failed: {msg}", file=sys.stderr, flush=True)
-    os._exit(1)
+fail = failer("blender field check")
 
 
 def main():
@@ -54,22 +53,16 @@ def main():
 
     out = open(args.out, "w")
     deadline = time.monotonic() + args.timeout
-    reported = 0
+    reported = [0]
     driven = set()
-    while reported < args.frames:
-        if time.monotonic() > deadline:
-            fail(f"timeout: {reported} of {args.frames} plant frames")
-        frames = receiver.poll()
-        if not frames:
-            time.sleep(0.002)
-            continue
-        frond_receiver.process(scene, frames)
+
+    def report(frames):
         last = {}
         for f in frames:
             if f.get("element", 0) != 0 and not f["flags"] & frond_receiver.DEVICE_LOST:
                 last[f["element"]] = f
         if not last:
-            continue
+            return
         bpy.context.view_layer.update()
         for element, f in last.items():
             target = frond_receiver.plant_armature(scene, element)
@@ -85,7 +78,10 @@ def main():
             line = {"element": element, "name": info["name"], "armature": target.name, "seq": f["seq"],
                     "heads": heads, "dirs": dirs}
             out.write(json.dumps(line) + "\n")
-            reported += 1
+            reported[0] += 1
+
+    pump(scene, receiver, deadline, fail, lambda: reported[0] >= args.frames, report,
+         lambda: f"{reported[0]} of {args.frames} plant frames")
     out.close()
     if len(driven) != args.plants:
         fail(f"{len(driven)} armatures driven ({sorted(driven)}), expected {args.plants}")
@@ -94,18 +90,16 @@ def main():
     if frond_receiver.start_recording(scene) is not None:
         fail("an action on a picked armature, though none is picked")
     got = {}
-    while sum(len(ts) for ts in got.values()) < args.record:
-        if time.monotonic() > deadline:
-            fail(f"timeout recording: {sum(len(ts) for ts in got.values())} of {args.record}")
-        frames = receiver.poll()
-        if not frames:
-            time.sleep(0.002)
-            continue
-        frond_receiver.process(scene, frames)
+    recorded = lambda: sum(len(ts) for ts in got.values())  # noqa: E731
+
+    def note(frames):
         for f in frames:
             if f.get("element", 0) != 0 and not f["flags"] & (frond_receiver.HELD | frond_receiver.DEVICE_LOST):
                 target = frond_receiver.plant_armature(scene, f["element"])
                 got.setdefault(target.name, set()).add(f["t"])
+
+    pump(scene, receiver, deadline, fail, lambda: recorded() >= args.record, note,
+         lambda: f"recording: {recorded()} of {args.record}")
     frond_receiver.stop_recording(scene)
     frond_receiver.stop()
     # Frames are keyed at their device time (shared by every element of a tick): one key per

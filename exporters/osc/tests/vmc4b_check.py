@@ -26,15 +26,14 @@ import bpy
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "third_party"))
+sys.path.insert(0, here)
 import VMC4B  # noqa: E402
 from VMC4B.core import state  # noqa: E402
 from VMC4B.core.applier import Applier  # noqa: E402
+from bpy_pump import failer  # noqa: E402
 
 
-def fail(msg):
-    print(f"vmc4b check failed: {msg}", file=sys.stderr, flush=True)
-    # Not sys.exit: bpy's shutdown can hang with the add-on's server thread still running.
-    os._exit(1)
+fail = failer("vmc4b check")
 
 
 def main():
