@@ -97,6 +97,7 @@ fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
     let unwritable = d.join("no/such/dir/x.gif").display().to_string();
     let node = d.join("g/hidraw-frond").display().to_string();
     let image = frond_e2e::repo_root().join("rig-files/images/grass.png").display().to_string();
+    let mask = frond_e2e::repo_root().join("rig-files/images/grass-mask.png").display().to_string();
     // Usage errors found after clap parsed the arguments.
     let usage: [(&str, Vec<String>); 4] = [
         ("frond-vhid", ["--osc", "no-port-here"].map(String::from).to_vec()),
@@ -107,7 +108,12 @@ fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
                 .map(String::from)
                 .to_vec(),
         ),
-        ("frond-warp", ["render", "--image", &image, "--frames", "0", "-o", &png].map(String::from).to_vec()),
+        (
+            "frond-warp",
+            ["render", "--image", &image, "--layer", &mask, "--frames", "0", "-o", &png]
+                .map(String::from)
+                .to_vec(),
+        ),
     ];
     for (name, args) in &usage {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -121,7 +127,9 @@ fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
         ("frond-gltf", ["bake", "--rig", "grass", "--take", &missing, "-o", &glb].map(String::from).to_vec()),
         (
             "frond-warp",
-            ["render", "--image", &image, "--frames", "2", "-o", &unwritable].map(String::from).to_vec(),
+            ["render", "--image", &image, "--layer", &mask, "--frames", "2", "-o", &unwritable]
+                .map(String::from)
+                .to_vec(),
         ),
         ("frond-vhid", ["--play", &missing, "--backend", "fuse", "--node", &node].map(String::from).to_vec()),
     ];

@@ -1,5 +1,5 @@
-//! Issue 18, CLI habits: `NO_COLOR` (no-color.org) is honoured. The binaries that log colour
-//! it only on a terminal; under a pseudo-terminal (util-linux `script`) they colour their log
+//! Issue 18, CLI habits: `NO_COLOR` (no-color.org) is honoured. The binaries that log
+//! (frondd, frond-vhid, frond-osc, frond-zenoh) colour it only on a terminal; under a pseudo-terminal (util-linux `script`) they colour their log
 //! lines, and with `NO_COLOR=1` they do not. The first run is the positive control: a test
 //! that found no escape code in either would prove nothing.
 
@@ -29,6 +29,14 @@ fn no_color_turns_off_the_log_colours() {
     if fuse_available() {
         cases.push(format!("{} --backend fuse --node {d}/glove/hidraw-frond", bin("frond-vhid").display()));
     }
+    // The exporters that log, beside a daemon: frond-osc and frond-zenoh (frond-binmain's logging).
+    let daemon = frond_e2e::Daemon::start(&dir.path().join("daemon"), &["--source", "in-process"]);
+    let sock = daemon.socket_dir.display();
+    cases.push(format!("{} --socket-dir {sock} --target 127.0.0.1:9", bin("frond-osc").display()));
+    cases.push(format!(
+        "{} --socket-dir {sock} --stage nocolor --source a --listen tcp/127.0.0.1:0",
+        bin("frond-zenoh").display()
+    ));
     for cmd in cases {
         let Some(coloured) = under_a_terminal(&cmd, false) else {
             eprintln!("skipped: util-linux script cannot run here");

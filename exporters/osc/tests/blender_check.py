@@ -150,8 +150,17 @@ def main():
     frond_receiver.register()
     scene = bpy.context.scene
     scene.frond_receiver.armature = obj
-    port = frond_receiver.start("127.0.0.1", 0)
+    # The panel's own buttons: Listen on a free port.
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    scene.frond_receiver.port = probe.getsockname()[1]
+    probe.close()
+    if bpy.ops.frond.listen() != {"FINISHED"}:
+        fail("the Listen button did not start the receiver")
     receiver = frond_receiver._state["receiver"]
+    port = receiver.port
+    if port != scene.frond_receiver.port:
+        fail(f"listening on {port}, the panel says {scene.frond_receiver.port}")
     # Malformed datagrams are counted and dropped, never raised.
     junk = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     for data in (b"", b"#bundle\0", b"#bundle\0" + bytes(8) + b"\xff\xff\xff\xff", b"/frond/pose\0,i\0\0", b"\xff\xfe"):
@@ -178,11 +187,20 @@ def main():
 
     pump(scene, receiver, args.frames, deadline, live)
 
-    action = frond_receiver.start_recording(scene)
+    # Record, then Record again to stop, then Stop: the panel's buttons.
+    if bpy.ops.frond.record() != {"FINISHED"} or not scene.frond_receiver.recording:
+        fail("the Record button did not start recording")
+    action = obj.animation_data.action
+    if action is None or not action.name.startswith("frond_take"):
+        fail(f"recording into {action}, not a new frond_take action")
     recorded = []
     pump(scene, receiver, args.record, deadline, recorded.extend)
-    frond_receiver.stop_recording(scene)
-    frond_receiver.stop()
+    bpy.ops.frond.record()
+    if scene.frond_receiver.recording:
+        fail("the Record button did not stop recording")
+    bpy.ops.frond.stop()
+    if frond_receiver._state["receiver"] is not None:
+        fail("the Stop button left the receiver open")
 
     keyed = [f for f in recorded if not f["flags"] & (frond_receiver.HELD | frond_receiver.DEVICE_LOST)]
     if not keyed:
