@@ -40,10 +40,14 @@ fn blender_imports_the_bvh_and_its_bones_follow_the_take() {
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            serde_json::json!({"prefix": format!("grass_{i}"), "position_m": p["position_m"], "scale": p["scale"]})
+            serde_json::json!({"prefix": format!("grass_{i}"), "position_m": p["position_m"], "scale": p["scale"],
+                               "start_frame": p["start_frame"], "delay_s": p["delay_s"]})
         })
         .collect();
     assert_eq!(plants.len(), 6);
+    // The layout's direction is the take's: plants bend as the take does (no rotation to check).
+    assert_eq!(field["direction_deg"], field["authored_direction_deg"]);
+    assert!(plants.iter().any(|p| p["delay_s"].as_f64().unwrap() > 0.0), "some plant is delayed");
     let field_text = std::fs::read_to_string(d.join("field.bvh")).unwrap();
     assert_eq!(field_text.matches("ROOT ").count(), 6);
     assert!(field_text.contains("Frames: 61\n"), "2 s at 30 fps, both ends");
@@ -57,7 +61,7 @@ fn blender_imports_the_bvh_and_its_bones_follow_the_take() {
         "poses": d.join("wave-30.jsonl"),
         "names": names,
         "heights_m": heights,
-        "field": {"bvh": d.join("field.bvh"), "plants": plants},
+        "field": {"bvh": d.join("field.bvh"), "plants": plants, "fps": field["fps"], "frames": 61},
     });
     std::fs::write(d.join("spec.json"), spec.to_string()).unwrap();
     match python_with("bpy") {

@@ -6,16 +6,20 @@ Usage: python bvh_blender.py SPEC.json   (prints "ok ..." and exits 0, or a reas
 
 SPEC: {"bvh": FILE, "poses": JSONL FILE (`frond take export --fps F`: {"t", "joints"} lines),
        "names": [4 joint names], "heights_m": [h0, h1, h2, h3, top],
-       "field": optional {"bvh": FILE, "plants": [{"prefix", "position_m": [x, z], "scale"}]}}
+       "field": optional {"bvh": FILE, "fps", "frames", "plants": [{"prefix", "position_m": [x, z],
+                  "scale", "start_frame", "delay_s"}]}}
 
 Checks, for the take: one bone per joint with the rig's names, the scene's frame rate, and at
 every frame each bone's head (and the top bone's tail) in world space equal to frond's convention
 (stem +Y; joint rotation R = R_yaw(Z) R_pitch(X) R_roll(Y) relative to its parent, chained root to
 top) mapped to Blender's Z-up world by the importer's default axes: (x, y, z) -> (x, -z, y).
-For the field: every plant's root bone stands at its position and its segments have its scale.
+For the field: every plant's root bone stands at its position and its segments have its scale,
+and at every frame its bones follow the take delayed as Eq. 6 says (worked out here from the
+field's start frame and delay of each plant and the take's poses).
 """
 
 import json
+import math
 import os
 import sys
 
@@ -107,7 +111,40 @@ def main():
             seg = (lower.head_local - arm.data.bones[root.name].head_local).length
             if abs(seg - (heights[1] - heights[0]) * plant["scale"]) > 1e-4:
                 fail(f"field plant {plant['prefix']}: first segment {seg} m, scale {plant['scale']}")
-        report += f"; field of {len(field['plants'])} plants placed and scaled"
+        # Animation: plant i plays the take delayed (seed 000, Eq. 6): at time t it shows the take
+        # at fractional frame start_frame + (t - delay_s) * fps, interpolated linearly between
+        # frames and held at the ends, scaled and placed at its position.
+        field_fps = field["fps"]
+
+        def take_at(f):
+            if f <= 0:
+                return poses[0]["joints"]
+            if f >= len(poses) - 1:
+                return poses[-1]["joints"]
+            k = int(f)
+            u = f - k
+            a, b = poses[k]["joints"], poses[k + 1]["joints"]
+            return [[a[j][c] + (b[j][c] - a[j][c]) * u for c in range(3)] for j in range(4)]
+
+        start, frames = scene.frame_start, field["frames"]
+        moved = 0
+        for k in range(frames):
+            scene.frame_set(start + k)
+            t = k / field_fps
+            for plant in field["plants"]:
+                joints = take_at(plant["start_frame"] + (t - plant["delay_s"]) * field_fps)
+                x, z = plant["position_m"]
+                s = plant["scale"]
+                want = [to_blender([x + s * p[0], s * p[1], z + s * p[2]]) for p in fk(joints, heights)]
+                for j, name in enumerate(names):
+                    head = arm.matrix_world @ arm.pose.bones[f"{plant['prefix']}_{name}"].head
+                    if not close(head, want[j], 2e-4):
+                        fail(f"field plant {plant['prefix']} frame {k} {name}: head {tuple(head)}, expected {want[j]}")
+                if math.hypot(want[3][0] - want[0][0], want[3][1] - want[0][1]) > 1e-3:
+                    moved += 1
+        if moved == 0:
+            fail("no field plant ever leans: the check would not see a wrong delay")
+        report += f"; field of {len(field['plants'])} plants placed, scaled and animated over {frames} frames"
     print(report, flush=True)
     os._exit(0)
 
