@@ -344,3 +344,66 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     assert_eq!(armatures.len(), 4, "every plant's armature driven: {armatures:?}");
     assert!(moving >= frames.len() / 4, "only {moving} of {} plant frames bend the plant", frames.len());
 }
+
+/// A live layer into Blender through frond-osc: the flower's second hand drives its `leaf`
+/// element (announced as a layer); frond's add-on, with the flower GLB's armature picked, turns
+/// both leaf instances (`leaf0_joint*`, `leaf1_joint*`) by each frame of that element. Every
+/// reported leaf bone's rotation equals the daemon's pose of that sequence number in frond's
+/// convention (the bone frames of frond-gltf's GLB are the joints' own).
+#[test]
+fn blender_addon_drives_the_leaves_from_a_live_layer() {
+    let Some((frondd, py, gltf)) = blender_tools() else { return };
+    let daemon = start_daemon_with(
+        &frondd,
+        &["--rig", "flower", "--hand", "stem=in-process", "--hand", "leaf=in-process,element=leaf"],
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = bake_rest_glb(&gltf, "flower", tmp.path());
+    let out = tmp.path().join("layer.jsonl");
+    let args = ["--frames", "100", "--timeout", "60", "--out"];
+    let mut args = os(&args);
+    args.extend([out.as_os_str(), "--glb".as_ref(), glb.as_os_str()]);
+    let (mut blender, port) = start_script(&py, "blender_layer_check.py", &args, "port ");
+    let collector = Collector::start(&daemon.socket_dir);
+    let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    let (hello, poses) = collector.finish();
+    stop_and_stderr(osc);
+
+    let layer =
+        hello.elements.elements.iter().find(|e| e.name == "leaf").expect("the leaf element announced");
+    let by_seq: HashMap<u32, &Pose> =
+        poses.iter().filter(|p| p.element == layer.id).map(|p| (p.seq as u32, p)).collect();
+    let frames = read_jsonl(&out);
+    assert_eq!(frames.len(), 100);
+    let mut bent = 0;
+    for f in &frames {
+        assert_eq!(f["element"].as_u64(), Some(u64::from(layer.id)));
+        let seq = f["seq"].as_u64().unwrap() as u32;
+        let pose = by_seq.get(&seq).unwrap_or_else(|| panic!("layer frame {seq} unknown to the SDK"));
+        for (k, instance) in f["quats"].as_array().unwrap().iter().enumerate() {
+            for (j, q) in instance.as_array().unwrap().iter().enumerate() {
+                let [x, y, z, w] = frond_protocol::convention::joint_quat(pose.joints_deg[j]).map(f64::from);
+                let got = f64s(q);
+                // q and -q are one rotation.
+                let sign = if (got[0] - w).abs() < (got[0] + w).abs() { 1.0 } else { -1.0 };
+                close(
+                    &got[1..],
+                    &[sign * x, sign * y, sign * z],
+                    1e-5,
+                    &format!("leaf{k}_joint{j} at {seq}"),
+                );
+                assert!((got[0] - sign * w).abs() < 1e-5, "leaf{k}_joint{j} at {seq}: {got:?}");
+            }
+        }
+        if pose.joints_deg.iter().flatten().any(|a| a.abs() > 1.0) {
+            bent += 1;
+        }
+    }
+    let most = by_seq.values().flat_map(|p| p.joints_deg.iter().flatten()).fold(0f32, |m, a| m.max(a.abs()));
+    assert!(
+        bent >= frames.len() / 4,
+        "only {bent} of {} layer frames bend a leaf (largest angle {most})",
+        frames.len()
+    );
+}

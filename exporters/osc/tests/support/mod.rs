@@ -70,7 +70,13 @@ pub struct Daemon {
     _dir: tempfile::TempDir,
 }
 
+/// `frondd --source in-process` (the built-in virtual glove) on the grass rig.
 pub fn start_daemon(frondd: &Path) -> Daemon {
+    start_daemon_with(frondd, &["--source", "in-process"])
+}
+
+/// `frondd ARGS` in a fresh socket and takes directory.
+pub fn start_daemon_with(frondd: &Path, args: &[&str]) -> Daemon {
     let dir = tempfile::tempdir().unwrap();
     let socket_dir = dir.path().join("run");
     let child = Command::new(frondd)
@@ -78,7 +84,8 @@ pub fn start_daemon(frondd: &Path) -> Daemon {
         .arg(&socket_dir)
         .arg("--takes-dir")
         .arg(dir.path().join("takes"))
-        .args(["--source", "in-process", "--log-level", "warn"])
+        .args(args)
+        .args(["--log-level", "warn"])
         .stdout(Stdio::null())
         .spawn()
         .expect("start frondd");
