@@ -6,8 +6,7 @@ flower is picked, and frond-osc streams a daemon whose second hand drives the `l
 
 After each batch the add-on applied, the last layer frame is reported on --out as {"element",
 "seq", "quats": per leaf instance, per bone, Blender's (w, x, y, z)} for the Rust test to compare
-with the daemon's pose of that sequence number. Also checks that the layer never moves the stem
-bones (only element 0 does). Prints `port N` when listening. Exit 0 on success, 1 on failure.
+with the daemon's pose of that sequence number. Prints `port N` when listening. Exit 0 on success, 1 on failure.
 """
 
 import argparse
