@@ -29,21 +29,12 @@ here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "blender"))
 sys.path.insert(0, os.path.join(here, "..", "..", "..", "tests", "python"))
 import frond_receiver  # noqa: E402
-from bpy_pump import failer, pump as pump_until  # noqa: E402
+from bpy_pump import failer, import_armature, pump as pump_until  # noqa: E402
 from frond_convention import joint_matrix, mat_mul  # noqa: E402
 
 
 
 fail = failer("blender check")
-
-
-def import_glb(path):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=path)
-    arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
-    if len(arms) != 1:
-        fail(f"{path}: expected one armature, got {[o.name for o in bpy.data.objects]}")
-    return arms[0]
 
 
 def close(a, b, tol, what):
@@ -146,7 +137,7 @@ def main():
     args = ap.parse_args()
     heights = [float(h) for h in args.heights.split(",")]
 
-    obj = import_glb(args.glb)
+    obj = import_armature(args.glb, fail)
     frond_receiver.register()
     scene = bpy.context.scene
     scene.frond_receiver.armature = obj

@@ -21,7 +21,7 @@ here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "blender"))
 sys.path.insert(0, here)
 import frond_receiver  # noqa: E402
-from bpy_pump import failer, pump  # noqa: E402
+from bpy_pump import failer, import_armature, pump  # noqa: E402
 
 fail = failer("blender layer check")
 
@@ -34,12 +34,7 @@ def main():
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=args.glb)
-    arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
-    if len(arms) != 1:
-        fail(f"{args.glb}: expected one armature, got {[o.name for o in arms]}")
-    obj = arms[0]
+    obj = import_armature(args.glb, fail)
     frond_receiver.register()
     scene = bpy.context.scene
     scene.frond_receiver.armature = obj

@@ -1,5 +1,6 @@
-"""What the headless Blender checks (blender_check.py, blender_field_check.py, vmc4b_check.py)
-share: failing with one line on stderr, and pumping frond's add-on as Blender's timer would."""
+"""What the headless Blender checks (blender_check.py, blender_field_check.py,
+blender_layer_check.py, vmc4b_check.py) share: failing with one line on stderr, importing a GLB
+into an empty scene, and pumping frond's add-on as Blender's timer would."""
 
 import os
 import sys
@@ -32,3 +33,16 @@ def pump(scene, receiver, deadline, fail, done, on_frames, progress):
             continue
         frond_receiver.process(scene, frames)
         on_frames(frames)
+
+
+def import_armature(path, fail):
+    """An empty scene with the GLB at `path` imported by Blender's glTF importer; its one
+    armature (fails when there is not exactly one)."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=path)
+    arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
+    if len(arms) != 1:
+        fail(f"{path}: expected one armature, got {[o.name for o in bpy.data.objects]}")
+    return arms[0]

@@ -30,7 +30,7 @@ sys.path.insert(0, here)
 import VMC4B  # noqa: E402
 from VMC4B.core import state  # noqa: E402
 from VMC4B.core.applier import Applier  # noqa: E402
-from bpy_pump import failer  # noqa: E402
+from bpy_pump import failer, import_armature  # noqa: E402
 
 
 fail = failer("vmc4b check")
@@ -47,12 +47,7 @@ def main():
     args = ap.parse_args()
     mapping = [pair.split("=", 1) for pair in args.bones.split(",")]
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=args.glb)
-    arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
-    if len(arms) != 1:
-        fail(f"{args.glb}: expected one armature, got {[o.name for o in bpy.data.objects]}")
-    obj = arms[0]
+    obj = import_armature(args.glb, fail)
     for _, bone in mapping:
         if bone not in obj.pose.bones:
             fail(f"the imported armature has no bone {bone!r}: {[b.name for b in obj.pose.bones]}")
