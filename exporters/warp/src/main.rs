@@ -30,11 +30,7 @@ fn main() -> ExitCode {
             c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()
                 || matches!(c.downcast_ref(), Some(frond_warp::layers::SceneError::NoLayers))
         });
-        if usage {
-            frond_binmain::usage(frond_protocol::error_text(e.as_ref()))
-        } else {
-            e
-        }
+        if usage { frond_binmain::usage(frond_protocol::error_text(e.as_ref())) } else { e }
     });
     frond_binmain::exit("frond-warp", result)
 }
