@@ -30,5 +30,13 @@ exec chroot "$R" /bin/bash -euc "
 systemd-sysusers $REPO/systemd/frond.sysusers
 sed 's|/usr/bin/frondd|$BIN/frondd|' $REPO/systemd/frondd.service > /etc/systemd/system/frondd.service
 printf '[Unit]\nDescription=frond test target\n' > /etc/systemd/system/frondtest.target
+# Whatever makes systemd start over (a SIGTERM to it re-executes it), it boots the same empty
+# target, and never the units that touch devices: /dev is the host's.
+ln -sf frondtest.target /etc/systemd/system/default.target
+for unit in systemd-tmpfiles-setup.service systemd-tmpfiles-setup-dev.service \
+            systemd-tmpfiles-setup-dev-early.service systemd-udevd.service systemd-udev-trigger.service \
+            systemd-udev-settle.service systemd-modules-load.service systemd-sysctl.service; do
+    ln -sf /dev/null /etc/systemd/system/\$unit
+done
 exec /lib/systemd/systemd --system --unit=frondtest.target
 "
