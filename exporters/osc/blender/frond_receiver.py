@@ -14,12 +14,12 @@ armature, the names `joint0` .. `joint3` are tried. Secondary elements: a layer 
 `leaf#2`) drives every instance of its kind in the picked armature (`leaf0_joint0`, ...); a field
 plant (`plant<i>` of `frond field start`) or a graph walker (`walker<i>` of `frond walk`) drives
 the armature of plant i wherever it is in the scene, as Blender imports a field or grove GLB from
-frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. Every received frame sets the bones'
-rotations from `/frond/joint/<i>/quat`; Record keys each received frame into a new action at the
-frame given by the pose's device time `t` (`start frame + (t - t0) * scene fps`, fractional frames
-kept so no frame is lost; frames flagged held, which repeat the previous pose, are applied but not
-keyed). Frames flagged device-lost (`/frond/status` bit 2) are not applied or keyed: the armature
-holds its last pose.
+frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. Every
+received frame sets the bones' rotations from `/frond/joint/<i>/quat`; Record keys each received
+frame into a new action at the frame given by the pose's device time `t` (`start frame + (t - t0)
+* scene fps`, fractional frames kept so no frame is lost; frames flagged held, which repeat the
+previous pose, are applied but not keyed). Frames flagged device-lost (`/frond/status` bit 2)
+are not applied or keyed: the armature holds its last pose.
 
 Axes: frond's joint frame has the stem along +Y, pitch about +X, yaw about +Z (right-handed,
 glTF). A Blender bone pointing along its parent's direction with roll 0 has exactly these local
@@ -278,13 +278,16 @@ def plant_armature(scene, element):
     return None
 
 
-def frame_targets(scene, obj, frame):
+def frame_targets(scene, obj, frame, plants):
     """What a frame drives, as (armature, joint sets): the picked armature's main skeleton for
-    the global element, a layer's instances in it, or a field plant's own armature."""
+    the global element, a layer's instances in it, or a field plant's own armature. `plants`
+    caches `plant_armature` per element for one batch of frames (a lookup scans the scene)."""
     element = frame.get("element", 0)
     if element == 0:
         return [(obj, [bone_names(obj)])] if obj is not None else []
-    plant = plant_armature(scene, element)
+    if element not in plants:
+        plants[element] = plant_armature(scene, element)
+    plant = plants[element]
     if plant is not None:
         joints = element_info(element)["joints"]
         return [(plant, [[name if name in plant.pose.bones else None for name in joints]])]
@@ -302,10 +305,11 @@ def bone_names(obj):
     return names
 
 
-def apply_frame(scene, obj, frame):
-    """Sets the pose bones' rotations from the frame's joint quaternions; whether it drove any."""
+def apply_frame(targets, frame):
+    """Sets the pose bones of `targets` (`frame_targets`) from the frame's joint quaternions;
+    whether it drove any."""
     driven = False
-    for target, sets in frame_targets(scene, obj, frame):
+    for target, sets in targets:
         for names in sets:
             for name, (x, y, z, w) in zip(names, frame["quats"]):
                 pb = target.pose.bones.get(name) if name else None
@@ -317,14 +321,15 @@ def apply_frame(scene, obj, frame):
     return driven
 
 
-def key_frame(obj, scene, frame):
-    """Keys the bones' rotations at the frame's device time (see the module docs). An armature
-    keyed for the first time in this recording (a field plant's) gets its own new action."""
+def key_frame(obj, scene, frame, targets):
+    """Keys the bones of `targets` at the frame's device time (see the module docs). An
+    armature keyed for the first time in this recording (a field plant's) gets its own new
+    action."""
     if _state["t0"] is None:
         _state["t0"] = frame["t"]  # any element's: device time is shared
     fps = scene.render.fps / scene.render.fps_base
     at = scene.frond_receiver.record_start + (frame["t"] - _state["t0"]) * fps
-    for target, sets in frame_targets(scene, obj, frame):
+    for target, sets in targets:
         if target.name not in _state["recorded"]:
             _state["recorded"].add(target.name)
             if target is not obj:
@@ -342,6 +347,7 @@ def key_frame(obj, scene, frame):
 def process(scene, frames):
     """Applies (and, when recording, keys) received frames; returns how many were applied."""
     obj = _armature(scene)
+    plants = {}
     applied = 0
     for frame in frames:
         _state["frames"] += 1
@@ -349,12 +355,13 @@ def process(scene, frames):
         if frame["flags"] & DEVICE_LOST:
             _state["lost"] += 1
             continue
-        if not apply_frame(scene, obj, frame):
+        targets = frame_targets(scene, obj, frame, plants)
+        if not apply_frame(targets, frame):
             continue
         applied += 1
         # A held frame repeats the previous pose at the same device time: nothing new to key.
         if scene.frond_receiver.recording and not frame["flags"] & HELD:
-            key_frame(obj, scene, frame)
+            key_frame(obj, scene, frame, targets)
     return applied
 
 
