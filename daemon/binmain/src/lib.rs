@@ -22,6 +22,11 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     UsageError(msg.into()).into()
 }
 
+/// Every problem a binary's validation found in its arguments, one per line, as one usage error.
+pub fn invalid_arguments(problems: &[String]) -> anyhow::Error {
+    usage(format!("invalid arguments:\n  {}", problems.join("\n  ")))
+}
+
 /// Whether stderr gets ANSI colours: only on a terminal and never with `NO_COLOR` set to
 /// anything but the empty string.
 pub fn colour() -> bool {
@@ -44,11 +49,21 @@ pub fn logging(bin: &str, level: &str) -> Result<(), ExitCode> {
 /// The exit status of `result`, its error printed once (`BIN: error: ...`): 2 for a
 /// [`UsageError`] anywhere in the chain, 1 otherwise.
 pub fn exit(bin: &str, result: anyhow::Result<()>) -> ExitCode {
+    exit_with(bin, result, |_| false)
+}
+
+/// [`exit`], where a library error for which `is_usage` holds, anywhere in the chain, is a usage
+/// error too (an option out of range that only the library could judge).
+pub fn exit_with(
+    bin: &str,
+    result: anyhow::Result<()>,
+    is_usage: impl Fn(&(dyn std::error::Error + 'static)) -> bool,
+) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("{bin}: error: {}", frond_protocol::error_text(e.as_ref()));
-            if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some()) {
+            if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some() || is_usage(c)) {
                 ExitCode::from(2)
             } else {
                 ExitCode::FAILURE
@@ -167,6 +182,17 @@ mod tests {
         assert_eq!(exit("t", Err(anyhow::anyhow!("disk full"))), ExitCode::FAILURE);
         let wrapped = anyhow::Error::from(UsageError("bad".into())).context("while starting");
         assert_eq!(exit("t", Err(wrapped)), ExitCode::from(2));
+        let is_outer = |c: &(dyn std::error::Error + 'static)| c.downcast_ref::<std::fmt::Error>().is_some();
+        let library = anyhow::Error::new(std::fmt::Error).context("baking");
+        assert_eq!(
+            exit_with("t", Err(library), is_outer),
+            ExitCode::from(2),
+            "the library's own usage error"
+        );
+        assert_eq!(exit_with("t", Err(anyhow::anyhow!("disk full")), is_outer), ExitCode::FAILURE);
+        let problems = invalid_arguments(&["--rate 0: above 0".into(), "--port x".into()]);
+        assert_eq!(problems.to_string(), "invalid arguments:\n  --rate 0: above 0\n  --port x");
+        assert_eq!(exit("t", Err(problems)), ExitCode::from(2));
     }
 
     #[test]

@@ -115,12 +115,9 @@ fn main() -> ExitCode {
     };
     // An option out of range (`BakeError::Option`, found once the inputs are known) is a usage
     // error like clap's own; a take or file that cannot be used is a failure.
-    let result = result.map_err(|e| {
-        let option =
-            e.chain().any(|c| matches!(c.downcast_ref(), Some(frond_gltf::BakeError::Option { .. })));
-        if option { frond_binmain::usage(frond_protocol::error_text(e.as_ref())) } else { e }
-    });
-    frond_binmain::exit("frond-gltf", result)
+    frond_binmain::exit_with("frond-gltf", result, |c| {
+        matches!(c.downcast_ref(), Some(frond_gltf::BakeError::Option { .. }))
+    })
 }
 
 fn options(c: &Common) -> anyhow::Result<(BakeOptions, Format)> {

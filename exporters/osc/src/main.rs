@@ -163,7 +163,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         None => vmc_rig.bone_names = frond_osc::encode::vmc_humanoid_names(),
     }
     if !problems.is_empty() {
-        return Err(frond_binmain::usage(format!("invalid arguments:\n  {}", problems.join("\n  "))));
+        return Err(frond_binmain::invalid_arguments(&problems));
     }
     if args.bench && args.from.is_some() {
         return Err(frond_binmain::usage(

@@ -25,14 +25,10 @@ fn main() -> ExitCode {
     // Parameters out of range (the Checker's report, every problem at once) and a missing
     // --layer are usage errors; inputs that cannot be used (an unreadable image, a bad take or
     // sketch) and failures while running (a file that cannot be written) are not.
-    let result = result.map_err(|e| {
-        let usage = e.chain().any(|c| {
-            c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()
-                || matches!(c.downcast_ref(), Some(frond_warp::layers::SceneError::NoLayers))
-        });
-        if usage { frond_binmain::usage(frond_protocol::error_text(e.as_ref())) } else { e }
-    });
-    frond_binmain::exit("frond-warp", result)
+    frond_binmain::exit_with("frond-warp", result, |c| {
+        c.downcast_ref::<frond_warp::params::InvalidParams>().is_some()
+            || matches!(c.downcast_ref(), Some(frond_warp::layers::SceneError::NoLayers))
+    })
 }
 
 /// `--frames` in `1..=max_frames`, `--fps` in 1..=240 and the output's kind, each problem into

@@ -130,7 +130,7 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         },
     };
     if !problems.is_empty() {
-        return Err(frond_binmain::usage(format!("invalid arguments:\n  {}", problems.join("\n  "))));
+        return Err(frond_binmain::invalid_arguments(&problems));
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
     Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns, control })
