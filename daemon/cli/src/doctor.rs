@@ -49,8 +49,7 @@ fn check(name: &'static str, verdict: Verdict, found: String, fix: Option<String
 
 /// The daemon, and what its status says needs the operator (`frond_sdk::health`, as the
 /// console shows it): one check each.
-fn daemon(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
-    let dir = paths::socket_dir(g.socket_dir.clone());
+fn daemon(dir: &Path, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
     match status {
         Ok(ControlReply::Status(s)) => {
             let mut out = vec![check(
@@ -83,10 +82,9 @@ fn daemon(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
     }
 }
 
-fn socket_dir(g: &Global) -> Check {
+fn socket_dir(dir: &Path) -> Check {
     use std::os::unix::fs::MetadataExt;
-    let dir = paths::socket_dir(g.socket_dir.clone());
-    match std::fs::metadata(&dir) {
+    match std::fs::metadata(dir) {
         Ok(m) if m.is_dir() => {
             // SAFETY: getuid has no preconditions.
             let me = unsafe { libc::getuid() };
@@ -287,7 +285,7 @@ const EXPORTERS: [&str; 5] = ["frond-gltf", "frond-osc", "frond-warp", "frond-co
 /// The exporters: installed; able to reach the daemon (this user may subscribe to its pose
 /// socket: an exporter run as this user can); which are connected now (the daemon's subscribers,
 /// named by their process); and the state of any `frond-exporter@` service.
-fn exporters(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
+fn exporters(dir: &Path, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
     let here = std::env::current_exe().ok().and_then(|p| p.parent().map(Path::to_path_buf));
     let on_path = |name: &str| {
         here.as_ref().is_some_and(|d| d.join(name).is_file())
@@ -306,7 +304,7 @@ fn exporters(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
         )
     }];
     if let Ok(ControlReply::Status(s)) = status {
-        out.push(reachable(g, s));
+        out.push(reachable(dir, s));
     }
     out.extend(exporter_units());
     out
@@ -314,15 +312,14 @@ fn exporters(g: &Global, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
 
 /// Whether an exporter run as this user reaches the daemon: a subscription to the pose socket
 /// gets its hello. Lists the subscribers connected now by process name.
-fn reachable(g: &Global, s: &frond_protocol::StatusReport) -> Check {
-    let dir = paths::socket_dir(g.socket_dir.clone());
+fn reachable(dir: &Path, s: &frond_protocol::StatusReport) -> Check {
     let connected: Vec<String> = s
         .subscribers
         .iter()
         .map(|sub| {
-            let name = std::fs::read_to_string(format!("/proc/{}/comm", sub.pid))
-                .ok()
-                .filter(|_| sub.pid != 0)
+            let name = (sub.pid != 0)
+                .then(|| std::fs::read_to_string(format!("/proc/{}/comm", sub.pid)).ok())
+                .flatten()
                 .map(|n| n.trim().to_string())
                 .unwrap_or_else(|| "a subscriber".into());
             let dropped =
@@ -335,7 +332,7 @@ fn reachable(g: &Global, s: &frond_protocol::StatusReport) -> Check {
     } else {
         format!("connected: {}", connected.join(", "))
     };
-    match frond_sdk::Subscriber::options().read_timeout(Some(std::time::Duration::from_secs(2))).connect(&dir)
+    match frond_sdk::Subscriber::options().read_timeout(Some(std::time::Duration::from_secs(2))).connect(dir)
     {
         Ok(_) => check(
             "reach",
@@ -409,9 +406,9 @@ fn exporter_units() -> Vec<Check> {
 pub fn checks(g: &Global) -> Vec<Check> {
     let dir = paths::socket_dir(g.socket_dir.clone());
     let status = Control::connect(&dir).and_then(|mut c| c.request(&ControlRequest::Status));
-    let mut all = daemon(g, &status);
-    all.extend([socket_dir(g), glove(), udev_rule(), group(), fuse(), realtime(), service()]);
-    all.extend(exporters(g, &status));
+    let mut all = daemon(&dir, &status);
+    all.extend([socket_dir(&dir), glove(), udev_rule(), group(), fuse(), realtime(), service()]);
+    all.extend(exporters(&dir, &status));
     all
 }
 
