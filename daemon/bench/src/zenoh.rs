@@ -186,6 +186,8 @@ struct Stage<'a> {
     lan: Lan,
     daemons: Vec<Daemon>,
     window: Duration,
+    /// Files the phases write (Zenoh configurations).
+    scratch: tempfile::TempDir,
 }
 
 impl Stage<'_> {
@@ -280,6 +282,59 @@ impl Stage<'_> {
     }
 }
 
+/// The transports the bare hop is measured on.
+#[derive(Clone, Copy, PartialEq)]
+enum Bare {
+    Udp,
+    /// Zenoh as `frond-zenoh` and the SDK use it (the default unicast transport).
+    Zenoh,
+    /// Zenoh's low-latency unicast transport (QoS off), which writes on the caller's thread
+    /// instead of handing the message to a transmit task. `frond-zenoh` does not use it: a
+    /// peer whose link is down blocks that write, and with it every other peer.
+    ZenohLowLatency,
+}
+
+/// Zenoh's configuration for [`Bare::ZenohLowLatency`], both ends.
+const LOW_LATENCY_CONFIG: &str =
+    "{ transport: { unicast: { lowlatency: true, qos: { enabled: false } } } }\n";
+
+impl Stage<'_> {
+    /// The bare hop, no daemon and no bridge: `frond-bench-peer zenoh-pub` on host 0 puts a pose
+    /// every millisecond and `zenoh-raw` on host 1 records it in Zenoh's callback, or `udp-pub`
+    /// sends it in a datagram to `udp-sub`. What the transport alone costs between the same
+    /// namespaces: the floor under the measured paths.
+    fn bare(&mut self, kind: Bare) -> Result<Phase, String> {
+        let host = self.listener(0);
+        let (publisher, subscriber) = if kind == Bare::Udp {
+            let bind = format!("0.0.0.0:{UDP_PORT}");
+            (
+                vec!["udp-pub".to_string(), format!("{}:{UDP_PORT}", host.addr)],
+                vec!["udp-sub".to_string(), bind],
+            )
+        } else {
+            let listen = self.performer().endpoint(BRIDGE_PORT);
+            let mut config = String::new();
+            if kind == Bare::ZenohLowLatency {
+                let path = self.scratch.path().join("lowlatency.json5");
+                std::fs::write(&path, LOW_LATENCY_CONFIG).map_err(|e| format!("{}: {e}", path.display()))?;
+                config = format!("&config={}", path.display());
+            }
+            let address = |end: &str| format!("zenoh:frond/bench/bare?{end}={listen}{config}");
+            (
+                vec!["zenoh-pub".to_string(), address("listen")],
+                vec!["zenoh-raw".to_string(), address("connect")],
+            )
+        };
+        let mut subs = vec![Peer::spawn(self.o, host, "frond-bench-peer", &subscriber)?];
+        // The receiver binds before the first pose is sent.
+        thread::sleep(Duration::from_millis(100));
+        let mut sender = Peer::spawn(self.o, self.performer(), "frond-bench-peer", &publisher)?;
+        sender.wait_ready()?;
+        subs[0].wait_ready()?;
+        measure(&mut subs, &[sender.proc.pid()], self.window)
+    }
+}
+
 /// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the targets,
 /// and the bridges' CPU against the forwarders'.
 fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
@@ -325,7 +380,8 @@ pub fn zenoh(o: &Options) -> Result<Section, String> {
         find_bin(o, bin)?;
     }
     let window = if o.quick { Duration::from_millis(1500) } else { Duration::from_secs(5) };
-    let mut stage = Stage { o, lan: Lan::new(4), daemons: Vec::new(), window };
+    let scratch = tempfile::tempdir().map_err(|e| format!("a scratch directory: {e}"))?;
+    let mut stage = Stage { o, lan: Lan::new(4), daemons: Vec::new(), window, scratch };
     let mut measurements = Vec::new();
     let mut details = serde_json::Map::new();
     for n in SUBSCRIBERS {
@@ -337,7 +393,27 @@ pub fn zenoh(o: &Options) -> Result<Section, String> {
         if n == 1 {
             // Where the time goes: the same path read in Zenoh's own callback, without the SDK's
             // hand-off to the reading thread.
-            d["zenoh_callback"] = stage.zenoh(1, 1, "zenoh-raw")?.json();
+            let callback = stage.zenoh(1, 1, "zenoh-raw")?;
+            // And the floor: the hop alone, each transport as bare as it comes.
+            let bare_u = stage.bare(Bare::Udp)?;
+            let bare_z = stage.bare(Bare::Zenoh)?;
+            let bare_ll = stage.bare(Bare::ZenohLowLatency)?;
+            for (tag, phase) in [("", &bare_z), ("_lowlatency", &bare_ll)] {
+                for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
+                    measurements.push(Measurement::new(
+                        format!("zenoh_bare_hop{tag}_{name}"),
+                        "us",
+                        phase.percentile(q),
+                        format!(
+                            "a bare UDP datagram between the same namespaces (no daemon, no bridge), {name}"
+                        ),
+                        bare_u.percentile(q),
+                    ));
+                }
+            }
+            d["zenoh_callback"] = callback.json();
+            d["bare_hop"] =
+                json!({ "zenoh": bare_z.json(), "zenoh_lowlatency": bare_ll.json(), "udp": bare_u.json() });
         }
         details.insert(format!("{n}_subscribers"), d);
     }

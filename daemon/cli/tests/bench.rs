@@ -90,6 +90,19 @@ fn check_zenoh_section(section: &Value) {
             assert!(d[path]["samples"].as_u64().unwrap() > 100, "{tag} {path}: {}", d[path]);
         }
     }
+    // The floor: each bare hop's rows are its details, all against the same bare UDP hop, with
+    // no target (they are what Zenoh itself costs, not a goal of frond's).
+    let bare = &section["details"]["1_subscribers"]["bare_hop"];
+    for (tag, path) in [("", "zenoh"), ("_lowlatency", "zenoh_lowlatency")] {
+        for q in ["p50", "p99"] {
+            let m = row(&format!("zenoh_bare_hop{tag}_{q}"));
+            assert_eq!(m["measured"], bare[path][format!("{q}_us")], "{path} {q}");
+            assert_eq!(m["baseline"], bare["udp"][format!("{q}_us")], "bare udp {q}");
+            assert!(m.get("target").is_none_or(Value::is_null), "{path} {q}: {m}");
+        }
+        assert!(bare[path]["samples"].as_u64().unwrap() > 100, "{path}: {}", bare[path]);
+    }
+    assert!(bare["udp"]["samples"].as_u64().unwrap() > 100, "{}", bare["udp"]);
 }
 
 fn check_measurement(path: &str, m: &Value) {
@@ -258,4 +271,14 @@ fn table_output_and_unknown_sections() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("warp-speed") && err.contains("loop_timing"), "{err}");
+    // Every section the error knows is one `--help` names.
+    let known = err.split("known: ").nth(1).unwrap_or_default().trim().trim_end_matches(')');
+    assert!(known.split(", ").count() >= 9, "{err}");
+    for help in [["bench", "--help"].as_slice(), &["bench", "-h"]] {
+        let out = frond().args(help).output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).split_whitespace().collect::<Vec<_>>().join(" ");
+        for name in known.split(", ") {
+            assert!(text.contains(name), "{help:?} does not name section {name}: {text}");
+        }
+    }
 }

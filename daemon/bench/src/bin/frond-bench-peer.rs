@@ -13,6 +13,13 @@
 //!   with `frond_sdk` as `frond-zenoh` does, and sends each pose, re-encoded as `frond-zenoh`
 //!   re-encodes it, in one UDP datagram to every `ADDR` (the baseline's bridge).
 //!
+//! - `frond-bench-peer zenoh-pub ADDRESS` / `udp-pub ADDR [ADDR ...]`: the bare transport, no
+//!   daemon and no bridge: every millisecond (absolute deadlines) one pose stamped with the time
+//!   of sending, put on `ADDRESS`'s `poses` key as `frond-zenoh` puts it (express, drop when
+//!   congested, real-time priority; `ADDRESS`'s `listen` endpoint) or sent in one UDP datagram
+//!   to every `ADDR`. Read by `zenoh-raw` and `udp-sub`, they measure the hop between two
+//!   namespaces alone, the floor under both paths.
+//!
 //! Each prints `ready` once poses flow. A subscriber then obeys its standard input: `record`
 //! starts recording each pose's latency (receipt time minus the daemon's `host_monotonic_ns`; one
 //! `CLOCK_MONOTONIC` serves every namespace of a machine, so the difference is a real latency),
@@ -230,6 +237,61 @@ fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
     }
 }
 
+/// How often the bare publishers send (the daemons' rate in the bench).
+const BARE_PERIOD: Duration = Duration::from_millis(1);
+
+/// Calls `send` with a fresh pose (stamped now, numbered from 0) every [`BARE_PERIOD`], on
+/// absolute deadlines so a late wake-up does not shift the ones after it.
+fn every_period(mut send: impl FnMut(&[u8])) -> Result<(), String> {
+    let mut frame = FrameBuf::default();
+    let start = std::time::Instant::now();
+    exit_on_stdin_eof();
+    say("ready");
+    for seq in 0u64.. {
+        let due = start + BARE_PERIOD * u32::try_from(seq % (1 << 31)).unwrap_or(0);
+        if let Some(wait) = due.checked_duration_since(std::time::Instant::now()) {
+            std::thread::sleep(wait);
+        }
+        let pose = Pose { seq, host_monotonic_ns: monotonic_ns(), ..Pose::default() };
+        send(frame.encode(&ServerMessage::Pose(pose)));
+    }
+    Ok(())
+}
+
+fn zenoh_pub(address: &str) -> Result<(), String> {
+    use frond_sdk::zenoh::{config, keys, open_session};
+    use zenoh::Wait;
+    use zenoh::qos::{CongestionControl, Priority};
+    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
+        return Err(format!("{address}: not a zenoh: address"));
+    };
+    let cfg =
+        config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(|e| e.to_string())?;
+    let session = open_session(cfg).map_err(|e| e.to_string())?;
+    let publisher = session
+        .declare_publisher(keys::under(&addr.key, keys::POSES))
+        .congestion_control(CongestionControl::Drop)
+        .priority(Priority::RealTime)
+        .express(true)
+        .wait()
+        .map_err(|e| e.to_string())?;
+    every_period(|bytes| {
+        // As frond-zenoh: an owned buffer per put; a put that fails is a lost pose.
+        let _ = publisher.put(bytes.to_vec()).wait();
+    })
+}
+
+fn udp_pub(to: &[String]) -> Result<(), String> {
+    let to: Vec<SocketAddr> =
+        to.iter().map(|a| a.parse().map_err(|e| format!("{a}: {e}"))).collect::<Result<_, _>>()?;
+    let socket = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
+    every_period(|bytes| {
+        for addr in &to {
+            let _ = socket.send_to(bytes, addr);
+        }
+    })
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
@@ -237,9 +299,11 @@ fn main() -> ExitCode {
         ["zenoh-raw", address] => zenoh_raw(address),
         ["udp-sub", bind] => udp_sub(bind),
         ["udp-forward", dir, to @ ..] if !to.is_empty() => udp_forward(dir, &args[2..]),
+        ["zenoh-pub", address] => zenoh_pub(address),
+        ["udp-pub", to @ ..] if !to.is_empty() => udp_pub(&args[1..]),
         _ => {
             eprintln!(
-                "usage: frond-bench-peer zenoh-sub ADDRESS | zenoh-raw ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...]"
+                "usage: frond-bench-peer zenoh-sub ADDRESS | zenoh-raw ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...] | zenoh-pub ADDRESS | udp-pub ADDR [ADDR ...]"
             );
             return ExitCode::from(2);
         }

@@ -23,7 +23,7 @@ struct Args {
     #[arg(long)]
     json: bool,
     /// Run only this section (repeatable): loop_timing, glove_latency, tick_cost, max_rate,
-    /// daemon_resources, components, osc_latency, hidraw_latency.
+    /// daemon_resources, components, osc_latency, hidraw_latency, zenoh.
     #[arg(long, value_name = "NAME")]
     section: Vec<String>,
 }
