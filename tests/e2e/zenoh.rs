@@ -101,3 +101,85 @@ fn a_zenoh_subscriber_reads_the_sockets_poses_and_follows_a_daemon_restart() {
 fn again_rig(daemon: &Daemon) -> String {
     Subscriber::connect(&daemon.socket_dir).unwrap().hello().rig_name.clone()
 }
+
+/// A performer who leaves for good: its daemon stops and does not come back. Its bridge still
+/// stops on SIGTERM, and a stage recording that was following it still ends on time with both
+/// takes closed. Both used to wait for ever: the SDK's reconnection never gave control back
+/// to a caller watching its stop flag, even with a read timeout.
+#[test]
+fn a_performer_who_leaves_for_good_holds_up_neither_its_bridge_nor_the_stage_recording() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+
+    let stage = format!("leave{}", std::process::id());
+    let (dir_a, dir_b, takes) =
+        (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let daemon_a = Daemon::start(dir_a.path(), &["--source", "in-process"]);
+    let mut daemon_b = Daemon::start(dir_b.path(), &["--source", "in-process"]);
+    let port_a = free_port();
+    let port_b = std::iter::repeat_with(free_port).find(|&p| p != port_a).unwrap();
+    let bridge_on = |daemon: &Daemon, source: &str, port: u16| {
+        start_zenoh_bridge(
+            Command::new(bin("frond-zenoh")),
+            daemon,
+            &stage,
+            source,
+            &["--listen", &format!("tcp/127.0.0.1:{port}")],
+        )
+    };
+    let _bridge_a = bridge_on(&daemon_a, "glove-a", port_a);
+    let mut bridge_b = bridge_on(&daemon_b, "glove-b", port_b);
+    let connect = |port: u16| format!("tcp/127.0.0.1:{port}");
+    let child = Command::new(bin("frond"))
+        .arg("--takes-dir")
+        .arg(takes.path())
+        .args(["record", "start", "take1", "--stage", &stage, "--for", "8"])
+        .args(["--connect", &connect(port_a), "--connect", &connect(port_b)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    // Killed when dropped, so a recording that hangs fails the test instead of outliving it.
+    let mut recorder = Proc { child, name: "frond record --stage".into() };
+    let (tx, lines) = std::sync::mpsc::channel();
+    let stdout = BufReader::new(recorder.child.stdout.take().unwrap());
+    std::thread::spawn(move || {
+        for line in stdout.lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let mut out = Vec::new();
+    while out.iter().filter(|l: &&String| l.starts_with("recording ")).count() < 2 {
+        let line = lines.recv_timeout(Duration::from_secs(30)).expect("the recorder found both performers");
+        out.push(line);
+    }
+    std::thread::sleep(Duration::from_secs(1));
+
+    // Performer B leaves: its daemon stops for good, then its bridge is told to stop.
+    daemon_b.proc.terminate(Duration::from_secs(5)).expect("frondd exits on SIGTERM");
+    std::thread::sleep(Duration::from_secs(1));
+    let status = bridge_b
+        .terminate(Duration::from_secs(10))
+        .expect("frond-zenoh stops on SIGTERM while its daemon is away");
+    assert!(status.success(), "frond-zenoh: {status}");
+
+    // The recording ends at --for and closes both takes.
+    let deadline = Instant::now() + Duration::from_secs(40);
+    let status = loop {
+        if let Some(status) = recorder.child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "the stage recording did not end; said so far: {out:?}");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    out.extend(lines.try_iter());
+    assert!(status.success(), "the stage recording failed: {out:?}");
+    for source in ["glove-a", "glove-b"] {
+        let line = out
+            .iter()
+            .find(|l| l.contains(&format!("take1-{source}.take: ")))
+            .unwrap_or_else(|| panic!("no summary of {source}'s take: {out:?}"));
+        let frames: u64 = line.split(": ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(frames > 500, "{line}");
+    }
+}

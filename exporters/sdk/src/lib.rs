@@ -35,6 +35,7 @@ pub mod control;
 pub mod control_auth;
 mod error;
 pub mod health;
+mod reconnect;
 pub mod source;
 #[cfg(feature = "zenoh")]
 pub mod stage_time;
@@ -49,7 +50,7 @@ pub mod zenoh_stage;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 pub use control::{ControlClient, ControlClientError};
 pub use error::{ProtocolError, SdkError};
@@ -154,7 +155,10 @@ impl SubscriberOptions {
         self
     }
     /// Return [`SdkError::Timeout`] when no message arrives for this long (default: block).
-    /// The connection survives a timeout.
+    /// The connection survives a timeout. It applies while reconnecting too: a reconnection
+    /// still under way when the timeout runs out returns [`SdkError::Timeout`] and carries on at
+    /// the next call, its backoff and [`SubscriberOptions::give_up_after`] counted from the
+    /// disconnection, so a caller that checks a stop flag between calls is never held longer.
     pub fn read_timeout(mut self, timeout: Option<Duration>) -> Self {
         self.read_timeout = timeout.filter(|t| !t.is_zero());
         self
@@ -238,6 +242,8 @@ pub struct Subscriber {
     pending: VecDeque<Event>,
     stats: Stats,
     iter_done: bool,
+    /// A reconnection under way across calls (a read timeout came first).
+    retry: Option<reconnect::Retry>,
 }
 
 impl std::fmt::Debug for Subscriber {
@@ -312,6 +318,7 @@ impl Subscriber {
             pending: VecDeque::new(),
             stats: Stats::default(),
             iter_done: false,
+            retry: None,
         }
     }
 
@@ -375,8 +382,10 @@ impl Subscriber {
     ///
     /// After [`Event::Disconnected`] the next call reconnects (when enabled), blocking with
     /// backoff until it succeeds ([`Event::Reconnected`]) or the bound of
-    /// [`SubscriberOptions::give_up_after`] passes ([`SdkError::ReconnectFailed`]). After a
-    /// protocol error the connection is dropped and the same applies. Once finished, returns
+    /// [`SubscriberOptions::give_up_after`] passes ([`SdkError::ReconnectFailed`]), or, with a
+    /// [`SubscriberOptions::read_timeout`], until that runs out ([`SdkError::Timeout`]; the next
+    /// call goes on reconnecting). After a protocol error the connection is dropped and the
+    /// same applies. Once finished, returns
     /// [`SdkError::Closed`].
     pub fn next_event(&mut self) -> Result<Event, SdkError> {
         if let Some(ev) = self.pending.pop_front() {
@@ -485,49 +494,6 @@ impl Subscriber {
             self.state = State::Finished;
         }
         SdkError::Protocol { path: self.path.clone(), error }
-    }
-
-    fn reconnect(&mut self) -> Result<Event, SdkError> {
-        let start = Instant::now();
-        let mut delay = self.opts.retry_interval;
-        let mut attempts = 0u32;
-        let mut kept = match std::mem::replace(&mut self.state, State::Disconnected(None)) {
-            State::Disconnected(kept) => kept,
-            _ => None,
-        };
-        loop {
-            attempts += 1;
-            match open_wire(&self.source, &self.opts, &mut kept) {
-                Ok((wire, hello)) => {
-                    tracing::info!(path = %self.path.display(), attempts, "reconnected");
-                    self.state = State::Connected(wire);
-                    self.expected_seq = hello.next_seq;
-                    self.hello = hello.clone();
-                    self.elements = hello.elements.clone();
-                    self.stats.reconnects += 1;
-                    return Ok(Event::Reconnected(hello));
-                }
-                Err(e) if e.is_fatal() => {
-                    self.state = State::Finished;
-                    return Err(e);
-                }
-                Err(e) => {
-                    let elapsed = start.elapsed();
-                    if self.opts.give_up_after.is_some_and(|limit| elapsed + delay > limit) {
-                        self.state = State::Finished;
-                        return Err(SdkError::ReconnectFailed {
-                            path: self.path.clone(),
-                            attempts,
-                            elapsed,
-                            last: Box::new(e),
-                        });
-                    }
-                    tracing::debug!(error = %e, ?delay, "reconnect attempt failed");
-                }
-            }
-            std::thread::sleep(delay);
-            delay = (delay * 2).min(self.opts.max_retry_interval);
-        }
     }
 
     /// Iterator over poses only; see the [`Iterator`] impl.

@@ -439,3 +439,93 @@ fn a_second_hello_is_a_rig_change() {
     assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(2)));
     server.join().unwrap();
 }
+
+/// A daemon that serves one connection with a hello and one pose, then goes away.
+fn serve_hello_and_pose(dir: &Path, seq: u64) -> JoinHandle<()> {
+    serve_once(dir, move |mut s| {
+        s.write_all(&hello_frame(seq)).unwrap();
+        s.write_all(&pose_frame(seq)).unwrap();
+    })
+}
+
+#[test]
+fn a_read_timeout_returns_control_while_the_daemon_is_away() {
+    let (_guard, dir) = tempdir();
+    let first = serve_hello_and_pose(&dir, 5);
+    let mut sub =
+        quick().give_up_after(None).read_timeout(Some(Duration::from_millis(50))).connect(&dir).unwrap();
+    assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(5)));
+    first.join().unwrap();
+    assert_eq!(sub.next_event().unwrap(), Event::Disconnected);
+    // The daemon is away and reconnection never gives up: each call still comes back, with a
+    // timeout, so a caller can look at its stop flag (it used to reconnect for ever).
+    let (tx, rx) = std::sync::mpsc::channel();
+    let waiter = thread::spawn(move || {
+        for _ in 0..5 {
+            let got = sub.next_event();
+            let timed_out = matches!(got, Err(SdkError::Timeout { .. }));
+            tx.send(format!("{got:?}")).unwrap();
+            if !timed_out {
+                break;
+            }
+        }
+        sub
+    });
+    for _ in 0..5 {
+        let got = rx.recv_timeout(Duration::from_secs(20)).expect("next_event did not come back");
+        assert!(got.starts_with("Err(Timeout"), "{got}");
+    }
+    let mut sub = waiter.join().unwrap();
+    assert!(!sub.is_connected());
+    // It comes back: a later call reconnects, and the stream goes on from the new hello.
+    let second = serve_hello_and_pose(&dir, 0);
+    let mut event = None;
+    for _ in 0..400 {
+        match sub.next_event() {
+            Err(SdkError::Timeout { .. }) => continue,
+            other => {
+                event = Some(other.unwrap());
+                break;
+            }
+        }
+    }
+    assert_eq!(event, Some(Event::Reconnected(hello(0))));
+    assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(0)));
+    assert_eq!(sub.stats().reconnects, 1);
+    second.join().unwrap();
+}
+
+#[test]
+fn giving_up_counts_from_the_disconnection_across_timeouts() {
+    let (_guard, dir) = tempdir();
+    let first = serve_hello_and_pose(&dir, 1);
+    let mut sub = quick()
+        .give_up_after(Some(Duration::from_millis(300)))
+        .read_timeout(Some(Duration::from_millis(20)))
+        .connect(&dir)
+        .unwrap();
+    assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(1)));
+    first.join().unwrap();
+    assert_eq!(sub.next_event().unwrap(), Event::Disconnected);
+    // Each call is shorter than the bound; were the bound counted per call, this never ends.
+    let mut timeouts = 0;
+    let error = loop {
+        match sub.next_event() {
+            Err(SdkError::Timeout { .. }) => {
+                timeouts += 1;
+                assert!(timeouts < 10_000, "the give-up bound never passed");
+            }
+            Err(e) => break e,
+            Ok(event) => panic!("no daemon, yet {event:?}"),
+        }
+    };
+    match error {
+        SdkError::ReconnectFailed { attempts, last, .. } => {
+            assert!(attempts >= 2, "{attempts}");
+            assert!(matches!(*last, SdkError::NotRunning { .. }), "{last:?}");
+        }
+        other => panic!("expected ReconnectFailed, got {other:?}"),
+    }
+    assert!(timeouts >= 2, "control came back meanwhile: {timeouts} timeouts");
+    assert!(matches!(sub.next_event(), Err(SdkError::Closed)));
+}
