@@ -183,3 +183,38 @@ fn a_performer_who_leaves_for_good_holds_up_neither_its_bridge_nor_the_stage_rec
         assert!(frames > 500, "{line}");
     }
 }
+
+/// Zenoh panics on a `ZENOH_RUNTIME` it cannot parse (even an empty one) or on a pool of no
+/// threads; every frond program that opens Zenoh says what is wrong with it instead, and exits 1.
+#[test]
+fn a_bad_zenoh_runtime_variable_is_an_error_naming_it_in_every_program() {
+    let dir = tempfile::tempdir().unwrap();
+    let from = "zenoh:frond/nowhere/nobody";
+    let out = dir.path().join("x.glb");
+    let runs: [(&str, Vec<&str>); 5] = [
+        (
+            "frond-zenoh",
+            vec!["--stage", "nowhere", "--source", "nobody", "--socket-dir", dir.path().to_str().unwrap()],
+        ),
+        ("frond", vec!["tap", "--count", "1", "--from", from]),
+        ("frond", vec!["status", "--from", from]),
+        ("frond-osc", vec!["--from", from]),
+        ("frond-gltf", vec!["live", "--rig", "grass", "--from", from, "-o", out.to_str().unwrap()]),
+    ];
+    for value in ["", "(rx: (worker_threads: 0))"] {
+        for (program, args) in &runs {
+            let run = Command::new(bin(program)).args(args).env("ZENOH_RUNTIME", value).output().unwrap();
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert_eq!(
+                run.status.code(),
+                Some(1),
+                "{program} {args:?} with ZENOH_RUNTIME={value:?}: {stderr}"
+            );
+            assert!(!stderr.contains("panicked"), "{program}: {stderr}");
+            assert!(
+                stderr.contains(&format!("ZENOH_RUNTIME={value:?}")) && stderr.contains("unset it"),
+                "{program} {args:?}: {stderr}"
+            );
+        }
+    }
+}

@@ -46,6 +46,8 @@ pub mod zenoh_control;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_many;
 #[cfg(feature = "zenoh")]
+pub mod zenoh_runtime_env;
+#[cfg(feature = "zenoh")]
 pub mod zenoh_stage;
 
 use std::collections::VecDeque;

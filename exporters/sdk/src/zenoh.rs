@@ -79,6 +79,9 @@ pub enum ZenohSetupError {
     /// Zenoh refused the configuration or could not open the session.
     #[error("Zenoh: {0}")]
     Zenoh(String),
+    /// `ZENOH_RUNTIME` holds a value Zenoh cannot use (see [`crate::zenoh_runtime_env`]).
+    #[error("{0}")]
+    RuntimeEnv(String),
 }
 
 /// Builds a Zenoh configuration: the file (if any, checked to be a regular file of at most
@@ -134,8 +137,9 @@ fn json_list(items: &[String]) -> String {
     serde_json::Value::Array(items.iter().map(|s| serde_json::Value::String(s.clone())).collect()).to_string()
 }
 
-/// Opens a session with [`config`].
+/// Opens a session with [`config`], after checking `ZENOH_RUNTIME` (on which Zenoh panics).
 pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSetupError> {
+    crate::zenoh_runtime_env::check().map_err(ZenohSetupError::RuntimeEnv)?;
     ::zenoh::open(config).wait().map_err(|e| ZenohSetupError::Zenoh(e.to_string()))
 }
 
