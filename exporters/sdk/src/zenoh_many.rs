@@ -13,7 +13,7 @@ use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ::zenoh::Wait;
 use ::zenoh::sample::SampleKind;
@@ -31,6 +31,8 @@ pub const MAX_FOLLOWED_SOURCES: usize = 64;
 
 /// How often a follower thread looks up from its source to see whether it is to stop.
 const POLL: Duration = Duration::from_millis(200);
+/// How long dropping a [`StageSubscriber`] waits for its followers to stop.
+const DROP_WAIT: Duration = Duration::from_secs(1);
 
 /// One item of a [`StageSubscriber`]'s stream. `source` is the source's key below `frond/`:
 /// `<stage>/<source>` (`stage1/glove-a`).
@@ -160,18 +162,25 @@ impl StageSubscriber {
 }
 
 impl Drop for StageSubscriber {
+    /// Stops every follower. One that is streaming or reconnecting sees the stop within
+    /// [`POLL`] and is joined; one still opening its subscription (waiting for a hello, up to
+    /// the options' hello timeout) is left to finish on its own after [`DROP_WAIT`]: it
+    /// delivers nothing more and ends as soon as its open returns.
     fn drop(&mut self) {
         self.shared.stop.store(true, Relaxed);
         // Followers blocked on a full stream see the stop within POLL once it is drained.
         while self.events.try_recv().is_ok() {}
         let threads =
             std::mem::take(&mut *self.shared.threads.lock().unwrap_or_else(PoisonError::into_inner));
+        let deadline = Instant::now() + DROP_WAIT;
         for t in threads {
-            while !t.is_finished() {
+            while !t.is_finished() && Instant::now() < deadline {
                 while self.events.try_recv().is_ok() {}
                 std::thread::sleep(Duration::from_millis(10));
             }
-            let _ = t.join();
+            if t.is_finished() {
+                let _ = t.join();
+            }
         }
     }
 }
