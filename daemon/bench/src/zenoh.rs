@@ -14,6 +14,11 @@
 //! `frond-bench-peer udp-sub`). The latency is receipt time minus the pose's `host_monotonic_ns`:
 //! one `CLOCK_MONOTONIC` serves every namespace of a machine. The UDP phase of each setting runs
 //! first, then the Zenoh phase, never both at once, and each phase starts its own processes.
+//!
+//! Beside the one-subscriber setting, two diagnostics: the same path read in Zenoh's callback
+//! (without the SDK's hand-off), and the floor, the hop between two namespaces alone with no
+//! daemon and no bridge (`zenoh_bare_hop_*`: Zenoh's put to its callback, on its default and
+//! its low-latency transport, against a bare UDP datagram).
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{ChildStdin, Stdio};

@@ -158,18 +158,25 @@ fn zenoh_sub(address: &str) -> Result<(), String> {
     }
 }
 
-/// A bare Zenoh subscriber on the source's `poses` key that records each sample in Zenoh's own
-/// callback: what the pose costs up to Zenoh's receive thread, without the SDK's hand-off to the
-/// reading thread (a diagnostic beside [`zenoh_sub`]).
-fn zenoh_raw(address: &str) -> Result<(), String> {
-    use frond_sdk::zenoh::{config, keys, open_session};
-    use zenoh::Wait;
+/// A `zenoh:` address parsed, and a session opened as it says (endpoints, configuration file).
+fn zenoh_session(address: &str) -> Result<(frond_sdk::ZenohAddr, frond_sdk::zenoh::Session), String> {
+    use frond_sdk::zenoh::{config, open_session};
     let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
         return Err(format!("{address}: not a zenoh: address"));
     };
     let cfg =
         config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(|e| e.to_string())?;
     let session = open_session(cfg).map_err(|e| e.to_string())?;
+    Ok((addr, session))
+}
+
+/// A bare Zenoh subscriber on the source's `poses` key that records each sample in Zenoh's own
+/// callback: what the pose costs up to Zenoh's receive thread, without the SDK's hand-off to the
+/// reading thread (a diagnostic beside [`zenoh_sub`]).
+fn zenoh_raw(address: &str) -> Result<(), String> {
+    use frond_sdk::zenoh::keys;
+    use zenoh::Wait;
+    let (addr, session) = zenoh_session(address)?;
     let recorder = Arc::new(Recorder::default());
     let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<()>(1);
     let rec = recorder.clone();
@@ -259,15 +266,10 @@ fn every_period(mut send: impl FnMut(&[u8])) -> Result<(), String> {
 }
 
 fn zenoh_pub(address: &str) -> Result<(), String> {
-    use frond_sdk::zenoh::{config, keys, open_session};
+    use frond_sdk::zenoh::keys;
     use zenoh::Wait;
     use zenoh::qos::{CongestionControl, Priority};
-    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
-        return Err(format!("{address}: not a zenoh: address"));
-    };
-    let cfg =
-        config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(|e| e.to_string())?;
-    let session = open_session(cfg).map_err(|e| e.to_string())?;
+    let (addr, session) = zenoh_session(address)?;
     let publisher = session
         .declare_publisher(keys::under(&addr.key, keys::POSES))
         .congestion_control(CongestionControl::Drop)
