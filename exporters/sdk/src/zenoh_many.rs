@@ -163,9 +163,9 @@ impl StageSubscriber {
 
 impl Drop for StageSubscriber {
     /// Stops every follower. One that is streaming or reconnecting sees the stop within
-    /// [`POLL`] and is joined; one still opening its subscription (waiting for a hello, up to
-    /// the options' hello timeout) is left to finish on its own after [`DROP_WAIT`]: it
-    /// delivers nothing more and ends as soon as its open returns.
+    /// 200 ms and is joined; one still opening its subscription (waiting for a hello, up to
+    /// the options' hello timeout) is left to finish on its own after a second: it delivers
+    /// nothing more and ends as soon as its open returns.
     fn drop(&mut self) {
         self.shared.stop.store(true, Relaxed);
         // Followers blocked on a full stream see the stop within POLL once it is drained.
