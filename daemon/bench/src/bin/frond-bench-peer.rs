@@ -220,10 +220,29 @@ fn udp_sub(bind: &str) -> Result<(), String> {
     }
 }
 
+/// One UDP socket sending each datagram to every target (the baseline's senders).
+struct UdpFanout {
+    socket: UdpSocket,
+    to: Vec<SocketAddr>,
+}
+
+impl UdpFanout {
+    fn new(to: &[String]) -> Result<UdpFanout, String> {
+        let to = to.iter().map(|a| a.parse().map_err(|e| format!("{a}: {e}"))).collect::<Result<_, _>>()?;
+        let socket = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
+        Ok(UdpFanout { socket, to })
+    }
+
+    fn send(&self, bytes: &[u8]) {
+        for addr in &self.to {
+            // A full socket buffer or an unreachable host loses the datagram, as UDP does.
+            let _ = self.socket.send_to(bytes, addr);
+        }
+    }
+}
+
 fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
-    let to: Vec<SocketAddr> =
-        to.iter().map(|a| a.parse().map_err(|e| format!("{a}: {e}"))).collect::<Result<_, _>>()?;
-    let socket = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
+    let fanout = UdpFanout::new(to)?;
     let mut sub = Subscriber::connect(socket_dir).map_err(|e| format!("{socket_dir}: {e}"))?;
     let mut frame = FrameBuf::default();
     let mut ready = false;
@@ -232,10 +251,7 @@ fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
         if let Event::Pose(p) = sub.next_event().map_err(|e| e.to_string())? {
             // As frond-zenoh: one owned buffer per pose, re-encoded from the decoded pose.
             let bytes = frame.encode(&ServerMessage::Pose(p)).to_vec();
-            for addr in &to {
-                // A full socket buffer or an unreachable host loses the datagram, as UDP does.
-                let _ = socket.send_to(&bytes, addr);
-            }
+            fanout.send(&bytes);
             if !ready {
                 ready = true;
                 say("ready");
@@ -284,14 +300,8 @@ fn zenoh_pub(address: &str) -> Result<(), String> {
 }
 
 fn udp_pub(to: &[String]) -> Result<(), String> {
-    let to: Vec<SocketAddr> =
-        to.iter().map(|a| a.parse().map_err(|e| format!("{a}: {e}"))).collect::<Result<_, _>>()?;
-    let socket = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
-    every_period(|bytes| {
-        for addr in &to {
-            let _ = socket.send_to(bytes, addr);
-        }
-    })
+    let fanout = UdpFanout::new(to)?;
+    every_period(|bytes| fanout.send(bytes))
 }
 
 fn main() -> ExitCode {
