@@ -13,12 +13,13 @@ fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
 }
 
-fn start_bridge(daemon: &Daemon, stage: &str, port: u16) -> Proc {
+/// `frond-zenoh` for `daemon` as `frond/<stage>/<source>`, listening on loopback `port`.
+fn start_bridge(daemon: &Daemon, stage: &str, source: &str, port: u16) -> Proc {
     start_zenoh_bridge(
         Command::new(bin("frond-zenoh")),
         daemon,
         stage,
-        "glove-a",
+        source,
         &["--listen", &format!("tcp/127.0.0.1:{port}")],
     )
 }
@@ -39,7 +40,7 @@ fn a_zenoh_subscriber_reads_the_sockets_poses_and_follows_a_daemon_restart() {
     let mut daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
     let port = free_port();
     let stage = format!("e2e{}", std::process::id());
-    let _bridge = start_bridge(&daemon, &stage, port);
+    let _bridge = start_bridge(&daemon, &stage, "glove-a", port);
     let source: Source = format!("zenoh:frond/{stage}/glove-a?connect=tcp/127.0.0.1:{port}").parse().unwrap();
     let opts = || Subscriber::options().hello_timeout(Duration::from_secs(10));
     let mut remote = opts().subscribe(&source).expect("subscribe over Zenoh");
@@ -118,17 +119,8 @@ fn a_performer_who_leaves_for_good_holds_up_neither_its_bridge_nor_the_stage_rec
     let mut daemon_b = Daemon::start(dir_b.path(), &["--source", "in-process"]);
     let port_a = free_port();
     let port_b = std::iter::repeat_with(free_port).find(|&p| p != port_a).unwrap();
-    let bridge_on = |daemon: &Daemon, source: &str, port: u16| {
-        start_zenoh_bridge(
-            Command::new(bin("frond-zenoh")),
-            daemon,
-            &stage,
-            source,
-            &["--listen", &format!("tcp/127.0.0.1:{port}")],
-        )
-    };
-    let _bridge_a = bridge_on(&daemon_a, "glove-a", port_a);
-    let mut bridge_b = bridge_on(&daemon_b, "glove-b", port_b);
+    let _bridge_a = start_bridge(&daemon_a, &stage, "glove-a", port_a);
+    let mut bridge_b = start_bridge(&daemon_b, &stage, "glove-b", port_b);
     let connect = |port: u16| format!("tcp/127.0.0.1:{port}");
     let child = Command::new(bin("frond"))
         .arg("--takes-dir")

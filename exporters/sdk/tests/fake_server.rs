@@ -63,6 +63,17 @@ fn serve_once(dir: &Path, serve: impl FnOnce(UnixStream) + Send + 'static) -> Jo
     })
 }
 
+/// A daemon that serves one connection with a hello (`next_seq` the first of `seqs`) and the
+/// poses `seqs`, then goes away.
+fn serve_poses(dir: &Path, seqs: std::ops::Range<u64>) -> JoinHandle<()> {
+    serve_once(dir, move |mut s| {
+        s.write_all(&hello_frame(seqs.start)).unwrap();
+        for seq in seqs {
+            s.write_all(&pose_frame(seq)).unwrap();
+        }
+    })
+}
+
 fn quick() -> SubscriberOptions {
     SubscriberOptions::new()
         .retry_interval(Duration::from_millis(10))
@@ -79,12 +90,7 @@ fn tempdir() -> (tempfile::TempDir, PathBuf) {
 #[test]
 fn hello_then_poses_in_order() {
     let (_guard, dir) = tempdir();
-    let server = serve_once(&dir, |mut s| {
-        s.write_all(&hello_frame(10)).unwrap();
-        for seq in 10..13 {
-            s.write_all(&pose_frame(seq)).unwrap();
-        }
-    });
+    let server = serve_poses(&dir, 10..13);
     let mut sub = quick().reconnect(false).connect(&dir).unwrap();
     assert_eq!(sub.hello(), &hello(10));
     assert_eq!(sub.socket_path(), dir.join("poses.sock"));
@@ -261,12 +267,7 @@ fn no_daemon_names_the_socket() {
 #[test]
 fn a_restarted_daemon_is_a_reconnect_not_a_gap() {
     let (_guard, dir) = tempdir();
-    let first = serve_once(&dir, |mut s| {
-        s.write_all(&hello_frame(100)).unwrap();
-        for seq in 100..105 {
-            s.write_all(&pose_frame(seq)).unwrap();
-        }
-    });
+    let first = serve_poses(&dir, 100..105);
     let mut sub = quick().connect(&dir).unwrap();
     let mut events = Vec::new();
     for _ in 0..6 {
@@ -278,14 +279,7 @@ fn a_restarted_daemon_is_a_reconnect_not_a_gap() {
     let dir2 = dir.clone();
     let second = thread::spawn(move || {
         thread::sleep(Duration::from_millis(150));
-        serve_once(&dir2, |mut s| {
-            s.write_all(&hello_frame(0)).unwrap();
-            for seq in 0..3 {
-                s.write_all(&pose_frame(seq)).unwrap();
-            }
-        })
-        .join()
-        .unwrap();
+        serve_poses(&dir2, 0..3).join().unwrap();
     });
     let mut h = hello(0);
     h.next_seq = 0;
@@ -300,21 +294,12 @@ fn a_restarted_daemon_is_a_reconnect_not_a_gap() {
 #[test]
 fn the_iterator_rides_over_a_restart() {
     let (_guard, dir) = tempdir();
-    let first = serve_once(&dir, |mut s| {
-        s.write_all(&hello_frame(7)).unwrap();
-        s.write_all(&pose_frame(7)).unwrap();
-        s.write_all(&pose_frame(8)).unwrap();
-    });
+    let first = serve_poses(&dir, 7..9);
     let dir2 = dir.clone();
     let second = thread::spawn(move || {
         first.join().unwrap();
         thread::sleep(Duration::from_millis(100));
-        serve_once(&dir2, |mut s| {
-            s.write_all(&hello_frame(0)).unwrap();
-            s.write_all(&pose_frame(0)).unwrap();
-        })
-        .join()
-        .unwrap();
+        serve_poses(&dir2, 0..1).join().unwrap();
     });
     let mut sub = quick().give_up_after(Some(Duration::from_millis(400))).connect(&dir).unwrap();
     let seqs: Vec<u64> = sub.by_ref().take(3).map(|p| p.unwrap().seq).collect();
@@ -440,18 +425,10 @@ fn a_second_hello_is_a_rig_change() {
     server.join().unwrap();
 }
 
-/// A daemon that serves one connection with a hello and one pose, then goes away.
-fn serve_hello_and_pose(dir: &Path, seq: u64) -> JoinHandle<()> {
-    serve_once(dir, move |mut s| {
-        s.write_all(&hello_frame(seq)).unwrap();
-        s.write_all(&pose_frame(seq)).unwrap();
-    })
-}
-
 #[test]
 fn a_read_timeout_returns_control_while_the_daemon_is_away() {
     let (_guard, dir) = tempdir();
-    let first = serve_hello_and_pose(&dir, 5);
+    let first = serve_poses(&dir, 5..6);
     let mut sub =
         quick().give_up_after(None).read_timeout(Some(Duration::from_millis(50))).connect(&dir).unwrap();
     assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(5)));
@@ -478,7 +455,7 @@ fn a_read_timeout_returns_control_while_the_daemon_is_away() {
     let mut sub = waiter.join().unwrap();
     assert!(!sub.is_connected());
     // It comes back: a later call reconnects, and the stream goes on from the new hello.
-    let second = serve_hello_and_pose(&dir, 0);
+    let second = serve_poses(&dir, 0..1);
     let mut event = None;
     for _ in 0..400 {
         match sub.next_event() {
@@ -498,7 +475,7 @@ fn a_read_timeout_returns_control_while_the_daemon_is_away() {
 #[test]
 fn giving_up_counts_from_the_disconnection_across_timeouts() {
     let (_guard, dir) = tempdir();
-    let first = serve_hello_and_pose(&dir, 1);
+    let first = serve_poses(&dir, 1..2);
     let mut sub = quick()
         .give_up_after(Some(Duration::from_millis(300)))
         .read_timeout(Some(Duration::from_millis(20)))
