@@ -59,7 +59,7 @@ pub fn free_port() -> Result<u16, String> {
     Ok(s.local_addr().map_err(|e| e.to_string())?.port())
 }
 
-/// The relay readers' [`crate::relay::Stamp`] of a forwarded [`hand_datagram`]: receipt time
+/// The relay readers' [`crate::relay::Stamp`] of a forwarded `hand_datagram`: receipt time
 /// minus the `t` it carries.
 pub fn osc_stamp(datagram: &[u8]) -> Option<u64> {
     let now = monotonic_ns();

@@ -1,4 +1,8 @@
 //! Command-line syntax of `frond` (clap derive). Parsing only; validation happens in the commands.
+//!
+//! The doc comments here are `frond --help` text first, printed verbatim by clap: they write
+//! `<stage>` and `[p,y,r]` as a user reads them, not as rustdoc markup.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
 use std::path::PathBuf;
 

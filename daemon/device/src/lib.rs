@@ -1,5 +1,5 @@
 //! frond hand sources: the reference glove report, device profiles, the profile-driven report
-//! parser, the [`HandSource`](source::HandSource) trait with its hidapi, replay and in-process
+//! parser, the [`HandSource`] trait with its hidapi, replay and in-process
 //! implementations, and the virtual glove (`frond-vhid`).
 
 #![warn(missing_docs)]

@@ -11,7 +11,7 @@ const GROUPS: usize = 64 - SUB_BITS as usize + 1;
 /// A log-linear histogram of nanosecond values (about 6% resolution), updated without locks.
 ///
 /// Only one thread records (the loop), any thread may read. Values are bucketed by their highest
-/// set bit, then by the next [`SUB_BITS`] bits.
+/// set bit, then by the next `SUB_BITS` bits.
 pub struct LatencyHistogram {
     buckets: Box<[AtomicU64]>,
     max_ns: AtomicU64,

@@ -8,7 +8,7 @@
 //!   others.
 //! - [`resample`]: `--rate` resampling that never replays a stale frame as new.
 //! - [`bridge`]: the loop that ties them to a subscriber, with counters.
-//! - [`bench`]: daemon-to-receiver latency percentiles with 1 and N targets.
+//! - [`bench`](mod@bench): daemon-to-receiver latency percentiles with 1 and N targets.
 //! - [`rig`]: what VMC needs from a rig (joint heights, bone names), loaded with `frond_motion`.
 
 #![warn(missing_docs)]

@@ -1,7 +1,7 @@
 //! Typed, validated parameters of the simulation and the warp (seed 001, sections III-C to III-E).
 //!
-//! Raw values (from the command line, the web page or a test) are checked with [`validate`] on the
-//! aggregate types; every problem is reported with the parameter's name, its value and the allowed
+//! Raw values (from the command line, the web page or a test) are checked with `validate` on the
+//! aggregate types ([`LayerParams::validate`], [`WindParams::validate`], [`SceneParams::validate`]); every problem is reported with the parameter's name, its value and the allowed
 //! range, all at once.
 
 use serde::{Deserialize, Serialize};

@@ -10,7 +10,7 @@
 //! shape kept.
 //!
 //! Three threads: the morph (fixed 30 Hz steps on absolute deadlines; a frame is only computed
-//! when its input changed), the pose listener ([`crate::serve::follow_daemon`]) and the HTTP
+//! when its input changed), the pose listener (`serve::follow_daemon`) and the HTTP
 //! server:
 //!
 //! - `GET /` the page;

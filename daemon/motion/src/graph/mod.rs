@@ -6,7 +6,7 @@
 //! (5.3) into one strongly connected graph that a walk ([`walk`]) can traverse forever.
 //!
 //! - [`build`]: [`build_graph`] and its [`GraphParams`];
-//! - [`file`]: the documented `NAME.graph.json` format ([`GraphFile`]) and its validation;
+//! - [`file`](mod@file): the documented `NAME.graph.json` format ([`GraphFile`]) and its validation;
 //! - [`walk`]: random, goal-directed (6.1.2) and pose-goal walks and their in-between frames.
 
 use glam::{Mat4, Vec3};

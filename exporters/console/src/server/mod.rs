@@ -1,4 +1,4 @@
-//! The console's server (the pose and warp WebSockets in [`sockets`]): one thread accepts, each connection gets a short-lived thread (at most
+//! The console's server (the pose and warp WebSockets in `sockets`): one thread accepts, each connection gets a short-lived thread (at most
 //! [`MAX_CONNECTIONS`] at once, the rest answered 503), and each page's pose WebSocket a thread
 //! that sends the latest poses at the display rate.
 //!

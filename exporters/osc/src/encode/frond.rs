@@ -74,7 +74,7 @@ impl FrondEncoder {
     /// main skeleton's `/frond/rig ,sssss` (rig name, then the 4 joint names, root first) and, per
     /// announced element `e` other than 0, `/frond/element/<e>/info ,sssssss` (element name, kind
     /// `hand|layer|playback|field-plant`, rig, its 4 joint names). Names longer than
-    /// [`MAX_NAME_BYTES`] are cut at a character boundary. Allocates: the bridge sends it when the
+    /// `MAX_NAME_BYTES` are cut at a character boundary. Allocates: the bridge sends it when the
     /// daemon's names change and once a second, never per frame.
     pub fn encode_names(
         &self,
