@@ -263,16 +263,9 @@ fn take_bytes(frames: u64, marker: bool, end: bool) -> Vec<u8> {
     encode_file_start(&mut out);
     encode_record(
         &TakeRecord::Header(TakeHeader {
-            name: "t".into(),
-            rig_name: "grass".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz: 1000,
             created_unix_s: 1_700_000_000,
-            daemon_version: "0.1.0".into(),
             joint_names: ["a", "b", "c", "d"].map(String::from).to_vec(),
-            clock: None,
-            stage: None,
+            ..TakeHeader::offline("t", "grass", 1000)
         }),
         &mut out,
     );

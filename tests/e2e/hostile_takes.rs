@@ -67,16 +67,9 @@ fn records(bytes: &[u8]) -> Vec<(usize, u8, Option<u64>)> {
 
 fn header(name: &str) -> TakeHeader {
     TakeHeader {
-        name: name.into(),
-        rig_name: "grass".into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 30,
         created_unix_s: 1_700_000_000,
-        daemon_version: "test".into(),
         joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
-        clock: None,
-        stage: None,
+        ..TakeHeader::offline(name, "grass", 30)
     }
 }
 

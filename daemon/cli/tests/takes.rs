@@ -48,16 +48,9 @@ fn take_start(name: &str, tick_rate_hz: u32) -> Vec<u8> {
     encode_file_start(&mut bytes);
     encode_record(
         &TakeRecord::Header(TakeHeader {
-            name: name.into(),
-            rig_name: "grass".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz,
             created_unix_s: 1_700_000_000,
-            daemon_version: "0.1.0".into(),
             joint_names: ["root", "lower", "middle", "tip"].map(String::from).to_vec(),
-            clock: None,
-            stage: None,
+            ..TakeHeader::offline(name, "grass", tick_rate_hz)
         }),
         &mut bytes,
     );

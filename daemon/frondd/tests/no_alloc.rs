@@ -168,18 +168,7 @@ fn take_bytes() -> Vec<u8> {
     use frond_motion::PoseFrame;
     use frond_motion::layers::Take;
     use frond_motion::take::{TakeFrame, TakeHeader};
-    let header = TakeHeader {
-        name: "g".into(),
-        rig_name: "flower".into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 1000,
-        created_unix_s: 0,
-        daemon_version: "test".into(),
-        joint_names: vec![],
-        clock: None,
-        stage: None,
-    };
+    let header = TakeHeader::offline("g", "flower", 1000);
     let mut take = Take::new(header);
     let frames = (0..3000u64).map(|k| {
         let t = k as f64 / 1000.0;

@@ -270,16 +270,8 @@ mod tests {
 
     fn header() -> TakeHeader {
         TakeHeader {
-            name: "t".into(),
-            rig_name: "flower".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz: 30,
-            created_unix_s: 0,
-            daemon_version: "test".into(),
             joint_names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
-            clock: None,
-            stage: None,
+            ..TakeHeader::offline("t", "flower", 30)
         }
     }
 

@@ -101,6 +101,25 @@ pub struct TakeStage {
 }
 
 impl TakeHeader {
+    /// The header of a take made away from a daemon (a simulation, an import, a test): the
+    /// neutral calibration (`none`), no filter (`none`), no creation time (0), no recording
+    /// clock and no stage; `daemon_version` names this crate's version. Change what differs
+    /// with struct update syntax: `TakeHeader { joint_names, ..TakeHeader::offline(..) }`.
+    pub fn offline(name: &str, rig_name: &str, tick_rate_hz: u32) -> TakeHeader {
+        TakeHeader {
+            name: name.to_string(),
+            rig_name: rig_name.to_string(),
+            calibration_id: "none".to_string(),
+            filter: "none".to_string(),
+            tick_rate_hz,
+            created_unix_s: 0,
+            daemon_version: concat!("frond ", env!("CARGO_PKG_VERSION"), " (offline)").to_string(),
+            joint_names: Vec::new(),
+            clock: None,
+            stage: None,
+        }
+    }
+
     /// SMPTE timecode, at `fps`, of the first kept main-skeleton frame of `frames` (the first
     /// frame of every export: held frames are skipped), when the take knows its recording clock.
     pub fn start_timecode(&self, frames: &[TakeFrame], fps: f64) -> Option<crate::timecode::Timecode> {

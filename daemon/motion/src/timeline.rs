@@ -58,18 +58,7 @@ mod tests {
 
     fn scan(clock: Option<TakeClock>, frames: &[(u64, u64, u32)]) -> TakeScan {
         TakeScan {
-            header: Some(TakeHeader {
-                name: "t".into(),
-                rig_name: "grass".into(),
-                calibration_id: "none".into(),
-                filter: "none".into(),
-                tick_rate_hz: 1000,
-                created_unix_s: 0,
-                daemon_version: "test".into(),
-                joint_names: vec![],
-                clock,
-                stage: None,
-            }),
+            header: Some(TakeHeader { clock, ..TakeHeader::offline("t", "grass", 1000) }),
             frames: frames
                 .iter()
                 .map(|&(seq, host_ns, flags)| TakeFrame { seq, host_ns, flags, ..TakeFrame::default() })

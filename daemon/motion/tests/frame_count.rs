@@ -28,18 +28,7 @@ fn exported(n: usize, fps: f64) -> String {
 }
 
 fn header() -> TakeHeader {
-    TakeHeader {
-        name: "t".into(),
-        rig_name: "grass".into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 30,
-        created_unix_s: 0,
-        daemon_version: "test".into(),
-        joint_names: Vec::new(),
-        clock: None,
-        stage: None,
-    }
+    TakeHeader::offline("t", "grass", 30)
 }
 
 #[test]

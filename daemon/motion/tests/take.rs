@@ -10,16 +10,9 @@ use proptest::prelude::*;
 
 fn header() -> TakeHeader {
     TakeHeader {
-        name: "sway-01".into(),
-        rig_name: "grass".into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 1000,
         created_unix_s: 1_700_000_000,
-        daemon_version: "0.1.0".into(),
         joint_names: vec!["root".into(), "lower".into(), "middle".into(), "tip".into()],
-        clock: None,
-        stage: None,
+        ..TakeHeader::offline("sway-01", "grass", 1000)
     }
 }
 

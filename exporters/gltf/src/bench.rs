@@ -71,18 +71,7 @@ pub fn synthetic_take(seconds: f64, rate_hz: f64) -> TakeInput {
         .collect();
     TakeInput {
         name: "bench".to_string(),
-        header: Some(TakeHeader {
-            name: "bench".to_string(),
-            rig_name: "grass".to_string(),
-            calibration_id: "none".to_string(),
-            filter: "none".to_string(),
-            tick_rate_hz: rate_hz as u32,
-            created_unix_s: 0,
-            daemon_version: "bench".to_string(),
-            joint_names: Vec::new(),
-            clock: None,
-            stage: None,
-        }),
+        header: Some(TakeHeader::offline("bench", "grass", rate_hz as u32)),
         frames,
         ..TakeInput::default()
     }

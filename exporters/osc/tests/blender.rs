@@ -24,18 +24,7 @@ use support::*;
 /// Writes a take of `rig` named `name` into `dir`: `frames` frames at 30 FPS of each joint
 /// swaying on all three axes (`joints_deg(t)`), or the rest pose.
 fn write_take(dir: &Path, name: &str, rig: &str, frames: usize, sway: bool) -> PathBuf {
-    let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader {
-        name: name.into(),
-        rig_name: rig.into(),
-        calibration_id: "none".into(),
-        filter: "none".into(),
-        tick_rate_hz: 30,
-        created_unix_s: 0,
-        daemon_version: "test".into(),
-        joint_names: Vec::new(),
-        clock: None,
-        stage: None,
-    });
+    let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader::offline(name, rig, 30));
     let pose = |t: f64| -> [[f32; 3]; 4] {
         std::array::from_fn(|j| {
             let phase = t * std::f64::consts::TAU * 0.7 + j as f64;

@@ -28,16 +28,9 @@ pub fn run_ok(args: &[&str]) -> String {
 
 pub fn header(name: &str, rig: &str) -> TakeHeader {
     TakeHeader {
-        name: name.to_string(),
-        rig_name: rig.to_string(),
         calibration_id: "cal-test-7".to_string(),
-        filter: "none".to_string(),
-        tick_rate_hz: 200,
         created_unix_s: 1_700_000_000,
-        daemon_version: "0.1.0".to_string(),
-        joint_names: Vec::new(),
-        clock: None,
-        stage: None,
+        ..TakeHeader::offline(name, rig, 200)
     }
 }
 

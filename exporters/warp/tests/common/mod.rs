@@ -34,16 +34,8 @@ pub fn write_take_with(path: &Path, frames: u64, yaw: impl Fn(f64) -> f32) {
     encode_file_start(&mut out);
     encode_record(
         &TakeRecord::Header(TakeHeader {
-            name: "sway".into(),
-            rig_name: "grass".into(),
-            calibration_id: "none".into(),
-            filter: "none".into(),
-            tick_rate_hz: 100,
-            created_unix_s: 0,
-            daemon_version: "test".into(),
             joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
-            clock: None,
-            stage: None,
+            ..TakeHeader::offline("sway", "grass", 100)
         }),
         &mut out,
     );
