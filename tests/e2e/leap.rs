@@ -85,36 +85,64 @@ fn frame(id: i64, k: Option<Known>) -> String {
     .to_string()
 }
 
-/// The fake service: accepts connections on `listener`; each gets `{"version": 6}`, then the
-/// frames of `script` (taken as they are sent), 5 ms apart, then frames without hands.
+/// The fake service of the synthetic tests: every connection gets `{"version": 6}`, then the
+/// frames of `script` (popped as they are sent, so a reconnection carries on where the last
+/// connection stopped), then frames without hands.
 fn serve(
     listener: TcpListener,
     script: Arc<Mutex<Vec<String>>>,
     stop: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<()> {
+    fake_service(listener, "5.17.1", stop, move || {
+        let script = Arc::clone(&script);
+        move || script.lock().unwrap().pop()
+    })
+}
+
+/// A fake Leap Motion service on `listener` until `stop`: each connection, on its own thread,
+/// gets the greeting of the service `service_version`, then a frame every 5 ms: the next of
+/// the script `script_for` makes for it, then frames without hands once that runs out.
+fn fake_service<S>(
+    listener: TcpListener,
+    service_version: &'static str,
+    stop: Arc<AtomicBool>,
+    script_for: impl Fn() -> S + Send + 'static,
+) -> std::thread::JoinHandle<()>
+where
+    S: FnMut() -> Option<String> + Send + 'static,
+{
     listener.set_nonblocking(true).unwrap();
     std::thread::spawn(move || {
+        let mut conns = Vec::new();
         while !stop.load(Ordering::Relaxed) {
             let Ok((stream, _)) = listener.accept() else {
                 std::thread::sleep(Duration::from_millis(10));
                 continue;
             };
-            stream.set_nonblocking(false).unwrap();
-            stream.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
-            let Ok(mut ws) = tungstenite::accept(stream) else { continue };
-            let _ = ws.send(tungstenite::Message::text(r#"{"serviceVersion":"5.17.1","version":6}"#));
-            let mut id = 1_000;
-            while !stop.load(Ordering::Relaxed) {
-                // The client's {"background":true} and {"focused":true}, read and ignored.
-                let _ = ws.read();
-                let next = script.lock().unwrap().pop();
-                let text = next.unwrap_or_else(|| frame(id, None));
-                id += 1;
-                if ws.send(tungstenite::Message::text(text)).is_err() {
-                    break;
+            let (mut next, stop) = (script_for(), Arc::clone(&stop));
+            conns.push(std::thread::spawn(move || {
+                stream.set_nonblocking(false).unwrap();
+                stream.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+                let Ok(mut ws) = tungstenite::accept(stream) else { return };
+                let hello = json!({"serviceVersion": service_version, "version": 6}).to_string();
+                let _ = ws.send(tungstenite::Message::text(hello));
+                let mut id = 2_000_000;
+                while !stop.load(Ordering::Relaxed) {
+                    // The client's {"background":true} and {"focused":true}, read and ignored.
+                    let _ = ws.read();
+                    let text = next().unwrap_or_else(|| {
+                        id += 1;
+                        frame(id, None)
+                    });
+                    if ws.send(tungstenite::Message::text(text)).is_err() {
+                        break;
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
                 }
-                std::thread::sleep(Duration::from_millis(5));
-            }
+            }));
+        }
+        for c in conns {
+            let _ = c.join();
         }
     })
 }
@@ -283,46 +311,19 @@ fn sample_of(frame: &Value, which: &str) -> Known {
     Known { t: frame["timestamp"].as_f64().unwrap() / 1e6, wrist, thumb: [bend(0), bend(1), bend(2)] }
 }
 
-/// A fake service that gives every connection `{"version": 6}`, then each of `frames` 5 ms
-/// apart, then frames without hands until stopped.
+/// The fake service of the recorded frames: every connection gets `{"version": 6}` from the
+/// service version they were recorded with, then each of `frames`, then frames without hands.
 pub(crate) fn replay_to_each(
     listener: TcpListener,
     frames: Vec<String>,
     stop: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<()> {
-    listener.set_nonblocking(true).unwrap();
     let frames = Arc::new(frames);
-    std::thread::spawn(move || {
-        let mut conns = Vec::new();
-        while !stop.load(Ordering::Relaxed) {
-            let Ok((stream, _)) = listener.accept() else {
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
-            };
-            let (frames, stop) = (Arc::clone(&frames), Arc::clone(&stop));
-            conns.push(std::thread::spawn(move || {
-                stream.set_nonblocking(false).unwrap();
-                stream.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
-                let Ok(mut ws) = tungstenite::accept(stream) else { return };
-                let _ =
-                    ws.send(tungstenite::Message::text(r#"{"serviceVersion":"2.1.5+22699","version":6}"#));
-                let mut id = 2_000_000;
-                let mut next = frames.iter();
-                while !stop.load(Ordering::Relaxed) {
-                    let _ = ws.read();
-                    let text = next.next().cloned().unwrap_or_else(|| {
-                        id += 1;
-                        frame(id, None)
-                    });
-                    if ws.send(tungstenite::Message::text(text)).is_err() {
-                        break;
-                    }
-                    std::thread::sleep(Duration::from_millis(5));
-                }
-            }));
-        }
-        for c in conns {
-            let _ = c.join();
+    fake_service(listener, "2.1.5+22699", stop, move || {
+        let (frames, mut at) = (Arc::clone(&frames), 0);
+        move || {
+            at += 1;
+            frames.get(at - 1).cloned()
         }
     })
 }
