@@ -14,7 +14,7 @@ use frond_motion::quantile::nearest_rank;
 use rosc::OscPacket;
 
 use crate::bridge::{Bridge, BridgeConfig, BridgeError, Protocol};
-use crate::encode::{ClockOffset, monotonic_ns};
+use crate::encode::{ClockOffset, IMMEDIATELY, monotonic_ns};
 
 /// Latency percentiles for one number of targets.
 #[derive(Debug, Clone, PartialEq)]
@@ -97,7 +97,10 @@ fn receive(socket: &UdpSocket, offset: ClockOffset, stop: &AtomicBool) -> Vec<u6
     while !stop.load(Ordering::Relaxed) {
         let Ok(n) = socket.recv(&mut buf) else { continue };
         let now = i128::from(monotonic_ns());
-        if let Ok((_, OscPacket::Bundle(b))) = rosc::decoder::decode_udp(&buf[..n]) {
+        // Frames carry their publish time; the names bundle (timetag "immediately") carries none.
+        if let Ok((_, OscPacket::Bundle(b))) = rosc::decoder::decode_udp(&buf[..n])
+            && b.timetag != IMMEDIATELY
+        {
             let sent = offset.monotonic_ns_of(b.timetag);
             out.push((now - sent).max(0) as u64);
         }

@@ -1,7 +1,9 @@
-//! The exporter loop: a subscriber thread reads the daemon's pose stream and hands poses to the
-//! sending loop over a bounded queue (dropping, and counting, what does not fit, so a stalled
-//! network path can never back up into the daemon's socket); the sending loop encodes each frame
-//! (or each resampled tick) once and sends it to every target.
+//! The exporter loop. Forwarding every frame, one thread reads the daemon's pose stream, encodes
+//! each frame once and sends it to every target (non-blocking sockets: a stalled network path
+//! never holds it up), so a pose crosses no queue between threads. Resampling (`--rate`), a
+//! subscriber thread reads the stream and hands poses to the sending loop over a bounded queue
+//! (dropping, and counting, what does not fit), and the sending loop wakes on the resampler's
+//! ticks, which a read of the daemon's socket could not time finely.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -51,7 +53,8 @@ pub struct BridgeConfig {
     pub clock_offset: ClockOffset,
     /// What the frames' timetags say.
     pub timetags: Timetags,
-    /// Capacity of the queue between the subscriber thread and the sending loop.
+    /// Capacity of the queue between the subscriber thread and the sending loop (with
+    /// `rate_hz` only: forwarding every frame, one thread reads and sends).
     pub queue_capacity: usize,
 }
 
@@ -96,7 +99,7 @@ pub struct BridgeStats {
     pub gaps: u64,
     /// Frames missing in those gaps.
     pub missing: u64,
-    /// Poses dropped because the sending loop was behind (queue full).
+    /// Poses dropped because the sending loop was behind (queue full; resampling only).
     pub queue_dropped: u64,
     /// Reconnections to the daemon.
     pub reconnects: u64,
@@ -168,9 +171,20 @@ impl Encoder {
     }
 }
 
+/// Where the sending loop gets the daemon's messages.
+enum Feed {
+    /// It reads the subscription itself (forwarding every frame).
+    Direct(Box<Subscriber>),
+    /// A subscriber thread reads it and queues what it reads (resampling).
+    Queue(Receiver<Msg>),
+}
+
+/// How long a read of the daemon waits at most, so that `stop` and the names bundle are seen to.
+const READ_TIMEOUT: Duration = Duration::from_millis(100);
+
 /// A connected bridge, ready to [`run`](Bridge::run).
 pub struct Bridge {
-    rx: Receiver<Msg>,
+    feed: Feed,
     counters: Arc<SubCounters>,
     encoder: Encoder,
     sender: Sender,
@@ -184,11 +198,15 @@ pub struct Bridge {
 }
 
 impl Bridge {
-    /// Sets up the targets, connects to the daemon (failing at once if it is not running) and
-    /// starts the subscriber thread. After that the subscriber reconnects for ever.
+    /// Sets up the targets, connects to the daemon (failing at once if it is not running) and,
+    /// when resampling, starts the subscriber thread. After that the subscriber reconnects for
+    /// ever.
     pub fn connect(config: &BridgeConfig) -> Result<Bridge, BridgeError> {
         let sender = Sender::new(&config.targets, config.bind)?;
-        let sub = Subscriber::options().give_up_after(None).subscribe(&config.source)?;
+        let sub = Subscriber::options()
+            .give_up_after(None)
+            .read_timeout(Some(READ_TIMEOUT))
+            .subscribe(&config.source)?;
         let mut vmc_rig = config.vmc_rig.clone();
         if !config.vmc_names_fixed {
             apply_hello_names(&mut vmc_rig, sub.hello());
@@ -207,15 +225,20 @@ impl Bridge {
                 Encoder::Vmc(e)
             }
         };
-        let (tx, rx) = sync_channel(config.queue_capacity.max(1));
         let counters = Arc::new(SubCounters::default());
-        let thread_counters = Arc::clone(&counters);
-        std::thread::Builder::new()
-            .name("frond-osc-sub".into())
-            .spawn(move || subscribe(sub, &tx, &thread_counters))
-            .expect("spawn the subscriber thread");
+        let feed = if config.rate_hz.is_some() {
+            let (tx, rx) = sync_channel(config.queue_capacity.max(1));
+            let thread_counters = Arc::clone(&counters);
+            std::thread::Builder::new()
+                .name("frond-osc-sub".into())
+                .spawn(move || subscribe(sub, &tx, &thread_counters))
+                .expect("spawn the subscriber thread");
+            Feed::Queue(rx)
+        } else {
+            Feed::Direct(Box::new(sub))
+        };
         Ok(Bridge {
-            rx,
+            feed,
             counters,
             encoder,
             sender,
@@ -264,19 +287,26 @@ impl Bridge {
             if let Some(due) = self.resampler.as_ref().and_then(Resampler::next_tick_ns) {
                 wait = wait.min(Duration::from_nanos(due.saturating_sub(monotonic_ns())));
             }
-            match self.rx.recv_timeout(wait) {
-                Ok(Msg::Pose(pose)) => match &mut self.resampler {
+            let msg = match &mut self.feed {
+                Feed::Direct(sub) => triage(sub.next_event(), &self.counters),
+                Feed::Queue(rx) => match rx.recv_timeout(wait) {
+                    Ok(msg) => Some(msg),
+                    Err(RecvTimeoutError::Timeout) => None,
+                    Err(RecvTimeoutError::Disconnected) => return Err(SdkError::Closed.into()),
+                },
+            };
+            match msg {
+                Some(Msg::Pose(pose)) => match &mut self.resampler {
                     Some(r) => r.push(pose, monotonic_ns()),
                     None => self.send(&pose)?,
                 },
-                Ok(Msg::Hello(hello)) => self.on_hello(&hello),
-                Ok(Msg::Elements(table)) => {
+                Some(Msg::Hello(hello)) => self.on_hello(&hello),
+                Some(Msg::Elements(table)) => {
                     self.names.elements = table;
                     self.names_due = Instant::now();
                 }
-                Ok(Msg::End(e)) => return Err(e.into()),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return Err(SdkError::Closed.into()),
+                Some(Msg::End(e)) => return Err(e.into()),
+                None => {}
             }
             if let Some(mut r) = self.resampler.take() {
                 let mut result = Ok(());
@@ -340,45 +370,62 @@ fn apply_hello_names(rig: &mut VmcRig, hello: &Hello) {
     }
 }
 
+/// The subscriber thread (resampling): reads the daemon and queues what the sending loop needs.
 fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters) {
     loop {
-        let msg = match sub.next_event() {
-            Ok(Event::Pose(pose)) => {
-                counters.received.fetch_add(1, Ordering::Relaxed);
-                match tx.try_send(Msg::Pose(pose)) {
-                    Ok(()) => continue,
-                    Err(TrySendError::Full(_)) => {
-                        counters.queue_dropped.fetch_add(1, Ordering::Relaxed);
-                        continue;
-                    }
-                    Err(TrySendError::Disconnected(_)) => return,
+        let Some(msg) = triage(sub.next_event(), counters) else { continue };
+        let sent = match msg {
+            // A pose that does not fit is dropped and counted: the sending loop is behind.
+            Msg::Pose(_) => match tx.try_send(msg) {
+                Ok(()) => true,
+                Err(TrySendError::Full(_)) => {
+                    counters.queue_dropped.fetch_add(1, Ordering::Relaxed);
+                    true
                 }
+                Err(TrySendError::Disconnected(_)) => false,
+            },
+            Msg::End(_) => {
+                let _ = tx.send(msg);
+                false
             }
-            Ok(Event::Gap { expected, got }) => {
-                counters.gaps.fetch_add(1, Ordering::Relaxed);
-                counters.missing.fetch_add(got - expected, Ordering::Relaxed);
-                continue;
-            }
-            // Element addresses are by id (`/frond/element/N/pose`); the names bundle names them.
-            Ok(Event::Elements(table)) => Msg::Elements(table),
-            Ok(Event::RigChanged(hello)) => Msg::Hello(hello),
-            Ok(Event::Reconnected(hello)) => {
-                counters.reconnects.fetch_add(1, Ordering::Relaxed);
-                Msg::Hello(hello)
-            }
-            Ok(Event::Disconnected) => {
-                tracing::warn!("daemon disconnected; reconnecting");
-                continue;
-            }
-            Err(e) if e.is_fatal() => Msg::End(e),
-            Err(e) => {
-                tracing::warn!(error = %e, "pose stream error");
-                continue;
-            }
+            other => tx.send(other).is_ok(),
         };
-        let end = matches!(msg, Msg::End(_));
-        if tx.send(msg).is_err() || end {
+        if !sent {
             return;
+        }
+    }
+}
+
+/// What the sending loop must hear of one result of `next_event`, counting poses, gaps and
+/// reconnections on the way; `None` when nothing (a gap, a read that timed out, a disconnection
+/// the subscriber recovers from).
+fn triage(result: Result<Event, SdkError>, counters: &SubCounters) -> Option<Msg> {
+    match result {
+        Ok(Event::Pose(pose)) => {
+            counters.received.fetch_add(1, Ordering::Relaxed);
+            Some(Msg::Pose(pose))
+        }
+        Ok(Event::Gap { expected, got }) => {
+            counters.gaps.fetch_add(1, Ordering::Relaxed);
+            counters.missing.fetch_add(got - expected, Ordering::Relaxed);
+            None
+        }
+        // Element addresses are by id (`/frond/element/N/pose`); the names bundle names them.
+        Ok(Event::Elements(table)) => Some(Msg::Elements(table)),
+        Ok(Event::RigChanged(hello)) => Some(Msg::Hello(hello)),
+        Ok(Event::Reconnected(hello)) => {
+            counters.reconnects.fetch_add(1, Ordering::Relaxed);
+            Some(Msg::Hello(hello))
+        }
+        Ok(Event::Disconnected) => {
+            tracing::warn!("daemon disconnected; reconnecting");
+            None
+        }
+        Err(SdkError::Timeout { .. }) => None,
+        Err(e) if e.is_fatal() => Some(Msg::End(e)),
+        Err(e) => {
+            tracing::warn!(error = %e, "pose stream error");
+            None
         }
     }
 }
