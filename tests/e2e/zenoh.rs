@@ -3,7 +3,8 @@
 //! sees the daemon stop as a disconnect and its return as a reconnection.
 
 use std::collections::HashMap;
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge};
@@ -209,4 +210,90 @@ fn a_bad_zenoh_runtime_variable_is_an_error_naming_it_in_every_program() {
             );
         }
     }
+}
+
+/// `frond-zenoh` for `daemon` as `frond/<stage>/same`, on loopback `port` (and connected to
+/// `peer`), its log (info and up) going to the file `log`.
+fn start_logged_bridge(daemon: &Daemon, stage: &str, port: u16, peer: Option<u16>, log: &Path) -> Proc {
+    let mut cmd = Command::new(bin("frond-zenoh"));
+    cmd.args(["--stage", stage, "--source", "same", "--log-level", "info"])
+        .args(["--listen", &format!("tcp/127.0.0.1:{port}")])
+        .arg("--socket-dir")
+        .arg(&daemon.socket_dir)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap());
+    if let Some(peer) = peer {
+        cmd.args(["--connect", &format!("tcp/127.0.0.1:{peer}")]);
+    }
+    Proc { child: cmd.spawn().expect("start frond-zenoh"), name: "frond-zenoh same".into() }
+}
+
+/// Waits up to 15 s for `log` to hold `words`.
+fn log_says(log: &Path, words: &str) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while Instant::now() < deadline {
+        if std::fs::read_to_string(log).unwrap_or_default().contains(words) {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    false
+}
+
+/// Two bridges started under one name (two daemons on one host, both taking the host's name
+/// when `--source` is left out): every subscriber used to get both daemons' poses interleaved
+/// under one key and stop on "sequence number went backwards". The elder bridge publishes; the
+/// younger one says so and stands by, publishing nothing, and takes over when the elder stops.
+#[test]
+fn a_second_bridge_under_a_taken_name_stands_by_and_takes_over_when_the_first_stops() {
+    let (dir_a, dir_b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let daemon_a = Daemon::start(dir_a.path(), &["--source", "in-process", "--rig", "grass"]);
+    let daemon_b = Daemon::start(dir_b.path(), &["--source", "in-process", "--rig", "flower"]);
+    let stage = format!("clash{}", std::process::id());
+    let (port_a, port_b) = (free_port(), free_port());
+    let (log_a, log_b) = (dir_a.path().join("bridge.log"), dir_b.path().join("bridge.log"));
+    let mut bridge_a = start_logged_bridge(&daemon_a, &stage, port_a, None, &log_a);
+    let via = |port: u16| -> Source {
+        format!("zenoh:frond/{stage}/same?connect=tcp/127.0.0.1:{port}").parse().unwrap()
+    };
+    let opts = || Subscriber::options().hello_timeout(Duration::from_secs(10));
+    let mut first = opts().subscribe(&via(port_a)).expect("subscribe to the first bridge");
+    assert_eq!(first.hello().rig_name, "grass");
+
+    let _bridge_b = start_logged_bridge(&daemon_b, &stage, port_b, Some(port_a), &log_b);
+    assert!(
+        log_says(&log_b, "another frond-zenoh already publishes under this name: this one stands by"),
+        "the second bridge never said it stands by: {}",
+        std::fs::read_to_string(&log_b).unwrap_or_default()
+    );
+    assert!(
+        log_says(&log_a, "a second frond-zenoh started under this name"),
+        "the first bridge was not told"
+    );
+
+    // Through either bridge's endpoint, one daemon's poses: in order, without a gap.
+    let mut second = opts().subscribe(&via(port_b)).expect("subscribe through the second bridge");
+    assert_eq!(second.hello().rig_name, "grass", "the bridge standing by answered the hello");
+    for sub in [&mut first, &mut second] {
+        let got = poses(sub, 1000);
+        assert!(got.windows(2).all(|w| w[1].seq == w[0].seq + 1), "a gap or a step back");
+        assert_eq!(sub.stats().gaps, 0);
+    }
+
+    // The first bridge stops: the second takes over, and a subscriber follows it to its daemon.
+    bridge_a.terminate(Duration::from_secs(5)).expect("the first bridge exits on SIGTERM");
+    assert!(log_says(&log_b, "under this name is gone: publishing"), "the second bridge did not take over");
+    let deadline = Instant::now() + Duration::from_secs(15);
+    loop {
+        assert!(Instant::now() < deadline, "no hello of the second daemon within 15 s");
+        match second.next_event().expect("event") {
+            Event::Reconnected(hello) | Event::RigChanged(hello) if hello.rig_name == "flower" => break,
+            _ => {}
+        }
+    }
+    let got = poses(&mut second, 300);
+    assert!(got.windows(2).all(|w| w[1].seq > w[0].seq), "out of order after the takeover");
+    let mut local_b = Subscriber::connect(&daemon_b.socket_dir).unwrap();
+    let now_b = poses(&mut local_b, 1)[0].seq;
+    assert!(got.last().unwrap().seq.abs_diff(now_b) < 5_000, "not the second daemon's poses");
 }

@@ -10,6 +10,7 @@
 //! | `.../hello`  | the daemon's hello (rig, joints, elements, `next_seq`)            | put on change + queryable (latest) |
 //! | `.../status` | the daemon's status report, a few times a second                  | put + queryable (latest) |
 //! | `.../alive`  | a liveliness token, held while the bridge is connected to its daemon | liveliness |
+//! | `.../bridge/<id>` | a bridge's claim on the name (start time and Zenoh id): one publishes | liveliness |
 //!
 //! Every payload is one frame of the socket protocol, byte for byte what `poses.sock` carries:
 //! a `u32` little-endian length, the protocol version byte, a MessagePack body (a
@@ -47,6 +48,9 @@ pub mod keys {
     pub const STATUS: &str = "status";
     /// The bridge's liveliness token.
     pub const ALIVE: &str = "alive";
+    /// Bridges' claims on the source's name: liveliness tokens `bridge/<id>`, one per bridge
+    /// (the elder publishes, a younger one stands by; see `frond-zenoh`).
+    pub const BRIDGE: &str = "bridge";
     /// The bridge host's clocks (a queryable, see `crate::stage_time`).
     pub const CLOCK: &str = "clock";
     /// Remote control (a queryable, only on bridges started with `--control FILE`; requests

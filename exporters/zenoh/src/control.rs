@@ -409,6 +409,10 @@ impl RemoteControl {
         let queryable = session
             .declare_queryable(&key)
             .callback(move |query| {
+                // Standing by, another bridge owns this name and answers (see `claim`).
+                if shared.standing_by() {
+                    return;
+                }
                 let frame = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
                 let envelope = query.attachment().map(|a| a.to_bytes().into_owned());
                 let now_ms = shared.clock().unix_ns / 1_000_000;

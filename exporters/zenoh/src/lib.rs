@@ -16,6 +16,8 @@
 //!
 //! - `control`: remote control, a queryable declared only when the bridge is given an allow-list
 //!   (`--control FILE`, [`control`]): signed control requests, answered with the daemon's reply.
+//! - `bridge/<id>`: the bridge's claim on its name, a liveliness token ([`claim`]): of two
+//!   bridges started under one name, the elder publishes and the younger stands by, saying so.
 //! - `clock`: a queryable answering this host's realtime and monotonic clocks read together
 //!   (JSON `{"unix_ns":..,"monotonic_ns":..}`), so a stage recorder measures how far this host's
 //!   clock is from its own.
@@ -27,6 +29,7 @@
 
 #![warn(missing_docs)]
 
+mod claim;
 pub mod control;
 mod status;
 
@@ -101,6 +104,8 @@ pub struct BridgeStats {
     pub queries: AtomicU64,
     /// Times the daemon connection was re-established.
     pub reconnects: AtomicU64,
+    /// Poses not published because an elder bridge under the same name publishes (see [`claim`]).
+    pub withheld: AtomicU64,
     /// Remote control requests handed to the daemon and answered with its reply.
     pub control_answered: AtomicU64,
     /// Remote control requests refused by the bridge (not signed, unknown principal, wrong key,
@@ -114,7 +119,7 @@ impl std::fmt::Display for BridgeStats {
         write!(
             f,
             "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={} \
-             control_answered={} control_refused={}",
+             withheld={} control_answered={} control_refused={}",
             g(&self.poses),
             g(&self.put_errors),
             g(&self.gaps),
@@ -122,6 +127,7 @@ impl std::fmt::Display for BridgeStats {
             g(&self.statuses),
             g(&self.queries),
             g(&self.reconnects),
+            g(&self.withheld),
             g(&self.control_answered),
             g(&self.control_refused)
         )
@@ -144,6 +150,8 @@ struct Shared {
     stats: Arc<BridgeStats>,
     /// [`BridgeConfig::clock_offset_ns`].
     clock_offset_ns: i64,
+    /// An elder bridge publishes under this name: publish and answer nothing ([`claim`]).
+    standby: AtomicBool,
 }
 
 impl Shared {
@@ -156,6 +164,11 @@ impl Shared {
 }
 
 impl Shared {
+    /// Whether an elder bridge under the same name publishes, so this one must keep quiet.
+    fn standing_by(&self) -> bool {
+        self.standby.load(Ordering::Relaxed)
+    }
+
     fn latest(&self) -> std::sync::MutexGuard<'_, Latest> {
         self.latest.lock().unwrap_or_else(PoisonError::into_inner)
     }
@@ -171,6 +184,9 @@ pub struct Bridge {
     _queryables: Vec<zenoh::query::Queryable<()>>,
     _control: Option<control::RemoteControl>,
     token: Option<zenoh::liveliness::LivelinessToken>,
+    _claim: claim::Claim,
+    /// Whether [`Bridge::follow_claim`] last saw the bridge standing by.
+    standing_by: bool,
     shared: Arc<Shared>,
     frame: FrameBuf,
     /// This host's clocks, re-read every [`CLOCK_REFRESH`]: stage time of a pose.
@@ -217,7 +233,14 @@ impl Bridge {
             next_seq: AtomicU64::new(0),
             stats: Arc::default(),
             clock_offset_ns: config.clock_offset_ns,
+            standby: AtomicBool::new(false),
         });
+        // The claim first, and the claims already on the network asked for before anything is
+        // published, so that a bridge started under a taken name stands by from the start.
+        let started_unix_ms = realtime_ns() / 1_000_000;
+        let own = claim::claim_id(started_unix_ms, &session.zid().to_string());
+        let claim = claim::Claim::declare(&session, &key, own, shared.clone())
+            .map_err(declare_err(&keys::under(&key, keys::BRIDGE)))?;
         let mut queryables = Vec::new();
         for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS, keys::CLOCK] {
             let k = keys::under(&key, leaf);
@@ -226,6 +249,9 @@ impl Bridge {
             let q = session
                 .declare_queryable(k.clone())
                 .callback(move |query| {
+                    if shared.standing_by() {
+                        return;
+                    }
                     let bytes = if leaf == keys::CLOCK {
                         Some(shared.clock().to_json().into_bytes())
                     } else {
@@ -258,6 +284,8 @@ impl Bridge {
             _queryables: queryables,
             _control: remote_control,
             token: None,
+            _claim: claim,
+            standing_by: false,
             clock: shared.clock(),
             clock_read_at: Instant::now(),
             shared,
@@ -319,7 +347,9 @@ impl Bridge {
             if waiting_since.take().is_some() {
                 self.shared.stats.reconnects.fetch_add(1, Ordering::Relaxed);
             }
-            tracing::info!(key = %self.config.addr.key, rig = %sub.hello().rig_name, "publishing");
+            self.follow_claim();
+            let doing = if self.standing_by { "connected; standing by" } else { "publishing" };
+            tracing::info!(key = %self.config.addr.key, rig = %sub.hello().rig_name, "{doing}");
             self.on_hello(sub.hello().clone());
             self.pump(&mut sub, stop)?;
         }
@@ -329,10 +359,15 @@ impl Bridge {
     /// Forwards one subscription's events until `stop`, or until it fails for good.
     fn pump(&mut self, sub: &mut Subscriber, stop: &AtomicBool) -> Result<(), BridgeError> {
         while !stop.load(Ordering::Relaxed) {
+            self.follow_claim();
             match sub.next_event() {
                 Ok(Event::Pose(pose)) => {
                     self.shared.stats.poses.fetch_add(1, Ordering::Relaxed);
                     self.shared.next_seq.store(pose.seq + 1, Ordering::Relaxed);
+                    if self.standing_by {
+                        self.shared.stats.withheld.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
                     if self.clock_read_at.elapsed() >= CLOCK_REFRESH {
                         self.clock = self.shared.clock();
                         self.clock_read_at = Instant::now();
@@ -366,6 +401,26 @@ impl Bridge {
         Ok(())
     }
 
+    /// Acts on a turn of the claims (see [`claim`]): standing by, the `alive` token goes, so
+    /// subscribers see the source as disconnected until it publishes again; taking over, the
+    /// hello and the token come back, so they rejoin on this bridge's daemon.
+    fn follow_claim(&mut self) {
+        let now = self.shared.standing_by();
+        if now == self.standing_by {
+            return;
+        }
+        self.standing_by = now;
+        if now {
+            self.set_alive(false);
+        } else {
+            let hello = self.shared.latest().hello.clone();
+            if let Some(hello) = hello {
+                // The daemon's hello, brought up to the pose that comes next.
+                self.on_hello(Hello { next_seq: self.shared.next_seq.load(Ordering::Relaxed), ..hello });
+            }
+        }
+    }
+
     /// A (new) daemon connection: its hello is the latest, and the token says the source is up.
     fn on_hello(&mut self, hello: Hello) {
         self.shared.next_seq.store(hello.next_seq, Ordering::Relaxed);
@@ -387,6 +442,9 @@ impl Bridge {
     }
 
     fn publish(&mut self, which: Which, msg: &ServerMessage) {
+        if self.standing_by {
+            return;
+        }
         let bytes = self.frame.encode(msg).to_vec();
         let publisher = match which {
             Which::Hello => &self.hello,
@@ -399,6 +457,7 @@ impl Bridge {
     }
 
     fn set_alive(&mut self, alive: bool) {
+        let alive = alive && !self.standing_by;
         if alive == self.token.is_some() {
             return;
         }

@@ -65,7 +65,7 @@ pub(crate) fn spawn(
                     Some(Ok(report)) => {
                         let bytes = frame.encode(&ControlReply::Status(Box::new(report))).to_vec();
                         shared.latest().status = Some(bytes.clone());
-                        if publisher.put(bytes).wait().is_ok() {
+                        if !shared.standing_by() && publisher.put(bytes).wait().is_ok() {
                             shared.stats.statuses.fetch_add(1, Ordering::Relaxed);
                         }
                     }
