@@ -80,13 +80,17 @@ pub enum SdkError {
     #[error(
         "no frond-zenoh bridge answered for {source_key} within {waited:?} (is `frond-zenoh` running \
          beside the daemon with this --stage and --source, and can this host reach it? add \
-         ?connect=tcp/HOST:7447 to the address when scouting cannot find it)"
+         ?connect=tcp/HOST:7447 to the address when scouting cannot find it){}",
+        on_the_network(present.as_deref())
     )]
     NoBridge {
         /// The source address.
         source_key: String,
         /// How long it waited.
         waited: Duration,
+        /// The sources (`<stage>/<source>`) whose bridges this host does reach, when it asked:
+        /// a misspelt name is then plain to see.
+        present: Option<Vec<String>>,
     },
     /// A wildcard source address matches several sources; a subscription follows one.
     #[error("{selector} matches {} sources ({}); name one of them", matches.len(), matches.join(", "))]
@@ -165,5 +169,14 @@ impl From<DecodeError> for ProtocolError {
             }
             other => ProtocolError::Frame(other),
         }
+    }
+}
+
+/// The tail of [`SdkError::NoBridge`]'s message: what is on the network instead.
+fn on_the_network(present: Option<&[String]>) -> String {
+    match present {
+        None => String::new(),
+        Some([]) => "; no frond-zenoh bridge is on the network this host reaches".into(),
+        Some(names) => format!("; on the network: {}", names.join(", ")),
     }
 }

@@ -282,7 +282,8 @@ impl Subscriber {
     /// Subscribes to `source`: the socket directory of a daemon on this host, or a
     /// `frond-zenoh` bridge's source over Zenoh (see [`Source`]). The same events either way:
     /// over Zenoh, [`Event::Disconnected`] is the bridge's liveliness token going away (the
-    /// bridge lost its daemon, stopped, or its host is unreachable past Zenoh's lease) and
+    /// bridge lost its daemon, stopped, or its host is unreachable past Zenoh's lease), or
+    /// sequence numbers that start again (another bridge took over the name), and
     /// [`Event::Reconnected`] its return; a subscription starts at the first pose that reaches it.
     pub fn open(source: &Source, opts: SubscriberOptions) -> Result<Subscriber, SdkError> {
         let (wire, hello) = open_wire(source, &opts, &mut None)?;
@@ -459,6 +460,19 @@ impl Subscriber {
     fn on_pose(&mut self, pose: Pose) -> Result<Event, SdkError> {
         let expected = self.expected_seq;
         if pose.seq < expected {
+            // Over Zenoh, numbers that start again are another daemon's stream under the key
+            // (one bridge gave way to another under the same name, and the new one's poses
+            // arrived before the old one's token was seen to go), not a broken daemon: the
+            // subscription rejoins, as when a bridge goes away and comes back.
+            #[cfg(feature = "zenoh")]
+            if matches!(self.state, State::Connected(Wire::Zenoh(_))) && self.opts.reconnect {
+                tracing::info!(
+                    path = %self.path.display(), expected, got = pose.seq,
+                    "the source's sequence numbers started again: another stream; rejoining"
+                );
+                self.drop_connection();
+                return Ok(Event::Disconnected);
+            }
             return Err(self.fail(ProtocolError::SeqWentBackwards { expected, got: pose.seq }));
         }
         self.expected_seq = pose.seq + 1;

@@ -335,8 +335,9 @@ impl ZenohConn {
             .wait();
     }
 
+    /// No bridge answered a rejoin (a reconnection: nothing is listed, to keep its pace).
     fn no_bridge(&self, waited: Duration) -> SdkError {
-        SdkError::NoBridge { source_key: self.key.clone(), waited }
+        SdkError::NoBridge { source_key: self.key.clone(), waited, present: None }
     }
 
     /// The next message, or why not.
@@ -474,10 +475,39 @@ fn resolve(session: &::zenoh::Session, addr: &ZenohAddr, timeout: Duration) -> R
             return Ok(key);
         }
         if Instant::now() >= deadline {
-            return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout });
+            return Err(no_bridge(session, addr.to_string(), timeout));
         }
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// How long a failed lookup waits for the list of the sources that are on the network.
+const PRESENT_TIMEOUT: Duration = Duration::from_millis(500);
+/// Most sources a failed lookup names.
+const MAX_PRESENT: usize = 16;
+
+/// The error for `source_key`, which no bridge answered within `waited`, naming the sources
+/// (`<stage>/<source>`) whose bridges are on the network instead (their `alive` tokens).
+pub(crate) fn no_bridge(session: &::zenoh::Session, source_key: String, waited: Duration) -> SdkError {
+    let selector = format!("{}/*/*/{}", crate::source::KEY_ROOT, keys::ALIVE);
+    let present = session.liveliness().get(selector).timeout(PRESENT_TIMEOUT).wait().ok().map(|replies| {
+        let mut names = std::collections::BTreeSet::new();
+        while let Ok(reply) = replies.recv() {
+            if let Some(key) =
+                reply.result().ok().and_then(|s| crate::zenoh_many::source_key_of(s.key_expr().as_str()))
+            {
+                names.insert(crate::zenoh_many::short(&key).to_owned());
+            }
+        }
+        let mut names: Vec<String> = names.into_iter().collect();
+        if names.len() > MAX_PRESENT {
+            let more = names.len() - MAX_PRESENT;
+            names.truncate(MAX_PRESENT);
+            names.push(format!("and {more} more"));
+        }
+        names
+    });
+    SdkError::NoBridge { source_key, waited, present }
 }
 
 /// Asks the bridge of `addr` (one source) for its daemon's latest status report.
@@ -542,7 +572,7 @@ pub fn query_statuses_in(
             return Ok(found);
         }
         if Instant::now() >= deadline {
-            return Err(SdkError::NoBridge { source_key: addr.to_string(), waited: timeout });
+            return Err(no_bridge(session, addr.to_string(), timeout));
         }
         std::thread::sleep(Duration::from_millis(50));
     }

@@ -187,7 +187,7 @@ impl Drop for StageSubscriber {
 
 /// `frond/<stage>/<source>` of a token key `frond/<stage>/<source>/alive`, if the names are
 /// plain key chunks.
-fn source_key_of(token: &str) -> Option<String> {
+pub(crate) fn source_key_of(token: &str) -> Option<String> {
     let mut parts = token.split('/');
     let (root, stage, source, leaf) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
     if root != KEY_ROOT || leaf != keys::ALIVE || parts.next().is_some() {

@@ -127,9 +127,8 @@ impl Stage {
                 std::thread::sleep(Duration::from_millis(50));
             }
         }
-        ClockOffset::estimate(&samples).ok_or_else(|| SdkError::NoBridge {
-            source_key: key.trim_end_matches("/clock").to_owned(),
-            waited: timeout,
+        ClockOffset::estimate(&samples).ok_or_else(|| {
+            crate::zenoh::no_bridge(&self.session, key.trim_end_matches("/clock").to_owned(), timeout)
         })
     }
 }

@@ -117,6 +117,8 @@ fn now_ms() -> u64 {
     frond_sdk::stage_time::realtime_ns() / 1_000_000
 }
 
+/// How long a starting bridge told to `--connect` waits for a link before asking for claims.
+const LINK_WAIT: Duration = Duration::from_secs(2);
 /// How long a starting bridge waits for the claims already on the network.
 const ASK_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -168,12 +170,25 @@ impl Claim {
     /// history included), setting `shared.standby` while an elder claim is on the network.
     /// Returns once the claims already on the network have answered (at most [`ASK_TIMEOUT`]),
     /// so that a bridge started under a taken name stands by before it publishes anything.
+    /// `connects`: the session was told to connect somewhere (`--connect`), which Zenoh does in
+    /// the background; the claims are asked for once a link is up (or after [`LINK_WAIT`]).
     pub(crate) fn declare(
         session: &zenoh::Session,
         source_key: &str,
         own: String,
         shared: Arc<Shared>,
+        connects: bool,
     ) -> Result<Claim, zenoh::Error> {
+        if connects {
+            let deadline = std::time::Instant::now() + LINK_WAIT;
+            let linked = || {
+                let info = session.info();
+                info.peers_zid().wait().next().is_some() || info.routers_zid().wait().next().is_some()
+            };
+            while !linked() && std::time::Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
         let claims_key = keys::under(source_key, keys::BRIDGE);
         let watch = Arc::new(Watch {
             claims: Mutex::new(Claims::new(own.clone())),
