@@ -16,7 +16,7 @@
 //!
 //! - `control`: remote control, a queryable declared only when the bridge is given an allow-list
 //!   (`--control FILE`, [`control`]): signed control requests, answered with the daemon's reply.
-//! - `bridge/<id>`: the bridge's claim on its name, a liveliness token ([`claim`]): of two
+//! - `bridge/<id>`: the bridge's claim on its name, a liveliness token (module `claim`): of two
 //!   bridges started under one name, the elder publishes and the younger stands by, saying so.
 //! - `clock`: a queryable answering this host's realtime and monotonic clocks read together
 //!   (JSON `{"unix_ns":..,"monotonic_ns":..}`), so a stage recorder measures how far this host's
@@ -104,7 +104,8 @@ pub struct BridgeStats {
     pub queries: AtomicU64,
     /// Times the daemon connection was re-established.
     pub reconnects: AtomicU64,
-    /// Poses not published because an elder bridge under the same name publishes (see [`claim`]).
+    /// Poses not published because an elder bridge under the same name publishes (the README's
+    /// "One bridge per name").
     pub withheld: AtomicU64,
     /// Remote control requests handed to the daemon and answered with its reply.
     pub control_answered: AtomicU64,
