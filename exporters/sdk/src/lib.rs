@@ -104,6 +104,10 @@ pub struct Stats {
     pub reconnects: u64,
     /// Connections that ended (cleanly or not).
     pub disconnects: u64,
+    /// Zenoh samples on the source's keys that were not one frame of this protocol (anyone who
+    /// may put on the key can send one): skipped, counted here and logged. Always 0 over the
+    /// daemon's socket, where a bad frame ends the connection instead.
+    pub rejected: u64,
 }
 
 /// How a [`Subscriber`] behaves. Build with [`SubscriberOptions::new`] and the setters.
@@ -350,7 +354,14 @@ impl Subscriber {
 
     /// Counters since creation.
     pub fn stats(&self) -> Stats {
-        self.stats
+        let rejected = match &self.state {
+            #[cfg(feature = "zenoh")]
+            State::Connected(Wire::Zenoh(conn)) | State::Disconnected(Some(Wire::Zenoh(conn))) => {
+                conn.rejected()
+            }
+            _ => 0,
+        };
+        Stats { rejected, ..self.stats }
     }
 
     /// Path of the pose socket (for a Zenoh source, `zenoh:<source key>`).

@@ -180,6 +180,10 @@ pub(crate) struct ZenohConn {
     stage_ns: Option<u64>,
     /// The bridge's token is gone: the source is disconnected until it comes back.
     closed: bool,
+    /// Samples that were not one frame, skipped ([`crate::Stats::rejected`]).
+    rejected: u64,
+    /// When a skipped sample was last logged.
+    rejected_logged: Option<Instant>,
 }
 
 impl ZenohConn {
@@ -250,6 +254,8 @@ impl ZenohConn {
             first: None,
             stage_ns: None,
             closed: false,
+            rejected: 0,
+            rejected_logged: None,
         };
         let hello = conn.rejoin(opts)?;
         Ok((conn, hello))
@@ -263,6 +269,11 @@ impl ZenohConn {
     /// The stage time of the pose last returned by [`ZenohConn::read_message`].
     pub(crate) fn stage_time_ns(&self) -> Option<u64> {
         self.stage_ns
+    }
+
+    /// Samples skipped because they were not one frame.
+    pub(crate) fn rejected(&self) -> u64 {
+        self.rejected
     }
 
     /// Poses Zenoh delivered that the queue had no room for.
@@ -397,13 +408,27 @@ impl ZenohConn {
                     return ReadOutcome::Message(ServerMessage::Hello(hello));
                 }
                 Ok(msg) => return ReadOutcome::Message(msg),
+                // Each sample stands alone, and anyone who may put on the key can send one: a
+                // bad one is skipped (the stream goes on), counted and logged at most every
+                // REJECT_LOG_EVERY. A bridge of another protocol version is refused by its hello.
                 Err(error) => {
-                    return ReadOutcome::Err(SdkError::Protocol { path: self.key.clone().into(), error });
+                    self.rejected += 1;
+                    if self.rejected_logged.is_none_or(|t| t.elapsed() >= REJECT_LOG_EVERY) {
+                        self.rejected_logged = Some(Instant::now());
+                        tracing::warn!(
+                            key = %self.key, %error, rejected = self.rejected,
+                            "skipping a Zenoh sample that is not one frame of frond's protocol"
+                        );
+                    }
+                    continue;
                 }
             }
         }
     }
 }
+
+/// Least time between two warnings about samples that are not one frame.
+const REJECT_LOG_EVERY: Duration = Duration::from_secs(10);
 
 /// One payload is exactly one frame.
 fn decode_payload(bytes: &[u8]) -> Result<ServerMessage, ProtocolError> {

@@ -1,54 +1,16 @@
 //! The subscriber against a fake daemon on a temporary Unix socket.
 
+mod common;
+
 use std::io::Write;
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
-use frond_protocol::{HandWire, ServerMessage, encode_frame};
-use frond_sdk::{
-    Event, Hello, Pose, PoseFlags, ProtocolError, SdkError, Stats, Subscriber, SubscriberOptions,
-};
-
-fn hello(next_seq: u64) -> Hello {
-    Hello {
-        protocol_version: frond_protocol::PROTOCOL_VERSION,
-        daemon_version: "0.0.0-test".into(),
-        rig_name: "grass".into(),
-        joint_names: ["root", "j1", "j2", "top"].map(String::from).to_vec(),
-        tick_rate_hz: 1000,
-        elements: Default::default(),
-        next_seq,
-    }
-}
-
-fn pose(seq: u64) -> Pose {
-    let a = seq as f32;
-    Pose {
-        seq,
-        device_time_us: seq * 1000,
-        host_monotonic_ns: 5_000_000 + seq,
-        flags: PoseFlags::FILTERED,
-        element: 0,
-        joints_deg: [[a, -a, 0.5], [1.0, 2.0, 3.0], [a * 0.25, 0.0, -1.5], [0.0, 0.0, a]],
-        hand: HandWire { t: seq as f64 / 1000.0, wrist_deg: [a, 0.0, 1.0], thumb_deg: [2.0, 3.0, 4.0] },
-    }
-}
-
-fn frame(msg: &ServerMessage) -> Vec<u8> {
-    let mut out = Vec::new();
-    encode_frame(msg, &mut out);
-    out
-}
-
-fn hello_frame(next_seq: u64) -> Vec<u8> {
-    frame(&ServerMessage::Hello(hello(next_seq)))
-}
-
-fn pose_frame(seq: u64) -> Vec<u8> {
-    frame(&ServerMessage::Pose(pose(seq)))
-}
+use common::{frame, hello, hello_frame, pose, pose_frame};
+use frond_protocol::ServerMessage;
+use frond_sdk::{Event, Pose, ProtocolError, SdkError, Stats, Subscriber, SubscriberOptions};
 
 /// A listener at `<dir>/poses.sock` that serves one connection with `serve`, then closes it and
 /// removes the socket file.
@@ -96,7 +58,10 @@ fn hello_then_poses_in_order() {
     assert_eq!(sub.socket_path(), dir.join("poses.sock"));
     let poses: Vec<Pose> = sub.by_ref().collect::<Result<_, _>>().unwrap();
     assert_eq!(poses, vec![pose(10), pose(11), pose(12)]);
-    assert_eq!(sub.stats(), Stats { frames: 3, gaps: 0, missing: 0, reconnects: 0, disconnects: 1 });
+    assert_eq!(
+        sub.stats(),
+        Stats { frames: 3, gaps: 0, missing: 0, reconnects: 0, disconnects: 1, rejected: 0 }
+    );
     assert!(matches!(sub.next_event(), Err(SdkError::Closed)));
     server.join().unwrap();
 }
@@ -133,7 +98,10 @@ fn a_gap_is_reported_before_the_pose_that_reveals_it() {
             Event::Disconnected,
         ]
     );
-    assert_eq!(sub.stats(), Stats { frames: 4, gaps: 2, missing: 4, reconnects: 0, disconnects: 1 });
+    assert_eq!(
+        sub.stats(),
+        Stats { frames: 4, gaps: 2, missing: 4, reconnects: 0, disconnects: 1, rejected: 0 }
+    );
     server.join().unwrap();
 }
 
@@ -287,7 +255,10 @@ fn a_restarted_daemon_is_a_reconnect_not_a_gap() {
     for seq in 0..3 {
         assert_eq!(sub.next_event().unwrap(), Event::Pose(pose(seq)));
     }
-    assert_eq!(sub.stats(), Stats { frames: 8, gaps: 0, missing: 0, reconnects: 1, disconnects: 1 });
+    assert_eq!(
+        sub.stats(),
+        Stats { frames: 8, gaps: 0, missing: 0, reconnects: 1, disconnects: 1, rejected: 0 }
+    );
     second.join().unwrap();
 }
 
