@@ -3,21 +3,18 @@
 
 #![cfg(feature = "zenoh")]
 
+mod common;
+
 use std::time::{Duration, Instant};
 
-use frond_sdk::zenoh::{config, open_session};
 use frond_sdk::zenoh_many::StageSubscriber;
 use frond_sdk::{Source, Subscriber};
 use zenoh::Wait;
 
 #[test]
 fn dropping_a_stage_subscriber_does_not_wait_for_a_source_that_never_says_hello() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let stage = format!("mute{}", std::process::id());
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let hermetic = [("scouting/multicast/enabled", "false")];
-    let mute =
-        open_session(config(None, None, &[], std::slice::from_ref(&endpoint), &hermetic).unwrap()).unwrap();
+    let (mute, endpoint) = common::hand_made_bridge();
     let _token = mute.liveliness().declare_token(format!("frond/{stage}/glove/alive")).wait().unwrap();
 
     let Source::Zenoh(addr) = format!("zenoh:frond/{stage}/*?connect={endpoint}").parse::<Source>().unwrap()

@@ -11,18 +11,13 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use common::{hello_frame, pose_frame};
-use frond_sdk::zenoh::{config, open_session};
 use frond_sdk::{Event, Source, Subscriber};
 use zenoh::Wait;
 
 #[test]
 fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let key = format!("frond/odd{}/glove", std::process::id());
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let hermetic = [("scouting/multicast/enabled", "false")];
-    let bridge =
-        open_session(config(None, None, &[], std::slice::from_ref(&endpoint), &hermetic).unwrap()).unwrap();
+    let (bridge, endpoint) = common::hand_made_bridge();
     let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
     let _hello = bridge
         .declare_queryable(format!("{key}/hello"))

@@ -43,3 +43,16 @@ pub fn hello_frame(next_seq: u64) -> Vec<u8> {
 pub fn pose_frame(seq: u64) -> Vec<u8> {
     frame(&ServerMessage::Pose(pose(seq)))
 }
+
+/// A Zenoh peer that plays a bridge: listening on a free loopback port, with multicast
+/// scouting off so that only this test's subscriber finds it. Returns it and its endpoint.
+#[cfg(feature = "zenoh")]
+pub fn hand_made_bridge() -> (zenoh::Session, String) {
+    use frond_sdk::zenoh::{config, open_session};
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let hermetic = [("scouting/multicast/enabled", "false")];
+    let session =
+        open_session(config(None, None, &[], std::slice::from_ref(&endpoint), &hermetic).unwrap()).unwrap();
+    (session, endpoint)
+}
