@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge};
+use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 use frond_sdk::{Event, Pose, Source, Subscriber};
 
 /// A loopback port free now, below Linux's ephemeral range (32768 and up): a port the kernel
@@ -244,14 +244,7 @@ fn start_logged_bridge(daemon: &Daemon, stage: &str, port: u16, peer: Option<u16
 
 /// Waits up to 15 s for `log` to hold `words`.
 fn log_says(log: &Path, words: &str) -> bool {
-    let deadline = Instant::now() + Duration::from_secs(15);
-    while Instant::now() < deadline {
-        if std::fs::read_to_string(log).unwrap_or_default().contains(words) {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    false
+    wait_for(Duration::from_secs(15), || std::fs::read_to_string(log).unwrap_or_default().contains(words))
 }
 
 /// Two bridges started under one name (two daemons on one host, both taking the host's name

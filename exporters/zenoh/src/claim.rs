@@ -166,7 +166,7 @@ impl Watch {
 }
 
 impl Claim {
-    /// Declares this bridge's claim `own` on `source_key` and watches the others' (their
+    /// Declares this bridge's claim on `source_key` (started now) and watches the others' (their
     /// history included), setting `shared.standby` while an elder claim is on the network.
     /// Returns once the claims already on the network have answered (at most [`ASK_TIMEOUT`]),
     /// so that a bridge started under a taken name stands by before it publishes anything.
@@ -175,10 +175,10 @@ impl Claim {
     pub(crate) fn declare(
         session: &zenoh::Session,
         source_key: &str,
-        own: String,
         shared: Arc<Shared>,
         connects: bool,
     ) -> Result<Claim, zenoh::Error> {
+        let own = claim_id(now_ms(), &session.zid().to_string());
         if connects {
             let deadline = std::time::Instant::now() + LINK_WAIT;
             let linked = || {

@@ -238,10 +238,8 @@ impl Bridge {
         });
         // The claim first, and the claims already on the network asked for before anything is
         // published, so that a bridge started under a taken name stands by from the start.
-        let started_unix_ms = realtime_ns() / 1_000_000;
-        let own = claim::claim_id(started_unix_ms, &session.zid().to_string());
         let connects = !config.addr.connect.is_empty() || config.addr.config.is_some();
-        let claim = claim::Claim::declare(&session, &key, own, shared.clone(), connects)
+        let claim = claim::Claim::declare(&session, &key, shared.clone(), connects)
             .map_err(declare_err(&keys::under(&key, keys::BRIDGE)))?;
         let mut queryables = Vec::new();
         for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS, keys::CLOCK] {
