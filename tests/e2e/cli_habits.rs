@@ -141,3 +141,58 @@ fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
         said_once(name, &err);
     }
 }
+
+/// The exit status of `name ARGS` with its stdout and stderr sent where given.
+fn run_to(
+    name: &str,
+    args: &[&str],
+    stdout: std::process::Stdio,
+    stderr: std::process::Stdio,
+) -> Option<i32> {
+    let mut child = Command::new(bin(name))
+        .args(args)
+        .env("NO_COLOR", "1")
+        .stdout(stdout)
+        .stderr(stderr)
+        .spawn()
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    child.wait().unwrap().code()
+}
+
+/// A pipe whose reader has gone: writing to it fails with EPIPE (`frond tap | head -1`).
+fn closed_pipe() -> std::process::Stdio {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    writer.into()
+}
+
+#[test]
+fn unwritable_output_is_an_error_or_a_quiet_end_never_a_panic() {
+    let full = || std::process::Stdio::from(std::fs::File::create("/dev/full").unwrap());
+    for name in BINARIES.iter().map(|(n, _)| *n).chain(["frond"]) {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().to_str().unwrap();
+        let man = if name == "frond" { ["man", "-o", d] } else { ["--man", d, ""] };
+        let man = &man[..if name == "frond" { 3 } else { 2 }];
+        // stdout on a full disk: exit 1, said on stderr (println! panicked: 101).
+        let out = Command::new(bin(name)).args(man).stdout(full()).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name} --man > /dev/full: {err}");
+        assert!(
+            err.contains(&format!("{name}: error: cannot write to standard output: No space left on device")),
+            "{name}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        // stdout's reader gone: a quiet end, status 0.
+        let code = run_to(name, man, closed_pipe(), std::process::Stdio::null());
+        assert_eq!(code, Some(0), "{name} --man | (closed)");
+        // stderr's reader gone while a usage error is reported: still exit 2, not a panic's 101
+        // or an abort.
+        let code =
+            run_to(name, &["--log-level", "no=such=filter"], std::process::Stdio::null(), closed_pipe());
+        assert_eq!(code, Some(2), "{name} --log-level bad 2>(closed)");
+    }
+    // frondd's printed default configuration, onto a full disk.
+    let out = Command::new(bin("frondd")).arg("--print-default-config").stdout(full()).output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+}

@@ -8,7 +8,7 @@ use std::io::{self, BufRead, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail};
+use anyhow::{Context, anyhow, bail};
 use frond_motion::calibrate::{Raw, STEPS, compute};
 use frond_protocol::{ControlReply, ControlRequest, paths};
 
@@ -28,17 +28,34 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     }
     let output = match &a.output {
         Some(p) => p.clone(),
-        None => default_calibration_path(&a.user)?,
+        None => {
+            // frond's own directory for calibrations is made on first use; a directory given
+            // with -o must exist.
+            let path = default_calibration_path(&a.user)?;
+            if let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            }
+            path
+        }
     };
+    // Refused before the user performs the steps, not after.
+    if let Err(e) = frond_motion::rig_files::output_destination(&output) {
+        return usage(format!("cannot write {}: {e}", output.display()));
+    }
     let mut control = Control::from_global(g)?;
     let step_len = Duration::from_secs_f64(a.seconds_per_step);
     let tty = io::stdout().is_terminal();
-    println!("Calibrating {:?}: {} steps of {:.1} s each.", a.user, STEPS.len(), a.seconds_per_step);
+    frond_binmain::outln!(
+        "Calibrating {:?}: {} steps of {:.1} s each.",
+        a.user,
+        STEPS.len(),
+        a.seconds_per_step
+    )?;
     let mut recorded: Vec<Vec<Raw>> = Vec::with_capacity(STEPS.len());
     for (i, (name, instruction)) in STEPS.iter().enumerate() {
-        println!("\nStep {}/{} ({name}): {instruction}", i + 1, STEPS.len());
+        frond_binmain::outln!("\nStep {}/{} ({name}): {instruction}", i + 1, STEPS.len())?;
         if !a.yes {
-            print!("Press Enter to start... ");
+            frond_binmain::out!("Press Enter to start... ")?;
             io::stdout().flush()?;
             let mut line = String::new();
             if io::stdin().lock().read_line(&mut line)? == 0 {
@@ -53,7 +70,7 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
                 a.seconds_per_step
             );
         }
-        println!("  {} samples", samples.len());
+        frond_binmain::outln!("  {} samples", samples.len())?;
         recorded.push(samples);
     }
     let wrist_steps = [&recorded[1][..], &recorded[2][..], &recorded[3][..]];
@@ -68,20 +85,20 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
         cal.to_toml_string()
     );
     write_atomically(&output, &text)?;
-    println!("\n{text}\nwrote {}", output.display());
+    frond_binmain::outln!("\n{text}\nwrote {}", output.display())?;
     if let Some([[pd, pu], [yd, yu]]) = cal.params().wrist_reach_deg {
-        println!(
+        frond_binmain::outln!(
             "comfortable wrist reach from neutral: pitch -{pd:.1} / +{pu:.1}, yaw -{yd:.1} / +{yu:.1} degrees \
              (a rig's bend_range_deg is reached there)"
-        );
+        )?;
     }
     if a.apply {
         match control.request(&ControlRequest::SetCalibration { id: cal.id.clone(), toml: text })? {
-            ControlReply::Ok => println!("applied to the running daemon"),
+            ControlReply::Ok => frond_binmain::outln!("applied to the running daemon")?,
             _ => bail!("the daemon gave an unexpected reply to SetCalibration"),
         }
     } else {
-        println!("apply it with: frond calibration apply {}", output.display());
+        frond_binmain::outln!("apply it with: frond calibration apply {}", output.display())?;
     }
     Ok(())
 }
@@ -103,7 +120,7 @@ fn record_step(control: &mut Control, len: Duration, tty: bool) -> anyhow::Resul
                 if tty && last_print.elapsed() >= Duration::from_millis(100) {
                     last_print = Instant::now();
                     let left = len.saturating_sub(start.elapsed()).as_secs_f64();
-                    print!(
+                    frond_binmain::out!(
                         "\r\x1b[K  wrist p/y/r {:7.1} {:7.1} {:7.1}   thumb {:6.1} {:6.1} {:6.1}   {left:4.1} s left{}",
                         wrist_deg[0],
                         wrist_deg[1],
@@ -112,7 +129,7 @@ fn record_step(control: &mut Control, len: Duration, tty: bool) -> anyhow::Resul
                         thumb_deg[1],
                         thumb_deg[2],
                         if fresh { "" } else { "  (device not connected)" }
-                    );
+                    )?;
                     io::stdout().flush()?;
                 }
             }
@@ -126,7 +143,7 @@ fn record_step(control: &mut Control, len: Duration, tty: bool) -> anyhow::Resul
         }
     }
     if tty {
-        println!();
+        frond_binmain::outln!()?;
     }
     Ok(out)
 }
@@ -166,9 +183,14 @@ mod tests {
     }
 
     #[test]
-    fn writes_atomically_creating_directories() {
+    fn writes_atomically_into_a_directory_that_exists() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("a/b/c.toml");
+        // A missing directory is not made (a typo in -o is not a new tree).
+        let e = write_atomically(&path, "x = 1\n").unwrap_err().to_string();
+        assert!(e.ends_with("a/b does not exist"), "{e}");
+        assert!(!dir.path().join("a").exists());
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         write_atomically(&path, "x = 1\n").unwrap();
         write_atomically(&path, "x = 2\n").unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "x = 2\n");

@@ -144,7 +144,7 @@ pub(crate) fn apply_calibration(g: &Global, file: &Path) -> anyhow::Result<()> {
     let (cal, text) = load_calibration(file)?;
     let mut c = Control::from_global(g)?;
     c.expect_ok(&ControlRequest::SetCalibration { id: cal.id.clone(), toml: text })?;
-    println!("applied calibration {:?} from {}", cal.id, file.display());
+    frond_binmain::outln!("applied calibration {:?} from {}", cal.id, file.display())?;
     Ok(())
 }
 
@@ -158,7 +158,7 @@ pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
     };
     let mut c = Control::from_global(g)?;
     c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: loaded.text })?;
-    println!("rig set to {name} ({})", loaded.origin);
+    frond_binmain::outln!("rig set to {name} ({})", loaded.origin)?;
     Ok(())
 }
 
@@ -166,7 +166,7 @@ pub(crate) fn set_filter(g: &Global, spec: &str) -> anyhow::Result<()> {
     let filter = parse_filter(spec)?;
     let mut c = Control::from_global(g)?;
     c.expect_ok(&ControlRequest::SetFilter { spec: filter.to_string() })?;
-    println!("filter set to {filter}");
+    frond_binmain::outln!("filter set to {filter}")?;
     Ok(())
 }
 
@@ -176,7 +176,7 @@ pub(crate) fn mark(g: &Global, label: &str) -> anyhow::Result<()> {
     }
     let mut c = Control::from_global(g)?;
     c.expect_ok(&ControlRequest::Mark { label: label.to_string() })?;
-    println!("marked {label:?}");
+    frond_binmain::outln!("marked {label:?}")?;
     Ok(())
 }
 
@@ -189,9 +189,9 @@ pub(crate) fn record_start(g: &Global, name: &str) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     let r = c.record_start(name)?;
     if r.path.is_empty() {
-        println!("recording {name}");
+        frond_binmain::outln!("recording {name}")?;
     } else {
-        println!("recording {name} to {}", r.path);
+        frond_binmain::outln!("recording {name} to {}", r.path)?;
     }
     Ok(())
 }
@@ -199,7 +199,7 @@ pub(crate) fn record_start(g: &Global, name: &str) -> anyhow::Result<()> {
 pub(crate) fn record_stop(g: &Global) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     let r = c.record_stop()?;
-    println!("stopped {}: {} frames in {}", r.name, r.frames, r.path);
+    frond_binmain::outln!("stopped {}: {} frames in {}", r.name, r.frames, r.path)?;
     if r.dropped > 0 {
         eprintln!("frond: warning: the recorder dropped {} frames (disk too slow?)", r.dropped);
     }

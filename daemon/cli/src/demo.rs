@@ -48,12 +48,14 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
         .context("cannot create a private socket directory")?;
     signals::install().context("installing signal handlers")?;
 
-    println!("starting {} (sockets in {})", frondd.display(), socket_dir.path().display());
+    frond_binmain::outln!("starting {} (sockets in {})", frondd.display(), socket_dir.path().display())?;
     let mut daemon = Daemon::spawn(&frondd, socket_dir.path(), &takes_dir)?;
     daemon.wait_ready()?;
     let console = start_console(socket_dir.path(), &takes_dir);
     if let Some((_, url)) = &console {
-        println!("console:    {url}  (the plant live in 3D, health and takes; open it while the demo runs)");
+        frond_binmain::outln!(
+            "console:    {url}  (the plant live in 3D, health and takes; open it while the demo runs)"
+        )?;
     }
     let result = demo_session(&mut daemon, socket_dir.path(), &takes_dir, &name, seconds);
     drop(console);
@@ -63,26 +65,31 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
             eprintln!("frond: warning: frondd exited with {status}; its log:\n{}", daemon.log_tail())
         }
         (_, Err(e)) => eprintln!("frond: warning: stopping frondd: {e:#}"),
-        _ => println!("daemon stopped"),
+        _ => frond_binmain::outln!("daemon stopped")?,
     }
     let take = result?;
-    println!();
-    println!("take {name}: {} frames in {}", take.frames, take.path);
+    frond_binmain::outln!()?;
+    frond_binmain::outln!("take {name}: {} frames in {}", take.frames, take.path)?;
     match bake_glb(&take.path, "grass") {
-        Ok(glb) => println!(
+        Ok(glb) => frond_binmain::outln!(
             "baked:      {} (skinned, animated glTF 2.0 for Blender, Maya, Unreal, Unity, three.js)",
             glb.display()
-        ),
+        )?,
         Err(e) => eprintln!("frond: warning: no GLB baked: {e:#}"),
     }
     match warp_preview(&take.path) {
-        Ok(gif) => println!("preview:    {} (grass blown by the take's wind, frond-warp)", gif.display()),
+        Ok(gif) => frond_binmain::outln!(
+            "preview:    {} (grass blown by the take's wind, frond-warp)",
+            gif.display()
+        )?,
         Err(e) => eprintln!("frond: warning: no warp preview: {e:#}"),
     }
     let td = takes_dir.display();
-    println!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl");
-    println!("at 30 fps:  frond take export {name} --jsonl --fps 30 --takes-dir {td} > {name}-30fps.jsonl");
-    println!("list takes: frond take list --takes-dir {td}");
+    frond_binmain::outln!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl")?;
+    frond_binmain::outln!(
+        "at 30 fps:  frond take export {name} --jsonl --fps 30 --takes-dir {td} > {name}-30fps.jsonl"
+    )?;
+    frond_binmain::outln!("list takes: frond take list --takes-dir {td}")?;
     Ok(())
 }
 
@@ -100,7 +107,7 @@ fn demo_session(
 ) -> anyhow::Result<TakeResult> {
     let mut control = Control::connect(socket_dir)?;
     let st = control.status()?;
-    println!(
+    frond_binmain::outln!(
         "frondd {} running: source {} {} ({}), rig {}, filter {}, {} Hz",
         st.daemon_version,
         st.source.kind,
@@ -109,7 +116,7 @@ fn demo_session(
         st.rig_name,
         st.filter,
         st.tick_rate_hz
-    );
+    )?;
     let mut sub = Subscriber::options()
         .reconnect(false)
         .read_timeout(Some(Duration::from_millis(200)))
@@ -126,7 +133,7 @@ fn demo_session(
             Some(Event::Pose(p)) if !p.flags.contains(PoseFlags::HELD) => {
                 line.clear();
                 tap::pose_human(&p, &names, &mut line);
-                println!("{line}");
+                frond_binmain::outln!("{line}")?;
                 shown += 1;
             }
             _ => {}
@@ -135,7 +142,7 @@ fn demo_session(
 
     let rec = control.record_start(name)?;
     if !rec.path.is_empty() {
-        println!("recording {name} to {} for {seconds} s", rec.path);
+        frond_binmain::outln!("recording {name} to {} for {seconds} s", rec.path)?;
     }
     let tty = io::stdout().is_terminal();
     let start = Instant::now();
@@ -163,11 +170,11 @@ fn demo_session(
                     if st.source.connected { "connected" } else { "LOST" },
                 );
                 if tty {
-                    print!("\r\x1b[K{text}");
+                    frond_binmain::out!("\r\x1b[K{text}")?;
                     io::stdout().flush()?;
                     next_status += Duration::from_millis(250);
                 } else {
-                    println!("{text}");
+                    frond_binmain::outln!("{text}")?;
                     next_status += Duration::from_secs(1);
                 }
             }
@@ -175,7 +182,7 @@ fn demo_session(
         Ok(())
     })();
     if tty {
-        println!();
+        frond_binmain::outln!()?;
     }
     // Stop the recording whatever happened, so the take is closed properly.
     let stop = control.record_stop();

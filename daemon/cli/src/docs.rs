@@ -15,6 +15,6 @@ pub(crate) fn completions(shell: clap_complete::Shell) -> anyhow::Result<()> {
 /// Writes `frond.1` and a page per subcommand (`frond-take-export.1`, ...) into `dir`.
 pub(crate) fn man(dir: &Path) -> anyhow::Result<()> {
     let written = frond_binmain::man(Cli::command(), "frond", dir)?;
-    println!("wrote {written} man pages to {}", dir.display());
+    frond_binmain::outln!("wrote {written} man pages to {}", dir.display())?;
     Ok(())
 }

@@ -417,7 +417,7 @@ pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<bool> {
     let all = checks(g);
     let healthy = all.iter().all(|c| c.verdict != Verdict::Problem);
     if json {
-        println!("{}", serde_json::json!({ "healthy": healthy, "checks": all }));
+        frond_binmain::outln!("{}", serde_json::json!({ "healthy": healthy, "checks": all }))?;
     } else {
         for c in &all {
             let mark = match c.verdict {
@@ -425,15 +425,15 @@ pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<bool> {
                 Verdict::Warn => "warn   ",
                 Verdict::Problem => "PROBLEM",
             };
-            println!("{mark} {:<10} {}", c.name, c.found);
+            frond_binmain::outln!("{mark} {:<10} {}", c.name, c.found)?;
             if let Some(fix) = &c.fix {
-                println!("        {:<10} fix: {fix}", "");
+                frond_binmain::outln!("        {:<10} fix: {fix}", "")?;
             }
         }
-        println!(
+        frond_binmain::outln!(
             "{}",
             if healthy { "nothing needs fixing" } else { "something needs fixing (PROBLEM above)" }
-        );
+        )?;
     }
     Ok(healthy)
 }

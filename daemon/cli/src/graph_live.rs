@@ -82,12 +82,12 @@ pub(crate) fn sim(g: &Global, cmd: SimCommand) -> anyhow::Result<()> {
             };
             let mut c = Control::from_global(g)?;
             c.expect_ok(&ControlRequest::StageStart { name: None, spec: StageSpec::Sim { rig_toml, wind } })?;
-            println!("simulated plant running as the global element; bend the hand to blow it");
+            frond_binmain::outln!("simulated plant running as the global element; bend the hand to blow it")?;
             Ok(())
         }
         SimCommand::Stop => {
             Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: "sim".into() })?;
-            println!("simulation stopped");
+            frond_binmain::outln!("simulation stopped")?;
             Ok(())
         }
     }
@@ -185,11 +185,11 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
             let mut c = Control::from_global(g)?;
             let spec = StageSpec::Graph { sources, plants, seed };
             c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
-            println!(
+            frond_binmain::outln!(
                 "{plants} plants walking the graph{} of {}; direct them with `frond graph goal`",
                 if takes.len() == 1 { "" } else { "s" },
                 takes.join(", ")
-            );
+            )?;
             Ok(())
         }
         GraphCommand::Goal { kind, value } => {
@@ -204,14 +204,14 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
             })?;
             if let ControlReply::Status(s) = c.request(&ControlRequest::Status)? {
                 for m in s.modes.iter().filter(|m| m.contains("graph walk")) {
-                    println!("{m}");
+                    frond_binmain::outln!("{m}")?;
                 }
             }
             Ok(())
         }
         GraphCommand::Stop => {
             Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: STAGE.into() })?;
-            println!("graph walk stopped");
+            frond_binmain::outln!("graph walk stopped")?;
             Ok(())
         }
     }

@@ -32,7 +32,7 @@ mod tap_stage;
 
 use std::ffi::OsString;
 use std::fmt;
-use std::io;
+use std::io::{self, Write};
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -97,7 +97,8 @@ where
         Err(e) => {
             let rendered = e.render().to_string();
             let msg = rendered.strip_prefix("error: ").unwrap_or(&rendered);
-            eprint!("frond: error: {msg}");
+            // Not eprint!: a stderr that cannot be written must not turn exit 2 into a panic.
+            let _ = write!(io::stderr().lock(), "frond: error: {msg}");
             return ExitCode::from(2);
         }
     };
@@ -115,10 +116,10 @@ fn exit_for(e: &anyhow::Error) -> ExitCode {
         return ExitCode::from(*code);
     }
     if e.downcast_ref::<Interrupted>().is_some() {
-        eprintln!("frond: interrupted");
+        let _ = writeln!(io::stderr().lock(), "frond: interrupted");
         return ExitCode::from(130);
     }
-    eprintln!("frond: error: {}", frond_protocol::error_text(e.as_ref()));
+    frond_binmain::say_error("frond", &frond_protocol::error_text(e.as_ref()));
     if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
 }
 

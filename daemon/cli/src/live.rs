@@ -26,10 +26,10 @@ pub(crate) fn play(g: &Global, take: Option<String>, stop: bool, seed: u64) -> a
     c.expect_ok(&req)?;
     match take {
         Some(t) => {
-            println!("looping take {t} on the pose stream (element 0, flagged playback)");
+            frond_binmain::outln!("looping take {t} on the pose stream (element 0, flagged playback)")?;
             warn_damaged_stage(&mut c, "playback");
         }
-        None => println!("playback stopped"),
+        None => frond_binmain::outln!("playback stopped")?,
     }
     Ok(())
 }
@@ -65,9 +65,9 @@ pub(crate) fn record_layer(
     };
     match c.request(&req)? {
         ControlReply::Recording(RecordingStatus { path, .. }) => {
-            println!("recording layer {layer} as take {name} to {path}");
+            frond_binmain::outln!("recording layer {layer} as take {name} to {path}")?;
             if let Some(t) = over {
-                println!("looping {t} meanwhile; `frond record stop` ends both");
+                frond_binmain::outln!("looping {t} meanwhile; `frond record stop` ends both")?;
             }
             Ok(())
         }
@@ -93,14 +93,14 @@ pub(crate) fn field_start(
     let mut c = Control::from_global(g)?;
     let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
     c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
-    println!("field of {take} playing; steer it with `frond control` or a wrist swipe");
+    frond_binmain::outln!("field of {take} playing; steer it with `frond control` or a wrist swipe")?;
     warn_damaged_stage(&mut c, "field");
     Ok(())
 }
 
 pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
     Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: "field".into() })?;
-    println!("field playback stopped");
+    frond_binmain::outln!("field playback stopped")?;
     Ok(())
 }
 
@@ -123,7 +123,7 @@ pub(crate) fn field_key(g: &Global, key: &str) -> anyhow::Result<()> {
 fn print_field_state(c: &mut Control) -> anyhow::Result<()> {
     if let ControlReply::Status(s) = c.request(&ControlRequest::Status)? {
         for m in s.modes.iter().filter(|m| m.starts_with("field")) {
-            println!("{m}");
+            frond_binmain::outln!("{m}")?;
         }
     }
     Ok(())
@@ -137,8 +137,8 @@ pub(crate) fn guided(g: &Global, spec: &str) -> anyhow::Result<()> {
     };
     Control::from_global(g)?.expect_ok(&req)?;
     match spec {
-        Some(s) => println!("guided motion on: {s}"),
-        None => println!("guided motion off"),
+        Some(s) => frond_binmain::outln!("guided motion on: {s}")?,
+        None => frond_binmain::outln!("guided motion off")?,
     }
     Ok(())
 }
@@ -207,13 +207,13 @@ pub(crate) fn control(g: &Global) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     let send = |c: &mut Control, key: &str| -> anyhow::Result<()> {
         c.expect_ok(&key_request(key)?)?;
-        print!("\r\x1b[K");
+        frond_binmain::out!("\r\x1b[K")?;
         print_field_state(c)?;
         io::stdout().flush()?;
         Ok(())
     };
     if io::stdin().is_terminal() {
-        println!("arrows: force direction, + / -: strength, q: quit");
+        frond_binmain::outln!("arrows: force direction, + / -: strength, q: quit")?;
         let _raw = RawMode::enter();
         let mut buf = [0u8; 16];
         loop {

@@ -110,9 +110,9 @@ pub(crate) fn run(duration_s: f64, json: bool, seed: u64) -> anyhow::Result<()> 
     signals::install().context("installing signal handlers")?;
     let report = soak(Duration::from_secs_f64(duration_s), seed)?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        frond_binmain::outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print_human(&report);
+        print_human(&report)?;
     }
     if !report.failures.is_empty() {
         bail!("soak failed:\n  {}", report.failures.join("\n  "));
@@ -120,30 +120,41 @@ pub(crate) fn run(duration_s: f64, json: bool, seed: u64) -> anyhow::Result<()> 
     Ok(())
 }
 
-fn print_human(r: &SoakReport) {
-    println!("soak {:.0} s, seed {:#x}", r.duration_s, r.seed);
+fn print_human(r: &SoakReport) -> Result<(), frond_binmain::StdoutError> {
+    frond_binmain::outln!("soak {:.0} s, seed {:#x}", r.duration_s, r.seed)?;
     for s in &r.subscribers {
-        println!(
+        frond_binmain::outln!(
             "  {:<10} {:>8} frames, gaps {} in / {} outside unplug windows, {} connection(s)",
-            s.name, s.frames, s.gaps_in_unplug_windows, s.gaps_outside_unplug_windows, s.connections
-        );
+            s.name,
+            s.frames,
+            s.gaps_in_unplug_windows,
+            s.gaps_outside_unplug_windows,
+            s.connections
+        )?;
     }
-    println!(
+    frond_binmain::outln!(
         "  exporter restarts {}, slow subscriber drops {}",
-        r.exporter_restarts, r.slow_subscriber_drops
-    );
-    println!("  reports {} (rejected {}), ticks {}", r.reports, r.rejected_reports, r.ticks);
-    println!("  reopen after replug: max {:?} ms", r.reopen_ms_max);
-    println!(
+        r.exporter_restarts,
+        r.slow_subscriber_drops
+    )?;
+    frond_binmain::outln!("  reports {} (rejected {}), ticks {}", r.reports, r.rejected_reports, r.ticks)?;
+    frond_binmain::outln!("  reopen after replug: max {:?} ms", r.reopen_ms_max)?;
+    frond_binmain::outln!(
         "  take {}: {} frames, ended {}, torn {} bytes, seq breaks {}",
-        r.take.path, r.take.frames, r.take.ended, r.take.torn_bytes, r.take.seq_breaks
-    );
+        r.take.path,
+        r.take.frames,
+        r.take.ended,
+        r.take.torn_bytes,
+        r.take.seq_breaks
+    )?;
     let x = &r.faults;
-    println!(
+    frond_binmain::outln!(
         "  clock jump: {} discontinuities; pause {:?} ms: {} stale reports skipped",
-        x.discontinuities, x.pause_ms, x.stale_skipped
-    );
-    println!(
+        x.discontinuities,
+        x.pause_ms,
+        x.stale_skipped
+    )?;
+    frond_binmain::outln!(
         "  full disk at {:?} s ({:?}), freed at {:?} s; cut take {} frames, ended {}, breaks {}; record stop: {:?}",
         x.disk_error_at_s,
         x.disk_error,
@@ -152,8 +163,8 @@ fn print_human(r: &SoakReport) {
         x.first_take.ended,
         x.first_take.seq_breaks,
         x.first_take_stop
-    );
-    println!(
+    )?;
+    frond_binmain::outln!(
         "  RSS {} -> {} KiB (growth {} KiB), threads {} -> {}, fds {} -> {} (idle before/after)",
         r.rss_kib_after_warmup,
         r.rss_kib_end,
@@ -162,13 +173,14 @@ fn print_human(r: &SoakReport) {
         r.idle_after.threads,
         r.idle_before.fds,
         r.idle_after.fds
-    );
-    println!("  daemon exit {:?} after {:?} ms", r.daemon_exit, r.daemon_stop_ms);
+    )?;
+    frond_binmain::outln!("  daemon exit {:?} after {:?} ms", r.daemon_exit, r.daemon_stop_ms)?;
     if r.failures.is_empty() {
-        println!("PASS");
+        frond_binmain::outln!("PASS")?;
     } else {
-        println!("FAIL:\n  {}", r.failures.join("\n  "));
+        frond_binmain::outln!("FAIL:\n  {}", r.failures.join("\n  "))?;
     }
+    Ok(())
 }
 
 /// A child process stopped (SIGTERM, then SIGKILL) on drop.

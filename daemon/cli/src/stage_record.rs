@@ -131,12 +131,12 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
             let addr = stage.source_addr(&source)?;
             let take = format!("{}-{source}", a.name);
             let path = takes_dir.join(format!("{take}.take"));
-            println!(
+            frond_binmain::outln!(
                 "recording {source} to {} (its clock is {:+.3} ms from this host's, within {:.3} ms)",
                 path.display(),
                 offset.offset_ns as f64 / 1e6,
                 offset.rtt_ns as f64 / 2e6
-            );
+            )?;
             let job = SourceJob {
                 stage: a.stage.to_owned(),
                 source: source.clone(),
@@ -172,14 +172,14 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
     let mut failed = 0;
     for (source, handle) in takes {
         match handle.join() {
-            Ok(Ok(f)) => println!(
+            Ok(Ok(f)) => frond_binmain::outln!(
                 "{}: {} frames, {} gaps ({} frames missing), {} dropped",
                 f.path.display(),
                 f.frames,
                 f.gaps,
                 f.missing,
                 f.dropped
-            ),
+            )?,
             Ok(Err(e)) => {
                 failed += 1;
                 eprintln!("frond: error: source {source}: {e:#}");

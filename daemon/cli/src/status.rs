@@ -22,9 +22,9 @@ pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> a
         None => Control::from_global(g)?.status()?,
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        frond_binmain::outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print!("{}", render(&report));
+        frond_binmain::out!("{}", render(&report))?;
     }
     Ok(())
 }
@@ -40,14 +40,14 @@ fn run_stage(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
             .iter()
             .map(|(k, r)| Ok((short(k).to_owned(), serde_json::to_value(r)?)))
             .collect::<Result<_, serde_json::Error>>()?;
-        println!("{}", serde_json::to_string_pretty(&map)?);
+        frond_binmain::outln!("{}", serde_json::to_string_pretty(&map)?)?;
     } else {
         for (i, (key, report)) in reports.iter().enumerate() {
             if i > 0 {
-                println!();
+                frond_binmain::outln!()?;
             }
-            println!("== {}", short(key));
-            print!("{}", render(report));
+            frond_binmain::outln!("== {}", short(key))?;
+            frond_binmain::out!("{}", render(report))?;
         }
     }
     Ok(())

@@ -102,6 +102,6 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
         _ => return usage("--field and --duration go together"),
     }
     crate::calibrate::write_atomically_bytes(a.output, out.as_bytes())?;
-    println!("{}", a.output.display());
+    frond_binmain::outln!("{}", a.output.display())?;
     Ok(())
 }

@@ -67,7 +67,7 @@ pub struct Graph {
 /// The take's global poses at `fps`.
 fn take_clip(g: &Global, name: &str, fps: f64) -> anyhow::Result<(Take, Clip)> {
     let take = read_take(g, name)?;
-    let clip = global_clip(&take, fps, name)?;
+    let clip = global_clip(&take, fps, name, false)?;
     Ok((take, clip))
 }
 
@@ -122,7 +122,7 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
     };
     let file = GraphFile::new(&graph, &params, &a.name, a.fps, &clip.frames);
     write_atomically_bytes(&out, file.to_json().as_bytes())?;
-    println!(
+    frond_binmain::outln!(
         "wrote {} ({} nodes of {} frames, {} transitions; pruned {} dead-end and {} unconnected frames)",
         out.display(),
         graph.len(),
@@ -130,7 +130,7 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
         graph.transitions(),
         count(&graph.pruned.dead_end_frames),
         count(&graph.pruned.outside_largest_part_frames),
-    );
+    )?;
     if a.explain {
         let per_node = graph.transitions() as f64 / graph.len() as f64;
         let explain = serde_json::json!({

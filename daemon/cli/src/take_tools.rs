@@ -10,7 +10,7 @@ use std::io::{self, Write};
 use std::path::PathBuf;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use anyhow::anyhow;
+use anyhow::{Context, anyhow};
 use clap::{Args, Subcommand};
 use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};
@@ -39,7 +39,8 @@ pub struct Output {
     /// Print the result's poses as JSON Lines on stdout instead of writing a take.
     #[arg(long)]
     pub jsonl: bool,
-    /// Replace an existing take of the same name.
+    /// Replace an existing take of the same name, and go past the output limit of 1,080,000
+    /// frames (10 hours at 30 FPS; 16,777,216 even with --force).
     #[arg(long)]
     pub force: bool,
     /// Frame rate to work at.
@@ -312,12 +313,24 @@ fn now_unix_s() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs())
 }
 
-pub(crate) fn global_clip(take: &Take, fps: f64, what: &str) -> anyhow::Result<Clip> {
+/// The take's global layer resampled at `fps`, refused past the output limit unless `force`
+/// ([`crate::takes::check_resample`]) rather than cut short.
+pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: bool) -> anyhow::Result<Clip> {
+    let poses: Vec<_> = take.layer(GLOBAL_LAYER, false).iter().map(|f| f.pose).collect();
+    crate::takes::check_resample(&format!("take {what:?}"), &poses, fps, force)?;
     let c = take.clip(GLOBAL_LAYER, fps);
     if c.is_empty() {
         anyhow::bail!("take {what:?} has no global frames");
     }
     Ok(c)
+}
+
+/// One layer's frames resampled at `fps` ([`resample_frames`]), refused past the output limit
+/// unless `force` ([`crate::takes::check_resample`]) rather than cut short.
+fn resample_layer(frames: &[TakeFrame], fps: f64, force: bool, what: &str) -> anyhow::Result<Vec<TakeFrame>> {
+    let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
+    crate::takes::check_resample(what, &poses, fps, force)?;
+    Ok(resample_frames(frames, fps).map_err(|e| crate::UsageError(e.to_string()))?)
 }
 
 /// Writes the result: JSONL of its global layer on stdout, or `OUT.take` in the takes dir.
@@ -353,9 +366,10 @@ fn write_take(g: &Global, take: &mut Take, name: &str, force: bool) -> anyhow::R
     }
     take.header.name = name.to_string();
     take.header.created_unix_s = now_unix_s();
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     write_atomically_bytes(&path, &take.to_bytes())?;
     let frames = take.layer(GLOBAL_LAYER, true).len();
-    println!("wrote {} ({} frames, {} layers)", path.display(), frames, take.layer_ids().len());
+    frond_binmain::outln!("wrote {} ({} frames, {} layers)", path.display(), frames, take.layer_ids().len())?;
     Ok(())
 }
 
@@ -458,8 +472,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             t.markers.clear();
             t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
             for id in src.layer_ids() {
-                let f = resample_frames(&src.layer(id, false), out.fps)
-                    .map_err(|e| crate::UsageError(e.to_string()))?;
+                let what = format!("take {name:?}, layer {id}");
+                let f = resample_layer(&src.layer(id, false), out.fps, out.force, &what)?;
                 t.set_layer(id, None, f);
             }
             emit(g, t, format!("{name}-resample"), &out)
@@ -475,8 +489,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                     layer_names(&src)
                 ));
             };
-            let frames = resample_frames(&src.layer(id, false), out.fps)
-                .map_err(|e| crate::UsageError(e.to_string()))?;
+            let frames =
+                resample_layer(&src.layer(id, false), out.fps, out.force, &format!("take {name:?}"))?;
             let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
             let filtered =
                 post_filter(&poses, spec).map_err(|e| crate::UsageError(format!("--filter: {e}")))?;
@@ -507,10 +521,10 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                 }
             };
             let (f0, f1) = (frame_of("--from", &from)?, frame_of("--to", &to)?);
-            let bf = resample_frames(&b.layer(GLOBAL_LAYER, false), out.fps)
-                .map_err(|e| crate::UsageError(e.to_string()))?;
-            let nf = resample_frames(&n.layer(GLOBAL_LAYER, false), out.fps)
-                .map_err(|e| crate::UsageError(e.to_string()))?;
+            let bf =
+                resample_layer(&b.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {base:?}"))?;
+            let nf =
+                resample_layer(&n.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {with:?}"))?;
             let spliced =
                 splice(&bf, f0, f1, &nf, blend, out.fps).map_err(|e| crate::UsageError(e.to_string()))?;
             let mut t = b.clone();
@@ -529,11 +543,11 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                 return usage(format!("--threshold must be > 0 degrees, got {threshold}"));
             }
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name)?;
+            let clip = global_clip(&src, out.fps, &name, out.force)?;
             let t = find_transitions(&clip, &LoopParams { regions, per_region, window })
                 .map_err(|e| crate::UsageError(format!("{name}: {e}")))?;
             if explain {
-                println!("{}", t.explain_json());
+                frond_binmain::outln!("{}", t.explain_json())?;
                 return Ok(());
             }
             let count = frame_count(duration, out.fps);
@@ -550,7 +564,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
         TakeTool::Field { name, rows, cols, cell, speed, direction, density, seed, fps, output } => {
             check_fps(fps)?;
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, fps, &name)?;
+            let clip = global_clip(&src, fps, &name, false)?;
             let params = FieldParams {
                 rows,
                 cols,
@@ -563,14 +577,25 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             let field =
                 make_field(&params, &name, clip.len(), fps).map_err(|e| crate::UsageError(e.to_string()))?;
             write_atomically_bytes(&output, field.to_json().as_bytes())?;
-            println!("wrote {} ({} plants)", output.display(), field.plants.len());
+            frond_binmain::outln!("wrote {} ({} plants)", output.display(), field.plants.len())?;
             Ok(())
         }
         TakeTool::Retime { name, speed, scale, rotate, delay, out } => {
             check_fps(out.fps)?;
             let delays_s = triple("--delay", &delay)?;
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name)?;
+            let clip = global_clip(&src, out.fps, &name, out.force)?;
+            if speed.is_finite() && speed > 0.0 && !out.force {
+                let seconds = clip.duration_s() / speed;
+                let frames = frond_motion::clip::frames_needed(seconds, out.fps);
+                if frames > crate::takes::MAX_EXPORT_FRAMES {
+                    return usage(format!(
+                        "take {name:?} at --speed {speed} lasts {seconds:.1} s: {frames} frames at {} FPS, more than {}; pass --force to go past it",
+                        out.fps,
+                        crate::takes::MAX_EXPORT_FRAMES
+                    ));
+                }
+            }
             let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
                 .map_err(|e| crate::UsageError(e.to_string()))?;
             emit(g, derived(&src, &r, false), format!("{name}-retime"), &out)
@@ -586,7 +611,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             };
             let src = read_take(g, &name)?;
             let layer: Vec<TakeFrame> = src.layer(GLOBAL_LAYER, false);
-            let frames = resample_frames(&layer, out.fps).map_err(|e| crate::UsageError(e.to_string()))?;
+            let frames = resample_layer(&layer, out.fps, out.force, &format!("take {name:?}"))?;
             if frames.is_empty() {
                 anyhow::bail!("take {name:?} has no global frames");
             }
@@ -605,8 +630,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             }
             let gt = read_take(g, &global)?;
             let st = read_take(g, &secondary)?;
-            let gc = global_clip(&gt, out.fps, &global)?;
-            let sc = global_clip(&st, out.fps, &secondary)?;
+            let gc = global_clip(&gt, out.fps, &global, out.force)?;
+            let sc = global_clip(&st, out.fps, &secondary, out.force)?;
             let transitions = find_transitions(&sc, &LoopParams::default()).ok();
             let (aligned, steps) =
                 align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;

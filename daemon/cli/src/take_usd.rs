@@ -64,7 +64,7 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     write_usda(&take, &model, &poses, &mut out);
     let bytes = if binary { usdc_bytes(&out)? } else { out.into_bytes() };
     crate::calibrate::write_atomically_bytes(a.output, &bytes)?;
-    println!("{}", a.output.display());
+    frond_binmain::outln!("{}", a.output.display())?;
     Ok(())
 }
 

@@ -316,7 +316,7 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
     let path = resolve(g, name)?;
     let bytes = read_take_bytes(&path)?;
     let Some((fixed, r)) = repaired_bytes(&bytes).map_err(|e| anyhow!("{}: {e:#}", path.display()))? else {
-        println!("{} is complete; nothing to repair", path.display());
+        frond_binmain::outln!("{} is complete; nothing to repair", path.display())?;
         return Ok(());
     };
     // A take closed with an End record is not being recorded, however recent; one without may be.
@@ -334,7 +334,7 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
         );
     }
     write_atomically_bytes(&path, &fixed)?;
-    println!("{}", repair_report(&path, &r));
+    frond_binmain::outln!("{}", repair_report(&path, &r))?;
     Ok(())
 }
 

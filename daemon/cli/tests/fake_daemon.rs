@@ -348,6 +348,12 @@ fn an_unreadable_file_sends_nothing() {
 fn calibrate_writes_and_applies_a_measured_calibration() {
     let fake = start(vec![], false, Raw::Sweep);
     let file = fake.root().join("cal/zoe.toml");
+    // -o into a directory that does not exist is refused before the steps, not made.
+    let out = fake.frond().args(["calibrate", "--user", "zoe", "--yes", "-o"]).arg(&file).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("cal does not exist"), "{}", text(&out.stderr));
+    assert!(fake.requests().is_empty() && !file.parent().unwrap().exists());
+    std::fs::create_dir(file.parent().unwrap()).unwrap();
     let out = fake
         .frond()
         .args(["calibrate", "--user", "zoe", "--yes", "--seconds-per-step", "0.6", "--apply", "-o"])

@@ -400,6 +400,48 @@ fn a_gap_in_time_is_a_discontinuity_and_resampling_is_bounded() {
 }
 
 #[test]
+fn take_tools_refuse_an_output_past_the_limit_instead_of_cutting_it_short() {
+    let (_d, takes) = setup();
+    // 3.5 s at 30 FPS (106 frames). At --speed 1e-4 it lasts 35,000 s: 1,050,001 frames, just
+    // under the 1,080,000 limit; at 1e-5, 350,000 s and 10,500,001: over it (and at 1e-9 past even the hard
+    // 16,777,216, where the output was once cut there silently, exit 0).
+    std::fs::write(takes.join("short.take"), six_decimal_take("short", 106, 30.0)).unwrap();
+    let run = |args: &[&str]| frond(&takes).args(args).output().unwrap();
+    let out = run(&["take", "retime", "short", "--speed", "1e-5"]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("lasts 350000.0 s: 10500001 frames at 30 FPS, more than 1080000; pass --force"),
+        "{err}"
+    );
+    let out = run(&["take", "retime", "short", "--speed", "1e-9", "--force"]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("105000000001 frames") && err.contains("more than the 16777216 frames"), "{err}");
+    assert!(!takes.join("short-retime.take").exists());
+
+    // Resampling: 1201 frames a second apart at 1000 FPS is 1,200,001 frames.
+    let mut bytes = take_start("long", 1);
+    for k in 0..=1200u64 {
+        encode_record(&TakeRecord::Frame(frame(k, k as f64, PoseFlags::FILTERED)), &mut bytes);
+    }
+    std::fs::write(takes.join("long.take"), &bytes).unwrap();
+    for tool in [
+        &["take", "resample", "long", "--fps", "1000"][..],
+        &["take", "filter", "long", "--filter", "lowpass", "--fps", "1000"],
+    ] {
+        let out = run(tool);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{tool:?}: {err}");
+        assert!(
+            err.contains("1200001 frames, more than the limit of 1080000") && err.contains("--force"),
+            "{err}"
+        );
+    }
+    assert_eq!(std::fs::read_dir(&takes).unwrap().count(), 2, "no take was written");
+}
+
+#[test]
 fn non_finite_values_are_refused_by_frame() {
     let (_d, takes) = setup();
     for (bad, name) in [(f32::NAN, "nan"), (f32::INFINITY, "inf")] {

@@ -80,8 +80,7 @@ fn main() -> ExitCode {
     }
     let args = Args::parse();
     if args.print_default_config {
-        print!("{DEFAULT_CONFIG}");
-        return ExitCode::SUCCESS;
+        return frond_binmain::exit("frondd", frond_binmain::out!("{DEFAULT_CONFIG}").map_err(Into::into));
     }
     if let Err(code) = frond_binmain::logging("frondd", &args.log_level) {
         return code;

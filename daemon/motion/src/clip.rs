@@ -23,14 +23,20 @@ pub const FRAME_TOLERANCE: f64 = 0.05;
 /// (a single pose); a non-positive or non-finite `fps` gives 0. At most
 /// [`MAX_RESAMPLED_FRAMES`].
 pub fn frame_count(duration_s: f64, fps: f64) -> usize {
+    usize::try_from(frames_needed(duration_s, fps)).unwrap_or(usize::MAX).min(MAX_RESAMPLED_FRAMES)
+}
+
+/// [`frame_count`] without its cap (saturating at `u64::MAX`): what an output would need, to
+/// refuse it before anything is computed rather than cut it short.
+pub fn frames_needed(duration_s: f64, fps: f64) -> u64 {
     if !(fps.is_finite() && fps > 0.0) {
         return 0;
     }
     if !(duration_s.is_finite() && duration_s > 0.0) {
         return 1;
     }
-    let last = (duration_s * fps + FRAME_TOLERANCE).floor();
-    if last >= MAX_RESAMPLED_FRAMES as f64 { MAX_RESAMPLED_FRAMES } else { last as usize + 1 }
+    // `as` saturates: a product past u64's range (or infinite) counts as u64::MAX frames.
+    ((duration_s * fps + FRAME_TOLERANCE).floor() as u64).saturating_add(1)
 }
 
 /// The 12 angles of one pose, per joint `[pitch, yaw, roll]`, degrees.
@@ -280,6 +286,10 @@ mod tests {
         assert_eq!(frame_count(1.0, 0.0), 0);
         assert_eq!(frame_count(1.0, f64::NAN), 0);
         assert_eq!(frame_count(1e30, 30.0), MAX_RESAMPLED_FRAMES);
+        assert_eq!(frames_needed(1e30, 30.0), u64::MAX);
+        // 3.5 s at speed 1e-9 and 30 FPS: 1.05e11 frames, one more for t = 0.
+        assert_eq!(frames_needed(3.5e9, 30.0), 105_000_000_001);
+        assert_eq!((frames_needed(0.0, 30.0), frames_needed(1.0, 0.0)), (1, 0));
     }
 
     proptest::proptest! {

@@ -66,6 +66,21 @@ pub enum RetimeError {
     /// A rigidity delay is not between 0 and 60 seconds.
     #[error("--delay values must be between 0 and 60 seconds, got {0}")]
     Delay(f64),
+    /// The output would be longer than [`crate::take::MAX_RESAMPLED_FRAMES`] frames (a very
+    /// slow speed): refused, never cut short.
+    #[error(
+        "the retimed clip would be {frames} frames ({seconds:.0} s at {fps} FPS), more than the {max} frames any output may have; use a faster --speed"
+    )]
+    TooLong {
+        /// Frames the output would need.
+        frames: u64,
+        /// Its length, seconds.
+        seconds: f64,
+        /// The clip's rate.
+        fps: f64,
+        /// The limit.
+        max: u64,
+    },
 }
 
 /// Applies [`Retime`] to a clip: output frame `k` (at the same fps, `t = k / fps`) has joint `i`
@@ -84,7 +99,13 @@ pub fn retime(clip: &Clip, r: &Retime) -> Result<Clip, RetimeError> {
     if let Some(&d) = r.delays_s.iter().find(|d| !(d.is_finite() && **d >= 0.0 && **d <= 60.0)) {
         return Err(RetimeError::Delay(d));
     }
-    let count = crate::clip::frame_count(clip.duration_s() / r.speed, clip.fps);
+    let seconds = clip.duration_s() / r.speed;
+    let frames = crate::clip::frames_needed(seconds, clip.fps);
+    let max = crate::take::MAX_RESAMPLED_FRAMES as u64;
+    if frames > max {
+        return Err(RetimeError::TooLong { frames, seconds, fps: clip.fps, max });
+    }
+    let count = crate::clip::frame_count(seconds, clip.fps);
     let frames = (0..count).map(|k| {
         let t = k as f64 / clip.fps;
         let mut j = [[0.0; 3]; JOINTS];
@@ -325,6 +346,9 @@ mod tests {
         let c = retime(&ramp(), &Retime { rotate_deg: 180.0, ..Default::default() }).unwrap();
         let f = c.frames[4].joints_deg[1];
         assert!((f[0] + 4.0).abs() < 1e-5 && (f[1] + 4.0).abs() < 1e-5 && f[2] == 4.0, "{f:?}");
+        // 1 s at 10^-9 speed: 10^9 s, far past the cap: refused, not cut short.
+        let e = retime(&ramp(), &Retime { speed: 1e-9, ..Default::default() }).unwrap_err();
+        assert!(matches!(e, RetimeError::TooLong { max, .. } if max == 1 << 24), "{e}");
         let e = retime(&ramp(), &Retime { speed: 0.0, ..Default::default() }).unwrap_err();
         assert_eq!(e, RetimeError::Speed(0.0));
         assert_eq!(e.to_string(), "--speed must be in (0, 100], got 0");

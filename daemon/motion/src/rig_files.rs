@@ -145,13 +145,61 @@ pub fn not_regular(ft: std::fs::FileType) -> Option<&'static str> {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory (created if needed),
-/// fsync and a rename, so readers (and a crash) see the old file or the whole new one; a replaced
-/// file's permissions are kept. The one way frond commands write a file they are given.
+/// Where a file given as an output path may be written, checked before anything is: the path
+/// itself when it is a regular file or does not exist yet in an existing directory, or the file
+/// a symbolic link names when that is a regular file (the link stays, its target is replaced).
+/// A device, FIFO, socket or directory there is refused rather than replaced by a regular file
+/// (`-o /dev/null` run as root would otherwise swap the device node for a file), as are a
+/// dangling link and a missing directory (a typo is not made into a new directory tree).
+pub fn output_destination(path: &Path) -> std::io::Result<PathBuf> {
+    use std::io::{Error, ErrorKind};
+    if path.as_os_str().is_empty() {
+        return Err(Error::new(ErrorKind::InvalidInput, "the output path is empty"));
+    }
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => match std::fs::metadata(path) {
+            Ok(target) => match not_regular(target.file_type()) {
+                None => std::fs::canonicalize(path),
+                Some(what) => Err(Error::new(
+                    ErrorKind::InvalidInput,
+                    format!("it is a symbolic link to {what}, not to a regular file"),
+                )),
+            },
+            Err(_) => Err(Error::new(
+                ErrorKind::NotFound,
+                "it is a symbolic link to a file that does not exist; remove the link or name the file itself",
+            )),
+        },
+        Ok(meta) => match not_regular(meta.file_type()) {
+            None => Ok(path.to_path_buf()),
+            Some(what) => {
+                Err(Error::new(ErrorKind::InvalidInput, format!("it is {what}, not a regular file")))
+            }
+        },
+        Err(e) if e.kind() == ErrorKind::NotFound => {
+            let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            if dir.is_dir() {
+                Ok(path.to_path_buf())
+            } else {
+                Err(Error::new(
+                    ErrorKind::NotFound,
+                    format!("the directory {} does not exist", dir.display()),
+                ))
+            }
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory, fsync and a rename,
+/// so readers (and a crash) see the old file or the whole new one; a replaced file's permissions
+/// are kept. Only where [`output_destination`] allows: never over a device, FIFO or directory,
+/// through a symbolic link to its regular file, and into a directory that exists. The one way
+/// frond commands write a file they are given.
 pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
+    let path = &output_destination(path)?;
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir)?;
     let mut tmp = match std::fs::metadata(path) {
         Ok(meta) => {
             // Keep the replaced file's permissions.
@@ -289,6 +337,45 @@ mod tests {
         std::fs::set_permissions(&new, std::fs::Permissions::from_mode(0o640)).unwrap();
         write_file_atomically(&new, b"two").unwrap();
         assert_eq!((mode(&new), std::fs::read(&new).unwrap()), (0o640, b"two".to_vec()));
+    }
+
+    #[test]
+    fn atomic_writes_refuse_what_is_not_a_regular_file_and_write_through_a_link() {
+        use std::os::unix::fs::{FileTypeExt, symlink};
+        let dir = tempfile::tempdir().unwrap();
+        let at = |name: &str| dir.path().join(name);
+        let err = |path: &Path| write_file_atomically(path, b"x").unwrap_err().to_string();
+
+        // A FIFO stays a FIFO (made with mkfifo(1), as a user would).
+        let fifo = at("fifo");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+        assert_eq!(err(&fifo), "it is a FIFO, not a regular file");
+        assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+
+        // A device node (a link to /dev/null stands for it: no mknod needed) and a directory.
+        symlink("/dev/null", at("null")).unwrap();
+        assert_eq!(err(&at("null")), "it is a symbolic link to a device, not to a regular file");
+        assert_eq!(std::fs::read_link(at("null")).unwrap(), Path::new("/dev/null"));
+        std::fs::create_dir(at("d")).unwrap();
+        assert_eq!(err(&at("d")), "it is a directory, not a regular file");
+
+        // A missing directory is not created; a dangling link is refused.
+        assert_eq!(
+            err(&at("no/such/x.bvh")),
+            format!("the directory {} does not exist", at("no/such").display())
+        );
+        assert!(!at("no").exists());
+        symlink(at("gone"), at("dangling")).unwrap();
+        assert!(err(&at("dangling")).starts_with("it is a symbolic link to a file that does not exist"));
+        assert!(!at("gone").exists());
+
+        // A link to a regular file: the target gets the bytes, the link stays a link.
+        std::fs::write(at("target.glb"), b"old").unwrap();
+        symlink(at("target.glb"), at("link.glb")).unwrap();
+        write_file_atomically(&at("link.glb"), b"new").unwrap();
+        assert!(std::fs::symlink_metadata(at("link.glb")).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read(at("target.glb")).unwrap(), b"new");
+        assert_eq!(err(Path::new("")), "the output path is empty");
     }
 
     #[test]

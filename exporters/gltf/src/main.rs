@@ -204,7 +204,7 @@ fn finish(mut baked: Baked, path: &Path, format: Format, quiet: bool) -> anyhow:
             s.vertices
         );
     }
-    println!("{}", path.display());
+    frond_binmain::outln!("{}", path.display())?;
     Ok(())
 }
 
@@ -213,12 +213,8 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
     let rig = LoadedRig::resolve(&a.common.rig)?;
     let model = rig.model()?;
     // Refuse an unwritable destination before the performance, not after it.
-    let dir = match a.common.output.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if !dir.is_dir() {
-        bail!("cannot write {}: the directory {} does not exist", a.common.output.display(), dir.display());
+    if let Err(e) = frond_motion::rig_files::output_destination(&a.common.output) {
+        bail!("cannot write {}: {e}", a.common.output.display());
     }
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

@@ -56,7 +56,7 @@ pub fn bin_path(gltf: &Path) -> PathBuf {
 /// Writes `baked` to `path` in `format`. For [`Format::Gltf`] the buffer goes to
 /// [`bin_path`] and the JSON refers to it by file name.
 pub fn write(baked: &mut Baked, path: &Path, format: Format) -> Result<(), BakeError> {
-    check_destination(path)?;
+    let path = &destination(path)?;
     match format {
         Format::Glb => {
             let mut bytes = Vec::new();
@@ -65,8 +65,7 @@ pub fn write(baked: &mut Baked, path: &Path, format: Format) -> Result<(), BakeE
             persist(tmp, path)
         }
         Format::Gltf => {
-            let bin = bin_path(path);
-            check_destination(&bin)?;
+            let bin = destination(&bin_path(path))?;
             let name = bin.file_name().and_then(|n| n.to_str()).map(str::to_string).ok_or_else(|| {
                 BakeError::Output {
                     path: path.to_path_buf(),
@@ -97,18 +96,10 @@ fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-fn check_destination(path: &Path) -> Result<(), BakeError> {
-    if path.as_os_str().is_empty() {
-        return Err(output_err(path, "the output path is empty"));
-    }
-    if path.is_dir() {
-        return Err(output_err(path, "it is a directory"));
-    }
-    let dir = parent_dir(path);
-    if !dir.is_dir() {
-        return Err(output_err(path, format!("the directory {} does not exist", dir.display())));
-    }
-    Ok(())
+/// Where `path` may be written ([`frond_motion::rig_files::output_destination`]): never over a
+/// device, FIFO or directory, through a symbolic link to its file, into a directory that exists.
+fn destination(path: &Path) -> Result<PathBuf, BakeError> {
+    frond_motion::rig_files::output_destination(path).map_err(|e| output_err(path, e.to_string()))
 }
 
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile, BakeError> {

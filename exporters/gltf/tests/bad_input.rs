@@ -172,6 +172,17 @@ fn unwritable_outputs_leave_nothing_behind() {
     let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", sub.to_str().unwrap()]);
     assert!(e.contains("it is a directory"), "{e}");
 
+    // A FIFO and a link to a device stay what they are (the write once swapped them for files).
+    let fifo = keep.join("fifo.glb");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", fifo.to_str().unwrap()]);
+    assert!(e.contains("it is a FIFO, not a regular file"), "{e}");
+    assert!(std::os::unix::fs::FileTypeExt::is_fifo(&std::fs::symlink_metadata(&fifo).unwrap().file_type()));
+    let null = keep.join("null.glb");
+    std::os::unix::fs::symlink("/dev/null", &null).unwrap();
+    let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "-o", null.to_str().unwrap()]);
+    assert!(e.contains("symbolic link to a device"), "{e}");
+
     // The parent is a regular file.
     let file = keep.join("plain");
     std::fs::write(&file, b"x").unwrap();

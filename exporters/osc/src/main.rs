@@ -47,8 +47,10 @@ struct Args {
     /// and at exit.
     #[arg(long)]
     stats: bool,
-    /// The daemon's socket directory.
-    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    /// The daemon's socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    /// The variable is read only when --from is not given, so an operator's environment does
+    /// not conflict with --from.
+    #[arg(long, value_name = "DIR")]
     socket_dir: Option<PathBuf>,
     /// Read the poses of a daemon on another host through its frond-zenoh bridge:
     /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon,
@@ -192,7 +194,7 @@ fn run(args: &Args) -> anyhow::Result<()> {
             let frond_sdk::Source::Socket(dir) = &config.source else { unreachable!("checked in validate") };
             let report = bench::run(dir, n, Duration::from_secs_f64(args.bench_seconds))
                 .with_context(|| format!("bench with {n} target(s)"))?;
-            println!("{}", report.to_json());
+            frond_binmain::outln!("{}", report.to_json())?;
         }
         return Ok(());
     }

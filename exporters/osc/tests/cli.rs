@@ -37,3 +37,22 @@ fn invalid_arguments_exit_2_naming_each_problem_once() {
     let out = frond_osc(&["--no-such-flag"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn from_is_not_refused_because_the_environment_names_a_socket_directory() {
+    // The README has operators export FROND_SOCKET_DIR; --from must still be usable. The bad
+    // --rate keeps the run short: it is reported instead of clap's conflict.
+    let out = Command::new(env!("CARGO_BIN_EXE_frond-osc"))
+        .env("FROND_SOCKET_DIR", "/nonexistent/frond")
+        .args(["--from", "zenoh:frond/stage1/glove-a", "--rate", "0"])
+        .output()
+        .expect("run frond-osc");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(!err.contains("cannot be used with"), "{err}");
+    assert!(err.contains("--rate 0: must be `every` or"), "{err}");
+    // An explicit --socket-dir with --from is still a contradiction.
+    let out = frond_osc(&["--from", "zenoh:frond/stage1/glove-a", "--socket-dir", "/x"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot be used with"));
+}

@@ -351,8 +351,10 @@ pub struct ServeArgs {
     /// Address to listen on (port 0 picks a free port; the URL is printed).
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub listen: String,
-    /// Socket directory of frondd.
-    #[arg(long, env = "FROND_SOCKET_DIR")]
+    /// Socket directory of frondd [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    /// The variable is read only when --from is not given, so an operator's environment does
+    /// not conflict with --from.
+    #[arg(long)]
     pub socket_dir: Option<PathBuf>,
     /// Follow a daemon on another host through its frond-zenoh bridge:
     /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` (default: this host's daemon).

@@ -273,7 +273,7 @@ fn cage(cmd: CageCommand) -> anyhow::Result<()> {
             };
             let (tree, text) = cages::build_file(&a.layer, &opts)?;
             if a.output.as_os_str() == "-" {
-                print!("{text}");
+                frond_binmain::out!("{text}")?;
             } else {
                 cages::write_file(&a.output, &text)
                     .with_context(|| format!("writing {}", a.output.display()))?;
@@ -289,7 +289,7 @@ fn cage(cmd: CageCommand) -> anyhow::Result<()> {
         }
         CageCommand::Coords(a) => {
             let tree = cages::read_cage_file(&a.cage)?;
-            println!("{}", cages::coords_json(&tree, a.id, &a.at)?);
+            frond_binmain::outln!("{}", cages::coords_json(&tree, a.id, &a.at)?)?;
         }
     }
     Ok(())
@@ -299,7 +299,7 @@ fn make_samples(dir: &std::path::Path) -> anyhow::Result<()> {
     let names = frond_warp::samples::write_samples(dir)
         .with_context(|| format!("writing samples to {}", dir.display()))?;
     for n in names {
-        println!("{}", dir.join(n).display());
+        frond_binmain::outln!("{}", dir.join(n).display())?;
     }
     Ok(())
 }
@@ -341,9 +341,9 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
             "threads": 1,
             "release": !cfg!(debug_assertions),
         });
-        println!("{v}");
+        frond_binmain::outln!("{v}")?;
     } else {
-        println!(
+        frond_binmain::outln!(
             "warp {}x{} ({}): median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms ({:.0} Mpx/s, single \
              thread, {} iterations)",
             warp.width,
@@ -354,18 +354,27 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
             warp.median_cpu_ms,
             warp.mpix_per_s,
             warp.iterations
-        );
+        )?;
         for k in &kernels {
-            println!(
+            frond_binmain::outln!(
                 "  kernel {}: median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms",
-                k.kernel, k.median_ms, k.min_ms, k.median_cpu_ms
-            );
+                k.kernel,
+                k.median_ms,
+                k.min_ms,
+                k.median_cpu_ms
+            )?;
         }
         for p in pipeline {
-            println!("pipeline {}x{}: {:.1} frames/s ({} frames)", p.width, p.height, p.fps, p.frames);
+            frond_binmain::outln!(
+                "pipeline {}x{}: {:.1} frames/s ({} frames)",
+                p.width,
+                p.height,
+                p.fps,
+                p.frames
+            )?;
         }
         if let Some(c) = &cage {
-            println!(
+            frond_binmain::outln!(
                 "cage morph {}x{} ({} cages of {} vertices): frame {:.2} ms (tree {:.2}, field {:.2}, layer {:.2}, \
                  warp {:.2}) against the plain remap's {:.2} ms: {:.2}x",
                 c.width,
@@ -379,14 +388,14 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
                 c.warp_ms,
                 c.remap_ms,
                 c.frame_ms / c.remap_ms
-            );
+            )?;
         }
         if let Some(dir) = &args.write_field {
-            println!(
+            frond_binmain::outln!(
                 "field written to {} (python3 exporters/warp/bench/remap.py {})",
                 dir.display(),
                 dir.display()
-            );
+            )?;
         }
     }
     Ok(())
