@@ -14,6 +14,7 @@
 //! Tokens are compared in constant time.
 
 use std::fmt;
+use std::path::{Path, PathBuf};
 
 /// Name of the cookie that carries the token.
 pub const TOKEN_COOKIE: &str = "frond_token";
@@ -176,6 +177,74 @@ pub fn parse_token(text: &str) -> Result<String, String> {
     Ok(t.to_string())
 }
 
+/// Longest token file read, bytes.
+pub const MAX_TOKEN_FILE_BYTES: u64 = 4096;
+
+/// Why a token file (`--token-file`) cannot be used.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TokenFileError {
+    /// It cannot be read, or is not a small regular text file.
+    #[error("{}: {reason}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// Its group or other users may read or change it.
+    #[error(
+        "{path}: mode {mode:03o}: {who}; it holds the console's token, a secret: chmod 600 {path}",
+        path = path.display()
+    )]
+    Exposed {
+        /// The file.
+        path: PathBuf,
+        /// Its permission bits.
+        mode: u32,
+        /// Who may do what (`other users may read it`).
+        who: String,
+    },
+    /// What it holds is not a token ([`parse_token`]).
+    #[error("{}: {reason}", path.display())]
+    Token {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// Who besides its owner may read or change a file of permission bits `mode`, in words, or
+/// `None` for nobody (execute bits do not matter for a file that is read).
+fn exposure(mode: u32) -> Option<String> {
+    let who = |group: u32, others: u32| match (mode & group != 0, mode & others != 0) {
+        (true, true) => Some("its group and other users"),
+        (true, false) => Some("its group"),
+        (false, true) => Some("other users"),
+        (false, false) => None,
+    };
+    let said: Vec<String> = [(who(0o040, 0o004), "read"), (who(0o020, 0o002), "change")]
+        .into_iter()
+        .filter_map(|(who, what)| who.map(|w| format!("{w} may {what} it")))
+        .collect();
+    (!said.is_empty()).then(|| said.join(", and "))
+}
+
+/// Reads the token of `--token-file`: a small regular file that only its owner may read or
+/// change (as `ssh` takes a private key, and `frond-zenoh --control` its allow-list), holding
+/// one token ([`parse_token`]).
+pub fn read_token_file(path: &Path) -> Result<String, TokenFileError> {
+    use std::os::unix::fs::PermissionsExt;
+    let read = |reason: String| TokenFileError::Read { path: path.to_path_buf(), reason };
+    let text =
+        frond_motion::rig_files::read_small_text(path, MAX_TOKEN_FILE_BYTES).map_err(|e| read(e.reason()))?;
+    let mode = std::fs::metadata(path).map_err(|e| read(e.to_string()))?.permissions().mode() & 0o777;
+    if let Some(who) = exposure(mode) {
+        return Err(TokenFileError::Exposed { path: path.to_path_buf(), mode, who });
+    }
+    parse_token(&text).map_err(|reason| TokenFileError::Token { path: path.to_path_buf(), reason })
+}
+
 /// A fresh random token: 32 hex digits from the operating system's generator.
 pub fn new_token() -> String {
     let bytes: [u8; 16] = rand::random();
@@ -252,5 +321,38 @@ mod tests {
         assert_ne!(a, b);
         assert!(parse_token(&a).is_ok());
         assert!(!format!("{:?}", Access { loopback: false, token: Some(a.clone()) }).contains(&a));
+    }
+
+    #[test]
+    fn a_token_file_others_may_read_or_change_is_refused_with_the_fix() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("token");
+        std::fs::write(&path, format!("{T}\n")).unwrap();
+        let shown = path.display().to_string();
+        for (mode, who) in [
+            (0o644, "its group and other users may read it"),
+            (0o640, "its group may read it"),
+            (0o604, "other users may read it"),
+            (0o602, "other users may change it"),
+            (0o666, "its group and other users may read it, and its group and other users may change it"),
+        ] {
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+            let e = read_token_file(&path).unwrap_err();
+            assert_eq!(e, TokenFileError::Exposed { path: path.clone(), mode, who: who.into() });
+            let text = e.to_string();
+            assert!(text.contains(&format!("mode {mode:o}")), "{text}");
+            assert!(text.ends_with(&format!("chmod 600 {shown}")), "{text}");
+        }
+        for mode in [0o600, 0o400, 0o700] {
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+            assert_eq!(read_token_file(&path).unwrap(), T, "{mode:o}");
+        }
+        std::fs::write(&path, "short").unwrap();
+        assert!(matches!(read_token_file(&path), Err(TokenFileError::Token { .. })));
+        let e = read_token_file(&dir.path().join("missing")).unwrap_err();
+        assert!(matches!(e, TokenFileError::Read { .. }), "{e}");
+        let e = read_token_file(Path::new("/dev/zero")).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
     }
 }

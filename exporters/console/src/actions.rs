@@ -51,7 +51,7 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
     };
     let take_name = |key: &str| -> Result<String, String> {
         let name = text(key)?;
-        paths::validate_take_name(&name).map_err(|e| e.to_string())?;
+        paths::validate_take_name(&name).map_err(|e| format!("{key}: {e}"))?;
         Ok(name)
     };
     Ok(match path {
@@ -141,7 +141,8 @@ mod tests {
     fn bad_actions_say_what_is_wrong() {
         for (path, body, want) in [
             ("/api/record/start", json!({}), "needs {\"name\""),
-            ("/api/record/start", json!({"name": "../x"}), "take name"),
+            ("/api/record/start", json!({"name": "../x"}), "name: take name"),
+            ("/api/playback", json!({"take": ".x"}), "take: take name"),
             ("/api/mark", json!({"label": ""}), "1-256 bytes"),
             ("/api/rig", json!({"rig": "/etc/passwd"}), "no embedded rig"),
             ("/api/filter", json!({"spec": "median"}), "filter \"median\""),

@@ -23,6 +23,66 @@ const POLL: Duration = Duration::from_millis(20);
 /// Most samples kept per step (50 Hz for two minutes).
 const MAX_STEP_SAMPLES: usize = 6000;
 
+/// Shortest and longest recording of a step, seconds (`seconds_per_step`).
+pub const SECONDS_PER_STEP: std::ops::RangeInclusive<f64> = 0.2..=120.0;
+
+/// Why a calibration action cannot be done, with its HTTP status.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CalibrateError {
+    /// A value of the request's body is wrong (400).
+    #[error("{0}")]
+    BadRequest(String),
+    /// Not in the session's state: none running, a step being recorded, nothing measured (409).
+    #[error("{0}")]
+    Conflict(String),
+    /// The daemon cannot be reached (502).
+    #[error("the daemon: {0}")]
+    Daemon(String),
+    /// The console itself failed (500).
+    #[error("{0}")]
+    Internal(String),
+}
+
+impl CalibrateError {
+    /// The HTTP status: a bad body is the page's to fix (400), the session's state a conflict
+    /// (409, RFC 9110, section 15.5.10), an unreachable daemon a bad gateway (502).
+    pub fn status(&self) -> u16 {
+        match self {
+            CalibrateError::BadRequest(_) => 400,
+            CalibrateError::Conflict(_) => 409,
+            CalibrateError::Daemon(_) => 502,
+            CalibrateError::Internal(_) => 500,
+        }
+    }
+}
+
+/// The session a `start` body asks for: the user's name and each step's length. Every value is
+/// checked, each problem named by its JSON key.
+fn start_request(body: &Value) -> Result<(String, Duration), CalibrateError> {
+    let bad = |m: String| CalibrateError::BadRequest(m);
+    let user = body
+        .get("user")
+        .and_then(Value::as_str)
+        .ok_or_else(|| bad("calibrate start needs {\"user\": \"...\"}".into()))?;
+    paths::validate_take_name(user)
+        .map_err(|e| bad(format!("user: {}", e.to_string().replace("take name", "user name"))))?;
+    let range = || format!("between {} and {}", SECONDS_PER_STEP.start(), SECONDS_PER_STEP.end());
+    let secs = match body.get("seconds_per_step") {
+        None => 4.0,
+        Some(v) => match v.as_f64() {
+            Some(secs) if SECONDS_PER_STEP.contains(&secs) => secs,
+            Some(secs) => return Err(bad(format!("seconds_per_step must be {}, got {secs}", range()))),
+            None => {
+                return Err(bad(format!(
+                    "seconds_per_step must be a number of seconds {}, got {v}",
+                    range()
+                )));
+            }
+        },
+    };
+    Ok((user.to_string(), Duration::from_secs_f64(secs)))
+}
+
 /// One session.
 #[derive(Debug)]
 struct Session {
@@ -53,19 +113,14 @@ impl Calibrations {
     }
 
     /// Starts a session for `user` (replacing any), polling the daemon in `socket_dir`.
-    pub fn start(self: &Arc<Self>, socket_dir: PathBuf, body: &Value) -> Result<Value, String> {
-        let user =
-            body.get("user").and_then(Value::as_str).ok_or("calibrate start needs {\"user\": \"...\"}")?;
-        paths::validate_take_name(user).map_err(|e| e.to_string().replace("take name", "user name"))?;
-        let secs = body.get("seconds_per_step").and_then(Value::as_f64).unwrap_or(4.0);
-        if !(0.2..=120.0).contains(&secs) {
-            return Err(format!("seconds_per_step must be between 0.2 and 120, got {secs}"));
-        }
-        let mut control = ControlClient::connect(&socket_dir).map_err(|e| e.to_string())?;
+    pub fn start(self: &Arc<Self>, socket_dir: PathBuf, body: &Value) -> Result<Value, CalibrateError> {
+        let (user, step_len) = start_request(body)?;
+        let mut control =
+            ControlClient::connect(&socket_dir).map_err(|e| CalibrateError::Daemon(e.to_string()))?;
         let cancel = Arc::new(AtomicBool::new(false));
         let old = self.lock().replace(Session {
-            user: user.to_string(),
-            step_len: Duration::from_secs_f64(secs),
+            user,
+            step_len,
             recorded: Vec::new(),
             recording: None,
             live: None,
@@ -80,21 +135,22 @@ impl Calibrations {
         std::thread::Builder::new()
             .name("console-calibrate".into())
             .spawn(move || me.poll(&mut control, &cancel))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| CalibrateError::Internal(format!("cannot start polling the daemon: {e}")))?;
         Ok(self.state())
     }
 
     /// Records the next step.
-    pub fn step(&self) -> Result<Value, String> {
+    pub fn step(&self) -> Result<Value, CalibrateError> {
+        let conflict = |m: &str| CalibrateError::Conflict(m.to_string());
         {
             let mut guard = self.lock();
-            let s = guard.as_mut().ok_or("no calibration is running: start one first")?;
+            let s = guard.as_mut().ok_or_else(|| conflict("no calibration is running: start one first"))?;
             if s.recording.is_some() {
-                return Err("a step is being recorded".into());
+                return Err(conflict("a step is being recorded"));
             }
             let next = s.recorded.len();
             if next >= STEPS.len() {
-                return Err("every step is recorded: apply the calibration or start again".into());
+                return Err(conflict("every step is recorded: apply the calibration or start again"));
             }
             s.recorded.push(Vec::new());
             s.recording = Some((next, Instant::now()));
@@ -111,15 +167,19 @@ impl Calibrations {
     }
 
     /// The measured calibration as the request that applies it.
-    pub fn apply_request(&self) -> Result<ControlRequest, String> {
+    pub fn apply_request(&self) -> Result<ControlRequest, CalibrateError> {
         let guard = self.lock();
-        let s = guard.as_ref().ok_or("no calibration is running")?;
+        let s = guard.as_ref().ok_or_else(|| CalibrateError::Conflict("no calibration is running".into()))?;
         match &s.result {
             Some(Ok((toml, _))) => {
                 Ok(ControlRequest::SetCalibration { id: s.user.clone(), toml: toml.clone() })
             }
-            Some(Err(e)) => Err(format!("the calibration failed: {e}")),
-            None => Err(format!("{} of {} steps recorded", s.recorded.len(), STEPS.len())),
+            Some(Err(e)) => Err(CalibrateError::Conflict(format!("the calibration failed: {e}"))),
+            None => Err(CalibrateError::Conflict(format!(
+                "{} of {} steps recorded",
+                s.recorded.len(),
+                STEPS.len()
+            ))),
         }
     }
 
@@ -232,4 +292,46 @@ fn finish(s: &Session) -> Result<(String, Vec<String>), String> {
         m.calibration.to_toml_string()
     );
     Ok((text, m.warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A session that cannot start because of its body is the page's mistake (400), whatever
+    /// the daemon's state; one the daemon's absence stops is a bad gateway (502).
+    #[test]
+    fn a_bad_start_body_is_a_bad_request_naming_its_key() {
+        let c = Arc::new(Calibrations::default());
+        let nowhere = tempfile::tempdir().unwrap();
+        for (body, key) in [
+            (json!({"user": "ann", "seconds_per_step": 0.0}), "seconds_per_step"),
+            (json!({"user": "ann", "seconds_per_step": -3}), "seconds_per_step"),
+            (json!({"user": "ann", "seconds_per_step": 121}), "seconds_per_step"),
+            (json!({"user": "ann", "seconds_per_step": "fast"}), "seconds_per_step"),
+            (json!({"user": "../ann"}), "user"),
+            (json!({"user": 7}), "user"),
+            (json!({}), "user"),
+        ] {
+            let e = c.start(nowhere.path().to_path_buf(), &body).unwrap_err();
+            assert_eq!(e.status(), 400, "{body}: {e}");
+            assert!(e.to_string().contains(key), "{body}: {e}");
+        }
+        let e = c
+            .start(nowhere.path().to_path_buf(), &json!({"user": "ann", "seconds_per_step": 2}))
+            .unwrap_err();
+        assert_eq!(e.status(), 502, "{e}");
+        assert_eq!(
+            start_request(&json!({"user": "ann", "seconds_per_step": 0.2})).unwrap().1,
+            Duration::from_millis(200)
+        );
+        assert_eq!(start_request(&json!({"user": "ann"})).unwrap().1, Duration::from_secs(4));
+    }
+
+    #[test]
+    fn actions_out_of_turn_are_conflicts() {
+        let c = Calibrations::default();
+        assert_eq!(c.step().unwrap_err().status(), 409);
+        assert_eq!(c.apply_request().unwrap_err().status(), 409);
+    }
 }

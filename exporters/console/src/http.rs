@@ -131,19 +131,47 @@ pub fn parse_head(head: &[u8]) -> Result<(Request, usize), HttpError> {
             .map_err(|_| HttpError::Bad(format!("header {} is not UTF-8", h.name)))?;
         out.headers.push((h.name.to_ascii_lowercase(), value.trim().to_string()));
     }
-    if out.header("transfer-encoding").is_some() {
-        return Err(HttpError::Bad("chunked request bodies are not taken; send Content-Length".into()));
-    }
-    let len = match out.header("content-length") {
-        None => 0,
-        Some(v) => {
-            v.parse::<usize>().map_err(|_| HttpError::Bad(format!("Content-Length {v:?} is not a number")))?
-        }
-    };
+    let len = body_length(&out)?;
     if len > MAX_BODY_BYTES {
         return Err(HttpError::TooLarge(format!("the body is {len} bytes; the limit is {MAX_BODY_BYTES}")));
     }
     Ok((out, len))
+}
+
+/// The declared body length: one `Content-Length` of decimal digits (RFC 9110, section 8.6), or
+/// none (no body). A second `Content-Length`, or one beside `Transfer-Encoding`, is refused: two
+/// readers could take different bodies from the same bytes (request smuggling, RFC 9112,
+/// section 6.3), so the server takes neither.
+fn body_length(req: &Request) -> Result<usize, HttpError> {
+    let lengths: Vec<&str> =
+        req.headers.iter().filter(|(n, _)| n == "content-length").map(|(_, v)| v.as_str()).collect();
+    if req.header("transfer-encoding").is_some() {
+        if !lengths.is_empty() {
+            return Err(HttpError::Bad(
+                "the request has both Transfer-Encoding and Content-Length, so its body's length is \
+                 ambiguous; send Content-Length alone"
+                    .into(),
+            ));
+        }
+        return Err(HttpError::Bad("chunked request bodies are not taken; send Content-Length".into()));
+    }
+    let v = match lengths.as_slice() {
+        [] => return Ok(0),
+        [v] => *v,
+        many => {
+            return Err(HttpError::Bad(format!(
+                "the request has {} Content-Length headers ({}); send exactly one",
+                many.len(),
+                many.join(", ")
+            )));
+        }
+    };
+    if v.is_empty() || !v.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(HttpError::Bad(format!("Content-Length {v:?} is not a number of bytes")));
+    }
+    // Only digits: a parse failure is an overflow.
+    v.parse::<usize>()
+        .map_err(|_| HttpError::TooLarge(format!("the body is {v} bytes; the limit is {MAX_BODY_BYTES}")))
 }
 
 /// Reads one request from `stream` (its timeouts bound the wait).
@@ -189,7 +217,8 @@ pub fn reason(status: u16) -> &'static str {
         404 => "Not Found",
         405 => "Method Not Allowed",
         409 => "Conflict",
-        413 => "Payload Too Large",
+        413 => "Content Too Large",
+        426 => "Upgrade Required",
         502 => "Bad Gateway",
         503 => "Service Unavailable",
         _ => "Error",
@@ -233,37 +262,128 @@ impl Response {
 
     /// Writes the response and ends the exchange.
     pub fn write_to(&self, w: &mut impl Write) -> io::Result<()> {
+        w.write_all(self.head().as_bytes())?;
+        w.write_all(&self.body)?;
+        w.flush()
+    }
+
+    /// Writes the response as the answer to a `method` request: without its body for `HEAD`,
+    /// whose answer is GET's head alone, `Content-Length` included (RFC 9110, section 9.3.2).
+    pub fn write_for(&self, method: &str, w: &mut impl Write) -> io::Result<()> {
+        if method == "HEAD" {
+            w.write_all(self.head().as_bytes())?;
+            w.flush()
+        } else {
+            self.write_to(w)
+        }
+    }
+
+    /// The status line and headers through the blank line. `Connection: close` and
+    /// `Cache-Control: no-store` unless the response sets its own.
+    fn head(&self) -> String {
         let mut head = format!(
-            "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\nConnection: close\r\n\
+            "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\n\
              X-Content-Type-Options: nosniff\r\n",
             self.status,
             reason(self.status),
             self.content_type,
             self.body.len()
         );
-        if !self.headers.iter().any(|(n, _)| n.eq_ignore_ascii_case("cache-control")) {
-            head.push_str("Cache-Control: no-store\r\n");
+        for (name, default) in [("Connection", "close"), ("Cache-Control", "no-store")] {
+            if !self.headers.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
+                head.push_str(&format!("{name}: {default}\r\n"));
+            }
         }
         for (n, v) in &self.headers {
             head.push_str(&format!("{n}: {v}\r\n"));
         }
         head.push_str("\r\n");
-        w.write_all(head.as_bytes())?;
-        w.write_all(&self.body)?;
-        w.flush()
+        head
     }
 }
 
-/// Answers a WebSocket upgrade with 101 (the `Sec-WebSocket-Key` must be there).
-pub fn accept_websocket(req: &Request, w: &mut impl Write) -> Result<(), HttpError> {
-    let key = req.header("sec-websocket-key").ok_or_else(|| HttpError::Bad("no Sec-WebSocket-Key".into()))?;
+/// The WebSocket version this server speaks (RFC 6455).
+pub const WEBSOCKET_VERSION: &str = "13";
+
+/// Why a WebSocket upgrade is refused (RFC 6455, section 4.2.1): the page's opening handshake
+/// is not one this server can complete.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum HandshakeError {
+    /// The upgrade is not a `GET`.
+    #[error("a WebSocket upgrade is a GET request, not {0}")]
+    NotGet(String),
+    /// No `Sec-WebSocket-Version`.
+    #[error("the WebSocket upgrade has no Sec-WebSocket-Version; this server speaks version 13")]
+    NoVersion,
+    /// A version other than 13.
+    #[error("Sec-WebSocket-Version {0:?} is not spoken here; this server speaks version 13 (RFC 6455)")]
+    Version(String),
+    /// No `Sec-WebSocket-Key`.
+    #[error("the WebSocket upgrade has no Sec-WebSocket-Key")]
+    NoKey,
+    /// A key that is not 16 bytes in base64.
+    #[error("Sec-WebSocket-Key {0:?} is not the base64 of 16 bytes (RFC 6455, section 4.1)")]
+    BadKey(String),
+}
+
+impl HandshakeError {
+    /// The answer: 426 Upgrade Required naming the version spoken for another version
+    /// (RFC 6455, section 4.2.2; RFC 9110, section 15.5.22), 400 for the rest.
+    pub fn response(&self) -> Response {
+        match self {
+            HandshakeError::Version(_) => Response::error(426, self.to_string())
+                .with("Sec-WebSocket-Version", WEBSOCKET_VERSION)
+                .with("Upgrade", "websocket")
+                .with("Connection", "Upgrade, close"),
+            _ => Response::error(400, self.to_string()),
+        }
+    }
+}
+
+/// Whether `key` is the base64 (RFC 4648, section 4, padded) of exactly 16 bytes: 22 characters
+/// of the alphabet and `==`. The two spare bits of the last character are not checked.
+fn is_websocket_key(key: &str) -> bool {
+    let b = key.as_bytes();
+    b.len() == 24
+        && b[..22].iter().all(|c| c.is_ascii_alphanumeric() || *c == b'+' || *c == b'/')
+        && &b[22..] == b"=="
+}
+
+/// Checks a WebSocket upgrade's opening handshake (RFC 6455, section 4.2.1): a `GET`, version
+/// 13, and a key of 16 bytes in base64; the key when it is right. (`Upgrade` and `Connection`
+/// are [`Request::is_websocket`]'s, `Host` the access check's.)
+pub fn check_websocket(req: &Request) -> Result<&str, HandshakeError> {
+    if req.method != "GET" {
+        return Err(HandshakeError::NotGet(req.method.clone()));
+    }
+    match req.header("sec-websocket-version") {
+        None => return Err(HandshakeError::NoVersion),
+        Some(v) if v != WEBSOCKET_VERSION => return Err(HandshakeError::Version(v.to_string())),
+        Some(_) => {}
+    }
+    let key = req.header("sec-websocket-key").ok_or(HandshakeError::NoKey)?;
+    if !is_websocket_key(key) {
+        return Err(HandshakeError::BadKey(key.to_string()));
+    }
+    Ok(key)
+}
+
+/// Answers a WebSocket upgrade with 101; one that [`check_websocket`] refuses with its answer.
+pub fn accept_websocket(req: &Request, w: &mut impl Write) -> io::Result<bool> {
+    let key = match check_websocket(req) {
+        Ok(key) => key,
+        Err(e) => {
+            e.response().write_to(w)?;
+            return Ok(false);
+        }
+    };
     let accept = tungstenite::handshake::derive_accept_key(key.as_bytes());
     write!(
         w,
         "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
     )?;
     w.flush()?;
-    Ok(())
+    Ok(true)
 }
 
 #[cfg(test)]
@@ -313,10 +433,109 @@ mod tests {
             parse_head(b"GET /ws HTTP/1.1\r\nUpgrade: websocket\r\nConnection: keep-alive, Upgrade\r\n\r\n")
                 .unwrap();
         r.headers.push(("sec-websocket-key".into(), "dGhlIHNhbXBsZSBub25jZQ==".into()));
+        r.headers.push(("sec-websocket-version".into(), "13".into()));
         assert!(r.is_websocket());
         let mut out = Vec::new();
-        accept_websocket(&r, &mut out).unwrap();
+        assert!(accept_websocket(&r, &mut out).unwrap());
         let text = String::from_utf8(out).unwrap();
         assert!(text.contains("Sec-WebSocket-Accept: s3pPLMBiTxaQ9kYGzzhZRbK+xOo=\r\n"), "{text}");
+    }
+
+    /// The status and text of `head`'s refusal.
+    fn refusal(head: &str) -> (Option<u16>, String) {
+        let e = parse_head(head.as_bytes()).unwrap_err();
+        (e.status(), e.to_string())
+    }
+
+    #[test]
+    fn a_body_length_must_be_said_once_and_alone() {
+        // RFC 9110, section 8.6 and RFC 9112, section 6.3: differing Content-Lengths (and any
+        // Content-Length beside Transfer-Encoding) are an unrecoverable framing error, 400.
+        let (status, text) =
+            refusal("POST /api/mark HTTP/1.1\r\nContent-Length: 2\r\nContent-Length: 10\r\n\r\n");
+        assert_eq!(status, Some(400), "{text}");
+        assert!(text.contains("2 Content-Length headers (2, 10)"), "{text}");
+        // Identical duplicates too: taking one of them would be taking a side.
+        let (status, text) = refusal("POST / HTTP/1.1\r\nContent-Length: 5\r\ncontent-length: 5\r\n\r\n");
+        assert_eq!(status, Some(400), "{text}");
+        let (status, text) =
+            refusal("POST / HTTP/1.1\r\nContent-Length: 5\r\nTransfer-Encoding: chunked\r\n\r\n");
+        assert_eq!(status, Some(400), "{text}");
+        assert!(text.contains("both Transfer-Encoding and Content-Length"), "{text}");
+        // Content-Length = 1*DIGIT: no sign, no list, no blank.
+        for bad in ["+5", "5, 5", "", " 0x5"] {
+            let (status, text) = refusal(&format!("POST / HTTP/1.1\r\nContent-Length: {bad}\r\n\r\n"));
+            assert_eq!(status, Some(400), "{bad:?}: {text}");
+            assert!(text.contains("Content-Length"), "{text}");
+        }
+        let (status, _) = refusal("POST / HTTP/1.1\r\nContent-Length: 99999999999999999999999\r\n\r\n");
+        assert_eq!(status, Some(413));
+        assert_eq!(parse_head(b"POST / HTTP/1.1\r\nContent-Length: 0010\r\n\r\n").unwrap().1, 10);
+    }
+
+    #[test]
+    fn a_head_answer_is_gets_head_without_the_body() {
+        let r = Response::new(200, "text/plain", "hello").with("X-A", "b");
+        let (mut get, mut head) = (Vec::new(), Vec::new());
+        r.write_for("GET", &mut get).unwrap();
+        r.write_for("HEAD", &mut head).unwrap();
+        let get = String::from_utf8(get).unwrap();
+        let head = String::from_utf8(head).unwrap();
+        assert!(get.ends_with("\r\n\r\nhello"), "{get}");
+        assert_eq!(head, get.strip_suffix("hello").unwrap());
+        assert!(head.contains("Content-Length: 5\r\n") && head.ends_with("\r\n\r\n"), "{head}");
+    }
+
+    fn upgrade(method: &str, version: Option<&str>, key: Option<&str>) -> Request {
+        let mut text = format!(
+            "{method} /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        );
+        if let Some(v) = version {
+            text.push_str(&format!("Sec-WebSocket-Version: {v}\r\n"));
+        }
+        if let Some(k) = key {
+            text.push_str(&format!("Sec-WebSocket-Key: {k}\r\n"));
+        }
+        text.push_str("\r\n");
+        parse_head(text.as_bytes()).unwrap().0
+    }
+
+    #[test]
+    fn websocket_handshakes_are_checked_as_rfc_6455_says() {
+        const KEY: &str = "dGhlIHNhbXBsZSBub25jZQ=="; // "the sample nonce", 16 bytes
+        assert_eq!(check_websocket(&upgrade("GET", Some("13"), Some(KEY))), Ok(KEY));
+        // Section 4.2.2: another version gets 426 with the versions spoken.
+        let e = check_websocket(&upgrade("GET", Some("99"), Some(KEY))).unwrap_err();
+        let mut out = Vec::new();
+        assert!(!accept_websocket(&upgrade("GET", Some("99"), Some(KEY)), &mut out).unwrap());
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.starts_with("HTTP/1.1 426 Upgrade Required\r\n"), "{text}");
+        assert!(text.contains("\r\nSec-WebSocket-Version: 13\r\n"), "{text}");
+        assert!(text.contains("\r\nUpgrade: websocket\r\n"), "{text}");
+        assert!(!text.contains("Sec-WebSocket-Accept"), "{text}");
+        assert_eq!(e.response().status, 426);
+        assert!(e.to_string().contains("\"99\""), "{e}");
+        // Section 4.1: the key is 16 random bytes in base64, so 24 characters ending "==".
+        for bad in [
+            "x",
+            "AAAAAAAAAAAAAAAAAAAA",         // 15 bytes
+            "AAAAAAAAAAAAAAAAAAAAAAA=",     // 17 bytes
+            "AAAAAAAAAAAAAAAAAAAAAAAAAAAA", // 21 bytes
+            "dGhlIHNhbXBsZSBub25jZQ=!",
+            "dGhlIHNhbXBsZSBub25jZ*==",
+        ] {
+            let e = check_websocket(&upgrade("GET", Some("13"), Some(bad))).unwrap_err();
+            assert_eq!(e, HandshakeError::BadKey(bad.into()));
+            assert_eq!(e.response().status, 400, "{bad}");
+        }
+        for (req, want) in [
+            (upgrade("GET", None, Some(KEY)), HandshakeError::NoVersion),
+            (upgrade("GET", Some("13"), None), HandshakeError::NoKey),
+            (upgrade("POST", Some("13"), Some(KEY)), HandshakeError::NotGet("POST".into())),
+        ] {
+            let e = check_websocket(&req).unwrap_err();
+            assert_eq!(e, want);
+            assert_eq!(e.response().status, 400, "{e}");
+        }
     }
 }

@@ -3,10 +3,12 @@
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use clap::{CommandFactory, Parser};
 use frond_console::access::{self, Access};
+use frond_console::scene::{self, RigScene};
 use frond_console::server::{Config, Console};
 
 /// The operator's console: the plant live in 3D, the stage's health, takes and controls, in the
@@ -17,7 +19,8 @@ struct Args {
     /// Address to listen on. Anything but a loopback address needs a token for every request.
     #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8790")]
     listen: SocketAddr,
-    /// File holding the token (16-256 printable ASCII bytes) instead of a fresh random one.
+    /// File holding the token (16-256 printable ASCII bytes) instead of a fresh random one; only
+    /// its owner may read it (chmod 600).
     #[arg(long, value_name = "FILE")]
     token_file: Option<PathBuf>,
     /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
@@ -41,18 +44,38 @@ struct Args {
     docs: frond_binmain::DocsArgs,
 }
 
+/// What the arguments ask, checked: the token file's token and the `--rig` scene.
+struct Checked {
+    token_from_file: Option<String>,
+    rig: Option<Arc<RigScene>>,
+}
+
+/// Checks the arguments that name files before anything starts, every problem at once (a usage
+/// error, exit 2): a console that started would answer 503 for its whole life for a rig it
+/// cannot show, and an exposed token file is refused as `frond-zenoh` refuses its key file.
+fn check(args: &Args) -> anyhow::Result<Checked> {
+    let mut problems = Vec::new();
+    let token_from_file = args.token_file.as_deref().and_then(|path| {
+        access::read_token_file(path).map_err(|e| problems.push(format!("--token-file {e}"))).ok()
+    });
+    let rig = args.rig.as_deref().and_then(|name| {
+        scene::load(name)
+            .map(Arc::new)
+            .map_err(|e| problems.push(format!("--rig {name}: {}", e.reason())))
+            .ok()
+    });
+    if !problems.is_empty() {
+        return Err(frond_binmain::invalid_arguments(&problems));
+    }
+    Ok(Checked { token_from_file, rig })
+}
+
 fn run(args: Args) -> anyhow::Result<()> {
+    let checked = check(&args)?;
     // On a loopback address the console needs no token.
     let loopback = args.listen.ip().is_loopback();
-    let token = match &args.token_file {
-        Some(path) => {
-            let text = frond_motion::rig_files::read_small_text(path, 4096)
-                .map_err(|e| anyhow::anyhow!("--token-file {}: {}", path.display(), e.reason()))?;
-            Some(
-                access::parse_token(&text)
-                    .map_err(|e| anyhow::anyhow!("--token-file {}: {e}", path.display()))?,
-            )
-        }
+    let token = match checked.token_from_file {
+        Some(t) => Some(t),
         None if loopback => None,
         None => Some(access::new_token()),
     };
@@ -63,7 +86,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         socket_dir: socket_dir.clone(),
         takes_dir: frond_protocol::paths::takes_dir(args.takes_dir.clone()),
         access: Access { loopback, token: token.clone() },
-        rig: args.rig.clone(),
+        rig: checked.rig,
         display_hz: args.display_hz,
         warp: !args.no_warp,
     })?;

@@ -25,6 +25,45 @@ pub struct RigScene {
     pub map: Value,
 }
 
+/// A rig the console cannot show: the name or file given, and why.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// Not an embedded rig's name, or a file that cannot be read or is not a valid rig.
+    #[error("rig {name:?}: {reason}")]
+    Load {
+        /// The rig's name or file, as given.
+        name: String,
+        /// What is wrong.
+        reason: frond_gltf::BakeError,
+    },
+    /// A rig that frond-gltf cannot bake (its mesh, say).
+    #[error("baking rig {name:?}: {reason}")]
+    Bake {
+        /// The rig's name or file, as given.
+        name: String,
+        /// What is wrong.
+        reason: frond_gltf::BakeError,
+    },
+}
+
+impl SceneError {
+    /// What is wrong, without the rig's name (for a message that names it already).
+    pub fn reason(&self) -> String {
+        match self {
+            SceneError::Load { reason, .. } => reason.to_string(),
+            SceneError::Bake { reason, .. } => format!("baking it: {reason}"),
+        }
+    }
+}
+
+/// The scene of rig `name` (an embedded rig's name or a rig file, as `frond-gltf --rig` takes
+/// it), loaded and baked at rest.
+pub fn load(name: &str) -> Result<RigScene, SceneError> {
+    let rig =
+        LoadedRig::resolve(name).map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
+    bake(&rig).map_err(|reason| SceneError::Bake { name: name.to_string(), reason })
+}
+
 /// Bakes `rig` at rest.
 pub fn bake(rig: &LoadedRig) -> Result<RigScene, frond_gltf::BakeError> {
     let model = rig.model()?;
@@ -105,5 +144,19 @@ mod tests {
         let els = scene.map["elements"].as_array().unwrap();
         assert!(!els.is_empty(), "the flower has secondary elements: {}", scene.map);
         assert!(els.iter().any(|e| !e["instances"].as_array().unwrap().is_empty()), "{}", scene.map);
+    }
+
+    #[test]
+    fn rigs_that_cannot_be_shown_say_which_and_why() {
+        assert_eq!(load("grass").unwrap().rig, "grass");
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("bad.toml");
+        std::fs::write(&bad, "name = [").unwrap();
+        let missing = dir.path().join("missing.toml");
+        for name in ["/dev/zero", "no-such-rig", bad.to_str().unwrap(), missing.to_str().unwrap()] {
+            let e = load(name).unwrap_err();
+            assert!(matches!(e, SceneError::Load { .. }), "{name}: {e}");
+            assert!(e.to_string().starts_with(&format!("rig {name:?}: ")), "{e}");
+        }
     }
 }

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use frond_gltf::{BakeOptions, Baker, LoadedRig, TakeInput};
+use frond_gltf::{BakeError, BakeOptions, Baker, LoadedRig, TakeInput};
 use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::jsonl::write_pose_line;
 use frond_motion::{TakeScan, resample, resample_plan, scan_take};
@@ -118,10 +118,62 @@ pub fn playback(dir: &Path, name: &str) -> Result<Value, TakeError> {
 /// field`'s default).
 pub const FIELD_FPS: f64 = 30.0;
 
-/// A field of take `name` for the page's "Field" button (seed 000, section 6.2): a `rows x cols`
+/// Most rows, and most columns, of a field started from the page.
+pub const MAX_FIELD_SIDE: u64 = 16;
+/// Most plants of a field started from the page.
+pub const MAX_FIELD_PLANTS: u64 = 64;
+/// Largest cell of a field started from the page, metres (a 16-cell row is then 1.6 km long;
+/// the force crosses it in 18 minutes at 1.5 m/s, within the field's delay limit).
+pub const MAX_FIELD_CELL_M: f64 = 100.0;
+
+/// What the page's "Field" button asks: `{"take", "rows"?, "cols"?, "plants"?, "cell_m"?}`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldRequest {
+    /// The take the plants play.
+    pub take: String,
+    /// Rows of the grid (default 4).
+    pub rows: usize,
+    /// Columns of the grid (default 4).
+    pub cols: usize,
+    /// Plants the daemon plays (default 16, at most one a cell).
+    pub plants: u16,
+    /// Side of a cell, metres (default 0.3).
+    pub cell_m: f64,
+}
+
+impl FieldRequest {
+    /// The request in a JSON body, every value checked here and named by its JSON key (the
+    /// field's own checks name `frond take field`'s options, which mean nothing to the page).
+    pub fn from_json(body: &Value) -> Result<FieldRequest, TakeError> {
+        let bad = |m: String| err(400, m);
+        let Some(take) = body.get("take").and_then(Value::as_str) else {
+            return Err(bad("field start needs {\"take\": \"...\"}".into()));
+        };
+        let int = |key: &str, default: u64, max: u64| match body.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .as_u64()
+                .filter(|n| (1..=max).contains(n))
+                .ok_or_else(|| bad(format!("{key} must be an integer 1..={max}, got {v}"))),
+        };
+        let rows = int("rows", 4, MAX_FIELD_SIDE)? as usize;
+        let cols = int("cols", 4, MAX_FIELD_SIDE)? as usize;
+        let plants = int("plants", 16, MAX_FIELD_PLANTS)? as u16;
+        let cell_m = match body.get("cell_m") {
+            None => 0.3,
+            Some(v) => v.as_f64().filter(|m| *m > 0.0 && *m <= MAX_FIELD_CELL_M).ok_or_else(|| {
+                bad(format!("cell_m must be a number of metres > 0 and <= {MAX_FIELD_CELL_M}, got {v}"))
+            })?,
+        };
+        Ok(FieldRequest { take: take.to_string(), rows, cols, plants, cell_m })
+    }
+}
+
+/// The field `ask` names for the page's "Field" button (seed 000, section 6.2): a `rows x cols`
 /// grid of `cell_m` cells, the force along +X at 1.5 m/s, every cell planted; as
 /// `frond take field NAME --rows R --cols C --cell M --speed 1.5` writes it.
-pub fn field(dir: &Path, name: &str, rows: usize, cols: usize, cell_m: f64) -> Result<Field, TakeError> {
+pub fn field(dir: &Path, ask: &FieldRequest) -> Result<Field, TakeError> {
+    let name = ask.take.as_str();
     let (scan, _) = read(dir, name)?;
     let poses = scan.poses();
     if poses.is_empty() {
@@ -129,8 +181,15 @@ pub fn field(dir: &Path, name: &str, rows: usize, cols: usize, cell_m: f64) -> R
     }
     let plan = resample_plan(&poses, FIELD_FPS);
     plan.check(FIELD_FPS, MAX_PLAY_FRAMES).map_err(|e| err(413, format!("take {name:?}: {e}")))?;
-    let params =
-        FieldParams { rows, cols, cell_m, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 1 };
+    let params = FieldParams {
+        rows: ask.rows,
+        cols: ask.cols,
+        cell_m: ask.cell_m,
+        speed_m_s: 1.5,
+        direction_deg: 0.0,
+        density: 1.0,
+        seed: 1,
+    };
     make_field(&params, name, plan.frames as usize, FIELD_FPS).map_err(|e| err(400, e.to_string()))
 }
 
@@ -189,10 +248,42 @@ pub fn glb(dir: &Path, name: &str, fallback_rig: Option<&str>) -> Result<Vec<u8>
     let model = rig.model().map_err(|e| err(500, e.to_string()))?;
     let baked = Baker::new()
         .bake_take(&rig, &model, &take, &BakeOptions::default(), &mut |_, _| {})
-        .map_err(|e| err(500, e.to_string()))?;
+        .map_err(|e| match e {
+            BakeError::TooManyKeys { keys, fps, limit, .. } => too_long_to_bake(name, keys, fps, limit),
+            e => err(500, e.to_string()),
+        })?;
     let mut out = Vec::new();
     frond_gltf::encode_glb(&baked, &mut out).map_err(|e| err(500, e.to_string()))?;
     Ok(out)
+}
+
+/// The answer for a take longer than frond-gltf bakes (`keys` keys at `fps`, past `limit`):
+/// the page's user's mistake, not the server's (413, as a playback too long for the page), in
+/// times rather than keys, with what the page offers instead.
+fn too_long_to_bake(name: &str, keys: u64, fps: f64, limit: u64) -> TakeError {
+    // Key k is at k / fps, so n keys span (n - 1) / fps.
+    let span = |keys: u64| keys.saturating_sub(1) as f64 / fps;
+    err(
+        413,
+        format!(
+            "take {name:?} is {} long; a GLB download holds at most {} ({limit} keys at {fps} FPS): \
+             download its JSONL instead",
+            human_duration(span(keys)),
+            human_duration(span(limit)),
+        ),
+    )
+}
+
+/// `s` seconds as hours, minutes and seconds (`10 h 1 min 39 s`, `10 h`, `0 s`), to the second.
+fn human_duration(s: f64) -> String {
+    let total = s.max(0.0).round() as u64;
+    let (h, min, sec) = (total / 3600, total / 60 % 60, total % 60);
+    let parts: Vec<String> = [(h, "h"), (min, "min"), (sec, "s")]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, unit)| format!("{n} {unit}"))
+        .collect();
+    if parts.is_empty() { "0 s".into() } else { parts.join(" ") }
 }
 
 #[cfg(test)]
@@ -216,5 +307,33 @@ mod tests {
         let v = list(Path::new("/nonexistent/frond-takes"));
         assert_eq!(v["takes"], json!([]));
         assert!(v["error"].as_str().unwrap().contains("cannot list"), "{v}");
+    }
+
+    #[test]
+    fn durations_read_as_hours_minutes_and_seconds() {
+        assert_eq!(human_duration(36099.0), "10 h 1 min 39 s");
+        assert_eq!(human_duration(35999.97), "10 h");
+        assert_eq!(human_duration(61.4), "1 min 1 s");
+        assert_eq!(human_duration(0.2), "0 s");
+    }
+
+    #[test]
+    fn field_requests_name_their_json_keys() {
+        let ok = FieldRequest::from_json(&json!({"take": "t"})).unwrap();
+        assert_eq!(ok, FieldRequest { take: "t".into(), rows: 4, cols: 4, plants: 16, cell_m: 0.3 });
+        for (body, key) in [
+            (json!({"take": "t", "cell_m": -1}), "cell_m"),
+            (json!({"take": "t", "cell_m": 0}), "cell_m"),
+            (json!({"take": "t", "cell_m": 1000}), "cell_m"),
+            (json!({"take": "t", "cell_m": "wide"}), "cell_m"),
+            (json!({"take": "t", "rows": 0}), "rows"),
+            (json!({"take": "t", "cols": 17}), "cols"),
+            (json!({"take": "t", "plants": 1.5}), "plants"),
+            (json!({"rows": 2}), "take"),
+        ] {
+            let e = FieldRequest::from_json(&body).unwrap_err();
+            assert_eq!(e.status, 400, "{body}");
+            assert!(e.message.contains(key) && !e.message.contains("--"), "{body}: {}", e.message);
+        }
     }
 }

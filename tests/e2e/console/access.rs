@@ -15,6 +15,8 @@ fn beyond_loopback_every_request_needs_the_token_and_control_needs_the_origin() 
     let token = "tok-0123456789abcdef";
     std::fs::write(dir.path().join("token"), format!("{token}\n")).unwrap();
     let token_file = dir.path().join("token");
+    // A secret: frond-console refuses a token file its group or other users may read.
+    std::fs::set_permissions(&token_file, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
     let (_console, url, line) =
         start_console(&daemon, &["--listen", "0.0.0.0:0", "--token-file", token_file.to_str().unwrap()]);
     assert!(

@@ -20,6 +20,9 @@
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
 //!   element table or the connection changes, and `{"type":"poses","poses":[...]}` at most at the
 //!   display rate with each element's latest pose that the page does not have yet.
+//!
+//! The actions take `POST` alone, the rest `GET` and `HEAD` (the head of GET's answer); another
+//! method is answered 405 with `Allow` naming the path's methods, a path not served 404.
 
 use std::collections::HashMap;
 use std::io;
@@ -29,7 +32,6 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use frond_gltf::LoadedRig;
 use frond_protocol::{ControlReply, ControlRequest, StageSpec};
 use frond_sdk::{ControlClient, Hello};
 use serde_json::{Value, json};
@@ -63,8 +65,9 @@ pub struct Config {
     pub takes_dir: PathBuf,
     /// Who may use the console.
     pub access: Access,
-    /// A rig to show instead of the daemon's (name or file), `--rig`.
-    pub rig: Option<String>,
+    /// A rig to show instead of the daemon's (`--rig`), loaded and baked before the console
+    /// starts ([`scene::load`]), so that a rig it cannot show is refused at once.
+    pub rig: Option<Arc<RigScene>>,
     /// Pose messages per second to each page.
     pub display_hz: u32,
     /// Run the seed-001 warp preview panel (`--no-warp` turns it off).
@@ -182,7 +185,8 @@ impl Console {
         };
         if let Err(refusal) = self.config.access.check(&meta, purpose) {
             self.counters.refused.fetch_add(1, Ordering::Relaxed);
-            let _ = Response::error(refusal.status(), refusal.to_string()).write_to(&mut stream);
+            let _ =
+                Response::error(refusal.status(), refusal.to_string()).write_for(&req.method, &mut stream);
             return;
         }
         if purpose == Purpose::Socket {
@@ -190,13 +194,29 @@ impl Console {
             return;
         }
         let resp = self.route(&req);
-        let _ = resp.write_to(&mut stream);
+        let _ = resp.write_for(&req.method, &mut stream);
     }
 
+    /// The answer to `req`: 404 for a path that is not served, 405 with the methods it takes
+    /// (`Allow`, RFC 9110, section 15.5.6) for another method, else the endpoint's.
     fn route(&self, req: &Request) -> Response {
-        let get = req.method == "GET" || req.method == "HEAD";
-        match (get, req.path.as_str()) {
-            (true, "/") => {
+        let Some(allow) = methods(&req.path) else {
+            return Response::error(404, format!("no {} here", req.path));
+        };
+        if !allow.split(", ").any(|m| m == req.method) {
+            return Response::error(
+                405,
+                format!("{} {} is not served; it takes {allow}", req.method, req.path),
+            )
+            .with("Allow", allow);
+        }
+        if allow == POST { self.post(req) } else { self.get(req) }
+    }
+
+    /// A `GET` (or `HEAD`) of a path [`methods`] lists.
+    fn get(&self, req: &Request) -> Response {
+        match req.path.as_str() {
+            "/" => {
                 let mut r = Response::new(200, "text/html; charset=utf-8", INDEX_HTML);
                 if let Some(t) = req.param("token") {
                     // The check passed, so this is the token: keep it for the page's requests.
@@ -205,36 +225,48 @@ impl Console {
                 }
                 r
             }
-            (true, "/console.js") => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
-            (true, "/console.css") => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
-            (true, "/api/hello") => Response::json(200, &self.hello_json()),
-            (true, "/api/status") => self.status(),
-            (true, "/api/scene") => match self.scene() {
+            "/console.js" => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
+            "/console.css" => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
+            "/api/hello" => Response::json(200, &self.hello_json()),
+            "/api/status" => self.status(),
+            "/api/scene" => match self.scene() {
                 Ok(s) => Response::json(200, &s.map),
                 Err(e) => Response::error(503, e),
             },
-            (true, "/rig.glb") => match self.scene() {
+            "/rig.glb" => match self.scene() {
                 Ok(s) => Response::new(200, "model/gltf-binary", s.glb.clone()),
                 Err(e) => Response::error(503, e),
             },
-            (true, "/api/rigs") => Response::json(
+            "/api/rigs" => Response::json(
                 200,
                 &json!(frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
             ),
-            (true, "/api/calibrate") => Response::json(200, &self.calibrations.state()),
-            (true, "/api/field") => Response::json(
+            "/api/calibrate" => Response::json(200, &self.calibrations.state()),
+            "/api/field" => Response::json(
                 200,
                 self.field.lock().unwrap_or_else(|e| e.into_inner()).as_ref().unwrap_or(&Value::Null),
             ),
-            (true, "/api/takes") => Response::json(200, &takes::list(&self.config.takes_dir)),
-            (true, p) if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
-            (true, p) => match VENDOR.iter().find(|(path, _)| *path == p) {
+            "/api/takes" => Response::json(200, &takes::list(&self.config.takes_dir)),
+            // A WebSocket's path without the upgrade (RFC 9110, section 15.5.22).
+            "/ws" | "/ws/warp" => {
+                Response::error(426, format!("{} is a WebSocket: open it with an upgrade", req.path))
+                    .with("Upgrade", "websocket")
+                    .with("Connection", "Upgrade, close")
+            }
+            p if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
+            p => match VENDOR.iter().find(|(path, _)| *path == p) {
                 Some((_, body)) => Response::new(200, "text/javascript; charset=utf-8", *body)
                     .with("Cache-Control", "max-age=3600"),
                 None => Response::error(404, format!("no {p} here")),
             },
-            (false, "/api/field/start") if req.method == "POST" => self.field_start(req),
-            (false, "/api/takes/repair") if req.method == "POST" => {
+        }
+    }
+
+    /// A `POST` to a path [`methods`] lists.
+    fn post(&self, req: &Request) -> Response {
+        match req.path.as_str() {
+            "/api/field/start" => self.field_start(req),
+            "/api/takes/repair" => {
                 match json_body(req).map(|b| b.get("take").and_then(Value::as_str).map(str::to_string)) {
                     Ok(Some(take)) => match takes::repair(&self.config.takes_dir, &take) {
                         Ok(v) => Response::json(200, &v),
@@ -244,11 +276,8 @@ impl Console {
                     Err(r) => r,
                 }
             }
-            (false, p) if req.method == "POST" && p.starts_with("/api/calibrate/") => self.calibrate(req),
-            (false, p) if req.method == "POST" && actions::PATHS.contains(&p) => self.control(req),
-            (false, p) => {
-                Response::error(405, format!("{} {p} is not served", req.method)).with("Allow", "GET")
-            }
+            p if CALIBRATE_PATHS.contains(&p) => self.calibrate(req),
+            _ => self.control(req),
         }
     }
 
@@ -275,10 +304,10 @@ impl Console {
         }
     }
 
-    /// The rig to show: `--rig`, else the daemon's.
+    /// The rig to show: `--rig`, else the daemon's (loaded once per name).
     fn scene(&self) -> Result<Arc<RigScene>, String> {
         let name = match (&self.config.rig, &self.live.lock().hello) {
-            (Some(r), _) => r.clone(),
+            (Some(scene), _) => return Ok(Arc::clone(scene)),
             (None, Some(h)) => h.rig_name.clone(),
             (None, None) => return Err("the daemon is not connected yet: its rig is not known".into()),
         };
@@ -286,9 +315,14 @@ impl Console {
         cache
             .entry(name.clone())
             .or_insert_with(|| {
-                let rig = LoadedRig::resolve(&name)
-                    .map_err(|e| format!("rig {name:?}: {e} (pass --rig NAME|FILE)"))?;
-                scene::bake(&rig).map(Arc::new).map_err(|e| format!("baking rig {name:?}: {e}"))
+                scene::load(&name).map(Arc::new).map_err(|e| match e {
+                    // The daemon's rig is a file this console cannot read: the operator can
+                    // give the console a copy.
+                    scene::SceneError::Load { .. } => {
+                        format!("{e} (start frond-console with --rig NAME|FILE)")
+                    }
+                    scene::SceneError::Bake { .. } => e.to_string(),
+                })
             })
             .clone()
     }
@@ -355,23 +389,16 @@ impl Console {
             Ok(b) => b,
             Err(r) => return r,
         };
-        let Some(take) = body.get("take").and_then(Value::as_str) else {
-            return Response::error(400, "field start needs {\"take\": \"...\"}");
+        let ask = match takes::FieldRequest::from_json(&body) {
+            Ok(a) => a,
+            Err(e) => return Response::error(e.status, e.message),
         };
-        let int = |k: &str, default: u64, max: u64| match body.get(k) {
-            None => Ok(default),
-            Some(v) => v.as_u64().filter(|n| (1..=max).contains(n)).ok_or(format!("{k} must be 1..={max}")),
-        };
-        let (rows, cols, plants) = match (int("rows", 4, 16), int("cols", 4, 16), int("plants", 16, 64)) {
-            (Ok(r), Ok(c), Ok(p)) => (r as usize, c as usize, p as u16),
-            (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return Response::error(400, e),
-        };
-        let cell_m = body.get("cell_m").and_then(Value::as_f64).unwrap_or(0.3);
-        let field = match takes::field(&self.config.takes_dir, take, rows, cols, cell_m) {
+        let field = match takes::field(&self.config.takes_dir, &ask) {
             Ok(f) => f,
             Err(e) => return Response::error(e.status, e.message),
         };
-        let plants = plants.min(field.plants.len() as u16);
+        let take = ask.take.as_str();
+        let plants = ask.plants.min(field.plants.len() as u16);
         let layout = json!({
             "take": take,
             "positions_m": field.plants.iter().take(usize::from(plants)).map(|p| p.position_m).collect::<Vec<_>>(),
@@ -407,7 +434,7 @@ impl Console {
         };
         match done {
             Ok(state) => Response::json(200, &state),
-            Err(e) => Response::error(409, e),
+            Err(e) => Response::error(e.status(), e.to_string()),
         }
     }
 
@@ -435,6 +462,30 @@ impl Console {
             Err(e @ frond_sdk::ControlClientError::Refused { .. }) => Response::error(409, e.to_string()),
             Err(e) => Response::error(502, e.to_string()),
         }
+    }
+}
+
+/// `Allow` of the paths that take `POST` alone.
+const POST: &str = "POST";
+/// `Allow` of the paths that are read.
+const GET_HEAD: &str = "GET, HEAD";
+
+/// The guided calibration's actions ([`crate::calibrate`]).
+const CALIBRATE_PATHS: [&str; 4] =
+    ["/api/calibrate/start", "/api/calibrate/step", "/api/calibrate/apply", "/api/calibrate/cancel"];
+
+/// The methods `path` takes, as `Allow` lists them, or `None` when nothing is there: the
+/// actions `POST`, the rest `GET` and `HEAD` (the WebSockets `GET`, the upgrade).
+fn methods(path: &str) -> Option<&'static str> {
+    match path {
+        "/api/field/start" | "/api/takes/repair" => Some(POST),
+        p if CALIBRATE_PATHS.contains(&p) || actions::PATHS.contains(&p) => Some(POST),
+        "/" | "/console.js" | "/console.css" | "/api/hello" | "/api/status" | "/api/scene" | "/rig.glb"
+        | "/api/rigs" | "/api/calibrate" | "/api/field" | "/api/takes" => Some(GET_HEAD),
+        "/ws" | "/ws/warp" => Some("GET"),
+        p if p.starts_with("/api/takes/") => Some(GET_HEAD),
+        p if VENDOR.iter().any(|(v, _)| *v == p) => Some(GET_HEAD),
+        _ => None,
     }
 }
 

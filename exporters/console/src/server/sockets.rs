@@ -18,28 +18,34 @@ use crate::http::{self, Request, Response};
 use crate::warp_panel::{self, WarpPanel};
 
 impl Console {
+    /// A WebSocket upgrade: its path (404), its handshake (400, 426: [`http::check_websocket`]),
+    /// room for it (503), then the socket until the page goes away.
     pub(super) fn socket(&self, req: Request, mut stream: TcpStream) {
+        let warp = match (req.path.as_str(), &self.warp) {
+            ("/ws", _) => None,
+            ("/ws/warp", Some(w)) => Some(Arc::clone(w)),
+            (p, _) => {
+                let why = if p == "/ws/warp" {
+                    "the warp panel is off (--no-warp)".to_string()
+                } else {
+                    format!("no WebSocket at {p}")
+                };
+                let _ = Response::error(404, why).write_for(&req.method, &mut stream);
+                return;
+            }
+        };
+        if let Err(e) = http::check_websocket(&req) {
+            let _ = e.response().write_for(&req.method, &mut stream);
+            return;
+        }
         if self.counters.sockets.fetch_add(1, Ordering::AcqRel) >= MAX_SOCKETS {
             self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
             let _ =
                 Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
             return;
         }
-        let warp = match (req.path.as_str(), &self.warp) {
-            ("/ws", _) => None,
-            ("/ws/warp", Some(w)) => Some(Arc::clone(w)),
-            (p, _) => {
-                self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
-                let why = if p == "/ws/warp" {
-                    "the warp panel is off (--no-warp)".to_string()
-                } else {
-                    format!("no WebSocket at {p}")
-                };
-                let _ = Response::error(404, why).write_to(&mut stream);
-                return;
-            }
-        };
-        if http::accept_websocket(&req, &mut stream).is_ok() && stream.set_nonblocking(true).is_ok() {
+        if http::accept_websocket(&req, &mut stream).unwrap_or(false) && stream.set_nonblocking(true).is_ok()
+        {
             let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
             let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
             match warp {

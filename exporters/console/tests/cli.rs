@@ -1,0 +1,87 @@
+//! `frond-console`'s arguments that name files are checked before it serves anything: a rig it
+//! cannot show and a token file others may read are refused at start, as usage errors (exit 2,
+//! as `frond-osc --rig` and `frond-zenoh --control` refuse theirs), naming the file and the
+//! problem.
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::fs::PermissionsExt;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// `frond-console` on a free loopback port with `args`, beside no daemon.
+fn console(dir: &tempfile::TempDir, args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_frond-console"))
+        .args(["--listen", "127.0.0.1:0", "--no-warp", "--socket-dir"])
+        .arg(dir.path().join("sockets"))
+        .arg("--takes-dir")
+        .arg(dir.path().join("takes"))
+        .args(args)
+        .env("NO_COLOR", "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start frond-console")
+}
+
+/// The exit status and stderr of a console that must refuse to start. One that is still
+/// serving after a minute is killed and the test fails.
+fn refused(dir: &tempfile::TempDir, args: &[&str]) -> (Option<i32>, String) {
+    let mut child = console(dir, args);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("frond-console {args:?} started instead of refusing");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    (status.code(), stderr)
+}
+
+#[test]
+fn a_rig_that_cannot_be_shown_is_refused_at_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "name = [").unwrap();
+    let bad = bad.to_str().unwrap();
+    for (rig, problem) in
+        [("/dev/zero", "not a regular file"), ("no-such-rig", "no-such-rig"), (bad, "bad.toml")]
+    {
+        let (code, stderr) = refused(&dir, &["--rig", rig]);
+        assert_eq!(code, Some(2), "--rig {rig}: {stderr}");
+        assert!(stderr.contains(&format!("--rig {rig}: ")), "names the option and the rig: {stderr}");
+        assert!(stderr.contains(problem), "--rig {rig}: {stderr}");
+    }
+}
+
+#[test]
+fn a_token_file_others_may_read_is_refused_with_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("token");
+    std::fs::write(&path, "tok-0123456789abcdef\n").unwrap();
+    let file = path.to_str().unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let (code, stderr) = refused(&dir, &["--token-file", file]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains(&format!("--token-file {file}: mode 644")), "{stderr}");
+    assert!(stderr.contains(&format!("chmod 600 {file}")), "{stderr}");
+    // Both problems at once.
+    let (code, stderr) = refused(&dir, &["--token-file", file, "--rig", "/dev/zero"]);
+    assert_eq!(code, Some(2));
+    assert!(stderr.contains("--token-file") && stderr.contains("--rig"), "{stderr}");
+
+    // Its owner's alone, it is taken: the console starts and says where it listens.
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let mut child = console(&dir, &["--token-file", file, "--rig", "grass"]);
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(line.starts_with("frond-console: http://127.0.0.1:"), "{line:?}");
+}

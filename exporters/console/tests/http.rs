@@ -1,0 +1,258 @@
+//! The console's HTTP and WebSocket server against hostile and mistaken requests, over a real
+//! socket (no daemon: nothing here needs one). Expected answers come from the RFCs: 9110 (HTTP
+//! semantics), 9112 (HTTP/1.1 framing) and 6455 (WebSocket).
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+use frond_console::access::Access;
+use frond_console::server::{Config, Console};
+use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use frond_motion::{HandSample, JOINTS, PoseFrame};
+
+/// A console on a free loopback port, its directories, and the port's address.
+struct Served {
+    addr: SocketAddr,
+    _dirs: tempfile::TempDir,
+}
+
+impl Served {
+    /// A console whose takes directory holds `takes` (name, frames one `step_s` apart).
+    fn start(takes: &[(&str, usize, f64)]) -> Served {
+        let dirs = tempfile::tempdir().unwrap();
+        let (socket_dir, takes_dir) = (dirs.path().join("sockets"), dirs.path().join("takes"));
+        std::fs::create_dir_all(&takes_dir).unwrap();
+        for (name, frames, step_s) in takes {
+            write_take(&takes_dir, name, *frames, *step_s);
+        }
+        let console = Console::start(Config {
+            socket_dir,
+            takes_dir,
+            access: Access { loopback: true, token: None },
+            rig: None,
+            display_hz: 30,
+            warp: false,
+        })
+        .unwrap();
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        let me = Arc::clone(&console);
+        std::thread::spawn(move || me.serve(listener));
+        Served { addr, _dirs: dirs }
+    }
+
+    /// Sends `head_lines` (request line and headers, without the blank line) and `body`; the
+    /// whole answer as text, read until the server closes (or until a 101's head).
+    fn exchange(&self, head_lines: &str, body: &[u8]) -> String {
+        let mut s = TcpStream::connect(self.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        let origin = format!("http://{}", self.addr);
+        let head = format!("{head_lines}\r\nHost: {}\r\nOrigin: {origin}\r\n\r\n", self.addr);
+        s.write_all(head.as_bytes()).unwrap();
+        s.write_all(body).unwrap();
+        let mut got = Vec::new();
+        let mut buf = [0u8; 8192];
+        loop {
+            match s.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => got.extend_from_slice(&buf[..n]),
+                Err(e) => panic!("reading the answer to {head_lines:?}: {e} (so far {got:?})"),
+            }
+            // A WebSocket stays open: its head is the whole answer here.
+            if got.starts_with(b"HTTP/1.1 101") && got.windows(4).any(|w| w == b"\r\n\r\n") {
+                break;
+            }
+        }
+        String::from_utf8_lossy(&got).into_owned()
+    }
+}
+
+/// The status of an answer.
+fn status(answer: &str) -> u16 {
+    answer.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap_or_else(|| panic!("no status: {answer:?}"))
+}
+
+/// A header's value (the first of that name, case-insensitive).
+fn header<'a>(answer: &'a str, name: &str) -> Option<&'a str> {
+    let head = answer.split("\r\n\r\n").next().unwrap();
+    head.lines().skip(1).find_map(|l| {
+        let (n, v) = l.split_once(':')?;
+        n.eq_ignore_ascii_case(name).then(|| v.trim())
+    })
+}
+
+/// The body of an answer (after the head's blank line).
+fn body(answer: &str) -> &str {
+    answer.split_once("\r\n\r\n").map_or("", |(_, b)| b)
+}
+
+/// Writes take `name` into `dir`: a header on the grass rig and `frames` main-skeleton frames
+/// `step_s` seconds apart, then the End record.
+fn write_take(dir: &Path, name: &str, frames: usize, step_s: f64) {
+    let mut out = Vec::new();
+    encode_file_start(&mut out);
+    encode_record(&TakeRecord::Header(TakeHeader::offline(name, "grass", 1000)), &mut out);
+    for i in 0..frames {
+        let t = i as f64 * step_s;
+        let frame = TakeFrame {
+            seq: i as u64,
+            device_time_us: (t * 1e6) as u64,
+            host_ns: (t * 1e9) as u64,
+            flags: 0,
+            element: 0,
+            pose: PoseFrame { t, joints_deg: [[(i % 30) as f32, 0.0, 0.0]; JOINTS] },
+            hand: HandSample { t, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
+        };
+        encode_record(&TakeRecord::Frame(frame), &mut out);
+    }
+    encode_record(&TakeRecord::End { frames: frames as u64 }, &mut out);
+    std::fs::write(dir.join(format!("{name}.take")), out).unwrap();
+}
+
+#[test]
+fn differing_content_lengths_are_refused_not_guessed() {
+    // RFC 9112, section 6.3 (3): differing Content-Length values are an unrecoverable framing
+    // error; a server MUST answer 400. The old console took the first (2 bytes, `{}`) and
+    // cancelled the calibration (200).
+    let c = Served::start(&[]);
+    let a = c.exchange(
+        "POST /api/calibrate/cancel HTTP/1.1\r\nContent-Length: 2\r\nContent-Length: 10",
+        b"{}12345678",
+    );
+    assert_eq!(status(&a), 400, "{a}");
+    assert!(body(&a).contains("Content-Length"), "{a}");
+    // Transfer-Encoding beside Content-Length: also 400 (section 6.1: a server may reject it;
+    // this one takes no chunked bodies at all).
+    let a = c.exchange(
+        "POST /api/calibrate/cancel HTTP/1.1\r\nContent-Length: 2\r\nTransfer-Encoding: chunked",
+        b"{}",
+    );
+    assert_eq!(status(&a), 400, "{a}");
+    // One Content-Length is taken.
+    let a = c.exchange("POST /api/calibrate/cancel HTTP/1.1\r\nContent-Length: 2", b"{}");
+    assert_eq!(status(&a), 200, "{a}");
+}
+
+#[test]
+fn allow_lists_what_the_path_takes() {
+    // RFC 9110, section 15.5.6: a 405 MUST carry Allow with the target's methods.
+    let c = Served::start(&[]);
+    for (request, allow) in [
+        ("OPTIONS /api/record/start HTTP/1.1", "POST"),
+        ("GET /api/record/start HTTP/1.1", "POST"),
+        ("PUT /api/calibrate/start HTTP/1.1", "POST"),
+        ("DELETE /api/takes/repair HTTP/1.1", "POST"),
+        ("OPTIONS /api/status HTTP/1.1", "GET, HEAD"),
+        ("POST /rig.glb HTTP/1.1\r\nContent-Length: 0", "GET, HEAD"),
+        ("POST /api/takes/t1.glb HTTP/1.1\r\nContent-Length: 0", "GET, HEAD"),
+        ("HEAD /ws HTTP/1.1", "GET"),
+    ] {
+        let a = c.exchange(request, b"");
+        assert_eq!(status(&a), 405, "{request}: {a}");
+        assert_eq!(header(&a, "allow"), Some(allow), "{request}: {a}");
+    }
+    // Nothing there is 404 whatever the method.
+    for request in ["OPTIONS /nowhere HTTP/1.1", "POST /nowhere HTTP/1.1\r\nContent-Length: 0"] {
+        let a = c.exchange(request, b"");
+        assert_eq!(status(&a), 404, "{request}: {a}");
+    }
+}
+
+#[test]
+fn head_answers_carry_gets_headers_and_no_body() {
+    // RFC 9110, section 9.3.2: HEAD is GET without the content; Content-Length may say GET's.
+    let c = Served::start(&[]);
+    for path in ["/", "/console.js", "/api/rigs", "/api/nowhere"] {
+        let get = c.exchange(&format!("GET {path} HTTP/1.1"), b"");
+        let head = c.exchange(&format!("HEAD {path} HTTP/1.1"), b"");
+        assert_eq!(status(&head), status(&get), "{path}");
+        assert_eq!(body(&head), "", "HEAD {path} sent a body: {head}");
+        assert!(head.ends_with("\r\n\r\n"), "{head}");
+        assert_eq!(header(&head, "content-length"), Some(body(&get).len().to_string().as_str()), "{path}");
+        assert_eq!(header(&head, "content-type"), header(&get, "content-type"), "{path}");
+    }
+}
+
+#[test]
+fn websocket_upgrades_are_checked_as_rfc_6455_says() {
+    let c = Served::start(&[]);
+    let upgrade = |version: &str, key: &str| {
+        c.exchange(
+            &format!(
+                "GET /ws HTTP/1.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+                 Sec-WebSocket-Version: {version}\r\nSec-WebSocket-Key: {key}"
+            ),
+            b"",
+        )
+    };
+    // Section 4.2.2 (4): a version the server does not speak: 426 and the versions it does.
+    let a = upgrade("99", "dGhlIHNhbXBsZSBub25jZQ==");
+    assert_eq!(status(&a), 426, "{a}");
+    assert_eq!(header(&a, "sec-websocket-version"), Some("13"), "{a}");
+    assert!(body(&a).contains("99"), "{a}");
+    // Section 4.1: the key is base64 of 16 random bytes; anything else is a bad request.
+    for key in ["x", "AAAAAAAAAAAAAAAAAAAA", "AAAAAAAAAAAAAAAAAAAAAAA="] {
+        let a = upgrade("13", key);
+        assert_eq!(status(&a), 400, "{key}: {a}");
+        assert!(body(&a).contains("Sec-WebSocket-Key"), "{a}");
+    }
+    // The RFC's own example (section 1.3) is accepted, with its accept key.
+    let a = upgrade("13", "dGhlIHNhbXBsZSBub25jZQ==");
+    assert_eq!(status(&a), 101, "{a}");
+    assert_eq!(header(&a, "sec-websocket-accept"), Some("s3pPLMBiTxaQ9kYGzzhZRbK+xOo="), "{a}");
+}
+
+#[test]
+fn a_bad_calibration_body_is_a_bad_request_not_a_conflict() {
+    // RFC 9110: 400 is a request the client must change; 409 a conflict with the state.
+    let c = Served::start(&[]);
+    for body_text in [
+        r#"{"user":"ann","seconds_per_step":0}"#,
+        r#"{"user":"ann","seconds_per_step":1000}"#,
+        r#"{"user":"ann","seconds_per_step":"fast"}"#,
+    ] {
+        let a = c.exchange(
+            &format!("POST /api/calibrate/start HTTP/1.1\r\nContent-Length: {}", body_text.len()),
+            body_text.as_bytes(),
+        );
+        assert_eq!(status(&a), 400, "{body_text}: {a}");
+        assert!(body(&a).contains("seconds_per_step"), "{a}");
+    }
+    // A step with no calibration running is a conflict with the state.
+    let a = c.exchange("POST /api/calibrate/step HTTP/1.1\r\nContent-Length: 0", b"");
+    assert_eq!(status(&a), 409, "{a}");
+}
+
+#[test]
+fn field_errors_name_the_json_keys_not_command_line_options() {
+    let c = Served::start(&[("t", 60, 1.0 / 30.0)]);
+    for (body_text, key) in [
+        (r#"{"take":"t","cell_m":-1}"#, "cell_m"),
+        (r#"{"take":"t","cell_m":0}"#, "cell_m"),
+        (r#"{"take":"t","rows":0}"#, "rows"),
+    ] {
+        let a = c.exchange(
+            &format!("POST /api/field/start HTTP/1.1\r\nContent-Length: {}", body_text.len()),
+            body_text.as_bytes(),
+        );
+        assert_eq!(status(&a), 400, "{body_text}: {a}");
+        assert!(body(&a).contains(key), "{body_text}: {a}");
+        assert!(!body(&a).contains("--"), "names a command-line option: {a}");
+    }
+}
+
+#[test]
+fn a_take_too_long_to_bake_is_the_users_problem_said_in_time() {
+    // 36,100 frames 1 s apart (each step interpolated: at most 1 s): 36,099 s = 10 h 1 min 39 s,
+    // 1,082,971 keys at 30 FPS, past frond-gltf's 1,080,000 (10 h at 30 FPS).
+    let c = Served::start(&[("long", 36_100, 1.0)]);
+    let a = c.exchange("GET /api/takes/long.glb HTTP/1.1", b"");
+    assert_eq!(status(&a), 413, "{a}");
+    let text = body(&a);
+    assert!(text.contains("10 h 1 min 39 s"), "how long the take is: {text}");
+    assert!(text.contains("at most 10 h "), "the limit: {text}");
+    assert!(!text.contains("--force"), "a command-line option means nothing here: {text}");
+}
