@@ -156,9 +156,11 @@ pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
         Some(_) => file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "rig".into()),
         None => loaded.rig.name.clone(),
     };
+    // The name the daemon goes by, as status and takes show it: the rig's own where it has one.
+    let shown = if loaded.rig.name.is_empty() { name.clone() } else { loaded.rig.name.clone() };
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: loaded.text })?;
-    frond_binmain::outln!("rig set to {name} ({})", loaded.origin)?;
+    c.expect_ok(&ControlRequest::SetRig { name, toml: loaded.text })?;
+    frond_binmain::outln!("rig set to {shown} ({})", loaded.origin)?;
     Ok(())
 }
 

@@ -79,13 +79,12 @@ fn control_path(
     control: ControlPoint,
     poses: &[PoseFrame],
 ) -> anyhow::Result<Vec<[f64; 3]>> {
-    let rig_spec = rig.map_or_else(|| PathBuf::from(&take.header.rig_name), Path::to_path_buf);
-    let (rig, _) = load_rig(&rig_spec).map_err(|e| {
-        anyhow!(
-            "{e:#}\n(the take was recorded on rig {:?}; give the rig with --rig NAME|FILE)",
-            take.header.rig_name
-        )
-    })?;
+    let rig = match rig {
+        Some(spec) => load_rig(spec)?.0,
+        None => {
+            crate::takes::recorded_rig(&format!("take {:?}", take.header.name), &take.header.rig_name)?.rig
+        }
+    };
     let top_m = rig.sim_node_heights_m()[4] as f32;
     Ok(control_positions_m(control, &Skeleton::from_rig(&rig), top_m, poses))
 }

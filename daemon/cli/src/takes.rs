@@ -196,10 +196,23 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
             i.duration_s,
             human_size(i.size_bytes),
             state,
-            i.rig.as_deref().unwrap_or("-"),
+            i.rig.as_deref().map_or("-".into(), printable),
         )?;
     }
     Ok(())
+}
+
+/// `text` with its control characters escaped (`\u{1b}`, `\n`): a take's header is read from
+/// a file anyone may have written, and an escape sequence or line break in it must not reach
+/// the terminal or break the table.
+fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    if text.chars().any(char::is_control) {
+        text.chars()
+            .map(|c| if c.is_control() { c.escape_debug().to_string() } else { c.to_string() })
+            .collect()
+    } else {
+        text.into()
+    }
 }
 
 /// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
@@ -385,17 +398,32 @@ pub(crate) fn start_timecode(
     Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))
 }
 
+/// The rig a take was recorded on, by the name its header keeps: an embedded rig. Any other
+/// name (a rig loaded from a file names itself) is a usage error asking for the file with
+/// `--rig`; the name is never opened as a path, so a take cannot make frond read a file.
+pub(crate) fn recorded_rig(take: &str, rig_name: &str) -> anyhow::Result<frond_motion::rig_files::LoadedRig> {
+    if let Some(rig) = frond_motion::rig_files::embedded_rig(rig_name) {
+        return Ok(rig?);
+    }
+    if rig_name.is_empty() {
+        return usage(format!("{take} names no rig; give one with --rig NAME|FILE"));
+    }
+    let embedded = frond_motion::rig_files::EMBEDDED_RIGS.map(|(n, _)| n).join(", ");
+    usage(format!(
+        "{take} was recorded on rig {rig_name:?}, which is not an embedded rig ({embedded}); give its rig file with --rig FILE"
+    ))
+}
+
 /// Reads take `name` and its rig for a file export.
 pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyhow::Result<TakeForFile> {
     let path = resolve(g, name)?;
     let (scan, _) = read_scan(&path)?;
     warn_damage(&path, &scan);
-    let rig_spec: PathBuf = match (rig, &scan.header) {
-        (Some(r), _) => r.to_path_buf(),
-        (None, Some(h)) if !h.rig_name.is_empty() => PathBuf::from(&h.rig_name),
+    let rig = match (rig, &scan.header) {
+        (Some(r), _) => frond_motion::rig_files::load_rig(&r.to_string_lossy())?,
+        (None, Some(h)) => recorded_rig(&path.display().to_string(), &h.rig_name)?,
         _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
     };
-    let rig = frond_motion::rig_files::load_rig(&rig_spec.to_string_lossy())?;
     let source = export_poses(&scan, None, false);
     if source.is_empty() {
         bail!("{} has no frames of the main skeleton to export", path.display());

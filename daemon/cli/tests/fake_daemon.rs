@@ -312,7 +312,9 @@ fn one_shot_control_commands_send_the_right_requests() {
     let stop = ok(fake.frond().args(["record", "stop"]).output().unwrap());
     assert!(stop.contains("4242 frames") && stop.contains("/takes/t1.take"), "{stop}");
     ok(fake.frond().args(["filter", "lowpass"]).output().unwrap());
-    ok(fake.frond().arg("rig").arg("set").arg(&rig).output().unwrap());
+    // The reply names the rig as the daemon will (the file's own name), not the file's stem.
+    let set = ok(fake.frond().arg("rig").arg("set").arg(&rig).output().unwrap());
+    assert!(set.starts_with("rig set to grass ("), "{set}");
     ok(fake.frond().args(["calibration", "apply", cal]).output().unwrap());
 
     let reqs = fake.requests();

@@ -442,6 +442,50 @@ fn take_tools_refuse_an_output_past_the_limit_instead_of_cutting_it_short() {
 }
 
 #[test]
+fn a_takes_rig_name_is_looked_up_among_the_embedded_rigs_never_opened_as_a_path() {
+    let (_d, takes) = setup();
+    let with_rig = |name: &str, rig: &str| {
+        let mut bytes = Vec::new();
+        encode_file_start(&mut bytes);
+        let header = TakeHeader { created_unix_s: 1_700_000_000, ..TakeHeader::offline(name, rig, 30) };
+        encode_record(&TakeRecord::Header(header), &mut bytes);
+        for k in 0..30u64 {
+            encode_record(&TakeRecord::Frame(frame(k, k as f64 / 30.0, PoseFlags::FILTERED)), &mut bytes);
+        }
+        encode_record(&TakeRecord::End { frames: 30 }, &mut bytes);
+        std::fs::write(takes.join(format!("{name}.take")), bytes).unwrap();
+    };
+    // A rig that was loaded from a file keeps only its name; one that names a device (a hostile
+    // take) must not make export read it.
+    with_rig("mine", "my-shrub");
+    with_rig("dev", "/dev/zero");
+    with_rig("esc", "a\u{1b}[31mRED\nline2");
+    let bvh = takes.join("x.bvh");
+    for (take, rig) in [("mine", "my-shrub"), ("dev", "/dev/zero")] {
+        let out = frond(&takes).args(["take", "export", take, "--bvh", "-o"]).arg(&bvh).output().unwrap();
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(&format!("was recorded on rig {rig:?}, which is not an embedded rig (grass, ")),
+            "{err}"
+        );
+        assert!(err.contains("give its rig file with --rig FILE") && !err.contains("device"), "{err}");
+    }
+    assert!(!bvh.exists());
+    ok(frond(&takes)
+        .args(["take", "export", "mine", "--bvh", "--rig", "grass", "-o"])
+        .arg(&bvh)
+        .output()
+        .unwrap());
+    assert!(bvh.is_file());
+    // take list shows a hostile rig name escaped, on its own line.
+    let list = ok(frond(&takes).args(["take", "list"]).output().unwrap());
+    assert!(!list.contains('\u{1b}'), "{list:?}");
+    let line = list.lines().find(|l| l.starts_with("esc ")).unwrap();
+    assert!(line.ends_with("a\\u{1b}[31mRED\\nline2"), "{line:?}");
+}
+
+#[test]
 fn non_finite_values_are_refused_by_frame() {
     let (_d, takes) = setup();
     for (bad, name) in [(f32::NAN, "nan"), (f32::INFINITY, "inf")] {

@@ -52,6 +52,24 @@ impl Problems {
         }
     }
 
+    /// Checks a name from a file (a rig's, a joint's, an element's): not blank, at most
+    /// `max_bytes`, and no control characters, since names are printed in status tables, take
+    /// lists and logs, where an escape sequence or a line break would forge or garble output.
+    /// `true` when it is fine.
+    pub(crate) fn name(&mut self, path: impl Into<String>, name: &str, max_bytes: usize) -> bool {
+        let path = path.into();
+        if name.trim().is_empty() {
+            self.push(path, "must not be empty");
+        } else if name.len() > max_bytes {
+            self.push(path, format!("is {} bytes; the limit is {max_bytes}", name.len()));
+        } else if let Some(c) = name.chars().find(|c| c.is_control()) {
+            self.push(path, format!("contains the control character {c:?}; a name must be printable"));
+        } else {
+            return true;
+        }
+        false
+    }
+
     /// Checks that `v` is finite and strictly positive.
     pub(crate) fn positive(&mut self, path: impl Into<String>, v: f32) -> bool {
         let path = path.into();

@@ -32,6 +32,11 @@ pub const MAX_TAU: u8 = 3;
 pub const MAX_RIG_ELEMENTS: usize = 32;
 /// Largest `bend_range_deg`, degrees: a root bend past half a turn is not a bend.
 pub const MAX_BEND_RANGE_DEG: f32 = 180.0;
+/// Longest rig name, bytes (it heads status tables and take lists).
+pub const MAX_RIG_NAME_BYTES: usize = 64;
+/// Longest joint or element name, bytes (VMC bone names are shorter still: a rig with longer
+/// joint names names its bones in a `[vmc]` table).
+pub const MAX_NAME_BYTES: usize = 1024;
 /// Longest VMC bone name, bytes (what `frond-osc` sends as an OSC string).
 pub const MAX_VMC_BONE_NAME_BYTES: usize = 255;
 
@@ -213,8 +218,10 @@ fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
 impl RawRig {
     fn validate(self) -> Result<Rig, Problems> {
         let mut p = Problems::default();
-        if self.name.trim().is_empty() {
-            p.push("name", "must not be empty");
+        // A take keeps its rig's name and exports look it up among the embedded rigs: a '/'
+        // would make it read as a path.
+        if p.name("name", &self.name, MAX_RIG_NAME_BYTES) && self.name.contains('/') {
+            p.push("name", "contains '/'; a rig name is a name, not a path");
         }
         let tau = check_tau(&mut p, "tau", self.tau);
         let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
@@ -254,9 +261,9 @@ impl RawRig {
         for (i, raw) in self.joints.iter().enumerate().take(JOINTS) {
             let path = |f: &str| format!("joints[{i}].{f}");
             let name = raw.name.clone().unwrap_or_else(|| format!("joint{i}"));
-            if name.trim().is_empty() {
-                p.push(path("name"), "must not be empty");
-            } else if let Some(j) = joints[..i].iter().position(|j| j.name == name) {
+            if p.name(path("name"), &name, MAX_NAME_BYTES)
+                && let Some(j) = joints[..i].iter().position(|j| j.name == name)
+            {
                 p.push(path("name"), format!("`{name}` is already the name of joints[{j}]"));
             }
             if p.within(path("height_m"), raw.height_m, -MAX_RIG_SIZE_M, MAX_RIG_SIZE_M, "a height (metres)")
@@ -299,9 +306,9 @@ impl RawRig {
         let mut elements = Vec::with_capacity(self.elements.len().min(MAX_RIG_ELEMENTS));
         for (e, raw) in self.elements.iter().enumerate().take(MAX_RIG_ELEMENTS) {
             let path = |f: &str| format!("elements[{e}].{f}");
-            if raw.name.trim().is_empty() {
-                p.push(path("name"), "must not be empty");
-            } else if let Some(j) = self.elements[..e].iter().position(|o| o.name == raw.name) {
+            if p.name(path("name"), &raw.name, MAX_NAME_BYTES)
+                && let Some(j) = self.elements[..e].iter().position(|o| o.name == raw.name)
+            {
                 p.push(path("name"), format!("`{}` is already the name of elements[{j}]", raw.name));
             }
             let attach_joint = if (0..JOINTS as i64).contains(&raw.attach_joint) {
@@ -482,6 +489,25 @@ mod guided_tests {
         assert!(!err.contains("vmc.bones[0]"), "{err}");
         let err = Rig::from_toml_str(&format!("{BASE}[vmc]\nbone = []\n")).unwrap_err().to_string();
         assert!(err.contains("unknown field `bone`"), "{err}");
+    }
+
+    #[test]
+    fn names_are_printable_bounded_and_a_rig_name_is_no_path() {
+        let with_name = |name: &str| BASE.replacen("name = \"g\"", &format!("name = {name:?}"), 1);
+        let err = |text: &str| Rig::from_toml_str(text).unwrap_err().to_string();
+        // TOML's "\u001b" and "\n" escapes: an ANSI colour and a line break in the name.
+        let e = err(&BASE.replacen("name = \"g\"", "name = \"a\\u001b[31mRED\\nline2\"", 1));
+        assert!(
+            e.contains("name: contains the control character '\\u{1b}'; a name must be printable"),
+            "{e}"
+        );
+        assert!(
+            err(&with_name("/dev/zero")).contains("name: contains '/'; a rig name is a name, not a path")
+        );
+        assert!(err(&with_name(&"r".repeat(65))).contains("name: is 65 bytes; the limit is 64"));
+        assert_eq!(Rig::from_toml_str(&with_name(&"r".repeat(64))).unwrap().name.len(), 64);
+        let e = err(&BASE.replacen("height_m = 0.1", "height_m = 0.1\nname = \"tab\\there\"", 1));
+        assert!(e.contains("joints[1].name: contains the control character '\\t'"), "{e}");
     }
 
     #[test]
