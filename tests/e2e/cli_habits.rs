@@ -99,8 +99,11 @@ fn usage_errors_exit_2_and_failures_exit_1_each_said_once() {
     let image = frond_e2e::repo_root().join("rig-files/images/grass.png").display().to_string();
     let mask = frond_e2e::repo_root().join("rig-files/images/grass-mask.png").display().to_string();
     // Usage errors found after clap parsed the arguments.
-    let usage: [(&str, Vec<String>); 4] = [
+    let usage: [(&str, Vec<String>); 6] = [
         ("frond-vhid", ["--osc", "no-port-here"].map(String::from).to_vec()),
+        // Found only when the glove's configuration is checked (was exit 1).
+        ("frond-vhid", ["--osc", "127.0.0.1:9", "--rate", "0"].map(String::from).to_vec()),
+        ("frond-vhid", ["--osc", "127.0.0.1:9", "--drop", "2"].map(String::from).to_vec()),
         ("frond-osc", ["--rate", "0"].map(String::from).to_vec()),
         (
             "frond-gltf",

@@ -31,7 +31,7 @@ const TAP_LINES: usize = 3;
 
 pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Result<()> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
-        return usage(format!("--seconds must be between 0 and 3600, got {seconds}"));
+        return usage(format!("--seconds must be greater than 0 and at most 3600, got {seconds}"));
     }
     let name = name.unwrap_or_else(|| {
         let now = SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);

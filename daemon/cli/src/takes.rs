@@ -37,8 +37,28 @@ pub(crate) const MAX_EXPORT_FRAMES: u64 = 1_080_000;
 /// `NAME.take` in the takes directory.
 pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
     let as_path = Path::new(name);
-    if (name.contains('/') || name.ends_with(".take")) && as_path.is_file() {
-        return Ok(as_path.to_owned());
+    let looks_like_path = name.contains('/') || name.ends_with(".take");
+    // Something is there but it is not a take file: say what it is rather than that the name is
+    // bad or that no take has it.
+    let not_a_file = |path: &Path| {
+        std::fs::metadata(path)
+            .ok()
+            .and_then(|m| frond_motion::rig_files::not_regular(m.file_type()))
+            .map(|what| anyhow!("{} is {what}, not a take file", path.display()))
+    };
+    if looks_like_path {
+        if as_path.is_file() {
+            return Ok(as_path.to_owned());
+        }
+        if let Some(e) = not_a_file(as_path) {
+            return Err(e);
+        }
+        if name.contains('/') {
+            return usage(format!(
+                "no take file {}: it does not exist (a name without '/' is looked up in the takes directory)",
+                as_path.display()
+            ));
+        }
     }
     if let Err(e) = paths::validate_take_name(name) {
         return usage(e.to_string());
@@ -46,6 +66,9 @@ pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
     let dir = paths::takes_dir(g.takes_dir.clone());
     let path = dir.join(format!("{name}.take"));
     if !path.is_file() {
+        if let Some(e) = not_a_file(&path) {
+            return Err(e);
+        }
         bail!("no take named {name:?} in {} (`frond take list` shows the takes there)", dir.display());
     }
     Ok(path)
@@ -259,7 +282,7 @@ pub(crate) fn export(
     if let Some(fps) = fps
         && !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0)
     {
-        return usage(format!("--fps must be between 0 and 10000, got {fps}"));
+        return usage(format!("--fps must be greater than 0 and at most 10000, got {fps}"));
     }
     let path = resolve(g, name)?;
     let (scan, _) = read_scan(&path)?;
@@ -512,6 +535,11 @@ mod tests {
         assert_eq!(
             report,
             "repaired t.take: dropped 6 torn bytes at the end; kept 2 frames, closed with an End record"
+        );
+        assert_eq!(
+            Repaired { dropped_bytes: 0, skipped: vec![], lost_frames: 0, frames: 2005, closed: true }
+                .report("k1.take"),
+            "repaired k1.take: nothing dropped; kept 2005 frames, closed with an End record"
         );
     }
 

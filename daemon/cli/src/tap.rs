@@ -43,6 +43,9 @@ pub(crate) fn run(
     let pick = |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::usage);
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
+    if let Some(note) = unannounced(only, &table) {
+        eprintln!("frond tap: {note}");
+    }
     let mut printer = Printer::new(jsonl, count);
     if count == Some(0) {
         return Ok(());
@@ -78,6 +81,9 @@ pub(crate) fn run(
                 if element.is_some_and(|e| e.parse::<u16>().is_err()) {
                     only = pick(&table)?;
                 }
+                if let Some(note) = unannounced(only, &table) {
+                    eprintln!("frond tap: {note}");
+                }
             }
             Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
         }
@@ -98,6 +104,20 @@ pub(crate) fn pick_element(
         let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
         format!("--element {want:?}: no such element (announced: {})", known.join(", "))
     })
+}
+
+/// A note for an `--element` id that the table does not announce (yet): tap waits for it, and
+/// says so rather than printing nothing without a word.
+pub(crate) fn unannounced(only: Option<u16>, table: &frond_protocol::ElementTable) -> Option<String> {
+    let id = only?;
+    if table.get(id).is_some() {
+        return None;
+    }
+    let known: Vec<String> = table.elements.iter().map(|e| format!("{} {}", e.id, e.name)).collect();
+    Some(format!(
+        "element {id} is not announced (announced: {}); waiting until it is",
+        if known.is_empty() { "none".to_string() } else { known.join(", ") }
+    ))
 }
 
 /// Prints `frond tap`'s lines, one flushed write each, and counts them against `--count`.
@@ -241,6 +261,12 @@ mod tests {
         assert_eq!(pick_element(None, &table), Ok(None));
         assert_eq!(pick_element(Some("3"), &table), Ok(Some(3)));
         assert!(pick_element(Some("leaf"), &table).unwrap_err().contains("\"leaf\": no such element"));
+        // An id not in the table is waited for, with a word.
+        assert_eq!(unannounced(None, &table), None);
+        assert_eq!(
+            unannounced(Some(99), &table).unwrap(),
+            "element 99 is not announced (announced: none); waiting until it is"
+        );
     }
 
     #[test]

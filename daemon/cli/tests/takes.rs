@@ -315,6 +315,22 @@ fn export_accepts_a_path() {
         .output()
         .unwrap());
     assert_eq!(out.lines().count(), 101);
+
+    // What is there but is not a take file is named as such, not as a bad name or a missing take.
+    std::fs::create_dir(takes.join("sub.take")).unwrap();
+    let sub = takes.join("sub.take").display().to_string();
+    let missing = takes.join("gone.take").display().to_string();
+    for (arg, says) in [
+        ("/dev/null", "/dev/null is a device, not a take file".to_string()),
+        (sub.as_str(), format!("{sub} is a directory, not a take file")),
+        ("sub", format!("{sub} is a directory, not a take file")),
+        (missing.as_str(), format!("no take file {missing}: it does not exist")),
+    ] {
+        let out = frond(&takes).args(["take", "export", "--jsonl", arg]).output().unwrap();
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(if arg == missing { 2 } else { 1 }), "{arg}: {err}");
+        assert!(err.contains(&says), "{arg}: {err}");
+    }
 }
 
 /// A take of `n` frames at `fps` whose times carry six decimals, as a recorded take's do.

@@ -100,14 +100,15 @@ fn main() -> ExitCode {
         match RawHand::parse_flag(flag) {
             Ok(hand) => hands.push(hand),
             Err(e) => {
-                eprintln!("frondd: error: --hand (#{}): {e}", i + 1);
+                frond_binmain::say_error("frondd", &format!("--hand (#{}): {e}", i + 1));
                 return ExitCode::from(2);
             }
         }
     }
     if !hands.is_empty() && (source.is_some() || args.profile.is_some()) {
-        eprintln!(
-            "frondd: error: --hand replaces --source, --device, --replay and --profile; give each hand its own"
+        frond_binmain::say_error(
+            "frondd",
+            "--hand replaces --source, --device, --replay and --profile; give each hand its own",
         );
         return ExitCode::from(2);
     }
@@ -142,7 +143,7 @@ fn main() -> ExitCode {
         Ok(c) => c,
         Err(errors) => {
             for e in errors.problems {
-                eprintln!("frondd: error: {e}");
+                frond_binmain::say_error("frondd", &e.to_string());
             }
             return ExitCode::from(2);
         }
@@ -158,7 +159,7 @@ fn main() -> ExitCode {
     ];
     for (signal, flag) in handlers {
         if let Err(e) = signal_hook::flag::register(signal, flag.clone()) {
-            eprintln!("frondd: error: cannot install the signal handler: {e}");
+            frond_binmain::say_error("frondd", &format!("cannot install the signal handler: {e}"));
             return ExitCode::FAILURE;
         }
     }
@@ -166,9 +167,8 @@ fn main() -> ExitCode {
     match run(config, options) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let text = frond_protocol::error_text(&e);
-            tracing::error!("{text}");
-            eprintln!("frondd: error: {text}");
+            // Once, on stderr (the journal under systemd): not also as a log line.
+            frond_binmain::say_error("frondd", &frond_protocol::error_text(&e));
             ExitCode::FAILURE
         }
     }

@@ -101,10 +101,11 @@ impl Repaired {
         } else {
             String::new()
         };
+        // A take cut off by a crash has no torn tail and no damage: only its End is missing.
+        let dropped = if dropped.is_empty() { "nothing dropped".to_string() } else { format!("dropped {}", dropped.join(", ")) };
         format!(
-            "repaired {}: dropped {}{lost}; kept {} frames{}",
+            "repaired {}: {dropped}{lost}; kept {} frames{}",
             path,
-            dropped.join(", "),
             r.frames,
             if r.closed { ", closed with an End record" } else { "" }
         )

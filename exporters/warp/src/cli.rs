@@ -480,10 +480,17 @@ impl SimArgs {
         }
         // Range checks, with the command line's flag names for the shared values.
         let mut ranges = Checker::new();
-        ranges.extend_prefixed("--", {
-            let mut c = p.wind.check();
-            c.extend_prefixed("", p.fluid.check());
-            c
+        let mut shared = p.wind.check();
+        shared.extend_prefixed("", p.fluid.check());
+        ranges.extend_renamed(shared, |name| {
+            let flag = match name {
+                "direction_deg" => "direction",
+                "interval_s" => "interval",
+                "grid" => "fluid-grid",
+                "source.x" | "source.y" => "source",
+                other => other,
+            };
+            format!("--{flag}")
         });
         let mut layer_ck = Checker::new();
         if layers == 0 {
@@ -589,6 +596,12 @@ mod tests {
             "left",
             "--source",
             "3",
+            "--interval",
+            "99",
+            "--direction",
+            "999",
+            "--fluid-grid",
+            "2",
         ])
         .to_params(1)
         .unwrap_err()
@@ -599,6 +612,10 @@ mod tests {
             "source = 3",
             "--strength = -0.5 is out of range (allowed: 0 to 1)",
             "layer[0].gamma = 2 is out of range (allowed: 0.01 to 1)",
+            // Named as the flags are spelt, not as the library's fields.
+            "--interval = 99 is out of range (allowed: 0 to 10)",
+            "--direction = 999 is out of range (allowed: -360 to 360)",
+            "--fluid-grid = 2 is out of range (allowed: 8 to 256)",
         ] {
             assert!(err.contains(needle), "missing `{needle}` in:\n{err}");
         }

@@ -80,6 +80,15 @@ impl Checker {
         }
     }
 
+    /// Adds `other`'s problems with each name passed through `rename` (a library path such as
+    /// `interval_s` to the flag a user typed, `--interval`).
+    pub fn extend_renamed(&mut self, other: Checker, rename: impl Fn(&str) -> String) {
+        for mut p in other.problems {
+            p.name = rename(&p.name);
+            self.problems.push(p);
+        }
+    }
+
     /// `Ok` when nothing was wrong.
     pub fn finish(self) -> Result<(), InvalidParams> {
         if self.problems.is_empty() { Ok(()) } else { Err(InvalidParams(self.problems)) }

@@ -301,5 +301,9 @@ fn main() -> ExitCode {
     if let Err(code) = frond_binmain::logging("frond-vhid", &args.log_level) {
         return code;
     }
-    frond_binmain::exit("frond-vhid", run(args))
+    // An invalid configuration (a rate of 0, a probability past 1) comes from the arguments.
+    let bad_config = |e: &(dyn std::error::Error + 'static)| {
+        e.downcast_ref::<vhid::VhidError>().is_some_and(|e| matches!(e, vhid::VhidError::Config(_)))
+    };
+    frond_binmain::exit_with("frond-vhid", run(args), bad_config)
 }

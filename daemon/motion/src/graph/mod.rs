@@ -271,7 +271,7 @@ impl std::str::FromStr for PoseGoalSpec {
                 .trim()
                 .parse()
                 .map(PoseGoalSpec::Frame)
-                .map_err(|_| format!("{spec:?}: frame=N needs a frame number"));
+                .map_err(|_| format!("{spec:?}: frame=N needs a frame number from 0 to {}", u32::MAX));
         }
         let values: Vec<f32> = spec
             .split(',')
