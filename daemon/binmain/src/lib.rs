@@ -47,10 +47,43 @@ macro_rules! out {
     }};
 }
 
+/// Standard output for a command that writes much (`frond tap`, `take export`): a locked,
+/// buffered stdout whose write errors say they were stdout's ([`StdoutError`] inside the
+/// `io::Error`), so [`is_closed_stdout`] tells a reader that went away from a daemon's socket
+/// that closed, and a full disk is reported as standard output's.
+pub struct StdoutWriter(std::io::BufWriter<std::io::StdoutLock<'static>>);
+
+impl StdoutWriter {
+    /// Locks stdout for the writer's life.
+    pub fn lock() -> Self {
+        StdoutWriter(std::io::BufWriter::new(std::io::stdout().lock()))
+    }
+}
+
+fn mark_stdout(e: std::io::Error) -> std::io::Error {
+    std::io::Error::new(e.kind(), StdoutError(e))
+}
+
+impl std::io::Write for StdoutWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.write(buf).map_err(mark_stdout)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush().map_err(mark_stdout)
+    }
+}
+
 /// Whether `e` is stdout's reader having gone away (EPIPE): not a failure of the command.
-fn is_closed_stdout(e: &anyhow::Error) -> bool {
+/// Only standard output's ([`StdoutError`], bare or inside an `io::Error` from
+/// [`StdoutWriter`]): a daemon's socket that closed is a failure like any other.
+pub fn is_closed_stdout(e: &anyhow::Error) -> bool {
+    let closed = |s: &StdoutError| s.0.kind() == std::io::ErrorKind::BrokenPipe;
     e.chain().any(|c| {
-        c.downcast_ref::<StdoutError>().is_some_and(|s| s.0.kind() == std::io::ErrorKind::BrokenPipe)
+        c.downcast_ref::<StdoutError>().is_some_and(closed)
+            || c.downcast_ref::<std::io::Error>()
+                .and_then(|io| io.get_ref())
+                .and_then(|inner| inner.downcast_ref::<StdoutError>())
+                .is_some_and(closed)
     })
 }
 

@@ -377,7 +377,7 @@ pub enum TakeCommand {
         #[arg(short = 'o', long = "output", value_name = "FILE", requires = "file_format")]
         output: Option<PathBuf>,
         /// Rig whose joint names, heights (and, for USD, mesh) the file takes [default: the
-        /// take's rig].
+        /// take's rig when it is an embedded one; a rig loaded from a file must be given here].
         #[arg(long, value_name = "NAME|FILE", requires = "file_format")]
         rig: Option<PathBuf>,
         /// Field file (field.json from `frond take field`): every plant of the field, one BVH

@@ -4,7 +4,7 @@
 //!
 //! Each step lasts a few seconds, polling `RawSample` at about 50 Hz.
 
-use std::io::{self, BufRead, IsTerminal, Write};
+use std::io::{self, BufRead, IsTerminal};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -56,7 +56,6 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
         frond_binmain::outln!("\nStep {}/{} ({name}): {instruction}", i + 1, STEPS.len())?;
         if !a.yes {
             frond_binmain::out!("Press Enter to start... ")?;
-            io::stdout().flush()?;
             let mut line = String::new();
             if io::stdin().lock().read_line(&mut line)? == 0 {
                 bail!("standard input closed while waiting for Enter; use --yes to run without prompts");
@@ -130,7 +129,6 @@ fn record_step(control: &mut Control, len: Duration, tty: bool) -> anyhow::Resul
                         thumb_deg[2],
                         if fresh { "" } else { "  (device not connected)" }
                     )?;
-                    io::stdout().flush()?;
                 }
             }
             _ => bail!("the daemon gave an unexpected reply to RawSample"),

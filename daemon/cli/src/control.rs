@@ -151,16 +151,12 @@ pub(crate) fn apply_calibration(g: &Global, file: &Path) -> anyhow::Result<()> {
 pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
     // An embedded name or a file, as `frondd --rig` takes it (the one rig loader).
     let loaded = frond_motion::rig_files::load_rig(&file.to_string_lossy())?;
-    // A file names the rig by its stem where the rig names itself not (the daemon's rule).
-    let name = match &loaded.dir {
-        Some(_) => file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "rig".into()),
-        None => loaded.rig.name.clone(),
-    };
-    // The name the daemon goes by, as status and takes show it: the rig's own where it has one.
-    let shown = if loaded.rig.name.is_empty() { name.clone() } else { loaded.rig.name.clone() };
+    // Every rig names itself (validation refuses an empty name): the daemon, status and takes
+    // go by that name, whatever the file is called.
+    let name = loaded.rig.name.clone();
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&ControlRequest::SetRig { name, toml: loaded.text })?;
-    frond_binmain::outln!("rig set to {shown} ({})", loaded.origin)?;
+    c.expect_ok(&ControlRequest::SetRig { name: name.clone(), toml: loaded.text })?;
+    frond_binmain::outln!("rig set to {name} ({})", loaded.origin)?;
     Ok(())
 }
 

@@ -7,7 +7,7 @@
 //! waits, and falls back to SIGKILL on every exit path, errors included.
 
 use std::fs::File;
-use std::io::{self, IsTerminal, Write};
+use std::io::{self, IsTerminal};
 use std::os::unix::net::UnixStream;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -171,7 +171,6 @@ fn demo_session(
                 );
                 if tty {
                     frond_binmain::out!("\r\x1b[K{text}")?;
-                    io::stdout().flush()?;
                     next_status += Duration::from_millis(250);
                 } else {
                     frond_binmain::outln!("{text}")?;

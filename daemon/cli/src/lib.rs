@@ -123,9 +123,10 @@ fn exit_for(e: &anyhow::Error) -> ExitCode {
     if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
 }
 
-/// True when the error comes from writing to a closed pipe.
+/// True when the error comes from standard output's reader having gone (`frond tap | head`);
+/// a broken pipe anywhere else (a daemon that closed its socket) is a failure.
 pub(crate) fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| c.downcast_ref::<io::Error>().is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe))
+    frond_binmain::is_closed_stdout(e)
 }
 
 /// Runs one parsed command.

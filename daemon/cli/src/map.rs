@@ -37,8 +37,7 @@ pub(crate) fn run(
         ),
         None => Box::new(io::stdin().lock()),
     };
-    let stdout = io::stdout();
-    let mut out = io::BufWriter::new(stdout.lock());
+    let mut out = frond_binmain::StdoutWriter::lock();
     let summary = map_stream(BufReader::new(reader), &mut out, &mut mapper, &mut io::stderr())?;
     out.flush()?;
     if summary.discontinuities > DISCONTINUITIES_LISTED {

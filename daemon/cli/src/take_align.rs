@@ -5,7 +5,7 @@
 //! seconds from the first frame of all the takes, `stage_ns` the frame's instant on the timeline
 //! (nanoseconds since 1970, on the recorder's clock) and `host_ns` its own host's monotonic stamp.
 
-use std::io::{self, Write};
+use std::io::Write;
 
 use anyhow::anyhow;
 use frond_motion::PoseFrame;
@@ -44,8 +44,7 @@ pub(crate) fn export_aligned(g: &Global, names: &[String], include_held: bool) -
     let Some(origin) = frames.first().map(|f| f.stage_ns) else { return Ok(()) };
     let quoted: Vec<String> =
         names.iter().map(|n| serde_json::Value::String(n.clone()).to_string()).collect();
-    let stdout = io::stdout();
-    let mut out = io::BufWriter::new(stdout.lock());
+    let mut out = frond_binmain::StdoutWriter::lock();
     let mut line = String::with_capacity(256);
     for f in &frames {
         line.clear();

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::anyhow;
 use frond_motion::bvh::{self, BvhPlant};
-use frond_motion::clip::{Clip, frame_count};
+use frond_motion::clip::Clip;
 use frond_motion::field::{Field, MAX_FIELD_FILE_BYTES};
 use frond_motion::rig::Rig;
 use frond_motion::sample::JOINTS;
@@ -67,8 +67,9 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
             if field.plants.is_empty() {
                 anyhow::bail!("{}: the field has no plants", field_path.display());
             }
-            let frames = frame_count(duration_s, fps);
-            let values = frames as u64 * field.plants.len() as u64;
+            // Counted uncapped: a capped count would pass a too-long export, cut short.
+            let frames = frond_motion::clip::frames_needed(duration_s, fps);
+            let values = frames.saturating_mul(field.plants.len() as u64);
             let limit =
                 if a.force { frond_motion::take::MAX_RESAMPLED_FRAMES as u64 } else { MAX_EXPORT_FRAMES };
             if values > limit {
@@ -78,6 +79,9 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
                     if a.force { " (the hard limit)" } else { "; pass --force to go past it" }
                 ));
             }
+            let frames = frames as usize;
+            let what = take.path.display().to_string();
+            crate::takes::check_resample(&what, &take.source, field.fps, a.force)?;
             let clip = Clip::from_poses(&frond_motion::resample(&take.source, field.fps), field.fps);
             let digits = field.plants.len().to_string().len();
             let plants: Vec<BvhPlant> = field

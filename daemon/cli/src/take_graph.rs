@@ -46,7 +46,8 @@ pub struct Graph {
     /// Most transitions leaving one sample (the nearest in pose are kept).
     #[arg(long, default_value_t = 3, value_name = "N")]
     pub max_transitions: u32,
-    /// Rig of the take [default: the rig it was recorded on].
+    /// Rig of the take [default: the rig it was recorded on, when that is an embedded rig; a rig
+    /// loaded from a file must be given here].
     #[arg(long, value_name = "NAME|FILE")]
     pub rig: Option<PathBuf>,
     /// Graph file to write [default: NAME.graph.json in the takes directory, where `frond
@@ -67,7 +68,7 @@ pub struct Graph {
 /// The take's global poses at `fps`.
 fn take_clip(g: &Global, name: &str, fps: f64) -> anyhow::Result<(Take, Clip)> {
     let take = read_take(g, name)?;
-    let clip = global_clip(&take, fps, name, false)?;
+    let clip = global_clip(&take, fps, name, None)?;
     Ok((take, clip))
 }
 
@@ -106,7 +107,17 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
     if let Err(e) = params.check() {
         return usage(format!("--{}", e.to_string().replace('_', "-")));
     }
-    let out = a.output.clone().unwrap_or_else(|| default_graph_path(g, &a.name));
+    let out = match &a.output {
+        Some(out) => out.clone(),
+        None => {
+            // Beside the takes, in frond's own directory, made on first use.
+            let out = default_graph_path(g, &a.name);
+            if let Some(dir) = out.parent() {
+                std::fs::create_dir_all(dir).map_err(|e| anyhow!("cannot create {}: {e}", dir.display()))?;
+            }
+            out
+        }
+    };
     if out.exists() && !a.force {
         return usage(format!("{} exists; use --force to replace it", out.display()));
     }

@@ -109,6 +109,10 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
     emit(g, take, a.name, &out)
 }
 
+/// Creates the `--states` file where [`frond_motion::rig_files::output_destination`] allows
+/// (never over a device, FIFO or directory; into a directory that exists).
 fn create(path: &Path) -> anyhow::Result<std::fs::File> {
-    std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))
+    let to = frond_motion::rig_files::output_destination(path)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    std::fs::File::create(&to).with_context(|| format!("cannot create {}", path.display()))
 }

@@ -6,7 +6,7 @@
 //! the result's global poses as JSON Lines on stdout instead. Everything works at `--fps`
 //! (default 30, the seed's rate): recorded 1 kHz takes are resampled first.
 
-use std::io::{self, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -314,10 +314,11 @@ fn now_unix_s() -> u64 {
 }
 
 /// The take's global layer resampled at `fps`, refused past the output limit unless `force`
-/// ([`crate::takes::check_resample`]) rather than cut short.
-pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: bool) -> anyhow::Result<Clip> {
+/// (`None`: the command has no way past it) rather than cut short
+/// ([`crate::takes::check_resample_with`]).
+pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
     let poses: Vec<_> = take.layer(GLOBAL_LAYER, false).iter().map(|f| f.pose).collect();
-    crate::takes::check_resample(&format!("take {what:?}"), &poses, fps, force)?;
+    crate::takes::check_resample_with(&format!("take {what:?}"), &poses, fps, force)?;
     let c = take.clip(GLOBAL_LAYER, fps);
     if c.is_empty() {
         anyhow::bail!("take {what:?} has no global frames");
@@ -336,8 +337,7 @@ fn resample_layer(frames: &[TakeFrame], fps: f64, force: bool, what: &str) -> an
 /// Writes the result: JSONL of its global layer on stdout, or `OUT.take` in the takes dir.
 pub(crate) fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyhow::Result<()> {
     if out.jsonl {
-        let stdout = io::stdout();
-        let mut w = io::BufWriter::new(stdout.lock());
+        let mut w = frond_binmain::StdoutWriter::lock();
         let mut line = String::with_capacity(256);
         for f in take.layer(GLOBAL_LAYER, true) {
             line.clear();
@@ -543,13 +543,15 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
                 return usage(format!("--threshold must be > 0 degrees, got {threshold}"));
             }
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name, out.force)?;
+            let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
             let t = find_transitions(&clip, &LoopParams { regions, per_region, window })
                 .map_err(|e| crate::UsageError(format!("{name}: {e}")))?;
             if explain {
                 frond_binmain::outln!("{}", t.explain_json())?;
                 return Ok(());
             }
+            let frames = frond_motion::clip::frames_needed(duration, out.fps);
+            crate::takes::check_output_frames("the loop", frames, duration, out.fps, out.force)?;
             let count = frame_count(duration, out.fps);
             let (looped, _) = loop_clip(
                 &clip,
@@ -564,7 +566,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
         TakeTool::Field { name, rows, cols, cell, speed, direction, density, seed, fps, output } => {
             check_fps(fps)?;
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, fps, &name, false)?;
+            let clip = global_clip(&src, fps, &name, None)?;
             let params = FieldParams {
                 rows,
                 cols,
@@ -584,17 +586,12 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             check_fps(out.fps)?;
             let delays_s = triple("--delay", &delay)?;
             let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name, out.force)?;
-            if speed.is_finite() && speed > 0.0 && !out.force {
+            let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
+            if speed.is_finite() && speed > 0.0 {
                 let seconds = clip.duration_s() / speed;
                 let frames = frond_motion::clip::frames_needed(seconds, out.fps);
-                if frames > crate::takes::MAX_EXPORT_FRAMES {
-                    return usage(format!(
-                        "take {name:?} at --speed {speed} lasts {seconds:.1} s: {frames} frames at {} FPS, more than {}; pass --force to go past it",
-                        out.fps,
-                        crate::takes::MAX_EXPORT_FRAMES
-                    ));
-                }
+                let what = format!("take {name:?} at --speed {speed}");
+                crate::takes::check_output_frames(&what, frames, seconds, out.fps, out.force)?;
             }
             let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
                 .map_err(|e| crate::UsageError(e.to_string()))?;
@@ -630,8 +627,8 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             }
             let gt = read_take(g, &global)?;
             let st = read_take(g, &secondary)?;
-            let gc = global_clip(&gt, out.fps, &global, out.force)?;
-            let sc = global_clip(&st, out.fps, &secondary, out.force)?;
+            let gc = global_clip(&gt, out.fps, &global, Some(out.force))?;
+            let sc = global_clip(&st, out.fps, &secondary, Some(out.force))?;
             let transitions = find_transitions(&sc, &LoopParams::default()).ok();
             let (aligned, steps) =
                 align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;

@@ -183,8 +183,7 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
     };
     paths.sort();
     let infos: Vec<TakeInfo> = paths.iter().map(|p| info(p)).collect();
-    let stdout = io::stdout();
-    let mut out = stdout.lock();
+    let mut out = frond_binmain::StdoutWriter::lock();
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&infos)?)?;
         return Ok(());
@@ -201,12 +200,13 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
         "NAME", "FRAMES", "DURATION", "SIZE", "STATE"
     )?;
     for i in &infos {
+        // A file name may hold any byte but '/' and NUL: escaped like the header's rig name.
+        let name = frond_protocol::printable(&i.name);
         let state = match (i.state, &i.error) {
-            ("torn", _) => format!("torn ({} bytes; `frond take repair {}`)", i.torn_bytes, i.name),
+            ("torn", _) => format!("torn ({} bytes; `frond take repair {name}`)", i.torn_bytes),
             ("damaged", _) => format!(
-                "damaged: {}; `frond take repair {}`",
+                "damaged: {}; `frond take repair {name}`",
                 i.damage.as_deref().unwrap_or("records skipped"),
-                i.name
             ),
             (_, Some(e)) => format!("corrupt: {e}"),
             (s, None) => s.to_string(),
@@ -214,28 +214,15 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
         writeln!(
             out,
             "{:<width$}  {:>8}  {:>8.2}s  {:>10}  {:<8}  {}",
-            i.name,
+            name,
             i.frames,
             i.duration_s,
             human_size(i.size_bytes),
             state,
-            i.rig.as_deref().map_or("-".into(), printable),
+            i.rig.as_deref().map_or("-".into(), frond_protocol::printable),
         )?;
     }
     Ok(())
-}
-
-/// `text` with its control characters escaped (`\u{1b}`, `\n`): a take's header is read from
-/// a file anyone may have written, and an escape sequence or line break in it must not reach
-/// the terminal or break the table.
-fn printable(text: &str) -> std::borrow::Cow<'_, str> {
-    if text.chars().any(char::is_control) {
-        text.chars()
-            .map(|c| if c.is_control() { c.escape_debug().to_string() } else { c.to_string() })
-            .collect()
-    } else {
-        text.into()
-    }
 }
 
 /// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
@@ -251,6 +238,40 @@ pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool
 /// Checks a resampling before it is done: refuses past [`MAX_EXPORT_FRAMES`] unless `force`
 /// (never past [`MAX_RESAMPLED_FRAMES`]) and warns about time discontinuities.
 pub(crate) fn check_resample(what: &str, poses: &[PoseFrame], fps: f64, force: bool) -> anyhow::Result<()> {
+    check_resample_with(what, poses, fps, Some(force))
+}
+
+/// Checks an output of `frames` frames at `fps` (`seconds` long) before it is made: past
+/// [`MAX_EXPORT_FRAMES`] only with `force`, never past [`MAX_RESAMPLED_FRAMES`]: refused, never
+/// cut short. `what` names the output in the message.
+pub(crate) fn check_output_frames(
+    what: &str,
+    frames: u64,
+    seconds: f64,
+    fps: f64,
+    force: bool,
+) -> anyhow::Result<()> {
+    if frames > MAX_RESAMPLED_FRAMES as u64 {
+        bail!(
+            "{what} lasts {seconds:.1} s: {frames} frames at {fps} FPS, more than the {MAX_RESAMPLED_FRAMES} any output may have"
+        );
+    }
+    if !force && frames > MAX_EXPORT_FRAMES {
+        bail!(
+            "{what} lasts {seconds:.1} s: {frames} frames at {fps} FPS, more than {MAX_EXPORT_FRAMES}; pass --force to go past it"
+        );
+    }
+    Ok(())
+}
+
+/// [`check_resample`] for a command with (`Some(force)`) or without (`None`: the limit holds and
+/// no `--force` is offered) a way past the limit.
+pub(crate) fn check_resample_with(
+    what: &str,
+    poses: &[PoseFrame],
+    fps: f64,
+    force: Option<bool>,
+) -> anyhow::Result<()> {
     let plan = resample_plan(poses, fps);
     if let Some(i) = plan.first_discontinuity {
         eprintln!(
@@ -263,10 +284,14 @@ pub(crate) fn check_resample(what: &str, poses: &[PoseFrame], fps: f64, force: b
         );
     }
     plan.check(fps, MAX_RESAMPLED_FRAMES as u64).map_err(|e| anyhow!("{what}: {e} (the hard limit)"))?;
-    if !force {
-        plan.check(fps, MAX_EXPORT_FRAMES).map_err(|e| {
+    match force {
+        Some(true) => {}
+        Some(false) => plan.check(fps, MAX_EXPORT_FRAMES).map_err(|e| {
             anyhow!("{what}: {e} ({:.1} s of output); pass --force to go past it", plan.duration_s)
-        })?;
+        })?,
+        None => plan
+            .check(fps, MAX_EXPORT_FRAMES)
+            .map_err(|e| anyhow!("{what}: {e} ({:.1} s of output)", plan.duration_s))?,
     }
     Ok(())
 }
@@ -318,8 +343,7 @@ pub(crate) fn export(
         },
         _ => None,
     };
-    let stdout = io::stdout();
-    let mut out = io::BufWriter::new(stdout.lock());
+    let mut out = frond_binmain::StdoutWriter::lock();
     let mut line = String::with_capacity(256);
     for (k, p) in poses.iter().enumerate() {
         line.clear();
@@ -421,20 +445,13 @@ pub(crate) fn start_timecode(
     Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))
 }
 
-/// The rig a take was recorded on, by the name its header keeps: an embedded rig. Any other
-/// name (a rig loaded from a file names itself) is a usage error asking for the file with
-/// `--rig`; the name is never opened as a path, so a take cannot make frond read a file.
+/// The rig a take was recorded on ([`frond_motion::rig_files::recorded_rig`]: an embedded rig,
+/// never a path), as a usage error naming the take.
 pub(crate) fn recorded_rig(take: &str, rig_name: &str) -> anyhow::Result<frond_motion::rig_files::LoadedRig> {
-    if let Some(rig) = frond_motion::rig_files::embedded_rig(rig_name) {
-        return Ok(rig?);
-    }
     if rig_name.is_empty() {
         return usage(format!("{take} names no rig; give one with --rig NAME|FILE"));
     }
-    let embedded = frond_motion::rig_files::EMBEDDED_RIGS.map(|(n, _)| n).join(", ");
-    usage(format!(
-        "{take} was recorded on rig {rig_name:?}, which is not an embedded rig ({embedded}); give its rig file with --rig FILE"
-    ))
+    frond_motion::rig_files::recorded_rig(rig_name).or_else(|e| usage(format!("{take}: {e}")))
 }
 
 /// Reads take `name` and its rig for a file export.

@@ -66,16 +66,23 @@ pub(crate) fn run(
                 eprintln!("frond tap: gap: {} frames missing (seq {expected}..{})", got - expected, got - 1);
             }
             Event::RigChanged(h) => {
-                eprintln!("frond tap: rig changed to {}", h.rig_name);
+                eprintln!("frond tap: rig changed to {}", frond_protocol::printable(&h.rig_name));
                 names = h.joint_names;
             }
             Event::Reconnected(h) => {
-                eprintln!("frond tap: reconnected (daemon {}, rig {})", h.daemon_version, h.rig_name);
+                eprintln!(
+                    "frond tap: reconnected (daemon {}, rig {})",
+                    frond_protocol::printable(&h.daemon_version),
+                    frond_protocol::printable(&h.rig_name)
+                );
                 names = h.joint_names;
             }
             Event::Elements(new) => {
-                let list: Vec<String> =
-                    new.elements.iter().map(|e| format!("{} {} {}", e.id, e.kind.as_str(), e.name)).collect();
+                let list: Vec<String> = new
+                    .elements
+                    .iter()
+                    .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), frond_protocol::printable(&e.name)))
+                    .collect();
                 eprintln!("frond tap: elements now: {}", list.join(", "));
                 table = new;
                 if element.is_some_and(|e| e.parse::<u16>().is_err()) {
@@ -122,7 +129,7 @@ pub(crate) fn unannounced(only: Option<u16>, table: &frond_protocol::ElementTabl
 
 /// Prints `frond tap`'s lines, one flushed write each, and counts them against `--count`.
 pub(crate) struct Printer {
-    out: std::io::StdoutLock<'static>,
+    out: frond_binmain::StdoutWriter,
     line: String,
     jsonl: bool,
     printed: u64,
@@ -131,7 +138,13 @@ pub(crate) struct Printer {
 
 impl Printer {
     pub(crate) fn new(jsonl: bool, count: Option<u64>) -> Printer {
-        Printer { out: std::io::stdout().lock(), line: String::with_capacity(256), jsonl, printed: 0, count }
+        Printer {
+            out: frond_binmain::StdoutWriter::lock(),
+            line: String::with_capacity(256),
+            jsonl,
+            printed: 0,
+            count,
+        }
     }
 
     /// Prints `pose`'s line: JSON Lines, or readable with `[element]` for any element but the
@@ -158,7 +171,7 @@ impl Printer {
             }
             if pose.element != 0 {
                 let name = table.get(pose.element).map_or("?", |e| e.name.as_str());
-                let _ = write!(line, "[{name}] ");
+                let _ = write!(line, "[{}] ", frond_protocol::printable(name));
             }
             pose_human(pose, names, line);
         }

@@ -58,7 +58,8 @@ pub(crate) fn run(
                 });
                 eprintln!(
                     "frond tap: following {source} (daemon {}, rig {})",
-                    hello.daemon_version, hello.rig_name
+                    frond_protocol::printable(&hello.daemon_version),
+                    frond_protocol::printable(&hello.rig_name)
                 );
                 followed.insert(source, Followed { names: hello.joint_names, table: hello.elements, only });
             }
@@ -86,13 +87,17 @@ pub(crate) fn run(
                         got - 1
                     ),
                     Event::RigChanged(h) => {
-                        eprintln!("frond tap: {source}: rig changed to {}", h.rig_name);
+                        eprintln!(
+                            "frond tap: {source}: rig changed to {}",
+                            frond_protocol::printable(&h.rig_name)
+                        );
                         f.names = h.joint_names;
                     }
                     Event::Reconnected(h) => {
                         eprintln!(
                             "frond tap: {source}: reconnected (daemon {}, rig {})",
-                            h.daemon_version, h.rig_name
+                            frond_protocol::printable(&h.daemon_version),
+                            frond_protocol::printable(&h.rig_name)
                         );
                         f.names = h.joint_names;
                     }

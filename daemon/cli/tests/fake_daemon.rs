@@ -323,7 +323,7 @@ fn one_shot_control_commands_send_the_right_requests() {
     assert_eq!(reqs[2], ControlRequest::RecordStop);
     let ControlRequest::SetFilter { spec } = &reqs[3] else { panic!("{:?}", reqs[3]) };
     assert!(spec.starts_with("lowpass:cutoff_hz="), "{spec}");
-    assert_eq!(reqs[4], ControlRequest::SetRig { name: "grass-stiff".into(), toml: rig_text });
+    assert_eq!(reqs[4], ControlRequest::SetRig { name: "grass".into(), toml: rig_text });
     assert_eq!(reqs[5], ControlRequest::SetCalibration { id: "example-user".into(), toml: cal_text });
     assert_eq!(reqs.len(), 6);
 }

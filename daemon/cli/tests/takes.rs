@@ -418,22 +418,35 @@ fn a_gap_in_time_is_a_discontinuity_and_resampling_is_bounded() {
 #[test]
 fn take_tools_refuse_an_output_past_the_limit_instead_of_cutting_it_short() {
     let (_d, takes) = setup();
-    // 3.5 s at 30 FPS (106 frames). At --speed 1e-4 it lasts 35,000 s: 1,050,001 frames, just
-    // under the 1,080,000 limit; at 1e-5, 350,000 s and 10,500,001: over it (and at 1e-9 past even the hard
-    // 16,777,216, where the output was once cut there silently, exit 0).
+    // 3.5 s at 30 FPS (106 frames). At --speed 1e-5 it lasts 350,000 s: 10,500,001 frames, past
+    // the 1,080,000 limit; at 1e-9, 3.5e9 s and 105,000,000,001 frames, past even the hard
+    // 16,777,216 where the output was once cut silently (exit 0). Both exit 1, as resampling.
     std::fs::write(takes.join("short.take"), six_decimal_take("short", 106, 30.0)).unwrap();
     let run = |args: &[&str]| frond(&takes).args(args).output().unwrap();
     let out = run(&["take", "retime", "short", "--speed", "1e-5"]);
     let err = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("lasts 350000.0 s: 10500001 frames at 30 FPS, more than 1080000; pass --force"),
         "{err}"
     );
     let out = run(&["take", "retime", "short", "--speed", "1e-9", "--force"]);
     let err = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("105000000001 frames") && err.contains("more than the 16777216 frames"), "{err}");
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "lasts 3500000000.0 s: 105000000001 frames at 30 FPS, more than the 16777216 any output may have"
+        ),
+        "{err}"
+    );
+    // A loop as long as asked: 86,400 s at 1000 FPS is 86,400,001 frames.
+    let out = run(&["take", "loop", "short", "--duration", "86400", "--fps", "1000", "--force"]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the loop lasts 86400.0 s: 86400001 frames at 1000 FPS, more than the 16777216"),
+        "{err}"
+    );
     assert!(!takes.join("short-retime.take").exists());
 
     // Resampling: 1201 frames a second apart at 1000 FPS is 1,200,001 frames.
@@ -481,11 +494,8 @@ fn a_takes_rig_name_is_looked_up_among_the_embedded_rigs_never_opened_as_a_path(
         let out = frond(&takes).args(["take", "export", take, "--bvh", "-o"]).arg(&bvh).output().unwrap();
         let err = text(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{err}");
-        assert!(
-            err.contains(&format!("was recorded on rig {rig:?}, which is not an embedded rig (grass, ")),
-            "{err}"
-        );
-        assert!(err.contains("give its rig file with --rig FILE") && !err.contains("device"), "{err}");
+        assert!(err.contains(&format!(": rig {rig:?} is not an embedded rig (grass, ")), "{err}");
+        assert!(err.contains("give that file with --rig FILE") && !err.contains("device"), "{err}");
     }
     assert!(!bvh.exists());
     ok(frond(&takes)

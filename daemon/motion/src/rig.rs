@@ -220,8 +220,13 @@ impl RawRig {
         let mut p = Problems::default();
         // A take keeps its rig's name and exports look it up among the embedded rigs: a '/'
         // would make it read as a path.
-        if p.name("name", &self.name, MAX_RIG_NAME_BYTES) && self.name.contains('/') {
-            p.push("name", "contains '/'; a rig name is a name, not a path");
+        if p.name("name", &self.name, MAX_RIG_NAME_BYTES)
+            && (self.name.contains('/') || self.name.starts_with('.') || self.name.ends_with(".toml"))
+        {
+            p.push(
+                "name",
+                "contains '/', starts with '.' or ends in .toml; a rig name is a name, not a path",
+            );
         }
         let tau = check_tau(&mut p, "tau", self.tau);
         let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
@@ -363,6 +368,8 @@ impl RawRig {
                         format!("vmc.bones[{i}]"),
                         format!("must be 1 to {MAX_VMC_BONE_NAME_BYTES} bytes"),
                     );
+                } else {
+                    p.name(format!("vmc.bones[{i}]"), b, MAX_VMC_BONE_NAME_BYTES);
                 }
             }
         }
@@ -501,13 +508,19 @@ mod guided_tests {
             e.contains("name: contains the control character '\\u{1b}'; a name must be printable"),
             "{e}"
         );
-        assert!(
-            err(&with_name("/dev/zero")).contains("name: contains '/'; a rig name is a name, not a path")
-        );
+        for path_like in ["/dev/zero", "..", ".hidden", "shrub.toml"] {
+            let e = err(&with_name(path_like));
+            assert!(
+                e.contains("name: contains '/', starts with '.' or ends in .toml; a rig name is a name"),
+                "{e}"
+            );
+        }
         assert!(err(&with_name(&"r".repeat(65))).contains("name: is 65 bytes; the limit is 64"));
         assert_eq!(Rig::from_toml_str(&with_name(&"r".repeat(64))).unwrap().name.len(), 64);
         let e = err(&BASE.replacen("height_m = 0.1", "height_m = 0.1\nname = \"tab\\there\"", 1));
         assert!(e.contains("joints[1].name: contains the control character '\\t'"), "{e}");
+        let e = err(&format!("{BASE}[vmc]\nbones = [\"a\", \"b\\n\", \"c\", \"d\"]\n"));
+        assert!(e.contains("vmc.bones[1]: contains the control character '\\n'"), "{e}");
     }
 
     #[test]

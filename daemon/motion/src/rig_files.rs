@@ -93,6 +93,17 @@ pub enum RigFileError {
         /// The embedded rigs' names.
         embedded: String,
     },
+    /// A name kept by a take (or sent by a daemon) that is not an embedded rig: a rig loaded
+    /// from a file keeps only its own name, and a name from a file is never opened as a path.
+    #[error(
+        "rig {name:?} is not an embedded rig ({embedded}); it was loaded from a file: give that file with --rig FILE"
+    )]
+    NotEmbedded {
+        /// The kept name.
+        name: String,
+        /// The embedded rigs' names.
+        embedded: String,
+    },
     /// The file could not be read. (Not a `source`: the message already says it all, and a
     /// chain printed after it would repeat it.)
     #[error("cannot read rig {}: {}", .0.path().display(), .0.reason())]
@@ -156,20 +167,39 @@ pub fn output_destination(path: &Path) -> std::io::Result<PathBuf> {
     if path.as_os_str().is_empty() {
         return Err(Error::new(ErrorKind::InvalidInput, "the output path is empty"));
     }
+    if path.as_os_str() == "-" {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "`-` (standard output) is not taken here; give a file path (./- for a file named -)",
+        ));
+    }
     match std::fs::symlink_metadata(path) {
-        Ok(meta) if meta.file_type().is_symlink() => match std::fs::metadata(path) {
-            Ok(target) => match not_regular(target.file_type()) {
-                None => std::fs::canonicalize(path),
-                Some(what) => Err(Error::new(
+        Ok(link) if link.file_type().is_symlink() => {
+            let target = match std::fs::metadata(path) {
+                Ok(target) => target,
+                Err(e) if e.kind() == ErrorKind::NotFound => {
+                    return Err(Error::new(
+                        ErrorKind::NotFound,
+                        "it is a symbolic link to a file that does not exist; remove the link or name the file itself",
+                    ));
+                }
+                Err(e) => return Err(e),
+            };
+            if let Some(what) = not_regular(target.file_type()) {
+                return Err(Error::new(
                     ErrorKind::InvalidInput,
                     format!("it is a symbolic link to {what}, not to a regular file"),
-                )),
-            },
-            Err(_) => Err(Error::new(
-                ErrorKind::NotFound,
-                "it is a symbolic link to a file that does not exist; remove the link or name the file itself",
-            )),
-        },
+                ));
+            }
+            if !may_follow(path, &link) {
+                return Err(Error::new(
+                    ErrorKind::PermissionDenied,
+                    "it is a symbolic link that another user made in a shared directory (sticky and \
+                     world-writable, as /tmp); it is not followed: name the file itself",
+                ));
+            }
+            std::fs::canonicalize(path)
+        }
         Ok(meta) => match not_regular(meta.file_type()) {
             None => Ok(path.to_path_buf()),
             Some(what) => {
@@ -189,6 +219,21 @@ pub fn output_destination(path: &Path) -> std::io::Result<PathBuf> {
         }
         Err(e) => Err(e),
     }
+}
+
+/// Whether writing through the symbolic link `path` (its own metadata `link`) is safe: Linux's
+/// `fs.protected_symlinks` rule, which following the link ourselves would bypass. In a sticky,
+/// world-writable directory (`/tmp`) only a link owned by this user or by the directory's owner
+/// is followed; elsewhere any link is. Otherwise a user could plant `/tmp/x.bvh ->
+/// /etc/shadow` for root's `-o /tmp/x.bvh` to replace.
+fn may_follow(path: &Path, link: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let Ok(dir) = std::fs::metadata(dir) else { return false };
+    let shared = dir.mode() & 0o1002 == 0o1002;
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let me = unsafe { libc::geteuid() };
+    !shared || link.uid() == me || link.uid() == dir.uid()
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory, fsync and a rename,
@@ -319,6 +364,18 @@ pub fn load_rig(spec: &str) -> Result<LoadedRig, RigFileError> {
     rig_file(path)
 }
 
+/// The rig a take was recorded on (or a daemon reports), by the name it keeps: an embedded rig
+/// only. Unlike [`load_rig`], never opens a path: the name comes from a file or a peer, and a
+/// take must not make frond read `/dev/zero` or `/etc/shadow`.
+pub fn recorded_rig(name: &str) -> Result<LoadedRig, RigFileError> {
+    embedded_rig(name).unwrap_or_else(|| {
+        Err(RigFileError::NotEmbedded {
+            name: name.to_string(),
+            embedded: EMBEDDED_RIGS.map(|(n, _)| n).join(", "),
+        })
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -376,6 +433,44 @@ mod tests {
         assert!(std::fs::symlink_metadata(at("link.glb")).unwrap().file_type().is_symlink());
         assert_eq!(std::fs::read(at("target.glb")).unwrap(), b"new");
         assert_eq!(err(Path::new("")), "the output path is empty");
+        assert!(err(Path::new("-")).starts_with("`-` (standard output) is not taken here"));
+    }
+
+    #[test]
+    fn a_link_another_user_planted_in_a_shared_directory_is_not_followed() {
+        use std::os::unix::fs::{PermissionsExt, lchown, symlink};
+        // A /tmp of our own: sticky and world-writable, owned by us; the link is made by user
+        // 4242 (needs root to give it away, as the tests run; otherwise there is nothing to test).
+        let dir = tempfile::tempdir().unwrap();
+        let shared = dir.path().join("shared");
+        std::fs::create_dir(&shared).unwrap();
+        std::fs::set_permissions(&shared, std::fs::Permissions::from_mode(0o1777)).unwrap();
+        let secret = dir.path().join("secret");
+        std::fs::write(&secret, b"keep").unwrap();
+        let planted = shared.join("x.bvh");
+        symlink(&secret, &planted).unwrap();
+        if lchown(&planted, Some(4242), None).is_err() {
+            return;
+        }
+        let e = write_file_atomically(&planted, b"new").unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied, "{e}");
+        assert_eq!(std::fs::read(&secret).unwrap(), b"keep");
+        // Our own link there is followed; a planted one outside a shared directory too.
+        // SAFETY: geteuid has no preconditions and cannot fail.
+        let me = unsafe { libc::geteuid() };
+        lchown(&planted, Some(me), None).unwrap();
+        write_file_atomically(&planted, b"ours").unwrap();
+        assert_eq!(std::fs::read(&secret).unwrap(), b"ours");
+    }
+
+    #[test]
+    fn a_recorded_rig_name_is_an_embedded_rig_or_refused_never_a_path() {
+        assert_eq!(recorded_rig("grass").unwrap().rig.name, load_rig("grass").unwrap().rig.name);
+        for name in ["/dev/zero", "my-shrub", "grass.toml", "../grass", ""] {
+            let e = recorded_rig(name).unwrap_err().to_string();
+            assert!(e.starts_with(&format!("rig {name:?} is not an embedded rig (grass, ")), "{e}");
+            assert!(e.ends_with("give that file with --rig FILE"), "{e}");
+        }
     }
 
     #[test]

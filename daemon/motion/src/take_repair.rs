@@ -102,7 +102,11 @@ impl Repaired {
             String::new()
         };
         // A take cut off by a crash has no torn tail and no damage: only its End is missing.
-        let dropped = if dropped.is_empty() { "nothing dropped".to_string() } else { format!("dropped {}", dropped.join(", ")) };
+        let dropped = if dropped.is_empty() {
+            "nothing dropped".to_string()
+        } else {
+            format!("dropped {}", dropped.join(", "))
+        };
         format!(
             "repaired {}: {dropped}{lost}; kept {} frames{}",
             path,

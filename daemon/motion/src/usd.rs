@@ -42,6 +42,30 @@ pub fn identifier(name: &str) -> String {
     s
 }
 
+/// `text` as a USDA double-quoted string: `\\` and `\"` escaped, control characters as
+/// `\xHH` per UTF-8 byte (the C escapes Sdf's text format reads; Rust's `{:?}` would write
+/// `\u{1b}`, which it does not), everything else as it is (USDA is UTF-8). Values come from
+/// take headers, which anyone may have written.
+pub fn usda_string(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 2);
+    out.push('"');
+    for c in text.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            '"' => out.push_str("\\\""),
+            c if c.is_control() => {
+                let mut utf8 = [0u8; 4];
+                for b in c.encode_utf8(&mut utf8).bytes() {
+                    let _ = write!(out, "\\x{b:02x}");
+                }
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
 /// One skeleton joint: its path, rest transform (relative to its parent) and bind transform
 /// (world).
 struct Joint {
@@ -172,7 +196,7 @@ pub fn write_usda(take: &UsdTake<'_>, model: &PlantModel, poses: &[[[f32; 3]; JO
     let _ = writeln!(out, "    defaultPrim = \"{root}\"");
     out.push_str("    customLayerData = {\n");
     for (k, v) in take.info {
-        let _ = writeln!(out, "        string {} = {:?}", identifier(k), v);
+        let _ = writeln!(out, "        string {} = {}", identifier(k), usda_string(v));
     }
     out.push_str("    }\n");
     let _ = writeln!(out, "    doc = \"frond {}\"", env!("CARGO_PKG_VERSION"));
@@ -259,5 +283,13 @@ mod tests {
         assert_eq!(identifier("stem low"), "stem_low");
         assert_eq!(identifier("3leaf"), "_3leaf");
         assert_eq!(identifier(""), "_");
+    }
+
+    #[test]
+    fn strings_use_the_escapes_usda_reads() {
+        assert_eq!(usda_string("grass"), "\"grass\"");
+        assert_eq!(usda_string("a\"b\\c"), r#""a\"b\\c""#);
+        assert_eq!(usda_string("a\u{1b}[31m\nz"), r#""a\x1b[31m\x0az""#);
+        assert_eq!(usda_string("p\u{85}é"), r#""p\xc2\x85é""#);
     }
 }

@@ -4,7 +4,6 @@
 //!
 //! Prints the node path as the first line on stdout once the node is ready; logs to stderr.
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -247,11 +246,7 @@ fn run(args: Args) -> Result<()> {
                 .context("cannot serve the virtual glove as a FUSE hidraw node")?,
         )
     };
-    {
-        let mut out = std::io::stdout().lock();
-        writeln!(out, "{}", glove.node().display())?;
-        out.flush()?;
-    }
+    frond_binmain::outln!("{}", glove.node().display())?;
     tracing::info!(node = %glove.node().display(), "virtual glove ready");
     let stats = glove.stats();
     let mut finished_at: Option<Instant> = None;
