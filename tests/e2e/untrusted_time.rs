@@ -64,6 +64,59 @@ fn a_timestamp_that_jumps_or_goes_back_resets_the_filter_live_and_offline() {
 }
 
 #[test]
+fn a_replayed_file_whose_time_jumps_repeats_or_goes_back_keeps_playing() {
+    // `frondd --replay` of t = 0 then t = 1e15 used to wait 1e15 s for the second sample,
+    // logging only "device stalled (no reports)"; a step back was refused at start-up.
+    let dir = tempfile::tempdir().unwrap();
+    // 1 s at 100 Hz from t = 10 (the subscriber connects meanwhile), then a jump to 1e15, the
+    // same time again, 0.125 s on (1e15 + 0.125 is exact in f64), back to 2 and on in 0.01 s
+    // steps.
+    let mut times: Vec<f64> = (0..100).map(|k| 10.0 + f64::from(k) * 0.01).collect();
+    let before_jump = times[99];
+    times.extend([1e15, 1e15, 1e15 + 0.125, 2.0, 2.01, 2.02]);
+    let file = dir.path().join("hand.jsonl");
+    let text: String =
+        times.iter().map(|t| format!("{{\"t\":{t},\"wrist\":[10,0,0],\"thumb\":[0,0,0]}}\n")).collect();
+    std::fs::write(&file, text).unwrap();
+    let rig = repo_root().join("rig-files/plants/grass.toml");
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--replay", file.to_str().unwrap(), "--rig", rig.to_str().unwrap(), "--filter", "none"],
+    );
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let mut fresh = Vec::new();
+    while fresh.last().is_none_or(|p: &frond_sdk::Pose| p.hand.t != 2.02) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the replay stopped after t = {:?}",
+            fresh.last().map(|p| p.hand.t)
+        );
+        fresh.extend(fresh_poses(&mut sub, 1, Duration::from_secs(1)));
+    }
+    let from = fresh.iter().position(|p| p.hand.t == 1e15).expect("the jump was published");
+    let tail: Vec<(f64, bool)> =
+        fresh[from..].iter().map(|p| (p.hand.t, p.flags.contains(PoseFlags::DISCONTINUITY))).collect();
+    assert_eq!(
+        tail,
+        [(1e15, true), (1e15, true), (1e15 + 0.125, false), (2.0, true), (2.01, false), (2.02, false)],
+        "the jump, the repeat and the step back are the discontinuities"
+    );
+    assert!(
+        from > 0 && fresh[from - 1].hand.t == before_jump,
+        "the samples before the jump: {:?}",
+        &fresh[..from]
+    );
+    assert!(!fresh[from - 1].flags.contains(PoseFlags::DISCONTINUITY), "{:?}", fresh[from - 1]);
+    assert_eq!(daemon.status().hands[0].discontinuities, 3);
+    assert!(wait_for(Duration::from_secs(2), || daemon
+        .status()
+        .device_events
+        .iter()
+        .any(|e| e.contains("device time discontinuous"))));
+}
+
+#[test]
 fn after_sigstop_the_daemon_resumes_at_the_present_without_a_burst_or_a_gap() {
     let dir = tempfile::tempdir().unwrap();
     let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);

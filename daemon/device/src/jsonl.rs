@@ -2,7 +2,9 @@
 //! (seconds, degrees).
 //!
 //! Lines are parsed by `frond_motion::jsonl::parse_hand_line`; this module adds line numbers,
-//! blank-line skipping and the non-decreasing-time check playback needs.
+//! blank-line skipping and, for the virtual glove's schedule, the non-decreasing-time check
+//! ([`load_hand_file`]). `--replay` takes the times as they are ([`load_hand_recording`]): a
+//! jump, a step back or a repeat is a discontinuity there, as in `frond map`.
 
 use std::path::{Path, PathBuf};
 
@@ -64,6 +66,16 @@ pub fn parse_hand_line(line: &str) -> Result<HandSample, HandLineError> {
 
 /// Parses a whole hand file; blank lines are skipped; times must not decrease.
 pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandFileError> {
+    parse_lines(path, text, true)
+}
+
+/// Parses a whole hand recording; blank lines are skipped; times are kept as they are, in any
+/// order (untrusted: the player treats a jump, a step back or a repeat as a discontinuity).
+pub fn parse_hand_recording(path: &Path, text: &str) -> Result<Vec<HandSample>, HandFileError> {
+    parse_lines(path, text, false)
+}
+
+fn parse_lines(path: &Path, text: &str, ordered: bool) -> Result<Vec<HandSample>, HandFileError> {
     let mut out: Vec<HandSample> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
@@ -71,7 +83,8 @@ pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandF
         }
         let err = |error: HandLineError| HandFileError::Line { path: path.to_owned(), line: i + 1, error };
         let s = parse_hand_line(line).map_err(err)?;
-        if let Some(prev) = out.last()
+        if ordered
+            && let Some(prev) = out.last()
             && s.t < prev.t
         {
             return Err(err(HandLineError::Earlier { t: s.t, previous: prev.t }));
@@ -87,13 +100,22 @@ pub fn parse_hand_text(path: &Path, text: &str) -> Result<Vec<HandSample>, HandF
 pub use frond_motion::jsonl::MAX_HAND_FILE_BYTES;
 
 /// Loads a hand file into memory: a regular file of at most [`MAX_HAND_FILE_BYTES`] (a FIFO or
-/// a device is refused without blocking).
+/// a device is refused without blocking); times must not decrease ([`parse_hand_text`]).
 pub fn load_hand_file(path: &Path) -> Result<Vec<HandSample>, HandFileError> {
-    let text = frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(|e| match e {
+    parse_hand_text(path, &read_hand_text(path)?)
+}
+
+/// Loads a hand recording like [`load_hand_file`], its times in any order
+/// ([`parse_hand_recording`]).
+pub fn load_hand_recording(path: &Path) -> Result<Vec<HandSample>, HandFileError> {
+    parse_hand_recording(path, &read_hand_text(path)?)
+}
+
+fn read_hand_text(path: &Path) -> Result<String, HandFileError> {
+    frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(|e| match e {
         frond_motion::rig_files::FileError::Read { path, source } => HandFileError::Io { path, source },
         other => HandFileError::File(other),
-    })?;
-    parse_hand_text(path, &text)
+    })
 }
 
 #[cfg(test)]
@@ -117,6 +139,14 @@ mod tests {
             "{\"t\":1,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}\n{\"t\":0.5,\"wrist\":[1,2,3],\"thumb\":[4,5,6]}";
         let e = parse_hand_text(Path::new("x"), text).unwrap_err();
         assert!(e.to_string().contains("x:2: t 0.5 is earlier"), "{e}");
+        // A recording for `--replay` keeps them (a discontinuity of playback), bad lines still fail.
+        let times: Vec<f64> =
+            parse_hand_recording(Path::new("x"), text).unwrap().iter().map(|s| s.t).collect();
+        assert_eq!(times, [1.0, 0.5]);
+        let e = parse_hand_recording(Path::new("x"), "\n{\"t\":1,\"wrist\":[400,0,0],\"thumb\":[0,0,0]}")
+            .unwrap_err();
+        assert!(e.to_string().starts_with("x:2: `wrist[0]`: 400 degrees"), "{e}");
+        assert!(matches!(parse_hand_recording(Path::new("x"), "\n"), Err(HandFileError::Empty { .. })));
     }
 
     #[test]

@@ -28,6 +28,37 @@ fn replay_delivers_the_file_in_order_then_nothing() {
 }
 
 #[test]
+fn replay_plays_through_untrusted_times_without_stalling_or_bursting() {
+    // A jump of 1e15 s (the old pacing waited that long: frondd only logged "device stalled"),
+    // a repeat, and a step back; each is a break in the timeline.
+    let times = [0.0, 0.01, 0.02, 1e15, 1e15, 1e15 + 0.125, 0.5, 0.51, 0.52];
+    let breaks_before = [3, 4, 6];
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("hand.jsonl");
+    let text: String =
+        times.iter().map(|t| format!("{{\"t\":{t},\"wrist\":[1,2,3],\"thumb\":[4,5,6]}}\n")).collect();
+    std::fs::write(&file, &text).unwrap();
+    let mut src = ReplaySource::load(&file).unwrap();
+    // Read as the realtime loop does, and keep each read's batch.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let mut batches: Vec<Vec<usize>> = Vec::new();
+    let mut buf = [frond_device::DeviceSample::default(); 16];
+    while !src.finished() && std::time::Instant::now() < deadline {
+        let n = src.read_pending(&mut buf).unwrap();
+        if n > 0 {
+            batches.push(buf[..n].iter().map(|s| s.device_seq as usize).collect());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let got: Vec<usize> = batches.iter().flatten().copied().collect();
+    assert_eq!(got, (0..times.len()).collect::<Vec<_>>(), "every sample, in file order: {batches:?}");
+    // No burst: a sample after a break is the first of its read, never taken with the one before.
+    for b in breaks_before {
+        assert!(batches.iter().any(|batch| batch[0] == b), "{b} shares a read: {batches:?}");
+    }
+}
+
+#[test]
 fn in_process_glove_parses_the_same_reports_and_unplugs() {
     let cfg = VirtualGloveConfig {
         source: GloveSource::Sway { rate_hz: 500.0 },

@@ -61,7 +61,9 @@ pub enum ImportKind {
 
 /// Imports a JSONL file as global-layer frames. Hand samples go through `mapper` (calibrate,
 /// filter, map: the live code path) and are kept as the frames' hand samples; poses are taken
-/// as they are. Blank lines are skipped; times must not go backwards.
+/// as they are once every joint angle is within the limit of [`PoseFrame::check_plausible`]
+/// (±[`crate::plausible::MAX_POSE_ANGLE_DEG`]). Blank lines are skipped; times must not go
+/// backwards.
 pub fn import_jsonl(text: &str, kind: ImportKind, mapper: &mut Mapper) -> Result<Vec<TakeFrame>, EditError> {
     let mut out = Vec::new();
     let mut kind = kind;
@@ -88,6 +90,8 @@ pub fn import_jsonl(text: &str, kind: ImportKind, mapper: &mut Mapper) -> Result
             }
             _ => {
                 let pose = parse_pose_line(line).map_err(|error| EditError::Line { line: n, error })?;
+                pose.check_plausible()
+                    .map_err(|e| EditError::Line { line: n, error: JsonlError::Implausible(e) })?;
                 (pose, HandSample { t: pose.t, ..Default::default() })
             }
         };
@@ -338,6 +342,34 @@ mod tests {
             "line 1: neither a hand sample (`wrist`, `thumb`) nor a pose (`joints`)"
         );
         assert_eq!(import_jsonl("\n\n", ImportKind::Auto, m).unwrap_err(), EditError::Empty);
+        // Pose angles are bounded: ±360 passes (so does a pose of thousands of degrees), 1e30 and
+        // 3e38 are refused.
+        let ok = "{\"t\":0,\"joints\":[[360,-360,0],[0,0,0],[0,0,0],[0,0,0]]}\n";
+        assert_eq!(
+            import_jsonl(ok, ImportKind::Auto, m).unwrap()[0].pose.joints_deg[0],
+            [360.0, -360.0, 0.0]
+        );
+        let e = import_jsonl(
+            &format!("{ok}\n{{\"t\":0.1,\"joints\":[[0,0,0],[1e30,0,0],[0,0,0],[0,0,0]]}}"),
+            ImportKind::Auto,
+            m,
+        );
+        assert_eq!(
+            e.unwrap_err().to_string(),
+            "line 3: `joints[1][0]`: 1000000000000000000000000000000 degrees is not a joint angle (finite, within ±1000000)"
+        );
+        let e =
+            import_jsonl("{\"t\":0,\"joints\":[[0,0,0],[0,0,0],[0,0,0],[0,0,-3e38]]}", ImportKind::Pose, m);
+        assert_eq!(
+            e.unwrap_err(),
+            EditError::Line {
+                line: 1,
+                error: JsonlError::Implausible(crate::plausible::Implausible::JointAngle {
+                    field: "joints[3][2]",
+                    value: -3e38
+                })
+            }
+        );
         assert!(
             import_jsonl("nope", ImportKind::Pose, m)
                 .unwrap_err()

@@ -139,8 +139,10 @@ pub struct Mapper {
 /// longer gap (a tracker paused or restarted with a new clock) is a discontinuity.
 pub const MAX_TIME_STEP_S: f64 = 1.0;
 
-/// How a sample's time follows the previous one's.
-fn breaks_timeline(last_t: Option<f64>, t: f64) -> bool {
+/// Whether a sample at `t` after one at `last_t` (`None`: the first) starts a new timeline: the
+/// step jumps forward over [`MAX_TIME_STEP_S`], goes back, repeats or is not finite. The one
+/// rule for untrusted time, used by [`Mapper::process`] and by the replay source's pacing.
+pub fn breaks_timeline(last_t: Option<f64>, t: f64) -> bool {
     let Some(last) = last_t else { return false };
     let dt = t - last;
     !(dt.is_finite() && dt > 0.0 && dt <= MAX_TIME_STEP_S)

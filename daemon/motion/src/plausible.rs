@@ -1,7 +1,8 @@
 //! One set of plausibility limits for what a hand, a rig and a calibration may say, used by every
 //! path that lets such a value in: the live OSC and HID sources, hand files (`--replay`, `frond
-//! map`, `frond take import`), rig and calibration files (daemon, `frond`, exporters) and device
-//! profiles. A value a live source would refuse is refused offline too, with the same limit.
+//! map`, `frond take import`), pose files (`frond take import`), rig and calibration files
+//! (daemon, `frond`, exporters) and device profiles. A value a live source would refuse is
+//! refused offline too, with the same limit.
 //!
 //! The limits are wide enough for any real hand or plant and narrow enough that the mapping
 //! (seed 000, Eq. 2-4) cannot overflow: a hand angle within ±[`MAX_HAND_ANGLE_DEG`] minus a
@@ -11,11 +12,18 @@
 use thiserror::Error;
 
 use crate::problems::Problems;
-use crate::sample::HandSample;
+use crate::sample::{HandSample, JOINTS, PoseFrame};
 
 /// Largest magnitude of a hand angle (wrist pitch, yaw, roll; thumb g1..g3), and of a
 /// calibration's neutral angles, degrees. A source reporting more is broken or hostile.
 pub const MAX_HAND_ANGLE_DEG: f32 = 360.0;
+/// Largest magnitude of a pose joint angle read from a file (`frond take import`), degrees. Not
+/// the hand's ±[`MAX_HAND_ANGLE_DEG`]: Eq. 2-3 scale a hand angle by up to
+/// [`MAX_JOINT_SCALE`] and by thumb ratios, so a take made live on an extreme (but accepted)
+/// rig holds poses of thousands of degrees, and its export must import again. A million degrees
+/// is far past any of those, and small enough that interpolation and filters stay exact to
+/// 0.1 degree in `f32`; what it refuses (1e30, 3e38) is no rotation anyone meant.
+pub const MAX_POSE_ANGLE_DEG: f32 = 1.0e6;
 /// Smallest comfortable thumb range `G_R_i` (seed 000, Eq. 3 divides by it), degrees.
 pub const MIN_THUMB_RANGE_DEG: f32 = 1.0;
 /// Largest comfortable thumb range `G_R_i`, degrees.
@@ -43,6 +51,14 @@ pub enum Implausible {
         /// The value found.
         value: f32,
     },
+    /// A pose joint angle is not finite or beyond ±[`MAX_POSE_ANGLE_DEG`].
+    #[error("`{field}`: {value} degrees is not a joint angle (finite, within ±{MAX_POSE_ANGLE_DEG})")]
+    JointAngle {
+        /// Which angle, as in the pose file format: `joints[0][0]` .. `joints[3][2]`.
+        field: &'static str,
+        /// The value found.
+        value: f32,
+    },
 }
 
 const ANGLE_FIELDS: [&str; 6] = ["wrist[0]", "wrist[1]", "wrist[2]", "thumb[0]", "thumb[1]", "thumb[2]"];
@@ -63,6 +79,30 @@ impl HandSample {
         for (field, &value) in ANGLE_FIELDS.iter().zip(angles) {
             if !is_hand_angle(value) {
                 return Err(Implausible::Angle { field, value });
+            }
+        }
+        Ok(())
+    }
+}
+
+const JOINT_FIELDS: [[&str; 3]; JOINTS] = [
+    ["joints[0][0]", "joints[0][1]", "joints[0][2]"],
+    ["joints[1][0]", "joints[1][1]", "joints[1][2]"],
+    ["joints[2][0]", "joints[2][1]", "joints[2][2]"],
+    ["joints[3][0]", "joints[3][1]", "joints[3][2]"],
+];
+
+impl PoseFrame {
+    /// Checks a pose read from outside (a pose file for `frond take import`): every angle finite
+    /// and within ±[`MAX_POSE_ANGLE_DEG`]; an angle like 1e30 degrees would flow on into
+    /// resampling, filters and exporters. Names the first value out of bounds. The time is not
+    /// checked here (the importer checks its order).
+    pub fn check_plausible(&self) -> Result<(), Implausible> {
+        for (fields, joint) in JOINT_FIELDS.iter().zip(&self.joints_deg) {
+            for (&field, &value) in fields.iter().zip(joint) {
+                if !(value.is_finite() && value.abs() <= MAX_POSE_ANGLE_DEG) {
+                    return Err(Implausible::JointAngle { field, value });
+                }
             }
         }
         Ok(())
@@ -128,6 +168,37 @@ mod tests {
         assert_eq!(
             Implausible::Angle { field: "wrist[0]", value: 400.0 }.to_string(),
             "`wrist[0]`: 400 degrees is not a hand angle (finite, within ±360)"
+        );
+    }
+
+    #[test]
+    fn pose_angles_are_bounded_like_hand_angles_and_named() {
+        let pose = |j: usize, c: usize, v: f32| {
+            let mut joints_deg = [[0.0; 3]; JOINTS];
+            joints_deg[j][c] = v;
+            PoseFrame { t: 2.0, joints_deg }
+        };
+        assert_eq!(pose(0, 0, 360.0).check_plausible(), Ok(()));
+        // A pose past a hand's ±360 (joint scale 20 on a 90 degree wrist) imports again.
+        assert_eq!(pose(0, 0, 1800.0).check_plausible(), Ok(()));
+        assert_eq!(pose(3, 2, -1.0e6).check_plausible(), Ok(()));
+        assert_eq!(
+            pose(1, 0, 1e30).check_plausible(),
+            Err(Implausible::JointAngle { field: "joints[1][0]", value: 1e30 })
+        );
+        assert_eq!(
+            pose(3, 2, -1.5e6).check_plausible(),
+            Err(Implausible::JointAngle { field: "joints[3][2]", value: -1.5e6 })
+        );
+        assert_eq!(
+            pose(2, 1, f32::INFINITY).check_plausible(),
+            Err(Implausible::JointAngle { field: "joints[2][1]", value: f32::INFINITY })
+        );
+        let e = pose(0, 2, f32::NAN).check_plausible().unwrap_err();
+        assert!(matches!(e, Implausible::JointAngle { field: "joints[0][2]", value } if value.is_nan()));
+        assert_eq!(
+            Implausible::JointAngle { field: "joints[1][0]", value: 2e6 }.to_string(),
+            "`joints[1][0]`: 2000000 degrees is not a joint angle (finite, within ±1000000)"
         );
     }
 }
