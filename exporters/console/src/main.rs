@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use clap::{CommandFactory, Parser};
+use frond_binmain::outln;
 use frond_console::access::{self, Access};
 use frond_console::scene::{self, RigScene};
 use frond_console::server::{Config, Console};
@@ -29,7 +30,9 @@ struct Args {
     /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
     #[arg(long, value_name = "DIR")]
     takes_dir: Option<PathBuf>,
-    /// Show this rig (embedded name or file) instead of the daemon's.
+    /// Show this rig (embedded name or file) instead of the daemon's, and bake the takes recorded
+    /// on a rig that is not embedded with it (a rig file is never opened by the name a take or
+    /// the daemon gives).
     #[arg(long, value_name = "NAME|FILE")]
     rig: Option<String>,
     /// Pose messages per second to each page (the display rate).
@@ -93,14 +96,14 @@ fn run(args: Args) -> anyhow::Result<()> {
     let host = if addr.ip().is_unspecified() { format!("HOST:{}", addr.port()) } else { addr.to_string() };
     match (&token, loopback) {
         (Some(t), false) if args.token_file.is_none() => {
-            println!("frond-console: http://{host}/?token={t}  (daemon {})", socket_dir.display())
+            outln!("frond-console: http://{host}/?token={t}  (daemon {})", socket_dir.display())?
         }
-        (Some(_), false) => println!(
+        (Some(_), false) => outln!(
             "frond-console: http://{host}/?token=<the token in {}>  (daemon {})",
             args.token_file.as_deref().unwrap_or(std::path::Path::new("?")).display(),
             socket_dir.display()
-        ),
-        _ => println!("frond-console: http://{addr}/  (daemon {})", socket_dir.display()),
+        )?,
+        _ => outln!("frond-console: http://{addr}/  (daemon {})", socket_dir.display())?,
     }
     if !loopback && token.is_none() {
         bail!("internal: a console beyond loopback without a token");

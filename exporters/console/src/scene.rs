@@ -23,6 +23,8 @@ pub struct RigScene {
     pub glb: Vec<u8>,
     /// `{"rig", "joints": [4 names], "heights_m": [4], "elements": [{"name", "instances": [[4 node names]]}]}`.
     pub map: Value,
+    /// The rig itself (the takes panel bakes a take recorded on a rig file with `--rig`'s).
+    pub loaded: LoadedRig,
 }
 
 /// A rig the console cannot show: the name or file given, and why.
@@ -61,6 +63,16 @@ impl SceneError {
 pub fn load(name: &str) -> Result<RigScene, SceneError> {
     let rig =
         LoadedRig::resolve(name).map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
+    bake(&rig).map_err(|reason| SceneError::Bake { name: name.to_string(), reason })
+}
+
+/// The scene of the rig a daemon reports by name: an embedded rig only
+/// ([`LoadedRig::recorded`]). The name comes from a peer and is never opened as a path; a rig
+/// the daemon loaded from a file is refused (`RigFileError::NotEmbedded`), and the operator
+/// gives the console that file with `--rig FILE` ([`load`]).
+pub fn load_recorded(name: &str) -> Result<RigScene, SceneError> {
+    let rig =
+        LoadedRig::recorded(name).map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
     bake(&rig).map_err(|reason| SceneError::Bake { name: name.to_string(), reason })
 }
 
@@ -103,7 +115,7 @@ pub fn bake(rig: &LoadedRig) -> Result<RigScene, frond_gltf::BakeError> {
         "heights_m": model.skeleton.heights_m,
         "elements": elements,
     });
-    Ok(RigScene { rig: rig.rig.name.clone(), origin: rig.origin.clone(), glb, map })
+    Ok(RigScene { rig: rig.rig.name.clone(), origin: rig.origin.clone(), glb, map, loaded: rig.clone() })
 }
 
 #[cfg(test)]
@@ -157,6 +169,31 @@ mod tests {
             let e = load(name).unwrap_err();
             assert!(matches!(e, SceneError::Load { .. }), "{name}: {e}");
             assert!(e.to_string().starts_with(&format!("rig {name:?}: ")), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_daemons_rig_name_is_an_embedded_rig_never_a_file() {
+        assert_eq!(load_recorded("flower").unwrap().rig, "flower");
+        // A valid rig file the name points at, and files a name must never make it read.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("mine.toml");
+        std::fs::write(&file, frond_motion::rig_files::EMBEDDED_RIGS[0].1).unwrap();
+        assert!(load(file.to_str().unwrap()).is_ok(), "the file is a rig --rig would load");
+        for name in [file.to_str().unwrap(), "/dev/zero", "/etc/passwd", "mine.toml"] {
+            let e = load_recorded(name).unwrap_err();
+            assert!(
+                matches!(
+                    &e,
+                    SceneError::Load {
+                        reason: frond_gltf::BakeError::Rig(
+                            frond_motion::rig_files::RigFileError::NotEmbedded { .. }
+                        ),
+                        ..
+                    }
+                ),
+                "{name}: {e}"
+            );
         }
     }
 }

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use frond_gltf::{BakeError, BakeOptions, Baker, LoadedRig, TakeInput};
 use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::jsonl::write_pose_line;
+use frond_motion::rig_files::RigFileError;
 use frond_motion::{TakeScan, resample, resample_plan, scan_take};
 use frond_protocol::paths;
 use serde_json::{Value, json};
@@ -22,7 +23,7 @@ pub const MAX_PLAY_FRAMES: u64 = 30 * 60 * 60;
 /// A takes request that cannot be answered: HTTP status and words.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TakeError {
-    /// 400, 404, 413 or 500.
+    /// 400, 404, 409, 413 or 500.
     pub status: u16,
     /// What is wrong.
     pub message: String,
@@ -235,16 +236,45 @@ pub fn jsonl(dir: &Path, name: &str) -> Result<String, TakeError> {
     Ok(out)
 }
 
-/// Take `name` baked by frond-gltf on its rig (the header's, else `fallback_rig`), as GLB.
-pub fn glb(dir: &Path, name: &str, fallback_rig: Option<&str>) -> Result<Vec<u8>, TakeError> {
+/// Take `name` baked by frond-gltf on the rig it was recorded on: the header's rig (else
+/// `daemons_rig`, the connected daemon's) when that is an embedded rig; a rig loaded from a
+/// file keeps only its name, which is never opened as a path (`recorded_rig`: a take must not
+/// make the console read a file it names), so such a take is baked on the console's own `--rig`
+/// (`own_rig`) or refused, 409, with the way to start the console that bakes it.
+pub fn glb(
+    dir: &Path,
+    name: &str,
+    daemons_rig: Option<&str>,
+    own_rig: Option<&LoadedRig>,
+) -> Result<Vec<u8>, TakeError> {
     let (path, bytes) = read_bytes(dir, name)?;
     let take = TakeInput::from_bytes(&bytes, name, &path.display().to_string())
         .map_err(|e| err(500, e.to_string()))?;
-    let rig_name = take.header.as_ref().map(|h| h.rig_name.clone()).or(fallback_rig.map(str::to_string));
-    let Some(rig_name) = rig_name else {
-        return Err(err(400, format!("take {name:?} names no rig and the daemon's is not known")));
+    let recorded_on =
+        take.header.as_ref().map(|h| h.rig_name.as_str()).filter(|n| !n.is_empty()).or(daemons_rig);
+    let rig = match (recorded_on, own_rig) {
+        (Some(rig_name), own) => match LoadedRig::recorded(rig_name) {
+            Ok(rig) => rig,
+            Err(BakeError::Rig(RigFileError::NotEmbedded { embedded, .. })) => match own {
+                Some(own) => own.clone(),
+                None => {
+                    return Err(err(
+                        409,
+                        format!(
+                            "take {name:?} was recorded on rig {rig_name:?}, which is not an embedded rig \
+                             ({embedded}): a rig file is not opened by the name a take keeps; start \
+                             frond-console with --rig FILE (that rig's file) to bake it"
+                        ),
+                    ));
+                }
+            },
+            Err(e) => return Err(err(500, format!("rig {rig_name:?}: {e}"))),
+        },
+        (None, Some(own)) => own.clone(),
+        (None, None) => {
+            return Err(err(400, format!("take {name:?} names no rig and the daemon's is not known")));
+        }
     };
-    let rig = LoadedRig::resolve(&rig_name).map_err(|e| err(500, format!("rig {rig_name:?}: {e}")))?;
     let model = rig.model().map_err(|e| err(500, e.to_string()))?;
     let baked = Baker::new()
         .bake_take(&rig, &model, &take, &BakeOptions::default(), &mut |_, _| {})

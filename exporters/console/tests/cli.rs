@@ -50,13 +50,23 @@ fn a_rig_that_cannot_be_shown_is_refused_at_start() {
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, "name = [").unwrap();
     let bad = bad.to_str().unwrap();
-    for (rig, problem) in
-        [("/dev/zero", "not a regular file"), ("no-such-rig", "no-such-rig"), (bad, "bad.toml")]
-    {
+    // The reasons, each beyond the `--rig RIG: ` that names the option and the rig (so that
+    // the check cannot pass on the rig's name alone): a device is not a regular file; a name
+    // that is neither an embedded rig nor a file; a file whose TOML does not parse (the
+    // unclosed array on its line 1).
+    for (rig, problems) in [
+        ("/dev/zero", &["it is a device, not a regular file"][..]),
+        ("no-such-rig", &["not found: not an embedded rig (grass, flower, shrub) and no such file"][..]),
+        (bad, &[&format!("{bad}: rig: "), "line 1"][..]),
+    ] {
         let (code, stderr) = refused(&dir, &["--rig", rig]);
         assert_eq!(code, Some(2), "--rig {rig}: {stderr}");
-        assert!(stderr.contains(&format!("--rig {rig}: ")), "names the option and the rig: {stderr}");
-        assert!(stderr.contains(problem), "--rig {rig}: {stderr}");
+        let prefix = format!("--rig {rig}: ");
+        let at = stderr.find(&prefix).unwrap_or_else(|| panic!("names the option and the rig: {stderr}"));
+        let reason = &stderr[at + prefix.len()..];
+        for problem in problems {
+            assert!(reason.contains(problem), "--rig {rig}: {problem:?} not in {reason:?}");
+        }
     }
 }
 
@@ -84,4 +94,23 @@ fn a_token_file_others_may_read_is_refused_with_the_fix() {
     let _ = child.kill();
     let _ = child.wait();
     assert!(line.starts_with("frond-console: http://127.0.0.1:"), "{line:?}");
+}
+
+#[test]
+fn a_full_stdout_ends_the_console_with_an_error_not_a_panic() {
+    // The URL line to a full disk (/dev/full): an error like any other, exit 1; `println!`
+    // panicked (exit 101).
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_frond-console"))
+        .args(["--listen", "127.0.0.1:0", "--no-warp", "--socket-dir"])
+        .arg(dir.path().join("sockets"))
+        .arg("--takes-dir")
+        .arg(dir.path().join("takes"))
+        .env("NO_COLOR", "1")
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot write to standard output") && !stderr.contains("panicked"), "{stderr}");
 }

@@ -23,16 +23,39 @@ impl Served {
     /// A console whose takes directory holds `takes` (name, frames one `step_s` apart).
     fn start(takes: &[(&str, usize, f64)]) -> Served {
         let dirs = tempfile::tempdir().unwrap();
-        let (socket_dir, takes_dir) = (dirs.path().join("sockets"), dirs.path().join("takes"));
+        let takes_dir = dirs.path().join("takes");
         std::fs::create_dir_all(&takes_dir).unwrap();
         for (name, frames, step_s) in takes {
             write_take(&takes_dir, name, *frames, *step_s);
         }
+        Served::serve(dirs, None)
+    }
+
+    /// A console whose scratch directory holds `files` (name, text) and whose takes directory
+    /// holds one-second takes (name, the rig their header names), started with `--rig
+    /// own_rig` if given; `{dir}` in a rig name stands for the scratch directory.
+    fn start_on(files: &[(&str, &str)], takes: &[(&str, &str)], own_rig: Option<&str>) -> Served {
+        let dirs = tempfile::tempdir().unwrap();
+        let at = |name: &str| name.replace("{dir}", dirs.path().to_str().unwrap());
+        for (name, text) in files {
+            std::fs::write(dirs.path().join(name), text).unwrap();
+        }
+        let takes_dir = dirs.path().join("takes");
+        std::fs::create_dir_all(&takes_dir).unwrap();
+        for (name, rig) in takes {
+            write_take_on(&takes_dir, name, &at(rig), 30, 1.0 / 30.0);
+        }
+        let own = own_rig.map(|r| Arc::new(frond_console::scene::load(&at(r)).unwrap()));
+        Served::serve(dirs, own)
+    }
+
+    fn serve(dirs: tempfile::TempDir, rig: Option<Arc<frond_console::scene::RigScene>>) -> Served {
+        let (socket_dir, takes_dir) = (dirs.path().join("sockets"), dirs.path().join("takes"));
         let console = Console::start(Config {
             socket_dir,
             takes_dir,
             access: Access { loopback: true, token: None },
-            rig: None,
+            rig,
             display_hz: 30,
             warp: false,
         })
@@ -92,9 +115,14 @@ fn body(answer: &str) -> &str {
 /// Writes take `name` into `dir`: a header on the grass rig and `frames` main-skeleton frames
 /// `step_s` seconds apart, then the End record.
 fn write_take(dir: &Path, name: &str, frames: usize, step_s: f64) {
+    write_take_on(dir, name, "grass", frames, step_s)
+}
+
+/// [`write_take`] with a header that names rig `rig`.
+fn write_take_on(dir: &Path, name: &str, rig: &str, frames: usize, step_s: f64) {
     let mut out = Vec::new();
     encode_file_start(&mut out);
-    encode_record(&TakeRecord::Header(TakeHeader::offline(name, "grass", 1000)), &mut out);
+    encode_record(&TakeRecord::Header(TakeHeader::offline(name, rig, 1000)), &mut out);
     for i in 0..frames {
         let t = i as f64 * step_s;
         let frame = TakeFrame {
@@ -148,7 +176,7 @@ fn allow_lists_what_the_path_takes() {
         ("OPTIONS /api/status HTTP/1.1", "GET, HEAD"),
         ("POST /rig.glb HTTP/1.1\r\nContent-Length: 0", "GET, HEAD"),
         ("POST /api/takes/t1.glb HTTP/1.1\r\nContent-Length: 0", "GET, HEAD"),
-        ("HEAD /ws HTTP/1.1", "GET"),
+        ("POST /ws HTTP/1.1\r\nContent-Length: 0", "GET, HEAD"),
     ] {
         let a = c.exchange(request, b"");
         assert_eq!(status(&a), 405, "{request}: {a}");
@@ -165,7 +193,8 @@ fn allow_lists_what_the_path_takes() {
 fn head_answers_carry_gets_headers_and_no_body() {
     // RFC 9110, section 9.3.2: HEAD is GET without the content; Content-Length may say GET's.
     let c = Served::start(&[]);
-    for path in ["/", "/console.js", "/api/rigs", "/api/nowhere"] {
+    // A WebSocket's path too: GET without the upgrade is 426, and HEAD the same head.
+    for path in ["/", "/console.js", "/api/rigs", "/api/nowhere", "/ws", "/ws/warp"] {
         let get = c.exchange(&format!("GET {path} HTTP/1.1"), b"");
         let head = c.exchange(&format!("HEAD {path} HTTP/1.1"), b"");
         assert_eq!(status(&head), status(&get), "{path}");
@@ -173,6 +202,51 @@ fn head_answers_carry_gets_headers_and_no_body() {
         assert!(head.ends_with("\r\n\r\n"), "{head}");
         assert_eq!(header(&head, "content-length"), Some(body(&get).len().to_string().as_str()), "{path}");
         assert_eq!(header(&head, "content-type"), header(&get, "content-type"), "{path}");
+        assert_eq!(header(&head, "upgrade"), header(&get, "upgrade"), "{path}");
+    }
+    let head = c.exchange("HEAD /ws HTTP/1.1", b"");
+    assert_eq!((status(&head), header(&head, "upgrade")), (426, Some("websocket")), "{head}");
+}
+
+/// The grass rig's file renamed `name` (its `name = "grass"` line replaced).
+fn rig_named(name: &str) -> String {
+    let grass = frond_motion::rig_files::EMBEDDED_RIGS[0].1;
+    assert!(grass.contains("\nname = \"grass\"\n"));
+    grass.replacen("\nname = \"grass\"\n", &format!("\nname = \"{name}\"\n"), 1)
+}
+
+#[test]
+fn a_takes_rig_name_is_never_opened_as_a_path() {
+    // A take keeps its rig's name; a take file (or anyone who can write one) naming a path
+    // there must not make the console read that file. The old console opened it: the rig file
+    // below baked (200), and /dev/zero was read as far as the rig loader's checks.
+    let files = [("secret.toml", rig_named("secret"))];
+    let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (*n, t.as_str())).collect();
+    let takes = [("by_path", "{dir}/secret.toml"), ("by_name", "secret"), ("device", "/dev/zero")];
+    let c = Served::start_on(&files, &takes, None);
+    for (take, rig) in [("by_path", "/secret.toml"), ("by_name", "secret"), ("device", "/dev/zero")] {
+        let a = c.exchange(&format!("GET /api/takes/{take}.glb HTTP/1.1"), b"");
+        assert_eq!(status(&a), 409, "{take}: {a}");
+        let answer: serde_json::Value = serde_json::from_str(body(&a)).unwrap();
+        let text = answer["error"].as_str().unwrap();
+        assert!(text.starts_with(&format!("take \"{take}\" was recorded on rig \"")), "{text}");
+        assert!(text.contains(rig) && text.contains("not an embedded rig (grass, flower, shrub)"), "{text}");
+        assert!(text.contains("start frond-console with --rig FILE"), "{text}");
+    }
+    // A take on an embedded rig bakes as before.
+    let c = Served::start_on(&files, &[("on_grass", "grass")], None);
+    let a = c.exchange("GET /api/takes/on_grass.glb HTTP/1.1", b"");
+    assert_eq!(status(&a), 200, "{a}");
+    assert!(body(&a).contains(r#""rig":"grass""#), "the GLB's extras name the rig it was baked on");
+
+    // A console started with --rig FILE bakes the takes recorded on a rig that is not embedded
+    // on that rig; one on an embedded rig still on its own.
+    let takes = [("by_name", "secret"), ("on_grass", "grass")];
+    let c = Served::start_on(&files, &takes, Some("{dir}/secret.toml"));
+    for (take, baked_on) in [("by_name", "secret"), ("on_grass", "grass")] {
+        let a = c.exchange(&format!("GET /api/takes/{take}.glb HTTP/1.1"), b"");
+        assert_eq!(status(&a), 200, "{take}: {a}");
+        assert!(body(&a).contains(&format!(r#""rig":"{baked_on}""#)), "{take} baked on {baked_on}");
     }
 }
 

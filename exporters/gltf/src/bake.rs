@@ -8,6 +8,7 @@ use serde_json::json;
 use frond_motion::JOINTS;
 use frond_motion::clip::Clip;
 use frond_motion::mesh::PlantModel;
+use frond_protocol::printable;
 
 use crate::anim::{Joints, Layers, check_fps, push_joint_quats};
 use crate::doc::{AnimationBuilder, DocBuilder, Placement, PlantAssets, PlantNodes};
@@ -180,6 +181,16 @@ impl Baker {
                 reason: format!("must be a number of seconds above 0 and at most 86400, got {duration_s}"),
             });
         }
+        // The budget before any key is allocated, counted uncapped: a capped count would bake a
+        // too-long field cut short. Keys per channel, and keys over every plant.
+        let keys = frond_motion::clip::frames_needed(duration_s, fps);
+        let all_keys = keys.saturating_mul(field.plants().len() as u64);
+        let (limit, hint) = opts.key_limit();
+        let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
+        if keys > limit || all_keys > hard {
+            let (keys, limit) = if keys > limit { (keys, limit) } else { (all_keys, hard) };
+            return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
+        }
         // The take's layers at the field's own frame rate: the clips plants look up.
         let layers = Layers::from_frames(&take.frames, field.fps())
             .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
@@ -201,7 +212,7 @@ impl Baker {
                 layers.times_s.len()
             ));
         }
-        let keys = frond_motion::clip::frame_count(duration_s, fps);
+        let keys = keys as usize;
         let times_s: Vec<f64> = (0..keys).map(|k| k as f64 / fps).collect();
 
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
@@ -303,8 +314,9 @@ pub(crate) fn assign(
     for (id, name) in &named {
         if !rig.rig.elements.iter().any(|e| e.name == layer_kind(name)) {
             notes.push(format!(
-                "take layer {id} `{name}` matches no secondary element of rig `{}`; ignored",
-                rig.rig.name
+                "take layer {id} `{}` matches no secondary element of rig `{}`; ignored",
+                printable(name),
+                printable(&rig.rig.name)
             ));
         }
     }
@@ -323,9 +335,13 @@ pub(crate) fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
         && !h.rig_name.is_empty()
         && h.rig_name != rig.rig.name
     {
+        // The header's name is the take file's: escaped, it cannot reach a terminal as an
+        // escape sequence or forge a line of output.
         notes.push(format!(
             "take `{}` was recorded with rig `{}`; baking it on rig `{}`",
-            take.name, h.rig_name, rig.rig.name
+            printable(&take.name),
+            printable(&h.rig_name),
+            printable(&rig.rig.name)
         ));
     }
     if let Some(damage) = &take.damage {

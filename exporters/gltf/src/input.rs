@@ -47,6 +47,14 @@ impl LoadedRig {
         Ok(frond_motion::rig_files::load_rig(arg)?.into())
     }
 
+    /// The rig a take was recorded on (or a daemon reports), by the name it keeps: an embedded
+    /// rig only, never a path (`frond_motion::rig_files::recorded_rig`): the name comes from a
+    /// file or a peer, and must not make a baker read a file it names. A rig loaded from a file
+    /// is refused (`RigFileError::NotEmbedded`); the caller asks for it with `--rig FILE`.
+    pub fn recorded(name: &str) -> Result<Self, BakeError> {
+        Ok(frond_motion::rig_files::recorded_rig(name)?.into())
+    }
+
     /// The plant geometry: the procedural shape the rig names, or its glTF/GLB mesh file (read
     /// relative to the rig file, skin weights from the file where it has them), by
     /// `frond_motion::rig_files::plant_model`.

@@ -141,8 +141,8 @@ pub fn capture(
     let mut hello = sub.hello().clone();
     status(&format!(
         "connected to frondd {} (rig `{}`, {} Hz); {}",
-        hello.daemon_version,
-        hello.rig_name,
+        frond_protocol::printable(&hello.daemon_version),
+        frond_protocol::printable(&hello.rig_name),
         hello.tick_rate_hz,
         match mode {
             LiveMode::Recording => "waiting for a recording (frond record start NAME)",
@@ -172,7 +172,7 @@ pub fn capture(
             }
             Ok(Event::Gap { expected, got }) => cap.gap(got - expected),
             Ok(Event::RigChanged(h)) | Ok(Event::Reconnected(h)) => {
-                status(&format!("daemon hello: rig `{}`", h.rig_name));
+                status(&format!("daemon hello: rig `{}`", frond_protocol::printable(&h.rig_name)));
                 hello = h;
             }
             Ok(Event::Disconnected) => status("daemon disconnected; reconnecting"),

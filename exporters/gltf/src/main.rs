@@ -189,7 +189,9 @@ fn bake(a: BakeArgs) -> anyhow::Result<()> {
 
 fn finish(mut baked: Baked, path: &Path, format: Format, quiet: bool) -> anyhow::Result<()> {
     for note in &baked.notes {
-        eprintln!("frond-gltf: note: {note}");
+        // Notes quote names from the take and field files: escaped (`printable`) again here,
+        // whatever made them.
+        eprintln!("frond-gltf: note: {}", frond_protocol::printable(note));
     }
     output::write(&mut baked, path, format)?;
     if !quiet {

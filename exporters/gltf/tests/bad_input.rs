@@ -228,6 +228,47 @@ fn bad_options_and_fields() {
     let g = good.to_str().unwrap();
     let e = refused(&keep, &["bake", "--take", t, "--rig", "grass", "--field", g, "--duration=-1", "-o", o]);
     assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
+    // A day at 1000 FPS is 86,400,001 keys a channel: refused before baking, never cut short
+    // at 16,777,216 (as it once was, silently).
+    let e = fails(
+        &keep,
+        &[
+            "bake",
+            "--take",
+            t,
+            "--rig",
+            "grass",
+            "--field",
+            g,
+            "--duration",
+            "86400",
+            "--fps",
+            "1000",
+            "-o",
+            o,
+        ],
+    );
+    assert!(e.contains("would be 86400001 keys, more than the limit of 1080000; pass --force"), "{e}");
+    let e = fails(
+        &keep,
+        &[
+            "bake",
+            "--take",
+            t,
+            "--rig",
+            "grass",
+            "--field",
+            g,
+            "--duration",
+            "86400",
+            "--fps",
+            "1000",
+            "--force",
+            "-o",
+            o,
+        ],
+    );
+    assert!(e.contains("would be 86400001 keys, more than the limit of 16777216 (the hard limit)"), "{e}");
 
     // A grove: several takes, never with a field; --spacing only for a grove, and sane.
     let e =
@@ -276,4 +317,25 @@ fn time_gaps_are_discontinuities_and_the_key_budget_is_checked_first() {
     let t = take.to_str().unwrap();
     let e = fails(&keep, &["bake", "--take", t, "--rig", "grass", "--fps", "1000", "-o", o]);
     assert!(e.contains("1081001 keys, more than the limit of 1080000; pass --force"), "{e}");
+}
+
+#[test]
+fn names_from_a_take_reach_the_terminal_escaped() {
+    // A take's header names its rig and layers: a file's words. Printed raw, an escape sequence
+    // in them would drive the operator's terminal and a line break forge a line of output.
+    let dir = tempfile::tempdir().unwrap();
+    let rig = "evil\u{1b}]0;owned\u{7}\nfrond-gltf: error: forged";
+    let mut f = frames(0, 5.0, 1.0, 200.0, 0.0);
+    f.extend(frames(1, 5.0, 1.0, 200.0, 1.0));
+    let take = write_take(dir.path(), "t", rig, f, &["vine\u{1b}[2J"]);
+    let out = dir.path().join("out.glb");
+    let stderr =
+        run_ok(&["bake", "--take", take.to_str().unwrap(), "--rig", "grass", "-o", out.to_str().unwrap()]);
+    assert!(!stderr.contains(['\u{1b}', '\u{7}']), "a control character reached stderr: {stderr:?}");
+    assert!(!stderr.lines().any(|l| l.starts_with("frond-gltf: error: forged")), "{stderr}");
+    assert!(
+        stderr.contains(r"recorded with rig `evil\u{1b}]0;owned\u{7}\nfrond-gltf: error: forged`"),
+        "{stderr}"
+    );
+    assert!(stderr.contains(r"take layer 1 `vine\u{1b}[2J` matches no secondary element"), "{stderr}");
 }

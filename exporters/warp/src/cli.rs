@@ -324,8 +324,10 @@ pub struct CageArgs {
     /// Cage mode: where the skeleton stands, `X,Y` pixels (default: the crown's bottom centre).
     #[arg(long, value_name = "X,Y", allow_hyphen_values = true)]
     pub anchor: Option<String>,
-    /// Cage mode: the skeleton's rig (default: the take's own rig for `render`, the daemon's,
-    /// loaded by name, for `serve`).
+    /// Cage mode: the skeleton's rig, an embedded rig's name or a rig file (default: the rig
+    /// the take was recorded on for `render`, the daemon's for `serve`, when that is an
+    /// embedded rig; a name from a take or a daemon is never opened as a file, so a rig loaded
+    /// from a file is given here).
     #[arg(long, value_name = "RIG")]
     pub rig: Option<String>,
 }

@@ -84,6 +84,9 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         return Err(frond_warp::InvalidParams(problems).into());
     }
     let (out, params) = (out?, params?);
+    // Where the frames go, refused before anything is rendered (a FIFO, a device, a missing
+    // directory), not after.
+    out.check_destination()?;
     let scene = load_scene(&args.scene)?;
     let track = args.take.as_deref().map(|p| read_take(p, "the wind follows")).transpose()?;
     let mut animator = Animator::new(scene, params)?;
@@ -199,10 +202,19 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     }
     let anchor = check_cage_mode(&mut ck, args.wind_sim.as_deref(), args.scene.layers.len(), &args.cage);
     ck.finish()?;
+    out.as_ref().map_or(Ok(()), |o| o.check_destination())?;
     let take = args.take.as_deref().expect("checked");
     let track = read_take(take, "using")?;
-    let rig_spec = args.cage.rig.clone().or_else(|| track.rig_name.clone()).unwrap_or_else(|| "grass".into());
-    let rig = frond_motion::rig_files::load_rig(&rig_spec).with_context(|| format!("rig {rig_spec}"))?;
+    // `--rig` (a name or a file, the operator's word), else the rig the take was recorded on:
+    // an embedded rig only, as a name read from a take is never opened as a path.
+    let rig = match (&args.cage.rig, track.rig_name.as_deref().filter(|n| !n.is_empty())) {
+        (Some(spec), _) => {
+            frond_motion::rig_files::load_rig(spec).with_context(|| format!("--rig {spec}"))?
+        }
+        (None, Some(name)) => frond_motion::rig_files::recorded_rig(name)
+            .with_context(|| format!("the rig take {} was recorded on", take.display()))?,
+        (None, None) => frond_motion::rig_files::recorded_rig("grass")?,
+    };
     let scene = load_scene(&args.scene)?;
     let job = frond_warp::cage_skin::CageTakeJob {
         cage: args.cage.cage.clone(),
@@ -217,8 +229,9 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     let n = frond_warp::cage_skin::render_take(&scene, &track, &job)?;
     if !args.quiet {
         eprintln!(
-            "frond-warp: wrote {n} frames to {} (cage mode, rig {rig_spec}, take {})",
+            "frond-warp: wrote {n} frames to {} (cage mode, rig {}, take {})",
             args.output.display(),
+            frond_protocol::printable(&rig.rig.name),
             take.display()
         );
     }
@@ -229,6 +242,13 @@ fn morph(a: MorphArgs) -> anyhow::Result<()> {
     let mut ck = Checker::new();
     let out = check_frames_and_output(&mut ck, a.frames, 10_000, a.fps, &a.output);
     ck.finish()?;
+    let out = out?;
+    out.check_destination()?;
+    if let Some(report) = &a.report
+        && let Err(e) = frond_motion::rig_files::output_destination(report)
+    {
+        anyhow::bail!("cannot write {}: {e}", report.display());
+    }
     let job = frond_warp::morph::MorphJob {
         image: a.image,
         layer: a.layer,
@@ -237,7 +257,7 @@ fn morph(a: MorphArgs) -> anyhow::Result<()> {
         sketch: a.sketch,
         frames: a.frames as usize,
         fps: a.fps,
-        output: out?,
+        output: out,
         report: a.report.clone(),
         opts: frond_cage::morph::MorphOptions { adapt: !a.no_adapt, prune: !a.no_prune },
         quiet: a.quiet,

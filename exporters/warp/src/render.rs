@@ -12,8 +12,11 @@ use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
 use thiserror::Error;
 
+mod output;
+
 use crate::compose::Animator;
 use crate::wind::{HandWind, SimWind};
+use output::{AtomicFile, GifWriter, frames_dir};
 
 /// What blows the picture in an offline render.
 #[derive(Debug, Clone, Copy)]
@@ -70,6 +73,21 @@ pub enum RenderError {
 }
 
 impl OutputKind {
+    /// Checks where the output goes before anything is rendered, as
+    /// [`frond_motion::rig_files::output_destination`] does for every file frond writes: a GIF
+    /// or WebP is a regular file (or a new one in a directory that exists), never a FIFO (the
+    /// render would hang on it), a device or a directory; a directory of frames is a directory,
+    /// or a new one whose parent exists (a mistyped path is not made into a tree).
+    pub fn check_destination(&self) -> Result<(), RenderError> {
+        let refused = |path: &Path, source| RenderError::Write { path: path.to_path_buf(), source };
+        match self {
+            OutputKind::Gif(path) | OutputKind::Webp(path) => {
+                frond_motion::rig_files::output_destination(path).map(|_| ()).map_err(|e| refused(path, e))
+            }
+            OutputKind::Dir(path) => frames_dir(path, false).map_err(|e| refused(path, e)),
+        }
+    }
+
     /// Classifies `-o`: `.gif`, `.webp`, or a directory (trailing `/` or existing directory).
     pub fn from_path(path: &Path) -> Result<OutputKind, RenderError> {
         let s = path.to_string_lossy();
@@ -206,7 +224,7 @@ pub fn render(
 
 /// Where rendered frames go (GIF, animated WebP or a directory of PNGs).
 pub(crate) enum Sink {
-    Gif(PathBuf, Box<GifEncoder<std::io::BufWriter<std::fs::File>>>, u32, u32, Delay),
+    Gif(PathBuf, Box<GifEncoder<GifWriter>>, GifWriter, AtomicFile, u32, u32, Delay),
     Webp(PathBuf, WebpAnim),
     Dir(PathBuf, u32, u32),
 }
@@ -214,22 +232,23 @@ pub(crate) enum Sink {
 impl Sink {
     pub(crate) fn open(out: &OutputKind, w: usize, h: usize, fps: f32) -> Result<Sink, RenderError> {
         let (w, h) = (w as u32, h as u32);
+        out.check_destination()?;
         Ok(match out {
             OutputKind::Gif(path) => {
-                let f = std::fs::File::create(path)
+                let (tmp, file) = AtomicFile::create(path)
                     .map_err(|source| RenderError::Write { path: path.clone(), source })?;
-                let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(f), 10);
+                let writer = GifWriter::new(file);
+                let mut enc = GifEncoder::new_with_speed(writer.clone(), 10);
                 enc.set_repeat(Repeat::Infinite)
                     .map_err(|source| RenderError::Encode { path: path.clone(), source })?;
                 let delay = Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32);
-                Sink::Gif(path.clone(), Box::new(enc), w, h, delay)
+                Sink::Gif(path.clone(), Box::new(enc), writer, tmp, w, h, delay)
             }
             OutputKind::Webp(path) => {
                 Sink::Webp(path.clone(), WebpAnim::new(w, h, (1000.0 / fps).round() as u32))
             }
             OutputKind::Dir(path) => {
-                std::fs::create_dir_all(path)
-                    .map_err(|source| RenderError::Write { path: path.clone(), source })?;
+                frames_dir(path, true).map_err(|source| RenderError::Write { path: path.clone(), source })?;
                 Sink::Dir(path.clone(), w, h)
             }
         })
@@ -237,7 +256,7 @@ impl Sink {
 
     pub(crate) fn push(&mut self, k: usize, frame: &[u8]) -> Result<(), RenderError> {
         match self {
-            Sink::Gif(path, enc, w, h, delay) => {
+            Sink::Gif(path, enc, _, _, w, h, delay) => {
                 let img = RgbaImage::from_raw(*w, *h, frame.to_vec()).expect("frame size");
                 enc.encode_frame(Frame::from_parts(img, 0, 0, *delay))
                     .map_err(|source| RenderError::Encode { path: path.clone(), source })
@@ -247,18 +266,34 @@ impl Sink {
             }
             Sink::Dir(dir, w, h) => {
                 let path = dir.join(format!("frame_{k:05}.png"));
-                image::save_buffer(&path, frame, *w, *h, image::ColorType::Rgba8)
-                    .map_err(|source| RenderError::Encode { path, source })
+                let mut png = Vec::new();
+                image::ImageEncoder::write_image(
+                    image::codecs::png::PngEncoder::new(&mut png),
+                    frame,
+                    *w,
+                    *h,
+                    image::ExtendedColorType::Rgba8,
+                )
+                .map_err(|source| RenderError::Encode { path: path.clone(), source })?;
+                frond_motion::rig_files::write_file_atomically(&path, &png)
+                    .map_err(|source| RenderError::Write { path, source })
             }
         }
     }
 
     pub(crate) fn finish(self) -> Result<(), RenderError> {
         match self {
-            Sink::Gif(..) | Sink::Dir(..) => Ok(()),
-            Sink::Webp(path, anim) => {
-                std::fs::write(&path, anim.finish()).map_err(|source| RenderError::Write { path, source })
+            Sink::Dir(..) => Ok(()),
+            Sink::Gif(path, enc, writer, tmp, ..) => {
+                // The encoder writes the GIF trailer when dropped; then the file is complete.
+                drop(enc);
+                writer
+                    .finish()
+                    .and_then(|file| tmp.persist(file))
+                    .map_err(|source| RenderError::Write { path, source })
             }
+            Sink::Webp(path, anim) => frond_motion::rig_files::write_file_atomically(&path, &anim.finish())
+                .map_err(|source| RenderError::Write { path, source }),
         }
     }
 }
@@ -360,6 +395,38 @@ mod tests {
         assert!(matches!(OutputKind::from_path(Path::new("frames/")), Ok(OutputKind::Dir(_))));
         let err = OutputKind::from_path(Path::new("a.mp4")).unwrap_err().to_string();
         assert!(err.contains("a.mp4") && err.contains(".gif"), "{err}");
+    }
+
+    #[test]
+    fn a_gif_appears_whole_when_finished_and_not_at_all_when_abandoned() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.gif");
+        let listing = || -> Vec<std::ffi::OsString> {
+            std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect()
+        };
+        let frame: Vec<u8> = (0..4 * 3 * 4).map(|i| (i * 5) as u8).collect();
+        // Abandoned (a render that failed): no file, no temporary file.
+        let mut sink = Sink::open(&OutputKind::Gif(path.clone()), 4, 3, 10.0).unwrap();
+        sink.push(0, &frame).unwrap();
+        assert!(!path.exists(), "the destination is written only when the render is done");
+        drop(sink);
+        assert_eq!(listing(), Vec::<std::ffi::OsString>::new());
+        // An old file is kept until the new one is whole, then replaced, its mode kept.
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::write(&path, b"old").unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
+        let mut sink = Sink::open(&OutputKind::Gif(path.clone()), 4, 3, 10.0).unwrap();
+        sink.push(0, &frame).unwrap();
+        sink.push(1, &frame).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"old");
+        sink.finish().unwrap();
+        assert_eq!(listing(), vec![std::ffi::OsString::from("a.gif")]);
+        assert_eq!(std::fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o640);
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes.starts_with(b"GIF89a") && bytes.ends_with(&[0x3b]), "a whole GIF, its trailer last");
+        use image::AnimationDecoder;
+        let dec = image::codecs::gif::GifDecoder::new(std::io::Cursor::new(bytes)).unwrap();
+        assert_eq!(dec.into_frames().count(), 2);
     }
 
     #[test]

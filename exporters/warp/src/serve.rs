@@ -24,6 +24,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use frond_protocol::printable;
 use serde::{Deserialize, Serialize};
 use tiny_http::{Header, Method, Response, Server};
 
@@ -165,7 +166,7 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
         let source = opts.source.clone();
         std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(source, shared))?;
     }
-    announce(&addr, &format!("a {w}x{h} preview"));
+    announce(&addr, &format!("a {w}x{h} preview"))?;
     for mut req in server.incoming_requests() {
         let url = req.url().split('?').next().unwrap_or("").to_string();
         let resp = match (req.method(), url.as_str()) {
@@ -224,11 +225,11 @@ pub(crate) fn bind(listen: &str) -> anyhow::Result<(Server, String)> {
 
 /// Prints `listening on http://ADDR/` (the line scripts and tests wait for) and says what is
 /// served on stderr.
-pub(crate) fn announce(addr: &str, what: &str) {
-    use std::io::Write;
-    println!("listening on http://{addr}/");
+pub(crate) fn announce(addr: &str, what: &str) -> Result<(), frond_binmain::StdoutError> {
+    frond_binmain::outln!("listening on http://{addr}/")?;
     eprintln!("frond-warp: serving {what} on http://{addr}/");
-    let _ = std::io::stdout().flush();
+    use std::io::Write;
+    std::io::stdout().flush().map_err(frond_binmain::StdoutError)
 }
 
 /// The request's body as UTF-8 text, refused (with the limit named) when over `limit` bytes.
@@ -406,7 +407,7 @@ pub(crate) fn follow_daemon(
             }
             Ok(mut sub) => {
                 let rig = sub.hello().rig_name.clone();
-                set(&mut on, true, format!("connected to {source} (rig {rig})"));
+                set(&mut on, true, format!("connected to {source} (rig {})", printable(&rig)));
                 on(DaemonEvent::Rig(&rig));
                 loop {
                     match sub.next_event() {
@@ -417,7 +418,8 @@ pub(crate) fn follow_daemon(
                             format!("daemon at {source} went away; reconnecting ({fallback})"),
                         ),
                         Ok(frond_sdk::Event::Reconnected(h)) | Ok(frond_sdk::Event::RigChanged(h)) => {
-                            set(&mut on, true, format!("connected to {source} (rig {})", h.rig_name));
+                            let rig = printable(&h.rig_name);
+                            set(&mut on, true, format!("connected to {source} (rig {rig})"));
                             on(DaemonEvent::Rig(&h.rig_name));
                         }
                         Ok(_) => {}

@@ -143,7 +143,7 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
             .name("warp-poses".into())
             .spawn(move || follow_daemon(&source, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
     }
-    announce(&addr, &format!("a {w}x{h} cage preview"));
+    announce(&addr, &format!("a {w}x{h} cage preview"))?;
     let crown_id = tree.cages[frond_cage::morph::largest_root(&tree)].id;
     for mut req in server.incoming_requests() {
         let url = req.url().split('?').next().unwrap_or("").to_string();
@@ -205,7 +205,8 @@ fn on_daemon(shared: &Mutex<Shared>, fixed_rig: bool, event: DaemonEvent<'_>) {
     match event {
         DaemonEvent::State(state) => shared.lock().expect("lock").daemon = state,
         DaemonEvent::Rig(name) if !fixed_rig => {
-            let loaded = frond_motion::rig_files::load_rig(name);
+            // An embedded rig only: a name a peer sends is never opened as a path.
+            let loaded = frond_motion::rig_files::recorded_rig(name);
             let mut s = shared.lock().expect("lock");
             match loaded {
                 Ok(rig) => {
@@ -214,8 +215,7 @@ fn on_daemon(shared: &Mutex<Shared>, fixed_rig: bool, event: DaemonEvent<'_>) {
                 }
                 Err(e) => {
                     s.skeleton = None;
-                    s.rig_note =
-                        format!("the daemon's rig {name} cannot be loaded here ({e}); pass --rig FILE");
+                    s.rig_note = format!("the daemon's {e}");
                 }
             }
         }

@@ -436,3 +436,92 @@ fn serve_mode_arguments_are_checked_before_anything_starts() {
     assert_ne!(o.status.code(), Some(0));
     assert!(stderr(&o).contains("rig oak"), "{}", stderr(&o));
 }
+
+#[test]
+fn outputs_that_are_not_files_to_replace_are_refused_before_rendering() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let render = |out: &Path| {
+        // A refusal comes before a frame is rendered: within seconds, where a FIFO without a
+        // reader would block the old frond-warp's open for ever (the child is killed then).
+        let mut child = bin()
+            .args(["render", "--image", s(&pic), "--layer", s(&mask), "--frames", "3", "-o", s(out)])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+        while child.try_wait().unwrap().is_none() {
+            if std::time::Instant::now() > deadline {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("frond-warp render -o {} hung", out.display());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let o = child.wait_with_output().unwrap();
+        (o.status.code(), stderr(&o))
+    };
+
+    // A FIFO, for a GIF and for a WebP: refused, and still a FIFO.
+    for name in ["out.gif", "out.webp"] {
+        let fifo = t.path().join(name);
+        let c = std::ffi::CString::new(s(&fifo)).unwrap();
+        // SAFETY: a valid NUL-terminated path; mkfifo only creates a node there.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let (code, e) = render(&fifo);
+        assert_eq!(code, Some(1), "{e}");
+        assert!(
+            e.contains(&format!("cannot write {}: it is a FIFO, not a regular file", fifo.display())),
+            "{e}"
+        );
+        use std::os::unix::fs::FileTypeExt;
+        assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    }
+
+    // A missing directory: refused, and not created (neither for a file nor for frames).
+    for out in [t.path().join("no/such/out.gif"), t.path().join("no/such/frames/")] {
+        let (code, e) = render(&out);
+        assert_eq!(code, Some(1), "{e}");
+        let missing = t.path().join("no/such");
+        assert!(e.contains(&format!("the directory {} does not exist", missing.display())), "{e}");
+        assert!(!t.path().join("no").exists(), "a mistyped path was made into directories");
+    }
+
+    // A file where a directory of frames is asked for.
+    std::fs::write(t.path().join("plain"), b"keep").unwrap();
+    let (code, e) = render(&t.path().join("plain/"));
+    assert_eq!(code, Some(1), "{e}");
+    assert!(e.contains("not a directory"), "{e}");
+    assert_eq!(std::fs::read(t.path().join("plain")).unwrap(), b"keep");
+
+    // A new directory of frames in one that exists is made (the leaf alone), and a GIF written
+    // through its temporary file leaves only itself.
+    let frames_dir = t.path().join("frames/");
+    assert_eq!(render(&frames_dir).0, Some(0));
+    assert_eq!(frames(&frames_dir).len(), 3);
+    let gif_dir = t.path().join("gif");
+    std::fs::create_dir(&gif_dir).unwrap();
+    assert_eq!(render(&gif_dir.join("a.gif")).0, Some(0));
+    let left: Vec<_> = std::fs::read_dir(&gif_dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, [std::ffi::OsString::from("a.gif")]);
+}
+
+#[test]
+fn a_full_stdout_ends_serve_with_an_error_not_a_panic() {
+    // The `listening on` line to a full disk (/dev/full): an error like any other, exit 1;
+    // `println!` panicked (exit 101).
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    for mode in ["wave", "cage"] {
+        let o = bin()
+            .args(["serve", "--mode", mode, "--image", s(&pic), "--layer", s(&mask)])
+            .args(["--listen", "127.0.0.1:0", "--no-daemon"])
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{mode}: {e}");
+        assert!(e.contains("cannot write to standard output") && !e.contains("panicked"), "{mode}: {e}");
+    }
+}

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{run, s, stderr, write_take_with};
+use common::{run, s, stderr, write_take_on, write_take_with};
 
 const W: usize = 160;
 const H: usize = 120;
@@ -426,4 +426,38 @@ fn the_skeleton_driven_cage_mode_turns_the_plant_with_the_take() {
     ]);
     let e = stderr(&o);
     assert!(e.contains("--take") && e.contains("--anchor"), "{e}");
+}
+
+#[test]
+fn a_takes_rig_name_is_never_opened_as_a_path() {
+    // A take keeps the name of its rig; one naming a path there must not make `render --mode
+    // cage` read that file (the old frond-warp loaded it and rendered). Its own rig is an
+    // embedded one; a rig file is given with --rig FILE.
+    let inp = inputs();
+    let rig_file = inp.dir.join("mine.toml");
+    let grass = frond_motion::rig_files::EMBEDDED_RIGS[0].1;
+    std::fs::write(&rig_file, grass.replacen("\nname = \"grass\"\n", "\nname = \"mine\"\n", 1)).unwrap();
+    let render = |take: &Path, out: &Path, extra: &[&str]| {
+        let mut args = vec!["render", "--mode", "cage", "--image", s(&inp.bg), "--layer", s(&inp.layer)];
+        args.extend(["--cage", s(&inp.cage), "--take", s(take), "--frames", "2", "-o", s(out), "--quiet"]);
+        args.extend(extra);
+        run(&args)
+    };
+    for (name, rig) in [("by_path", s(&rig_file)), ("by_name", "mine"), ("device", "/dev/zero")] {
+        let take = inp.dir.join(format!("{name}.take"));
+        write_take_on(&take, rig, 100, |_| 10.0);
+        let out = inp.dir.join(format!("{name}.gif"));
+        let o = render(&take, &out, &[]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        assert!(e.contains(&format!("rig {rig:?} is not an embedded rig (grass, flower, shrub)")), "{e}");
+        assert!(e.contains("give that file with --rig FILE"), "{e}");
+        assert!(!out.exists(), "{name}: nothing is written");
+        // Given with --rig, the file is the operator's word, and is read.
+        if name == "by_name" {
+            let o = render(&take, &out, &["--rig", s(&rig_file)]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            assert!(out.is_file());
+        }
+    }
 }

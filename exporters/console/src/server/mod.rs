@@ -294,8 +294,9 @@ impl Console {
                     .with("Content-Disposition", format!("attachment; filename=\"{name}.jsonl\""))
             }))
         } else if let Some(name) = rest.strip_suffix(".glb") {
-            let rig = self.live.lock().hello.as_ref().map(|h| h.rig_name.clone());
-            answer(takes::glb(&self.config.takes_dir, name, rig.as_deref()).map(|b| {
+            let daemons = self.live.lock().hello.as_ref().map(|h| h.rig_name.clone());
+            let own = self.config.rig.as_deref().map(|s| &s.loaded);
+            answer(takes::glb(&self.config.takes_dir, name, daemons.as_deref(), own).map(|b| {
                 Response::new(200, "model/gltf-binary", b)
                     .with("Content-Disposition", format!("attachment; filename=\"{name}.glb\""))
             }))
@@ -304,7 +305,8 @@ impl Console {
         }
     }
 
-    /// The rig to show: `--rig`, else the daemon's (loaded once per name).
+    /// The rig to show: `--rig`, else the daemon's (loaded once per name): an embedded rig only,
+    /// as the name comes from the daemon and is never opened as a path here.
     fn scene(&self) -> Result<Arc<RigScene>, String> {
         let name = match (&self.config.rig, &self.live.lock().hello) {
             (Some(scene), _) => return Ok(Arc::clone(scene)),
@@ -315,13 +317,21 @@ impl Console {
         cache
             .entry(name.clone())
             .or_insert_with(|| {
-                scene::load(&name).map(Arc::new).map_err(|e| match e {
-                    // The daemon's rig is a file this console cannot read: the operator can
-                    // give the console a copy.
-                    scene::SceneError::Load { .. } => {
-                        format!("{e} (start frond-console with --rig NAME|FILE)")
-                    }
-                    scene::SceneError::Bake { .. } => e.to_string(),
+                scene::load_recorded(&name).map(Arc::new).map_err(|e| match e {
+                    // The daemon's rig came from a file: the operator gives the console that
+                    // file, as a name from a peer is never opened as a path.
+                    scene::SceneError::Load {
+                        reason:
+                            frond_gltf::BakeError::Rig(frond_motion::rig_files::RigFileError::NotEmbedded {
+                                name,
+                                embedded,
+                            }),
+                        ..
+                    } => format!(
+                        "the daemon's rig {name:?} is not an embedded rig ({embedded}): it was loaded \
+                         from a file; start frond-console with --rig FILE (that rig's file) to show it"
+                    ),
+                    e => e.to_string(),
                 })
             })
             .clone()
@@ -475,14 +485,15 @@ const CALIBRATE_PATHS: [&str; 4] =
     ["/api/calibrate/start", "/api/calibrate/step", "/api/calibrate/apply", "/api/calibrate/cancel"];
 
 /// The methods `path` takes, as `Allow` lists them, or `None` when nothing is there: the
-/// actions `POST`, the rest `GET` and `HEAD` (the WebSockets `GET`, the upgrade).
+/// actions `POST`, the rest `GET` and `HEAD` (the WebSockets too: a `GET` without the upgrade
+/// is answered 426, and a `HEAD` with that answer's head).
 fn methods(path: &str) -> Option<&'static str> {
     match path {
         "/api/field/start" | "/api/takes/repair" => Some(POST),
         p if CALIBRATE_PATHS.contains(&p) || actions::PATHS.contains(&p) => Some(POST),
         "/" | "/console.js" | "/console.css" | "/api/hello" | "/api/status" | "/api/scene" | "/rig.glb"
         | "/api/rigs" | "/api/calibrate" | "/api/field" | "/api/takes" => Some(GET_HEAD),
-        "/ws" | "/ws/warp" => Some("GET"),
+        "/ws" | "/ws/warp" => Some(GET_HEAD),
         p if p.starts_with("/api/takes/") => Some(GET_HEAD),
         p if VENDOR.iter().any(|(v, _)| *v == p) => Some(GET_HEAD),
         _ => None,

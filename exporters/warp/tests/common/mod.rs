@@ -30,12 +30,17 @@ pub fn s(p: &Path) -> &str {
 /// A take of `frames` frames at 100 Hz on the grass rig whose root joint's yaw is `yaw(t)`
 /// degrees (the hand's wrist yaw the same), other joints still.
 pub fn write_take_with(path: &Path, frames: u64, yaw: impl Fn(f64) -> f32) {
+    write_take_on(path, "grass", frames, yaw)
+}
+
+/// [`write_take_with`] with a header that names rig `rig`.
+pub fn write_take_on(path: &Path, rig: &str, frames: u64, yaw: impl Fn(f64) -> f32) {
     let mut out = Vec::new();
     encode_file_start(&mut out);
     encode_record(
         &TakeRecord::Header(TakeHeader {
             joint_names: vec!["root".into(), "j1".into(), "j2".into(), "top".into()],
-            ..TakeHeader::offline("sway", "grass", 100)
+            ..TakeHeader::offline("sway", rig, 100)
         }),
         &mut out,
     );
