@@ -230,44 +230,24 @@ fn bad_options_and_fields() {
     assert!(e.contains("--duration: must be a number of seconds above 0"), "{e}");
     // A day at 1000 FPS is 86,400,001 keys a channel: refused before baking, never cut short
     // at 16,777,216 (as it once was, silently).
-    let e = fails(
-        &keep,
-        &[
-            "bake",
-            "--take",
-            t,
-            "--rig",
-            "grass",
-            "--field",
-            g,
-            "--duration",
-            "86400",
-            "--fps",
-            "1000",
-            "-o",
-            o,
-        ],
-    );
+    let day = [
+        "bake",
+        "--take",
+        t,
+        "--rig",
+        "grass",
+        "--field",
+        g,
+        "--duration",
+        "86400",
+        "--fps",
+        "1000",
+        "-o",
+        o,
+    ];
+    let e = fails(&keep, &day);
     assert!(e.contains("would be 86400001 keys, more than the limit of 1080000; pass --force"), "{e}");
-    let e = fails(
-        &keep,
-        &[
-            "bake",
-            "--take",
-            t,
-            "--rig",
-            "grass",
-            "--field",
-            g,
-            "--duration",
-            "86400",
-            "--fps",
-            "1000",
-            "--force",
-            "-o",
-            o,
-        ],
-    );
+    let e = fails(&keep, &[&day[..], &["--force"]].concat());
     assert!(e.contains("would be 86400001 keys, more than the limit of 16777216 (the hard limit)"), "{e}");
 
     // A grove: several takes, never with a field; --spacing only for a grove, and sane.
