@@ -94,7 +94,7 @@ pub(crate) fn warn_damage(path: &Path, scan: &TakeScan) {
 /// The same warning, from what the reader said (`TakeScan::damage`) and the frames it kept.
 pub(crate) fn warn_damaged(path: &Path, damage: Option<&str>, readable_frames: usize) {
     if let Some(d) = damage {
-        eprintln!(
+        frond_binmain::errln!(
             "frond: warning: {}: {d}; using the {readable_frames} readable frames (`frond take repair` rewrites the take without the damage)",
             path.display(),
         );
@@ -213,16 +213,22 @@ pub(crate) fn list(g: &Global, json: bool) -> anyhow::Result<()> {
         };
         writeln!(
             out,
-            "{:<width$}  {:>8}  {:>8.2}s  {:>10}  {:<8}  {}",
+            "{:<width$}  {:>8}  {:>9}  {:>10}  {:<8}  {}",
             name,
             i.frames,
-            i.duration_s,
+            duration_text(i.duration_s),
             human_size(i.size_bytes),
             state,
             i.rig.as_deref().map_or("-".into(), frond_protocol::printable),
         )?;
     }
     Ok(())
+}
+
+/// A take's duration for `take list`: `12.34s`, or in scientific notation past a thousand
+/// days, since a take's times are untrusted (one frame at t = 1e300 made a 300-digit column).
+fn duration_text(seconds: f64) -> String {
+    if seconds.abs() < 1e8 { format!("{seconds:.2}s") } else { format!("{seconds:.2e}s") }
 }
 
 /// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
@@ -274,7 +280,7 @@ pub(crate) fn check_resample_with(
 ) -> anyhow::Result<()> {
     let plan = resample_plan(poses, fps);
     if let Some(i) = plan.first_discontinuity {
-        eprintln!(
+        frond_binmain::errln!(
             "frond: warning: {what}: {} step{} in time longer than {MAX_INTERPOLATED_GAP_S} s or backwards \
              (the first before pose {i}, the largest forward {:.3} s): each is a discontinuity, \
              not interpolated",
@@ -313,14 +319,14 @@ pub(crate) fn export(
     let (scan, _) = read_scan(&path)?;
     warn_damage(&path, &scan);
     if scan.torn_bytes > 0 {
-        eprintln!(
+        frond_binmain::errln!(
             "frond: warning: {} ends with a torn record ({} bytes); exporting the {} complete frames",
             path.display(),
             scan.torn_bytes,
             scan.frames.len()
         );
     } else if !scan.ended {
-        eprintln!(
+        frond_binmain::errln!(
             "frond: warning: {} is not closed (still recording?); exporting what is there",
             path.display()
         );
@@ -534,6 +540,13 @@ mod tests {
         assert_eq!(ts(export_poses(&scan, None, false)), [0.0, 0.5]);
         assert_eq!(ts(export_poses(&scan, None, true)), [0.0, 0.0, 0.5]);
         assert_eq!(ts(export_poses(&scan, Some(4.0), false)), [0.0, 0.25, 0.5]);
+    }
+
+    #[test]
+    fn durations_stay_a_column_wide() {
+        assert_eq!(duration_text(12.345), "12.35s");
+        assert_eq!(duration_text(99_999_999.0), "99999999.00s");
+        assert_eq!(duration_text(1e300), "1.00e300s");
     }
 
     #[test]
