@@ -3,6 +3,7 @@
 //!   (<https://no-color.org>), a bad `--log-level` a usage error;
 //! - an error printed once, on one line, each cause said once ([`frond_protocol::error_text`]);
 //! - exit status 2 for usage errors (clap's own and [`UsageError`]), 1 for everything else;
+//! - notes and warnings through [`errln!`], which never panics on a closed stderr;
 //! - output through [`outln!`] and [`out!`]: a full disk behind stdout is an error like any
 //!   other (not a panic), and a reader that stops reading (`frond tap | head`) ends the command
 //!   quietly with status 0;
@@ -71,6 +72,16 @@ impl std::io::Write for StdoutWriter {
     fn flush(&mut self) -> std::io::Result<()> {
         self.0.flush().map_err(mark_stdout)
     }
+}
+
+/// `eprintln!` that never panics: a warning or a note on stderr is lost, not turned into a
+/// crash (exit 101, or an abort while panicking), when stderr is a closed pipe or a full disk.
+#[macro_export]
+macro_rules! errln {
+    ($($arg:tt)*) => {{
+        use ::std::io::Write as _;
+        let _ = ::std::writeln!(::std::io::stderr().lock(), $($arg)*);
+    }};
 }
 
 /// Whether `e` is stdout's reader having gone away (EPIPE): not a failure of the command.

@@ -75,7 +75,7 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     let wrist_steps = [&recorded[1][..], &recorded[2][..], &recorded[3][..]];
     let measured = compute(&a.user, &recorded[0], wrist_steps, &recorded[4]).map_err(|e| anyhow!(e))?;
     for w in &measured.warnings {
-        eprintln!("frond: warning: {w}");
+        frond_binmain::errln!("frond: warning: {w}");
     }
     let cal = measured.calibration;
     let text = format!(

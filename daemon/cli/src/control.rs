@@ -199,7 +199,7 @@ pub(crate) fn record_stop(g: &Global) -> anyhow::Result<()> {
     let r = c.record_stop()?;
     frond_binmain::outln!("stopped {}: {} frames in {}", r.name, r.frames, r.path)?;
     if r.dropped > 0 {
-        eprintln!("frond: warning: the recorder dropped {} frames (disk too slow?)", r.dropped);
+        frond_binmain::errln!("frond: warning: the recorder dropped {} frames (disk too slow?)", r.dropped);
     }
     Ok(())
 }

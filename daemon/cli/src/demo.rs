@@ -62,9 +62,12 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
     let stopped = daemon.stop();
     match (&result, stopped) {
         (_, Ok(status)) if !status.success() => {
-            eprintln!("frond: warning: frondd exited with {status}; its log:\n{}", daemon.log_tail())
+            frond_binmain::errln!(
+                "frond: warning: frondd exited with {status}; its log:\n{}",
+                daemon.log_tail()
+            )
         }
-        (_, Err(e)) => eprintln!("frond: warning: stopping frondd: {e:#}"),
+        (_, Err(e)) => frond_binmain::errln!("frond: warning: stopping frondd: {e:#}"),
         _ => frond_binmain::outln!("daemon stopped")?,
     }
     let take = result?;
@@ -75,14 +78,14 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
             "baked:      {} (skinned, animated glTF 2.0 for Blender, Maya, Unreal, Unity, three.js)",
             glb.display()
         )?,
-        Err(e) => eprintln!("frond: warning: no GLB baked: {e:#}"),
+        Err(e) => frond_binmain::errln!("frond: warning: no GLB baked: {e:#}"),
     }
     match warp_preview(&take.path) {
         Ok(gif) => frond_binmain::outln!(
             "preview:    {} (grass blown by the take's wind, frond-warp)",
             gif.display()
         )?,
-        Err(e) => eprintln!("frond: warning: no warp preview: {e:#}"),
+        Err(e) => frond_binmain::errln!("frond: warning: no warp preview: {e:#}"),
     }
     let td = takes_dir.display();
     frond_binmain::outln!("export it:  frond take export {name} --jsonl --takes-dir {td} > {name}.jsonl")?;
@@ -344,7 +347,7 @@ impl Managed {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
-        eprintln!("frond: {} ignored SIGTERM for {STOP_TIMEOUT:?}; killing it", self.name);
+        frond_binmain::errln!("frond: {} ignored SIGTERM for {STOP_TIMEOUT:?}; killing it", self.name);
         self.child.kill()?;
         let status = self.child.wait()?;
         self.exited = Some(status);
@@ -355,7 +358,7 @@ impl Managed {
 impl Drop for Managed {
     fn drop(&mut self) {
         if let Err(e) = self.stop() {
-            eprintln!("frond: could not stop {} (pid {}): {e:#}", self.name, self.child.id());
+            frond_binmain::errln!("frond: could not stop {} (pid {}): {e:#}", self.name, self.child.id());
         }
     }
 }
@@ -431,7 +434,7 @@ fn start_console(socket_dir: &Path, takes_dir: &Path) -> Option<(Managed, String
     let program = match find_program("frond-console") {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("frond: note: no console: {e:#}");
+            frond_binmain::errln!("frond: note: no console: {e:#}");
             return None;
         }
     };
@@ -459,6 +462,6 @@ fn start_console(socket_dir: &Path, takes_dir: &Path) -> Option<(Managed, String
             return Some((console, url));
         }
     }
-    eprintln!("frond: note: frond-console did not start; the demo goes on without it");
+    frond_binmain::errln!("frond: note: frond-console did not start; the demo goes on without it");
     None
 }

@@ -41,7 +41,7 @@ fn warn_damaged_stage(c: &mut Control, stage: &str) {
     if let Some(s) = status.stages.iter().find(|s| s.name == stage)
         && s.state.contains("(damaged:")
     {
-        eprintln!("frond: warning: {}", s.state);
+        frond_binmain::errln!("frond: warning: {}", s.state);
     }
 }
 

@@ -41,9 +41,10 @@ pub(crate) fn run(
     let summary = map_stream(BufReader::new(reader), &mut out, &mut mapper, &mut io::stderr())?;
     out.flush()?;
     if summary.discontinuities > DISCONTINUITIES_LISTED {
-        eprintln!(
+        frond_binmain::errln!(
             "frond map: {} time discontinuities in all ({} listed above)",
-            summary.discontinuities, DISCONTINUITIES_LISTED
+            summary.discontinuities,
+            DISCONTINUITIES_LISTED
         );
     }
     if summary.bad > 0 {

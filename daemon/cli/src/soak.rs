@@ -472,8 +472,8 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     r.fds_max = r.samples.iter().map(|s| s.fds).max().unwrap_or(0);
     verdict(&mut r, windows.len() as u64, glove_elapsed);
     if !r.failures.is_empty() {
-        eprintln!("frondd log (last lines):\n{}", log_tail(&daemon_log));
-        eprintln!("frond-vhid log (last lines):\n{}", log_tail(&vhid_log));
+        frond_binmain::errln!("frondd log (last lines):\n{}", log_tail(&daemon_log));
+        frond_binmain::errln!("frond-vhid log (last lines):\n{}", log_tail(&vhid_log));
     }
     Ok(r)
 }

@@ -115,7 +115,7 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
                 continue;
             }
             if takes.len() >= MAX_TAKES {
-                eprintln!(
+                frond_binmain::errln!(
                     "frond: warning: stage {}: more than {MAX_TAKES} sources; not recording {source}",
                     a.stage
                 );
@@ -124,7 +124,9 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
             let offset = match stage.clock_offset(&source, CLOCK_EXCHANGES, SOURCE_TIMEOUT) {
                 Ok(o) => o,
                 Err(e) => {
-                    eprintln!("frond: warning: source {source}: no clock reading ({e}); not recording it");
+                    frond_binmain::errln!(
+                        "frond: warning: source {source}: no clock reading ({e}); not recording it"
+                    );
                     continue;
                 }
             };
@@ -164,7 +166,7 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
             last_look = Instant::now();
             match stage.sources(Duration::from_millis(300)) {
                 Ok(found) => sources = found,
-                Err(e) => eprintln!("frond: warning: looking for sources: {e}"),
+                Err(e) => frond_binmain::errln!("frond: warning: looking for sources: {e}"),
             }
         }
     }
@@ -182,11 +184,11 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
             )?,
             Ok(Err(e)) => {
                 failed += 1;
-                eprintln!("frond: error: source {source}: {e:#}");
+                frond_binmain::errln!("frond: error: source {source}: {e:#}");
             }
             Err(_) => {
                 failed += 1;
-                eprintln!("frond: error: source {source}: the recording thread panicked");
+                frond_binmain::errln!("frond: error: source {source}: the recording thread panicked");
             }
         }
     }
@@ -276,12 +278,17 @@ impl SourceJob {
             match sub.next_event() {
                 Ok(Event::Pose(pose)) => push(&pose),
                 Ok(Event::Disconnected) => {
-                    eprintln!("frond: warning: {}: the source went away; waiting for it", self.source)
+                    frond_binmain::errln!(
+                        "frond: warning: {}: the source went away; waiting for it",
+                        self.source
+                    )
                 }
-                Ok(Event::Reconnected(_)) => eprintln!("frond: {}: the source is back", self.source),
+                Ok(Event::Reconnected(_)) => {
+                    frond_binmain::errln!("frond: {}: the source is back", self.source)
+                }
                 Ok(_) | Err(SdkError::Timeout { .. }) => {}
                 Err(e) if e.is_fatal() => break Err(anyhow::Error::from(e)),
-                Err(e) => eprintln!("frond: warning: {}: {e}", self.source),
+                Err(e) => frond_binmain::errln!("frond: warning: {}: {e}", self.source),
             }
         };
         let (stop_tx, stop_rx) = bounded(1);

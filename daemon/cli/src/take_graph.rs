@@ -151,7 +151,7 @@ pub(crate) fn graph(g: &Global, a: Graph) -> anyhow::Result<()> {
             "transitions_per_node": per_node,
             "pruned": graph.pruned,
         });
-        eprintln!("{explain}");
+        frond_binmain::errln!("{explain}");
     }
     Ok(())
 }
@@ -355,7 +355,10 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
     }
     if a.explain {
         let graphs: Vec<_> = sources.iter().map(|s| &s.graph_path).collect();
-        eprintln!("{}", serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains }));
+        frond_binmain::errln!(
+            "{}",
+            serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains })
+        );
     }
     for (name, t, fps) in outputs {
         let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps };

@@ -381,7 +381,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             let (aligned, steps) =
                 align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;
             if explain {
-                eprintln!("{}", serde_json::to_string(&steps)?);
+                frond_binmain::errln!("{}", serde_json::to_string(&steps)?);
             }
             let mut t = derived(&gt, &gc, false);
             let id = t.layer_id(&layer).unwrap_or(t.element_names.len() as u16 + 1);

@@ -44,7 +44,7 @@ pub(crate) fn run(
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
     if let Some(note) = unannounced(only, &table) {
-        eprintln!("frond tap: {note}");
+        frond_binmain::errln!("frond tap: {note}");
     }
     let mut printer = Printer::new(jsonl, count);
     if count == Some(0) {
@@ -63,14 +63,18 @@ pub(crate) fn run(
                 }
             }
             Event::Gap { expected, got } => {
-                eprintln!("frond tap: gap: {} frames missing (seq {expected}..{})", got - expected, got - 1);
+                frond_binmain::errln!(
+                    "frond tap: gap: {} frames missing (seq {expected}..{})",
+                    got - expected,
+                    got - 1
+                );
             }
             Event::RigChanged(h) => {
-                eprintln!("frond tap: rig changed to {}", frond_protocol::printable(&h.rig_name));
+                frond_binmain::errln!("frond tap: rig changed to {}", frond_protocol::printable(&h.rig_name));
                 names = h.joint_names;
             }
             Event::Reconnected(h) => {
-                eprintln!(
+                frond_binmain::errln!(
                     "frond tap: reconnected (daemon {}, rig {})",
                     frond_protocol::printable(&h.daemon_version),
                     frond_protocol::printable(&h.rig_name)
@@ -83,16 +87,18 @@ pub(crate) fn run(
                     .iter()
                     .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), frond_protocol::printable(&e.name)))
                     .collect();
-                eprintln!("frond tap: elements now: {}", list.join(", "));
+                frond_binmain::errln!("frond tap: elements now: {}", list.join(", "));
                 table = new;
                 if element.is_some_and(|e| e.parse::<u16>().is_err()) {
                     only = pick(&table)?;
                 }
                 if let Some(note) = unannounced(only, &table) {
-                    eprintln!("frond tap: {note}");
+                    frond_binmain::errln!("frond tap: {note}");
                 }
             }
-            Event::Disconnected => eprintln!("frond tap: the daemon closed the stream; reconnecting"),
+            Event::Disconnected => {
+                frond_binmain::errln!("frond tap: the daemon closed the stream; reconnecting")
+            }
         }
     }
 }

@@ -53,10 +53,10 @@ pub(crate) fn run(
         match ev {
             StageEvent::Joined { source, hello } => {
                 let only = pick_element(element, &hello.elements).unwrap_or_else(|why| {
-                    eprintln!("frond tap: {source}: {why}; its poses are left out");
+                    frond_binmain::errln!("frond tap: {source}: {why}; its poses are left out");
                     Some(u16::MAX)
                 });
-                eprintln!(
+                frond_binmain::errln!(
                     "frond tap: following {source} (daemon {}, rig {})",
                     frond_protocol::printable(&hello.daemon_version),
                     frond_protocol::printable(&hello.rig_name)
@@ -64,7 +64,9 @@ pub(crate) fn run(
                 followed.insert(source, Followed { names: hello.joint_names, table: hello.elements, only });
             }
             StageEvent::Lost { source, error } => {
-                eprintln!("frond tap: {source}: {error}; followed again when its bridge comes back");
+                frond_binmain::errln!(
+                    "frond tap: {source}: {error}; followed again when its bridge comes back"
+                );
                 followed.remove(&source);
             }
             StageEvent::Event { source, event } => {
@@ -81,20 +83,20 @@ pub(crate) fn run(
                         }
                         printed = true;
                     }
-                    Event::Gap { expected, got } => eprintln!(
+                    Event::Gap { expected, got } => frond_binmain::errln!(
                         "frond tap: {source}: gap: {} frames missing (seq {expected}..{})",
                         got - expected,
                         got - 1
                     ),
                     Event::RigChanged(h) => {
-                        eprintln!(
+                        frond_binmain::errln!(
                             "frond tap: {source}: rig changed to {}",
                             frond_protocol::printable(&h.rig_name)
                         );
                         f.names = h.joint_names;
                     }
                     Event::Reconnected(h) => {
-                        eprintln!(
+                        frond_binmain::errln!(
                             "frond tap: {source}: reconnected (daemon {}, rig {})",
                             frond_protocol::printable(&h.daemon_version),
                             frond_protocol::printable(&h.rig_name)
@@ -108,7 +110,9 @@ pub(crate) fn run(
                         f.table = table;
                     }
                     Event::Disconnected => {
-                        eprintln!("frond tap: {source}: the daemon closed the stream; reconnecting")
+                        frond_binmain::errln!(
+                            "frond tap: {source}: the daemon closed the stream; reconnecting"
+                        )
                     }
                 }
             }

@@ -391,6 +391,12 @@ fn a_gap_in_time_is_a_discontinuity_and_resampling_is_bounded() {
     assert!((lines[1].t - 1.0 / 30.0).abs() < 1e-9);
     let err = text(&out.stderr);
     assert!(err.contains("1 step in time longer than 1 s") && err.contains("discontinuity"), "{err}");
+    // The same warning into a stderr whose reader has gone: lost, not a panic (was exit 101).
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = frond(&takes).args(["take", "export", "jump", "--fps", "30"]).stderr(writer).output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(text(&out.stdout).lines().count(), 2);
 
     // 121 frames a second apart (no discontinuity) at 10000 FPS: 1,200,001 frames, past the
     // export limit of 1,080,000: refused before anything is resampled, unless --force.

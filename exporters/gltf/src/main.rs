@@ -191,12 +191,12 @@ fn finish(mut baked: Baked, path: &Path, format: Format, quiet: bool) -> anyhow:
     for note in &baked.notes {
         // Notes quote names from the take and field files: escaped (`printable`) again here,
         // whatever made them.
-        eprintln!("frond-gltf: note: {}", frond_protocol::printable(note));
+        frond_binmain::errln!("frond-gltf: note: {}", frond_protocol::printable(note));
     }
     output::write(&mut baked, path, format)?;
     if !quiet {
         let s = baked.stats;
-        eprintln!(
+        frond_binmain::errln!(
             "frond-gltf: wrote {} ({} plant{}, {} channels x {} keys, {} vertices)",
             path.display(),
             s.plants,
@@ -229,14 +229,14 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
     let quiet = a.common.quiet;
     let mut status = |line: &str| {
         if !quiet {
-            eprintln!("frond-gltf: {line}");
+            frond_binmain::errln!("frond-gltf: {line}");
         }
     };
     let mode = if a.all { LiveMode::All } else { LiveMode::Recording };
     let (cap, hello) =
         capture(&source, mode, &stop, &mut status).with_context(|| format!("live capture from {source}"))?;
     if cap.missing > 0 {
-        eprintln!(
+        frond_binmain::errln!(
             "frond-gltf: note: the daemon dropped {} frames for this subscriber during the capture",
             cap.missing
         );

@@ -207,10 +207,10 @@ fn run(args: &Args) -> anyhow::Result<()> {
         tracing::info!(target_addr = %t.addr(), local = ?t.local_addr().ok(), protocol = ?config.protocol, "sending");
     }
     let every = args.stats.then_some(Duration::from_secs(1));
-    let result = bridge.run(&stop, every, |s| eprintln!("frond-osc stats: {s}"));
+    let result = bridge.run(&stop, every, |s| frond_binmain::errln!("frond-osc stats: {s}"));
     let stats = bridge.stats();
     if args.stats {
-        eprintln!("frond-osc stats: {stats}");
+        frond_binmain::errln!("frond-osc stats: {stats}");
     } else {
         tracing::info!(%stats, "stopped");
     }

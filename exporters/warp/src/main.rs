@@ -54,7 +54,7 @@ fn check_frames_and_output(
 fn read_take(path: &std::path::Path, using: &str) -> anyhow::Result<PoseTrack> {
     let track = PoseTrack::from_take(path)?;
     if let Some(damage) = &track.damage {
-        eprintln!(
+        frond_binmain::errln!(
             "frond-warp: warning: take {}: {damage}; {using} its {} readable frames",
             path.display(),
             track.times_s.len()
@@ -98,7 +98,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     let n =
         frond_warp::render::render(&mut animator, driver, args.frames as usize, args.fps, &out, args.quiet)?;
     if !args.quiet {
-        eprintln!(
+        frond_binmain::errln!(
             "frond-warp: wrote {n} frames to {} (wind: {})",
             args.output.display(),
             match driver {
@@ -228,7 +228,7 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     };
     let n = frond_warp::cage_skin::render_take(&scene, &track, &job)?;
     if !args.quiet {
-        eprintln!(
+        frond_binmain::errln!(
             "frond-warp: wrote {n} frames to {} (cage mode, rig {}, take {})",
             args.output.display(),
             frond_protocol::printable(&rig.rig.name),
@@ -269,7 +269,7 @@ fn morph(a: MorphArgs) -> anyhow::Result<()> {
     }
     if !a.quiet {
         let worst = summary.frechet_px.iter().copied().fold(0.0, f64::max);
-        eprintln!(
+        frond_binmain::errln!(
             "frond-warp: wrote {} frames to {} (crown {}, {} cages pruned, outline within {worst:.1} px of the reference)",
             summary.frames,
             a.output.display(),
@@ -298,7 +298,7 @@ fn cage(cmd: CageCommand) -> anyhow::Result<()> {
                 cages::write_file(&a.output, &text)
                     .with_context(|| format!("writing {}", a.output.display()))?;
                 let leaves = tree.cages.iter().filter(|c| c.kind == frond_cage::CageKind::Leaf).count();
-                eprintln!(
+                frond_binmain::errln!(
                     "frond-warp: wrote {} cages ({} crowns, {leaves} leaves, {} levels deep) to {}",
                     tree.cages.len(),
                     tree.roots().count(),
@@ -326,7 +326,9 @@ fn make_samples(dir: &std::path::Path) -> anyhow::Result<()> {
 
 fn bench(args: BenchArgs) -> anyhow::Result<()> {
     if cfg!(debug_assertions) {
-        eprintln!("frond-warp: warning: debug build; build with --release for meaningful timings");
+        frond_binmain::errln!(
+            "frond-warp: warning: debug build; build with --release for meaningful timings"
+        );
     }
     let warp = frond_warp::bench::bench_warp(args.width, args.height, args.iterations);
     let kernels: Vec<_> = if args.all_kernels {

@@ -227,7 +227,7 @@ pub(crate) fn bind(listen: &str) -> anyhow::Result<(Server, String)> {
 /// served on stderr.
 pub(crate) fn announce(addr: &str, what: &str) -> Result<(), frond_binmain::StdoutError> {
     frond_binmain::outln!("listening on http://{addr}/")?;
-    eprintln!("frond-warp: serving {what} on http://{addr}/");
+    frond_binmain::errln!("frond-warp: serving {what} on http://{addr}/");
     use std::io::Write;
     std::io::stdout().flush().map_err(frond_binmain::StdoutError)
 }

@@ -151,7 +151,7 @@ fn run(args: &Args) -> anyhow::Result<()> {
         std::thread::spawn(move || {
             while !stop.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_secs(1));
-                eprintln!("frond-zenoh stats: {stats}");
+                frond_binmain::errln!("frond-zenoh stats: {stats}");
             }
         })
     });
@@ -160,7 +160,7 @@ fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(p) = printer {
         let _ = p.join();
     }
-    eprintln!("frond-zenoh stats: {}", bridge.stats());
+    frond_binmain::errln!("frond-zenoh stats: {}", bridge.stats());
     Ok(result?)
 }
 
