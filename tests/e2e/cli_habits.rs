@@ -199,3 +199,18 @@ fn unwritable_output_is_an_error_or_a_quiet_end_never_a_panic() {
     let out = Command::new(bin("frondd")).arg("--print-default-config").stdout(full()).output().unwrap();
     assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn a_daemon_whose_log_reader_went_away_keeps_running() {
+    // stderr into a pipe whose reader has gone (journald restarted, `frondd 2>&1 | head`): every
+    // log line fails to write. The daemon logs as it starts, records and stops; it must do all
+    // of it (tracing's own report of the failed write used to panic on the same stderr).
+    let dir = tempfile::tempdir().unwrap();
+    let mut daemon =
+        frond_e2e::Daemon::start_with_stderr(dir.path(), &["--source", "in-process"], closed_pipe());
+    daemon.frond_ok(&["record", "start", "quiet"]);
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    daemon.frond_ok(&["record", "stop"]);
+    assert!(daemon.proc.child.try_wait().unwrap().is_none(), "frondd is still running");
+    assert!(daemon.takes_dir.join("quiet.take").is_file());
+}

@@ -123,7 +123,15 @@ pub fn logging(bin: &str, level: &str) -> Result<(), ExitCode> {
         say_error(bin, &format!("--log-level {level:?}: {e}"));
         ExitCode::from(2)
     })?;
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_ansi(colour()).init();
+    // Without log_internal_errors(false), a log line that cannot be written (stderr a closed
+    // pipe: journald gone, `frondd 2>&1 | head`) is reported with eprintln!, which panics on the
+    // same stderr: the daemon would crash at its next log line. A lost log line is only lost.
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(colour())
+        .log_internal_errors(false)
+        .init();
     Ok(())
 }
 
