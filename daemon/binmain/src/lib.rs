@@ -165,8 +165,7 @@ pub fn exit_with(
 /// Prints `BIN: error: MSG` on stderr. A stderr that cannot be written (closed, a full disk)
 /// loses the message but never turns the exit status into a panic's.
 pub fn say_error(bin: &str, msg: &str) {
-    use std::io::Write;
-    let _ = writeln!(std::io::stderr().lock(), "{bin}: error: {msg}");
+    errln!("{bin}: error: {msg}");
 }
 
 /// The options every binary has for its own documentation; `#[command(flatten)]` it into the

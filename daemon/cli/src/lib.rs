@@ -109,24 +109,18 @@ where
 }
 
 fn exit_for(e: &anyhow::Error) -> ExitCode {
-    if is_broken_pipe(e) {
+    if frond_binmain::is_closed_stdout(e) {
         return ExitCode::SUCCESS;
     }
     if let Some(ChildFailed(code)) = e.downcast_ref::<ChildFailed>() {
         return ExitCode::from(*code);
     }
     if e.downcast_ref::<Interrupted>().is_some() {
-        let _ = writeln!(io::stderr().lock(), "frond: interrupted");
+        frond_binmain::errln!("frond: interrupted");
         return ExitCode::from(130);
     }
     frond_binmain::say_error("frond", &frond_protocol::error_text(e.as_ref()));
     if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
-}
-
-/// True when the error comes from standard output's reader having gone (`frond tap | head`);
-/// a broken pipe anywhere else (a daemon that closed its socket) is a failure.
-pub(crate) fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    frond_binmain::is_closed_stdout(e)
 }
 
 /// Runs one parsed command.

@@ -467,8 +467,9 @@ pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyho
     warn_damage(&path, &scan);
     let rig = match (rig, &scan.header) {
         (Some(r), _) => frond_motion::rig_files::load_rig(&r.to_string_lossy())?,
-        (None, Some(h)) => recorded_rig(&path.display().to_string(), &h.rig_name)?,
-        _ => return usage(format!("{} names no rig; give one with --rig NAME|FILE", path.display())),
+        (None, header) => {
+            recorded_rig(&path.display().to_string(), header.as_ref().map_or("", |h| h.rig_name.as_str()))?
+        }
     };
     let source = export_poses(&scan, None, false);
     if source.is_empty() {

@@ -207,7 +207,7 @@ pub fn output_destination(path: &Path) -> std::io::Result<PathBuf> {
             }
         },
         Err(e) if e.kind() == ErrorKind::NotFound => {
-            let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            let dir = parent_dir(path);
             if dir.is_dir() {
                 Ok(path.to_path_buf())
             } else {
@@ -228,7 +228,7 @@ pub fn output_destination(path: &Path) -> std::io::Result<PathBuf> {
 /// /etc/shadow` for root's `-o /tmp/x.bvh` to replace.
 fn may_follow(path: &Path, link: &std::fs::Metadata) -> bool {
     use std::os::unix::fs::MetadataExt;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = parent_dir(path);
     let Ok(dir) = std::fs::metadata(dir) else { return false };
     let shared = dir.mode() & 0o1002 == 0o1002;
     // SAFETY: geteuid has no preconditions and cannot fail.
@@ -236,32 +236,65 @@ fn may_follow(path: &Path, link: &std::fs::Metadata) -> bool {
     !shared || link.uid() == me || link.uid() == dir.uid()
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory, fsync and a rename,
-/// so readers (and a crash) see the old file or the whole new one; a replaced file's permissions
-/// are kept. Only where [`output_destination`] allows: never over a device, FIFO or directory,
-/// through a symbolic link to its regular file, and into a directory that exists. The one way
-/// frond commands write a file they are given.
+/// The directory `path` is in: its parent, or `.` for a bare file name.
+pub fn parent_dir(path: &Path) -> &Path {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// A file being written in place of an output path: a temporary file beside the destination,
+/// renamed over it by [`AtomicOutput::persist`] once synced, so readers (and a crash) see the old
+/// file or the whole new one, and one dropped unpersisted (a failed render) leaves nothing. A
+/// replaced file's permissions are kept; a new file gets what any new file gets (0666 less the
+/// umask), not a temporary file's private 0600: an export is meant to be read by other tools
+/// and users. Only where [`output_destination`] allows: never over a device, FIFO or
+/// directory, through a symbolic link to its regular file, and into a directory that exists.
+/// The one way frond writes a file it is given ([`write_file_atomically`] for bytes in
+/// memory; this for output streamed to disk, such as a GIF too large to hold).
+pub struct AtomicOutput {
+    tmp: tempfile::NamedTempFile,
+    dest: PathBuf,
+}
+
+impl AtomicOutput {
+    /// Checks `path` and creates the temporary file beside the file it names.
+    pub fn create(path: &Path) -> std::io::Result<AtomicOutput> {
+        let dest = output_destination(path)?;
+        let dir = parent_dir(&dest);
+        let tmp = match std::fs::metadata(&dest) {
+            Ok(meta) => {
+                let tmp = tempfile::NamedTempFile::new_in(dir)?;
+                tmp.as_file().set_permissions(meta.permissions())?;
+                tmp
+            }
+            Err(_) => {
+                use std::os::unix::fs::PermissionsExt;
+                tempfile::Builder::new()
+                    .permissions(std::fs::Permissions::from_mode(0o666))
+                    .tempfile_in(dir)?
+            }
+        };
+        Ok(AtomicOutput { tmp, dest })
+    }
+
+    /// The temporary file, to write to (or to clone a handle of for a writer that owns one).
+    pub fn file(&mut self) -> &mut std::fs::File {
+        self.tmp.as_file_mut()
+    }
+
+    /// Syncs what was written to disk and renames it over the destination.
+    pub fn persist(self) -> std::io::Result<()> {
+        self.tmp.as_file().sync_all()?;
+        self.tmp.persist(&self.dest).map(|_| ()).map_err(|e| e.error)
+    }
+}
+
+/// Writes `bytes` to `path` through an [`AtomicOutput`]: the old file or the whole new one,
+/// never over a device, FIFO or directory.
 pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
-    let path = &output_destination(path)?;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = match std::fs::metadata(path) {
-        Ok(meta) => {
-            // Keep the replaced file's permissions.
-            let tmp = tempfile::NamedTempFile::new_in(dir)?;
-            tmp.as_file().set_permissions(meta.permissions())?;
-            tmp
-        }
-        // A new file gets what any new file gets (0666 less the umask), not the temporary
-        // file's private 0600: an export is meant to be read by other tools and users.
-        Err(_) => {
-            use std::os::unix::fs::PermissionsExt;
-            tempfile::Builder::new().permissions(std::fs::Permissions::from_mode(0o666)).tempfile_in(dir)?
-        }
-    };
-    tmp.write_all(bytes)?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map(|_| ()).map_err(|e| e.error)
+    let mut out = AtomicOutput::create(path)?;
+    out.file().write_all(bytes)?;
+    out.persist()
 }
 
 /// Reads a small regular text file: [`read_small_file`], then UTF-8.

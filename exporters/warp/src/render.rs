@@ -16,7 +16,8 @@ mod output;
 
 use crate::compose::Animator;
 use crate::wind::{HandWind, SimWind};
-use output::{AtomicFile, GifWriter, frames_dir};
+use frond_motion::rig_files::AtomicOutput;
+use output::{GifWriter, frames_dir};
 
 /// What blows the picture in an offline render.
 #[derive(Debug, Clone, Copy)]
@@ -224,7 +225,7 @@ pub fn render(
 
 /// Where rendered frames go (GIF, animated WebP or a directory of PNGs).
 pub(crate) enum Sink {
-    Gif(PathBuf, Box<GifEncoder<GifWriter>>, GifWriter, AtomicFile, u32, u32, Delay),
+    Gif(PathBuf, Box<GifEncoder<GifWriter>>, GifWriter, AtomicOutput, u32, u32, Delay),
     Webp(PathBuf, WebpAnim),
     Dir(PathBuf, u32, u32),
 }
@@ -235,9 +236,10 @@ impl Sink {
         out.check_destination()?;
         Ok(match out {
             OutputKind::Gif(path) => {
-                let (tmp, file) = AtomicFile::create(path)
-                    .map_err(|source| RenderError::Write { path: path.clone(), source })?;
-                let writer = GifWriter::new(file);
+                let write_err = |source| RenderError::Write { path: path.clone(), source };
+                let mut tmp = AtomicOutput::create(path).map_err(write_err)?;
+                // The encoder owns its writer: a second handle on the temporary file.
+                let writer = GifWriter::new(tmp.file().try_clone().map_err(write_err)?);
                 let mut enc = GifEncoder::new_with_speed(writer.clone(), 10);
                 enc.set_repeat(Repeat::Infinite)
                     .map_err(|source| RenderError::Encode { path: path.clone(), source })?;
@@ -289,7 +291,10 @@ impl Sink {
                 drop(enc);
                 writer
                     .finish()
-                    .and_then(|file| tmp.persist(file))
+                    .and_then(|file| {
+                        drop(file);
+                        tmp.persist()
+                    })
                     .map_err(|source| RenderError::Write { path, source })
             }
             Sink::Webp(path, anim) => frond_motion::rig_files::write_file_atomically(&path, &anim.finish())
