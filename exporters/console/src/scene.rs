@@ -15,15 +15,12 @@ use serde_json::{Value, json};
 /// The baked rig and its node map.
 #[derive(Debug, Clone)]
 pub struct RigScene {
-    /// The rig's name.
-    pub rig: String,
-    /// Where the rig came from (`embedded rig grass`, a path).
-    pub origin: String,
     /// The GLB.
     pub glb: Vec<u8>,
     /// `{"rig", "joints": [4 names], "heights_m": [4], "elements": [{"name", "instances": [[4 node names]]}]}`.
     pub map: Value,
-    /// The rig itself (the takes panel bakes a take recorded on a rig file with `--rig`'s).
+    /// The rig itself: its name, where it came from (`embedded rig grass`, a path); the takes
+    /// panel bakes a take recorded on a rig file with `--rig`'s.
     pub loaded: LoadedRig,
 }
 
@@ -61,9 +58,7 @@ impl SceneError {
 /// The scene of rig `name` (an embedded rig's name or a rig file, as `frond-gltf --rig` takes
 /// it), loaded and baked at rest.
 pub fn load(name: &str) -> Result<RigScene, SceneError> {
-    let rig =
-        LoadedRig::resolve(name).map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
-    bake(&rig).map_err(|reason| SceneError::Bake { name: name.to_string(), reason })
+    scene_of(name, LoadedRig::resolve(name))
 }
 
 /// The scene of the rig a daemon reports by name: an embedded rig only
@@ -71,8 +66,12 @@ pub fn load(name: &str) -> Result<RigScene, SceneError> {
 /// the daemon loaded from a file is refused (`RigFileError::NotEmbedded`), and the operator
 /// gives the console that file with `--rig FILE` ([`load`]).
 pub fn load_recorded(name: &str) -> Result<RigScene, SceneError> {
-    let rig =
-        LoadedRig::recorded(name).map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
+    scene_of(name, LoadedRig::recorded(name))
+}
+
+/// The scene of the rig `name` loaded as (or the error why not).
+fn scene_of(name: &str, rig: Result<LoadedRig, frond_gltf::BakeError>) -> Result<RigScene, SceneError> {
+    let rig = rig.map_err(|reason| SceneError::Load { name: name.to_string(), reason })?;
     bake(&rig).map_err(|reason| SceneError::Bake { name: name.to_string(), reason })
 }
 
@@ -115,7 +114,7 @@ pub fn bake(rig: &LoadedRig) -> Result<RigScene, frond_gltf::BakeError> {
         "heights_m": model.skeleton.heights_m,
         "elements": elements,
     });
-    Ok(RigScene { rig: rig.rig.name.clone(), origin: rig.origin.clone(), glb, map, loaded: rig.clone() })
+    Ok(RigScene { glb, map, loaded: rig.clone() })
 }
 
 #[cfg(test)]
@@ -160,7 +159,7 @@ mod tests {
 
     #[test]
     fn rigs_that_cannot_be_shown_say_which_and_why() {
-        assert_eq!(load("grass").unwrap().rig, "grass");
+        assert_eq!(load("grass").unwrap().loaded.rig.name, "grass");
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("bad.toml");
         std::fs::write(&bad, "name = [").unwrap();
@@ -174,7 +173,7 @@ mod tests {
 
     #[test]
     fn a_daemons_rig_name_is_an_embedded_rig_never_a_file() {
-        assert_eq!(load_recorded("flower").unwrap().rig, "flower");
+        assert_eq!(load_recorded("flower").unwrap().loaded.rig.name, "flower");
         // A valid rig file the name points at, and files a name must never make it read.
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("mine.toml");
