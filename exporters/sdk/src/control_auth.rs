@@ -6,8 +6,13 @@
 //! attachment: the principal's name, when it was issued, a random nonce and an HMAC-SHA256 over
 //! all of that, the key expression it is addressed to and the request frame, under the
 //! principal's shared key. The bridge checks the MAC against its allow-list file, refuses
-//! requests issued more than [`MAX_REQUEST_AGE`] from its clock, and refuses a nonce it has
-//! already accepted (replay). Zenoh's own authentication still decides who joins the bus at all.
+//! requests issued more than [`MAX_REQUEST_AGE`] before its clock or more than
+//! [`MAX_CLOCK_SKEW`] after it ([`check_issue_time`]), and refuses a nonce it has already
+//! accepted (replay). Zenoh's own authentication still decides who joins the bus at all.
+//!
+//! Keys are secrets: a key file, and the bridge's allow-list (which holds every principal's
+//! key), are read only if no one but their owner may read or change them
+//! ([`read_secret_file`]), and no error or `Debug` output of this module prints a key.
 //!
 //! The envelope's bytes (all integers little-endian):
 //!
@@ -37,8 +42,15 @@ pub const MAX_PRINCIPAL_LEN: usize = 64;
 pub const MIN_KEY_BYTES: usize = 32;
 /// Longest key, bytes.
 pub const MAX_KEY_BYTES: usize = 256;
-/// How far a request's issue time may be from the bridge's clock, either way.
+/// How long before the bridge's clock a request may have been issued: the time it takes to
+/// arrive plus how far the sender's clock may be behind. Older requests are refused, so the
+/// bridge need remember a nonce only this long.
 pub const MAX_REQUEST_AGE: Duration = Duration::from_secs(30);
+/// How far after the bridge's clock a request may have been issued: only the sender's clock
+/// being ahead (hosts set by NTP differ by milliseconds), since travel makes a request older,
+/// never younger. A request from further ahead is refused: accepting it would keep it valid
+/// (and replayable against a bridge that had not yet seen it) for longer than [`MAX_REQUEST_AGE`].
+pub const MAX_CLOCK_SKEW: Duration = Duration::from_secs(5);
 /// Length of the nonce.
 pub const NONCE_LEN: usize = 16;
 /// Length of the MAC.
@@ -68,9 +80,64 @@ pub enum AuthError {
     KeyFile {
         /// The file.
         path: PathBuf,
-        /// What is wrong with it.
+        /// What is wrong with it (never its content).
         reason: String,
     },
+    /// A secret file (a key file, the bridge's allow-list) that its group or other users may
+    /// read or change: a key others can read is no secret, and a file others can change lets
+    /// them put in their own key.
+    #[error(
+        "{path}: mode {mode:03o}: {who}; it holds {holds}: chmod 600 {path}",
+        path = path.display()
+    )]
+    Exposed {
+        /// The file.
+        path: PathBuf,
+        /// Its permission bits.
+        mode: u32,
+        /// Who may do what (`its group may read it`).
+        who: String,
+        /// What it holds (`a control key, a secret`).
+        holds: &'static str,
+    },
+}
+
+/// Why a request's issue time is refused ([`check_issue_time`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum IssueTimeError {
+    /// Issued more than [`MAX_REQUEST_AGE`] before the bridge's clock.
+    #[error("issued {age_ms} ms before this host's clock; at most {} ms is accepted", MAX_REQUEST_AGE.as_millis())]
+    TooOld {
+        /// How long before.
+        age_ms: u64,
+    },
+    /// Issued more than [`MAX_CLOCK_SKEW`] after the bridge's clock.
+    #[error(
+        "issued {ahead_ms} ms after this host's clock; at most {} ms of clock skew is accepted",
+        MAX_CLOCK_SKEW.as_millis()
+    )]
+    Ahead {
+        /// How long after.
+        ahead_ms: u64,
+    },
+}
+
+/// Whether a request issued at `issued_unix_ms` on its sender's clock is acceptable at
+/// `now_unix_ms` on the receiver's: at most [`MAX_REQUEST_AGE`] before, at most
+/// [`MAX_CLOCK_SKEW`] after (both bounds included).
+pub fn check_issue_time(issued_unix_ms: u64, now_unix_ms: u64) -> Result<(), IssueTimeError> {
+    if issued_unix_ms > now_unix_ms {
+        let ahead_ms = issued_unix_ms - now_unix_ms;
+        if ahead_ms > MAX_CLOCK_SKEW.as_millis() as u64 {
+            return Err(IssueTimeError::Ahead { ahead_ms });
+        }
+    } else {
+        let age_ms = now_unix_ms - issued_unix_ms;
+        if age_ms > MAX_REQUEST_AGE.as_millis() as u64 {
+            return Err(IssueTimeError::TooOld { age_ms });
+        }
+    }
+    Ok(())
 }
 
 /// Whether `name` is a valid principal name.
@@ -95,7 +162,17 @@ impl ControlKey {
     /// A key from its hex text (surrounding white space ignored): 32 to 256 bytes.
     pub fn from_hex(text: &str) -> Result<ControlKey, AuthError> {
         let text = text.trim();
-        let bytes = hex::decode(text).map_err(|e| AuthError::BadKey(format!("not hex: {e}")))?;
+        // hex's own message quotes the offending character: a piece of the secret.
+        let bytes = hex::decode(text).map_err(|e| {
+            AuthError::BadKey(match e {
+                hex::FromHexError::InvalidHexCharacter { index, .. } => {
+                    format!("not hex: character {} is not a hex digit", index + 1)
+                }
+                hex::FromHexError::OddLength | hex::FromHexError::InvalidStringLength => {
+                    "not hex: an odd number of digits".to_owned()
+                }
+            })
+        })?;
         if !(MIN_KEY_BYTES..=MAX_KEY_BYTES).contains(&bytes.len()) {
             return Err(AuthError::BadKey(format!(
                 "{} bytes; it must be {MIN_KEY_BYTES} to {MAX_KEY_BYTES} bytes ({} to {} hex digits), \
@@ -108,10 +185,10 @@ impl ControlKey {
         Ok(ControlKey(bytes))
     }
 
-    /// Reads a key file: one hex key, a regular file of at most 4 KiB that other users may not
-    /// read (a key they can read is not a secret).
+    /// Reads a key file: one hex key, a regular file of at most 4 KiB that only its owner may
+    /// read or change ([`read_secret_file`]).
     pub fn read_file(path: &Path) -> Result<ControlKey, AuthError> {
-        let text = read_secret_file(path, MAX_KEY_FILE)?;
+        let text = read_secret_file(path, MAX_KEY_FILE, "a control key, a secret")?;
         ControlKey::from_hex(&text)
             .map_err(|e| AuthError::KeyFile { path: path.into(), reason: e.to_string() })
     }
@@ -121,22 +198,54 @@ impl ControlKey {
     }
 }
 
-/// Reads a small regular file that only its owner (and group) may read: key files and the
-/// bridge's allow-list.
-pub fn read_secret_file(path: &Path, max_bytes: u64) -> Result<String, AuthError> {
-    use std::os::unix::fs::PermissionsExt;
+/// Who besides the owner may do what to a file of permission bits `mode`, in words (`its group
+/// may read it, and other users may change it`); `None` when nobody may. The same rule and
+/// words as the console's token file.
+fn exposure(mode: u32) -> Option<String> {
+    let who = |group: u32, others: u32| match (mode & group != 0, mode & others != 0) {
+        (true, true) => Some("its group and other users"),
+        (true, false) => Some("its group"),
+        (false, true) => Some("other users"),
+        (false, false) => None,
+    };
+    let said: Vec<String> = [(who(0o040, 0o004), "read"), (who(0o020, 0o002), "change")]
+        .into_iter()
+        .filter_map(|(who, what)| who.map(|w| format!("{w} may {what} it")))
+        .collect();
+    (!said.is_empty()).then(|| said.join(", and "))
+}
+
+/// Reads a secret file (a key file, the bridge's allow-list of keys; `holds` says what it holds,
+/// for the error): a regular file of at most `max_bytes` that no one but its owner may read or
+/// change (as `ssh` takes a private key). A file its group or other users may read or write is
+/// refused with its mode and the fix ([`AuthError::Exposed`]). The file is opened without
+/// blocking (a FIFO put in its place cannot hang the reader) and the checks are made on the
+/// opened file, the one that is read.
+pub fn read_secret_file(path: &Path, max_bytes: u64, holds: &'static str) -> Result<String, AuthError> {
+    use std::io::Read;
+    use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
     let err = |reason: String| AuthError::KeyFile { path: path.into(), reason };
-    let meta = std::fs::metadata(path).map_err(|e| err(e.to_string()))?;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| err(e.to_string()))?;
+    let meta = file.metadata().map_err(|e| err(e.to_string()))?;
     if !meta.is_file() {
         return Err(err("not a regular file".into()));
     }
     if meta.len() > max_bytes {
         return Err(err(format!("{} bytes; the limit is {max_bytes}", meta.len())));
     }
-    if meta.permissions().mode() & 0o004 != 0 {
-        return Err(err("other users may read it; chmod o-r (it holds a secret)".into()));
+    let mode = meta.permissions().mode() & 0o777;
+    if let Some(who) = exposure(mode) {
+        return Err(AuthError::Exposed { path: path.into(), mode, who, holds });
     }
-    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| err(e.to_string()))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(err(format!("grew past the limit of {max_bytes} bytes while read")));
+    }
     String::from_utf8(bytes).map_err(|_| err("not UTF-8 text".into()))
 }
 
@@ -315,16 +424,74 @@ mod tests {
     }
 
     #[test]
-    fn key_files_that_others_may_read_are_refused() {
+    fn key_files_that_their_group_or_others_may_read_or_change_are_refused_with_the_fix() {
         use std::os::unix::fs::PermissionsExt;
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("key");
-        std::fs::write(&path, "11".repeat(32)).unwrap();
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
-        let e = ControlKey::read_file(&path).unwrap_err().to_string();
-        assert!(e.contains("other users may read it"), "{e}");
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
-        assert_eq!(ControlKey::read_file(&path).unwrap(), ControlKey::from_hex(&"11".repeat(32)).unwrap());
+        let secret = "5ec7e7".repeat(11)[..64].to_owned();
+        std::fs::write(&path, &secret).unwrap();
+        let shown = path.display().to_string();
+        // Each mode, and who the message must name (the console's token file's words).
+        for (mode, who) in [
+            (0o640, "its group may read it"),
+            (0o604, "other users may read it"),
+            (0o644, "its group and other users may read it"),
+            (0o620, "its group may change it"),
+            (0o602, "other users may change it"),
+            (0o660, "its group may read it, and its group may change it"),
+            (0o666, "its group and other users may read it, and its group and other users may change it"),
+        ] {
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+            let e = ControlKey::read_file(&path).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                format!(
+                    "{shown}: mode {mode:03o}: {who}; it holds a control key, a secret: chmod 600 {shown}"
+                )
+            );
+            assert!(!format!("{e} {e:?}").contains(&secret[..8]), "the key leaked: {e:?}");
+        }
+        for mode in [0o600, 0o400, 0o700] {
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+            assert_eq!(
+                ControlKey::read_file(&path).unwrap(),
+                ControlKey::from_hex(&secret).unwrap(),
+                "{mode:o}"
+            );
+        }
         assert!(ControlKey::read_file(dir.path()).unwrap_err().to_string().contains("not a regular file"));
+    }
+
+    #[test]
+    fn a_key_file_that_is_not_a_key_is_named_without_printing_what_it_holds() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("key");
+        // A base64 secret pasted where a hex key belongs, and a hex key one digit short.
+        for (text, said) in [
+            ("c2VjcmV0LXNlY3JldC1zZWNyZXQtc2VjcmV0LXNlY3JldA==", "character 3 is not a hex digit"),
+            (&"ab".repeat(32)[1..], "an odd number of digits"),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+            let e = ControlKey::read_file(&path).unwrap_err();
+            let shown = format!("{e} {e:?}");
+            assert!(shown.contains(said), "{shown}");
+            // No piece of the file: not its first characters, not the one that is not hex.
+            assert!(!shown.contains(&text[..4]) && !shown.contains("'V'"), "{shown}");
+        }
+        assert_eq!(format!("{:?}", ControlKey::from_hex(&"ab".repeat(32)).unwrap()), "ControlKey(32 bytes)");
+    }
+
+    #[test]
+    fn issue_times_are_accepted_from_30_s_before_to_5_s_after_the_clock() {
+        let now = 1_000_000;
+        assert_eq!(check_issue_time(now, now), Ok(()));
+        assert_eq!(check_issue_time(now - 30_000, now), Ok(()));
+        assert_eq!(check_issue_time(now - 30_001, now), Err(IssueTimeError::TooOld { age_ms: 30_001 }));
+        assert_eq!(check_issue_time(now + 5_000, now), Ok(()));
+        assert_eq!(check_issue_time(now + 5_001, now), Err(IssueTimeError::Ahead { ahead_ms: 5_001 }));
+        assert_eq!(check_issue_time(u64::MAX, 0), Err(IssueTimeError::Ahead { ahead_ms: u64::MAX }));
+        assert_eq!(check_issue_time(0, u64::MAX), Err(IssueTimeError::TooOld { age_ms: u64::MAX }));
     }
 }
