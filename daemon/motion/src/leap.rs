@@ -13,12 +13,18 @@
 //! proximal-intermediate, intermediate-distal), each bone's direction the negated third row of
 //! its basis (LeapJS `Bone.direction`). Pure: parsing and math only.
 
+use std::fmt;
+use std::marker::PhantomData;
+
 use serde::Deserialize;
+use serde::de::{Deserializer, Error as _, IgnoredAny, SeqAccess, Visitor};
 
 use crate::HandSample;
 
-/// Largest message accepted, bytes (a two-hand v6 frame is about 12 KB).
-pub const MAX_MESSAGE_BYTES: usize = 1 << 20;
+/// Largest message accepted, bytes (a one-hand v6 frame of a real controller is about 4.7 KB,
+/// two hands about 10 KB; [`MAX_HANDS`] hands fit ten times over). The WebSocket client
+/// refuses a longer message from its header, before reading it.
+pub const MAX_MESSAGE_BYTES: usize = 512 << 10;
 /// Most hands a frame may list.
 pub const MAX_HANDS: usize = 8;
 /// Most pointables a frame may list (5 per hand).
@@ -78,12 +84,90 @@ pub struct LeapFrame {
     pub id: i64,
     /// Device time, microseconds.
     pub timestamp: i64,
-    /// The hands seen.
-    #[serde(default)]
+    /// The hands seen (at most [`MAX_HANDS`]).
+    #[serde(default, deserialize_with = "at_most::<_, _, MAX_HANDS>")]
     pub hands: Vec<LeapHand>,
-    /// Their fingers.
-    #[serde(default)]
+    /// Their fingers (at most [`MAX_POINTABLES`]).
+    #[serde(default, deserialize_with = "at_most::<_, _, MAX_POINTABLES>")]
     pub pointables: Vec<LeapPointable>,
+}
+
+/// What a frame lists, by the name of its list (for [`LeapError::TooMany`]).
+trait Listed {
+    /// The frame's key of the list.
+    const LIST: &'static str;
+}
+
+impl Listed for LeapHand {
+    const LIST: &'static str = "hands";
+}
+
+impl Listed for LeapPointable {
+    const LIST: &'static str = "pointables";
+}
+
+/// The parse error of a list longer than `max`: said the same way by the visitor and
+/// recognised by [`parse_message`].
+fn too_many_text(list: &str, max: usize) -> String {
+    format!("more than {max} {list} in one frame")
+}
+
+/// A frame's list read item by item up to `MAX`: one item more ends the parse there, with
+/// nothing after it read, so that a frame listing 5,000 hands costs what one of 9 does, not
+/// 5,000 hands' worth of parsing and memory.
+fn at_most<'de, D, T, const MAX: usize>(d: D) -> Result<Vec<T>, D::Error>
+where
+    D: Deserializer<'de>,
+    T: Deserialize<'de> + Listed,
+{
+    struct Items<T, const MAX: usize>(PhantomData<T>);
+
+    impl<'de, T: Deserialize<'de> + Listed, const MAX: usize> Visitor<'de> for Items<T, MAX> {
+        type Value = Vec<T>;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "a list of at most {MAX} {}", T::LIST)
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<T>, A::Error> {
+            let mut items = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(MAX));
+            while items.len() < MAX {
+                match seq.next_element()? {
+                    Some(item) => items.push(item),
+                    None => return Ok(items),
+                }
+            }
+            if seq.next_element::<IgnoredAny>()?.is_some() {
+                return Err(A::Error::custom(too_many_text(T::LIST, MAX)));
+            }
+            Ok(items)
+        }
+    }
+
+    d.deserialize_seq(Items::<T, MAX>(PhantomData))
+}
+
+/// Any message of the stream, read in one pass: the fields that tell a version from a frame
+/// from anything else, the lists bounded while they are read, every other field skipped
+/// without being kept.
+#[derive(Deserialize)]
+struct AnyMessage {
+    version: Option<i64>,
+    id: Option<i64>,
+    timestamp: Option<i64>,
+    #[serde(default, deserialize_with = "some_at_most::<_, _, MAX_HANDS>")]
+    hands: Option<Vec<LeapHand>>,
+    #[serde(default, deserialize_with = "some_at_most::<_, _, MAX_POINTABLES>")]
+    pointables: Option<Vec<LeapPointable>>,
+}
+
+/// [`at_most`] for a list that may be missing.
+fn some_at_most<'de, D, T, const MAX: usize>(d: D) -> Result<Option<Vec<T>>, D::Error>
+where
+    D: Deserializer<'de>,
+    T: Deserialize<'de> + Listed,
+{
+    at_most::<D, T, MAX>(d).map(Some)
 }
 
 /// A message of the v6 stream.
@@ -106,42 +190,47 @@ pub enum LeapError {
     /// Not JSON, or a frame with missing or mistyped fields.
     #[error("not a v6 message: {0}")]
     Json(String),
-    /// More hands or pointables than a frame can have.
-    #[error(
-        "a frame with {hands} hands and {pointables} pointables (at most {MAX_HANDS} and {MAX_POINTABLES})"
-    )]
+    /// More hands or pointables than a frame can have (refused at the first one too many,
+    /// before the rest of the frame is read).
+    #[error("a frame listing more than {max} {list}")]
     TooMany {
-        /// Hands listed.
-        hands: usize,
-        /// Pointables listed.
-        pointables: usize,
+        /// The list: `hands` or `pointables`.
+        list: &'static str,
+        /// Its limit ([`MAX_HANDS`] or [`MAX_POINTABLES`]).
+        max: usize,
     },
     /// A non-finite number or a zero vector where a direction belongs.
     #[error("hand {0}: a direction, normal or bone basis is not a finite non-zero vector")]
     BadVector(i64),
 }
 
-/// Parses one message (bounded before anything is allocated for it).
+/// Parses one message, in one pass and bounded while it is read: larger than
+/// [`MAX_MESSAGE_BYTES`], or listing more than [`MAX_HANDS`] hands or [`MAX_POINTABLES`]
+/// pointables, is refused before the rest is read, and nothing but the frame's own fields is
+/// kept.
 pub fn parse_message(text: &str) -> Result<LeapMessage, LeapError> {
     if text.len() > MAX_MESSAGE_BYTES {
         return Err(LeapError::TooLarge(text.len()));
     }
-    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| LeapError::Json(e.to_string()))?;
-    let Some(obj) = value.as_object() else { return Err(LeapError::Json("not an object".into())) };
-    if let Some(v) = obj.get("version").filter(|_| !obj.contains_key("hands")) {
-        return v
-            .as_i64()
-            .map(LeapMessage::Version)
-            .ok_or_else(|| LeapError::Json("version is not a number".into()));
+    let message: AnyMessage = serde_json::from_str(text).map_err(|e| {
+        let said = e.to_string();
+        let lists = [(LeapHand::LIST, MAX_HANDS), (LeapPointable::LIST, MAX_POINTABLES)];
+        match lists.into_iter().find(|&(list, max)| said.starts_with(&too_many_text(list, max))) {
+            Some((list, max)) => LeapError::TooMany { list, max },
+            None => LeapError::Json(said),
+        }
+    })?;
+    let AnyMessage { version, id, timestamp, hands, pointables } = message;
+    if let (Some(v), None) = (version, &hands) {
+        return Ok(LeapMessage::Version(v));
     }
-    if !obj.contains_key("timestamp") || !obj.contains_key("id") {
-        return Ok(LeapMessage::Other);
-    }
-    let frame: LeapFrame = serde_json::from_value(value).map_err(|e| LeapError::Json(e.to_string()))?;
-    if frame.hands.len() > MAX_HANDS || frame.pointables.len() > MAX_POINTABLES {
-        return Err(LeapError::TooMany { hands: frame.hands.len(), pointables: frame.pointables.len() });
-    }
-    Ok(LeapMessage::Frame(frame))
+    let (Some(id), Some(timestamp)) = (id, timestamp) else { return Ok(LeapMessage::Other) };
+    Ok(LeapMessage::Frame(LeapFrame {
+        id,
+        timestamp,
+        hands: hands.unwrap_or_default(),
+        pointables: pointables.unwrap_or_default(),
+    }))
 }
 
 fn usable(v: &[f64; 3]) -> bool {
@@ -276,6 +365,53 @@ mod tests {
         assert_eq!(hand_sample(&f, Chirality::Right), Err(LeapError::BadVector(7)));
         let hands: Vec<_> = (0..9).map(|i| serde_json::json!({"id": i, "type": "left", "direction": [0,0,-1], "palmNormal": [0,-1,0]})).collect();
         let many = serde_json::json!({"id": 1, "timestamp": 0, "hands": hands}).to_string();
-        assert!(matches!(parse_message(&many), Err(LeapError::TooMany { hands: 9, .. })));
+        assert_eq!(parse_message(&many), Err(LeapError::TooMany { list: "hands", max: MAX_HANDS }));
+        let fingers: Vec<_> = (0..=MAX_POINTABLES)
+            .map(|i| serde_json::json!({"handId": 1, "type": i % 5, "bases": [[[1,0,0],[0,1,0],[0,0,1]], [[1,0,0],[0,1,0],[0,0,1]], [[1,0,0],[0,1,0],[0,0,1]], [[1,0,0],[0,1,0],[0,0,1]]]}))
+            .collect();
+        let many = serde_json::json!({"id": 1, "timestamp": 0, "pointables": fingers}).to_string();
+        assert_eq!(parse_message(&many), Err(LeapError::TooMany { list: "pointables", max: MAX_POINTABLES }));
+        // At the limit, the frame is read.
+        let hands: Vec<_> = (0..MAX_HANDS).map(|i| serde_json::json!({"id": i, "type": "left", "direction": [0,0,-1], "palmNormal": [0,-1,0]})).collect();
+        let eight = serde_json::json!({"id": 1, "timestamp": 0, "hands": hands}).to_string();
+        assert!(matches!(parse_message(&eight), Ok(LeapMessage::Frame(f)) if f.hands.len() == MAX_HANDS));
+    }
+
+    /// Issue 42: a frame listing 5,000 hands is refused at the ninth, before the other 4,991
+    /// (and anything after them) are read: the hand after the ninth is not even valid JSON, so
+    /// a parser that read them all would call the frame malformed, not too many.
+    #[test]
+    fn a_frame_of_thousands_of_hands_is_refused_at_the_first_one_too_many() {
+        let hand = r#"{"id":1,"type":"left","direction":[0,0,-1],"palmNormal":[0,-1,0]}"#;
+        let mut text = String::from(r#"{"id":1,"timestamp":0,"hands":["#);
+        for i in 0..5000 {
+            if i > 0 {
+                text.push(',');
+            }
+            // The tenth hand on is garbage: never looked at.
+            text.push_str(if i < MAX_HANDS + 1 { hand } else { "@" });
+        }
+        text.push_str("]}");
+        assert!(text.len() < MAX_MESSAGE_BYTES);
+        assert_eq!(parse_message(&text), Err(LeapError::TooMany { list: "hands", max: MAX_HANDS }));
+        // The same frame of well-formed hands is refused the same way.
+        let whole = format!(r#"{{"id":1,"timestamp":0,"hands":[{}]}}"#, vec![hand; 5000].join(","));
+        assert_eq!(parse_message(&whole), Err(LeapError::TooMany { list: "hands", max: MAX_HANDS }));
+    }
+
+    /// Messages that are not frames are told apart as before the bounded reader.
+    #[test]
+    fn versions_frames_and_other_messages_are_told_apart() {
+        let v = r#"{"serviceVersion": "5.17.1", "version": 6}"#;
+        assert_eq!(parse_message(v).unwrap(), LeapMessage::Version(6));
+        assert_eq!(parse_message(r#"{"id": 3}"#).unwrap(), LeapMessage::Other);
+        let f =
+            parse_message(r#"{"id": 3, "timestamp": 9, "devices": [{"x": [1, 2, {"y": null}]}]}"#).unwrap();
+        assert_eq!(
+            f,
+            LeapMessage::Frame(LeapFrame { id: 3, timestamp: 9, hands: vec![], pointables: vec![] })
+        );
+        assert!(matches!(parse_message(r#"{"version": "six"}"#), Err(LeapError::Json(_))));
+        assert!(matches!(parse_message("[1, 2]"), Err(LeapError::Json(_))));
     }
 }
