@@ -65,5 +65,25 @@ fn toolkit(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, mapping, toolkit);
+/// The live stages' per-tick work units, for their budgets (`frondd::stage::budget`): one
+/// simulation step of the grass plant in a gusty wind (seed 003, section 4.2) and one walk frame
+/// of a motion-graph walker (section 6).
+fn stage_units(c: &mut Criterion) {
+    use frond_motion::graph::{ControlPoint, GraphParams, Walker, build_graph, control_positions_m};
+    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).expect("grass rig");
+    let mut plant =
+        frond_motion::sim::PlantSim::from_rig(&rig, "speed=4,dir=30,gust=0.8,seed=2".parse().expect("wind"))
+            .expect("plant");
+    c.bench_function("sim step (grass, gusty wind)", |b| b.iter(|| black_box(plant.step())));
+    let sway = frond_motion::graph::sample_sway(600);
+    let skeleton = frond_motion::skeleton::Skeleton::even(1.0);
+    let path = control_positions_m(ControlPoint::Top, &skeleton, 1.0, &sway);
+    let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).expect("graph");
+    let mut walker = Walker::new(&graph, 0, 4, 30.0);
+    c.bench_function("graph walk frame (one plant)", |b| {
+        b.iter(|| black_box(walker.next_frame(&graph, &sway)))
+    });
+}
+
+criterion_group!(benches, mapping, toolkit, stage_units);
 criterion_main!(benches);

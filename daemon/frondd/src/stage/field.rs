@@ -150,7 +150,9 @@ impl FieldStage {
         id_table[..publish].copy_from_slice(&ids[..publish]);
         Ok(FieldStage {
             player,
-            out: vec![[[0.0; 3]; 4]; n],
+            // Only the published plants are computed: a field of thousands costs a tick no more
+            // than its first `publish` (its budget, `budget::FIELD_PLANT_NS` each).
+            out: vec![[[0.0; 3]; 4]; publish],
             ids: id_table,
             publish,
             swipe: SwipeDetector::new(SwipeParams::default()),
@@ -248,6 +250,14 @@ pub fn build(
             hand_element: None,
             accepts: takes_keys,
             rig: super::rig_info(ctx.rig),
+            work: super::budget::TickWork {
+                asked_by: format!("a field publishing {} plants", ids.len()),
+                unit: "plant frames",
+                units: ids.len() as u64,
+                unit_ns: super::budget::FIELD_PLANT_NS,
+                extra_ns: 0,
+                fix: "publish fewer plants".into(),
+            },
         },
     })
 }

@@ -19,6 +19,7 @@ use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::{ControlErrorKind, GraphGoal, StageInput};
 
+use super::budget::{self, TickWork};
 use super::{
     BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
 };
@@ -28,8 +29,14 @@ use crate::clock::NS_PER_S;
 pub const MAX_GRAPH_PLANTS: usize = 64;
 /// Frames per second on the stream.
 pub const GRAPH_PUBLISH_HZ: u32 = 60;
-/// Nodes the pose planner settles per tick (a 1 kHz tick spends some tens of microseconds).
+/// Most nodes the pose planner settles per tick (a 1 kHz tick spends some tens of
+/// microseconds); fewer when the walk leaves less of the stage's budget ([`plan_nodes_per_tick`]).
 pub const PLAN_NODES_PER_TICK: usize = 2_000;
+/// Fewest nodes the planner settles per tick, so that a plan always makes progress.
+pub const MIN_PLAN_NODES_PER_TICK: usize = 64;
+/// Most walk frames per plant one tick catches up by when the stage is built without a budget
+/// ([`GraphStage::new`]); [`build`] sets it from the stage's share of the tick.
+pub const DEFAULT_CATCH_UP_FRAMES: u64 = 32;
 /// Largest graph file read, bytes.
 pub const MAX_GRAPH_FILE_BYTES: u64 = frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
 /// Smallest bend of the root, degrees, that sets a goal from the hand (below it the plants walk
@@ -53,6 +60,8 @@ pub struct GraphReport {
     planned: AtomicU8,
     node_frame: AtomicU32,
     transitions: AtomicU64,
+    skipped_frames: AtomicU64,
+    late_ticks: AtomicU64,
 }
 
 impl StageReport for GraphReport {
@@ -75,8 +84,15 @@ impl StageReport for GraphReport {
             },
             _ => "random walks".into(),
         };
+        let late = match self.late_ticks.load(Relaxed) {
+            0 => String::new(),
+            n => format!(
+                "; BEHIND: {} walk frames skipped in {n} ticks over the budget (kept real time)",
+                self.skipped_frames.load(Relaxed)
+            ),
+        };
         format!(
-            "graph walk of {}: {} plants on {} nodes; {goal}; plant 0 at frame {}; {} transitions taken",
+            "graph walk of {}: {} plants on {} nodes; {goal}; plant 0 at frame {}; {} transitions taken{late}",
             self.take,
             self.plants,
             self.nodes,
@@ -144,6 +160,10 @@ pub struct GraphStage {
     frames_done: u64,
     goal: GraphGoal,
     hand_dir_deg: Option<f64>,
+    /// Most walk frames per plant one tick steps (catching up after a late tick).
+    catch_up_frames: u64,
+    /// Nodes of a pose goal's search or plan per tick.
+    plan_nodes: usize,
     report: Arc<GraphReport>,
 }
 
@@ -178,6 +198,8 @@ impl GraphStage {
             planned: AtomicU8::new(0),
             node_frame: AtomicU32::new(sources[0].graph.node_frames[0]),
             transitions: AtomicU64::new(0),
+            skipped_frames: AtomicU64::new(0),
+            late_ticks: AtomicU64::new(0),
         });
         let rest = [[0.0f32; 3]; JOINTS];
         let stage = GraphStage {
@@ -191,9 +213,19 @@ impl GraphStage {
             frames_done: 0,
             goal: GraphGoal::Off,
             hand_dir_deg: None,
+            catch_up_frames: DEFAULT_CATCH_UP_FRAMES,
+            plan_nodes: PLAN_NODES_PER_TICK,
             report: report.clone(),
         };
         (stage, report)
+    }
+
+    /// The same stage stepping at most `catch_up_frames` walk frames per plant per tick (at least
+    /// 2: the frames published between) and settling `plan_nodes` planner nodes per tick.
+    pub fn with_budget(mut self, catch_up_frames: u64, plan_nodes: usize) -> Self {
+        self.catch_up_frames = catch_up_frames.max(2);
+        self.plan_nodes = plan_nodes.max(1);
+        self
     }
 
     fn walker_goal(&self) -> Goal {
@@ -264,7 +296,7 @@ impl LiveStage for GraphStage {
     fn tick(&mut self, ctx: &TickContext, out: &mut dyn FrameSink) {
         // Pose goals: one source at a time gets the tick's planning budget.
         if let Some(k) = self.sources.iter().position(GraphSource::busy) {
-            if let Some(frame) = self.sources[k].work(PLAN_NODES_PER_TICK)
+            if let Some(frame) = self.sources[k].work(self.plan_nodes)
                 && k == 0
             {
                 self.report.goal_frame.store(frame, Relaxed);
@@ -274,12 +306,17 @@ impl LiveStage for GraphStage {
             }
         }
         let elapsed = ctx.now_ns.saturating_sub(self.t0_ns);
-        // Catch up with the walk's own frame rate (at most a second's frames per tick after a
-        // stall, then it carries on from now).
+        // Catch up with the walk's own frame rate, at most `catch_up_frames` per tick (its
+        // budget); behind by more (a late tick, a stall), the walk skips ahead to now, keeping
+        // real time, and the frames it skipped are counted.
         // The walk is one frame ahead of now: `frames` holds walk frames `due` and `due + 1`.
         let due = elapsed / self.frame_ns;
-        if due > self.frames_done + 30 {
-            self.frames_done = due;
+        let needed = (due + 2).saturating_sub(self.frames_done);
+        if needed > self.catch_up_frames {
+            let skipped = needed - self.catch_up_frames;
+            self.frames_done += skipped;
+            self.report.skipped_frames.fetch_add(skipped, Relaxed);
+            self.report.late_ticks.fetch_add(1, Relaxed);
         }
         while self.frames_done <= due + 1 {
             self.step();
@@ -378,7 +415,11 @@ pub fn build(
         }
         loaded.push(source);
     }
-    let (stage, report) = GraphStage::new(loaded, ids, seed, fps.unwrap_or(30.0), ctx.now_ns);
+    let fps = fps.unwrap_or(30.0);
+    let (work, catch_up, plan_nodes) = walk_work(plants, fps, ctx.tick_rate_hz);
+    work.check(ctx.tick_rate_hz)?;
+    let (stage, report) = GraphStage::new(loaded, ids, seed, fps, ctx.now_ns);
+    let stage = stage.with_budget(catch_up, plan_nodes);
     let elements = super::plant_elements(ids, "walker", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
@@ -389,8 +430,33 @@ pub fn build(
             hand_element: None,
             accepts: takes_goals,
             rig: super::rig_info(ctx.rig),
+            work,
         },
     })
+}
+
+/// A walk's work per tick (`plants` walkers on graphs at `fps`, ticks at `tick_rate_hz`): the
+/// walk frames a tick steps (at least 2 per plant, the frames published between) and the
+/// planner's share of what is left of the stage's budget; with the most frames per plant a
+/// late tick may catch up by and the planner's nodes per tick.
+pub fn walk_work(plants: usize, fps: f64, tick_rate_hz: u32) -> (TickWork, u64, usize) {
+    let per_plant = budget::steps_per_tick(1.0 / fps, tick_rate_hz).max(2);
+    let plants = plants.max(1) as u64;
+    let walk_ns = plants.saturating_mul(per_plant).saturating_mul(budget::GRAPH_WALK_FRAME_NS);
+    let share = budget::stage_share_ns(tick_rate_hz);
+    let plan_nodes = (share.saturating_sub(walk_ns) / budget::GRAPH_PLAN_NODE_NS)
+        .clamp(MIN_PLAN_NODES_PER_TICK as u64, PLAN_NODES_PER_TICK as u64);
+    let plan_ns = plan_nodes * budget::GRAPH_PLAN_NODE_NS;
+    let catch_up = (share.saturating_sub(plan_ns) / (plants * budget::GRAPH_WALK_FRAME_NS)).max(per_plant);
+    let work = TickWork {
+        asked_by: format!("a walk of {plants} plants on graphs at {fps} fps"),
+        unit: "walk frames",
+        units: plants.saturating_mul(per_plant),
+        unit_ns: budget::GRAPH_WALK_FRAME_NS,
+        extra_ns: plan_ns,
+        fix: "walk fewer plants, or use graphs built at a lower frame rate".into(),
+    };
+    (work, catch_up, plan_nodes as usize)
 }
 
 /// Reads take `take` and its graph `graph` (checked against each other); the graph's rate.
@@ -495,6 +561,49 @@ mod tests {
         };
         assert_eq!(found, want);
         assert_eq!(ticks, graph.len().div_ceil(7), "7 nodes a tick");
+    }
+
+    #[test]
+    fn a_walk_behind_its_budget_skips_ahead_and_says_so() {
+        let sway = frond_motion::graph::sample_sway(600);
+        let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
+        let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
+        let (stage, report) = GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[40], 4, 30.0, 0);
+        let mut stage = stage.with_budget(4, 100);
+        let mut sink = Sink(Vec::new());
+        let at = |ns: u64| TickContext { now_ns: ns, device_time_us: 0, hand: HandSample::default() };
+        // The first tick steps walk frames 0 and 1; on time, nothing is skipped.
+        stage.tick(&at(0), &mut sink);
+        assert_eq!(stage.frames_done, 2);
+        assert!(!report.describe().contains("BEHIND"), "{}", report.describe());
+        // A 1 s stall at 30 fps: frame 30 is due, frames 2..=31 needed (30), 4 fit: 26 are
+        // skipped and the walk holds frames 30 and 31, at the present.
+        stage.tick(&at(1_000_000_000), &mut sink);
+        assert_eq!(stage.frames_done, 32);
+        let said = report.describe();
+        assert!(said.contains("BEHIND: 26 walk frames skipped in 1 ticks over the budget"), "{said}");
+    }
+
+    #[test]
+    fn a_walk_that_does_not_fit_in_a_tick_is_refused() {
+        // 64 plants at 1000 fps on 30 Hz ticks: 34 frames each a tick, 2176 walk frames of
+        // 100 ns, 218 us: fits the 2083 us share. At 1 kHz: 2 each, 128, 13 us: fits, with the
+        // planner's 2000 nodes (40 us). At 8 kHz: 128 frames, 13 us, over the 7.8 us share.
+        let (w, _, nodes) = walk_work(64, 1000.0, 30);
+        assert!(w.check(30).is_ok() && w.units == 2176 && nodes == 2000, "{w:?}");
+        let (w, catch_up, nodes) = walk_work(64, 30.0, 1000);
+        assert_eq!((w.units, nodes), (128, 2000));
+        assert!(w.check(1000).is_ok(), "{w:?}");
+        assert_eq!(catch_up, 3, "(62500 - 40000) / (64 * 100) walk frames per plant");
+        let (w, _, nodes) = walk_work(64, 30.0, 8000);
+        assert_eq!(nodes, MIN_PLAN_NODES_PER_TICK);
+        let e = w.check(8000).unwrap_err().message;
+        assert!(
+            e.starts_with(
+                "a walk of 64 plants on graphs at 30 fps asks for 128 walk frames per tick at 8000 Hz"
+            ),
+            "{e}"
+        );
     }
 
     #[test]

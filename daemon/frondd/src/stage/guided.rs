@@ -66,6 +66,7 @@ fn built(params: GuidedParams, text: String, ctx: &BuildContext) -> BuiltStage {
             hand_element: None,
             accepts: no_input,
             rig: super::rig_info(ctx.rig),
+            work: super::budget::TickWork::small("guided hand frames"),
         },
     }
 }

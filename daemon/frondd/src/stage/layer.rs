@@ -63,6 +63,7 @@ pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, St
             }),
             accepts: no_input,
             rig: super::rig_info(rig),
+            work: super::budget::TickWork::small("relabelled hand frames"),
         },
     })
 }

@@ -14,6 +14,7 @@
 //! Adding a motion source: one file here implementing [`LiveStage`] with a `build` function,
 //! one [`StageSpec`] variant (and its arm in [`build`]), one `frond` subcommand.
 
+pub mod budget;
 pub mod error;
 pub mod field;
 pub mod graph;
@@ -111,6 +112,8 @@ pub struct StageInfo {
     pub accepts: fn(&StageInput) -> bool,
     /// The skeleton its elements use (the rig in force when it was built).
     pub rig: RigInfo,
+    /// The most work it does in one tick ([`budget`]: checked by [`build`] against its share).
+    pub work: budget::TickWork,
 }
 
 impl StageInfo {
@@ -188,7 +191,15 @@ impl BuildError {
 }
 
 /// Builds the stage `spec` describes (off the realtime thread).
+/// Every stage's declared work per tick ([`StageInfo::work`]) must fit in its share of the tick
+/// ([`budget::TickWork::check`]): a stage asking for more is refused with the reason.
 pub fn build(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
+    let built = build_any(spec, ctx)?;
+    built.info.work.check(ctx.tick_rate_hz)?;
+    Ok(built)
+}
+
+fn build_any(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
     match spec {
         StageSpec::Playback { take, seed } => playback::build(take, *seed, ctx),
         StageSpec::Field { take, field_json, plants, seed } => {

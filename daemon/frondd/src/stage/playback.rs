@@ -110,6 +110,7 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
             hand_element: None,
             accepts: no_input,
             rig: super::rig_info(ctx.rig),
+            work: super::budget::TickWork::small("looped take frames"),
         },
     })
 }

@@ -202,6 +202,7 @@ mod tests {
             hand_element: hand.map(|id| info(id, ElementKind::Layer)),
             accepts: no_input,
             rig: RigInfo { name: "grass".into(), joint_names: vec!["root".into(); 4] },
+            work: crate::stage::budget::TickWork::small("frames"),
         }
     }
 

@@ -12,6 +12,7 @@ use frond_motion::sim::{PlantSim, WindSpec};
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::{ElementInfo, ElementKind};
 
+use super::budget::{self, TickWork};
 use super::graph::bend_direction_deg;
 use super::{
     BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext, no_input,
@@ -22,8 +23,11 @@ use crate::clock::NS_PER_S;
 pub const HAND_WIND_M_S_PER_DEG: f64 = 0.2;
 /// Strongest wind the hand makes, metres per second.
 pub const MAX_HAND_WIND_M_S: f64 = 12.0;
-/// Most simulation steps per tick (after a stall the simulation skips ahead instead).
-pub const MAX_STEPS_PER_TICK: u32 = 50;
+/// Most simulation steps per tick at the default 1 kHz tick ([`budget::units_per_tick`] of
+/// [`budget::SIM_STEP_NS`]); a stage built for another rate gets its own from
+/// [`SimStage::with_step_budget`]. Behind by more (the loop was late, the host stalled), the
+/// simulation skips ahead to the present and counts the steps it dropped.
+pub const MAX_STEPS_PER_TICK: u32 = 2;
 
 /// What `frond status` says of the simulation.
 pub struct SimReport {
@@ -32,14 +36,23 @@ pub struct SimReport {
     dir_deg: AtomicU64,
     t_s: AtomicU64,
     diverged: AtomicU64,
+    dropped_steps: AtomicU64,
+    late_ticks: AtomicU64,
 }
 
 impl StageReport for SimReport {
     fn describe(&self) -> String {
         let f = |a: &AtomicU64| f64::from_bits(a.load(Relaxed));
         let state = if self.diverged.load(Relaxed) == 1 { "; diverged, stopped" } else { "" };
+        let late = match self.late_ticks.load(Relaxed) {
+            0 => String::new(),
+            n => format!(
+                "; BEHIND: {} steps dropped in {n} ticks over the budget (kept real time)",
+                self.dropped_steps.load(Relaxed)
+            ),
+        };
         format!(
-            "simulated plant ({}): wind {:.1} m/s towards {:.0} deg at {:.1} s{state}",
+            "simulated plant ({}): wind {:.1} m/s towards {:.0} deg at {:.1} s{state}{late}",
             self.base,
             f(&self.speed_m_s),
             f(&self.dir_deg),
@@ -54,7 +67,7 @@ pub struct SimStage {
     base: WindSpec,
     wind: WindSpec,
     t0_ns: u64,
-    skipped_s: f64,
+    max_steps: u32,
     pose: PoseFrame,
     diverged: bool,
     report: Arc<SimReport>,
@@ -69,6 +82,8 @@ impl SimStage {
             dir_deg: AtomicU64::new(wind.dir_deg.to_bits()),
             t_s: AtomicU64::new(0f64.to_bits()),
             diverged: AtomicU64::new(0),
+            dropped_steps: AtomicU64::new(0),
+            late_ticks: AtomicU64::new(0),
         });
         let pose = plant.pose();
         let stage = SimStage {
@@ -76,12 +91,18 @@ impl SimStage {
             base: wind,
             wind,
             t0_ns,
-            skipped_s: 0.0,
+            max_steps: MAX_STEPS_PER_TICK,
             pose,
             diverged: false,
             report: report.clone(),
         };
         (stage, report)
+    }
+
+    /// The same stage doing at most `steps` simulation steps per tick (at least 1).
+    pub fn with_step_budget(mut self, steps: u32) -> Self {
+        self.max_steps = steps.max(1);
+        self
     }
 
     fn set_wind(&mut self, w: WindSpec) {
@@ -118,12 +139,17 @@ impl LiveStage for SimStage {
     }
 
     fn tick(&mut self, ctx: &TickContext, out: &mut dyn FrameSink) {
-        let t = ctx.now_ns.saturating_sub(self.t0_ns) as f64 / NS_PER_S as f64 - self.skipped_s;
+        let t = ctx.now_ns.saturating_sub(self.t0_ns) as f64 / NS_PER_S as f64;
         let h = self.plant.params().timestep_s;
         let mut steps = 0;
         while !self.diverged && self.plant.time_s() + 0.5 * h <= t {
-            if steps == MAX_STEPS_PER_TICK {
-                self.skipped_s += t - self.plant.time_s();
+            if steps == self.max_steps {
+                // Over budget: the steps left are dropped and the plant's clock jumps to the
+                // present, so that it keeps real time (the wind with it) and the loop its rate.
+                let dropped = ((t - self.plant.time_s()) / h + 0.5).floor().max(1.0) as u64;
+                self.plant.skip_to(t);
+                self.report.dropped_steps.fetch_add(dropped, Relaxed);
+                self.report.late_ticks.fetch_add(1, Relaxed);
                 break;
             }
             if self.plant.step().is_err() {
@@ -153,7 +179,12 @@ pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<B
     };
     let plant = PlantSim::from_rig(&rig, wind)
         .map_err(|e| BuildError::invalid(format!("rig {:?}: {e}", rig.name)))?;
+    let work = step_work(rig.sim.timestep_s, ctx.tick_rate_hz);
+    work.check(ctx.tick_rate_hz)?;
+    let budget =
+        budget::units_per_tick(ctx.tick_rate_hz, budget::SIM_STEP_NS).min(u64::from(u32::MAX)) as u32;
     let (stage, report) = SimStage::new(plant, wind, ctx.now_ns, &format!("rig {}, wind {wind}", rig.name));
+    let stage = stage.with_step_budget(budget);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
@@ -169,8 +200,28 @@ pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<B
             hand_element: None,
             accepts: no_input,
             rig: super::rig_info(&rig),
+            work,
         },
     })
+}
+
+/// The simulation's work per tick: the steps of `timestep_s` one tick at `tick_rate_hz` needs.
+pub fn step_work(timestep_s: f64, tick_rate_hz: u32) -> TickWork {
+    let units = budget::steps_per_tick(timestep_s, tick_rate_hz);
+    let fit = budget::units_per_tick(tick_rate_hz, budget::SIM_STEP_NS);
+    // Rounded up to the microsecond, so that the value suggested fits.
+    let min_step_s = (1e6 / (f64::from(tick_rate_hz.max(1)) * fit as f64)).ceil() / 1e6;
+    TickWork {
+        asked_by: format!("sim.timestep_s = {timestep_s} s"),
+        unit: "simulation steps",
+        units,
+        unit_ns: budget::SIM_STEP_NS,
+        extra_ns: 0,
+        fix: format!(
+            "use a sim.timestep_s of at least {min_step_s} s (shorter steps cannot keep real time \
+             in a stage's share of the loop; `frond take simulate` has no such limit)"
+        ),
+    }
 }
 
 #[cfg(test)]
@@ -186,5 +237,88 @@ mod tests {
         assert_eq!((w.gust, w.seed, w.until_s), (0.5, 3, None));
         assert!((hand_wind(base, [0.0, 90.0, 0.0]).speed_m_s - MAX_HAND_WIND_M_S).abs() < 1e-9);
         assert_eq!(hand_wind(base, [1.0, 1.0, 0.0]), base, "a small bend leaves the spec's wind");
+    }
+
+    const GRASS: &str = include_str!("../../../../rig-files/plants/grass.toml");
+
+    fn build_with(rig_toml: &str, tick_rate_hz: u32) -> Result<BuiltStage, BuildError> {
+        let rig = Rig::from_toml_str(GRASS).unwrap();
+        let ctx = BuildContext {
+            takes_dir: std::path::Path::new("/nonexistent"),
+            rig: &rig,
+            g3_range_deg: 60.0,
+            tick_rate_hz,
+            now_ns: 0,
+            free_ids: &[33, 34],
+            name: "sim",
+        };
+        let spec = frond_protocol::StageSpec::Sim {
+            rig_toml: Some(rig_toml.into()),
+            wind: "speed=1,dir=0,gust=0,seed=1".into(),
+        };
+        super::super::build(&spec, &ctx)
+    }
+
+    #[test]
+    fn a_timestep_that_asks_for_more_steps_than_a_tick_allows_is_refused_with_the_reason() {
+        // 1 ms at 1 kHz over a 10 us step: 100 steps a tick. A stage's share of a 1 ms tick is
+        // 1 ms / 16 = 62.5 us, two steps of 30 us: the smallest step that fits is 0.5 ms.
+        let e = build_with(&format!("{GRASS}\n[sim]\ntimestep_s = 0.00001\n"), 1000).err().unwrap();
+        assert!(
+            e.message.starts_with(
+                "sim.timestep_s = 0.00001 s asks for 100 simulation steps per tick at 1000 Hz (about 3000 us), \
+                 more than the tick allows a stage: at most 2 (62 us of the 1000 us tick); use a \
+                 sim.timestep_s of at least 0.0005 s"
+            ),
+            "{}",
+            e.message
+        );
+        // 0.4 ms needs 3 steps (2.5 rounded up): refused; 0.5 ms needs 2: accepted, as is the
+        // default 1 ms step.
+        assert!(build_with(&format!("{GRASS}\n[sim]\ntimestep_s = 0.0004\n"), 1000).is_err());
+        assert!(build_with(&format!("{GRASS}\n[sim]\ntimestep_s = 0.0005\n"), 1000).is_ok());
+        assert!(build_with(GRASS, 1000).is_ok());
+        // At 100 Hz a tick is 10 ms and the share 625 us, 20 steps: 0.5 ms still the floor.
+        assert!(build_with(&format!("{GRASS}\n[sim]\ntimestep_s = 0.0005\n"), 100).is_ok());
+        assert!(build_with(&format!("{GRASS}\n[sim]\ntimestep_s = 0.0004\n"), 100).is_err());
+    }
+
+    struct Count(usize);
+    impl FrameSink for Count {
+        fn emit(&mut self, _element: u16, _joints_deg: frond_motion::clip::Joints) {
+            self.0 += 1;
+        }
+    }
+
+    #[test]
+    fn a_simulation_behind_its_budget_keeps_real_time_and_status_says_so() {
+        let rig = Rig::from_toml_str(GRASS).unwrap();
+        let wind: WindSpec = "speed=2,dir=0,gust=0,seed=1".parse().unwrap();
+        let plant = PlantSim::from_rig(&rig, wind).unwrap();
+        assert_eq!(plant.params().timestep_s, 0.001);
+        let (stage, report) = SimStage::new(plant, wind, 0, "grass");
+        let mut stage = stage.with_step_budget(2);
+        let mut sink = Count(0);
+        let at = |ns: u64| TickContext { now_ns: ns, device_time_us: 0, hand: HandSample::default() };
+        // On time: one 1 ms step a tick, nothing dropped.
+        for k in 1..=10u64 {
+            stage.tick(&at(k * 1_000_000), &mut sink);
+        }
+        assert!((stage.plant.time_s() - 0.010).abs() < 1e-9, "{}", stage.plant.time_s());
+        assert!(!report.describe().contains("BEHIND"), "{}", report.describe());
+        // A 2 s stall: 1990 steps due, 2 taken, 1988 dropped; the plant is at the present.
+        stage.tick(&at(2_000_000_000), &mut sink);
+        assert!(
+            (stage.plant.time_s() - 2.0).abs() < 1e-9,
+            "the plant keeps real time: {}",
+            stage.plant.time_s()
+        );
+        let said = report.describe();
+        assert!(said.contains("at 2.0 s"), "{said}");
+        assert!(said.contains("BEHIND: 1988 steps dropped in 1 ticks over the budget"), "{said}");
+        // And carries on one step a tick.
+        stage.tick(&at(2_001_000_000), &mut sink);
+        assert!((stage.plant.time_s() - 2.001).abs() < 1e-9, "{}", stage.plant.time_s());
+        assert_eq!(sink.0, 12, "one frame a tick");
     }
 }

@@ -219,6 +219,16 @@ impl PlantSim {
         self.t_s
     }
 
+    /// Moves the simulated clock forward to `t_s` without integrating (the state is kept): what a
+    /// live stage does when the steps it is behind by do not fit in its budget, so that the plant
+    /// keeps real time (and the wind, a function of time, stays in step) instead of slowing down.
+    /// A time not ahead of the clock (or not finite) leaves it.
+    pub fn skip_to(&mut self, t_s: f64) {
+        if t_s.is_finite() && t_s > self.t_s {
+            self.t_s = t_s;
+        }
+    }
+
     /// The parameters.
     pub fn params(&self) -> &SimParams {
         &self.params
