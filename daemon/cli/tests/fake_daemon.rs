@@ -43,6 +43,8 @@ fn status_report() -> StatusReport {
             reports: 777,
             rejected: 2,
             device_seq_gaps: 0,
+            rejected_by_reason: Default::default(),
+            peers_dropped: 0,
         },
         rig_name: "grass".into(),
         calibration_id: "none".into(),

@@ -79,6 +79,13 @@ pub struct SourceCounters {
     pub out_of_range: AtomicU64,
     /// Messages that could not be decoded at all (OSC input: not OSC, wrong argument types).
     pub malformed: AtomicU64,
+    /// Messages listing more than a frame may (a Leap frame of more than
+    /// `frond_motion::leap::MAX_HANDS` hands), refused at the first item too many.
+    pub too_many: AtomicU64,
+    /// Connections to a hand service dropped because it did not read what frond must write (a
+    /// service that floods pings and never reads the pongs): not reports, so not in
+    /// [`CountersSnapshot::rejected`].
+    pub peers_dropped: AtomicU64,
     /// Reports missing between consecutive accepted reports, from the sequence field (lost in
     /// transport or rejected above). A backwards jump is taken as a device restart, not a gap.
     pub seq_gaps: AtomicU64,
@@ -101,6 +108,10 @@ pub struct CountersSnapshot {
     pub out_of_range: u64,
     /// Messages that could not be decoded at all (OSC input).
     pub malformed: u64,
+    /// Messages listing more items than a frame may (Leap hands).
+    pub too_many: u64,
+    /// Connections to a hand service dropped because it did not read.
+    pub peers_dropped: u64,
     /// Reports missing between consecutive accepted reports, from the sequence field.
     pub seq_gaps: u64,
 }
@@ -117,6 +128,8 @@ impl SourceCounters {
             checksum: r(&self.checksum),
             out_of_range: r(&self.out_of_range),
             malformed: r(&self.malformed),
+            too_many: r(&self.too_many),
+            peers_dropped: r(&self.peers_dropped),
             seq_gaps: r(&self.seq_gaps),
         }
     }
@@ -129,7 +142,21 @@ impl SourceCounters {
 impl CountersSnapshot {
     /// All rejected reports.
     pub fn rejected(&self) -> u64 {
-        self.wrong_id + self.short + self.oversized + self.checksum + self.out_of_range + self.malformed
+        self.by_reason().iter().map(|&(_, n)| n).sum()
+    }
+
+    /// Rejected reports by reason, every reason (zero or not), in a fixed order: the names
+    /// `frond status --json` shows them by.
+    pub fn by_reason(&self) -> [(&'static str, u64); 7] {
+        [
+            ("wrong_id", self.wrong_id),
+            ("short", self.short),
+            ("oversized", self.oversized),
+            ("checksum", self.checksum),
+            ("out_of_range", self.out_of_range),
+            ("malformed", self.malformed),
+            ("too_many", self.too_many),
+        ]
     }
 }
 

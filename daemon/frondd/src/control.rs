@@ -481,6 +481,13 @@ impl ControlContext {
                         reports: counters.reports,
                         rejected: counters.rejected(),
                         device_seq_gaps: counters.seq_gaps,
+                        rejected_by_reason: counters
+                            .by_reason()
+                            .into_iter()
+                            .filter(|&(_, n)| n > 0)
+                            .map(|(reason, n)| (reason.to_string(), n))
+                            .collect(),
+                        peers_dropped: counters.peers_dropped,
                     },
                     element: h.element,
                     element_name: h.layer.clone().unwrap_or_else(|| rig.name.clone()),

@@ -482,6 +482,14 @@ pub struct SourceStatus {
     /// Reports lost before frond read them: gaps in the device's own report sequence numbers,
     /// and datagrams the kernel dropped from a full OSC receive buffer.
     pub device_seq_gaps: u64,
+    /// The rejected reports by reason, the reasons that occurred only: `wrong_id`, `short`,
+    /// `oversized` (longer than a report, datagram or message may be), `checksum`,
+    /// `out_of_range`, `malformed`, `too_many` (a Leap frame listing more hands than it may).
+    #[serde(default)]
+    pub rejected_by_reason: std::collections::BTreeMap<String, u64>,
+    /// Connections to a hand service (Leap) dropped because it did not read what frond wrote.
+    #[serde(default)]
+    pub peers_dropped: u64,
 }
 
 /// Percentiles of a latency, microseconds.
