@@ -7,6 +7,7 @@
 pub mod doorbell;
 pub mod glove;
 pub mod jsonl;
+pub mod log_limit;
 pub mod profile;
 pub mod report;
 pub mod source;

@@ -7,19 +7,34 @@
 //! service is down or restarts, the thread reconnects (every half second at first, backing off to
 //! 2 s) while the loop sees no samples: poses are flagged held, then device-lost, as for any
 //! stalled device; a hand out of view does the same. The loop's side never blocks or allocates.
+//!
+//! The service is a peer, not a friend (issue 42): nothing it does can hold the daemon.
+//! - Writes never wait ([`ServiceStream`]: `MSG_DONTWAIT`, a bounded write buffer). Pongs that
+//!   it does not read for [`PEER_WRITE_DEADLINE`] drop the connection (counted as
+//!   `peers_dropped`); reads wait at most [`READ_POLL`] and end as soon as the source is asked
+//!   to stop, even in the middle of a message trickled byte by byte.
+//! - Dropping the source waits at most [`STOP_WAIT`] for the thread (a name lookup of the
+//!   service's host cannot be interrupted); a thread still busy then is left to end by itself.
+//! - A message longer than [`MAX_MESSAGE_BYTES`] is refused from its header (tungstenite's
+//!   limit; counted as `oversized`, the connection is dropped), a frame listing more than
+//!   `MAX_HANDS` hands at the first one too many (`too_many`), before the rest is parsed.
+//! - Connection warnings are rate-limited ([`crate::log_limit`]); refused messages are only
+//!   counted here, and the daemon says their counts by reason at a bounded rate.
 
+use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
-use std::os::fd::RawFd;
+use std::os::fd::{AsRawFd, RawFd};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use frond_motion::leap::{Chirality, LeapError, LeapMessage, MAX_MESSAGE_BYTES, hand_sample, parse_message};
 
 use super::{HandSource, SourceError, SourceKind};
 use crate::doorbell::Doorbell;
+use crate::log_limit::LogLimit;
 use crate::report::{DeviceSample, SourceCounters};
 
 /// Samples queued for the loop at most (a second at the service's ~110 Hz, four times over).
@@ -27,9 +42,101 @@ const QUEUE_LEN: usize = 512;
 /// Longest WebSocket handshake.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(2);
 /// How long a read waits before the thread checks whether it should stop.
-const READ_POLL: Duration = Duration::from_millis(200);
+pub const READ_POLL: Duration = Duration::from_millis(200);
 /// First and longest wait between connection attempts.
 const RETRY: (Duration, Duration) = (Duration::from_millis(500), Duration::from_secs(2));
+/// How long the service may leave what frond wrote (pongs, its requests) unread before the
+/// connection is dropped.
+pub const PEER_WRITE_DEADLINE: Duration = Duration::from_secs(2);
+/// Bytes frond keeps queued for the service at most (a pong waiting behind them is replaced by
+/// the next, never queued).
+const MAX_WRITE_BUFFER: usize = 64 << 10;
+/// How long dropping the source waits for its thread.
+pub const STOP_WAIT: Duration = Duration::from_millis(500);
+/// A session shorter than this does not reset the wait between connection attempts: a service
+/// that takes each connection and drops it at once is retried at the slow pace.
+const STEADY: Duration = Duration::from_secs(5);
+
+/// "Connection ended" and "dropped the service" lines, for every Leap source: a service that
+/// drops connections as fast as it takes them fills no log.
+static CONNECTION_LINES: LogLimit = LogLimit::new();
+
+/// Logs a warning about the connection to `service`, at a bounded rate.
+fn warn_connection(service: &str, what: &str, why: &str) {
+    let verdict = CONNECTION_LINES.check(Instant::now());
+    if verdict.held_back_before > 0 {
+        tracing::warn!(
+            held_back = verdict.held_back_before,
+            "{} more Leap Motion connection warnings were held back in the last {} s",
+            verdict.held_back_before,
+            crate::log_limit::WINDOW.as_secs()
+        );
+    }
+    if verdict.log {
+        tracing::warn!(%service, reason = %crate::log_limit::cut(why), "{what}");
+    }
+}
+
+/// The service's socket as the WebSocket sees it. Writes never wait: `send(MSG_DONTWAIT)`, and
+/// the time since the socket first refused bytes with nothing accepted since is kept, for the
+/// session to drop a service that never reads. Reads wait at most the socket's read timeout,
+/// end with `WouldBlock` once `stop` is set (tungstenite reads a message until it is whole, so
+/// a service trickling one byte at a time would otherwise keep it reading), and with
+/// `TimedOut` past `deadline` (the handshake's).
+struct ServiceStream {
+    tcp: TcpStream,
+    stop: Arc<AtomicBool>,
+    deadline: Option<Instant>,
+    blocked_since: Option<Instant>,
+}
+
+impl ServiceStream {
+    /// How long the service has left written bytes unread, if it has.
+    fn blocked_for(&self) -> Option<Duration> {
+        self.blocked_since.map(|t| t.elapsed())
+    }
+}
+
+impl Read for ServiceStream {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.stop.load(Ordering::Acquire) {
+            return Err(std::io::Error::new(std::io::ErrorKind::WouldBlock, "the source is stopping"));
+        }
+        if self.deadline.is_some_and(|d| Instant::now() >= d) {
+            return Err(std::io::Error::new(std::io::ErrorKind::TimedOut, "the handshake took too long"));
+        }
+        self.tcp.read(buf)
+    }
+}
+
+impl Write for ServiceStream {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        // SAFETY: a connected socket we own; `buf` is valid for `buf.len()` bytes to read.
+        let n = unsafe {
+            libc::send(
+                self.tcp.as_raw_fd(),
+                buf.as_ptr().cast(),
+                buf.len(),
+                libc::MSG_DONTWAIT | libc::MSG_NOSIGNAL,
+            )
+        };
+        if n < 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::WouldBlock {
+                self.blocked_since.get_or_insert_with(Instant::now);
+            }
+            return Err(e);
+        }
+        if n > 0 {
+            self.blocked_since = None;
+        }
+        Ok(n as usize)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
 
 /// `leap://HOST:PORT[?hand=left|right]` parsed.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -153,10 +260,21 @@ impl HandSource for LeapSource {
 }
 
 impl Drop for LeapSource {
+    /// Stops the client thread and waits for it at most [`STOP_WAIT`]: its reads and writes end
+    /// within [`READ_POLL`] of the stop; only a name lookup or a connection attempt (at most
+    /// 1 s) can outlast the wait, and then the thread is left to end by itself (at the
+    /// process's exit, if that comes first).
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
+        let Some(t) = self.thread.take() else { return };
+        let deadline = Instant::now() + STOP_WAIT;
+        while !t.is_finished() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        if t.is_finished() {
             let _ = t.join();
+        } else {
+            tracing::warn!(source = %self.describe, "the Leap Motion client thread did not stop within {} ms; leaving it", STOP_WAIT.as_millis());
         }
     }
 }
@@ -176,13 +294,17 @@ impl Client {
         let mut wait = RETRY.0;
         let mut said_down = false;
         while !self.stop.load(Ordering::Acquire) {
+            let started = Instant::now();
             match self.session() {
                 Ok(()) => return, // asked to stop
                 Err((was_connected, why)) => {
                     if was_connected {
-                        // A fresh outage: say it (the session did) and retry soon.
+                        // A fresh outage (the session said it): retry soon, unless the
+                        // connection was short-lived (a service that drops every connection).
                         said_down = false;
-                        wait = RETRY.0;
+                        if started.elapsed() >= STEADY {
+                            wait = RETRY.0;
+                        }
                     } else if !said_down {
                         // Said once per outage, not once per attempt.
                         tracing::warn!(service = %self.host_port, reason = %why, "Leap Motion service unreachable; retrying");
@@ -212,20 +334,35 @@ impl Client {
     fn session(&self) -> Result<(), (bool, String)> {
         let not = |e: String| (false, e);
         let addr = self.address().map_err(not)?;
-        let stream =
+        let tcp =
             TcpStream::connect_timeout(&addr, Duration::from_secs(1)).map_err(|e| not(e.to_string()))?;
-        stream.set_nodelay(true).ok();
-        // The handshake blocks (bounded); reads after it poll, so that a stop is seen.
-        stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT)).map_err(|e| not(e.to_string()))?;
+        tcp.set_nodelay(true).ok();
+        // Every read waits at most READ_POLL, so that a stop is seen; the handshake as a whole
+        // at most HANDSHAKE_TIMEOUT.
+        tcp.set_read_timeout(Some(READ_POLL)).map_err(|e| not(e.to_string()))?;
+        let stream = ServiceStream {
+            tcp,
+            stop: Arc::clone(&self.stop),
+            deadline: Some(Instant::now() + HANDSHAKE_TIMEOUT),
+            blocked_since: None,
+        };
         let url = format!("ws://{}/v6.json", self.host_port);
         let mut config = tungstenite::protocol::WebSocketConfig::default();
         config.max_message_size = Some(MAX_MESSAGE_BYTES);
         config.max_frame_size = Some(MAX_MESSAGE_BYTES);
-        let (mut ws, _) = tungstenite::client::client_with_config(url.as_str(), stream, Some(config))
+        // Written at once (nothing is held back to batch), and never more than this queued.
+        config.write_buffer_size = 0;
+        config.max_write_buffer_size = MAX_WRITE_BUFFER;
+        let (mut ws, _) = handshake(url.as_str(), stream, config)
             .map_err(|e| not(format!("WebSocket handshake with {url}: {e}")))?;
-        ws.get_mut().set_read_timeout(Some(READ_POLL)).map_err(|e| not(e.to_string()))?;
+        ws.get_mut().deadline = None;
         for ask in [r#"{"background":true}"#, r#"{"focused":true}"#] {
-            ws.send(tungstenite::Message::text(ask)).map_err(|e| not(e.to_string()))?;
+            match ws.send(tungstenite::Message::text(ask)) {
+                Ok(()) => {}
+                // Queued: written with the next read's flush.
+                Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) => return Err(not(e.to_string())),
+            }
         }
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let mut warned_version = false;
@@ -233,6 +370,12 @@ impl Client {
             if self.stop.load(Ordering::Acquire) {
                 let _ = ws.close(None);
                 return Ok(());
+            }
+            if ws.get_ref().blocked_for().is_some_and(|d| d >= PEER_WRITE_DEADLINE) {
+                self.counters.peers_dropped.fetch_add(1, Ordering::Relaxed);
+                let why = format!("it read nothing frond wrote for {} s", PEER_WRITE_DEADLINE.as_secs());
+                warn_connection(&url, "dropped the Leap Motion service's connection; reconnecting", &why);
+                return Err((true, why));
             }
             let msg = match ws.read() {
                 Ok(m) => m,
@@ -242,15 +385,27 @@ impl Client {
                     continue;
                 }
                 Err(e) => {
-                    tracing::warn!(service = %url, error = %e, "Leap Motion service connection ended; reconnecting");
-                    return Err((true, e.to_string()));
+                    if matches!(e, tungstenite::Error::Capacity(_)) {
+                        // Longer than MAX_MESSAGE_BYTES, refused from its header: the rest of
+                        // it cannot be skipped, so the connection ends with it.
+                        self.counters.oversized.fetch_add(1, Ordering::Relaxed);
+                    }
+                    let why = e.to_string();
+                    warn_connection(&url, "Leap Motion service connection ended; reconnecting", &why);
+                    return Err((true, why));
                 }
             };
             let text = match &msg {
                 tungstenite::Message::Text(t) => t.as_str(),
                 tungstenite::Message::Close(_) => {
-                    tracing::warn!(service = %url, "the Leap Motion service closed the connection; reconnecting");
-                    return Err((true, "the service closed the connection".into()));
+                    let why = "the service closed the connection";
+                    warn_connection(&url, "the Leap Motion service closed the connection; reconnecting", why);
+                    return Err((true, why.into()));
+                }
+                tungstenite::Message::Binary(_) => {
+                    // v6 is text only.
+                    self.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                    continue;
                 }
                 _ => continue,
             };
@@ -272,6 +427,12 @@ impl Client {
                         self.counters.malformed.fetch_add(1, Ordering::Relaxed);
                     }
                 },
+                Err(LeapError::TooMany { .. }) => {
+                    self.counters.too_many.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(LeapError::TooLarge(_)) => {
+                    self.counters.oversized.fetch_add(1, Ordering::Relaxed);
+                }
                 Err(_) => {
                     self.counters.malformed.fetch_add(1, Ordering::Relaxed);
                 }
@@ -304,8 +465,32 @@ impl Client {
     }
 }
 
+/// The client's WebSocket handshake over `stream`: each read waits at most [`READ_POLL`], the
+/// whole at most until the stream's deadline, and it ends when the source is asked to stop.
+fn handshake(
+    url: &str,
+    stream: ServiceStream,
+    config: tungstenite::protocol::WebSocketConfig,
+) -> Result<(tungstenite::WebSocket<ServiceStream>, tungstenite::handshake::client::Response), String> {
+    let stop = Arc::clone(&stream.stop);
+    let mut attempt = tungstenite::client::client_with_config(url, stream, Some(config));
+    loop {
+        match attempt {
+            Ok(done) => return Ok(done),
+            Err(tungstenite::HandshakeError::Failure(e)) => return Err(e.to_string()),
+            Err(tungstenite::HandshakeError::Interrupted(_)) if stop.load(Ordering::Acquire) => {
+                return Err("the source is stopping".into());
+            }
+            // A read waited READ_POLL: carry on (the stream's deadline ends it with TimedOut).
+            Err(tungstenite::HandshakeError::Interrupted(mid)) => attempt = mid.handshake(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use std::io::Write as _;
+
     use super::*;
 
     #[test]
@@ -319,5 +504,161 @@ mod tests {
         {
             assert!(bad.parse::<LeapAddress>().is_err(), "{bad}");
         }
+    }
+
+    /// A fake service on a fresh port: after the handshake and the greeting, each connection
+    /// is handed to `then` (on its own thread). Returns the port and the connections taken.
+    fn service(
+        then: impl Fn(tungstenite::WebSocket<TcpStream>) + Send + Sync + 'static,
+    ) -> (u16, Arc<AtomicU64>) {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let small: libc::c_int = 4096;
+        // SAFETY: a listening socket we own and a c_int option of the right size (accepted
+        // sockets inherit it): the service's receive buffer fills at once.
+        unsafe {
+            libc::setsockopt(
+                listener.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RCVBUF,
+                (&small as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            );
+        }
+        let port = listener.local_addr().unwrap().port();
+        let taken = Arc::new(AtomicU64::new(0));
+        let (then, count) = (Arc::new(then), Arc::clone(&taken));
+        std::thread::spawn(move || {
+            for stream in listener.incoming() {
+                let Ok(stream) = stream else { return };
+                count.fetch_add(1, Ordering::Relaxed);
+                let then = Arc::clone(&then);
+                std::thread::spawn(move || {
+                    let Ok(mut ws) = tungstenite::accept(stream) else { return };
+                    let _ = ws.send(tungstenite::Message::text(r#"{"version": 6}"#));
+                    then(ws);
+                });
+            }
+        });
+        (port, taken)
+    }
+
+    fn connect(port: u16) -> LeapSource {
+        LeapSource::connect(&format!("leap://127.0.0.1:{port}").parse().unwrap()).unwrap()
+    }
+
+    /// Drops `source` on another thread; how long that took, or `None` past `bound`.
+    fn drop_within(source: LeapSource, bound: Duration) -> Option<Duration> {
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        std::thread::spawn(move || {
+            let t0 = Instant::now();
+            drop(source);
+            let _ = tx.send(t0.elapsed());
+        });
+        rx.recv_timeout(bound).ok()
+    }
+
+    fn wait_until(bound: Duration, mut cond: impl FnMut() -> bool) -> bool {
+        let deadline = Instant::now() + bound;
+        while !cond() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        cond()
+    }
+
+    /// Raw unmasked pings as fast as the socket takes them; nothing is ever read.
+    fn flood_pings(mut ws: tungstenite::WebSocket<TcpStream>) {
+        let ping: Vec<u8> = [0x89u8, 125].into_iter().chain(std::iter::repeat_n(b'p', 125)).collect();
+        let burst = ping.repeat(512);
+        let tcp = ws.get_mut();
+        tcp.set_write_timeout(Some(Duration::from_millis(50))).unwrap();
+        loop {
+            match tcp.write(&burst) {
+                Ok(_) => {}
+                Err(e)
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(_) => return, // dropped by the client
+            }
+        }
+    }
+
+    /// Issue 42: a service that floods pings and never reads fills the socket with the pongs
+    /// it owes; the client's writes never wait, so it is dropped (counted) after
+    /// PEER_WRITE_DEADLINE and connected to again, and stopping the source takes no longer
+    /// than a read poll. (The old client blocked in the pong write, for ever: stopping the
+    /// source joined it.)
+    #[test]
+    fn a_service_that_floods_pings_and_never_reads_is_dropped_and_cannot_hold_a_stop() {
+        let (port, taken) = service(flood_pings);
+        let source = connect(port);
+        let counters = source.counters();
+        assert!(
+            wait_until(Duration::from_secs(20), || counters.peers_dropped.load(Ordering::Relaxed) >= 1),
+            "never dropped: {:?}",
+            counters.snapshot()
+        );
+        assert!(
+            wait_until(Duration::from_secs(10), || taken.load(Ordering::Relaxed) >= 2),
+            "not reconnected"
+        );
+        // Flooded again: stop now, in the middle of it.
+        std::thread::sleep(Duration::from_millis(500));
+        let took = drop_within(source, Duration::from_secs(5)).expect("the source did not stop");
+        assert!(took <= STOP_WAIT + Duration::from_millis(500), "stopping took {took:?}");
+    }
+
+    /// Issue 42: a service trickling one message a byte at a time (each byte before the read
+    /// poll runs out) cannot keep the client reading past a stop.
+    #[test]
+    fn a_service_trickling_a_message_cannot_hold_a_stop() {
+        let (port, taken) = service(|mut ws| {
+            // A text frame of 120 bytes, sent one byte every 50 ms (6 s in all).
+            let mut frame = vec![0x81u8, 120];
+            frame.extend(std::iter::repeat_n(b' ', 120));
+            for b in frame {
+                if ws.get_mut().write_all(&[b]).is_err() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        });
+        let source = connect(port);
+        assert!(wait_until(Duration::from_secs(5), || taken.load(Ordering::Relaxed) >= 1));
+        std::thread::sleep(Duration::from_millis(500));
+        let took = drop_within(source, Duration::from_secs(4)).expect("the source did not stop");
+        assert!(took <= STOP_WAIT + Duration::from_millis(500), "stopping took {took:?}");
+    }
+
+    /// Issue 42: a message longer than MAX_MESSAGE_BYTES is refused from its header (the
+    /// connection with it), counted as oversized; a frame of 5,000 hands as too_many; and a
+    /// good frame after them still gives a sample.
+    #[test]
+    fn oversized_messages_and_frames_of_too_many_hands_are_counted_by_reason() {
+        let hand = r#"{"id":1,"type":"left","direction":[0,0,-1],"palmNormal":[0,-1,0]}"#;
+        let many = format!(r#"{{"id":1,"timestamp":0,"hands":[{}]}}"#, vec![hand; 5000].join(","));
+        let sent = Arc::new(AtomicU64::new(0));
+        let turn = Arc::clone(&sent);
+        let (port, _) = service(move |mut ws| {
+            let good = r#"{"id":2,"timestamp":5,"hands":[{"id":7,"type":"right","direction":[0,0,-1],"palmNormal":[0,-1,0]}],"pointables":[{"handId":7,"type":0,"bases":[[[1,0,0],[0,1,0],[0,0,1]],[[1,0,0],[0,1,0],[0,0,1]],[[1,0,0],[0,1,0],[0,0,1]],[[1,0,0],[0,1,0],[0,0,1]]]}]}"#;
+            if turn.fetch_add(1, Ordering::Relaxed) == 0 {
+                let _ = ws.send(tungstenite::Message::text(many.clone()));
+                let _ = ws.send(tungstenite::Message::text("x".repeat(MAX_MESSAGE_BYTES + 1)));
+                std::thread::sleep(Duration::from_secs(10));
+            } else {
+                let _ = ws.send(tungstenite::Message::text(good));
+                std::thread::sleep(Duration::from_secs(10));
+            }
+        });
+        let mut source = connect(port);
+        let counters = source.counters();
+        let mut out = [DeviceSample::default(); 4];
+        let mut got = 0;
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while got == 0 && Instant::now() < deadline {
+            got += source.read_pending(&mut out).unwrap();
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let c = counters.snapshot();
+        assert_eq!((got, c.too_many, c.oversized, c.malformed), (1, 1, 1, 0), "{c:?}");
+        assert_eq!(c.rejected(), 2);
     }
 }
