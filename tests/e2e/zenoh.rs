@@ -305,3 +305,103 @@ fn a_second_bridge_under_a_taken_name_stands_by_and_takes_over_when_the_first_st
     let now_b = poses(&mut local_b, 1)[0].seq;
     assert!(got.last().unwrap().seq.abs_diff(now_b) < 5_000, "not the second daemon's poses");
 }
+
+const DIRECTOR_KEY: &str = "d1d2d3d4d5d6d7d8d9dadbdcdddedfe0e1e2e3e4e5e6e7e8e9eaebecedeeeff0f1";
+const VIEWER_KEY: &str = "0f0e0d0c0b0a09080706050403020100f0e0d0c0b0a090807060504030201000";
+
+/// Remote control, end to end on loopback: one principal spending its whole rate budget leaves
+/// another's requests served (the bridge's nonces were one store for everybody, so a flood by
+/// one principal made every request "busy"), and each principal's requests give their pending
+/// slot back when answered. An allow-list its group may read is refused at start, with the mode
+/// and the fix and without a key.
+#[test]
+fn one_remote_principal_spending_its_budget_leaves_another_served() {
+    use std::os::unix::fs::PermissionsExt;
+
+    use frond_protocol::{ControlReply, ControlRequest};
+    use frond_sdk::ControlClientError;
+    use frond_sdk::control_auth::ControlKey;
+    use frond_sdk::zenoh_control::RemoteControl;
+
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let policy = dir.path().join("control.toml");
+    std::fs::write(
+        &policy,
+        format!(
+            "[[principal]]\nname = \"director\"\nkey = \"{DIRECTOR_KEY}\"\n\n\
+             [[principal]]\nname = \"viewer\"\nkey = \"{VIEWER_KEY}\"\nallow = [\"read\"]\n"
+        ),
+    )
+    .unwrap();
+    let policy_arg = policy.to_str().unwrap();
+    let stage = format!("ctl{}", std::process::id());
+
+    std::fs::set_permissions(&policy, std::fs::Permissions::from_mode(0o640)).unwrap();
+    // Killed when dropped: a bridge that takes the file runs on, and must not hang the test.
+    let mut refused = Proc {
+        child: Command::new(bin("frond-zenoh"))
+            .args(["--stage", &stage, "--source", "glove-a", "--control", policy_arg])
+            .arg("--socket-dir")
+            .arg(&daemon.socket_dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+        name: "frond-zenoh --control (mode 640)".into(),
+    };
+    let exited = wait_for(Duration::from_secs(10), || refused.child.try_wait().unwrap().is_some());
+    assert!(exited, "frond-zenoh took an allow-list its group may read");
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut refused.child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(refused.child.wait().unwrap().code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!("{policy_arg}: mode 640: its group may read it"))
+            && stderr.contains(&format!("chmod 600 {policy_arg}")),
+        "{stderr}"
+    );
+    assert!(!stderr.contains(&DIRECTOR_KEY[..8]) && !stderr.contains(&VIEWER_KEY[..8]), "{stderr}");
+
+    std::fs::set_permissions(&policy, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let port = free_port();
+    let _bridge = start_zenoh_bridge(
+        Command::new(bin("frond-zenoh")),
+        &daemon,
+        &stage,
+        "glove-a",
+        &["--listen", &format!("tcp/127.0.0.1:{port}"), "--control", policy_arg],
+    );
+    let Source::Zenoh(addr) =
+        format!("zenoh:frond/{stage}/glove-a?connect=tcp/127.0.0.1:{port}").parse::<Source>().unwrap()
+    else {
+        panic!("not a Zenoh address")
+    };
+    let open = |name: &str, key: &str| {
+        let mut c = RemoteControl::open(&addr, name, ControlKey::from_hex(key).unwrap()).unwrap();
+        c.set_timeout(Duration::from_secs(15));
+        c
+    };
+    let (mut director, mut viewer) = (open("director", DIRECTOR_KEY), open("viewer", VIEWER_KEY));
+    let status = |c: &mut RemoteControl| c.request(&ControlRequest::Status);
+    assert!(matches!(status(&mut viewer), Ok(ControlReply::Status(_))), "the viewer reads");
+
+    // The director asks for status, one request after another, until the bridge says its
+    // budget is spent: past its 4 pending slots (each given back when answered) and its burst
+    // of 20, and long before the old shared store of 4096 nonces filled.
+    let mut served = 0;
+    let refusal = loop {
+        match status(&mut director) {
+            Ok(ControlReply::Status(_)) => served += 1,
+            Err(ControlClientError::Refused { message, .. }) => break message,
+            other => panic!("after {served} requests: {other:?}"),
+        }
+        assert!(served < 1000, "1000 requests in a row and no rate limit");
+    };
+    assert!(served >= 20, "only {served} served before: {refusal}");
+    assert!(refusal.contains("\"director\" sent more than 20 requests at once"), "{refusal}");
+    // The viewer is served all the same.
+    assert!(
+        matches!(status(&mut viewer), Ok(ControlReply::Status(_))),
+        "the viewer after the director's flood"
+    );
+}
