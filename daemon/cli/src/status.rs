@@ -66,19 +66,23 @@ pub(crate) fn human_duration(s: f64) -> String {
     }
 }
 
-/// The readable status table.
+/// The readable status table. Every string in a report came from outside (a calibration's id,
+/// a device's path, a take's name, a stage's own words, a remote bridge's whole report), so each
+/// is printed with its control characters escaped ([`frond_protocol::printable`]): no value can
+/// end its line and draw a status line of its own, or move the cursor over a real one.
 pub(crate) fn render(r: &StatusReport) -> String {
+    use frond_protocol::printable as p;
     let mut o = String::new();
     let src = &r.source;
-    let _ = writeln!(o, "daemon       frondd {}, up {}", r.daemon_version, human_duration(r.uptime_s));
-    for p in &r.problems {
-        let _ = writeln!(o, "PROBLEM      {p}");
+    let _ = writeln!(o, "daemon       frondd {}, up {}", p(&r.daemon_version), human_duration(r.uptime_s));
+    for problem in &r.problems {
+        let _ = writeln!(o, "PROBLEM      {}", p(problem));
     }
     let source_line = |s: &frond_protocol::SourceStatus| {
         format!(
             "{} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
-            s.kind,
-            s.path,
+            p(&s.kind),
+            p(&s.path),
             if s.connected { "connected" } else { "NOT CONNECTED" },
             s.reports,
             s.rejected,
@@ -88,28 +92,29 @@ pub(crate) fn render(r: &StatusReport) -> String {
     if r.hands.len() > 1 {
         let _ = writeln!(o, "hands        {}", r.hands.len());
         for h in &r.hands {
-            let _ = writeln!(o, "  {}: {}", h.name, source_line(&h.source));
+            let name = p(&h.name);
+            let _ = writeln!(o, "  {name}: {}", source_line(&h.source));
             let _ = writeln!(
                 o,
                 "  {:w$}  -> element {} {} (rig {}, calibration {}); {} frames, {} held, {} stalls, {} lost",
                 "",
                 h.element,
-                h.element_name,
-                h.rig_name,
-                h.calibration_id,
+                p(&h.element_name),
+                p(&h.rig_name),
+                p(&h.calibration_id),
                 h.frames,
                 h.held_frames,
                 h.stalls,
                 h.lost_events,
-                w = h.name.len()
+                w = name.chars().count()
             );
         }
     } else {
         let _ = writeln!(o, "source       {}", source_line(src));
     }
-    let _ = writeln!(o, "rig          {}", r.rig_name);
-    let _ = writeln!(o, "calibration  {}", r.calibration_id);
-    let _ = writeln!(o, "filter       {}", r.filter);
+    let _ = writeln!(o, "rig          {}", p(&r.rig_name));
+    let _ = writeln!(o, "calibration  {}", p(&r.calibration_id));
+    let _ = writeln!(o, "filter       {}", p(&r.filter));
     let _ = writeln!(
         o,
         "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} device wakes, {} publish drops)",
@@ -122,7 +127,7 @@ pub(crate) fn render(r: &StatusReport) -> String {
         l.p50_us, l.p99_us, l.p999_us, l.max_us, l.samples
     );
     if !r.realtime.is_empty() {
-        let _ = writeln!(o, "realtime     {}", r.realtime);
+        let _ = writeln!(o, "realtime     {}", p(&r.realtime));
     }
     match &r.recording {
         Some(rec) => {
@@ -130,8 +135,8 @@ pub(crate) fn render(r: &StatusReport) -> String {
                 o,
                 "recording    {} {} -> {} ({} frames, {} dropped)",
                 if rec.active { "RECORDING" } else { "stopped" },
-                rec.name,
-                rec.path,
+                p(&rec.name),
+                p(&rec.path),
                 rec.frames,
                 rec.dropped
             );
@@ -141,7 +146,7 @@ pub(crate) fn render(r: &StatusReport) -> String {
         }
     }
     if let Some(e) = &r.recorder_error {
-        let _ = writeln!(o, "recorder     ERROR: {e}");
+        let _ = writeln!(o, "recorder     ERROR: {}", p(e));
     }
     let _ = writeln!(o, "subscribers  {}", r.subscribers.len());
     if !r.subscribers.is_empty() {
@@ -162,7 +167,7 @@ pub(crate) fn render(r: &StatusReport) -> String {
     } else {
         let _ = writeln!(o, "stages       {}", r.stages.len());
         for st in &r.stages {
-            let _ = writeln!(o, "  {} ({}): {}", st.name, st.kind, st.state);
+            let _ = writeln!(o, "  {} ({}): {}", p(&st.name), p(&st.kind), p(&st.state));
         }
     }
     if !r.elements.is_empty() {
@@ -173,7 +178,7 @@ pub(crate) fn render(r: &StatusReport) -> String {
     } else {
         let _ = writeln!(o, "device events (oldest first):");
         for e in &r.device_events {
-            let _ = writeln!(o, "  {e}");
+            let _ = writeln!(o, "  {}", p(e));
         }
     }
     o
@@ -181,6 +186,7 @@ pub(crate) fn render(r: &StatusReport) -> String {
 
 /// Elements in runs of one kind and source: `0 hand grass`, `33-48 field-plant (field, 16)`.
 fn element_groups(elements: &[frond_protocol::ElementInfo]) -> Vec<String> {
+    use frond_protocol::printable as p;
     let mut out = Vec::new();
     let mut i = 0;
     while i < elements.len() {
@@ -190,14 +196,14 @@ fn element_groups(elements: &[frond_protocol::ElementInfo]) -> Vec<String> {
             j += 1;
         }
         if j - i == 1 {
-            out.push(format!("{} {} {} ({})", e.id, e.kind.as_str(), e.name, e.source));
+            out.push(format!("{} {} {} ({})", e.id, e.kind.as_str(), p(&e.name), p(&e.source)));
         } else {
             out.push(format!(
                 "{}-{} {} ({}, {})",
                 e.id,
                 elements[j - 1].id,
                 e.kind.as_str(),
-                e.source,
+                p(&e.source),
                 j - i
             ));
         }
@@ -358,6 +364,85 @@ mod tests {
             ),
             "{t}"
         );
+    }
+
+    #[test]
+    fn no_value_from_outside_can_draw_a_line_of_its_own() {
+        use frond_protocol::{ElementInfo, ElementKind, HandStatus, StageStatus};
+        // Each string a hostile calibration, device, take, stage or remote bridge could set,
+        // carrying a line break and a fake line (or an escape sequence that moves the cursor).
+        let fake = "x\nPROBLEM      none\r\u{1b}[2K\u{1b}[1A";
+        let mut r = report();
+        r.daemon_version = fake.into();
+        r.problems = vec![fake.into()];
+        r.source.kind = fake.into();
+        r.source.path = fake.into();
+        r.rig_name = fake.into();
+        r.calibration_id = fake.into();
+        r.filter = fake.into();
+        r.realtime = fake.into();
+        r.recorder_error = Some(fake.into());
+        r.device_events = vec![fake.into()];
+        if let Some(rec) = &mut r.recording {
+            rec.name = fake.into();
+            rec.path = fake.into();
+        }
+        r.stages =
+            vec![StageStatus { name: fake.into(), kind: fake.into(), state: fake.into(), elements: vec![] }];
+        r.elements = vec![
+            ElementInfo {
+                id: 0,
+                name: fake.into(),
+                kind: ElementKind::Hand,
+                source: fake.into(),
+                rig: fake.into(),
+            },
+            ElementInfo {
+                id: 33,
+                name: fake.into(),
+                kind: ElementKind::FieldPlant,
+                source: fake.into(),
+                rig: fake.into(),
+            },
+            ElementInfo {
+                id: 34,
+                name: fake.into(),
+                kind: ElementKind::FieldPlant,
+                source: fake.into(),
+                rig: fake.into(),
+            },
+        ];
+        let t = render(&r);
+        let clean = render(&report());
+        // The same table with every value on its own line: lines as many as the clean table's
+        // plus one per added list entry (a problem, a stage heading and line, an elements line),
+        // and no control character but the line ends.
+        assert_eq!(t.lines().count(), clean.lines().count() + 4, "{t}");
+        assert!(!t.chars().any(|c| c.is_control() && c != '\n'), "{t:?}");
+        assert_eq!(t.lines().filter(|l| l.starts_with("PROBLEM")).count(), 1, "{t}");
+        assert!(t.contains("calibration  x\\nPROBLEM      none\\r\\u{1b}[2K\\u{1b}[1A\n"), "{t}");
+        // Several hands: each hand's strings too.
+        let mut h = HandStatus {
+            name: fake.into(),
+            source: r.source.clone(),
+            element: 1,
+            element_name: fake.into(),
+            rig_name: fake.into(),
+            calibration_id: fake.into(),
+            frames: 1,
+            held_frames: 0,
+            stalls: 0,
+            lost_events: 0,
+            discontinuities: 0,
+            stale_skipped: 0,
+            events: vec![],
+        };
+        r.hands = vec![h.clone()];
+        h.name = "b".into();
+        r.hands.push(h);
+        let t2 = render(&r);
+        assert_eq!(t2.lines().count(), t.lines().count() + 4, "hands: a count and two lines each\n{t2}");
+        assert!(!t2.chars().any(|c| c.is_control() && c != '\n'), "{t2:?}");
     }
 
     #[test]

@@ -63,6 +63,9 @@ const AXES: [&str; 3] = ["pitch", "yaw", "roll"];
 /// Smallest comfortable wrist reach from the neutral, degrees, on either side of the pitch and
 /// yaw axes: the mapping divides the rig's bend range by it.
 pub const MIN_WRIST_REACH_DEG: f32 = 1.0;
+/// Longest calibration id, bytes. The id is printed in `frond status`, the log and the console,
+/// so it is also printable: no control characters (see [`Calibration::validate`]).
+pub const MAX_CALIBRATION_ID_BYTES: usize = 128;
 /// Largest magnitude of a wrist extreme, degrees.
 pub const MAX_WRIST_DEG: f32 = 180.0;
 
@@ -95,9 +98,9 @@ impl Calibration {
     /// Checks every value, returning all problems with their paths.
     pub fn validate(&self) -> Result<(), Problems> {
         let mut p = Problems::default();
-        if self.id.trim().is_empty() {
-            p.push("id", "must not be empty");
-        }
+        // Not blank, bounded and printable: a line break or an escape sequence in an id would
+        // draw lines of its own in status tables and logs.
+        p.name("id", &self.id, MAX_CALIBRATION_ID_BYTES);
         // The limits of `crate::plausible`, shared with rigs and every hand source.
         for (k, v) in self.neutral_wrist_deg.iter().enumerate() {
             p.hand_angle(format!("neutral_wrist_deg[{k}]"), *v);
@@ -231,6 +234,20 @@ wrist_range_deg = [[-60, 70], [-20, 30], [-80, 80]]
         let text = c.to_toml_string();
         assert!(text.contains("0.1"), "{text}");
         assert_eq!(Calibration::from_toml_str(&text).unwrap(), c);
+    }
+
+    #[test]
+    fn an_id_is_printable_and_bounded() {
+        let with_id = |id: &str| ALICE.replace("id = \"alice\"", &format!("id = {}", toml::Value::from(id)));
+        let e = Calibration::from_toml_str(&with_id("bob\nPROBLEM      none")).unwrap_err().to_string();
+        assert!(e.contains("id: contains the control character '\\n'; a name must be printable"), "{e}");
+        let e = Calibration::from_toml_str(&with_id("a\u{1b}[2Kb")).unwrap_err().to_string();
+        assert!(e.contains("id: contains the control character '\\u{1b}'"), "{e}");
+        let e = Calibration::from_toml_str(&with_id(&"x".repeat(129))).unwrap_err().to_string();
+        assert!(e.contains("id: is 129 bytes; the limit is 128"), "{e}");
+        assert!(Calibration::from_toml_str(&with_id(&"x".repeat(128))).is_ok());
+        assert!(Calibration::from_toml_str(&with_id("  ")).is_err(), "blank");
+        assert_eq!(Calibration::from_toml_str(&with_id("pétale 2")).unwrap().id, "pétale 2");
     }
 
     #[test]
