@@ -405,7 +405,7 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         let comparable = hands.iter().enumerate().filter(|&(j, _)| kind_ok && valid_kind[j]);
         for (j, other) in comparable {
             let same_device = hand.device_path.is_some() && hand.device_path == other.device_path;
-            let same_address = matches!((&hand.source, &other.source), (SourceChoice::Osc(a), SourceChoice::Osc(b)) if a == b);
+            let same_address = same_service(&hand.source, &other.source);
             let both_search = matches!(hand.source, SourceChoice::Auto | SourceChoice::Hid)
                 && matches!(other.source, SourceChoice::Auto | SourceChoice::Hid)
                 && hand.device_path.is_none()
@@ -422,6 +422,28 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         hands.push(hand);
     }
     hands
+}
+
+/// Whether two hand sources would read the same service for the same hand: one OSC port
+/// (equal addresses, or one of them every interface: the second could not bind, or would take
+/// the first one's datagrams), or one Leap service (host and port, letters in either case) and
+/// one chirality. Two chiralities of one Leap service are two hands, as a tracker sees them.
+fn same_service(a: &SourceChoice, b: &SourceChoice) -> bool {
+    match (a, b) {
+        (SourceChoice::Osc(a), SourceChoice::Osc(b)) => {
+            match (a.parse::<std::net::SocketAddr>(), b.parse::<std::net::SocketAddr>()) {
+                (Ok(a), Ok(b)) => {
+                    a.port() == b.port()
+                        && (a.ip() == b.ip() || a.ip().is_unspecified() || b.ip().is_unspecified())
+                }
+                _ => a == b,
+            }
+        }
+        (SourceChoice::Leap(a), SourceChoice::Leap(b)) => {
+            a.hand == b.hand && a.host_port.eq_ignore_ascii_case(&b.host_port)
+        }
+        _ => false,
+    }
 }
 
 fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
@@ -654,6 +676,38 @@ mod tests {
             (0..9).map(|i| format!("[[hands]]\nname = \"h{i}\"\nkind = \"virtual\"\n")).collect();
         let errors = Config::validate(RawConfig::parse(&nine, "t").unwrap()).unwrap_err().problems;
         assert_eq!(errors, ["hands: 9 hands; the limit is 8"]);
+    }
+
+    /// Issue 42: two hands on one service and one chirality are refused, as two on one OSC
+    /// address always were; two chiralities of one Leap service are two hands.
+    #[test]
+    fn two_hands_on_one_service_and_chirality_are_refused() {
+        let problems = |kinds: &[&str]| {
+            let text: String = kinds
+                .iter()
+                .enumerate()
+                .map(|(i, k)| format!("[[hands]]\nname = \"h{i}\"\nkind = \"{k}\"\nelement = \"e{i}\"\n"))
+                .collect();
+            Config::validate(RawConfig::parse(&text, "t").unwrap()).err().map(|e| e.problems)
+        };
+        let refused = |kinds: &[&str]| {
+            assert_eq!(
+                problems(kinds),
+                Some(vec![
+                    "hands[1].kind: hands[0] (\"h0\") reads the same device or address; give each hand its own `path` or address"
+                        .to_string()
+                ]),
+                "{kinds:?}"
+            )
+        };
+        refused(&["leap://127.0.0.1:6437", "leap://127.0.0.1:6437?hand=right"]);
+        refused(&["leap://Tracker:6437?hand=left", "leap://tracker:6437?hand=left"]);
+        refused(&["osc://127.0.0.1:9001", "osc://0.0.0.0:9001"]);
+        refused(&["osc://[::]:9001", "osc://127.0.0.1:9001"]);
+        assert_eq!(problems(&["leap://127.0.0.1:6437?hand=left", "leap://127.0.0.1:6437?hand=right"]), None);
+        assert_eq!(problems(&["leap://127.0.0.1:6437", "leap://127.0.0.1:6438"]), None);
+        assert_eq!(problems(&["osc://127.0.0.1:9001", "osc://127.0.0.2:9001"]), None);
+        assert_eq!(problems(&["osc://127.0.0.1:9001", "osc://127.0.0.1:9002"]), None);
     }
 
     #[test]
