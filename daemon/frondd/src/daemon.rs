@@ -381,13 +381,24 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     threads_stop.store(true, Relaxed);
     wake_listeners(&[&pose_path, &control_path]);
     let engine = rt.join().map_err(|_| DaemonError::LoopPanicked)?;
-    drop(engine); // closes the publisher's queue, so it ends
-    for (name, handle) in
-        [("accept", acceptor), ("control", control), ("reopen", reopener), ("publish", publisher_thread)]
-    {
+    // The threads that take no peer's pace (each ends within its poll of `threads_stop`), then
+    // the sockets go: nobody new can connect, whatever the rest of the shutdown meets.
+    for (name, handle) in [("accept", acceptor), ("control", control), ("reopen", reopener)] {
         if handle.join().is_err() {
             error!(thread = name, "thread panicked");
         }
+    }
+    for socket in [&pose_path, &control_path] {
+        if !socket.remove_if_ours() {
+            warn!(path = %socket.path.display(), "left the socket alone: it is no longer the one this daemon created");
+        }
+    }
+    // Dropping the engine closes the hand sources (a source with a thread waits for it a
+    // bounded time, never on its peer: `frond_device::LeapSource`) and the publisher's queue,
+    // so that the publisher (its writes have a timeout) ends.
+    drop(engine);
+    if publisher_thread.join().is_err() {
+        error!(thread = "publish", "thread panicked");
     }
     drop(cmd_tx);
     // Control connections still open hold senders of their own: tell the recorder to end.
@@ -396,11 +407,6 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     drop(ctx);
     if recorder.join().is_err() {
         error!("recorder thread panicked");
-    }
-    for socket in [&pose_path, &control_path] {
-        if !socket.remove_if_ours() {
-            warn!(path = %socket.path.display(), "left the socket alone: it is no longer the one this daemon created");
-        }
     }
     drop(opened); // unmounts the virtual glove nodes, if any
     info!("stopped");
@@ -484,6 +490,7 @@ fn housekeeping(
     let mut stalls: Vec<u64> = stats.hands[..hands].iter().map(|h| h.stall_events.load(Relaxed)).collect();
     // Time faults already told, per hand, and when last: one line, then at most one per 10 s.
     let mut time_told: Vec<(u64, u64, Option<Instant>)> = vec![(0, 0, None); hands];
+    let mut refusals_told: Vec<RefusalsTold> = vec![RefusalsTold::default(); hands];
     let watchdog = notifier.watchdog_interval().map(|d| d / 2);
     let mut last_ping = Instant::now();
     let mut ticks_at_ping = last_ticks;
@@ -562,6 +569,7 @@ fn housekeeping(
         }
         let elapsed = last_rate_at.elapsed();
         if elapsed >= Duration::from_secs(1) {
+            tell_refusals(ctx, &mut refusals_told);
             let ticks = stats.ticks.load(Relaxed);
             let rate = (ticks - last_ticks) as f64 / elapsed.as_secs_f64();
             ctx.lock().achieved_rate_hz = rate;
@@ -578,6 +586,59 @@ fn housekeeping(
             }
         }
     }
+}
+
+/// What a hand's source refused, as last said in the log, and when.
+#[derive(Clone, Default)]
+struct RefusalsTold {
+    said: frond_device::CountersSnapshot,
+    at: Option<Instant>,
+}
+
+/// Says in the log what each hand's source refused since it last said so, by reason: at most
+/// one line per hand per [`crate::log_limit::WINDOW`], whatever a peer sends (the loop and the
+/// sources count, they never log a refusal themselves).
+fn tell_refusals(ctx: &ControlContext, told: &mut [RefusalsTold]) {
+    let state = ctx.lock();
+    for (hand, told) in state.hands.iter().zip(told.iter_mut()) {
+        if told.at.is_some_and(|at| at.elapsed() < crate::log_limit::WINDOW) {
+            continue;
+        }
+        let now = hand.counters.snapshot();
+        if let Some(text) = refusals_since(&told.said, &now) {
+            warn!(hand = %hand.name, source = %crate::log_limit::cut(&hand.path), "{text}");
+            told.at = Some(Instant::now());
+        }
+        told.said = now;
+    }
+}
+
+/// "refused N reports (reason n, ...)" for what `now` counts beyond `before`, with the
+/// connections dropped; `None` when nothing is new. A counter that went back (a replaced
+/// source starts at zero) counts from zero.
+fn refusals_since(
+    before: &frond_device::CountersSnapshot,
+    now: &frond_device::CountersSnapshot,
+) -> Option<String> {
+    let new = |b: u64, n: u64| if n >= b { n - b } else { n };
+    let reasons: Vec<(&str, u64)> = before
+        .by_reason()
+        .iter()
+        .zip(now.by_reason())
+        .map(|(&(_, b), (reason, n))| (reason, new(b, n)))
+        .filter(|&(_, n)| n > 0)
+        .collect();
+    let dropped = new(before.peers_dropped, now.peers_dropped);
+    let mut parts = Vec::new();
+    if !reasons.is_empty() {
+        let total: u64 = reasons.iter().map(|&(_, n)| n).sum();
+        let each: Vec<String> = reasons.iter().map(|(reason, n)| format!("{reason} {n}")).collect();
+        parts.push(format!("refused {total} reports ({})", each.join(", ")));
+    }
+    if dropped > 0 {
+        parts.push(format!("dropped {dropped} connections to a service that did not read"));
+    }
+    (!parts.is_empty()).then(|| parts.join("; "))
 }
 
 /// A hand source the reopen thread is trying to (re)open.
@@ -674,4 +735,31 @@ fn spawn_reopener(
             pending = still;
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_are_said_by_reason_once_each() {
+        let before = frond_device::CountersSnapshot { malformed: 2, too_many: 1, ..Default::default() };
+        let now = frond_device::CountersSnapshot {
+            malformed: 5,
+            too_many: 4001,
+            oversized: 1,
+            peers_dropped: 2,
+            ..Default::default()
+        };
+        assert_eq!(
+            refusals_since(&before, &now).as_deref(),
+            Some(
+                "refused 4004 reports (oversized 1, malformed 3, too_many 4000); dropped 2 connections to a service that did not read"
+            )
+        );
+        assert_eq!(refusals_since(&now, &now), None);
+        // A replaced source counts from zero again.
+        let fresh = frond_device::CountersSnapshot { malformed: 1, ..Default::default() };
+        assert_eq!(refusals_since(&now, &fresh).as_deref(), Some("refused 1 reports (malformed 1)"));
+    }
 }
