@@ -63,7 +63,8 @@ struct RawPolicy {
 #[serde(deny_unknown_fields)]
 struct RawPrincipal {
     name: String,
-    key: String,
+    /// Any TOML value, so that one of the wrong type is refused without serde quoting it.
+    key: toml::Value,
     allow: Option<Vec<String>>,
 }
 
@@ -120,7 +121,18 @@ impl ControlPolicy {
             if let Err(e) = check_principal(&p.name) {
                 problems.push(format!("{at}.name: {e}"));
             }
-            let key = ControlKey::from_hex(&p.key).map_err(|e| problems.push(format!("{at}.key: {e}"))).ok();
+            let key = match &p.key {
+                toml::Value::String(hex) => {
+                    ControlKey::from_hex(hex).map_err(|e| problems.push(format!("{at}.key: {e}"))).ok()
+                }
+                other => {
+                    problems.push(format!(
+                        "{at}.key: not a string but {}: write the hex key in quotes",
+                        other.type_str()
+                    ));
+                    None
+                }
+            };
             let mut allowed = HashSet::new();
             for name in p.allow.as_deref().unwrap_or(&["*".to_owned()]) {
                 match allow_entry(name) {
@@ -396,15 +408,24 @@ mod tests {
     fn allow_list_errors_never_quote_a_key() {
         // Each a mistake on a key's line; TOML's own message would quote the line.
         let secret = "5ec7e75ec7e75ec7e75ec7e75ec7e75ec7e75ec7e75ec7e75ec7e75ec7e75ec7";
+        let digits = "2718281828459045235360287471352662497757247093699959574966967627";
         for text in [
             format!("[[principal]]\nname = \"a\"\nkey = \"{secret}\n"),
             format!("[[principal]]\nname = \"a\"\nkey = {secret}\n"),
             format!("[[principal]]\nname = \"a\"\nkey = \"{secret}\" \"{secret}\"\n"),
             format!("[[principal]]\nname = \"a\"\nkey = \"{secret}\"\nkey = \"{secret}\"\n"),
             format!("[[principal]]\nname = \"a\"\nkey = \"{}zz\"\n", &secret[..62]),
+            // Keys of the wrong type, which serde would quote: an integer, a float, an array.
+            format!("[[principal]]\nname = \"a\"\nkey = {}\n", &digits[..18]),
+            format!("[[principal]]\nname = \"a\"\nkey = {digits}\n"),
+            format!("[[principal]]\nname = \"a\"\nkey = {}.5\n", &digits[..18]),
+            format!("[[principal]]\nname = \"a\"\nkey = [{}]\n", &digits[..18]),
         ] {
             let problems = ControlPolicy::parse(&text).unwrap_err().join("\n");
-            assert!(!problems.contains(&secret[..6]), "a key in the message:\n{problems}");
+            assert!(
+                !problems.contains(&secret[..6]) && !problems.contains(&digits[..6]),
+                "a key in the message:\n{problems}"
+            );
             assert!(problems.starts_with("line ") || problems.contains("principal[0].key"), "{problems}");
         }
     }
