@@ -234,7 +234,9 @@ struct Source {
     name: String,
     graph_path: PathBuf,
     fps: f64,
-    take: Take,
+    /// The take's header, element names and rig, without its frames (each plant's take is made
+    /// from it: the source's frames are not kept twice).
+    template: Take,
     poses: Vec<PoseFrame>,
     graph: MotionGraph,
     goal: frond_motion::graph::Goal,
@@ -243,7 +245,9 @@ struct Source {
 /// Reads take `name` with its graph and resolves the goal on it.
 fn walk_source(g: &Global, a: &Walk, name: &str, graph_path: PathBuf) -> anyhow::Result<Source> {
     let file = read_graph_file(&graph_path)?;
-    let (take, clip) = take_clip(g, name, file.fps)?;
+    let (mut take, clip) = take_clip(g, name, file.fps)?;
+    take.frames = Vec::new();
+    take.markers = Vec::new();
     let graph = file.graph_for(&clip.frames).map_err(|e| anyhow!("{}: {e}", graph_path.display()))?;
     let poses = clip.frames;
     let goal = match (&a.goal_pose, a.goal_dir) {
@@ -255,7 +259,7 @@ fn walk_source(g: &Global, a: &Walk, name: &str, graph_path: PathBuf) -> anyhow:
         (None, Some(dir_deg)) => frond_motion::graph::Goal::Direction { dir_deg },
         (None, None) => frond_motion::graph::Goal::Random,
     };
-    Ok(Source { name: name.to_string(), graph_path, fps: file.fps, take, poses, graph, goal })
+    Ok(Source { name: name.to_string(), graph_path, fps: file.fps, template: take, poses, graph, goal })
 }
 
 /// Walks the graphs and writes one take per plant.
@@ -304,7 +308,13 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         let path = a.graph.get(i).cloned().unwrap_or_else(|| default_graph_path(g, name));
         sources.push(walk_source(g, &a, name, path)?);
     }
-    let mut outputs = Vec::new();
+    // Count what the walk makes before making it, as every take tool does: at most
+    // MAX_EXPORT_FRAMES in all without --force, never more than MAX_RESAMPLED_FRAMES.
+    let frames_of = |src: &Source| (a.duration * src.fps).round().max(1.0) as u64;
+    let total: u64 = (0..plants as usize).map(|p| frames_of(&sources[p % sources.len()])).sum();
+    check_walk_frames(total, plants, a.duration, a.force)?;
+    // Each plant's take is written as soon as it is walked: one plant's frames in memory at a
+    // time, not every plant's.
     let mut explains = Vec::new();
     for plant in 0..plants {
         // Plant p: take p mod count, seed + p, starting at a node spread over its graph.
@@ -314,7 +324,7 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         let seed = a.seed.wrapping_add(plant as u64);
         let mut w = Walker::new(graph, start, seed, src.fps);
         w.set_goal(src.goal.clone());
-        let frames = (a.duration * src.fps).round().max(1.0) as usize;
+        let frames = frames_of(src) as usize;
         let mut walked = Vec::with_capacity(frames);
         let mut taken = Vec::new();
         for _ in 0..frames {
@@ -333,13 +343,13 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             walked.push(s.pose);
         }
         let clip = Clip { fps: src.fps, frames: walked };
-        let mut out_take = src.take.clone();
-        out_take.frames.clear();
-        out_take.markers.clear();
+        let mut out_take = src.template.clone();
         out_take.header.tick_rate_hz = src.fps.round().max(1.0) as u32;
         out_take.header.filter = format!("walk of {} seed={seed} goal={}", src.name, goal_name(&a));
         out_take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
-        outputs.push((plant_take_name(&base, plant), out_take, src.fps));
+        let name = plant_take_name(&base, plant);
+        let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps: src.fps };
+        emit(g, out_take, name, &out)?;
         if a.explain {
             explains.push(serde_json::json!({
                 "plant": plant,
@@ -360,9 +370,20 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains })
         );
     }
-    for (name, t, fps) in outputs {
-        let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps };
-        emit(g, t, name, &out)?;
+    Ok(())
+}
+
+/// Refuses a walk of `plants` takes lasting `duration_s` that makes `total` frames in all: more
+/// than [`crate::takes::MAX_EXPORT_FRAMES`] without `force`, or than [`MAX_RESAMPLED_FRAMES`].
+fn check_walk_frames(total: u64, plants: u32, duration_s: f64, force: bool) -> anyhow::Result<()> {
+    use crate::takes::MAX_EXPORT_FRAMES;
+    use frond_motion::take::MAX_RESAMPLED_FRAMES;
+    let what = format!("the walk of {plants} plants for {duration_s} s makes {total} frames in all");
+    if total > MAX_RESAMPLED_FRAMES as u64 {
+        anyhow::bail!("{what}, more than the {MAX_RESAMPLED_FRAMES} any output may have");
+    }
+    if !force && total > MAX_EXPORT_FRAMES {
+        anyhow::bail!("{what}, more than {MAX_EXPORT_FRAMES}; pass --force to go past it");
     }
     Ok(())
 }

@@ -135,6 +135,39 @@ fn a_walk_writes_one_take_per_plant_and_explains_itself() {
 }
 
 #[test]
+fn a_walk_counts_its_frames_before_making_them() {
+    // The README's promise for every take tool: more than 1,080,000 frames only with --force,
+    // never more than 16,777,216, counted before anything is walked or written.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated(d);
+    let walk = ["take", "walk", "breeze", "--graph", "breeze.graph.json", "--duration", "3600"];
+    // An hour at the graph's 30 fps is 108,000 frames a plant: 11 plants make 1,188,000.
+    let out = frond(d).args(walk).args(["--plants", "11"]).output().unwrap();
+    failed(
+        &out,
+        1,
+        "the walk of 11 plants for 3600 s makes 1188000 frames in all, more than 1080000; pass --force to go past it",
+    );
+    // 156 plants make 16,848,000, past 16,777,216 (2^24) even with --force.
+    let out = frond(d).args(walk).args(["--plants", "156", "--force"]).output().unwrap();
+    failed(
+        &out,
+        1,
+        "the walk of 156 plants for 3600 s makes 16848000 frames in all, more than the 16777216 any output may have",
+    );
+    let written: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.contains("walk"))
+        .collect();
+    assert!(written.is_empty(), "nothing is written: {written:?}");
+    // 10 plants (1,080,000) are within the limit: a shorter walk of as many plants is made.
+    ok(&frond(d).args(&walk[..5]).args(["--duration", "2", "--plants", "10"]).output().unwrap());
+    assert!(d.join("breeze-walk-plant9.take").is_file());
+}
+
+#[test]
 fn a_pose_goal_is_reached() {
     let dir = tempfile::tempdir().unwrap();
     simulated(dir.path());
