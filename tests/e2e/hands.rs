@@ -161,3 +161,44 @@ fn two_hands_on_one_element_or_an_unknown_layer_are_refused_at_start() {
     let err = run(&["--rig", "grass", "--hand", "a=in-process", "--hand", "b=in-process,element=leaf"]);
     assert!(err.contains(r#"hand "b": rig "grass" has no secondary element "leaf""#), "{err}");
 }
+
+/// Issue 42: two hands on one hand service and one chirality (one Leap service, one OSC port)
+/// are refused before anything starts, as a problem of the configuration (exit 2, said once);
+/// the two hands of one Leap service are not.
+#[test]
+fn two_hands_on_one_service_and_chirality_are_refused_at_start() {
+    let dir = tempfile::tempdir().unwrap();
+    // A daemon that starts instead of refusing is stopped, and fails the test.
+    let run = |args: &[&str]| {
+        let child = std::process::Command::new(frond_e2e::bin("frondd"))
+            .arg("--socket-dir")
+            .arg(dir.path().join("run"))
+            .arg("--takes-dir")
+            .arg(dir.path().join("takes"))
+            .args(["--rig", "flower"])
+            .args(args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut proc = frond_e2e::Proc { child, name: "frondd".into() };
+        let exited = frond_e2e::wait_for(std::time::Duration::from_secs(10), || {
+            matches!(proc.child.try_wait(), Ok(Some(_)))
+        });
+        assert!(exited, "frondd started with {args:?} instead of refusing it");
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut proc.child.stderr.take().unwrap(), &mut err).unwrap();
+        (proc.child.wait().unwrap(), err)
+    };
+    for (a, b) in [
+        ("leap://127.0.0.1:1?hand=left", "leap://127.0.0.1:1?hand=left"),
+        ("leap://127.0.0.1:1", "leap://127.0.0.1:1?hand=right"),
+        ("osc://0.0.0.0:1", "osc://127.0.0.1:1"),
+    ] {
+        let (first, second) = (format!("a={a}"), format!("b={b},element=leaf"));
+        let (status, err) = run(&["--hand", &first, "--hand", &second]);
+        assert_eq!(status.code(), Some(2), "{a} and {b}: {err}");
+        assert_eq!(err.lines().count(), 1, "said once: {err}");
+        assert!(err.contains(r#"hands[0] ("a") reads the same device or address"#), "{err}");
+    }
+}

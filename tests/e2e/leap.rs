@@ -440,3 +440,170 @@ fn both_hands_of_recorded_frames_drive_two_elements() {
     check_hands(&fresh[0], &want_left, "left hand, element 0 (the flower)");
     check_hands(&fresh[1], &want_right, "right hand, element 1 (its leaves)");
 }
+
+/// A hostile Leap service on `listener` until `stop`: every connection gets the greeting, then
+/// WebSocket pings as fast as its socket takes them, and it never reads a byte after the
+/// handshake (its receive buffer is made small, so the daemon's pongs fill it at once).
+/// Counts the connections it took in `taken`.
+fn ping_flood(
+    listener: TcpListener,
+    stop: Arc<AtomicBool>,
+    taken: Arc<std::sync::atomic::AtomicUsize>,
+) -> std::thread::JoinHandle<()> {
+    use std::os::fd::AsRawFd;
+    let small: libc::c_int = 4096;
+    // SAFETY: a listening socket we own, and a c_int option of the right size (accepted
+    // sockets inherit it).
+    let set = unsafe {
+        libc::setsockopt(
+            listener.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_RCVBUF,
+            (&small as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    assert_eq!(set, 0, "SO_RCVBUF");
+    listener.set_nonblocking(true).unwrap();
+    std::thread::spawn(move || {
+        let mut conns = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            let Ok((stream, _)) = listener.accept() else {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            };
+            taken.fetch_add(1, Ordering::Relaxed);
+            let stop = Arc::clone(&stop);
+            conns.push(std::thread::spawn(move || {
+                stream.set_nonblocking(false).unwrap();
+                let Ok(mut ws) = tungstenite::accept(stream) else { return };
+                let hello = json!({"serviceVersion": "5.17.1", "version": 6}).to_string();
+                if ws.send(tungstenite::Message::text(hello)).is_err() {
+                    return;
+                }
+                // Unmasked server pings of 125 bytes each, written raw: nothing is ever read.
+                let ping: Vec<u8> = [0x89u8, 125].into_iter().chain(std::iter::repeat_n(b'p', 125)).collect();
+                let burst = ping.repeat(512);
+                let tcp = ws.get_mut();
+                tcp.set_write_timeout(Some(Duration::from_millis(50))).unwrap();
+                while !stop.load(Ordering::Relaxed) {
+                    match std::io::Write::write(tcp, &burst) {
+                        Ok(_) => {}
+                        Err(e)
+                            if matches!(
+                                e.kind(),
+                                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                            ) => {}
+                        Err(_) => return, // the daemon dropped the connection
+                    }
+                }
+            }));
+        }
+        for c in conns {
+            let _ = c.join();
+        }
+    })
+}
+
+/// Issue 42: a Leap service that floods pings and never reads cannot hold the daemon. The
+/// daemon's pongs fill the socket; its writes never wait, so SIGTERM still ends it at once with
+/// the take finished and the sockets removed. (It hung until SIGKILL: the pong write blocked
+/// the client thread, which stopping the source joined. 5 s is a hang check; the README
+/// promises 1 s.)
+#[test]
+fn sigterm_ends_the_daemon_while_a_leap_service_floods_pings_and_never_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let source = format!("leap://127.0.0.1:{}", listener.local_addr().unwrap().port());
+    let (stop, taken) = (Arc::new(AtomicBool::new(false)), Arc::new(std::sync::atomic::AtomicUsize::new(0)));
+    let server = ping_flood(listener, Arc::clone(&stop), Arc::clone(&taken));
+    let mut daemon = Daemon::start(dir.path(), &["--source", &source, "--rig", "grass"]);
+    assert!(matches!(
+        daemon.control(&frond_protocol::ControlRequest::RecordStart { name: "flood".into() }),
+        frond_protocol::ControlReply::Recording(_)
+    ));
+    assert!(frond_e2e::wait_for(Duration::from_secs(10), || taken.load(Ordering::Relaxed) > 0));
+    // Long enough for the pongs to fill both socket buffers, short of the daemon dropping
+    // the service for not reading (2 s).
+    std::thread::sleep(Duration::from_millis(1500));
+    let t0 = Instant::now();
+    let status = daemon.proc.terminate(Duration::from_secs(5));
+    let took = t0.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
+    let status = status.expect("frondd did not stop on SIGTERM while the service flooded pings");
+    assert!(status.success(), "{status}");
+    assert!(took < Duration::from_secs(5), "SIGTERM to exit took {took:?}");
+    assert!(!daemon.socket_dir.join("control.sock").exists(), "control socket left behind");
+    assert!(!daemon.socket_dir.join("poses.sock").exists(), "poses socket left behind");
+    let bytes = std::fs::read(daemon.takes_dir.join("flood.take")).unwrap();
+    let scan = frond_motion::take::scan_take(&bytes).unwrap();
+    assert!(scan.ended, "take not finished");
+    assert_eq!(scan.torn_bytes, 0);
+}
+
+/// Issue 42: a service that never reads what the daemon writes is dropped (after 2 s of
+/// unread pongs), counted in status, and connected to again, at a bounded pace.
+#[test]
+fn a_leap_service_that_never_reads_is_dropped_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let source = format!("leap://127.0.0.1:{}", listener.local_addr().unwrap().port());
+    let (stop, taken) = (Arc::new(AtomicBool::new(false)), Arc::new(std::sync::atomic::AtomicUsize::new(0)));
+    let server = ping_flood(listener, Arc::clone(&stop), Arc::clone(&taken));
+    let daemon = Daemon::start(dir.path(), &["--source", &source, "--rig", "grass"]);
+    let dropped = frond_e2e::wait_for(Duration::from_secs(20), || daemon.status().source.peers_dropped >= 1);
+    let seen = daemon.status().source;
+    assert!(dropped, "the service was never dropped: {seen:?}");
+    assert!(
+        frond_e2e::wait_for(Duration::from_secs(10), || taken.load(Ordering::Relaxed) >= 2),
+        "the daemon did not connect again"
+    );
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
+}
+
+/// Issue 42, bounds before work: a frame listing 5,000 hands is refused at the ninth and
+/// counted (`too_many`), a message past the size limit is refused from its header
+/// (`oversized`; the connection goes with it), and the good frames around them still drive
+/// the plant. The refusals are said in the log by reason.
+#[test]
+fn a_leap_frame_of_5000_hands_and_an_oversized_message_are_refused_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let ks = knowns(1.0, 2);
+    let hand = json!({"id": 1, "type": "left", "direction": [0, 0, -1], "palmNormal": [0, -1, 0]});
+    let many = json!({"id": 10, "timestamp": 10, "hands": vec![hand; 5000], "pointables": []}).to_string();
+    assert!(many.len() < frond_motion::leap::MAX_MESSAGE_BYTES, "{} bytes", many.len());
+    let huge = json!({"padding": "x".repeat(frond_motion::leap::MAX_MESSAGE_BYTES)}).to_string();
+    // Popped from the end: a good frame, 5,000 hands, a good frame, the huge one.
+    let script = vec![huge, frame(2, Some(ks[1])), many, frame(1, Some(ks[0]))];
+    let log = dir.path().join("frondd.log");
+    let source = format!("leap://127.0.0.1:{port}?hand=right");
+    let daemon = Daemon::start_with_stderr(
+        dir.path(),
+        &["--source", &source, "--rig", "grass", "--filter", "none"],
+        std::fs::File::create(&log).unwrap().into(),
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = serve(listener, Arc::new(Mutex::new(script)), Arc::clone(&stop));
+    let done = frond_e2e::wait_for(Duration::from_secs(20), || {
+        let s = daemon.status().source;
+        s.reports >= 2 && s.rejected >= 2
+    });
+    let status = daemon.status().source;
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
+    assert!(done, "the good frames did not all arrive: {status:?}");
+    assert_eq!(status.reports, 2, "{status:?}");
+    assert_eq!(status.rejected_by_reason.get("too_many"), Some(&1), "{status:?}");
+    assert_eq!(status.rejected_by_reason.get("oversized"), Some(&1), "{status:?}");
+    assert_eq!(status.rejected, 2, "{status:?}");
+    // One line per hand per 10 s at most: the two reasons may be said in two.
+    let said = frond_e2e::wait_for(Duration::from_secs(15), || {
+        let text = std::fs::read_to_string(&log).unwrap();
+        text.contains("too_many 1") && text.contains("oversized 1")
+    });
+    assert!(said, "refusals not logged: {}", std::fs::read_to_string(&log).unwrap());
+}

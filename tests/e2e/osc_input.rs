@@ -130,3 +130,65 @@ fn the_reference_osc_sender_drives_the_osc_source() {
     assert!(fresh.windows(2).any(|w| w[0].joints_deg != w[1].joints_deg));
     let _ = glove.terminate(Duration::from_secs(5));
 }
+
+/// Issue 42: what a hostile sender's datagrams cost the OSC source is counted by reason in
+/// status (`frond status --json`), and said in the log at a bounded rate: thousands of refused
+/// datagrams make one line (per hand and 10 s), not thousands.
+#[test]
+fn refused_osc_datagrams_are_counted_by_reason_and_logged_at_a_bounded_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let source = format!("osc://127.0.0.1:{port}");
+    let log = dir.path().join("frondd.log");
+    let daemon = Daemon::start_with_stderr(
+        dir.path(),
+        &["--source", &source, "--rig", "grass"],
+        std::fs::File::create(&log).unwrap().into(),
+    );
+    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let message = |addr: &str, args: Vec<f32>| {
+        rosc::encoder::encode(&OscPacket::Message(OscMessage {
+            addr: addr.into(),
+            args: args.into_iter().map(OscType::Float).collect(),
+        }))
+        .unwrap()
+    };
+    let other = message("/not/frond", vec![0.0; 7]);
+    let wild = message("/frond/hand", vec![0.0, 1000.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let (garbage, others, wilds) = (300u64, 200u64, 100u64);
+    // Paced, so that the kernel drops none of them.
+    for k in 0..(garbage + others + wilds) {
+        let bytes: &[u8] = if k < garbage {
+            b"\xffnot osc at all"
+        } else if k < garbage + others {
+            &other
+        } else {
+            &wild
+        };
+        tx.send_to(bytes, ("127.0.0.1", port)).unwrap();
+        if k % 50 == 0 {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    let counted =
+        wait_for(Duration::from_secs(10), || daemon.status().source.rejected >= garbage + others + wilds);
+    let status = daemon.status().source;
+    assert!(counted, "{status:?}");
+    let by: Vec<(&str, u64)> = status.rejected_by_reason.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+    assert_eq!(by, [("malformed", garbage), ("out_of_range", wilds), ("wrong_id", others)], "{status:?}");
+    // The same counts in `frond status --json`.
+    let json: Value = serde_json::from_str(&daemon.frond_ok(&["status", "--json"])).unwrap();
+    let shown = &json["hands"][0]["source"]["rejected_by_reason"];
+    assert_eq!(shown["malformed"], garbage, "{json}");
+    // Said once, with every reason, in the second after.
+    let said = wait_for(Duration::from_secs(5), || {
+        std::fs::read_to_string(&log).unwrap().contains("refused 600 reports")
+    });
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(said, "{text}");
+    assert!(
+        text.contains("malformed 300") && text.contains("wrong_id 200") && text.contains("out_of_range 100"),
+        "{text}"
+    );
+    assert_eq!(text.matches("refused").count(), 1, "{text}");
+}
