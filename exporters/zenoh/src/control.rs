@@ -14,7 +14,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use frond_protocol::{ControlError, ControlErrorKind, ControlReply, ControlRequest};
-use frond_sdk::control_auth::{ControlKey, check_principal};
+use frond_sdk::control_auth::{ControlKey, MAX_ENVELOPE_LEN, check_principal};
 use frond_sdk::{ControlClient, ControlClientError};
 use serde::Deserialize;
 use zenoh::Wait;
@@ -286,8 +286,8 @@ impl RemoteControl {
                 if shared.standing_by() {
                     return;
                 }
-                let frame = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
-                let envelope = query.attachment().map(|a| a.to_bytes().into_owned());
+                let frame = query.payload().map(|p| bounded_copy(p, MAX_FRAME_LEN)).unwrap_or_default();
+                let envelope = query.attachment().map(|a| bounded_copy(a, MAX_ENVELOPE_LEN));
                 let clock = shared.clock();
                 let now =
                     Now { unix_ms: clock.unix_ns / 1_000_000, monotonic_ms: clock.monotonic_ns / 1_000_000 };
@@ -319,6 +319,20 @@ impl RemoteControl {
         tracing::info!(%key, "remote control on");
         Ok(RemoteControl { _queryable: queryable, worker: Some(worker), tx: Some(tx) })
     }
+}
+
+/// The longest request frame.
+const MAX_FRAME_LEN: usize = frond_protocol::MAX_CONTROL_REQUEST + frond_protocol::HEADER_LEN;
+
+/// At most `max + 1` bytes of a query's payload or attachment: enough for the gate to refuse a
+/// longer one by its length, without a copy of it (Zenoh takes messages of up to 1 GiB by
+/// default, and a peer chooses the size).
+fn bounded_copy(bytes: &zenoh::bytes::ZBytes, max: usize) -> Vec<u8> {
+    use std::io::Read;
+    let mut out = Vec::with_capacity(bytes.len().min(max + 1));
+    // Reading bytes already in memory cannot fail.
+    let _ = bytes.reader().take(max as u64 + 1).read_to_end(&mut out);
+    out
 }
 
 /// How long the worker waits for the daemon's reply.
@@ -464,6 +478,15 @@ mod tests {
             ControlPolicy::parse(&format!("[[principal]]\nname = \"director\"\nkey = \"{KEY}\"\n")).unwrap();
         let shown = format!("{policy:?}");
         assert!(shown.contains("director") && !shown.contains(&KEY[..8]), "{shown}");
+    }
+
+    #[test]
+    fn a_query_is_copied_no_further_than_the_gate_needs_to_refuse_it() {
+        let big = zenoh::bytes::ZBytes::from(vec![7u8; 1 << 20]);
+        assert_eq!(bounded_copy(&big, 100), vec![7u8; 101], "one byte past the limit");
+        let small = zenoh::bytes::ZBytes::from(vec![1u8, 2, 3]);
+        assert_eq!(bounded_copy(&small, 100), vec![1, 2, 3]);
+        assert_eq!(bounded_copy(&zenoh::bytes::ZBytes::default(), 100), Vec::<u8>::new());
     }
 
     #[test]
