@@ -42,17 +42,17 @@ const QUEUE_LEN: usize = 512;
 /// Longest WebSocket handshake.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(2);
 /// How long a read waits before the thread checks whether it should stop.
-pub const READ_POLL: Duration = Duration::from_millis(200);
+const READ_POLL: Duration = Duration::from_millis(200);
 /// First and longest wait between connection attempts.
 const RETRY: (Duration, Duration) = (Duration::from_millis(500), Duration::from_secs(2));
 /// How long the service may leave what frond wrote (pongs, its requests) unread before the
 /// connection is dropped.
-pub const PEER_WRITE_DEADLINE: Duration = Duration::from_secs(2);
+const PEER_WRITE_DEADLINE: Duration = Duration::from_secs(2);
 /// Bytes frond keeps queued for the service at most (a pong waiting behind them is replaced by
 /// the next, never queued).
 const MAX_WRITE_BUFFER: usize = 64 << 10;
 /// How long dropping the source waits for its thread.
-pub const STOP_WAIT: Duration = Duration::from_millis(500);
+const STOP_WAIT: Duration = Duration::from_millis(500);
 /// A session shorter than this does not reset the wait between connection attempts: a service
 /// that takes each connection and drops it at once is retried at the slow pace.
 const STEADY: Duration = Duration::from_secs(5);
@@ -260,8 +260,8 @@ impl HandSource for LeapSource {
 }
 
 impl Drop for LeapSource {
-    /// Stops the client thread and waits for it at most [`STOP_WAIT`]: its reads and writes end
-    /// within [`READ_POLL`] of the stop; only a name lookup or a connection attempt (at most
+    /// Stops the client thread and waits for it at most `STOP_WAIT` (500 ms): its reads and
+    /// writes end within `READ_POLL` (200 ms) of the stop; only a name lookup or a connection attempt (at most
     /// 1 s) can outlast the wait, and then the thread is left to end by itself (at the
     /// process's exit, if that comes first).
     fn drop(&mut self) {
