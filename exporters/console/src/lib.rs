@@ -3,10 +3,11 @@
 //! daemon's controls. An exporter like the others: it subscribes with `frond_sdk` (so it never
 //! slows the daemon) and acts on the control socket with its own credentials.
 //!
-//! - [`access`]: who may use it (loopback by default; a token beyond; `Origin` checks);
+//! - [`access`]: who may use it (loopback by default; a token beyond; `Origin` checks), and
+//!   [`http`], the bounded HTTP/1.1: `frond_web`'s, shared with `frond-warp serve`;
 //! - [`actions`]: the page's control actions, as the requests `frond` sends;
 //! - [`calibrate`]: the guided calibration, `frond calibrate`'s steps from the page;
-//! - [`http`]: the bounded HTTP/1.1 and WebSocket handshake;
+//! - `daemon_link`: the one control connection that status reads and actions share;
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
 //! - [`server`]: the endpoints and the pose WebSocket at the display rate;
@@ -15,10 +16,10 @@
 
 #![warn(missing_docs)]
 
-pub mod access;
+pub use frond_web::{access, http};
 pub mod actions;
 pub mod calibrate;
-pub mod http;
+mod daemon_link;
 pub mod relay;
 pub mod scene;
 pub mod server;

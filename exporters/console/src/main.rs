@@ -88,7 +88,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let console = Console::start(Config {
         socket_dir: socket_dir.clone(),
         takes_dir: frond_protocol::paths::takes_dir(args.takes_dir.clone()),
-        access: Access { loopback, token: token.clone() },
+        access: Access { loopback, port: addr.port(), token: token.clone() },
         rig: checked.rig,
         display_hz: args.display_hz,
         warp: !args.no_warp,

@@ -3,7 +3,10 @@
 //! the JSONL `frond take export` prints. Names are checked (`paths::validate_take_name`) before
 //! any path is built; files are read only if regular and within the take size limit.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant, SystemTime};
 
 use frond_gltf::{BakeError, BakeOptions, Baker, LoadedRig, TakeInput};
 use frond_motion::field::{Field, FieldParams, make_field};
@@ -59,40 +62,110 @@ fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
     Ok((scan, bytes.len() as u64))
 }
 
-/// The takes of `dir`: `{"dir", "takes": [{"name", "frames", "duration_s", "size_bytes",
-/// "state", "rig", "damage", "markers"}], "left_out"}`, sorted by name.
-pub fn list(dir: &Path) -> Value {
-    let mut names: Vec<String> = match std::fs::read_dir(dir) {
-        Ok(rd) => rd
-            .filter_map(Result::ok)
-            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
-            .filter_map(|e| e.file_name().to_str()?.strip_suffix(".take").map(str::to_string))
-            .filter(|n| paths::validate_take_name(n).is_ok())
-            .collect(),
-        Err(e) => {
-            return json!({ "dir": dir.display().to_string(), "takes": [], "error": format!("cannot list {}: {e}", dir.display()) });
-        }
-    };
-    names.sort();
-    let left_out = names.len().saturating_sub(MAX_LISTED);
-    names.truncate(MAX_LISTED);
-    let takes: Vec<Value> = names
-        .iter()
-        .map(|name| match read(dir, name) {
-            Ok((scan, size)) => json!({
-                "name": name,
-                "frames": scan.frames.iter().filter(|f| f.element == 0).count(),
-                "duration_s": scan.duration_s(),
-                "size_bytes": size,
-                "state": scan.state(size),
-                "rig": scan.header.as_ref().map(|h| h.rig_name.clone()),
-                "damage": scan.damage(),
-                "markers": scan.markers.len(),
-            }),
-            Err(e) => json!({ "name": name, "state": "corrupt", "error": e.message }),
-        })
-        .collect();
-    json!({ "dir": dir.display().to_string(), "takes": takes, "left_out": left_out })
+/// Most directory entries looked at for a listing (a directory of millions of files costs no
+/// more than this).
+pub const MAX_DIR_ENTRIES: usize = 100_000;
+/// A take that changed is scanned again at most this often; in between its last summary is
+/// shown with its new size (a take being recorded grows all the time).
+pub const RESCAN_EVERY: Duration = Duration::from_secs(1);
+
+/// What identifies a take file's content for the index: length, modification time, inode.
+type FileKey = (u64, Option<SystemTime>, u64);
+
+/// One take's summary in the index.
+struct Indexed {
+    key: FileKey,
+    scanned: Instant,
+    summary: Value,
+}
+
+/// The index of a takes directory: each take's summary (frames, duration, size, state, rig,
+/// damage, markers) kept between listings and made again only for a take whose file changed,
+/// at most every [`RESCAN_EVERY`]. A listing costs a directory read and a `stat` a take, not a
+/// read of every take; one listing runs at a time and the others wait for it.
+pub struct TakeIndex {
+    dir: PathBuf,
+    entries: Mutex<HashMap<String, Indexed>>,
+}
+
+impl TakeIndex {
+    /// An empty index of `dir`.
+    pub fn new(dir: PathBuf) -> TakeIndex {
+        TakeIndex { dir, entries: Mutex::default() }
+    }
+
+    /// The takes: `{"dir", "takes": [{"name", "frames", "duration_s", "size_bytes", "state",
+    /// "rig", "damage", "markers"}], "left_out"}`, sorted by name, at most [`MAX_LISTED`].
+    pub fn list(&self) -> Value {
+        let dir = &self.dir;
+        let mut names: Vec<String> = match std::fs::read_dir(dir) {
+            Ok(rd) => rd
+                .take(MAX_DIR_ENTRIES)
+                .filter_map(Result::ok)
+                .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+                .filter_map(|e| e.file_name().to_str()?.strip_suffix(".take").map(str::to_string))
+                .filter(|n| paths::validate_take_name(n).is_ok())
+                .collect(),
+            Err(e) => {
+                return json!({ "dir": dir.display().to_string(), "takes": [], "error": format!("cannot list {}: {e}", dir.display()) });
+            }
+        };
+        names.sort();
+        let left_out = names.len().saturating_sub(MAX_LISTED);
+        names.truncate(MAX_LISTED);
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries.retain(|n, _| names.binary_search(n).is_ok());
+        let takes: Vec<Value> = names
+            .iter()
+            .map(|name| {
+                let Some(key) = file_key(&dir.join(format!("{name}.take"))) else {
+                    entries.remove(name);
+                    return json!({ "name": name, "state": "corrupt", "error": "cannot stat the file" });
+                };
+                match entries.get_mut(name) {
+                    Some(e) if e.key == key => e.summary.clone(),
+                    Some(e) if e.scanned.elapsed() < RESCAN_EVERY => {
+                        let mut v = e.summary.clone();
+                        v["size_bytes"] = json!(key.0);
+                        v
+                    }
+                    _ => {
+                        let summary = summarise(dir, name);
+                        entries.insert(
+                            name.clone(),
+                            Indexed { key, scanned: Instant::now(), summary: summary.clone() },
+                        );
+                        summary
+                    }
+                }
+            })
+            .collect();
+        json!({ "dir": dir.display().to_string(), "takes": takes, "left_out": left_out })
+    }
+}
+
+/// A file's [`FileKey`], or `None` when it cannot be looked at.
+fn file_key(path: &Path) -> Option<FileKey> {
+    use std::os::unix::fs::MetadataExt;
+    let m = std::fs::symlink_metadata(path).ok()?;
+    Some((m.len(), m.modified().ok(), m.ino()))
+}
+
+/// One take's summary for the list (the take read once, within the take size limit).
+fn summarise(dir: &Path, name: &str) -> Value {
+    match read(dir, name) {
+        Ok((scan, size)) => json!({
+            "name": name,
+            "frames": scan.frames.iter().filter(|f| f.element == 0).count(),
+            "duration_s": scan.duration_s(),
+            "size_bytes": size,
+            "state": scan.state(size),
+            "rig": scan.header.as_ref().map(|h| h.rig_name.clone()),
+            "damage": scan.damage(),
+            "markers": scan.markers.len(),
+        }),
+        Err(e) => json!({ "name": name, "state": "corrupt", "error": e.message }),
+    }
 }
 
 /// Take `name`'s main skeleton resampled to [`PLAY_FPS`] for the page: `{"name", "rig", "fps",
@@ -334,7 +407,7 @@ mod tests {
 
     #[test]
     fn a_directory_that_is_not_there_lists_nothing_and_says_why() {
-        let v = list(Path::new("/nonexistent/frond-takes"));
+        let v = TakeIndex::new("/nonexistent/frond-takes".into()).list();
         assert_eq!(v["takes"], json!([]));
         assert!(v["error"].as_str().unwrap().contains("cannot list"), "{v}");
     }

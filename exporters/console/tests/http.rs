@@ -51,17 +51,17 @@ impl Served {
 
     fn serve(dirs: tempfile::TempDir, rig: Option<Arc<frond_console::scene::RigScene>>) -> Served {
         let (socket_dir, takes_dir) = (dirs.path().join("sockets"), dirs.path().join("takes"));
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
         let console = Console::start(Config {
             socket_dir,
             takes_dir,
-            access: Access { loopback: true, token: None },
+            access: Access { loopback: true, port: addr.port(), token: None },
             rig,
             display_hz: 30,
             warp: false,
         })
         .unwrap();
-        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-        let addr = listener.local_addr().unwrap();
         let me = Arc::clone(&console);
         std::thread::spawn(move || me.serve(listener));
         Served { addr, _dirs: dirs }
@@ -329,4 +329,49 @@ fn a_take_too_long_to_bake_is_the_users_problem_said_in_time() {
     assert!(text.contains("10 h 1 min 39 s"), "how long the take is: {text}");
     assert!(text.contains("at most 10 h "), "the limit: {text}");
     assert!(!text.contains("--force"), "a command-line option means nothing here: {text}");
+}
+
+#[test]
+fn the_takes_index_reads_a_take_again_only_when_its_file_changed() {
+    use std::os::unix::fs::FileExt;
+    let dir = tempfile::tempdir().unwrap();
+    write_take(dir.path(), "a", 10, 0.1);
+    let index = frond_console::takes::TakeIndex::new(dir.path().to_path_buf());
+    let listed = index.list();
+    assert_eq!(listed["takes"][0]["frames"], 10, "{listed}");
+    // The same bytes' length, inode and modification time but garbage inside: a listing that
+    // read the file would call it corrupt; the index does not read it.
+    let path = dir.path().join("a.take");
+    let mtime = std::fs::metadata(&path).unwrap().modified().unwrap();
+    let len = std::fs::metadata(&path).unwrap().len() as usize;
+    let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.write_all_at(&vec![0xAB; len], 0).unwrap();
+    f.set_modified(mtime).unwrap();
+    for _ in 0..3 {
+        let again = index.list();
+        assert_eq!(again["takes"][0]["frames"], 10, "{again}");
+        assert_ne!(again["takes"][0]["state"], "corrupt", "{again}");
+    }
+    // A changed file is read again (at most once a second).
+    f.set_modified(mtime + Duration::from_secs(5)).unwrap();
+    std::thread::sleep(frond_console::takes::RESCAN_EVERY);
+    let changed = index.list();
+    assert_eq!(changed["takes"][0]["state"], "corrupt", "{changed}");
+    // A take that goes leaves the index; a new one joins it.
+    std::fs::remove_file(&path).unwrap();
+    write_take(dir.path(), "b", 3, 0.1);
+    let now = index.list();
+    assert_eq!(now["takes"].as_array().unwrap().len(), 1, "{now}");
+    assert_eq!(now["takes"][0]["name"], "b");
+    assert_eq!(now["takes"][0]["frames"], 3);
+}
+
+#[test]
+fn a_crafted_token_query_sets_no_cookie_and_splits_nothing() {
+    let served = Served::start(&[]);
+    let answer =
+        served.exchange("GET /?token=x%0d%0aSet-Cookie:%20frond_token=evil%0d%0aX-Evil:%201 HTTP/1.1", b"");
+    assert_eq!(status(&answer), 200, "{answer}");
+    assert_eq!(header(&answer, "set-cookie"), None, "no token is configured: {answer}");
+    assert_eq!(header(&answer, "x-evil"), None, "{answer}");
 }

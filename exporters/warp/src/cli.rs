@@ -350,9 +350,14 @@ pub struct ServeArgs {
     /// Parameters (initial values; the page changes them).
     #[command(flatten)]
     pub sim: SimArgs,
-    /// Address to listen on (port 0 picks a free port; the URL is printed).
+    /// Address to listen on (port 0 picks a free port; the URL is printed). Anything but a
+    /// loopback address needs a token for every request (printed in the URL).
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub listen: String,
+    /// File holding the token (16-256 printable ASCII bytes, only its owner may read it) instead
+    /// of a fresh one, for a page served beyond loopback.
+    #[arg(long, value_name = "FILE")]
+    pub token_file: Option<PathBuf>,
     /// Socket directory of frondd [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
     /// The variable is read only when --from is not given, so an operator's environment does
     /// not conflict with --from.

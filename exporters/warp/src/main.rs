@@ -135,7 +135,13 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let source = args.pose_source();
     frond_warp::serve::serve(
         animator,
-        frond_warp::serve::ServeOptions { listen: args.listen, source, no_daemon: args.no_daemon, sim_wind },
+        frond_warp::serve::ServeOptions {
+            listen: args.listen,
+            source,
+            no_daemon: args.no_daemon,
+            sim_wind,
+            token_file: args.token_file,
+        },
     )
 }
 
@@ -189,6 +195,7 @@ fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
             rig,
             morph_s: args.morph_s,
             opts: frond_cage::morph::MorphOptions { adapt: !args.no_adapt, prune: !args.no_prune },
+            token_file: args.token_file,
         },
     )
 }

@@ -2,7 +2,8 @@
 //!
 //! Three threads: the simulation (fixed 30 Hz steps on absolute deadlines, publishing each frame
 //! into a shared slot), the pose listener (subscribes to `frondd` through `frond_sdk`, reconnects,
-//! and reports the connection state), and the HTTP server (tiny_http) serving:
+//! and reports the connection state), and the HTTP server (`frond_web`'s, as the console's:
+//! the same access rules, admission and bounds) serving:
 //!
 //! - `GET /` the page (canvas, controls, daemon state, frames per second);
 //! - `GET /frame` the latest frame as raw RGBA (`X-Width`, `X-Height`, `X-Frame` headers;
@@ -18,15 +19,23 @@
 //! bend under the simulation's wind drives the picture); otherwise, with `--wind-sim SPEC`, seed
 //! 003's simulation wind blows (the page says "simulation"), else the procedural wind uses the
 //! page's settings (and says so).
+//!
+//! Who may use the page is the console's rule ([`frond_web::access`]): on a loopback address,
+//! requests that name it by a loopback literal and come from its own page; elsewhere, the token
+//! printed in the URL (or `--token-file`).
 
-use std::io::Read;
+use std::net::TcpListener;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_protocol::printable;
+use frond_web::access::{self, Access};
+use frond_web::gate::Limits;
+use frond_web::http::{HeaderValue, Request, Response};
+use frond_web::server::{Routes, Server};
 use serde::{Deserialize, Serialize};
-use tiny_http::{Header, Method, Response, Server};
 
 use crate::compose::Animator;
 use crate::params::{InvalidParams, SceneParams};
@@ -133,11 +142,13 @@ pub struct ServeOptions {
     pub no_daemon: bool,
     /// Seed 003's simulation wind for when no hand drives the wind (`--wind-sim`).
     pub sim_wind: Option<SimWind>,
+    /// The token's file (`--token-file`); without it a page beyond loopback gets a fresh token.
+    pub token_file: Option<PathBuf>,
 }
 
 /// Runs the preview until the process ends. Prints `listening on http://ADDR/` once bound.
 pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
-    let (server, addr) = bind(&opts.listen)?;
+    let bound = bind(&opts.listen, opts.token_file.as_deref())?;
     let shared = Arc::new(Mutex::new(Shared {
         frame: animator.frame().to_vec(),
         frame_no: 0,
@@ -166,95 +177,107 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
         let source = opts.source.clone();
         std::thread::Builder::new().name("warp-poses".into()).spawn(move || pose_loop(source, shared))?;
     }
-    announce(&addr, &format!("a {w}x{h} preview"))?;
-    for mut req in server.incoming_requests() {
-        let url = req.url().split('?').next().unwrap_or("").to_string();
-        let resp = match (req.method(), url.as_str()) {
-            (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
-            (Method::Get, "/frame") => {
-                let s = shared.lock().expect("lock");
-                latest_frame(req.url(), &s.frame, w, h, s.frame_no)
-            }
-            (Method::Get, "/still") => Response::from_data(still.clone())
-                .with_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header")),
-            (Method::Get, "/status") => {
-                let s = shared.lock().expect("lock");
-                let body = serde_json::json!({
-                    "frame": s.frame_no,
-                    "fps": s.fps,
-                    "width": w,
-                    "height": h,
-                    "daemon": s.daemon,
-                    "wind_source": s.wind_source,
-                    "params": s.params,
-                });
-                text(200, &body.to_string(), "application/json")
-            }
-            (Method::Post, "/params") => {
-                match read_body(&mut req, 64 * 1024).and_then(|body| {
-                    serde_json::from_str::<Controls>(&body).map_err(|e| format!("bad controls JSON: {e}"))
-                }) {
-                    Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
-                    Ok(ctl) => {
-                        let mut s = shared.lock().expect("lock");
-                        let base = s.pending.clone().unwrap_or_else(|| s.params.clone());
-                        match ctl.apply(&base) {
-                            Ok(p) => {
-                                s.pending = Some(p);
-                                text(200, "ok", "text/plain")
-                            }
-                            Err(e) => text(400, &e.to_string(), "text/plain; charset=utf-8"),
+    let site = Routes(move |req: &Request| match (req.method.as_str(), req.path.as_str()) {
+        ("GET" | "HEAD", "/") => text(200, PAGE, "text/html; charset=utf-8"),
+        ("GET" | "HEAD", "/frame") => {
+            let s = shared.lock().expect("lock");
+            latest_frame(req, &s.frame, w, h, s.frame_no)
+        }
+        ("GET" | "HEAD", "/still") => Response::new(200, "application/octet-stream", still.clone()),
+        ("GET" | "HEAD", "/status") => {
+            let s = shared.lock().expect("lock");
+            let body = serde_json::json!({
+                "frame": s.frame_no,
+                "fps": s.fps,
+                "width": w,
+                "height": h,
+                "daemon": s.daemon,
+                "wind_source": s.wind_source,
+                "params": s.params,
+            });
+            text(200, &body.to_string(), "application/json")
+        }
+        ("POST", "/params") => {
+            match body_text(req).and_then(|body| {
+                serde_json::from_str::<Controls>(body).map_err(|e| format!("bad controls JSON: {e}"))
+            }) {
+                Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+                Ok(ctl) => {
+                    let mut s = shared.lock().expect("lock");
+                    let base = s.pending.clone().unwrap_or_else(|| s.params.clone());
+                    match ctl.apply(&base) {
+                        Ok(p) => {
+                            s.pending = Some(p);
+                            text(200, "ok", "text/plain")
                         }
+                        Err(e) => text(400, &e.to_string(), "text/plain; charset=utf-8"),
                     }
                 }
             }
-            _ => text(404, "not found", "text/plain"),
-        };
-        let _ = req.respond(resp);
-    }
+        }
+        _ => text(404, "not found", "text/plain"),
+    });
+    bound.run(&format!("a {w}x{h} preview"), site, Limits::default())?;
     stop.store(true, Ordering::Relaxed);
     Ok(())
 }
 
-/// The HTTP server on `listen`, and the address it got (a port 0 picks a free one).
-pub(crate) fn bind(listen: &str) -> anyhow::Result<(Server, String)> {
-    let server = Server::http(listen).map_err(|e| anyhow::anyhow!("cannot listen on {listen}: {e}"))?;
-    let addr = server.server_addr().to_ip().map(|a| a.to_string()).unwrap_or_else(|| listen.to_string());
-    Ok((server, addr))
+/// A preview's listening socket and who may use it.
+pub(crate) struct Bound {
+    listener: TcpListener,
+    access: Access,
+    /// `ADDR` of `http://ADDR/`.
+    addr: String,
 }
 
-/// Prints `listening on http://ADDR/` (the line scripts and tests wait for) and says what is
-/// served on stderr.
-pub(crate) fn announce(addr: &str, what: &str) -> Result<(), frond_binmain::StdoutError> {
-    frond_binmain::outln!("listening on http://{addr}/")?;
-    frond_binmain::errln!("frond-warp: serving {what} on http://{addr}/");
-    use std::io::Write;
-    std::io::stdout().flush().map_err(frond_binmain::StdoutError)
+/// Listens on `listen` (a port 0 picks a free one). Beyond loopback every request needs the
+/// token: `--token-file`'s, else a fresh one, printed in the URL.
+pub(crate) fn bind(listen: &str, token_file: Option<&std::path::Path>) -> anyhow::Result<Bound> {
+    let listener =
+        TcpListener::bind(listen).map_err(|e| anyhow::anyhow!("cannot listen on {listen}: {e}"))?;
+    let local = listener.local_addr()?;
+    let loopback = local.ip().is_loopback();
+    let token = match token_file {
+        Some(path) => Some(access::read_token_file(path).map_err(|e| anyhow::anyhow!("--token-file {e}"))?),
+        None if loopback => None,
+        None => Some(access::new_token()),
+    };
+    Ok(Bound { access: Access { loopback, port: local.port(), token }, addr: local.to_string(), listener })
 }
 
-/// The request's body as UTF-8 text, refused (with the limit named) when over `limit` bytes.
-pub(crate) fn read_body(req: &mut tiny_http::Request, limit: u64) -> Result<String, String> {
-    let mut body = Vec::new();
-    req.as_reader()
-        .take(limit + 1)
-        .read_to_end(&mut body)
-        .map_err(|e| format!("cannot read the request: {e}"))?;
-    if body.len() as u64 > limit {
-        return Err(format!("request body over {limit} bytes"));
+impl Bound {
+    /// Prints `listening on http://ADDR/` (the line scripts and tests wait for; with
+    /// `?token=T` when a fresh token is needed), says what is served on stderr, and serves
+    /// `site` until the process ends.
+    pub(crate) fn run(
+        self,
+        what: &str,
+        site: impl frond_web::server::Site,
+        limits: Limits,
+    ) -> Result<(), frond_binmain::StdoutError> {
+        let addr = &self.addr;
+        let query = match (&self.access.token, self.access.loopback) {
+            (Some(t), false) => format!("?token={t}"),
+            _ => String::new(),
+        };
+        frond_binmain::outln!("listening on http://{addr}/{query}")?;
+        frond_binmain::errln!("frond-warp: serving {what} on http://{addr}/");
+        use std::io::Write;
+        std::io::stdout().flush().map_err(frond_binmain::StdoutError)?;
+        Server::new(self.access, limits, Arc::new(site)).serve(self.listener);
+        Ok(())
     }
-    String::from_utf8(body).map_err(|_| "request body is not UTF-8".to_string())
+}
+
+/// The request's body as UTF-8 text (its size is bounded by the server's limits).
+pub(crate) fn body_text(req: &Request) -> Result<&str, String> {
+    std::str::from_utf8(&req.body).map_err(|_| "request body is not UTF-8".to_string())
 }
 
 /// `GET /frame[?have=N]`: frame `frame_no` as [`raw_frame`], or 204 (no body) when the client
 /// says it has it already.
-pub(crate) fn latest_frame(
-    url: &str,
-    rgba: &[u8],
-    w: usize,
-    h: usize,
-    frame_no: u64,
-) -> Response<std::io::Cursor<Vec<u8>>> {
-    if have_frame(url) == Some(frame_no) {
+pub(crate) fn latest_frame(req: &Request, rgba: &[u8], w: usize, h: usize, frame_no: u64) -> Response {
+    if have_frame(req) == Some(frame_no) {
         text(204, "", "text/plain")
     } else {
         raw_frame(rgba.to_vec(), w, h, frame_no)
@@ -262,31 +285,21 @@ pub(crate) fn latest_frame(
 }
 
 /// `N` of a `?have=N` query.
-fn have_frame(url: &str) -> Option<u64> {
-    url.split_once('?')?.1.split('&').find_map(|kv| kv.strip_prefix("have=")?.parse().ok())
+fn have_frame(req: &Request) -> Option<u64> {
+    req.param("have")?.parse().ok()
 }
 
 /// A raw RGBA frame with its size and number in `X-Width`, `X-Height`, `X-Frame`.
-pub(crate) fn raw_frame(
-    rgba: Vec<u8>,
-    w: usize,
-    h: usize,
-    frame_no: u64,
-) -> Response<std::io::Cursor<Vec<u8>>> {
-    let mut r = Response::from_data(rgba);
-    for (k, v) in [("X-Width", w.to_string()), ("X-Height", h.to_string()), ("X-Frame", frame_no.to_string())]
-    {
-        r.add_header(Header::from_bytes(k, v).expect("header"));
-    }
-    r.add_header(Header::from_bytes("Content-Type", "application/octet-stream").expect("header"));
-    r.add_header(Header::from_bytes("Cache-Control", "no-store").expect("header"));
-    r.with_status_code(200)
+pub(crate) fn raw_frame(rgba: Vec<u8>, w: usize, h: usize, frame_no: u64) -> Response {
+    Response::new(200, "application/octet-stream", rgba)
+        .with("X-Width", HeaderValue::number(w as u64))
+        .with("X-Height", HeaderValue::number(h as u64))
+        .with("X-Frame", HeaderValue::number(frame_no))
 }
 
-pub(crate) fn text(code: u16, body: &str, ctype: &str) -> Response<std::io::Cursor<Vec<u8>>> {
-    Response::from_string(body)
-        .with_status_code(code)
-        .with_header(Header::from_bytes("Content-Type", ctype).expect("header"))
+/// A text answer.
+pub(crate) fn text(code: u16, body: &str, ctype: &'static str) -> Response {
+    Response::new(code, ctype, body)
 }
 
 fn sim_loop(
@@ -444,6 +457,10 @@ mod tests {
 
     #[test]
     fn the_have_query_is_read_and_anything_else_ignored() {
+        let have_frame = |target: &str| {
+            let (path, query) = frond_web::http::split_target(target);
+            have_frame(&Request { path, query, ..Request::default() })
+        };
         assert_eq!(have_frame("/frame?have=12"), Some(12));
         assert_eq!(have_frame("/frame?x=1&have=7"), Some(7));
         assert_eq!(have_frame("/frame"), None);

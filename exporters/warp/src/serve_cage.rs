@@ -33,14 +33,14 @@ use frond_cage::morph::{MorphOptions, MorphPlan};
 use frond_cage::sketch::Sketch;
 use frond_cage::{CageKind, CageTree, Point};
 use frond_motion::skeleton::Skeleton;
-use tiny_http::Method;
+use frond_web::gate::Limits;
+use frond_web::http::Request;
+use frond_web::server::Routes;
 
 use crate::Scene;
 use crate::cage_skin::CageSkin;
 use crate::morph::{MAX_SKETCH_FILE_BYTES, MorphFrames};
-use crate::serve::{
-    DaemonEvent, DaemonState, announce, bind, follow_daemon, latest_frame, raw_frame, read_body, text,
-};
+use crate::serve::{DaemonEvent, DaemonState, bind, body_text, follow_daemon, latest_frame, raw_frame, text};
 
 /// Frame rate of the cage preview.
 pub const CAGE_SERVE_FPS: f64 = 30.0;
@@ -64,6 +64,8 @@ pub struct CageServeOptions {
     pub morph_s: f64,
     /// Adaptation and pruning of sketched morphs.
     pub opts: MorphOptions,
+    /// The token's file (`--token-file`); without it a page beyond loopback gets a fresh token.
+    pub token_file: Option<std::path::PathBuf>,
 }
 
 /// What drives the picture now.
@@ -106,7 +108,7 @@ struct Shared {
 /// Runs the cage preview of `scene`'s first layer with cage tree `tree` until the process ends.
 /// Prints `listening on http://ADDR/` once bound.
 pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyhow::Result<()> {
-    let (server, addr) = bind(&opts.listen)?;
+    let bound = bind(&opts.listen, opts.token_file.as_deref())?;
     let (w, h) = (scene.width, scene.height);
     let still = scene.still();
     let fixed_rig = opts.rig.is_some();
@@ -143,58 +145,57 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
             .name("warp-poses".into())
             .spawn(move || follow_daemon(&source, "sketch only", |e| on_daemon(&shared, fixed_rig, e)))?;
     }
-    announce(&addr, &format!("a {w}x{h} cage preview"))?;
     let crown_id = tree.cages[frond_cage::morph::largest_root(&tree)].id;
-    for mut req in server.incoming_requests() {
-        let url = req.url().split('?').next().unwrap_or("").to_string();
-        let resp = match (req.method(), url.as_str()) {
-            (Method::Get, "/") => text(200, PAGE, "text/html; charset=utf-8"),
-            (Method::Get, "/frame") => {
+    let morph_s = opts.morph_s;
+    let site = Routes(move |req: &Request| match (req.method.as_str(), req.path.as_str()) {
+        ("GET" | "HEAD", "/") => text(200, PAGE, "text/html; charset=utf-8"),
+        ("GET" | "HEAD", "/frame") => {
+            let s = shared.lock().expect("lock");
+            latest_frame(req, &s.frame, w, h, s.frame_no)
+        }
+        ("GET" | "HEAD", "/still") => raw_frame(still.clone(), w, h, 0),
+        ("GET" | "HEAD", "/cages") => {
+            let (cages, pruned) = {
                 let s = shared.lock().expect("lock");
-                latest_frame(req.url(), &s.frame, w, h, s.frame_no)
-            }
-            (Method::Get, "/still") => raw_frame(still.clone(), w, h, 0),
-            (Method::Get, "/cages") => {
-                let (cages, pruned) = {
-                    let s = shared.lock().expect("lock");
-                    (s.cages.clone(), s.pruned.clone())
-                };
-                text(200, &cages_json(&tree, crown_id, &cages, &pruned), "application/json")
-            }
-            (Method::Get, "/status") => {
-                let s = shared.lock().expect("lock");
-                let body = serde_json::json!({
-                    "mode": "cage",
-                    "frame": s.frame_no,
-                    "fps": s.fps,
-                    "width": w,
-                    "height": h,
-                    "drive": s.drive.name(),
-                    "t": s.t,
-                    "frechet_px": s.frechet_px,
-                    "daemon": s.daemon,
-                    "rig": s.rig_note,
-                    "morph_s": opts.morph_s,
-                });
-                text(200, &body.to_string(), "application/json")
-            }
-            (Method::Post, "/sketch") => match read_body(&mut req, MAX_SKETCH_FILE_BYTES)
-                .and_then(|body| Sketch::from_json(&body, tree.size).map_err(|e| format!("sketch: {e}")))
-            {
-                Ok(sketch) => {
-                    shared.lock().expect("lock").request = Some(Some(sketch));
-                    text(200, "ok", "text/plain")
-                }
-                Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
-            },
-            (Method::Post, "/reset") => {
-                shared.lock().expect("lock").request = Some(None);
+                (s.cages.clone(), s.pruned.clone())
+            };
+            text(200, &cages_json(&tree, crown_id, &cages, &pruned), "application/json")
+        }
+        ("GET" | "HEAD", "/status") => {
+            let s = shared.lock().expect("lock");
+            let body = serde_json::json!({
+                "mode": "cage",
+                "frame": s.frame_no,
+                "fps": s.fps,
+                "width": w,
+                "height": h,
+                "drive": s.drive.name(),
+                "t": s.t,
+                "frechet_px": s.frechet_px,
+                "daemon": s.daemon,
+                "rig": s.rig_note,
+                "morph_s": morph_s,
+            });
+            text(200, &body.to_string(), "application/json")
+        }
+        ("POST", "/sketch") => match body_text(req)
+            .and_then(|body| Sketch::from_json(body, tree.size).map_err(|e| format!("sketch: {e}")))
+        {
+            Ok(sketch) => {
+                shared.lock().expect("lock").request = Some(Some(sketch));
                 text(200, "ok", "text/plain")
             }
-            _ => text(404, "not found", "text/plain"),
-        };
-        let _ = req.respond(resp);
-    }
+            Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+        },
+        ("POST", "/reset") => {
+            shared.lock().expect("lock").request = Some(None);
+            text(200, "ok", "text/plain")
+        }
+        _ => text(404, "not found", "text/plain"),
+    });
+    // A sketch may be as large as a sketch file.
+    let limits = Limits { max_body_bytes: MAX_SKETCH_FILE_BYTES as usize, ..Limits::default() };
+    bound.run(&format!("a {w}x{h} cage preview"), site, limits)?;
     stop.store(true, Ordering::Relaxed);
     Ok(())
 }

@@ -525,3 +525,72 @@ fn a_full_stdout_ends_serve_with_an_error_not_a_panic() {
         assert!(e.contains("cannot write to standard output") && !e.contains("panicked"), "{mode}: {e}");
     }
 }
+
+/// One request to `addr` with `headers` (lines ending in CRLF) and `body`; status and body.
+fn ask(addr: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, String) {
+    use std::io::{Read, Write};
+    let mut c = std::net::TcpStream::connect(addr).unwrap();
+    write!(
+        c,
+        "{method} {path} HTTP/1.1\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut r = String::new();
+    c.read_to_string(&mut r).unwrap();
+    let (head, body) = r.split_once("\r\n\r\n").unwrap_or((&r, ""));
+    (head.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap_or(0), body.to_string())
+}
+
+/// `frond-warp serve ARGS` on the wave page; the process and the first line it prints.
+fn serve_wave(t: &Path, args: &[&str]) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let (pic, mask) = inputs(t);
+    let mut child = bin()
+        .args(["serve", "--image", s(&pic), "--layer", s(&mask), "--no-daemon"])
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    (child, line.trim().to_string())
+}
+
+#[test]
+fn serve_takes_the_consoles_access_rules() {
+    let t = tempfile::tempdir().unwrap();
+    let (mut child, line) = serve_wave(t.path(), &["--listen", "127.0.0.1:0"]);
+    let addr = line.strip_prefix("listening on http://").unwrap().trim_end_matches('/').to_string();
+    let port = addr.rsplit(':').next().unwrap();
+    let own = format!("Host: {addr}\r\n");
+    assert_eq!(ask(&addr, "GET", "/status", &own, "").0, 200);
+    // DNS rebinding: a name that resolves here is not this server.
+    let (status, body) =
+        ask(&addr, "GET", "/status", &format!("Host: 127.0.0.1.evil.example:{port}\r\n"), "");
+    assert_eq!(status, 403, "{body}");
+    // Another site's page may not change the picture; the page's own may.
+    let strength = r#"{"strength":0.9}"#;
+    let evil = format!("{own}Origin: http://evil.example\r\n");
+    assert_eq!(ask(&addr, "POST", "/params", &evil, strength).0, 403);
+    assert_eq!(ask(&addr, "POST", "/params", &own, strength).0, 403, "a POST needs the page's Origin");
+    let page = format!("{own}Origin: http://{addr}\r\n");
+    assert_eq!(ask(&addr, "POST", "/params", &page, strength).0, 200);
+    // Two Hosts: 400.
+    assert_eq!(ask(&addr, "GET", "/status", &format!("{own}Host: evil.example\r\n"), "").0, 400);
+    let _ = child.kill();
+    let _ = child.wait();
+
+    // Beyond loopback every request needs the token, which the printed URL carries.
+    let (mut child, line) = serve_wave(t.path(), &["--listen", "0.0.0.0:0"]);
+    let url = line.strip_prefix("listening on http://").unwrap();
+    let (hostport, query) = url.split_once("/?token=").expect(&line);
+    let port = hostport.rsplit(':').next().unwrap();
+    let addr = format!("127.0.0.1:{port}");
+    let host = format!("Host: {addr}\r\n");
+    assert_eq!(ask(&addr, "GET", "/status", &host, "").0, 401);
+    assert_eq!(ask(&addr, "GET", &format!("/status?token={query}"), &host, "").0, 200);
+    let _ = child.kill();
+    let _ = child.wait();
+}

@@ -1,9 +1,11 @@
-//! Who may use the console: pure checks on a request's headers, tested without a socket.
+//! Who may use a page of frond's (the console, `frond-warp serve`): pure checks on a request's
+//! headers, tested without a socket.
 //!
 //! - Bound to a loopback address (the default, `127.0.0.1`), every local request is allowed
-//!   without a token, but the `Host` header must name a loopback host (`127.0.0.1`, `[::1]`,
-//!   `localhost`): a page elsewhere cannot reach the console by pointing a DNS name at
-//!   127.0.0.1 (DNS rebinding).
+//!   without a token, but the `Host` header must name this server by a loopback literal: an
+//!   address of `127.0.0.0/8` written as four decimal numbers, `[::1]`, or `localhost`, each
+//!   with the listening port. A page elsewhere cannot reach the server by pointing a DNS name at
+//!   127.0.0.1 (DNS rebinding), whatever the name looks like (`127.0.0.1.evil.example`).
 //! - Bound elsewhere, every request and WebSocket needs the token: `Authorization: Bearer T`,
 //!   the `frond_token` cookie (set when the page is opened as `/?token=T`), or `?token=T`.
 //! - Always: a request that carries an `Origin` must come from the console's own origin
@@ -23,11 +25,13 @@ pub const MIN_TOKEN_BYTES: usize = 16;
 /// Longest token accepted from a file, bytes.
 pub const MAX_TOKEN_BYTES: usize = 256;
 
-/// The console's access policy.
+/// A server's access policy.
 #[derive(Clone, PartialEq, Eq)]
 pub struct Access {
-    /// Whether the console listens only on a loopback address.
+    /// Whether the server listens only on a loopback address.
     pub loopback: bool,
+    /// The port it listens on: a loopback `Host` must name it.
+    pub port: u16,
     /// The token; required for everything when not `loopback`.
     pub token: Option<String>,
 }
@@ -37,6 +41,7 @@ impl fmt::Debug for Access {
         // Never print the token.
         f.debug_struct("Access")
             .field("loopback", &self.loopback)
+            .field("port", &self.port)
             .field("token", &self.token.is_some())
             .finish()
     }
@@ -114,28 +119,61 @@ fn presented<'a>(m: &RequestMeta<'a>) -> Option<&'a str> {
     bearer.or(cookie).or(m.query_token)
 }
 
-/// The host part of a `Host` header (`[::1]:8790` -> `[::1]`, `localhost:1` -> `localhost`).
-fn host_name(host: &str) -> &str {
-    if host.starts_with('[') {
-        return host.find(']').map_or(host, |i| &host[..=i]);
-    }
-    host.rsplit_once(':').map_or(host, |(h, _)| h)
+/// Whether `host` (a `Host` header) names a loopback server on `port` by a literal:
+/// `127.a.b.c` (four decimal numbers, as `Ipv4Addr` reads them: no octal, no short forms),
+/// `[::1]` or `localhost` (any case), then `:port` (the port may be left out only for port 80,
+/// as a browser leaves it out). A DNS name is never a loopback literal, whatever it starts with.
+pub fn is_loopback_host(host: &str, port: u16) -> bool {
+    let (name, given_port) = match host.strip_prefix('[') {
+        Some(rest) => match rest.split_once(']') {
+            Some((inside, "")) => (inside, None),
+            Some((inside, after)) => match after.strip_prefix(':') {
+                Some(p) => (inside, Some(p)),
+                None => return false,
+            },
+            None => return false,
+        },
+        None => match host.split_once(':') {
+            Some((name, p)) => (name, Some(p)),
+            None => (host, None),
+        },
+    };
+    let port_ok = match given_port {
+        None => port == 80,
+        // 1*DIGIT, no sign or leading `+`; leading zeros are the same port.
+        Some(p) => !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()) && p.parse::<u16>() == Ok(port),
+    };
+    let bracketed = host.starts_with('[');
+    let name_ok = if bracketed {
+        name.parse::<std::net::Ipv6Addr>().is_ok_and(|a| a == std::net::Ipv6Addr::LOCALHOST)
+    } else {
+        name.eq_ignore_ascii_case("localhost")
+            || name.parse::<std::net::Ipv4Addr>().is_ok_and(|a| a.octets()[0] == 127)
+    };
+    port_ok && name_ok
+}
+
+/// What a request that passed [`Access::check`] may be given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Grant {
+    /// It presented the configured token (which one, the server knows: only that one is ever
+    /// set as the cookie, never the bytes the request sent).
+    pub token_matched: bool,
 }
 
 impl Access {
-    /// Checks one request; `Ok` lets it through.
-    pub fn check(&self, m: &RequestMeta<'_>, purpose: Purpose) -> Result<(), Refusal> {
+    /// Checks one request; `Ok` lets it through, with what it may be given.
+    pub fn check(&self, m: &RequestMeta<'_>, purpose: Purpose) -> Result<Grant, Refusal> {
         let Some(host) = m.host.filter(|h| !h.is_empty()) else {
             return Err(Refusal::Forbidden("the request has no Host header".into()));
         };
-        if self.loopback {
-            let name = host_name(host).to_ascii_lowercase();
-            if !matches!(name.as_str(), "127.0.0.1" | "localhost" | "[::1]") && !name.starts_with("127.") {
-                return Err(Refusal::Forbidden(format!(
-                    "Host {host:?} is not this machine: the console listens on loopback only \
-                     (use http://127.0.0.1:PORT/, or --listen ADDR with a token to serve others)"
-                )));
-            }
+        if self.loopback && !is_loopback_host(host, self.port) {
+            return Err(Refusal::Forbidden(format!(
+                "Host {host:?} is not this server: it listens on loopback only, so a request names it \
+                 http://127.0.0.1:{port}/, http://localhost:{port}/ or http://[::1]:{port}/ \
+                 (or start it with --listen ADDR and a token to serve others)",
+                port = self.port
+            )));
         }
         let token_ok = match (&self.token, presented(m)) {
             (Some(want), Some(got)) => {
@@ -152,12 +190,12 @@ impl Access {
         let own = format!("http://{host}");
         match m.origin {
             Some(o) if o != own => Err(Refusal::Forbidden(format!(
-                "Origin {o:?} is not this console ({own}): another site's page may not use it"
+                "Origin {o:?} is not this server ({own:?}): another site's page may not use it"
             ))),
             None if purpose != Purpose::Read && !token_ok => Err(Refusal::Forbidden(
                 "a WebSocket or a control action needs the page's Origin header (or the token)".into(),
             )),
-            _ => Ok(()),
+            _ => Ok(Grant { token_matched: token_ok }),
         }
     }
 }
@@ -261,11 +299,14 @@ mod tests {
         RequestMeta { host: Some(host), origin, ..Default::default() }
     }
 
+    const OPEN: Grant = Grant { token_matched: false };
+    const WITH_TOKEN: Grant = Grant { token_matched: true };
+
     #[test]
     fn loopback_reads_need_no_token_but_a_loopback_host() {
-        let a = Access { loopback: true, token: None };
-        for h in ["127.0.0.1:8790", "localhost:8790", "[::1]:8790", "127.0.0.2:1"] {
-            assert_eq!(a.check(&meta(h, None), Purpose::Read), Ok(()), "{h}");
+        let a = Access { loopback: true, port: 8790, token: None };
+        for h in ["127.0.0.1:8790", "localhost:8790", "[::1]:8790", "127.0.0.2:8790"] {
+            assert_eq!(a.check(&meta(h, None), Purpose::Read), Ok(OPEN), "{h}");
         }
         let e = a.check(&meta("evil.example:8790", None), Purpose::Read).unwrap_err();
         assert_eq!(e.status(), 403);
@@ -275,10 +316,10 @@ mod tests {
 
     #[test]
     fn control_and_sockets_need_the_own_origin_or_the_token() {
-        let a = Access { loopback: true, token: Some(T.into()) };
+        let a = Access { loopback: true, port: 8790, token: Some(T.into()) };
         let own = meta("127.0.0.1:8790", Some("http://127.0.0.1:8790"));
-        assert_eq!(a.check(&own, Purpose::Control), Ok(()));
-        assert_eq!(a.check(&own, Purpose::Socket), Ok(()));
+        assert_eq!(a.check(&own, Purpose::Control), Ok(OPEN));
+        assert_eq!(a.check(&own, Purpose::Socket), Ok(OPEN));
         let other = meta("127.0.0.1:8790", Some("http://evil.example"));
         for p in [Purpose::Read, Purpose::Socket, Purpose::Control] {
             assert_eq!(a.check(&other, p).unwrap_err().status(), 403, "{p:?}");
@@ -287,12 +328,12 @@ mod tests {
         let bare = meta("127.0.0.1:8790", None);
         assert_eq!(a.check(&bare, Purpose::Control).unwrap_err().status(), 403);
         let with = RequestMeta { authorization: Some("Bearer 0123456789abcdef0123"), ..bare };
-        assert_eq!(a.check(&with, Purpose::Control), Ok(()));
+        assert_eq!(a.check(&with, Purpose::Control), Ok(WITH_TOKEN));
     }
 
     #[test]
     fn beyond_loopback_every_request_needs_the_right_token() {
-        let a = Access { loopback: false, token: Some(T.into()) };
+        let a = Access { loopback: false, port: 8790, token: Some(T.into()) };
         let m = meta("10.0.0.5:8790", None);
         assert_eq!(a.check(&m, Purpose::Read), Err(Refusal::Token("no token")));
         let wrong = RequestMeta { query_token: Some("0123456789abcdef0124"), ..m };
@@ -304,10 +345,61 @@ mod tests {
             RequestMeta { cookie: Some("a=b; frond_token=0123456789abcdef0123"), ..m },
             RequestMeta { authorization: Some("Bearer 0123456789abcdef0123"), ..m },
         ] {
-            assert_eq!(a.check(&ok, Purpose::Control), Ok(()), "{ok:?}");
+            assert_eq!(a.check(&ok, Purpose::Control), Ok(WITH_TOKEN), "{ok:?}");
         }
         let e = a.check(&m, Purpose::Read).unwrap_err();
         assert!(e.to_string().contains("?token="), "{e}");
+    }
+
+    #[test]
+    fn only_loopback_literals_with_the_listening_port_are_this_server() {
+        // RFC 3986 host forms that name loopback: IPv4 dotted decimal in 127/8, [::1],
+        // localhost; and the listening port (left out only for port 80, as browsers do).
+        for (host, port) in [
+            ("127.0.0.1:8790", 8790),
+            ("127.255.3.4:8790", 8790),
+            ("LOCALHOST:8790", 8790),
+            ("[::1]:8790", 8790),
+            ("[0:0:0:0:0:0:0:1]:8790", 8790),
+            ("127.0.0.1:08790", 8790),
+            ("127.0.0.1", 80),
+            ("[::1]", 80),
+            ("localhost", 80),
+        ] {
+            assert!(is_loopback_host(host, port), "{host} on {port}");
+        }
+        for (host, port) in [
+            // DNS names that merely look like loopback (rebinding).
+            ("127.0.0.1.evil.example:8790", 8790),
+            ("127.evil.example:8790", 8790),
+            ("127.0.0.1.nip.io:8790", 8790),
+            ("localhost.evil.example:8790", 8790),
+            ("localhost.:8790", 8790),
+            // Not dotted decimal: other parsers read these as other addresses.
+            ("127.1:8790", 8790),
+            ("0x7f.0.0.1:8790", 8790),
+            ("2130706433:8790", 8790),
+            ("0177.0.0.1:8790", 8790),
+            // Other addresses, other ports, malformed.
+            ("10.0.0.1:8790", 8790),
+            ("[::ffff:127.0.0.1]:8790", 8790),
+            ("[::2]:8790", 8790),
+            ("::1:8790", 8790),
+            ("127.0.0.1:8791", 8790),
+            ("127.0.0.1", 8790),
+            ("127.0.0.1:", 8790),
+            ("127.0.0.1:+8790", 8790),
+            ("127.0.0.1:8790:8790", 8790),
+            ("[::1]8790", 8790),
+            ("[::1", 8790),
+            ("", 8790),
+        ] {
+            assert!(!is_loopback_host(host, port), "{host} on {port}");
+        }
+        let a = Access { loopback: true, port: 8790, token: None };
+        let e = a.check(&meta("127.0.0.1.evil.example:8790", None), Purpose::Read).unwrap_err();
+        assert_eq!(e.status(), 403);
+        assert!(e.to_string().contains("http://127.0.0.1:8790/"), "{e}");
     }
 
     #[test]
@@ -320,7 +412,7 @@ mod tests {
         assert_eq!(a.len(), 32);
         assert_ne!(a, b);
         assert!(parse_token(&a).is_ok());
-        assert!(!format!("{:?}", Access { loopback: false, token: Some(a.clone()) }).contains(&a));
+        assert!(!format!("{:?}", Access { loopback: false, port: 1, token: Some(a.clone()) }).contains(&a));
     }
 
     #[test]

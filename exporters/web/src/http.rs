@@ -1,10 +1,17 @@
-//! The console's HTTP/1.1, one request per connection (`Connection: close`): the request head
+//! frond's pages' HTTP/1.1, one request per connection (`Connection: close`): the request head
 //! parsed by `httparse`, bounded before anything is allocated for it (head 16 KiB, 48 headers,
-//! body 64 KiB), and the WebSocket upgrade handed to `tungstenite`. Small on purpose: the page
-//! makes a handful of requests, the poses go over one WebSocket.
+//! body 64 KiB) and read whole within one deadline, and the WebSocket upgrade handed to
+//! `tungstenite`. Small on purpose: a page makes a handful of requests, live data goes over one
+//! WebSocket or a polled endpoint.
+//!
+//! Nothing from a request reaches a response head unchecked: a header value is a
+//! [`HeaderValue`], which only visible ASCII and inner spaces make (RFC 9110, section 5.5, less
+//! `obs-text`), so no CR or LF from a request can split a response.
 
+use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::TcpStream;
+use std::time::Instant;
 
 use thiserror::Error;
 
@@ -27,6 +34,9 @@ pub enum HttpError {
     /// The head or body is larger than allowed.
     #[error("{0}")]
     TooLarge(String),
+    /// The whole request did not arrive before its deadline.
+    #[error("the request did not arrive in time")]
+    Timeout,
 }
 
 impl HttpError {
@@ -36,6 +46,7 @@ impl HttpError {
             HttpError::Io(_) => None,
             HttpError::Bad(_) => Some(400),
             HttpError::TooLarge(_) => Some(413),
+            HttpError::Timeout => Some(408),
         }
     }
 }
@@ -111,8 +122,14 @@ pub fn split_target(target: &str) -> (String, Vec<(String, String)>) {
     (path.to_string(), pairs)
 }
 
-/// Parses a complete head (through the blank line) and the declared body length.
+/// Parses a complete head (through the blank line) and the declared body length, refusing a
+/// body over [`MAX_BODY_BYTES`].
 pub fn parse_head(head: &[u8]) -> Result<(Request, usize), HttpError> {
+    parse_head_with(head, MAX_BODY_BYTES)
+}
+
+/// [`parse_head`] with a body limit of `max_body` bytes.
+pub fn parse_head_with(head: &[u8], max_body: usize) -> Result<(Request, usize), HttpError> {
     let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
     let mut req = httparse::Request::new(&mut headers);
     match req.parse(head) {
@@ -131,12 +148,25 @@ pub fn parse_head(head: &[u8]) -> Result<(Request, usize), HttpError> {
             .map_err(|_| HttpError::Bad(format!("header {} is not UTF-8", h.name)))?;
         out.headers.push((h.name.to_ascii_lowercase(), value.trim().to_string()));
     }
+    for name in SINGLE_HEADERS {
+        let n = out.headers.iter().filter(|(h, _)| h == name).count();
+        if n > 1 {
+            return Err(HttpError::Bad(format!(
+                "the request has {n} {name} headers; a request carries one (RFC 9110, RFC 9112 section 3.2)"
+            )));
+        }
+    }
     let len = body_length(&out)?;
-    if len > MAX_BODY_BYTES {
-        return Err(HttpError::TooLarge(format!("the body is {len} bytes; the limit is {MAX_BODY_BYTES}")));
+    if len > max_body {
+        return Err(HttpError::TooLarge(format!("the body is {len} bytes; the limit is {max_body}")));
     }
     Ok((out, len))
 }
+
+/// Headers a request carries at most once: two `Host`s (RFC 9112, section 3.2) or two
+/// `Origin`s leave it open which one a check read and which one the answer used, so neither is
+/// taken. (`Content-Length` has its own rule, [`body_length`].)
+const SINGLE_HEADERS: [&str; 4] = ["host", "origin", "authorization", "cookie"];
 
 /// The declared body length: one `Content-Length` of decimal digits (RFC 9110, section 8.6), or
 /// none (no body). A second `Content-Length`, or one beside `Transfer-Encoding`, is refused: two
@@ -174,8 +204,14 @@ fn body_length(req: &Request) -> Result<usize, HttpError> {
         .map_err(|_| HttpError::TooLarge(format!("the body is {v} bytes; the limit is {MAX_BODY_BYTES}")))
 }
 
-/// Reads one request from `stream` (its timeouts bound the wait).
-pub fn read_request(stream: &mut TcpStream) -> Result<Request, HttpError> {
+/// Reads one request from `stream`, all of it (head and body) before `deadline`: a client that
+/// trickles bytes cannot hold the connection longer than that, however it paces them.
+/// The body may be `max_body` bytes at most.
+pub fn read_request(
+    stream: &mut TcpStream,
+    deadline: Instant,
+    max_body: usize,
+) -> Result<Request, HttpError> {
     let mut buf = vec![0u8; 2048];
     let mut have = 0;
     let end = loop {
@@ -188,22 +224,135 @@ pub fn read_request(stream: &mut TcpStream) -> Result<Request, HttpError> {
         if have == buf.len() {
             buf.resize((buf.len() * 2).min(MAX_HEAD_BYTES), 0);
         }
-        let n = stream.read(&mut buf[have..])?;
+        let n = read_before(stream, &mut buf[have..], deadline)?;
         if n == 0 {
             return Err(HttpError::Io(io::ErrorKind::UnexpectedEof.into()));
         }
         have += n;
     };
-    let (mut req, len) = parse_head(&buf[..end])?;
+    let (mut req, len) = parse_head_with(&buf[..end], max_body)?;
     let mut body = buf[end..have].to_vec();
     body.truncate(len);
-    if body.len() < len {
-        let start = body.len();
-        body.resize(len, 0);
-        stream.read_exact(&mut body[start..])?;
+    let mut got = body.len();
+    body.resize(len, 0);
+    while got < len {
+        match read_before(stream, &mut body[got..], deadline)? {
+            0 => return Err(HttpError::Io(io::ErrorKind::UnexpectedEof.into())),
+            n => got += n,
+        }
     }
     req.body = body;
     Ok(req)
+}
+
+/// One `read` that returns by `deadline`: [`HttpError::Timeout`] once it has passed.
+fn read_before(stream: &mut TcpStream, buf: &mut [u8], deadline: Instant) -> Result<usize, HttpError> {
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(HttpError::Timeout);
+        }
+        stream.set_read_timeout(Some(left))?;
+        match stream.read(buf) {
+            Ok(n) => return Ok(n),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                return Err(HttpError::Timeout);
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+}
+
+/// A response header's value: visible ASCII with inner spaces or tabs (RFC 9110, section 5.5,
+/// `field-value` without `obs-text`), at most [`MAX_HEADER_VALUE_BYTES`]. The only way into a
+/// response head, so that no byte a request sent (a CR, a LF, a NUL) is ever written there raw.
+#[derive(Clone, PartialEq, Eq)]
+pub struct HeaderValue(std::borrow::Cow<'static, str>);
+
+/// Longest response header value, bytes.
+pub const MAX_HEADER_VALUE_BYTES: usize = 4096;
+
+/// A value [`HeaderValue`] refuses.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("not a header value ({0}): only visible ASCII and inner spaces are written into a response head")]
+pub struct BadHeaderValue(&'static str);
+
+/// Why `v` is not a header value, or `None` when it is one.
+const fn header_value_fault(v: &[u8]) -> Option<&'static str> {
+    if v.len() > MAX_HEADER_VALUE_BYTES {
+        return Some("too long");
+    }
+    if let [first, .., last] | [first @ last] = v
+        && (matches!(*first, b' ' | b'\t') || matches!(*last, b' ' | b'\t'))
+    {
+        return Some("space at an end");
+    }
+    let mut i = 0;
+    while i < v.len() {
+        let c = v[i];
+        if !(c == b' ' || c == b'\t' || (c > 0x20 && c < 0x7f)) {
+            return Some(if c == b'\r' || c == b'\n' {
+                "a line break"
+            } else {
+                "a control or non-ASCII byte"
+            });
+        }
+        i += 1;
+    }
+    None
+}
+
+impl HeaderValue {
+    /// A value built at run time, checked.
+    pub fn new(value: impl Into<String>) -> Result<HeaderValue, BadHeaderValue> {
+        let value = value.into();
+        match header_value_fault(value.as_bytes()) {
+            Some(why) => Err(BadHeaderValue(why)),
+            None => Ok(HeaderValue(value.into())),
+        }
+    }
+
+    /// A value written in the source; checked when compiled if used in a `const`, else it
+    /// panics (a programmer's error, found by any test that builds the response).
+    pub const fn from_static(value: &'static str) -> HeaderValue {
+        if header_value_fault(value.as_bytes()).is_some() {
+            panic!("not a header value");
+        }
+        HeaderValue(std::borrow::Cow::Borrowed(value))
+    }
+
+    /// A number.
+    pub fn number(n: impl Into<u64>) -> HeaderValue {
+        HeaderValue(n.into().to_string().into())
+    }
+
+    /// The value.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl fmt::Debug for HeaderValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(&*self.0, f)
+    }
+}
+
+impl fmt::Display for HeaderValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// A download's `Content-Disposition: attachment; filename="NAME"`, or `None` when `name`
+/// holds anything but letters, digits and `-_.` (a name that could close the quotes).
+pub fn attachment(name: &str) -> Option<HeaderValue> {
+    let plain = !name.is_empty() && name.bytes().all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b));
+    if !plain {
+        return None;
+    }
+    HeaderValue::new(format!("attachment; filename=\"{name}\"")).ok()
 }
 
 /// The reason phrase of the statuses the console answers with.
@@ -216,6 +365,7 @@ pub fn reason(status: u16) -> &'static str {
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        408 => "Request Timeout",
         409 => "Conflict",
         413 => "Content Too Large",
         426 => "Upgrade Required",
@@ -233,7 +383,7 @@ pub struct Response {
     /// `Content-Type`.
     pub content_type: &'static str,
     /// More headers.
-    pub headers: Vec<(&'static str, String)>,
+    pub headers: Vec<(&'static str, HeaderValue)>,
     /// The body.
     pub body: Vec<u8>,
 }
@@ -255,8 +405,8 @@ impl Response {
     }
 
     /// Adds a header.
-    pub fn with(mut self, name: &'static str, value: impl Into<String>) -> Response {
-        self.headers.push((name, value.into()));
+    pub fn with(mut self, name: &'static str, value: HeaderValue) -> Response {
+        self.headers.push((name, value));
         self
     }
 
@@ -332,9 +482,9 @@ impl HandshakeError {
     pub fn response(&self) -> Response {
         match self {
             HandshakeError::Version(_) => Response::error(426, self.to_string())
-                .with("Sec-WebSocket-Version", WEBSOCKET_VERSION)
-                .with("Upgrade", "websocket")
-                .with("Connection", "Upgrade, close"),
+                .with("Sec-WebSocket-Version", HeaderValue::from_static(WEBSOCKET_VERSION))
+                .with("Upgrade", HeaderValue::from_static("websocket"))
+                .with("Connection", HeaderValue::from_static("Upgrade, close")),
             _ => Response::error(400, self.to_string()),
         }
     }
@@ -475,7 +625,7 @@ mod tests {
 
     #[test]
     fn a_head_answer_is_gets_head_without_the_body() {
-        let r = Response::new(200, "text/plain", "hello").with("X-A", "b");
+        let r = Response::new(200, "text/plain", "hello").with("X-A", HeaderValue::from_static("b"));
         let (mut get, mut head) = (Vec::new(), Vec::new());
         r.write_for("GET", &mut get).unwrap();
         r.write_for("HEAD", &mut head).unwrap();
@@ -537,5 +687,67 @@ mod tests {
             assert_eq!(e, want);
             assert_eq!(e.response().status, 400, "{e}");
         }
+    }
+
+    #[test]
+    fn header_values_refuse_line_breaks_and_controls() {
+        // RFC 9110, section 5.5: field-value = *field-content; no CR, LF or NUL, ever.
+        for bad in ["a\r\nSet-Cookie: x=1", "a\nb", "a\rb", "a\0b", "\u{7f}", "é", " lead", "trail\t"] {
+            assert!(HeaderValue::new(bad).is_err(), "{bad:?}");
+        }
+        for good in ["", "a", "attachment; filename=\"t.glb\"", "a b\tc", "x=1; Path=/"] {
+            assert_eq!(HeaderValue::new(good).unwrap().as_str(), good);
+        }
+        assert!(HeaderValue::new("x".repeat(MAX_HEADER_VALUE_BYTES + 1)).is_err());
+        assert_eq!(HeaderValue::number(42u64).as_str(), "42");
+        // A download's name that could leave its quotes gets no header at all.
+        assert_eq!(attachment("take-1.glb").unwrap().as_str(), "attachment; filename=\"take-1.glb\"");
+        for bad in ["a\"b", "a\r\nb", "a;b", "", "a b"] {
+            assert!(attachment(bad).is_none(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn a_response_head_holds_only_checked_values() {
+        let r = Response::new(200, "text/plain", "x").with("Set-Cookie", HeaderValue::new("a=b").unwrap());
+        let mut out = Vec::new();
+        r.write_to(&mut out).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let head = text.split("\r\n\r\n").next().unwrap();
+        assert_eq!(head.lines().filter(|l| l.starts_with("Set-Cookie")).count(), 1, "{head}");
+    }
+
+    #[test]
+    fn a_second_host_or_origin_is_refused() {
+        // RFC 9112, section 3.2: a request with more than one Host is answered 400.
+        for name in ["Host", "Origin", "Authorization", "Cookie"] {
+            let (status, text) = refusal(&format!("GET / HTTP/1.1\r\n{name}: a\r\n{name}: a\r\n\r\n"));
+            assert_eq!(status, Some(400), "{name}: {text}");
+            assert!(text.contains(&format!("2 {} headers", name.to_ascii_lowercase())), "{text}");
+        }
+    }
+
+    #[test]
+    fn a_request_trickled_past_its_deadline_times_out() {
+        use std::net::TcpListener;
+        use std::time::Duration;
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let mut client = TcpStream::connect(l.local_addr().unwrap()).unwrap();
+        let (mut server, _) = l.accept().unwrap();
+        let writer = std::thread::spawn(move || {
+            // One byte every 20 ms: each read succeeds well within any per-read timeout.
+            for b in b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX: aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa" {
+                if client.write_all(&[*b]).is_err() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        });
+        let start = Instant::now();
+        let e = read_request(&mut server, start + Duration::from_millis(300), MAX_BODY_BYTES).unwrap_err();
+        assert!(matches!(e, HttpError::Timeout), "{e}");
+        assert_eq!(e.status(), Some(408));
+        drop(server);
+        writer.join().unwrap();
     }
 }

@@ -5,6 +5,7 @@
 
 mod access;
 mod calibration;
+mod hostile;
 mod kinematics;
 mod view;
 
@@ -18,11 +19,20 @@ use frond_webdriver::Driver;
 
 /// Starts `frond-console ARGS` on `daemon` and returns it with its URL and the whole first line.
 pub(super) fn start_console(daemon: &Daemon, args: &[&str]) -> (Proc, String, String) {
+    start_console_on(&daemon.socket_dir, &daemon.takes_dir, args)
+}
+
+/// Starts `frond-console ARGS` on the daemon of `socket_dir`, as [`start_console`].
+pub(super) fn start_console_on(
+    socket_dir: &std::path::Path,
+    takes_dir: &std::path::Path,
+    args: &[&str],
+) -> (Proc, String, String) {
     let mut child = Command::new(bin("frond-console"))
         .arg("--socket-dir")
-        .arg(&daemon.socket_dir)
+        .arg(socket_dir)
         .arg("--takes-dir")
-        .arg(&daemon.takes_dir)
+        .arg(takes_dir)
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())

@@ -202,6 +202,18 @@ pub fn browser() -> Option<(PathBuf, PathBuf)> {
 
 /// Starts chromedriver and a headless Chromium session of `width x height` on `url`.
 pub fn start_session(chromium: &Path, driver: &Path, profile: &Path, window: &str, url: &str) -> Driver {
+    start_session_with(chromium, driver, profile, window, url, &[])
+}
+
+/// [`start_session`] with more Chromium switches (`--host-resolver-rules=...`).
+pub fn start_session_with(
+    chromium: &Path,
+    driver: &Path,
+    profile: &Path,
+    window: &str,
+    url: &str,
+    extra: &[&str],
+) -> Driver {
     let port = free_port();
     let wd = Command::new(driver)
         .arg(format!("--port={port}"))
@@ -216,18 +228,28 @@ pub fn start_session(chromium: &Path, driver: &Path, profile: &Path, window: &st
             .and_then(|(_, b)| serde_json::from_slice::<Value>(&b).ok())
             .filter(|v| v["value"]["ready"] == json!(true))
     });
+    let mut args: Vec<String> = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        // WebGL on the CPU (SwiftShader): the machines that run the tests have no GPU.
+        "--enable-unsafe-swiftshader",
+        "--use-angle=swiftshader",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect();
+    args.push(format!("--user-data-dir={}", profile.display()));
+    args.push(format!("--window-size={window}"));
+    args.extend(extra.iter().map(|a| a.to_string()));
     let caps = json!({ "capabilities": { "alwaysMatch": {
         "browserName": "chrome",
-        "goog:chromeOptions": {
-            "binary": chromium.to_string_lossy(),
-            "args": [
-                "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                // WebGL on the CPU (SwiftShader): the machines that run the tests have no GPU.
-                "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
-                "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                format!("--user-data-dir={}", profile.display()), format!("--window-size={window}")
-            ]
-        }
+        "goog:chromeOptions": { "binary": chromium.to_string_lossy(), "args": args }
     }}});
     let (status, body) = http(port, "POST", "/session", Some(&caps)).expect("new session");
     let v: Value = serde_json::from_slice(&body).unwrap();

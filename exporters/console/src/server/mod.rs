@@ -1,6 +1,8 @@
-//! The console's server (the pose and warp WebSockets in `sockets`): one thread accepts, each connection gets a short-lived thread (at most
-//! [`MAX_CONNECTIONS`] at once, the rest answered 503), and each page's pose WebSocket a thread
-//! that sends the latest poses at the display rate.
+//! The console's endpoints (the pose and warp WebSockets in `sockets`), a [`Site`] of
+//! `frond_web`'s server: it admits connections (no slow client locks the operator out), reads
+//! each request within its deadline and checks it against the access policy before the console
+//! sees it. Each page's pose WebSocket has a thread that sends the latest poses at the display
+//! rate.
 //!
 //! Endpoints (all behind [`crate::access`]):
 //! - `GET /` the page; `/console.js`, `/console.css`; three.js under `/vendor/`;
@@ -29,30 +31,36 @@ use std::io;
 use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use frond_protocol::{ControlReply, ControlRequest, StageSpec};
-use frond_sdk::{ControlClient, Hello};
+use frond_sdk::Hello;
 use serde_json::{Value, json};
 
 mod sockets;
 
-use crate::access::{Access, Purpose, RequestMeta, TOKEN_COOKIE};
+use frond_web::access::{Access, Grant, Refusal};
+use frond_web::gate::{Gate, Limits};
+use frond_web::http::{HeaderValue, Request, Response, attachment};
+use frond_web::server::{Server, Site};
+use frond_web::work::WorkLimit;
+
 use crate::actions;
 use crate::calibrate::Calibrations;
-use crate::http::{self, Request, Response};
+use crate::daemon_link::DaemonLink;
 use crate::relay::{Live, latency_json_of};
 use crate::scene::{self, RigScene};
 use crate::takes;
 use crate::warp_panel::{self, WarpPanel};
 
-/// Most connections served at once.
-pub const MAX_CONNECTIONS: usize = 64;
 /// Most pose WebSockets at once.
 pub const MAX_SOCKETS: usize = 16;
-/// How long a connection may take to send its request, and a write may block.
-const IO_TIMEOUT: Duration = Duration::from_secs(10);
+/// Heavy requests answered at once (a take baked, scanned or resampled); more wait
+/// 5 s, then are answered 503.
+pub const MAX_HEAVY: usize = 2;
+/// How long a heavy request waits for its turn.
+const HEAVY_WAIT: Duration = Duration::from_secs(5);
 /// Most bytes queued for a slow page before its frames are dropped (the latest still follows).
 const MAX_QUEUED_BYTES: usize = 256 * 1024;
 
@@ -78,7 +86,6 @@ pub struct Config {
 #[derive(Debug, Default)]
 struct Counters {
     sockets: AtomicUsize,
-    connections: AtomicUsize,
     messages: AtomicU64,
     poses_sent: AtomicU64,
     dropped: AtomicU64,
@@ -97,6 +104,14 @@ pub struct Console {
     warp: Option<Arc<WarpPanel>>,
     /// The guided calibration.
     calibrations: Arc<Calibrations>,
+    /// The one control connection that status reads and actions share.
+    daemon: DaemonLink,
+    /// The index of the takes directory.
+    takes: takes::TakeIndex,
+    /// Heavy requests at once.
+    heavy: WorkLimit,
+    /// The server's admission gate, once serving (for status).
+    gate: OnceLock<Arc<Gate>>,
 }
 
 const INDEX_HTML: &str = include_str!("../../page/index.html");
@@ -128,73 +143,31 @@ impl Console {
             None
         };
         Ok(Arc::new(Console {
-            config,
             live,
             counters: Counters::default(),
             scenes: Mutex::default(),
             field: Mutex::default(),
             warp,
             calibrations: Arc::default(),
+            daemon: DaemonLink::new(config.socket_dir.clone()),
+            takes: takes::TakeIndex::new(config.takes_dir.clone()),
+            heavy: WorkLimit::new(MAX_HEAVY),
+            gate: OnceLock::new(),
+            config,
         }))
     }
 
     /// Serves `listener` until the process ends.
     pub fn serve(self: &Arc<Console>, listener: TcpListener) {
-        for stream in listener.incoming() {
-            let Ok(mut stream) = stream else { continue };
-            if self.counters.connections.fetch_add(1, Ordering::AcqRel) >= MAX_CONNECTIONS {
-                self.counters.connections.fetch_sub(1, Ordering::AcqRel);
-                let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
-                let _ = Response::error(503, "too many connections; try again").write_to(&mut stream);
-                continue;
-            }
-            let me = Arc::clone(self);
-            let spawned = std::thread::Builder::new().name("console-conn".into()).spawn(move || {
-                me.connection(stream);
-                me.counters.connections.fetch_sub(1, Ordering::AcqRel);
-            });
-            if spawned.is_err() {
-                self.counters.connections.fetch_sub(1, Ordering::AcqRel);
-            }
-        }
+        let server =
+            Server::new(self.config.access.clone(), Limits::default(), Arc::clone(self) as Arc<dyn Site>);
+        let _ = self.gate.set(Arc::clone(server.gate()));
+        server.serve(listener);
     }
 
-    fn connection(&self, mut stream: TcpStream) {
-        let _ = stream.set_read_timeout(Some(IO_TIMEOUT));
-        let _ = stream.set_write_timeout(Some(IO_TIMEOUT));
-        let req = match http::read_request(&mut stream) {
-            Ok(r) => r,
-            Err(e) => {
-                if let Some(status) = e.status() {
-                    let _ = Response::error(status, e.to_string()).write_to(&mut stream);
-                }
-                return;
-            }
-        };
-        let purpose = match (req.method.as_str(), req.is_websocket()) {
-            (_, true) => Purpose::Socket,
-            ("POST", _) => Purpose::Control,
-            _ => Purpose::Read,
-        };
-        let meta = RequestMeta {
-            host: req.header("host"),
-            origin: req.header("origin"),
-            authorization: req.header("authorization"),
-            cookie: req.header("cookie"),
-            query_token: req.param("token"),
-        };
-        if let Err(refusal) = self.config.access.check(&meta, purpose) {
-            self.counters.refused.fetch_add(1, Ordering::Relaxed);
-            let _ =
-                Response::error(refusal.status(), refusal.to_string()).write_for(&req.method, &mut stream);
-            return;
-        }
-        if purpose == Purpose::Socket {
-            self.socket(req, stream);
-            return;
-        }
-        let resp = self.route(&req);
-        let _ = resp.write_for(&req.method, &mut stream);
+    /// A heavy request's answer, once its turn comes (503 when none came in time).
+    fn heavy(&self, work: impl FnOnce() -> Response) -> Response {
+        self.heavy.run(HEAVY_WAIT, work).unwrap_or_else(|busy| Response::error(503, busy.to_string()))
     }
 
     /// The answer to `req`: 404 for a path that is not served, 405 with the methods it takes
@@ -208,7 +181,7 @@ impl Console {
                 405,
                 format!("{} {} is not served; it takes {allow}", req.method, req.path),
             )
-            .with("Allow", allow);
+            .with("Allow", HeaderValue::from_static(allow));
         }
         if allow == POST { self.post(req) } else { self.get(req) }
     }
@@ -216,15 +189,8 @@ impl Console {
     /// A `GET` (or `HEAD`) of a path [`methods`] lists.
     fn get(&self, req: &Request) -> Response {
         match req.path.as_str() {
-            "/" => {
-                let mut r = Response::new(200, "text/html; charset=utf-8", INDEX_HTML);
-                if let Some(t) = req.param("token") {
-                    // The check passed, so this is the token: keep it for the page's requests.
-                    r = r
-                        .with("Set-Cookie", format!("{TOKEN_COOKIE}={t}; Path=/; HttpOnly; SameSite=Strict"));
-                }
-                r
-            }
+            // The server sets the token cookie when the token matched.
+            "/" => Response::new(200, "text/html; charset=utf-8", INDEX_HTML),
             "/console.js" => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
             "/console.css" => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
             "/api/hello" => Response::json(200, &self.hello_json()),
@@ -246,17 +212,17 @@ impl Console {
                 200,
                 self.field.lock().unwrap_or_else(|e| e.into_inner()).as_ref().unwrap_or(&Value::Null),
             ),
-            "/api/takes" => Response::json(200, &takes::list(&self.config.takes_dir)),
+            "/api/takes" => self.heavy(|| Response::json(200, &self.takes.list())),
             // A WebSocket's path without the upgrade (RFC 9110, section 15.5.22).
             "/ws" | "/ws/warp" => {
                 Response::error(426, format!("{} is a WebSocket: open it with an upgrade", req.path))
-                    .with("Upgrade", "websocket")
-                    .with("Connection", "Upgrade, close")
+                    .with("Upgrade", HeaderValue::from_static("websocket"))
+                    .with("Connection", HeaderValue::from_static("Upgrade, close"))
             }
-            p if p.starts_with("/api/takes/") => self.take_file(&p["/api/takes/".len()..]),
+            p if p.starts_with("/api/takes/") => self.heavy(|| self.take_file(&p["/api/takes/".len()..])),
             p => match VENDOR.iter().find(|(path, _)| *path == p) {
                 Some((_, body)) => Response::new(200, "text/javascript; charset=utf-8", *body)
-                    .with("Cache-Control", "max-age=3600"),
+                    .with("Cache-Control", HeaderValue::from_static("max-age=3600")),
                 None => Response::error(404, format!("no {p} here")),
             },
         }
@@ -268,10 +234,10 @@ impl Console {
             "/api/field/start" => self.field_start(req),
             "/api/takes/repair" => {
                 match json_body(req).map(|b| b.get("take").and_then(Value::as_str).map(str::to_string)) {
-                    Ok(Some(take)) => match takes::repair(&self.config.takes_dir, &take) {
+                    Ok(Some(take)) => self.heavy(|| match takes::repair(&self.config.takes_dir, &take) {
                         Ok(v) => Response::json(200, &v),
                         Err(e) => Response::error(e.status, e.message),
-                    },
+                    }),
                     Ok(None) => Response::error(400, "repair needs {\"take\": \"...\"}"),
                     Err(r) => r,
                 }
@@ -289,17 +255,18 @@ impl Console {
         if let Some(name) = rest.strip_suffix("/play") {
             answer(takes::playback(&self.config.takes_dir, name).map(|v| Response::json(200, &v)))
         } else if let Some(name) = rest.strip_suffix(".jsonl") {
-            answer(takes::jsonl(&self.config.takes_dir, name).map(|t| {
-                Response::new(200, "application/x-ndjson", t)
-                    .with("Content-Disposition", format!("attachment; filename=\"{name}.jsonl\""))
-            }))
+            answer(
+                takes::jsonl(&self.config.takes_dir, name).map(|t| {
+                    download(Response::new(200, "application/x-ndjson", t), &format!("{name}.jsonl"))
+                }),
+            )
         } else if let Some(name) = rest.strip_suffix(".glb") {
             let daemons = self.live.lock().hello.as_ref().map(|h| h.rig_name.clone());
             let own = self.config.rig.as_deref().map(|s| &s.loaded);
-            answer(takes::glb(&self.config.takes_dir, name, daemons.as_deref(), own).map(|b| {
-                Response::new(200, "model/gltf-binary", b)
-                    .with("Content-Disposition", format!("attachment; filename=\"{name}.glb\""))
-            }))
+            answer(
+                takes::glb(&self.config.takes_dir, name, daemons.as_deref(), own)
+                    .map(|b| download(Response::new(200, "model/gltf-binary", b), &format!("{name}.glb"))),
+            )
         } else {
             Response::error(404, format!("no /api/takes/{rest} here (NAME/play, NAME.glb, NAME.jsonl)"))
         }
@@ -366,6 +333,7 @@ impl Console {
                 "poses_sent": self.counters.poses_sent.load(Ordering::Relaxed),
                 "dropped": self.counters.dropped.load(Ordering::Relaxed),
                 "refused": self.counters.refused.load(Ordering::Relaxed),
+                "connections": self.gate.get().map(|g| gate_json(g)),
                 "glove_clock_foreign": s.glove_foreign,
             });
             (console, s.latency.values.clone(), s.glove.values.clone())
@@ -373,9 +341,7 @@ impl Console {
         console["latency"] = latency_json_of(&latency);
         // `null` when the glove's clock is not the host's (`glove_clock_foreign` counts those).
         console["glove_latency"] = if glove.is_empty() { Value::Null } else { latency_json_of(&glove) };
-        let daemon = ControlClient::connect_with_timeout(&self.config.socket_dir, Duration::from_secs(2))
-            .and_then(|mut c| c.status());
-        match daemon {
+        match self.daemon.status() {
             Ok(report) => match serde_json::to_value(&report) {
                 Ok(v) => {
                     let health: Vec<Value> = frond_sdk::health::problems(&report)
@@ -462,8 +428,7 @@ impl Console {
 
     /// Sends one control request; the daemon's answer as the page's.
     fn act(&self, request: &ControlRequest) -> Response {
-        let reply = ControlClient::connect(&self.config.socket_dir).and_then(|mut c| c.request(request));
-        match reply {
+        match self.daemon.request(request) {
             Ok(ControlReply::Recording(r)) => Response::json(
                 200,
                 &json!({"ok": true, "recording": {"name": r.name, "path": r.path, "frames": r.frames, "dropped": r.dropped, "active": r.active}}),
@@ -497,6 +462,43 @@ fn methods(path: &str) -> Option<&'static str> {
         p if p.starts_with("/api/takes/") => Some(GET_HEAD),
         p if VENDOR.iter().any(|(v, _)| *v == p) => Some(GET_HEAD),
         _ => None,
+    }
+}
+
+/// `resp` as a download named `file` (a take's name, checked before: never anything that could
+/// leave the quotes; a name that could is sent without the header).
+fn download(resp: Response, file: &str) -> Response {
+    match attachment(file) {
+        Some(v) => resp.with("Content-Disposition", v),
+        None => resp,
+    }
+}
+
+/// The gate's counters for status: connections reading and answering, and what it turned away.
+fn gate_json(g: &Gate) -> Value {
+    let (reading, answering) = g.load();
+    let c = &g.counters;
+    json!({
+        "reading": reading,
+        "answering": answering,
+        "admitted": c.admitted.load(Ordering::Relaxed),
+        "evicted": c.evicted.load(Ordering::Relaxed),
+        "timed_out": c.timed_out.load(Ordering::Relaxed),
+        "full": c.full.load(Ordering::Relaxed),
+    })
+}
+
+impl Site for Console {
+    fn answer(&self, req: &Request, _grant: Grant) -> Response {
+        self.route(req)
+    }
+
+    fn upgrade(&self, req: Request, stream: TcpStream) {
+        self.socket(req, stream);
+    }
+
+    fn refused(&self, _refusal: &Refusal) {
+        self.counters.refused.fetch_add(1, Ordering::Relaxed);
     }
 }
 

@@ -14,8 +14,8 @@ use tungstenite::protocol::{Role, WebSocketConfig};
 use tungstenite::{Message, WebSocket};
 
 use super::{Console, MAX_QUEUED_BYTES, MAX_SOCKETS};
-use crate::http::{self, Request, Response};
 use crate::warp_panel::{self, WarpPanel};
+use frond_web::http::{self, Request, Response};
 
 impl Console {
     /// A WebSocket upgrade: its path (404), its handshake (400, 426: [`http::check_websocket`]),
