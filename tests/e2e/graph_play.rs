@@ -173,6 +173,22 @@ fn the_simulated_plant_runs_live_and_the_hand_blows_it() {
     let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
     let bad = daemon.frond().args(["sim", "start", "--wind", "speed=fast"]).output().unwrap();
     assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    // Issue 42: a time step whose steps do not fit in the tick is refused with the reason (it
+    // was accepted, and the plant ran at half speed). 1 ms over 10 us is 100 steps a tick; a
+    // stage's share of a 1 kHz tick (62.5 us) holds 2 steps of 30 us.
+    let rig = dir.path().join("fine.toml");
+    let grass = std::fs::read_to_string(frond_e2e::repo_root().join("rig-files/plants/grass.toml")).unwrap();
+    std::fs::write(&rig, format!("{grass}\n[sim]\ntimestep_s = 0.00001\n")).unwrap();
+    let out = daemon.frond().args(["sim", "start", "--rig"]).arg(&rig).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("sim.timestep_s = 0.00001 s asks for 100 simulation steps per tick at 1000 Hz")
+            && err.contains("at most 2")
+            && err.contains("at least 0.0005 s"),
+        "{err}"
+    );
+    assert!(daemon.status().modes.is_empty(), "nothing started: {:?}", daemon.status().modes);
     daemon.frond_ok(&["sim", "start", "--wind", "speed=3,dir=90,gust=0,seed=1"]);
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     let mut sim_frames = Vec::new();

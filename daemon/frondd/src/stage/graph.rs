@@ -472,7 +472,23 @@ fn load_source(take: &str, graph: &str, ctx: &BuildContext) -> Result<(GraphSour
     let bytes = super::read_take(ctx.takes_dir, take)?;
     let (t, damage) = Take::from_bytes_noting_damage(&bytes)
         .map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
-    let poses = t.clip(GLOBAL_LAYER, file.fps).frames;
+    // The take is resampled to the graph's rate only once it is known to give the frames the
+    // graph was built on: counted first, so that a take whose times stretch it (frames a second
+    // apart at 1000 fps) costs nothing before it is refused.
+    let recorded: Vec<PoseFrame> = t.layer(GLOBAL_LAYER, false).iter().map(|f| f.pose).collect();
+    drop(t);
+    let plan = frond_motion::take::resample_plan(&recorded, file.fps);
+    if plan.frames != u64::from(file.take_frames) {
+        return Err(BuildError::invalid(format!(
+            "graph {graph:?} was built on {} frames at {} fps, but take {take:?} makes {} frames at that rate{}",
+            file.take_frames,
+            file.fps,
+            plan.frames,
+            damage.map(|d| format!(" (damaged: {d})")).unwrap_or_default()
+        )));
+    }
+    let poses = frond_motion::clip::Clip::from_poses(&recorded, file.fps).frames;
+    drop(recorded);
     let motion_graph = file.graph_for(&poses).map_err(|e| {
         BuildError::invalid(format!(
             "graph {graph:?} and take {take:?}{}: {e}",
@@ -603,6 +619,53 @@ mod tests {
                 "a walk of 64 plants on graphs at 30 fps asks for 128 walk frames per tick at 8000 Hz"
             ),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn a_take_is_counted_at_the_graphs_rate_before_it_is_resampled() {
+        use frond_motion::layers::Take;
+        use frond_motion::take::{TakeFrame, TakeHeader};
+        let dir = tempfile::tempdir().unwrap();
+        // A graph of 600 sway frames at 30 fps, and a take of 2000 frames 0.9 s apart (each gap
+        // under the 1 s discontinuity rule, so interpolated): 1999 * 0.9 s = 1799.1 s at 30 fps
+        // is frames 0..=53973, 53974 frames, not the 600 the graph was built on.
+        let sway = frond_motion::graph::sample_sway(600);
+        let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
+        let params = GraphParams::new(ControlPoint::Top);
+        let graph = build_graph(&sway, &path, &params).unwrap();
+        let file = GraphFile::new(&graph, &params, "stretched", 30.0, &sway);
+        std::fs::write(dir.path().join("stretched.graph.json"), file.to_json()).unwrap();
+        let frames = (0..2000u64)
+            .map(|k| TakeFrame {
+                seq: k,
+                pose: PoseFrame { t: 0.9 * k as f64, joints_deg: [[k as f32 * 0.01; 3]; 4] },
+                ..Default::default()
+            })
+            .collect();
+        let take = Take {
+            header: TakeHeader::offline("stretched", "grass", 30),
+            element_names: vec![],
+            frames,
+            markers: vec![],
+        };
+        std::fs::write(dir.path().join("stretched.take"), take.to_bytes()).unwrap();
+        let rig = frond_motion::Rig::from_toml_str(include_str!("../../../../rig-files/plants/grass.toml"))
+            .unwrap();
+        let ctx = BuildContext {
+            takes_dir: dir.path(),
+            rig: &rig,
+            g3_range_deg: 60.0,
+            tick_rate_hz: 1000,
+            now_ns: 0,
+            free_ids: &[33],
+            name: "walk",
+        };
+        let e = load_source("stretched", "stretched", &ctx).err().unwrap().message;
+        assert_eq!(
+            e,
+            "graph \"stretched\" was built on 600 frames at 30 fps, but take \"stretched\" makes 53974 \
+             frames at that rate"
         );
     }
 
