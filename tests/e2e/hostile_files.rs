@@ -80,3 +80,32 @@ fn fifos_devices_and_directories_are_refused_without_blocking() {
         assert!(err.contains(path) && err.contains(what), "frond {args:?}: {err}");
     }
 }
+
+/// Issue 42, section 5: a calibration whose id carries a line break and a fake status line is
+/// refused where it enters, by the daemon's own check (a file at start-up, or a control request
+/// sent past `frond`'s check), so `frond status` never prints it.
+#[test]
+fn a_calibration_id_that_would_draw_a_status_line_is_refused_where_it_enters() {
+    let dir = tempfile::tempdir().unwrap();
+    let hostile = "id = \"bob\\nPROBLEM      none\"\nneutral_wrist_deg = [0, 0, 0]\n\
+                   neutral_thumb_deg = [0, 0, 0]\nthumb_range_deg = [60, 60, 60]\n";
+    let file = dir.path().join("bob.toml");
+    std::fs::write(&file, hostile).unwrap();
+    let mut c = Command::new(bin("frondd"));
+    c.arg("--socket-dir").arg(dir.path().join("run0")).arg("--takes-dir").arg(dir.path().join("takes"));
+    c.args(["--source", "in-process", "--calibration"]).arg(&file);
+    let out = run_bounded(c);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "frondd started with {hostile:?}");
+    assert!(err.contains("id: contains the control character '\\n'; a name must be printable"), "{err}");
+    // A running daemon refuses the same calibration sent as a raw request.
+    let daemon = frond_e2e::Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    let mut control = frond_sdk::control::ControlClient::connect(&daemon.socket_dir).unwrap();
+    let reply = control
+        .request(&frond_protocol::ControlRequest::SetCalibration { id: "bob".into(), toml: hostile.into() });
+    let said = format!("{reply:?}");
+    assert!(said.contains("Invalid") && said.contains("a name must be printable"), "{said}");
+    let text = daemon.frond_ok(&["status"]);
+    assert!(!text.lines().any(|l| l.starts_with("PROBLEM")), "{text}");
+    assert!(text.contains("calibration  none\n"), "{text}");
+}
