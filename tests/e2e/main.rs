@@ -3,6 +3,7 @@
 mod cli_habits;
 mod console;
 mod demo;
+mod docs;
 mod doctor;
 mod graph_play;
 mod hands;
@@ -17,6 +18,7 @@ mod plausible;
 #[path = "../support/python.rs"]
 mod python;
 mod rt_syscalls;
+mod sdk_example;
 mod slow_subscriber;
 mod soak;
 mod socket_dir;

@@ -3,6 +3,17 @@
 //! stream). The daemon decides who may send what (its allow-list of uids and gids); a refusal is
 //! [`ControlClientError::Refused`] with the daemon's own words. `frond` and `frond-console` both
 //! act through it.
+//!
+//! ```no_run
+//! use frond_protocol::ControlRequest;
+//! use frond_sdk::ControlClient;
+//!
+//! let mut daemon = ControlClient::connect(&frond_protocol::paths::socket_dir(None))?;
+//! let status = daemon.status()?;
+//! println!("{} at {:.0} Hz", status.rig_name, status.achieved_rate_hz);
+//! daemon.request(&ControlRequest::RecordStart { name: "take-1".into() })?;
+//! # Ok::<(), frond_sdk::ControlClientError>(())
+//! ```
 
 use std::io;
 use std::os::unix::net::UnixStream;

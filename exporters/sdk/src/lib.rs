@@ -65,6 +65,22 @@ use conn::{Conn, ReadOutcome};
 use frond_protocol::ServerMessage;
 
 /// What [`Subscriber::next_event`] reports.
+///
+/// ```no_run
+/// use frond_sdk::{Event, Subscriber};
+///
+/// let mut sub = Subscriber::connect(frond_protocol::paths::socket_dir(None))?;
+/// loop {
+///     match sub.next_event()? {
+///         Event::Pose(p) => println!("element {} seq {}: {:?}", p.element, p.seq, p.joints_deg),
+///         Event::Gap { expected, got } => eprintln!("{} frames lost", got - expected),
+///         Event::Elements(table) => eprintln!("{} elements now", table.elements.len()),
+///         Event::RigChanged(hello) | Event::Reconnected(hello) => eprintln!("rig {}", hello.rig_name),
+///         Event::Disconnected => eprintln!("the daemon went away; reconnecting"),
+///     }
+/// }
+/// # Ok::<(), frond_sdk::SdkError>(())
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
     /// One pose, in order.
