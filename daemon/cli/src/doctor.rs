@@ -419,21 +419,53 @@ pub(crate) fn run(g: &Global, json: bool) -> anyhow::Result<bool> {
     if json {
         frond_binmain::outln!("{}", serde_json::json!({ "healthy": healthy, "checks": all }))?;
     } else {
-        for c in &all {
-            let mark = match c.verdict {
-                Verdict::Ok => "ok     ",
-                Verdict::Warn => "warn   ",
-                Verdict::Problem => "PROBLEM",
-            };
-            frond_binmain::outln!("{mark} {:<10} {}", c.name, c.found)?;
-            if let Some(fix) = &c.fix {
-                frond_binmain::outln!("        {:<10} fix: {fix}", "")?;
-            }
-        }
-        frond_binmain::outln!(
-            "{}",
-            if healthy { "nothing needs fixing" } else { "something needs fixing (PROBLEM above)" }
-        )?;
+        frond_binmain::out!("{}", render(&all, healthy))?;
     }
     Ok(healthy)
+}
+
+/// The readable report: a line per check (and one per fix), then the verdict. What a check
+/// found quotes the daemon's report (versions, paths, names, problems), so it is escaped
+/// ([`frond_protocol::printable`]): none of it can draw a line of its own.
+fn render(all: &[Check], healthy: bool) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    for c in all {
+        let mark = match c.verdict {
+            Verdict::Ok => "ok     ",
+            Verdict::Warn => "warn   ",
+            Verdict::Problem => "PROBLEM",
+        };
+        let _ = writeln!(o, "{mark} {:<10} {}", c.name, frond_protocol::printable(&c.found));
+        if let Some(fix) = &c.fix {
+            let _ = writeln!(o, "        {:<10} fix: {}", "", frond_protocol::printable(fix));
+        }
+    }
+    let _ = writeln!(
+        o,
+        "{}",
+        if healthy { "nothing needs fixing" } else { "something needs fixing (PROBLEM above)" }
+    );
+    o
+}
+
+#[cfg(test)]
+mod render_tests {
+    use super::*;
+
+    #[test]
+    fn what_a_check_found_cannot_draw_a_line_of_its_own() {
+        let fake = "frondd 1\nok      glove      fine\u{1b}[1A".to_string();
+        let all = [check("daemon", Verdict::Problem, fake.clone(), Some(fake))];
+        let t = render(&all, false);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(
+            lines,
+            [
+                "PROBLEM daemon     frondd 1\\nok      glove      fine\\u{1b}[1A",
+                "                   fix: frondd 1\\nok      glove      fine\\u{1b}[1A",
+                "something needs fixing (PROBLEM above)",
+            ]
+        );
+    }
 }

@@ -46,7 +46,7 @@ fn run_stage(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
             if i > 0 {
                 frond_binmain::outln!()?;
             }
-            frond_binmain::outln!("== {}", short(key))?;
+            frond_binmain::outln!("== {}", frond_protocol::printable(short(key)))?;
             frond_binmain::out!("{}", render(report))?;
         }
     }
