@@ -166,7 +166,7 @@ fn refused_osc_datagrams_are_counted_by_reason_and_logged_at_a_bounded_rate() {
             &wild
         };
         tx.send_to(bytes, ("127.0.0.1", port)).unwrap();
-        if k % 50 == 0 {
+        if k % 10 == 0 {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
