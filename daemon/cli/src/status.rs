@@ -318,6 +318,7 @@ mod tests {
             kind: "field".into(),
             state: "field of g: 3 plants".into(),
             elements: vec![33, 34, 35],
+            dropped_work: 0,
         }];
         let t = render(&r);
         assert!(t.contains("stages       1\n  field (field): field of g: 3 plants\n"), "{t}");
@@ -387,8 +388,13 @@ mod tests {
             rec.name = fake.into();
             rec.path = fake.into();
         }
-        r.stages =
-            vec![StageStatus { name: fake.into(), kind: fake.into(), state: fake.into(), elements: vec![] }];
+        r.stages = vec![StageStatus {
+            name: fake.into(),
+            kind: fake.into(),
+            state: fake.into(),
+            elements: vec![],
+            dropped_work: 0,
+        }];
         r.elements = vec![
             ElementInfo {
                 id: 0,

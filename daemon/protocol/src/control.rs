@@ -463,6 +463,11 @@ pub struct StageStatus {
     pub state: String,
     /// Ids of the elements it publishes.
     pub elements: Vec<u16>,
+    /// Work it dropped to keep within its share of the tick since it started (simulation steps,
+    /// graph walk frames): it kept real time and the loop its rate, but showed less than asked.
+    /// 0 while it keeps up (and from daemons that do not count it); `state` says so in words.
+    #[serde(default)]
+    pub dropped_work: u64,
 }
 
 /// The hand source's state.

@@ -100,6 +100,10 @@ impl StageReport for GraphReport {
             self.transitions.load(Relaxed)
         )
     }
+
+    fn dropped_work(&self) -> u64 {
+        self.skipped_frames.load(Relaxed)
+    }
 }
 
 /// One take a walk draws on: its graph, its frames, and the plan towards a pose goal on it.
@@ -598,6 +602,7 @@ mod tests {
         assert_eq!(stage.frames_done, 32);
         let said = report.describe();
         assert!(said.contains("BEHIND: 26 walk frames skipped in 1 ticks over the budget"), "{said}");
+        assert_eq!(report.dropped_work(), 26);
     }
 
     #[test]

@@ -78,6 +78,10 @@ pub trait LiveStage: Send {
 pub trait StageReport: Send + Sync {
     /// One line: what the stage is doing.
     fn describe(&self) -> String;
+    /// Work dropped to stay within its budget since it started ([`budget`]): 0 while it keeps up.
+    fn dropped_work(&self) -> u64 {
+        0
+    }
 }
 
 /// A report that never changes.

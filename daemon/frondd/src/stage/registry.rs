@@ -173,6 +173,7 @@ impl StageRegistry {
                 kind: r.info.kind.to_string(),
                 state: r.info.report.describe(),
                 elements: r.info.elements.iter().map(|e| e.id).collect(),
+                dropped_work: r.info.report.dropped_work(),
             })
             .collect()
     }

@@ -59,6 +59,10 @@ impl StageReport for SimReport {
             f(&self.t_s)
         )
     }
+
+    fn dropped_work(&self) -> u64 {
+        self.dropped_steps.load(Relaxed)
+    }
 }
 
 /// The simulation in the loop.
@@ -316,6 +320,7 @@ mod tests {
         let said = report.describe();
         assert!(said.contains("at 2.0 s"), "{said}");
         assert!(said.contains("BEHIND: 1988 steps dropped in 1 ticks over the budget"), "{said}");
+        assert_eq!(report.dropped_work(), 1988);
         // And carries on one step a tick.
         stage.tick(&at(2_001_000_000), &mut sink);
         assert!((stage.plant.time_s() - 2.001).abs() < 1e-9, "{}", stage.plant.time_s());
