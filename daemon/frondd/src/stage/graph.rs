@@ -30,7 +30,7 @@ pub const MAX_GRAPH_PLANTS: usize = 64;
 /// Frames per second on the stream.
 pub const GRAPH_PUBLISH_HZ: u32 = 60;
 /// Most nodes the pose planner settles per tick (a 1 kHz tick spends some tens of
-/// microseconds); fewer when the walk leaves less of the stage's budget ([`plan_nodes_per_tick`]).
+/// microseconds); fewer when the walk leaves less of the stage's budget ([`walk_work`]).
 pub const PLAN_NODES_PER_TICK: usize = 2_000;
 /// Fewest nodes the planner settles per tick, so that a plan always makes progress.
 pub const MIN_PLAN_NODES_PER_TICK: usize = 64;
