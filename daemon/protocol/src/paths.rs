@@ -3,7 +3,7 @@
 //! Order: explicit argument, then the environment variable (`FROND_SOCKET_DIR`,
 //! `FROND_TAKES_DIR`), then the XDG directory, then a fallback that works without XDG.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Environment variable naming the socket directory.
 pub const SOCKET_DIR_ENV: &str = "FROND_SOCKET_DIR";
@@ -94,9 +94,36 @@ pub fn validate_take_name(name: &str) -> Result<(), TakeNameError> {
     Ok(())
 }
 
+/// Where a take argument points: the one rule of every binary that takes a take (`frond take
+/// export NAME`, `frond-gltf bake --take`, `frond-warp render --take`, ...). An argument with a
+/// `/`, ending in `.take`, or naming a file that exists is that file; anything else is a take
+/// name (checked by [`validate_take_name`]), the file `NAME.take` in `takes_dir` (the
+/// `--takes-dir`, else [`takes_dir`]'s default).
+pub fn take_file(arg: &str, takes_dir: &Path) -> Result<PathBuf, TakeNameError> {
+    let path = Path::new(arg);
+    if arg.contains('/') || arg.ends_with(".take") || path.is_file() {
+        return Ok(path.to_path_buf());
+    }
+    validate_take_name(arg)?;
+    Ok(takes_dir.join(format!("{arg}.take")))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_take_argument_is_a_path_or_a_name_in_the_takes_directory() {
+        let dir = Path::new("/srv/takes");
+        assert_eq!(take_file("t1", dir).unwrap(), Path::new("/srv/takes/t1.take"));
+        assert_eq!(take_file("a.b-c_d", dir).unwrap(), Path::new("/srv/takes/a.b-c_d.take"));
+        assert_eq!(take_file("./t1", dir).unwrap(), Path::new("./t1"));
+        assert_eq!(take_file("/x/t1.take", dir).unwrap(), Path::new("/x/t1.take"));
+        assert_eq!(take_file("t1.take", dir).unwrap(), Path::new("t1.take"));
+        assert!(matches!(take_file("..", dir), Err(TakeNameError::LeadingDot(_))));
+        assert!(matches!(take_file("a b", dir), Err(TakeNameError::Character { .. })));
+        assert!(matches!(take_file("", dir), Err(TakeNameError::Length(0))));
+    }
 
     #[test]
     fn take_names_cannot_escape() {

@@ -132,13 +132,8 @@ impl TakeInput {
 
 /// Where `--take ARG` points: see [`TakeInput::resolve`].
 pub fn take_path(arg: &str, takes_dir: &Path) -> Result<PathBuf, BakeError> {
-    let path = Path::new(arg);
-    if arg.contains('/') || arg.ends_with(".take") || path.is_file() {
-        return Ok(path.to_path_buf());
-    }
-    frond_protocol::paths::validate_take_name(arg)
-        .map_err(|reason| BakeError::TakeName { arg: arg.to_string(), reason })?;
-    Ok(takes_dir.join(format!("{arg}.take")))
+    frond_protocol::paths::take_file(arg, takes_dir)
+        .map_err(|reason| BakeError::TakeName { arg: arg.to_string(), reason })
 }
 
 impl TakeInput {

@@ -287,9 +287,14 @@ pub struct RenderArgs {
     /// Parameters.
     #[command(flatten)]
     pub sim: SimArgs,
-    /// A recorded take (NAME.take): its root joint drives the wind instead of the procedural wind.
-    #[arg(long, value_name = "TAKE")]
-    pub take: Option<PathBuf>,
+    /// A recorded take: its root joint drives the wind instead of the procedural wind. A name is
+    /// looked up in the takes directory (`NAME.take`); a path (with a `/` or ending `.take`) is
+    /// read as given, as every frond tool takes a take.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub take: Option<String>,
+    /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
+    #[arg(long, value_name = "DIR")]
+    pub takes_dir: Option<PathBuf>,
     /// Seed 003's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` (as `frond take
     /// simulate --wind`): the wind that blows the simulated plant blows the picture.
     #[arg(long, value_name = "SPEC", conflicts_with = "take")]

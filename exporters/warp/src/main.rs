@@ -49,6 +49,18 @@ fn check_frames_and_output(
     out
 }
 
+/// Where `--take ARG` points ([`frond_protocol::paths::take_file`]: a path, or a name in the
+/// takes directory), or its problem recorded in `ck`.
+fn take_file(
+    ck: &mut Checker,
+    arg: Option<&str>,
+    takes_dir: Option<&std::path::Path>,
+) -> Option<std::path::PathBuf> {
+    let arg = arg?;
+    let dir = frond_protocol::paths::takes_dir(takes_dir.map(std::path::Path::to_path_buf));
+    frond_protocol::paths::take_file(arg, &dir).map_err(|e| ck.push("--take", arg, e)).ok()
+}
+
 /// Reads a take's poses; a damaged take is read as far as it can be, with a warning ending
 /// "`using` its N readable frames".
 fn read_take(path: &std::path::Path, using: &str) -> anyhow::Result<PoseTrack> {
@@ -74,6 +86,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     // Every argument problem at once: output kind, frames, fps and the simulation parameters.
     let mut ck = Checker::new();
     let out = check_frames_and_output(&mut ck, args.frames, 100_000, args.fps, &args.output);
+    let take = take_file(&mut ck, args.take.as_deref(), args.takes_dir.as_deref());
     let sim_wind = frond_warp::cli::sim_wind(args.wind_sim.as_deref(), &mut ck);
     let params = args.sim.to_params(args.scene.layers.len());
     let mut problems = ck.finish().err().map(|e| e.0).unwrap_or_default();
@@ -88,7 +101,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     // directory), not after.
     out.check_destination()?;
     let scene = load_scene(&args.scene)?;
-    let track = args.take.as_deref().map(|p| read_take(p, "the wind follows")).transpose()?;
+    let track = take.as_deref().map(|p| read_take(p, "the wind follows")).transpose()?;
     let mut animator = Animator::new(scene, params)?;
     let driver = match (&track, &sim_wind) {
         (Some(t), _) => WindDriver::Take(t),
@@ -207,10 +220,11 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     if args.take.is_none() {
         ck.push("--take", "(none)", "--mode cage needs a take: its poses bend the plant");
     }
+    let take = take_file(&mut ck, args.take.as_deref(), args.takes_dir.as_deref());
     let anchor = check_cage_mode(&mut ck, args.wind_sim.as_deref(), args.scene.layers.len(), &args.cage);
     ck.finish()?;
     out.as_ref().map_or(Ok(()), |o| o.check_destination())?;
-    let take = args.take.as_deref().expect("checked");
+    let take = take.as_deref().expect("checked");
     let track = read_take(take, "using")?;
     // `--rig` (a name or a file, the operator's word), else the rig the take was recorded on:
     // an embedded rig only, as a name read from a take is never opened as a path.

@@ -594,3 +594,62 @@ fn serve_takes_the_consoles_access_rules() {
     let _ = child.kill();
     let _ = child.wait();
 }
+
+#[test]
+fn a_take_is_found_by_name_in_the_takes_directory_as_every_tool_finds_it() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let takes = t.path().join("takes");
+    std::fs::create_dir(&takes).unwrap();
+    write_take(&takes.join("sway.take"));
+    let by_path = render_20(&pic, &mask, &["--take", s(&takes.join("sway.take"))], &t.path().join("p/"));
+    // `--takes-dir DIR` and a name; `FROND_TAKES_DIR` and a name: the same take, the same frames.
+    let by_name = render_20(&pic, &mask, &["--take", "sway", "--takes-dir", s(&takes)], &t.path().join("n/"));
+    assert_eq!(by_path, by_name);
+    let o = bin()
+        .env("FROND_TAKES_DIR", &takes)
+        .args(["render", "--image", s(&pic), "--layer", s(&mask), "--fluid-grid", "16", "--frames", "20"])
+        .args(["-o", s(&t.path().join("e/")), "--quiet", "--take", "sway"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(frames(&t.path().join("e/")), by_path);
+    // A name that could leave the directory is a usage error naming --take.
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--take",
+        "..",
+        "--frames",
+        "2",
+        "-o",
+        s(&t.path().join("x.gif")),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--take") && stderr(&o).contains("must not start with '.'"),
+        "{}",
+        stderr(&o)
+    );
+    // A name not there says where it looked.
+    let o = run(&[
+        "render",
+        "--image",
+        s(&pic),
+        "--layer",
+        s(&mask),
+        "--take",
+        "missing",
+        "--takes-dir",
+        s(&takes),
+        "--frames",
+        "2",
+        "-o",
+        s(&t.path().join("y.gif")),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains(&takes.join("missing.take").display().to_string()), "{}", stderr(&o));
+}
