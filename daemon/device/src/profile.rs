@@ -311,6 +311,9 @@ impl fmt::Display for ProfileProblem {
 
 /// Largest device profile read, bytes.
 pub const MAX_PROFILE_FILE_BYTES: u64 = 1 << 20;
+/// Longest device name, bytes. The name is shown in `frond status` and the log, so it is also
+/// printable (no control characters): a line break in it would draw a line of its own.
+pub const MAX_DEVICE_NAME_BYTES: usize = 128;
 
 /// Why a profile could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -523,6 +526,15 @@ impl Checker {
         self.unknown_keys(t, "", PROFILE_KEYS);
         let name = self.string(t, "name", "name").map(str::to_owned);
         let name = self.required(name, t, "name", "name");
+        if let Some(n) = &name {
+            if n.trim().is_empty() {
+                self.err("name", "must not be empty");
+            } else if n.len() > MAX_DEVICE_NAME_BYTES {
+                self.err("name", format!("is {} bytes; the limit is {MAX_DEVICE_NAME_BYTES}", n.len()));
+            } else if let Some(c) = n.chars().find(|c| c.is_control()) {
+                self.err("name", format!("contains the control character {c:?}; a name must be printable"));
+            }
+        }
         let vendor_id = self.int(t, "vendor_id", "vendor_id", 0, 0xFFFF).map(|v| v as u16);
         let product_id = self.int(t, "product_id", "product_id", 0, 0xFFFF).map(|v| v as u16);
         let path = self.string(t, "path", "path").map(PathBuf::from);
@@ -745,6 +757,31 @@ impl Checker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_device_name_is_printable_and_bounded() {
+        let with_name = |name: &str| {
+            FROND_GLOVE_TOML.replacen(
+                &format!("name = {}", toml::Value::from(DeviceProfile::frond_glove().name)),
+                &format!("name = {}", toml::Value::from(name)),
+                1,
+            )
+        };
+        assert_eq!(DeviceProfile::from_toml_str(&with_name("glove 2")).unwrap().name, "glove 2");
+        for (name, want) in [
+            (
+                "glove\nPROBLEM      none",
+                "name: contains the control character '\\n'; a name must be printable",
+            ),
+            ("a\u{1b}[2K", "name: contains the control character '\\u{1b}'"),
+            (" ", "name: must not be empty"),
+        ] {
+            let e = DeviceProfile::from_toml_str(&with_name(name)).unwrap_err().to_string();
+            assert!(e.contains(want), "{name:?}: {e}");
+        }
+        let e = DeviceProfile::from_toml_str(&with_name(&"x".repeat(129))).unwrap_err().to_string();
+        assert!(e.contains("name: is 129 bytes; the limit is 128"), "{e}");
+    }
 
     #[test]
     fn reference_glove_profile_parses() {
