@@ -48,9 +48,18 @@ const RETRY: (Duration, Duration) = (Duration::from_millis(500), Duration::from_
 /// How long the service may leave what frond wrote (pongs, its requests) unread before the
 /// connection is dropped.
 const PEER_WRITE_DEADLINE: Duration = Duration::from_secs(2);
+/// Bytes sent to the service and not taken by it, past which it counts as not reading (a real
+/// service takes every pong at once; a few KiB wait at most).
+const UNREAD_BACKLOG: usize = 64 << 10;
 /// Bytes frond keeps queued for the service at most (a pong waiting behind them is replaced by
 /// the next, never queued).
 const MAX_WRITE_BUFFER: usize = 64 << 10;
+/// Bytes read from the service per [`READ_WINDOW`] at most (10 MiB/s; a real service sends
+/// about 1 MB/s): a service sending faster is read at this pace (TCP slows it down), so that
+/// what it sends costs the daemon a bounded share of a core, whatever it is.
+const READ_BUDGET: usize = 1 << 20;
+/// The window of [`READ_BUDGET`].
+const READ_WINDOW: Duration = Duration::from_millis(100);
 /// How long dropping the source waits for its thread.
 const STOP_WAIT: Duration = Duration::from_millis(500);
 /// A session shorter than this does not reset the wait between connection attempts: a service
@@ -78,16 +87,33 @@ fn warn_connection(service: &str, what: &str, why: &str) {
 }
 
 /// The service's socket as the WebSocket sees it. Writes never wait: `send(MSG_DONTWAIT)`, and
-/// the time since the socket first refused bytes with nothing accepted since is kept, for the
-/// session to drop a service that never reads. Reads wait at most the socket's read timeout,
+/// the time since the service stopped taking what is written (the socket refuses bytes, or
+/// more than [`UNREAD_BACKLOG`] wait unacknowledged) is kept, for the session to drop a service
+/// that never reads. Reads wait at most the socket's read timeout,
 /// end with `WouldBlock` once `stop` is set (tungstenite reads a message until it is whole, so
 /// a service trickling one byte at a time would otherwise keep it reading), and with
-/// `TimedOut` past `deadline` (the handshake's).
+/// `TimedOut` past `deadline` (the handshake's). At most [`READ_BUDGET`] bytes are read per
+/// [`READ_WINDOW`]: past it, a read waits for the next window and says `WouldBlock`.
 struct ServiceStream {
     tcp: TcpStream,
     stop: Arc<AtomicBool>,
     deadline: Option<Instant>,
     blocked_since: Option<Instant>,
+    window: (Instant, usize),
+    throttled: bool,
+}
+
+impl ServiceStream {
+    fn new(tcp: TcpStream, stop: Arc<AtomicBool>, deadline: Instant) -> Self {
+        ServiceStream {
+            tcp,
+            stop,
+            deadline: Some(deadline),
+            blocked_since: None,
+            window: (Instant::now(), 0),
+            throttled: false,
+        }
+    }
 }
 
 impl ServiceStream {
@@ -102,10 +128,23 @@ impl Read for ServiceStream {
         if self.stop.load(Ordering::Acquire) {
             return Err(std::io::Error::new(std::io::ErrorKind::WouldBlock, "the source is stopping"));
         }
-        if self.deadline.is_some_and(|d| Instant::now() >= d) {
+        let now = Instant::now();
+        if self.deadline.is_some_and(|d| now >= d) {
             return Err(std::io::Error::new(std::io::ErrorKind::TimedOut, "the handshake took too long"));
         }
-        self.tcp.read(buf)
+        let (started, read) = &mut self.window;
+        if now.duration_since(*started) >= READ_WINDOW {
+            (*started, *read) = (now, 0);
+        }
+        if *read >= READ_BUDGET {
+            self.throttled = true;
+            std::thread::sleep((*started + READ_WINDOW).saturating_duration_since(now));
+            return Err(std::io::Error::new(std::io::ErrorKind::WouldBlock, "read budget spent"));
+        }
+        let room = (READ_BUDGET - *read).min(buf.len());
+        let n = self.tcp.read(&mut buf[..room])?;
+        *read += n;
+        Ok(n)
     }
 }
 
@@ -120,17 +159,20 @@ impl Write for ServiceStream {
                 libc::MSG_DONTWAIT | libc::MSG_NOSIGNAL,
             )
         };
-        if n < 0 {
-            let e = std::io::Error::last_os_error();
-            if e.kind() == std::io::ErrorKind::WouldBlock {
-                self.blocked_since.get_or_insert_with(Instant::now);
-            }
-            return Err(e);
-        }
-        if n > 0 {
+        let result = if n < 0 { Err(std::io::Error::last_os_error()) } else { Ok(n as usize) };
+        // Unread: the socket refused the bytes, or more than UNREAD_BACKLOG of what was sent
+        // is still waiting for the service to take it (a service that reads a trickle, or
+        // whose kernel makes room now and then, still leaves that much behind).
+        let refused = matches!(&result, Err(e) if e.kind() == std::io::ErrorKind::WouldBlock);
+        let mut queued: libc::c_int = 0;
+        // SAFETY: TIOCOUTQ (SIOCOUTQ) writes one c_int, the bytes sent but not yet acknowledged.
+        let known = unsafe { libc::ioctl(self.tcp.as_raw_fd(), libc::TIOCOUTQ, &mut queued) } == 0;
+        if refused || (known && queued as usize >= UNREAD_BACKLOG) {
+            self.blocked_since.get_or_insert_with(Instant::now);
+        } else {
             self.blocked_since = None;
         }
-        Ok(n as usize)
+        result
     }
 
     fn flush(&mut self) -> std::io::Result<()> {
@@ -340,12 +382,7 @@ impl Client {
         // Every read waits at most READ_POLL, so that a stop is seen; the handshake as a whole
         // at most HANDSHAKE_TIMEOUT.
         tcp.set_read_timeout(Some(READ_POLL)).map_err(|e| not(e.to_string()))?;
-        let stream = ServiceStream {
-            tcp,
-            stop: Arc::clone(&self.stop),
-            deadline: Some(Instant::now() + HANDSHAKE_TIMEOUT),
-            blocked_since: None,
-        };
+        let stream = ServiceStream::new(tcp, Arc::clone(&self.stop), Instant::now() + HANDSHAKE_TIMEOUT);
         let url = format!("ws://{}/v6.json", self.host_port);
         let mut config = tungstenite::protocol::WebSocketConfig::default();
         config.max_message_size = Some(MAX_MESSAGE_BYTES);
@@ -365,11 +402,17 @@ impl Client {
             }
         }
         tracing::info!(service = %url, "connected to the Leap Motion service");
-        let mut warned_version = false;
+        let (mut warned_version, mut warned_pace) = (false, false);
         loop {
             if self.stop.load(Ordering::Acquire) {
                 let _ = ws.close(None);
                 return Ok(());
+            }
+            if ws.get_ref().throttled && !warned_pace {
+                let mib_per_s = READ_BUDGET as f64 / READ_WINDOW.as_secs_f64() / f64::from(1 << 20);
+                let why = format!("it sends more than {mib_per_s:.0} MiB/s");
+                warn_connection(&url, "reading the Leap Motion service at frond's pace", &why);
+                warned_pace = true;
             }
             if ws.get_ref().blocked_for().is_some_and(|d| d >= PEER_WRITE_DEADLINE) {
                 self.counters.peers_dropped.fetch_add(1, Ordering::Relaxed);
@@ -571,9 +614,11 @@ mod tests {
         let burst = ping.repeat(512);
         let tcp = ws.get_mut();
         tcp.set_write_timeout(Some(Duration::from_millis(50))).unwrap();
+        // Where the next write starts: a short write must not cut a ping in two.
+        let mut at = 0;
         loop {
-            match tcp.write(&burst) {
-                Ok(_) => {}
+            match tcp.write(&burst[at..]) {
+                Ok(n) => at = (at + n) % burst.len(),
                 Err(e)
                     if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
                 Err(_) => return, // dropped by the client
@@ -660,5 +705,48 @@ mod tests {
         let c = counters.snapshot();
         assert_eq!((got, c.too_many, c.oversized, c.malformed), (1, 1, 1, 0), "{c:?}");
         assert_eq!(c.rejected(), 2);
+    }
+
+    /// Issue 42: a service sending as fast as it can (large messages of nothing frond uses) is
+    /// read at frond's pace, 10 MiB/s, not at its own: what it sends in 2 s, with every socket
+    /// buffer full, stays far below what loopback carries (the old client read and parsed all
+    /// of it, hundreds of MiB a second, as fast as a core could).
+    #[test]
+    fn a_service_sending_as_fast_as_it_can_is_read_at_a_bounded_pace() {
+        let written = Arc::new(AtomicU64::new(0));
+        let total = Arc::clone(&written);
+        let (port, _) = service(move |mut ws| {
+            let body = format!(r#"{{"pad":"{}"}}"#, "x".repeat(500_000));
+            let mut frame = vec![0x81u8, 127];
+            frame.extend_from_slice(&(body.len() as u64).to_be_bytes());
+            frame.extend_from_slice(body.as_bytes());
+            let tcp = ws.get_mut();
+            tcp.set_write_timeout(Some(Duration::from_millis(100))).unwrap();
+            let t0 = Instant::now();
+            let mut at = 0;
+            while t0.elapsed() < Duration::from_secs(2) {
+                match tcp.write(&frame[at..]) {
+                    Ok(n) => {
+                        total.fetch_add(n as u64, Ordering::Relaxed);
+                        at = (at + n) % frame.len();
+                    }
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        ) => {}
+                    Err(_) => return,
+                }
+            }
+        });
+        let source = connect(port);
+        std::thread::sleep(Duration::from_millis(2500));
+        let sent = written.load(Ordering::Relaxed);
+        let counters = source.counters().snapshot();
+        drop(source);
+        // 2 s at 10 MiB/s, plus both sockets' buffers (a few MiB each), generously.
+        assert!(sent > 0);
+        assert!(sent < 60 << 20, "the service got {} MiB read in 2 s", sent >> 20);
+        assert_eq!(counters.rejected(), 0, "{counters:?}");
     }
 }
