@@ -33,7 +33,7 @@ fn the_example_exporter_prints_the_daemons_poses() {
         // Four joints of three angles each, as `[a, b, c]`.
         let angles: Vec<f32> = p[3..]
             .join(" ")
-            .split(|c| matches!(c, '[' | ']' | ',' | ' '))
+            .split(['[', ']', ',', ' '])
             .filter(|s| !s.is_empty())
             .map(|s| s.parse().unwrap())
             .collect();

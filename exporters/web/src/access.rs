@@ -12,6 +12,11 @@
 //!   (`http://` + its `Host`); a WebSocket and a control action (any `POST`) must carry one
 //!   unless they carry the token (a script, not a browser). So no other site's page can drive
 //!   the daemon through an operator's browser.
+//! - Always: a request the browser marks as made by another site's page (`Sec-Fetch-Site:
+//!   cross-site` or `same-site`, Fetch Metadata) is refused unless it is a top-level
+//!   navigation (a link followed: `Sec-Fetch-Mode: navigate`, `Sec-Fetch-Dest: document`), so
+//!   another page cannot embed the console, load its GLB or takes, or make it bake, even where
+//!   no `Origin` is sent (a `GET` of an image or a script).
 //!
 //! Tokens are compared in constant time.
 
@@ -71,6 +76,12 @@ pub struct RequestMeta<'a> {
     pub cookie: Option<&'a str>,
     /// The `token` query parameter.
     pub query_token: Option<&'a str>,
+    /// `Sec-Fetch-Site` (Fetch Metadata): who made the browser send it.
+    pub fetch_site: Option<&'a str>,
+    /// `Sec-Fetch-Mode`: `navigate` for a link followed or an address typed.
+    pub fetch_mode: Option<&'a str>,
+    /// `Sec-Fetch-Dest`: `document` for a top-level page.
+    pub fetch_dest: Option<&'a str>,
 }
 
 /// Why a request is refused (the HTTP status and the words for the body).
@@ -174,6 +185,17 @@ impl Access {
                  (or start it with --listen ADDR and a token to serve others)",
                 port = self.port
             )));
+        }
+        if let Some(site @ ("cross-site" | "same-site")) = m.fetch_site {
+            let navigation = purpose == Purpose::Read
+                && m.fetch_mode == Some("navigate")
+                && m.fetch_dest == Some("document");
+            if !navigation {
+                return Err(Refusal::Forbidden(format!(
+                    "the browser says another site's page sent this request (Sec-Fetch-Site: {site}): \
+                     only a link to the page itself may come from elsewhere"
+                )));
+            }
         }
         let token_ok = match (&self.token, presented(m)) {
             (Some(want), Some(got)) => {
@@ -400,6 +422,37 @@ mod tests {
         let e = a.check(&meta("127.0.0.1.evil.example:8790", None), Purpose::Read).unwrap_err();
         assert_eq!(e.status(), 403);
         assert!(e.to_string().contains("http://127.0.0.1:8790/"), "{e}");
+    }
+
+    #[test]
+    fn another_sites_requests_are_refused_but_a_link_to_the_page() {
+        // Fetch Metadata (W3C): Sec-Fetch-Site cross-site / same-site marks a request another
+        // site's page made; only a top-level navigation may come from there.
+        let a = Access { loopback: true, port: 8790, token: None };
+        let from = |site, mode, dest| RequestMeta {
+            fetch_site: Some(site),
+            fetch_mode: Some(mode),
+            fetch_dest: Some(dest),
+            ..meta("127.0.0.1:8790", None)
+        };
+        assert_eq!(a.check(&from("cross-site", "navigate", "document"), Purpose::Read), Ok(OPEN));
+        for (site, mode, dest) in [
+            ("cross-site", "no-cors", "image"),
+            ("cross-site", "no-cors", "script"),
+            ("cross-site", "navigate", "iframe"),
+            ("same-site", "cors", "empty"),
+            ("same-site", "navigate", "frame"),
+        ] {
+            let e = a.check(&from(site, mode, dest), Purpose::Read).unwrap_err();
+            assert_eq!(e.status(), 403, "{site} {mode} {dest}");
+            assert!(e.to_string().contains(site), "{e}");
+        }
+        // A form POST is a navigation too, but not a read: refused.
+        assert!(a.check(&from("cross-site", "navigate", "document"), Purpose::Control).is_err());
+        // The page's own requests, and requests from no browser at all, pass.
+        for own in [from("same-origin", "cors", "empty"), from("none", "navigate", "document")] {
+            assert_eq!(a.check(&own, Purpose::Read), Ok(OPEN));
+        }
     }
 
     #[test]

@@ -428,8 +428,9 @@ impl Response {
         }
     }
 
-    /// The status line and headers through the blank line. `Connection: close` and
-    /// `Cache-Control: no-store` unless the response sets its own.
+    /// The status line and headers through the blank line. `Connection: close`,
+    /// `Cache-Control: no-store`, and headers that keep the page out of other pages' frames and
+    /// its address out of `Referer`s, unless the response sets its own.
     fn head(&self) -> String {
         let mut head = format!(
             "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\n\
@@ -439,7 +440,15 @@ impl Response {
             self.content_type,
             self.body.len()
         );
-        for (name, default) in [("Connection", "close"), ("Cache-Control", "no-store")] {
+        // Never framed by another page (clickjacking), and no address of ours (with a token in
+        // it) handed to another site as a Referer.
+        for (name, default) in [
+            ("Connection", "close"),
+            ("Cache-Control", "no-store"),
+            ("X-Frame-Options", "DENY"),
+            ("Content-Security-Policy", "frame-ancestors 'none'"),
+            ("Referrer-Policy", "no-referrer"),
+        ] {
             if !self.headers.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
                 head.push_str(&format!("{name}: {default}\r\n"));
             }

@@ -118,6 +118,9 @@ impl Server {
             authorization: req.header("authorization"),
             cookie: req.header("cookie"),
             query_token: req.param("token"),
+            fetch_site: req.header("sec-fetch-site"),
+            fetch_mode: req.header("sec-fetch-mode"),
+            fetch_dest: req.header("sec-fetch-dest"),
         };
         let grant = match self.access.check(&meta, purpose) {
             Ok(g) => g,

@@ -43,8 +43,17 @@ fn a_crafted_link_cannot_split_the_answer_or_set_a_cookie() {
     for line in head.lines().skip(1) {
         let name = line.split(':').next().unwrap();
         assert!(
-            ["Content-Type", "Content-Length", "X-Content-Type-Options", "Connection", "Cache-Control"]
-                .contains(&name),
+            [
+                "Content-Type",
+                "Content-Length",
+                "X-Content-Type-Options",
+                "Connection",
+                "Cache-Control",
+                "X-Frame-Options",
+                "Content-Security-Policy",
+                "Referrer-Policy",
+            ]
+            .contains(&name),
             "{line:?} in {head}"
         );
     }
@@ -215,6 +224,8 @@ fn attacker_page(console: &str, console_port: u16) -> String {
     format!(
         r#"<!doctype html><html><body><h1>cat pictures</h1>
 <iframe name="sink" style="display:none"></iframe>
+<iframe id="framed" src="http://{console}/" style="width:10px;height:10px"></iframe>
+<img id="glb" src="http://{console}/rig.glb" style="display:none">
 <form id="f" method="POST" action="http://{console}/api/record/start" target="sink" enctype="text/plain">
 <input name='{{"name":"evil-form","x":"' value='"}}'></form>
 <script>
@@ -235,6 +246,10 @@ at('websocket', new Promise(res => {{
   ws.onopen = () => res('open');
   ws.onerror = () => res('refused');
 }}));
+// A GET without Origin: an image of the rig's GLB and a script of the takes list (Fetch
+// Metadata marks them cross-site), and the console framed (clickjacking).
+at('img', new Promise(res => {{ const i = document.getElementById('glb'); i.onerror = () => res('refused'); i.onload = () => res('loaded'); }}));
+at('script', new Promise(res => {{ const s = document.createElement('script'); s.src = 'http://{console}/api/takes'; s.onerror = () => res('refused'); s.onload = () => res('loaded'); document.body.appendChild(s); }}));
 // A form POST (a navigation, so no CORS at all).
 document.getElementById('f').submit();
 at('form', new Promise(res => setTimeout(() => res('sent'), 1500)));
@@ -309,7 +324,9 @@ fn another_sites_page_in_a_real_browser_changes_nothing() {
     let (s, _, body) = request(&addr, "GET", "/api/status", &host, "");
     assert_eq!(s, 200, "{body}");
     let v: serde_json::Value = serde_json::from_str(&body).unwrap();
-    assert!(v["console"]["refused"].as_u64().unwrap() >= 6, "{}", v["console"]);
+    // fetch x3, rebinding, WebSocket, form, the frame, the image, the script, the rebinding
+    // page navigated to.
+    assert!(v["console"]["refused"].as_u64().unwrap() >= 10, "{}", v["console"]);
     // The control: the console's own page, in the same browser, does start a recording (so the
     // requests above reached a console that would have acted on them).
     d.cmd("POST", "/url", Some(serde_json::json!({ "url": format!("http://{addr}/") })));
