@@ -486,9 +486,11 @@ fn ping_flood(
                 let burst = ping.repeat(512);
                 let tcp = ws.get_mut();
                 tcp.set_write_timeout(Some(Duration::from_millis(50))).unwrap();
+                // Where the next write starts: a short write must not cut a ping in two.
+                let mut at = 0;
                 while !stop.load(Ordering::Relaxed) {
-                    match std::io::Write::write(tcp, &burst) {
-                        Ok(_) => {}
+                    match std::io::Write::write(tcp, &burst[at..]) {
+                        Ok(n) => at = (at + n) % burst.len(),
                         Err(e)
                             if matches!(
                                 e.kind(),
