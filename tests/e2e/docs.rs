@@ -244,8 +244,9 @@ fn drain(child: &mut Child) -> String {
     tail.into_iter().rev().collect::<Vec<_>>().join("\n")
 }
 
-/// Stops a child's whole process group (SIGTERM, then SIGKILL) and reaps it.
-fn stop_group(child: &mut Child) {
+/// Stops a child's whole process group (SIGTERM, then SIGKILL after 5 s) and reaps it; returns
+/// whether SIGTERM was enough.
+fn stop_group(child: &mut Child) -> bool {
     let pgid = child.id() as i32;
     // SAFETY: kill(2) on the process group of our own child, which `process_group(0)` made.
     unsafe { libc::kill(-pgid, libc::SIGTERM) };
@@ -260,7 +261,7 @@ fn stop_group(child: &mut Child) {
         let _ = child.try_wait();
         if group_gone() {
             let _ = child.wait();
-            return;
+            return true;
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -270,6 +271,7 @@ fn stop_group(child: &mut Child) {
     while !group_gone() {
         std::thread::sleep(Duration::from_millis(20));
     }
+    false
 }
 
 /// Runs one command; `Err` says what went wrong.
@@ -287,8 +289,12 @@ fn run_command(scratch: &Scratch, block: &Block, cmd: &DocCommand) -> Result<(),
             }
             std::thread::sleep(Duration::from_millis(50));
         }
-        stop_group(&mut child);
-        return Ok(());
+        // The docs promise that SIGTERM (Ctrl-C's cousin) ends every long-running command.
+        return if stop_group(&mut child) {
+            Ok(())
+        } else {
+            Err(format!("still running 5 s after SIGTERM (killed):\n{}", drain(&mut child)))
+        };
     }
     // Read the output on threads so that a chatty command never blocks on a full pipe.
     let mut stdout = child.stdout.take().expect("stdout");
@@ -309,7 +315,7 @@ fn run_command(scratch: &Scratch, block: &Block, cmd: &DocCommand) -> Result<(),
             break Some(status);
         }
         if started.elapsed() > COMMAND_TIMEOUT {
-            stop_group(&mut child);
+            let _ = stop_group(&mut child);
             break None;
         }
         std::thread::sleep(Duration::from_millis(20));
