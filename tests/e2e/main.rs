@@ -24,6 +24,7 @@ mod soak;
 mod socket_dir;
 mod stage;
 mod stage_control;
+mod stage_lossless;
 mod stage_net;
 mod stage_router;
 mod systemd;

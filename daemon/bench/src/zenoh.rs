@@ -340,8 +340,8 @@ impl Stage<'_> {
     }
 }
 
-/// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the issue's targets,
-/// and the bridges' CPU against the forwarders'.
+/// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the issue's targets, the
+/// frames lost (none, when UDP lost none), and the bridges' CPU against the forwarders'.
 fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
     let mut out = Vec::new();
     for (q, limit) in [(0.5, P50_LIMIT), (0.99, P99_LIMIT)] {
@@ -361,6 +361,24 @@ fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
             ),
         );
     }
+    // Nothing may be lost on a healthy link (issue 43), judged only when the same namespaces
+    // carried every UDP datagram in the same run: otherwise the machine itself lost frames.
+    let missing = Measurement::new(
+        format!("zenoh_missing_{tag}"),
+        "frames",
+        z.missing as f64,
+        format!("frames plain UDP lost between the same namespaces, {what} (of {})", u.frames + u.missing),
+        u.missing as f64,
+    );
+    out.push(if u.missing == 0 {
+        missing.with_target(
+            format!("no pose lost through Zenoh on a healthy link, {what} (of {})", z.frames + z.missing),
+            Bound::MaxMeasured,
+            0.0,
+        )
+    } else {
+        missing
+    });
     out.push(Measurement::new(
         format!("bridge_cpu_{tag}"),
         "fraction_of_core",

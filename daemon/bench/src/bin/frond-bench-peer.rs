@@ -15,7 +15,7 @@
 //!
 //! - `frond-bench-peer zenoh-pub ADDRESS` / `udp-pub ADDR [ADDR ...]`: the bare transport, no
 //!   daemon and no bridge: every millisecond (absolute deadlines) one pose stamped with the time
-//!   of sending, put on `ADDRESS`'s `poses` key as `frond-zenoh` puts it (express, drop when
+//!   of sending, put on `ADDRESS`'s `poses` key as `frond-zenoh` puts it (not express, drop when
 //!   congested, real-time priority; `ADDRESS`'s `listen` endpoint) or sent in one UDP datagram
 //!   to every `ADDR`. Read by `zenoh-raw` and `udp-sub`, they measure the hop between two
 //!   namespaces alone, the floor under both paths.
@@ -290,7 +290,7 @@ fn zenoh_pub(address: &str) -> Result<(), String> {
         .declare_publisher(keys::under(&addr.key, keys::POSES))
         .congestion_control(CongestionControl::Drop)
         .priority(Priority::RealTime)
-        .express(true)
+        .express(false) // as frond-zenoh: frond_zenoh::EXPRESS
         .wait()
         .map_err(|e| e.to_string())?;
     every_period(|bytes| {
