@@ -130,6 +130,9 @@ pub fn parse_head(head: &[u8]) -> Result<(Request, usize), HttpError> {
 
 /// [`parse_head`] with a body limit of `max_body` bytes.
 pub fn parse_head_with(head: &[u8], max_body: usize) -> Result<(Request, usize), HttpError> {
+    if let Some(at) = bare_line_feed(head) {
+        return Err(bare_line_feed_error(at));
+    }
     let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
     let mut req = httparse::Request::new(&mut headers);
     match req.parse(head) {
@@ -166,6 +169,22 @@ pub fn parse_head_with(head: &[u8], max_body: usize) -> Result<(Request, usize),
 /// Headers a request carries at most once: two `Host`s (RFC 9112, section 3.2) or two
 /// `Origin`s leave it open which one a check read and which one the answer used, so neither is
 /// taken. (`Content-Length` has its own rule, [`body_length`].)
+/// Where `head` has a line feed that no carriage return precedes. httparse takes such a line
+/// end, but [`read_request`] finds the head's end by its `CRLF CRLF`: were both accepted, a head
+/// ended by `LF LF` would be parsed up to there while its body was taken after a later `CRLF
+/// CRLF`, two readings of one request (request smuggling's root). HTTP/1.1 lines end with CRLF
+/// (RFC 9112, section 2.2), which every browser sends, so a bare LF is refused.
+fn bare_line_feed(head: &[u8]) -> Option<usize> {
+    head.iter().enumerate().position(|(i, &c)| c == b'\n' && (i == 0 || head[i - 1] != b'\r'))
+}
+
+fn bare_line_feed_error(at: usize) -> HttpError {
+    HttpError::Bad(format!(
+        "the request head has a line ending in a bare LF (byte {at}): HTTP/1.1 lines end with CRLF \
+         (RFC 9112, section 2.2)"
+    ))
+}
+
 const SINGLE_HEADERS: [&str; 4] = ["host", "origin", "authorization", "cookie"];
 
 /// The declared body length: one `Content-Length` of decimal digits (RFC 9110, section 8.6), or
@@ -215,8 +234,13 @@ pub fn read_request(
     let mut buf = vec![0u8; 2048];
     let mut have = 0;
     let end = loop {
-        if let Some(i) = buf[..have].windows(4).position(|w| w == b"\r\n\r\n") {
-            break i + 4;
+        let end = buf[..have].windows(4).position(|w| w == b"\r\n\r\n").map(|i| i + 4);
+        // Refused as soon as it arrives: a head of bare LFs has no CRLF CRLF to wait for.
+        if let Some(at) = bare_line_feed(&buf[..end.unwrap_or(have)]) {
+            return Err(bare_line_feed_error(at));
+        }
+        if let Some(end) = end {
+            break end;
         }
         if have == MAX_HEAD_BYTES {
             return Err(HttpError::TooLarge(format!("the request head passes {MAX_HEAD_BYTES} bytes")));
@@ -734,6 +758,49 @@ mod tests {
             assert_eq!(status, Some(400), "{name}: {text}");
             assert!(text.contains(&format!("2 {} headers", name.to_ascii_lowercase())), "{text}");
         }
+    }
+
+    #[test]
+    fn a_bare_line_feed_in_the_head_is_refused() {
+        for head in [
+            "GET / HTTP/1.1\nHost: 127.0.0.1\n\n",
+            "GET / HTTP/1.1\r\nHost: 127.0.0.1\nX: y\r\n\r\n",
+            "POST / HTTP/1.1\nHost: 127.0.0.1\nContent-Length: 4\n\nABCD\r\n\r\n",
+        ] {
+            let (status, text) = refusal(head);
+            assert_eq!(status, Some(400), "{head:?}: {text}");
+            assert!(text.contains("bare LF"), "{text}");
+        }
+        // A body may hold line feeds of its own.
+        let (r, len) =
+            parse_head(b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 3\r\n\r\n").unwrap();
+        assert_eq!((r.method.as_str(), len), ("POST", 3));
+    }
+
+    /// A head ended by `LF LF` is refused at once, not read until the deadline, and its body is
+    /// never taken from after a later `CRLF CRLF` (the two ends disagreed).
+    #[test]
+    fn a_head_of_bare_line_feeds_is_refused_at_once() {
+        use std::net::TcpListener;
+        use std::time::Duration;
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let mut client = TcpStream::connect(l.local_addr().unwrap()).unwrap();
+        let (mut server, _) = l.accept().unwrap();
+        client
+            .write_all(
+                b"POST /api/takes/repair HTTP/1.1\nHost: 127.0.0.1\nContent-Length: 4\n\nABCD\r\n\r\n{\"take\"",
+            )
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let e = read_request(&mut server, deadline, MAX_BODY_BYTES).unwrap_err();
+        assert_eq!(e.status(), Some(400), "{e}");
+        assert!(e.to_string().contains("bare LF"), "{e}");
+        let mut client = TcpStream::connect(l.local_addr().unwrap()).unwrap();
+        let (mut server, _) = l.accept().unwrap();
+        client.write_all(b"GET / HTTP/1.1\nHost: 127.0.0.1\n\n").unwrap();
+        let e = read_request(&mut server, deadline, MAX_BODY_BYTES).unwrap_err();
+        assert_eq!(e.status(), Some(400), "{e}");
+        assert!(Instant::now() + Duration::from_secs(20) < deadline, "waited for the deadline");
     }
 
     #[test]
