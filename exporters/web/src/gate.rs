@@ -2,15 +2,22 @@
 //! idle clients can never lock an operator out.
 //!
 //! A connection is *reading* from its accept until its request has arrived whole, then
-//! *answering* until its answer is written. Reading is the cheap phase for an attacker (open a
-//! socket, trickle a byte now and then), so it is the one that gives way:
+//! *answering* while its answer is made, then *writing* until the answer is written. Reading
+//! and writing are the cheap phases for an attacker (open a socket and trickle a byte now and
+//! then, or ask for a large answer and never read it), so they are the ones that give way:
 //! - every request must arrive whole within [`Limits::request_deadline`] (one deadline for the
 //!   request, not one per read);
 //! - a peer address holds at most [`Limits::max_reading_per_peer`] reading connections: its
 //!   next one evicts its oldest;
 //! - when the server holds [`Limits::max_connections`], a new connection evicts the oldest
 //!   reading connection of the peer that holds the most (room is always kept for a new
-//!   request), and is answered 503 only when every connection is being answered.
+//!   request); when none is reading, the oldest writing connection of the peer that holds the
+//!   most writing ones (a client that does not read its answer held its place until
+//!   [`Limits::write_deadline`], and a few dozen of them, asking again, kept every request 503);
+//!   a new connection is answered 503 only when every connection is making its answer;
+//! - the answers being written hold at most [`Limits::max_writing_bytes`] between them (each
+//!   holds its whole body until written): the oldest writing ones are cut to make room for a
+//!   new one, which is never refused (one answer alone may be larger).
 //!
 //! An evicted connection is shut down (its blocked read returns) and leaves the count at once.
 //! A loopback server sees every local client as one peer, so there the eviction of the oldest is
@@ -35,6 +42,8 @@ pub struct Limits {
     pub write_deadline: Duration,
     /// Largest request body, bytes.
     pub max_body_bytes: usize,
+    /// Most bytes of answers being written at once (see the module docs).
+    pub max_writing_bytes: usize,
 }
 
 impl Default for Limits {
@@ -45,6 +54,7 @@ impl Default for Limits {
             request_deadline: Duration::from_secs(10),
             write_deadline: Duration::from_secs(10),
             max_body_bytes: crate::http::MAX_BODY_BYTES,
+            max_writing_bytes: 256 << 20,
         }
     }
 }
@@ -54,7 +64,7 @@ impl Default for Limits {
 pub struct GateCounters {
     /// Connections admitted.
     pub admitted: AtomicU64,
-    /// Reading connections shut down to make room for newer ones.
+    /// Reading or writing connections shut down to make room for newer ones.
     pub evicted: AtomicU64,
     /// Connections answered 503 because every slot was answering.
     pub full: AtomicU64,
@@ -69,6 +79,8 @@ struct Reader {
     since: Instant,
     /// A handle on the connection, to shut it down when evicted.
     stream: TcpStream,
+    /// The answer's bytes (writing connections).
+    bytes: usize,
 }
 
 #[derive(Debug, Default)]
@@ -76,6 +88,7 @@ struct Inner {
     next_id: u64,
     reading: Vec<Reader>,
     answering: usize,
+    writing: Vec<Reader>,
 }
 
 /// The admission state of one server.
@@ -120,45 +133,50 @@ impl Gate {
         if own >= self.limits.max_reading_per_peer {
             self.evict_oldest_of(&mut inner, peer);
         }
-        if inner.reading.len() + inner.answering >= self.limits.max_connections {
-            match busiest_peer(&inner.reading) {
-                Some(p) => self.evict_oldest_of(&mut inner, p),
-                None => {
-                    self.counters.full.fetch_add(1, Ordering::Relaxed);
-                    return Err(Full);
-                }
+        if inner.reading.len() + inner.answering + inner.writing.len() >= self.limits.max_connections {
+            if let Some(p) = busiest_peer(&inner.reading) {
+                self.evict_oldest_of(&mut inner, p);
+            } else if let Some(p) = busiest_peer(&inner.writing) {
+                evict_oldest(&mut inner.writing, Some(p), &self.counters);
+            } else {
+                self.counters.full.fetch_add(1, Ordering::Relaxed);
+                return Err(Full);
             }
         }
         let id = inner.next_id;
         inner.next_id += 1;
-        inner.reading.push(Reader { id, peer, since: Instant::now(), stream: handle });
+        inner.reading.push(Reader { id, peer, since: Instant::now(), stream: handle, bytes: 0 });
         self.counters.admitted.fetch_add(1, Ordering::Relaxed);
-        Ok(Ticket { gate: Arc::clone(self), id, state: State::Reading })
+        Ok(Ticket { gate: Arc::clone(self), id, state: State::Reading, handle: None })
     }
 
     fn evict_oldest_of(&self, inner: &mut Inner, peer: IpAddr) {
-        let oldest = inner
-            .reading
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| r.peer == peer)
-            .min_by_key(|(_, r)| (r.since, r.id))
-            .map(|(i, _)| i);
-        if let Some(i) = oldest {
-            let r = inner.reading.swap_remove(i);
-            let _ = r.stream.shutdown(Shutdown::Both);
-            self.counters.evicted.fetch_add(1, Ordering::Relaxed);
-        }
+        evict_oldest(&mut inner.reading, Some(peer), &self.counters);
     }
 
-    /// Connections reading and answering now.
+    /// Connections reading and answering (making or writing their answer) now.
     pub fn load(&self) -> (usize, usize) {
         let inner = self.lock();
-        (inner.reading.len(), inner.answering)
+        (inner.reading.len(), inner.answering + inner.writing.len())
     }
 }
 
-/// The peer with the most reading connections (the lowest address among equals, so the choice
+/// Shuts down and removes the oldest of `conns` (of `peer`, when given); `false` when none.
+fn evict_oldest(conns: &mut Vec<Reader>, peer: Option<IpAddr>, counters: &GateCounters) -> bool {
+    let oldest = conns
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| peer.is_none_or(|p| r.peer == p))
+        .min_by_key(|(_, r)| (r.since, r.id))
+        .map(|(i, _)| i);
+    let Some(i) = oldest else { return false };
+    let r = conns.swap_remove(i);
+    let _ = r.stream.shutdown(Shutdown::Both);
+    counters.evicted.fetch_add(1, Ordering::Relaxed);
+    true
+}
+
+/// The peer with the most connections in `reading` (the lowest address among equals, so the choice
 /// does not depend on the list's order).
 fn busiest_peer(reading: &[Reader]) -> Option<IpAddr> {
     let mut best: Option<(usize, IpAddr)> = None;
@@ -175,6 +193,7 @@ fn busiest_peer(reading: &[Reader]) -> Option<IpAddr> {
 enum State {
     Reading,
     Answering,
+    Writing,
     Released,
 }
 
@@ -184,6 +203,8 @@ pub struct Ticket {
     gate: Arc<Gate>,
     id: u64,
     state: State,
+    /// The connection's handle while answering, for [`Ticket::writing`].
+    handle: Option<(TcpStream, IpAddr)>,
 }
 
 impl Ticket {
@@ -195,10 +216,28 @@ impl Ticket {
             self.state = State::Released;
             return false;
         };
-        inner.reading.swap_remove(i);
+        let r = inner.reading.swap_remove(i);
+        self.handle = Some((r.stream, r.peer));
         inner.answering += 1;
         self.state = State::Answering;
         true
+    }
+
+    /// Its answer (`bytes` long) is made and is being written: from now on it may be evicted
+    /// (shut down, so that the write fails at once) to make room, as the module docs say.
+    pub fn writing(&mut self, bytes: usize) {
+        let Some((stream, peer)) = self.handle.take().filter(|_| self.state == State::Answering) else {
+            return;
+        };
+        let gate = Arc::clone(&self.gate);
+        let mut inner = gate.lock();
+        let budget = gate.limits.max_writing_bytes;
+        while inner.writing.iter().map(|w| w.bytes).sum::<usize>().saturating_add(bytes) > budget
+            && evict_oldest(&mut inner.writing, None, &gate.counters)
+        {}
+        inner.answering -= 1;
+        inner.writing.push(Reader { id: self.id, peer, since: Instant::now(), stream, bytes });
+        self.state = State::Writing;
     }
 
     /// Its request did not arrive in time (counted).
@@ -216,6 +255,7 @@ impl Ticket {
         match self.state {
             State::Reading => inner.reading.retain(|r| r.id != self.id),
             State::Answering => inner.answering -= 1,
+            State::Writing => inner.writing.retain(|r| r.id != self.id),
             State::Released => {}
         }
         self.state = State::Released;
@@ -313,5 +353,59 @@ mod tests {
         assert_eq!(gate.load(), (1, 1));
         tb.release();
         assert_eq!(gate.load(), (1, 0));
+    }
+
+    /// A client that asks for a large answer and never reads it held its place until the
+    /// write deadline: a few dozen of them, asking again, kept every request 503.
+    #[test]
+    fn a_full_gate_of_unread_answers_cuts_the_oldest_writer_of_the_busiest_peer() {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let gate = Gate::new(limits(3, 3));
+        let mut conns: Vec<_> = (0..3).map(|_| pair(&l)).collect();
+        let peers = [ip(1), ip(2), ip(1)];
+        let mut tickets: Vec<_> =
+            conns.iter().zip(peers).map(|((s, _), p)| gate.admit(s, p).unwrap()).collect();
+        for t in &mut tickets {
+            assert!(t.answering());
+            t.writing(1000);
+        }
+        assert_eq!(gate.load(), (0, 3));
+        let (s4, _c4) = pair(&l);
+        let _t4 = gate.admit(&s4, ip(3)).expect("room is made for a newcomer");
+        assert_eq!(gate.counters.evicted.load(Ordering::Relaxed), 1);
+        assert_eq!(gate.counters.full.load(Ordering::Relaxed), 0);
+        assert!(shut(&mut conns[0].0), "peer 1's oldest writer is cut");
+        assert!(!shut(&mut conns[1].0) && !shut(&mut conns[2].0));
+        assert_eq!(gate.load(), (1, 2));
+        drop(tickets);
+        assert_eq!(gate.load(), (1, 0));
+    }
+
+    #[test]
+    fn answers_being_written_share_a_byte_budget() {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let gate = Gate::new(Limits { max_writing_bytes: 100, ..limits(64, 64) });
+        let mut conns: Vec<_> = (0..3).map(|_| pair(&l)).collect();
+        let mut tickets: Vec<_> = conns.iter().map(|(s, _)| gate.admit(s, ip(1)).unwrap()).collect();
+        for t in &mut tickets {
+            assert!(t.answering());
+        }
+        tickets[0].writing(60);
+        tickets[1].writing(30);
+        assert!(!shut(&mut conns[0].0));
+        // 60 + 30 + 50 > 100: the oldest is cut; 30 + 50 fit.
+        tickets[2].writing(50);
+        assert!(shut(&mut conns[0].0));
+        assert!(!shut(&mut conns[1].0));
+        assert_eq!(gate.counters.evicted.load(Ordering::Relaxed), 1);
+        // One answer alone past the budget is still written.
+        let (s, _c) = pair(&l);
+        let mut big = gate.admit(&s, ip(1)).unwrap();
+        assert!(big.answering());
+        big.writing(1000);
+        assert!(shut(&mut conns[1].0) && shut(&mut conns[2].0));
+        assert_eq!(gate.load(), (0, 1));
+        drop(tickets);
+        assert_eq!(gate.load(), (0, 1));
     }
 }

@@ -141,6 +141,7 @@ impl Server {
         if let Some(cookie) = self.cookie(&req, grant) {
             resp = resp.with("Set-Cookie", cookie);
         }
+        ticket.writing(if req.method == "HEAD" { 0 } else { resp.body.len() });
         let mut out =
             DeadlineWriter { stream: &mut stream, deadline: Instant::now() + limits.write_deadline };
         let _ = resp.write_for(&req.method, &mut out);
