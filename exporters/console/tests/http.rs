@@ -375,3 +375,89 @@ fn a_crafted_token_query_sets_no_cookie_and_splits_nothing() {
     assert_eq!(header(&answer, "set-cookie"), None, "no token is configured: {answer}");
     assert_eq!(header(&answer, "x-evil"), None, "{answer}");
 }
+
+/// Pages that open the pose socket and keep it, read or not, kept every new page out: the
+/// 17th was answered 503 for as long as they stayed. Now a new page closes the oldest.
+#[test]
+fn pages_that_stay_never_keep_a_new_page_out() {
+    let c = Served::start(&[]);
+    let open = || {
+        let mut s = TcpStream::connect(c.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let head = format!(
+            "GET /ws HTTP/1.1\r\nHost: {a}\r\nOrigin: http://{a}\r\nUpgrade: websocket\r\n\
+             Connection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+            a = c.addr
+        );
+        s.write_all(head.as_bytes()).unwrap();
+        let mut got = Vec::new();
+        let mut byte = [0u8; 1];
+        while !got.ends_with(b"\r\n\r\n") && s.read(&mut byte).unwrap() == 1 {
+            got.push(byte[0]);
+        }
+        (s, String::from_utf8_lossy(&got).into_owned())
+    };
+    // Never read past their heads.
+    let mut pages: Vec<_> = (0..frond_console::server::MAX_SOCKETS)
+        .map(|_| {
+            let (s, head) = open();
+            assert_eq!(status(&head), 101, "{head}");
+            s
+        })
+        .collect();
+    let (_newest, head) = open();
+    assert_eq!(status(&head), 101, "a new page is served: {head}");
+    // The oldest was closed by the server: its reads end (after what was already sent).
+    let mut sink = Vec::new();
+    let n = pages[0].read_to_end(&mut sink);
+    assert!(n.is_ok(), "{n:?}");
+    for s in &mut pages[1..] {
+        s.set_read_timeout(Some(Duration::from_millis(100))).unwrap();
+        let mut buf = [0u8; 65536];
+        let still_open = loop {
+            match s.read(&mut buf) {
+                Ok(0) => break false,
+                Ok(_) => {}
+                Err(_) => break true,
+            }
+        };
+        assert!(still_open, "only the oldest is closed");
+    }
+    let a = c.exchange("GET /api/status HTTP/1.1", b"");
+    assert!(body(&a).contains("\"sockets_closed\":1"), "{a}");
+}
+
+/// A page sends its socket nothing but control frames; tungstenite's default took 64 MiB
+/// messages, held while read (1 GiB over the 16 sockets). A message past the limit closes it.
+#[test]
+fn a_page_that_sends_a_large_message_is_closed() {
+    let c = Served::start(&[]);
+    let mut s = TcpStream::connect(c.addr).unwrap();
+    let head = format!(
+        "GET /ws HTTP/1.1\r\nHost: {a}\r\nOrigin: http://{a}\r\nUpgrade: websocket\r\n\
+         Connection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+        a = c.addr
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    // A masked text frame of 64 KiB (RFC 6455, section 5.2), zero mask: the payload as is.
+    let n = 64 * 1024u64;
+    let mut frame = vec![0x81, 0x80 | 127];
+    frame.extend_from_slice(&n.to_be_bytes());
+    frame.extend_from_slice(&[0; 4]);
+    frame.resize(frame.len() + n as usize, b'a');
+    // The server may close while the frame is still arriving.
+    let _ = s.write_all(&frame);
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 65536];
+    let closed = loop {
+        match s.read(&mut buf) {
+            Ok(0) => break true,
+            Ok(k) => got.extend_from_slice(&buf[..k]),
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => break true,
+            Err(_) => break false,
+        }
+    };
+    assert!(got.starts_with(b"HTTP/1.1 101"), "{:?}", String::from_utf8_lossy(&got[..got.len().min(200)]));
+    assert!(closed, "the socket stayed open after a 64 KiB message");
+}

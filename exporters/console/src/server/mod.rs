@@ -54,7 +54,8 @@ use crate::scene::{self, RigScene};
 use crate::takes;
 use crate::warp_panel::{self, WarpPanel};
 
-/// Most pose WebSockets at once.
+/// Most pose WebSockets at once; a page past them closes the oldest (so that pages that never
+/// go, or never read, cannot keep a new one out).
 pub const MAX_SOCKETS: usize = 16;
 /// Heavy requests answered at once (a take baked, scanned or resampled); more wait
 /// 5 s, then are answered 503.
@@ -86,6 +87,10 @@ pub struct Config {
 #[derive(Debug, Default)]
 struct Counters {
     sockets: AtomicUsize,
+    /// Open pages' sockets (oldest first), to close the oldest for a new one.
+    pages: Mutex<sockets::Pages>,
+    /// Pages closed to make room for a newer one.
+    pages_closed: AtomicU64,
     messages: AtomicU64,
     poses_sent: AtomicU64,
     dropped: AtomicU64,
@@ -329,6 +334,7 @@ impl Console {
                 "gaps": s.gaps,
                 "missing": s.missing,
                 "sockets": self.counters.sockets.load(Ordering::Relaxed),
+                "sockets_closed": self.counters.pages_closed.load(Ordering::Relaxed),
                 "messages": self.counters.messages.load(Ordering::Relaxed),
                 "poses_sent": self.counters.poses_sent.load(Ordering::Relaxed),
                 "dropped": self.counters.dropped.load(Ordering::Relaxed),

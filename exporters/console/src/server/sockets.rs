@@ -3,7 +3,7 @@
 //! subscription.
 
 use std::io;
-use std::net::TcpStream;
+use std::net::{Shutdown, TcpStream};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -16,6 +16,9 @@ use tungstenite::{Message, WebSocket};
 use super::{Console, MAX_QUEUED_BYTES, MAX_SOCKETS};
 use crate::warp_panel::{self, WarpPanel};
 use frond_web::http::{self, Request, Response};
+
+/// Largest message (and frame) a page may send on its socket; a larger one closes it.
+pub const MAX_PAGE_MESSAGE_BYTES: usize = 4096;
 
 impl Console {
     /// A WebSocket upgrade: its path (404), its handshake (400, 426: [`http::check_websocket`]),
@@ -38,15 +41,19 @@ impl Console {
             let _ = e.response().write_for(&req.method, &mut stream);
             return;
         }
-        if self.counters.sockets.fetch_add(1, Ordering::AcqRel) >= MAX_SOCKETS {
-            self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
-            let _ =
-                Response::error(503, format!("at most {MAX_SOCKETS} pages at once")).write_to(&mut stream);
+        let Some(_page) = self.open_page(&stream) else {
+            let _ = Response::error(503, "the page's socket could not be kept").write_to(&mut stream);
             return;
-        }
+        };
         if http::accept_websocket(&req, &mut stream).unwrap_or(false) && stream.set_nonblocking(true).is_ok()
         {
-            let config = WebSocketConfig::default().max_write_buffer_size(MAX_QUEUED_BYTES * 2);
+            // A page sends nothing but control frames (a ping's payload is at most 125 bytes):
+            // tungstenite's default took messages of 64 MiB, which the thread held while it
+            // read them, 1 GiB over the 16 sockets.
+            let config = WebSocketConfig::default()
+                .max_write_buffer_size(MAX_QUEUED_BYTES * 2)
+                .max_message_size(Some(MAX_PAGE_MESSAGE_BYTES))
+                .max_frame_size(Some(MAX_PAGE_MESSAGE_BYTES));
             let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
             match warp {
                 None => self.stream_poses(&mut ws),
@@ -57,7 +64,24 @@ impl Console {
                 }
             }
         }
-        self.counters.sockets.fetch_sub(1, Ordering::AcqRel);
+    }
+
+    /// Counts `stream` among the open pages until the guard drops, first closing the oldest
+    /// page when [`MAX_SOCKETS`] are open: a client that opens pages and keeps them (reading
+    /// or not) kept every new page out (503) for as long as it liked.
+    fn open_page(&self, stream: &TcpStream) -> Option<PageGuard<'_>> {
+        let handle = stream.try_clone().ok()?;
+        let mut pages = self.counters.pages.lock().unwrap_or_else(|e| e.into_inner());
+        while pages.open.len() >= MAX_SOCKETS {
+            let (_, oldest) = pages.open.remove(0);
+            let _ = oldest.shutdown(Shutdown::Both);
+            self.counters.pages_closed.fetch_add(1, Ordering::Relaxed);
+        }
+        let id = pages.next;
+        pages.next += 1;
+        pages.open.push((id, handle));
+        self.counters.sockets.store(pages.open.len(), Ordering::Relaxed);
+        Some(PageGuard { console: self, id })
     }
 
     /// Sends the page its poses until it goes away: at most `display_hz` messages a second, each
@@ -171,6 +195,28 @@ impl Console {
             Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => true,
             Err(_) => false,
         }
+    }
+}
+
+/// The open pages' sockets, oldest first.
+#[derive(Debug, Default)]
+pub(super) struct Pages {
+    next: u64,
+    open: Vec<(u64, TcpStream)>,
+}
+
+/// One open page; dropping it takes the page off the list.
+struct PageGuard<'a> {
+    console: &'a Console,
+    id: u64,
+}
+
+impl Drop for PageGuard<'_> {
+    fn drop(&mut self) {
+        let c = &self.console.counters;
+        let mut pages = c.pages.lock().unwrap_or_else(|e| e.into_inner());
+        pages.open.retain(|(id, _)| *id != self.id);
+        c.sockets.store(pages.open.len(), Ordering::Relaxed);
     }
 }
 
