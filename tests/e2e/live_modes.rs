@@ -155,3 +155,69 @@ fn a_rig_set_live_reaches_a_subscriber_as_a_rig_change_with_the_new_joint_names(
     assert_eq!(hello.joint_names, expected);
     assert_eq!(sub.hello().joint_names, expected);
 }
+
+/// Issue 44: a take of `frond record layer` holds only its layer's frames (element 1 for the
+/// flower's leaf). Every take tool must read it: `take list` counts the frames `record stop`
+/// reported, `take export` prints its poses, `frond-gltf bake` bakes it (the leaf moving on a
+/// plant at rest) and `take align` aligns it with the global take.
+#[test]
+fn a_recorded_layer_take_is_listable_exportable_bakeable_and_alignable() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "flower"]);
+    daemon.frond_ok(&["record", "start", "global"]);
+    std::thread::sleep(Duration::from_secs(2));
+    daemon.frond_ok(&["record", "stop"]);
+    daemon.frond_ok(&["record", "layer", "leafy", "--layer", "leaf", "--over", "global"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    let stopped = daemon.frond_ok(&["record", "stop"]);
+    // "stopped leafy: N frames in PATH"
+    let reported: u64 = stopped
+        .split_whitespace()
+        .skip_while(|w| *w != "leafy:")
+        .nth(1)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no frame count in {stopped:?}"));
+    assert!(reported > 500, "1.5 s at 1 kHz: {stopped}");
+
+    // Listed with the frames record stop reported and about 1.5 s.
+    let list: serde_json::Value =
+        serde_json::from_str(&daemon.frond_ok(&["take", "list", "--json"])).unwrap();
+    let row = list.as_array().unwrap().iter().find(|r| r["name"] == "leafy").expect("leafy listed");
+    assert_eq!(row["frames"].as_u64(), Some(reported), "{row}");
+    let duration = row["duration_s"].as_f64().unwrap();
+    assert!((1.0..3.0).contains(&duration), "{row}");
+
+    // Exported: one line per kept frame (the virtual glove reports every tick, held ones are few).
+    let out = daemon.frond().args(["take", "export", "leafy"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lines = String::from_utf8_lossy(&out.stdout).lines().count() as u64;
+    assert!(lines > reported / 2 && lines <= reported, "{lines} of {reported}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("layer take"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // Baked on the flower.
+    let glb = dir.path().join("leafy.glb");
+    let take = daemon.takes_dir.join("leafy.take");
+    let out = std::process::Command::new(frond_e2e::bin("frond-gltf"))
+        .args(["bake", "--rig", "flower", "--take"])
+        .arg(&take)
+        .arg("-o")
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::metadata(&glb).unwrap().len() > 1000);
+
+    // Aligned as the secondary of the global take: the written take has both layers.
+    daemon.frond_ok(&["take", "align", "global", "leafy", "--layer", "leaf", "-o", "aligned"]);
+    let bytes = std::fs::read(daemon.takes_dir.join("aligned.take")).unwrap();
+    let aligned = frond_motion::layers::Take::from_bytes(&bytes).unwrap();
+    assert_eq!(aligned.layer_ids(), [0, 1]);
+    assert!(aligned.layer(1, true).len() > 10);
+    // And on the recording timeline beside the global take.
+    let out = daemon.frond_ok(&["take", "export", "global", "leafy", "--align"]);
+    assert!(out.lines().any(|l| l.contains("\"take\":\"leafy\"")), "no leafy frames aligned");
+}

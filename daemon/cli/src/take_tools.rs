@@ -65,11 +65,16 @@ fn now_unix_s() -> u64 {
 /// (`None`: the command has no way past it) rather than cut short
 /// ([`crate::takes::check_resample_with`]).
 pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
-    let poses: Vec<_> = take.layer(GLOBAL_LAYER, false).iter().map(|f| f.pose).collect();
+    layer_clip(take, GLOBAL_LAYER, fps, what, force)
+}
+
+/// One layer of a take resampled at `fps`, checked like [`global_clip`].
+fn layer_clip(take: &Take, id: u16, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
+    let poses: Vec<_> = take.layer(id, false).iter().map(|f| f.pose).collect();
     crate::takes::check_resample_with(&format!("take {what:?}"), &poses, fps, force)?;
-    let c = take.clip(GLOBAL_LAYER, fps);
+    let c = take.clip(id, fps);
     if c.is_empty() {
-        anyhow::bail!("take {what:?} has no global frames");
+        anyhow::bail!("take {what:?} has no {} frames", take.layer_name(id));
     }
     Ok(c)
 }
@@ -376,7 +381,14 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             let gt = read_take(g, &global)?;
             let st = read_take(g, &secondary)?;
             let gc = global_clip(&gt, out.fps, &global, Some(out.force))?;
-            let sc = global_clip(&st, out.fps, &secondary, Some(out.force))?;
+            // A secondary recorded with `frond record layer` holds only its layer: that is its motion.
+            let sc = layer_clip(
+                &st,
+                st.main_layer().unwrap_or(GLOBAL_LAYER),
+                out.fps,
+                &secondary,
+                Some(out.force),
+            )?;
             let transitions = find_transitions(&sc, &LoopParams::default()).ok();
             let (aligned, steps) =
                 align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;

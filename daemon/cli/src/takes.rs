@@ -106,7 +106,8 @@ pub(crate) fn warn_damaged(path: &Path, damage: Option<&str>, readable_frames: u
 pub(crate) struct TakeInfo {
     pub name: String,
     pub path: String,
-    /// Main-skeleton frames (every recorded tick, held ones included).
+    /// Main-skeleton frames (every recorded tick, held ones included); a layer take's layer
+    /// (`frond_motion::take::main_element`).
     pub frames: u64,
     /// Time from the first to the last main-skeleton pose, seconds.
     pub duration_s: f64,
@@ -144,7 +145,7 @@ pub(crate) fn info(path: &Path) -> TakeInfo {
     };
     match read_scan(path) {
         Ok((scan, size)) => {
-            info.frames = scan.frames.iter().filter(|f| f.element == 0).count() as u64;
+            info.frames = scan.main_frame_count();
             info.duration_s = scan.duration_s();
             info.size_bytes = size;
             info.torn_bytes = scan.torn_bytes;
@@ -328,6 +329,12 @@ pub(crate) fn export(
     } else if !scan.ended {
         frond_binmain::errln!(
             "frond: warning: {} is not closed (still recording?); exporting what is there",
+            path.display()
+        );
+    }
+    if let Some(k) = scan.main_element().filter(|&k| k > 0) {
+        frond_binmain::errln!(
+            "frond: note: {} is a layer take (its frames are element {k}, a secondary layer): exporting that layer",
             path.display()
         );
     }

@@ -124,6 +124,13 @@ impl Take {
         out
     }
 
+    /// The layer the take's motion is read from: the global one when it has frames, else the
+    /// lowest secondary layer (a take of `frond record layer` holds only its layer), see
+    /// [`crate::take::main_element`]. `None` without frames.
+    pub fn main_layer(&self) -> Option<u16> {
+        crate::take::main_element(&self.frames)
+    }
+
     /// The layer ids present, ascending.
     pub fn layer_ids(&self) -> Vec<u16> {
         let mut ids: Vec<u16> = self.frames.iter().map(|f| f.element).collect();

@@ -124,9 +124,19 @@ impl TakeHeader {
     /// frame of every export: held frames are skipped), when the take knows its recording clock.
     pub fn start_timecode(&self, frames: &[TakeFrame], fps: f64) -> Option<crate::timecode::Timecode> {
         let clock = self.clock?;
-        let first = frames.iter().find(|f| f.element == 0 && f.flags & crate::layers::FLAG_HELD == 0)?;
+        let main = main_element(frames)?;
+        let first = frames.iter().find(|f| f.element == main && f.flags & crate::layers::FLAG_HELD == 0)?;
         clock.timecode_of(first.host_ns, fps)
     }
+}
+
+/// The element a take's motion is read from by the tools that read one stream of poses (`take
+/// list`, `take export`, alignment, previews): the plant (element 0) when the take has any frame
+/// of it, else the lowest secondary element it has. A take of `frond record layer` holds only its
+/// layer's frames (the hand published as, say, `leaf`): that layer is its motion. `None` for a
+/// take without frames.
+pub fn main_element(frames: &[TakeFrame]) -> Option<u16> {
+    frames.iter().map(|f| f.element).min()
 }
 
 /// The host's wall clock and monotonic clock read together: a frame stamped `host_ns`
@@ -514,24 +524,41 @@ impl std::fmt::Display for Skipped {
 }
 
 impl TakeScan {
-    /// The poses of the main skeleton (element 0), in order.
+    /// The element the take's motion is read from ([`main_element`]): 0, or the layer of a
+    /// layer take.
+    pub fn main_element(&self) -> Option<u16> {
+        main_element(&self.frames)
+    }
+
+    /// Frames of [`TakeScan::main_element`], held ones included: what `frond take list` counts.
+    pub fn main_frame_count(&self) -> u64 {
+        let main = self.main_element();
+        self.frames.iter().filter(|f| Some(f.element) == main).count() as u64
+    }
+
+    /// The poses of the main skeleton (element 0; a layer take's layer, see [`main_element`]),
+    /// in order.
     pub fn poses(&self) -> Vec<PoseFrame> {
         self.main_poses(true)
     }
 
-    /// The poses of the main skeleton, in order, held frames (no new report) left out unless
-    /// `include_held`: what `frond take export` prints.
+    /// The poses of the main skeleton (a layer take's layer, see [`main_element`]), in order,
+    /// held frames (no new report) left out unless `include_held`: what `frond take export`
+    /// prints.
     pub fn main_poses(&self, include_held: bool) -> Vec<PoseFrame> {
+        let main = self.main_element();
         self.frames
             .iter()
-            .filter(|f| f.element == 0 && (include_held || f.flags & crate::layers::FLAG_HELD == 0))
+            .filter(|f| Some(f.element) == main && (include_held || f.flags & crate::layers::FLAG_HELD == 0))
             .map(|f| f.pose)
             .collect()
     }
 
-    /// Time from the first to the last main-skeleton pose, seconds (0 with fewer than two).
+    /// Time from the first to the last main-skeleton pose (a layer take's layer, see
+    /// [`main_element`]), seconds (0 with fewer than two).
     pub fn duration_s(&self) -> f64 {
-        let mut main = self.frames.iter().filter(|f| f.element == 0);
+        let id = self.main_element();
+        let mut main = self.frames.iter().filter(|f| Some(f.element) == id);
         match (main.next(), main.next_back()) {
             (Some(a), Some(b)) => b.pose.t - a.pose.t,
             _ => 0.0,
@@ -844,6 +871,37 @@ fn resample_with_gap(frames: &[PoseFrame], fps: f64, max_gap_s: f64) -> Vec<Pose
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn at(element: u16, t: f64, flags: u32) -> TakeFrame {
+        TakeFrame { element, flags, pose: PoseFrame { t, ..PoseFrame::default() }, ..TakeFrame::default() }
+    }
+
+    #[test]
+    fn a_layer_take_reads_as_its_layer() {
+        // `frond record layer` writes only the layer's frames (here element 2); 4 frames over
+        // 0.25..1.0 s, one of them held.
+        let frames =
+            vec![at(2, 0.25, 0), at(2, 0.5, crate::layers::FLAG_HELD), at(2, 0.75, 0), at(2, 1.0, 0)];
+        let scan = TakeScan { frames, ..TakeScan::default() };
+        assert_eq!(scan.main_element(), Some(2));
+        assert_eq!(scan.main_frame_count(), 4);
+        assert_eq!(scan.duration_s(), 0.75);
+        let t: Vec<f64> = scan.main_poses(false).iter().map(|p| p.t).collect();
+        assert_eq!(t, [0.25, 0.75, 1.0]);
+        assert_eq!(scan.poses().len(), 4);
+    }
+
+    #[test]
+    fn a_layered_take_reads_as_its_plant() {
+        // The plant (element 0) over 0..2 s and a leaf (element 1) over 0..0.5 s: the plant.
+        let frames = vec![at(1, 0.0, 0), at(0, 0.0, 0), at(1, 0.5, 0), at(0, 2.0, 0)];
+        let scan = TakeScan { frames, ..TakeScan::default() };
+        assert_eq!(scan.main_element(), Some(0));
+        assert_eq!(scan.main_frame_count(), 2);
+        assert_eq!(scan.duration_s(), 2.0);
+        assert_eq!(TakeScan::default().main_element(), None);
+        assert_eq!(TakeScan::default().duration_s(), 0.0);
+    }
 
     #[test]
     fn frame_payload_len_is_118() {

@@ -33,16 +33,17 @@ pub enum AlignError {
     },
 }
 
-/// The main-skeleton frames of every take (held frames only with `include_held`), each at its
+/// The main-skeleton frames (a layer take's layer, [`crate::take::main_element`]) of every take (held frames only with `include_held`), each at its
 /// instant on the stage timeline, in timeline order (ties: take order, then file order).
 pub fn align(takes: &[&TakeScan], include_held: bool) -> Result<Vec<AlignedFrame>, AlignError> {
     let mut out = Vec::new();
     for (i, scan) in takes.iter().enumerate() {
         let clock = scan.header.as_ref().and_then(|h| h.clock).ok_or(AlignError::NoClock { take: i })?;
+        let main = scan.main_element();
         out.extend(
             scan.frames
                 .iter()
-                .filter(|f| f.element == 0 && (include_held || f.flags & FLAG_HELD == 0))
+                .filter(|f| Some(f.element) == main && (include_held || f.flags & FLAG_HELD == 0))
                 .map(|f| AlignedFrame { take: i, stage_ns: clock.unix_ns_of(f.host_ns), frame: *f }),
         );
     }

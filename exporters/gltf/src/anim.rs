@@ -39,15 +39,17 @@ impl Layers {
     /// take's time base: time 0 is the first kept frame of any layer, and each layer holds its
     /// first pose before it starts and its last after it ends. A step in the shared time base
     /// longer than `MAX_INTERPOLATED_GAP_S` is a discontinuity (one key, not hours of
-    /// interpolated ones), as in `frond_motion::resample`. `None` when no element-0 frame remains.
+    /// interpolated ones), as in `frond_motion::resample`. A take without element-0 frames (a
+    /// take of `frond record layer`, which holds only its layer) gets the plant at rest (every
+    /// joint at 0 degrees: the bind pose) as its element 0, so its layer moves on a still plant.
+    /// `None` when no frame remains.
     /// [`Layers::plan`] counts the keys first.
     pub fn from_frames(frames: &[TakeFrame], fps: f64) -> Option<Layers> {
         let kept = || {
             frames.iter().filter(|f| !PoseFlags(f.flags).contains(PoseFlags::HELD) && f.pose.t.is_finite())
         };
-        if !kept().any(|f| f.element == 0) {
-            return None;
-        }
+        kept().next()?;
+        let rest_plant = !kept().any(|f| f.element == 0);
         let timeline = TimeLine::new(kept().map(|f| f.pose.t), fps);
         let t_end = timeline.end();
         let mut ids: Vec<u16> = kept().map(|f| f.element).collect();
@@ -77,6 +79,10 @@ impl Layers {
                 times_s = resampled.iter().map(|p| p.t).collect();
             }
             layers.push(Layer { element: id, poses: resampled.iter().map(|p| p.joints_deg).collect() });
+        }
+        if rest_plant {
+            let rest = Layer { element: 0, poses: vec![[[0.0; 3]; JOINTS]; times_s.len()] };
+            layers.insert(0, rest);
         }
         Some(Layers { fps, times_s, layers })
     }
@@ -256,9 +262,20 @@ mod tests {
         let frames = [frame(0, 0.0, 0.0, 0), frame(0, 0.5, 99.0, PoseFlags::HELD.0), frame(0, 1.0, 10.0, 0)];
         let l = Layers::from_frames(&frames, 2.0).unwrap();
         assert_eq!(l.main().poses.iter().map(|p| p[0][0]).collect::<Vec<_>>(), [0.0, 5.0, 10.0]);
-        assert!(Layers::from_frames(&[frame(1, 0.0, 0.0, 0)], 30.0).is_none());
         assert!(Layers::from_frames(&[frame(0, 0.0, 0.0, PoseFlags::HELD.0)], 30.0).is_none());
         assert!(Layers::from_frames(&[], 30.0).is_none());
+    }
+
+    #[test]
+    fn a_layer_take_moves_its_layer_on_a_plant_at_rest() {
+        // Only leaf frames (element 1), pitch 10 at 5.0 s and 30 at 6.0 s, as `frond record
+        // layer` writes them: at 2 FPS keys at 0, 0.5, 1 s; the plant is at rest in every key.
+        let frames = [frame(1, 5.0, 10.0, 0), frame(1, 6.0, 30.0, 0)];
+        let l = Layers::from_frames(&frames, 2.0).unwrap();
+        assert_eq!(l.times_s, [0.0, 0.5, 1.0]);
+        assert_eq!(l.layers.iter().map(|l| l.element).collect::<Vec<_>>(), [0, 1]);
+        assert_eq!(l.main().poses, vec![[[0.0f32; 3]; JOINTS]; 3]);
+        assert_eq!(l.layers[1].poses.iter().map(|p| p[0][0]).collect::<Vec<_>>(), [10.0, 20.0, 30.0]);
     }
 
     #[test]

@@ -347,6 +347,12 @@ pub(crate) fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
     if let Some(damage) = &take.damage {
         notes.push(format!("take `{}` is damaged: {damage}; baked the readable frames", take.name));
     }
+    if let Some(k) = frond_motion::take::main_element(&take.frames).filter(|&k| k > 0) {
+        notes.push(format!(
+            "take `{}` is a layer take (no frames of the plant, element 0): its layers from element {k} move on a plant at rest",
+            printable(&take.name)
+        ));
+    }
     if take.torn_bytes > 0 {
         notes.push(format!(
             "take `{}` ends in a torn tail of {} bytes (still being written, or a crash); baked the frames before it",

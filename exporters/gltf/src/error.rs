@@ -48,8 +48,8 @@ pub enum BakeError {
         /// What to do about it (`; pass --force to go past it`, or that it is the hard limit).
         hint: &'static str,
     },
-    /// The take holds no usable frames of the main skeleton.
-    #[error("take `{name}` has no frames of the main skeleton (element 0) to bake")]
+    /// The take holds no usable frames (of the main skeleton or of any layer).
+    #[error("take `{name}` has no frames of the main skeleton or of any layer to bake")]
     TakeEmpty {
         /// Take name.
         name: String,
