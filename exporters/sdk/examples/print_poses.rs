@@ -2,8 +2,8 @@
 //! print each pose as one line of text.
 //!
 //! ```sh
-//! cargo run -p frond-sdk --example print_poses                          # this host's daemon
-//! cargo run -p frond-sdk --example print_poses -- zenoh:frond/stage-a/studio-1   # another host's
+//! cargo run --example print_poses                          # this host's daemon
+//! cargo run --example print_poses -- zenoh:frond/stage-a/studio-1   # another host's
 //! ```
 //!
 //! Every pose carries its element (0 the main hand's plant; others a second hand, a layer, a
