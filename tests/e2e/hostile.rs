@@ -2,7 +2,7 @@
 //! refused naming the field (and the daemon stays small and keeps answering); panicking
 //! requests are answered `Internal` and give their connection slot back; clients that trickle
 //! a request are cut off at the whole-request deadline, so they cannot lock operators out.
-//! The limits asserted are the ones the README documents (16 clients, 5 s per request).
+//! The limits asserted are the ones docs/security-and-limits.md documents (16 clients, 5 s per request).
 
 use std::io::Write;
 use std::os::unix::net::UnixStream;

@@ -1,6 +1,6 @@
 //! Issue 14, points 4, 5, 7 and 8: takes under disk faults, damage, absurd time spans and
 //! non-finite values, against the real `frondd`, `frond` and `frond-gltf`. The limits asserted
-//! are the ones the README's "On a stage" documents.
+//! are the ones docs/security-and-limits.md documents.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -183,7 +183,7 @@ fn the_shipped_unit_runs_frondd_under_a_real_systemd() {
     assert_eq!((m.prop("ActiveState"), m.prop("MainPID")), ("active".to_string(), pid.clone()));
 
     // A Leap Motion service on loopback reaches the service (IPAddressAllow=localhost and
-    // AF_INET allowed): a drop-in changes only the source, as README's install steps say.
+    // AF_INET allowed): a drop-in changes only the source, as docs/stage.md's install steps say.
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
     let frames: Vec<String> =

@@ -55,7 +55,7 @@ impl Rigid {
     }
 }
 
-/// The convention in the README: pitch about local +X, yaw about +Z, roll about +Y,
+/// The convention in docs/mapping.md: pitch about local +X, yaw about +Z, roll about +Y,
 /// `R = R_yaw R_pitch R_roll`.
 fn joint_rotation([pitch, yaw, roll]: [f64; 3]) -> M3 {
     let (p, y, r) = (pitch.to_radians(), yaw.to_radians(), roll.to_radians());
@@ -103,7 +103,7 @@ fn skin(heights: [f64; 4], pose: &[[f64; 3]; 4], w: [f64; 4], v: V3) -> V3 {
     out
 }
 
-/// The documented height rule (README, "Rotation convention"; seed 000 Appendix made clean):
+/// The documented height rule (docs/mapping.md, "Rotation convention"; seed 000 Appendix made clean):
 /// at or below joint 0 joint 0 only, between two joint heights a linear blend of those two, at
 /// or above the top joint the top joint only.
 fn height_rule(h: [f64; 4], y: f64) -> [f64; 4] {
