@@ -182,9 +182,19 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
                 }
                 sources.push(GraphSource { take: take.clone(), graph });
             }
+            let sources_names: Vec<String> = sources.iter().map(|s| s.graph.clone()).collect();
             let mut c = Control::from_global(g)?;
             let spec = StageSpec::Graph { sources, plants, seed };
-            c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
+            c.expect_ok(&ControlRequest::StageStart { name: None, spec }).map_err(|e| {
+                // The daemon names the graph it could not read; say how to make one.
+                let text = format!("{e:#}");
+                match sources_missing_graph(&text, &sources_names) {
+                    Some(graph) => e.context(format!(
+                        "graph {graph:?} does not exist: make it with `frond take graph {graph} --control top`"
+                    )),
+                    None => e,
+                }
+            })?;
             frond_binmain::outln!(
                 "{plants} plants walking the graph{} of {}; direct them with `frond graph goal`",
                 if takes.len() == 1 { "" } else { "s" },
@@ -263,5 +273,25 @@ mod tests {
         assert!(parse_goal("pose", Some(&format!("{twelve},1"))).unwrap_err().contains("or more"));
         assert!(parse_goal("north", None).unwrap_err().contains("unknown goal"));
         assert!(parse_goal("off", Some("1")).unwrap_err().contains("takes no value"));
+    }
+}
+
+/// The graph a daemon's refusal says it could not find (`cannot read graph "NAME" at PATH: No
+/// such file...`), among `graphs`.
+fn sources_missing_graph<'a>(text: &str, graphs: &'a [String]) -> Option<&'a str> {
+    if !(text.contains("cannot read graph") && text.contains("No such file")) {
+        return None;
+    }
+    graphs.iter().find(|g| text.contains(&format!("graph {g:?}"))).map(String::as_str)
+}
+
+#[cfg(test)]
+mod missing_graph_tests {
+    #[test]
+    fn the_daemons_missing_graph_is_named() {
+        let graphs = vec!["breeze".to_string(), "gale".to_string()];
+        let text = "invalid: cannot read graph \"gale\" at /t/gale.graph.json: No such file or directory (os error 2)";
+        assert_eq!(super::sources_missing_graph(text, &graphs), Some("gale"));
+        assert_eq!(super::sources_missing_graph("invalid: graph \"gale\" is too large", &graphs), None);
     }
 }

@@ -4,6 +4,9 @@
 //! Malformed input lines are reported on stderr as `line N: <problem>` and skipped; every good
 //! line is mapped and written, and the command then fails (status 1) if any line was bad, so a
 //! script notices while a person still gets all the usable output. Blank lines are ignored.
+//! After [`MAX_BAD_LINES`] malformed lines the input is not hand JSON Lines at all (a binary
+//! file, the wrong file): `frond map` stops there and says so with the count, instead of
+//! listing a line of complaint for every line of a large file.
 
 use frond_motion::mapping::MAX_TIME_STEP_S;
 use std::io::{self, BufRead, BufReader, Read, Write};
@@ -47,6 +50,15 @@ pub(crate) fn run(
             DISCONTINUITIES_LISTED
         );
     }
+    if let Some(line) = summary.stopped_at_line {
+        bail!(
+            "stopped at line {line}: {} malformed lines, the most frond map reads before it gives up \
+             (is this hand JSON Lines, one {{\"t\":..,\"wrist\":[..],\"thumb\":[..]}} a line?); \
+             the {} good lines before it were mapped",
+            summary.bad,
+            summary.good
+        );
+    }
     if summary.bad > 0 {
         bail!(
             "{} of {} input lines were malformed (listed above); the other {} were mapped",
@@ -67,13 +79,18 @@ pub(crate) struct MapSummary {
     pub bad: u64,
     /// Lines whose time broke the timeline (the filter was reset there, as live).
     pub discontinuities: u64,
+    /// The line at which reading stopped after [`MAX_BAD_LINES`] malformed lines.
+    pub stopped_at_line: Option<u64>,
 }
+
+/// Malformed lines [`map_stream`] reports before it stops reading.
+pub(crate) const MAX_BAD_LINES: u64 = 100;
 
 /// Time discontinuities reported line by line; past this, only counted.
 const DISCONTINUITIES_LISTED: u64 = 10;
 
-/// Maps every hand line of `input` to a pose line on `out`; reports bad lines on `errors`.
-/// Fails only on I/O errors.
+/// Maps every hand line of `input` to a pose line on `out`; reports bad lines on `errors`, and
+/// stops reading at the [`MAX_BAD_LINES`]th (`stopped_at_line`). Fails only on I/O errors.
 pub(crate) fn map_stream(
     mut input: impl BufRead,
     out: &mut impl Write,
@@ -95,6 +112,10 @@ pub(crate) fn map_stream(
             Err(e) => {
                 writeln!(errors, "line {n}: not UTF-8 text ({e})")?;
                 summary.bad += 1;
+                if summary.bad >= MAX_BAD_LINES {
+                    summary.stopped_at_line = Some(n);
+                    break;
+                }
                 continue;
             }
         };
@@ -123,6 +144,10 @@ pub(crate) fn map_stream(
             Err(e) => {
                 writeln!(errors, "line {n}: {e}")?;
                 summary.bad += 1;
+                if summary.bad >= MAX_BAD_LINES {
+                    summary.stopped_at_line = Some(n);
+                    break;
+                }
             }
         }
     }
@@ -155,7 +180,7 @@ mod tests {
         let mut out = Vec::new();
         let mut err = Vec::new();
         let s = map_stream(input.as_bytes(), &mut out, &mut mapper(), &mut err).unwrap();
-        assert_eq!(s, MapSummary { good: 2, bad: 2, discontinuities: 0 });
+        assert_eq!(s, MapSummary { good: 2, bad: 2, discontinuities: 0, stopped_at_line: None });
         let out = String::from_utf8(out).unwrap();
         // Unit scales, tau 2, G/G_R = 0.5, 0.5, 0.25 (see the motion crate's hand computation).
         assert_eq!(
@@ -176,7 +201,25 @@ mod tests {
         input.extend_from_slice(b"{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n");
         let (mut out, mut err) = (Vec::new(), Vec::new());
         let s = map_stream(&input[..], &mut out, &mut mapper(), &mut err).unwrap();
-        assert_eq!(s, MapSummary { good: 1, bad: 1, discontinuities: 0 });
+        assert_eq!(s, MapSummary { good: 1, bad: 1, discontinuities: 0, stopped_at_line: None });
         assert!(String::from_utf8(err).unwrap().starts_with("line 1: not UTF-8"));
+    }
+
+    #[test]
+    fn reading_stops_at_the_hundredth_bad_line() {
+        // 3 good lines, then 250 lines of garbage with a good line after them: lines 4..=103
+        // are the first 100 bad ones, and nothing after line 103 is read.
+        let good = "{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n";
+        let mut input = good.repeat(3);
+        input.push_str(&"garbage\n".repeat(250));
+        input.push_str(good);
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let s = map_stream(input.as_bytes(), &mut out, &mut mapper(), &mut err).unwrap();
+        assert_eq!(s, MapSummary { good: 3, bad: 100, discontinuities: 2, stopped_at_line: Some(103) });
+        assert_eq!(String::from_utf8(out).unwrap().lines().count(), 3);
+        let err = String::from_utf8(err).unwrap();
+        let bad: Vec<&str> = err.lines().filter(|l| l.contains("not JSON")).collect();
+        assert_eq!(bad.len(), 100, "{err}");
+        assert!(bad[99].starts_with("line 103: "), "{err}");
     }
 }

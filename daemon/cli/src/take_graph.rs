@@ -208,9 +208,26 @@ pub(crate) fn default_graph_path(g: &Global, name: &str) -> PathBuf {
 
 /// Reads and checks a graph file (regular, at most [`MAX_GRAPH_FILE_BYTES`]).
 pub(crate) fn read_graph_file(path: &Path) -> anyhow::Result<GraphFile> {
-    let text = frond_motion::rig_files::read_small_text(path, MAX_GRAPH_FILE_BYTES)
-        .map_err(|e| anyhow!("cannot read {}: {}", path.display(), e.reason()))?;
+    let text = frond_motion::rig_files::read_small_text(path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
+        let hint = if path.exists() { String::new() } else { missing_graph_hint(path) };
+        anyhow!("cannot read {}: {}{hint}", path.display(), e.reason())
+    })?;
     GraphFile::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+/// What to say when a graph file does not exist: how to make one (`frond take graph TAKE` writes
+/// `TAKE.graph.json` beside the take).
+pub(crate) fn missing_graph_hint(path: &Path) -> String {
+    let name = path.file_name().and_then(|n| n.to_str()).and_then(|n| n.strip_suffix(".graph.json"));
+    match name {
+        Some(take) => format!(
+            "; make it with `frond take graph {take} --control top` (from take {take:?}; \
+             `frond take simulate` makes a take to build one from)"
+        ),
+        None => "; make a take's graph with `frond take graph TAKE --control top` and pass its \
+                 TAKE.graph.json"
+            .to_string(),
+    }
 }
 
 /// `--goal-pose`: `frame=N` (a frame of the take at the graph's rate) or 12 comma-separated
@@ -398,5 +415,19 @@ fn goal_name(a: &Walk) -> String {
         (Some(p), _) => format!("pose:{p}"),
         (None, Some(d)) => format!("dir:{d}"),
         (None, None) => "random".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_graph_says_how_to_make_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = read_graph_file(&dir.path().join("gale.graph.json")).unwrap_err().to_string();
+        assert!(e.contains("frond take graph gale"), "{e}");
+        let e = read_graph_file(&dir.path().join("odd.json")).unwrap_err().to_string();
+        assert!(e.contains("frond take graph TAKE"), "{e}");
     }
 }

@@ -12,6 +12,8 @@ use anyhow::Context;
 use frond_motion::PoseFrame;
 use frond_motion::jsonl::write_pose_line;
 use frond_protocol::{Pose, PoseFlags, paths};
+use std::time::Duration;
+
 use frond_sdk::{Event, SdkError, Subscriber};
 
 use crate::args::Global;
@@ -31,13 +33,14 @@ pub(crate) fn run(
     }
     let dir = paths::socket_dir(g.socket_dir.clone());
     let source = from.cloned().unwrap_or_else(|| frond_sdk::Source::Socket(dir.clone()));
-    let mut sub = Subscriber::options().subscribe(&source).map_err(|e| match e {
-        SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
-            &dir.join(frond_protocol::POSES_SOCKET),
-            &source
-        )),
-        other => other.into(),
-    })?;
+    let mut sub =
+        Subscriber::options().read_timeout(Some(SILENCE_POLL)).subscribe(&source).map_err(|e| match e {
+            SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
+                &dir.join(frond_protocol::POSES_SOCKET),
+                &source
+            )),
+            other => other.into(),
+        })?;
     let mut names = sub.hello().joint_names.clone();
     // `--element`: an id, or a name looked up in the element table (again when it changes).
     let pick = |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::usage);
@@ -50,14 +53,27 @@ pub(crate) fn run(
     if count == Some(0) {
         return Ok(());
     }
+    let mut silence = Silence::new(std::time::Instant::now());
     loop {
-        match sub.next_event().context("reading the pose stream")? {
+        let event = match sub.next_event() {
+            Err(SdkError::Timeout { .. }) => None,
+            other => Some(other.context("reading the pose stream")?),
+        };
+        if let Some(note) = silence.check(std::time::Instant::now(), &source, element) {
+            frond_binmain::errln!("frond tap: {note}");
+        }
+        let Some(event) = event else { continue };
+        match event {
             Event::Pose(pose) => {
-                if (pose.flags.contains(PoseFlags::HELD) && !include_held)
-                    || only.is_some_and(|id| id != pose.element)
-                {
+                if pose.flags.contains(PoseFlags::HELD) && !include_held {
+                    silence.held += 1;
                     continue;
                 }
+                if only.is_some_and(|id| id != pose.element) {
+                    silence.other += 1;
+                    continue;
+                }
+                silence.printed(std::time::Instant::now());
                 if printer.print(&pose, &names, &table, None)? {
                     return Ok(());
                 }
@@ -100,6 +116,67 @@ pub(crate) fn run(
                 frond_binmain::errln!("frond tap: the daemon closed the stream; reconnecting")
             }
         }
+    }
+}
+
+/// How often `frond tap` looks up from a silent stream.
+const SILENCE_POLL: Duration = Duration::from_millis(250);
+/// How long without a pose to print before `frond tap` says why it prints nothing.
+const SILENCE_NOTICE: Duration = Duration::from_secs(2);
+
+/// Tracks how long `frond tap` has printed nothing, and what it skipped meanwhile, to say once
+/// per silence what is wrong instead of waiting without a word.
+struct Silence {
+    since: std::time::Instant,
+    said: bool,
+    /// Held frames skipped (the daemon repeating the last pose: no new report from the hand).
+    held: u64,
+    /// Frames of other elements than `--element` skipped.
+    other: u64,
+}
+
+impl Silence {
+    fn new(now: std::time::Instant) -> Self {
+        Silence { since: now, said: false, held: 0, other: 0 }
+    }
+
+    fn printed(&mut self, now: std::time::Instant) {
+        *self = Silence::new(now);
+    }
+
+    /// The note to print when nothing has been printed for [`SILENCE_NOTICE`] (once a silence).
+    fn check(
+        &mut self,
+        now: std::time::Instant,
+        source: &frond_sdk::Source,
+        element: Option<&str>,
+    ) -> Option<String> {
+        let quiet = now.duration_since(self.since);
+        if self.said || quiet < SILENCE_NOTICE {
+            return None;
+        }
+        self.said = true;
+        let from = match source {
+            frond_sdk::Source::Socket(dir) => format!("{}", dir.join(frond_protocol::POSES_SOCKET).display()),
+            frond_sdk::Source::Zenoh(addr) => format!("zenoh:{addr}"),
+        };
+        let secs = quiet.as_secs_f64();
+        Some(if self.other > 0 {
+            format!(
+                "nothing to print for {secs:.0} s from {from}: {} frames of other elements, none of --element {};                  `frond tap` without --element shows what is published",
+                self.other,
+                frond_protocol::printable(element.unwrap_or("?"))
+            )
+        } else if self.held > 0 {
+            format!(
+                "nothing to print for {secs:.0} s from {from}: the daemon only repeats the last pose ({} held                  frames), its hand source sends no reports; check the device or glove (`frond status`,                  `frond doctor`), or pass --include-held to print the held frames",
+                self.held
+            )
+        } else {
+            format!(
+                "no frames for {secs:.0} s from {from}: the source is silent; check that it runs and publishes                  (`frond status`, `frond doctor`; a Zenoh source: its bridge and router)"
+            )
+        })
     }
 }
 
@@ -238,6 +315,27 @@ mod tests {
     use frond_protocol::HandWire;
 
     use super::*;
+
+    #[test]
+    fn a_silent_stream_is_said_once_after_two_seconds() {
+        let t0 = std::time::Instant::now();
+        let src = frond_sdk::Source::Socket("/run/frond".into());
+        let mut s = Silence::new(t0);
+        s.held = 40;
+        assert_eq!(s.check(t0 + Duration::from_millis(1900), &src, None), None);
+        let note = s.check(t0 + Duration::from_millis(2100), &src, None).unwrap();
+        assert!(note.contains("/run/frond/poses.sock") && note.contains("40 held"), "{note}");
+        assert!(note.contains("--include-held"), "{note}");
+        assert_eq!(s.check(t0 + Duration::from_secs(9), &src, None), None, "said once");
+        // A pose printed: the next silence is said again, here one without any frame.
+        s.printed(t0 + Duration::from_secs(10));
+        let note = s.check(t0 + Duration::from_secs(13), &src, None).unwrap();
+        assert!(note.contains("no frames for 3 s") && note.contains("frond status"), "{note}");
+        let mut s = Silence::new(t0);
+        s.other = 5;
+        let note = s.check(t0 + Duration::from_secs(3), &src, Some("leaf")).unwrap();
+        assert!(note.contains("--element leaf"), "{note}");
+    }
 
     fn pose(flags: PoseFlags) -> Pose {
         Pose {
