@@ -158,6 +158,22 @@ pub struct ControlContext {
     pub recording_session: Mutex<()>,
 }
 
+/// Longest marker label, bytes (`frond mark` and the console say the same).
+const MAX_MARKER_LABEL_BYTES: usize = 256;
+
+/// A marker label is stored in the take and printed by `frond take` tools and the console:
+/// checked where it enters with the rule for every other name (calibration ids, rig names):
+/// not blank, at most [`MAX_MARKER_LABEL_BYTES`], no control characters (issue 42: a line break
+/// or an escape sequence would draw a fake line wherever the label is shown).
+fn check_marker_label(label: &str) -> Result<(), String> {
+    let mut problems = frond_motion::Problems::default();
+    if problems.name("label", label, MAX_MARKER_LABEL_BYTES) {
+        Ok(())
+    } else {
+        Err(problems.0.iter().map(|p| format!("marker {p}")).collect::<Vec<_>>().join("; "))
+    }
+}
+
 pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
     static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
     let message = message.into();
@@ -443,11 +459,8 @@ impl ControlContext {
     }
 
     fn mark(&self, label: String) -> ControlReply {
-        if label.len() > 256 {
-            return refuse(
-                ControlErrorKind::BadRequest,
-                format!("marker label is {} bytes; the limit is 256", label.len()),
-            );
+        if let Err(why) = check_marker_label(&label) {
+            return refuse(ControlErrorKind::BadRequest, why);
         }
         if self.lock().recording.is_none() {
             return refuse(ControlErrorKind::WrongState, "no take is being recorded");
@@ -760,5 +773,26 @@ fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
         if write_frame(&mut stream, &mut out, &reply).is_err() {
             return;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 42: `frond mark "$(printf 'x\n\033[31mFAKE')"` was stored as is; a marker label
+    /// now follows the calibration id's rule (printable, not blank, bounded).
+    #[test]
+    fn a_marker_label_is_printable_and_bounded() {
+        let e = check_marker_label("x\n\u{1b}[31mFAKE").unwrap_err();
+        assert_eq!(e, "marker label: contains the control character '\\n'; a name must be printable");
+        let e = check_marker_label("a\u{1b}[2Kb").unwrap_err();
+        assert_eq!(e, "marker label: contains the control character '\\u{1b}'; a name must be printable");
+        let e = check_marker_label(&"x".repeat(257)).unwrap_err();
+        assert_eq!(e, "marker label: is 257 bytes; the limit is 256");
+        assert_eq!(check_marker_label("  ").unwrap_err(), "marker label: must not be empty");
+        assert_eq!(check_marker_label(""), Err("marker label: must not be empty".into()));
+        assert_eq!(check_marker_label(&"x".repeat(256)), Ok(()));
+        assert_eq!(check_marker_label("pétale 2 — take 3"), Ok(()));
     }
 }

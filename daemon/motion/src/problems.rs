@@ -55,8 +55,9 @@ impl Problems {
     /// Checks a name from a file (a rig's, a joint's, an element's): not blank, at most
     /// `max_bytes`, and no control characters, since names are printed in status tables, take
     /// lists and logs, where an escape sequence or a line break would forge or garble output.
-    /// `true` when it is fine.
-    pub(crate) fn name(&mut self, path: impl Into<String>, name: &str, max_bytes: usize) -> bool {
+    /// `true` when it is fine. Also the rule for names that arrive over the control socket
+    /// (marker labels), so that every name frond prints obeys one rule.
+    pub fn name(&mut self, path: impl Into<String>, name: &str, max_bytes: usize) -> bool {
         let path = path.into();
         if name.trim().is_empty() {
             self.push(path, "must not be empty");
