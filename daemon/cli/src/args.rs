@@ -165,6 +165,11 @@ pub enum Command {
         /// Take name [default: demo-<unix time>].
         #[arg(long, value_name = "NAME")]
         name: Option<String>,
+        /// After the take: keep the daemon on the virtual glove and the console running (the
+        /// plant moving live in the browser) for this many seconds [default: until Ctrl-C];
+        /// 0 ends at once (scripts, CI).
+        #[arg(long, value_name = "SECONDS")]
+        stay: Option<f64>,
     },
     /// Measure frond's speed, each figure against a baseline measured in the same run (loop
     /// lateness, glove-to-subscriber latency, tick cost, highest rate, daemon CPU/RSS, motion

@@ -1,5 +1,7 @@
 //! `frond demo`: start `frondd` on the virtual glove with a private socket directory, show live
-//! status and a few poses, record a take, stop everything, and say where the take is.
+//! status and a few poses, record a take, bake it and render a preview of the whole take, say
+//! where they are, then leave the daemon and the console running (the plant moving live) until
+//! Ctrl-C or `--stay SECONDS`, and stop everything.
 //!
 //! The daemon runs in its own process group (so the terminal's Ctrl-C reaches only `frond`,
 //! which then stops the recording and the daemon in order) with `PR_SET_PDEATHSIG` set to
@@ -29,9 +31,17 @@ const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 /// Poses printed before recording starts.
 const TAP_LINES: usize = 3;
 
-pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Result<()> {
+/// Longest `--stay`, seconds (a day).
+const MAX_STAY_S: f64 = 86_400.0;
+
+pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>, stay: Option<f64>) -> anyhow::Result<()> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
         return usage(format!("--seconds must be greater than 0 and at most 3600, got {seconds}"));
+    }
+    if let Some(s) = stay
+        && !(s.is_finite() && (0.0..=MAX_STAY_S).contains(&s))
+    {
+        return usage(format!("--stay must be 0 to {MAX_STAY_S} seconds, got {s}"));
     }
     let name = name.unwrap_or_else(|| {
         let now = SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
@@ -57,7 +67,10 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
             "console:    {url}  (the plant live in 3D, health and takes; open it while the demo runs)"
         )?;
     }
-    let result = demo_session(&mut daemon, socket_dir.path(), &takes_dir, &name, seconds);
+    let result = demo_session(&mut daemon, socket_dir.path(), &takes_dir, &name, seconds).and_then(|take| {
+        report_take(&take, &name, &takes_dir)?;
+        stay_live(&mut daemon, console.as_ref().map(|(_, url)| url.as_str()), socket_dir.path(), stay)
+    });
     drop(console);
     let stopped = daemon.stop();
     match (&result, stopped) {
@@ -68,9 +81,14 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
             )
         }
         (_, Err(e)) => frond_binmain::errln!("frond: warning: stopping frondd: {e:#}"),
-        _ => frond_binmain::outln!("daemon stopped")?,
+        _ => frond_binmain::outln!("daemon and console stopped")?,
     }
-    let take = result?;
+    result
+}
+
+/// Says where the take is, bakes it and renders its preview (the daemon still running, so the
+/// console stays live meanwhile).
+fn report_take(take: &TakeResult, name: &str, takes_dir: &Path) -> anyhow::Result<()> {
     frond_binmain::outln!()?;
     frond_binmain::outln!("take {name}: {} frames in {}", take.frames, take.path)?;
     match bake_glb(&take.path, "grass") {
@@ -81,8 +99,8 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
         Err(e) => frond_binmain::errln!("frond: warning: no GLB baked: {e:#}"),
     }
     match warp_preview(&take.path) {
-        Ok(gif) => frond_binmain::outln!(
-            "preview:    {} (grass blown by the take's wind, frond-warp)",
+        Ok((gif, frames, fps)) => frond_binmain::outln!(
+            "preview:    {} (grass blown by the take's wind, frond-warp: the whole take, {frames} frames at {fps} fps)",
             gif.display()
         )?,
         Err(e) => frond_binmain::errln!("frond: warning: no warp preview: {e:#}"),
@@ -94,6 +112,49 @@ pub(crate) fn run(g: &Global, seconds: f64, name: Option<String>) -> anyhow::Res
     )?;
     frond_binmain::outln!("list takes: frond take list --takes-dir {td}")?;
     Ok(())
+}
+
+/// Keeps the daemon (and the console, when it started) running after the take, so the newcomer
+/// has the plant moving live to look at: until Ctrl-C, or `stay` seconds (0: not at all). A
+/// Ctrl-C here is the normal end of the demo, not an interruption.
+fn stay_live(
+    daemon: &mut Daemon,
+    url: Option<&str>,
+    socket_dir: &Path,
+    stay: Option<f64>,
+) -> anyhow::Result<()> {
+    let limit = stay.map(Duration::from_secs_f64);
+    if limit.is_some_and(|l| l.is_zero()) {
+        return Ok(());
+    }
+    let until = match stay {
+        Some(s) => format!("for {s} s (Ctrl-C ends it sooner)"),
+        None => "until Ctrl-C".to_string(),
+    };
+    frond_binmain::outln!()?;
+    match url {
+        Some(url) => {
+            frond_binmain::outln!("live:       {url}  the plant moves on the virtual glove {until}")?
+        }
+        None => frond_binmain::outln!(
+            "live:       the daemon runs on the virtual glove {until}: FROND_SOCKET_DIR={} frond tap",
+            socket_dir.display()
+        )?,
+    }
+    let start = Instant::now();
+    loop {
+        if signals::interrupted() {
+            frond_binmain::outln!()?;
+            return Ok(());
+        }
+        if let Some(status) = daemon.try_wait()? {
+            bail!("frondd exited unexpectedly ({status}); its log:\n{}", daemon.log_tail());
+        }
+        if limit.is_some_and(|l| start.elapsed() >= l) {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }
 
 struct TakeResult {
@@ -239,9 +300,30 @@ pub(crate) fn find_program(name: &str) -> anyhow::Result<PathBuf> {
     ))
 }
 
-/// Renders a picture of grass blowing in the take's wind with `frond-warp` (seed 001): the sample
-/// pictures are drawn by `frond-warp make-samples`, so the demo needs no files from the source tree.
-fn warp_preview(take_path: &str) -> anyhow::Result<PathBuf> {
+/// Largest preview, frames: at 30 fps, 30 s of take; a longer take is rendered at a lower rate
+/// (at least 1 fps), still whole.
+const PREVIEW_MAX_FRAMES: f64 = 900.0;
+
+/// The preview's frame count and rate for a take `duration_s` long: every instant of it, at
+/// 30 fps while that is at most [`PREVIEW_MAX_FRAMES`] frames, else at the rate that fits (at
+/// least 1 fps).
+fn preview_frames(duration_s: f64) -> (u32, f64) {
+    let duration_s = if duration_s.is_finite() { duration_s.max(0.0) } else { 0.0 };
+    let fps =
+        if duration_s > 0.0 { (PREVIEW_MAX_FRAMES / duration_s).clamp(1.0, 30.0).floor() } else { 30.0 };
+    // Frame k shows t = k / fps: frames 0..=n cover 0..=duration.
+    let frames = (duration_s * fps).ceil() + 1.0;
+    (frames.min(100_000.0) as u32, fps)
+}
+
+/// Renders a picture of grass blowing in the take's wind with `frond-warp` (seed 001), the whole
+/// take ([`preview_frames`]): the sample pictures are drawn by `frond-warp make-samples`, so the
+/// demo needs no files from the source tree. Returns the GIF, its frames and rate.
+fn warp_preview(take_path: &str) -> anyhow::Result<(PathBuf, u32, f64)> {
+    let bytes = std::fs::read(take_path).with_context(|| format!("cannot read {take_path}"))?;
+    let scan = frond_motion::take::scan_take(&bytes).map_err(|e| anyhow!("{take_path}: {e}"))?;
+    let (frames, fps) = preview_frames(scan.duration_s());
+    let (frames_arg, fps_arg) = (frames.to_string(), fps.to_string());
     let warp = find_program("frond-warp")?;
     let samples = tempfile::Builder::new().prefix("frond-demo-images-").tempdir()?;
     let run = |args: &[&std::ffi::OsStr]| -> anyhow::Result<()> {
@@ -268,13 +350,13 @@ fn warp_preview(take_path: &str) -> anyhow::Result<PathBuf> {
         "--take".as_ref(),
         take_path.as_ref(),
         "--frames".as_ref(),
-        "45".as_ref(),
+        frames_arg.as_ref(),
         "--fps".as_ref(),
-        "30".as_ref(),
+        fps_arg.as_ref(),
         "-o".as_ref(),
         out.as_os_str(),
     ])?;
-    Ok(out)
+    Ok((out, frames, fps))
 }
 
 /// Bakes the demo take into a GLB beside it with `frond-gltf`, so the animator can open it at once.
@@ -464,4 +546,22 @@ fn start_console(socket_dir: &Path, takes_dir: &Path) -> Option<(Managed, String
     }
     frond_binmain::errln!("frond: note: frond-console did not start; the demo goes on without it");
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_preview_covers_the_whole_take() {
+        // 5 s at 30 fps: t = 0, 1/30, ..., 5 s is 151 frames (the old preview stopped at 45).
+        assert_eq!(preview_frames(5.0), (151, 30.0));
+        assert_eq!(preview_frames(1.5), (46, 30.0));
+        // 60 s: 900 / 60 = 15 fps, 901 frames.
+        assert_eq!(preview_frames(60.0), (901, 15.0));
+        // An hour: 1 fps, 3601 frames.
+        assert_eq!(preview_frames(3600.0), (3601, 1.0));
+        assert_eq!(preview_frames(0.0), (1, 30.0));
+        assert_eq!(preview_frames(f64::NAN), (1, 30.0));
+    }
 }

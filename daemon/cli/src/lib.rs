@@ -245,7 +245,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         },
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),
-        Command::Demo { seconds, name } => demo::run(g, seconds, name),
+        Command::Demo { seconds, name, stay } => demo::run(g, seconds, name, stay),
         Command::Bench(a) => bench::run(&a),
         Command::Soak { duration, json, seed } => soak::run(duration, json, seed),
         Command::Doctor { json } => match doctor::run(g, json)? {
