@@ -29,6 +29,47 @@ const DATAGRAM_MAX: usize = 65_536;
 /// Samples one datagram can hold at most (a `/frond/hand` message takes 52 bytes in a bundle):
 /// what does not fit the caller's buffer waits here for the next `read_pending`.
 const PENDING_MAX: usize = DATAGRAM_MAX / 48 + 1;
+/// Samples a second one OSC source may bring, sustained: twice the fastest hand tracker's rate
+/// (1 kHz) and four times the daemon's default tick. Past it, samples are refused and counted
+/// as `too_many`, so a flood costs the loop a bounded amount of work a second, whatever it sends.
+pub const MAX_SAMPLE_RATE_HZ: f64 = 2000.0;
+/// Samples an OSC source may bring at once above its rate: a tracker that sends a second of
+/// samples in one bundle (issue 14) loses none.
+pub const MAX_SAMPLE_BURST: f64 = PENDING_MAX as f64;
+/// Datagrams one `read_pending` reads at most while they hold no sample (a flood of refused
+/// datagrams is left for the next call, not read to the end on the loop's thread).
+const MAX_EMPTY_DATAGRAMS_PER_READ: usize = 64;
+
+/// The samples a source may still take now: [`MAX_SAMPLE_BURST`] at most, refilled at
+/// [`MAX_SAMPLE_RATE_HZ`] (a token bucket on the monotonic clock; never allocates).
+#[derive(Debug, Clone, Copy)]
+struct SampleBudget {
+    tokens: f64,
+    at: std::time::Instant,
+}
+
+impl SampleBudget {
+    fn full() -> SampleBudget {
+        SampleBudget { tokens: MAX_SAMPLE_BURST, at: std::time::Instant::now() }
+    }
+
+    /// Refills for the time since the last call.
+    fn refill(&mut self, now: std::time::Instant) {
+        let dt = now.saturating_duration_since(self.at).as_secs_f64();
+        self.tokens = (self.tokens + dt * MAX_SAMPLE_RATE_HZ).min(MAX_SAMPLE_BURST);
+        self.at = now;
+    }
+
+    /// Takes one sample's token, or `false` when none is left.
+    fn take(&mut self) -> bool {
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
 
 /// Why one OSC message was dropped.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -137,6 +178,7 @@ pub struct OscHandSource {
     counters: Arc<SourceCounters>,
     describe: String,
     local: SocketAddr,
+    budget: SampleBudget,
 }
 
 /// `SO_RXQ_OVFL` (the generic Linux value; not exported by every libc version): each received
@@ -180,6 +222,7 @@ impl OscHandSource {
             counters: Arc::new(SourceCounters::default()),
             describe: format!("osc://{local}"),
             local,
+            budget: SampleBudget::full(),
         })
     }
 
@@ -229,10 +272,15 @@ impl OscHandSource {
     }
 
     /// Decodes the datagram in `buf[..len]`: samples into `out[n..]`, the rest into `pending`.
+    /// Samples past the source's [`SampleBudget`] are refused as `too_many`.
     fn decode(&mut self, len: usize, out: &mut [DeviceSample], n: &mut usize) {
-        let Self { buf, pending, pending_len, seq, counters, .. } = self;
+        let Self { buf, pending, pending_len, seq, counters, budget, .. } = self;
         let bump = |c: &std::sync::atomic::AtomicU64| c.fetch_add(1, Ordering::Relaxed);
+        budget.refill(std::time::Instant::now());
         for_each_hand(&buf[..len], &mut |item| match item {
+            Ok(_) if !budget.take() => {
+                bump(&counters.too_many);
+            }
             Ok(hand) => {
                 *seq = seq.wrapping_add(1);
                 let sample = DeviceSample {
@@ -296,7 +344,10 @@ impl HandSource for OscHandSource {
         } else {
             return Ok(n);
         }
-        while n == 0 {
+        for _ in 0..MAX_EMPTY_DATAGRAMS_PER_READ {
+            if n > 0 {
+                break;
+            }
             match self.recv() {
                 // A datagram of only rejected messages gives nothing: try the next one.
                 Ok(len) => self.decode(len, out, &mut n),
@@ -513,6 +564,52 @@ pub(super) mod tests {
         assert_eq!(got, want);
         let c = src.counters().snapshot();
         assert_eq!((c.reports, c.seq_gaps, c.malformed), (1000, 0, 0));
+    }
+
+    /// A flood of valid samples is taken at the source's rate, the rest refused and counted as
+    /// `too_many`: bundles of 1000 hands sent flat out for 0.5 s bring at most the burst plus
+    /// 0.5 s at [`MAX_SAMPLE_RATE_HZ`] (worked out: 1366 + 1000 = 2366), not the ~1M sent.
+    #[test]
+    fn a_flood_of_valid_samples_is_taken_at_the_sources_rate() {
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let content = (0..1000)
+            .map(|k| {
+                OscPacket::Message(rosc::OscMessage {
+                    addr: OSC_HAND_ADDRESS.into(),
+                    args: [k as f32 * 1e-3, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+                        .into_iter()
+                        .map(OscType::Float)
+                        .collect(),
+                })
+            })
+            .collect();
+        let bundle = OscPacket::Bundle(rosc::OscBundle { timetag: rosc::OscTime::from((0, 1)), content });
+        let bytes = rosc::encoder::encode(&bundle).unwrap();
+        let mut out = [DeviceSample::default(); 64];
+        let (mut got, mut sent) = (0u64, 0u64);
+        let start = std::time::Instant::now();
+        let span = Duration::from_millis(500);
+        while start.elapsed() < span {
+            for _ in 0..4 {
+                if tx.send_to(&bytes, src.local_addr()).is_ok() {
+                    sent += 1000;
+                }
+            }
+            for _ in 0..64 {
+                match src.read_pending(&mut out).unwrap() {
+                    0 => break,
+                    n => got += n as u64,
+                }
+            }
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        let c = src.counters().snapshot();
+        let most = MAX_SAMPLE_BURST + elapsed * MAX_SAMPLE_RATE_HZ + 1.0;
+        assert!(sent > 20_000, "the flood was a flood: {sent}");
+        assert!((got as f64) <= most, "took {got} samples in {elapsed:.3} s; at most {most:.0}");
+        assert!(c.too_many > 0, "{c:?}");
+        assert_eq!(c.reports, got);
     }
 
     /// The loop waits on the OSC source's ready descriptor: quiet with nothing queued, readable
