@@ -146,3 +146,34 @@ fn every_take_tool_runs_on_a_recorded_take() {
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("bad magic"));
 }
+
+/// Issue 44: `frond take simulate` of minutes of motion shows its progress on a terminal (here
+/// a pseudo-terminal made by `script`), and never in a pipe.
+#[test]
+fn a_long_simulation_shows_progress_on_a_terminal_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let frond = frond_e2e::bin("frond");
+    let args = |name: &str| {
+        format!("take simulate {name} --rig grass --wind speed=6,dir=0,gust=0.3,seed=1 --duration 120")
+    };
+    // A pipe: the take, no bar.
+    let out = std::process::Command::new(&frond)
+        .args(args("gusty").split(' '))
+        .env("FROND_TAKES_DIR", dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("simulating"), "a bar in a pipe");
+    // A terminal: the bar, counting the 3601 frames (120 s at 30 fps, both ends).
+    let Ok(out) = std::process::Command::new("script")
+        .args(["-qec", &format!("{} {}", frond.display(), args("gusty-tty")), "/dev/null"])
+        .env("FROND_TAKES_DIR", dir.path())
+        .output()
+    else {
+        eprintln!("no `script` command: the terminal half is skipped");
+        return;
+    };
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("simulating [") && text.contains("/3601 frames"), "{text}");
+}

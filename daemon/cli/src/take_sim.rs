@@ -59,7 +59,11 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
     };
     let mut poses = Vec::new();
     let mut write_error = None;
+    let bar = progress_bar(a.duration_s, a.fps);
     let result = simulate_each(&rig, &sim, wind, a.duration_s, a.fps, &mut |plant, pose| {
+        if poses.len() % 64 == 0 {
+            bar.set_position(poses.len() as u64);
+        }
         if let Some((_, w)) = states.as_mut()
             && write_error.is_none()
         {
@@ -75,6 +79,7 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
         }
         poses.push(pose);
     });
+    bar.finish_and_clear();
     match result {
         Ok(()) => {}
         Err(
@@ -107,6 +112,27 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
     take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
     let out = Output { output: Some(a.name.clone()), jsonl: a.jsonl, force: a.force, fps: a.fps };
     emit(g, take, a.name, &out)
+}
+
+/// Simulated seconds past which `frond take simulate` shows its progress (on a terminal).
+const PROGRESS_FROM_S: f64 = 10.0;
+
+/// A progress bar of the simulated frames on stderr, for `duration_s` at `fps`: drawn only when
+/// stderr is a terminal and the simulation is longer than [`PROGRESS_FROM_S`] (never in pipes,
+/// logs or tests).
+fn progress_bar(duration_s: f64, fps: f64) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    let frames = frond_motion::clip::frames_needed(duration_s, fps);
+    if !std::io::stderr().is_terminal() || !(duration_s > PROGRESS_FROM_S) {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(frames);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("simulating [{bar:40}] {pos}/{len} frames {elapsed}/{eta}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }
 
 /// Creates the `--states` file where [`frond_motion::rig_files::output_destination`] allows
