@@ -123,7 +123,9 @@ const PROGRESS_FROM_S: f64 = 10.0;
 fn progress_bar(duration_s: f64, fps: f64) -> indicatif::ProgressBar {
     use std::io::IsTerminal;
     let frames = frond_motion::clip::frames_needed(duration_s, fps);
-    if !std::io::stderr().is_terminal() || !(duration_s > PROGRESS_FROM_S) {
+    if !std::io::stderr().is_terminal()
+        || duration_s.partial_cmp(&PROGRESS_FROM_S) != Some(std::cmp::Ordering::Greater)
+    {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(frames);
