@@ -18,6 +18,10 @@
 //! - A message longer than [`MAX_MESSAGE_BYTES`] is refused from its header (tungstenite's
 //!   limit; counted as `oversized`, the connection is dropped), a frame listing more than
 //!   `MAX_HANDS` hands at the first one too many (`too_many`), before the rest is parsed.
+//! - Reads are paced ([`READ_BUDGET`] per [`READ_WINDOW`]) in bytes and in frames: each
+//!   WebSocket frame costs [`FRAME_COST`] besides its bytes, so endless empty messages or
+//!   zero-length fragments cost a bounded share of a core; a service that keeps the budget spent
+//!   for [`JUNK_DEADLINE`] without a message frond can use is dropped (`peers_dropped`).
 //! - Connection warnings are rate-limited ([`crate::log_limit`]); refused messages are only
 //!   counted here, and the daemon says their counts by reason at a bounded rate.
 
@@ -60,6 +64,17 @@ const MAX_WRITE_BUFFER: usize = 64 << 10;
 const READ_BUDGET: usize = 1 << 20;
 /// The window of [`READ_BUDGET`].
 const READ_WINDOW: Duration = Duration::from_millis(100);
+/// What each WebSocket frame costs against [`READ_BUDGET`] besides its bytes, so that the work
+/// per window is bounded in frames (hence messages) as well as in bytes: at most 1,024 frames
+/// per window, 10,240 a second (a real service sends about 110 frames a second, of a few KiB
+/// each). Without it, endless 2-byte empty messages or zero-length fragments were read at
+/// 10 MiB/s: millions of messages a second, most of a core.
+const FRAME_COST: usize = 1 << 10;
+/// A service that keeps frond's read budget spent this long without one message frond can use
+/// (everything it sends is refused, or never ends) is dropped, as one that does not read.
+const JUNK_DEADLINE: Duration = Duration::from_secs(2);
+/// Bytes taken from the socket at once, at most (handed on as the budget allows).
+const INBOX_BYTES: usize = 64 << 10;
 /// How long dropping the source waits for its thread.
 const STOP_WAIT: Duration = Duration::from_millis(500);
 /// A session shorter than this does not reset the wait between connection attempts: a service
@@ -92,8 +107,11 @@ fn warn_connection(service: &str, what: &str, why: &str) {
 /// that never reads. Reads wait at most the socket's read timeout,
 /// end with `WouldBlock` once `stop` is set (tungstenite reads a message until it is whole, so
 /// a service trickling one byte at a time would otherwise keep it reading), and with
-/// `TimedOut` past `deadline` (the handshake's). At most [`READ_BUDGET`] bytes are read per
-/// [`READ_WINDOW`]: past it, a read waits for the next window and says `WouldBlock`.
+/// `TimedOut` past `deadline` (the handshake's). At most [`READ_BUDGET`] is read per
+/// [`READ_WINDOW`], each byte costing one and each WebSocket frame [`FRAME_COST`] more (bytes
+/// read from the socket are handed on only as far as the budget allows, so that the WebSocket
+/// never parses more frames than were paid for): past it, a read waits for the next window and
+/// says `WouldBlock`.
 struct ServiceStream {
     tcp: TcpStream,
     stop: Arc<AtomicBool>,
@@ -101,6 +119,82 @@ struct ServiceStream {
     blocked_since: Option<Instant>,
     window: (Instant, usize),
     throttled: bool,
+    /// When the budget was last found spent.
+    spent_at: Option<Instant>,
+    /// Bytes read from the socket and not yet handed on: `inbox[at..]`.
+    inbox: Vec<u8>,
+    at: usize,
+    frames: FrameScan,
+}
+
+/// Follows the service's byte stream just far enough to see where each WebSocket frame starts:
+/// the HTTP response head (up to its blank line), then frame headers (RFC 6455 §5.2) and the
+/// payload lengths they give.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FrameScan {
+    /// In the handshake's response head; how many bytes of `\r\n\r\n` were just seen.
+    Head(u8),
+    /// In a frame header: its bytes so far (`have` of at most 14).
+    Header { bytes: [u8; 14], have: usize },
+    /// In a payload: bytes left.
+    Payload(u64),
+}
+
+impl FrameScan {
+    /// Takes one byte; `true` when it starts a frame.
+    fn step(&mut self, b: u8) -> bool {
+        match self {
+            FrameScan::Head(seen) => {
+                let want = b"\r\n\r\n"[usize::from(*seen)];
+                *seen = if b == want { *seen + 1 } else { u8::from(b == b'\r') };
+                if *seen == 4 {
+                    *self = FrameScan::Header { bytes: [0; 14], have: 0 };
+                }
+                false
+            }
+            FrameScan::Payload(left) => {
+                *left -= 1;
+                if *left == 0 {
+                    *self = FrameScan::Header { bytes: [0; 14], have: 0 };
+                }
+                false
+            }
+            FrameScan::Header { bytes, have } => {
+                let starts = *have == 0;
+                bytes[*have] = b;
+                *have += 1;
+                if *have >= 2 {
+                    let len7 = bytes[1] & 0x7f;
+                    let ext = match len7 {
+                        126 => 2,
+                        127 => 8,
+                        _ => 0,
+                    };
+                    let mask = if bytes[1] & 0x80 != 0 { 4 } else { 0 };
+                    if *have == 2 + ext + mask {
+                        let len = match ext {
+                            0 => u64::from(len7),
+                            n => bytes[2..2 + n].iter().fold(0u64, |l, &b| (l << 8) | u64::from(b)),
+                        };
+                        *self = if len == 0 {
+                            FrameScan::Header { bytes: [0; 14], have: 0 }
+                        } else {
+                            FrameScan::Payload(len)
+                        };
+                    }
+                }
+                starts
+            }
+        }
+    }
+
+    /// Payload bytes that can be skipped at once (no frame starts among them).
+    fn skippable(&self) -> u64 {
+        match self {
+            FrameScan::Payload(left) => left - 1,
+            _ => 0,
+        }
+    }
 }
 
 impl ServiceStream {
@@ -112,6 +206,10 @@ impl ServiceStream {
             blocked_since: None,
             window: (Instant::now(), 0),
             throttled: false,
+            spent_at: None,
+            inbox: Vec::with_capacity(INBOX_BYTES),
+            at: 0,
+            frames: FrameScan::Head(0),
         }
     }
 }
@@ -138,12 +236,48 @@ impl Read for ServiceStream {
         }
         if *read >= READ_BUDGET {
             self.throttled = true;
+            self.spent_at = Some(now);
             std::thread::sleep((*started + READ_WINDOW).saturating_duration_since(now));
             return Err(std::io::Error::new(std::io::ErrorKind::WouldBlock, "read budget spent"));
         }
-        let room = (READ_BUDGET - *read).min(buf.len());
-        let n = self.tcp.read(&mut buf[..room])?;
-        *read += n;
+        if self.at == self.inbox.len() {
+            let room = (READ_BUDGET - *read).min(INBOX_BYTES);
+            self.inbox.resize(room, 0);
+            self.at = 0;
+            let got = self.tcp.read(&mut self.inbox);
+            self.inbox.truncate(*got.as_ref().unwrap_or(&0));
+            if got? == 0 {
+                return Ok(0);
+            }
+        }
+        // Hand on what the budget pays for: every byte, and each frame that starts.
+        let offer = (self.inbox.len() - self.at).min(buf.len());
+        let mut n = 0;
+        while n < offer {
+            let skip = self.frames.skippable().min((offer - n - 1) as u64) as usize;
+            if skip > 0 {
+                // Payload: `step` below takes the byte after these.
+                let FrameScan::Payload(left) = &mut self.frames else { unreachable!() };
+                *left -= skip as u64;
+                (*read, n) = (*read + skip, n + skip);
+            }
+            if self.frames.step(self.inbox[self.at + n]) {
+                if *read >= READ_BUDGET {
+                    // Undo: this frame is paid for in the next window.
+                    self.frames = FrameScan::Header { bytes: [0; 14], have: 0 };
+                    self.throttled = true;
+                    self.spent_at = Some(now);
+                    break;
+                }
+                *read += FRAME_COST;
+            }
+            (*read, n) = (*read + 1, n + 1);
+        }
+        buf[..n].copy_from_slice(&self.inbox[self.at..self.at + n]);
+        self.at += n;
+        if n == 0 {
+            return Err(std::io::Error::new(std::io::ErrorKind::WouldBlock, "read budget spent"));
+        }
         Ok(n)
     }
 }
@@ -403,20 +537,36 @@ impl Client {
         }
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let (mut warned_version, mut warned_pace) = (false, false);
+        // When the service last sent a message frond could use (one it did not refuse).
+        let mut last_useful = Instant::now();
         loop {
             if self.stop.load(Ordering::Acquire) {
                 let _ = ws.close(None);
                 return Ok(());
             }
             if ws.get_ref().throttled && !warned_pace {
-                let mib_per_s = READ_BUDGET as f64 / READ_WINDOW.as_secs_f64() / f64::from(1 << 20);
-                let why = format!("it sends more than {mib_per_s:.0} MiB/s");
+                let per_s = 1.0 / READ_WINDOW.as_secs_f64();
+                let mib_per_s = READ_BUDGET as f64 * per_s / f64::from(1 << 20);
+                let frames_per_s = (READ_BUDGET / FRAME_COST) as f64 * per_s;
+                let why = format!(
+                    "it sends more than {mib_per_s:.0} MiB/s or {frames_per_s:.0} WebSocket frames/s"
+                );
                 warn_connection(&url, "reading the Leap Motion service at frond's pace", &why);
                 warned_pace = true;
             }
             if ws.get_ref().blocked_for().is_some_and(|d| d >= PEER_WRITE_DEADLINE) {
                 self.counters.peers_dropped.fetch_add(1, Ordering::Relaxed);
                 let why = format!("it read nothing frond wrote for {} s", PEER_WRITE_DEADLINE.as_secs());
+                warn_connection(&url, "dropped the Leap Motion service's connection; reconnecting", &why);
+                return Err((true, why));
+            }
+            let spent_lately = ws.get_ref().spent_at.is_some_and(|t| t.elapsed() <= 2 * READ_WINDOW);
+            if spent_lately && last_useful.elapsed() >= JUNK_DEADLINE {
+                self.counters.peers_dropped.fetch_add(1, Ordering::Relaxed);
+                let why = format!(
+                    "it kept frond's read budget spent for {} s without a message frond could use",
+                    JUNK_DEADLINE.as_secs()
+                );
                 warn_connection(&url, "dropped the Leap Motion service's connection; reconnecting", &why);
                 return Err((true, why));
             }
@@ -452,7 +602,11 @@ impl Client {
                 }
                 _ => continue,
             };
-            match parse_message(text) {
+            let parsed = parse_message(text);
+            if parsed.is_ok() {
+                last_useful = Instant::now();
+            }
+            match parsed {
                 Ok(LeapMessage::Version(6)) | Ok(LeapMessage::Other) => {}
                 Ok(LeapMessage::Version(v)) => {
                     if !warned_version {
@@ -748,5 +902,100 @@ mod tests {
         assert!(sent > 0);
         assert!(sent < 60 << 20, "the service got {} MiB read in 2 s", sent >> 20);
         assert_eq!(counters.rejected(), 0, "{counters:?}");
+    }
+
+    /// Writes `head` once, then `body` again and again as fast as the socket takes it, for at
+    /// most `for_how_long` or until the client drops the connection; `started` is set when the
+    /// flood begins.
+    fn flood(
+        ws: &mut tungstenite::WebSocket<TcpStream>,
+        head: &[u8],
+        body: &[u8],
+        for_how_long: Duration,
+        started: &std::sync::OnceLock<Instant>,
+    ) {
+        let tcp = ws.get_mut();
+        if tcp.write_all(head).is_err() {
+            return;
+        }
+        let burst = body.repeat(4096);
+        tcp.set_write_timeout(Some(Duration::from_millis(50))).unwrap();
+        let t0 = *started.get_or_init(Instant::now);
+        let mut at = 0;
+        while t0.elapsed() < for_how_long {
+            match tcp.write(&burst[at..]) {
+                Ok(n) => at = (at + n) % burst.len(),
+                Err(e)
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(_) => return,
+            }
+        }
+    }
+
+    /// Issue 42: a service sending empty text messages (2-byte frames) flat out is read at
+    /// frond's pace in messages, not only in bytes: each frame costs FRAME_COST (1 KiB) of the
+    /// 1 MiB budget per 100 ms window, so at most 1,024 frames (+1 started at the edge) a
+    /// window; a 1 s span overlaps at most 11 windows: 11 * 1,025 = 11,275 messages, however
+    /// fast the service sends (the old client parsed and refused about 2 million a second).
+    /// And a service that only sends junk is dropped, counted as peers_dropped.
+    #[test]
+    fn a_leap_service_sending_empty_messages_flat_out_is_read_at_a_bounded_pace_and_dropped() {
+        let started: Arc<std::sync::OnceLock<Instant>> = Arc::default();
+        let t0 = Arc::clone(&started);
+        let (port, _) = service(move |mut ws| {
+            flood(&mut ws, &[], &[0x81, 0x00], Duration::from_secs(20), &t0);
+        });
+        let source = connect(port);
+        let counters = source.counters();
+        assert!(wait_until(Duration::from_secs(5), || started.get().is_some()), "the flood did not start");
+        // A second of it, from a first message on.
+        assert!(wait_until(Duration::from_secs(5), || counters.malformed.load(Ordering::Relaxed) > 0));
+        let before = counters.malformed.load(Ordering::Relaxed);
+        std::thread::sleep(Duration::from_secs(1));
+        let in_a_second = counters.malformed.load(Ordering::Relaxed) - before;
+        assert!(in_a_second > 0);
+        assert!(in_a_second <= 11 * 1025, "{in_a_second} empty messages read in 1 s");
+        assert!(
+            wait_until(Duration::from_secs(10), || counters.peers_dropped.load(Ordering::Relaxed) >= 1),
+            "never dropped: {:?}",
+            counters.snapshot()
+        );
+    }
+
+    /// Issue 42: endless zero-length fragments of a message that never ends are paid for frame
+    /// by frame; the service never sends a message frond can use, so it is dropped (the old
+    /// client read them at 10 MiB/s and kept the connection for ever).
+    #[test]
+    fn a_leap_service_sending_endless_empty_fragments_is_dropped() {
+        let (port, _) = service(move |mut ws| {
+            // A text frame that is not the last (FIN clear), then continuations, all empty.
+            flood(&mut ws, &[0x01, 0x00], &[0x00, 0x00], Duration::from_secs(20), &Default::default());
+        });
+        let source = connect(port);
+        let counters = source.counters();
+        assert!(
+            wait_until(Duration::from_secs(10), || counters.peers_dropped.load(Ordering::Relaxed) >= 1),
+            "never dropped: {:?}",
+            counters.snapshot()
+        );
+        assert_eq!(counters.snapshot().rejected(), 0);
+    }
+
+    #[test]
+    fn leap_frame_scan_finds_each_frame_start() {
+        let mut scan = FrameScan::Head(0);
+        let mut stream = b"HTTP/1.1 101 Switching\r\nA: b\r\r\n\r\n".to_vec();
+        // Empty; 3 bytes; 126 (16-bit length 300); masked 1 byte; 127 (64-bit length 2).
+        stream.extend([0x81, 0x00]);
+        stream.extend([0x81, 0x03, 1, 2, 3]);
+        stream.extend([0x82, 126, 0x01, 0x2c]);
+        stream.extend([0u8; 300]);
+        stream.extend([0x81, 0x81, 9, 9, 9, 9, 7]);
+        stream.extend([0x81, 127, 0, 0, 0, 0, 0, 0, 0, 2, 5, 6]);
+        stream.extend([0x89, 0x00]);
+        let starts: Vec<usize> =
+            stream.iter().enumerate().filter(|&(_, &b)| scan.step(b)).map(|(i, _)| i).collect();
+        let head = 33;
+        assert_eq!(starts, [head, head + 2, head + 7, head + 311, head + 318, head + 330]);
     }
 }
