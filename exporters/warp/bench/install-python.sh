@@ -3,4 +3,4 @@
 # keeping numpy at the version the other exporters' tools (bpy) use.
 set -euo pipefail
 source "$(dirname "$0")/../../../tests/python/venv.sh"
-"$venv/bin/pip" install -q "numpy==1.26.4" "opencv-python-headless==4.11.0.86"
+"$venv/bin/python" -m pip install -q "numpy==1.26.4" "opencv-python-headless==4.11.0.86"

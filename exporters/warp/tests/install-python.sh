@@ -4,5 +4,5 @@
 # exporters/warp/tests/cage_check.py. numpy stays at the version bpy uses.
 set -euo pipefail
 source "$(dirname "$0")/../../../tests/python/venv.sh"
-"$venv/bin/pip" install -q --disable-pip-version-check "numpy==1.26.4" "shapely==2.1.1"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check "numpy==1.26.4" "shapely==2.1.1"
 echo "shapely installed in $venv"
