@@ -65,8 +65,9 @@ fn read(dir: &Path, name: &str) -> Result<(TakeScan, u64), TakeError> {
 /// Most directory entries looked at for a listing (a directory of millions of files costs no
 /// more than this).
 pub const MAX_DIR_ENTRIES: usize = 100_000;
-/// A take that changed is scanned again at most this often; in between its last summary is
-/// shown with its new size (a take being recorded grows all the time).
+/// A take that grew is scanned again at most this often; in between its last summary is shown
+/// with its new size (a take being recorded grows all the time). A take that changed otherwise
+/// (repaired, replaced) is scanned at its next listing.
 pub const RESCAN_EVERY: Duration = Duration::from_secs(1);
 
 /// What identifies a take file's content for the index: length, modification time, inode.
@@ -124,7 +125,9 @@ impl TakeIndex {
                 };
                 match entries.get_mut(name) {
                     Some(e) if e.key == key => e.summary.clone(),
-                    Some(e) if e.scanned.elapsed() < RESCAN_EVERY => {
+                    // A take being recorded only grows: its summary is made again at most every
+                    // RESCAN_EVERY. Any other change (a repair, a new file) is read at once.
+                    Some(e) if grows(e.key, key) && e.scanned.elapsed() < RESCAN_EVERY => {
                         let mut v = e.summary.clone();
                         v["size_bytes"] = json!(key.0);
                         v
@@ -142,6 +145,12 @@ impl TakeIndex {
             .collect();
         json!({ "dir": dir.display().to_string(), "takes": takes, "left_out": left_out })
     }
+}
+
+/// Whether a file of key `now` is the file of key `was` grown (the same inode, longer): a take
+/// being written.
+fn grows(was: FileKey, now: FileKey) -> bool {
+    was.2 == now.2 && now.0 > was.0
 }
 
 /// A file's [`FileKey`], or `None` when it cannot be looked at.

@@ -352,11 +352,22 @@ fn the_takes_index_reads_a_take_again_only_when_its_file_changed() {
         assert_eq!(again["takes"][0]["frames"], 10, "{again}");
         assert_ne!(again["takes"][0]["state"], "corrupt", "{again}");
     }
-    // A changed file is read again (at most once a second).
+    // A changed file is read again at its next listing (a repair, say)...
     f.set_modified(mtime + Duration::from_secs(5)).unwrap();
-    std::thread::sleep(frond_console::takes::RESCAN_EVERY);
     let changed = index.list();
     assert_eq!(changed["takes"][0]["state"], "corrupt", "{changed}");
+    // ...but one that only grows (a take being recorded) at most once a second.
+    write_take(dir.path(), "g", 10, 0.1);
+    assert_eq!(index.list()["takes"][1]["frames"], 10);
+    let g = std::fs::OpenOptions::new().append(true).open(dir.path().join("g.take")).unwrap();
+    std::io::Write::write_all(&mut &g, &[0u8; 7]).unwrap();
+    let grown = index.list();
+    assert_eq!(grown["takes"][1]["frames"], 10, "{grown}");
+    assert_eq!(grown["takes"][1]["size_bytes"], std::fs::metadata(dir.path().join("g.take")).unwrap().len());
+    assert_ne!(grown["takes"][1]["state"], "torn", "the last summary until a second has passed: {grown}");
+    std::thread::sleep(frond_console::takes::RESCAN_EVERY);
+    assert_eq!(index.list()["takes"][1]["state"], "torn");
+    std::fs::remove_file(dir.path().join("g.take")).unwrap();
     // A take that goes leaves the index; a new one joins it.
     std::fs::remove_file(&path).unwrap();
     write_take(dir.path(), "b", 3, 0.1);
