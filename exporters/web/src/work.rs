@@ -79,12 +79,14 @@ mod tests {
 
     use super::*;
 
-    #[test]
-    fn work_past_the_permits_waits_then_is_refused() {
-        let limit = Arc::new(WorkLimit::new(1));
+    /// A thread that holds `limit`'s one permit until told: the sender that tells it, and the
+    /// thread. Returns once the permit is taken.
+    fn hold_the_permit(
+        limit: &Arc<WorkLimit>,
+    ) -> (mpsc::Sender<()>, std::thread::JoinHandle<Result<(), Busy>>) {
         let (started, wait_started) = mpsc::channel();
         let (release, released) = mpsc::channel::<()>();
-        let l = Arc::clone(&limit);
+        let l = Arc::clone(limit);
         let holder = std::thread::spawn(move || {
             l.run(Duration::ZERO, || {
                 started.send(()).unwrap();
@@ -92,6 +94,13 @@ mod tests {
             })
         });
         wait_started.recv().unwrap();
+        (release, holder)
+    }
+
+    #[test]
+    fn work_past_the_permits_waits_then_is_refused() {
+        let limit = Arc::new(WorkLimit::new(1));
+        let (release, holder) = hold_the_permit(&limit);
         assert_eq!(limit.run(Duration::from_millis(20), || 1), Err(Busy { max: 1 }));
         release.send(()).unwrap();
         holder.join().unwrap().unwrap();
@@ -103,16 +112,7 @@ mod tests {
     #[test]
     fn only_as_many_as_the_permits_wait() {
         let limit = Arc::new(WorkLimit::new(1));
-        let (started, wait_started) = mpsc::channel();
-        let (release, released) = mpsc::channel::<()>();
-        let l = Arc::clone(&limit);
-        let holder = std::thread::spawn(move || {
-            l.run(Duration::ZERO, || {
-                started.send(()).unwrap();
-                released.recv().unwrap();
-            })
-        });
-        wait_started.recv().unwrap();
+        let (release, holder) = hold_the_permit(&limit);
         let l = Arc::clone(&limit);
         let waiter = std::thread::spawn(move || l.run(Duration::from_secs(60), || 3));
         while limit.busy.lock().unwrap().waiting == 0 {
