@@ -532,17 +532,14 @@ pub(super) mod tests {
         assert_eq!(c.reports, read);
     }
 
-    /// Issue 14, point 13: a bundle holding far more samples than one read takes loses none.
-    /// The rest of the datagram waits in the source and comes out, in order, on the next reads.
-    #[test]
-    fn a_bundle_larger_than_a_read_loses_nothing() {
-        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
-        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    /// One datagram: a bundle of 1000 hand messages, message `k` at `t = k ms` with wrist pitch
+    /// `pitch(k)`.
+    fn thousand_hands(pitch: impl Fn(usize) -> f32) -> Vec<u8> {
         let content = (0..1000)
             .map(|k| {
                 OscPacket::Message(rosc::OscMessage {
                     addr: OSC_HAND_ADDRESS.into(),
-                    args: [k as f32 * 1e-3, (k % 300) as f32, 0.0, 0.0, 0.0, 0.0, 0.0]
+                    args: [k as f32 * 1e-3, pitch(k), 0.0, 0.0, 0.0, 0.0, 0.0]
                         .into_iter()
                         .map(OscType::Float)
                         .collect(),
@@ -550,7 +547,16 @@ pub(super) mod tests {
             })
             .collect();
         let bundle = OscPacket::Bundle(rosc::OscBundle { timetag: rosc::OscTime::from((0, 1)), content });
-        let bytes = rosc::encoder::encode(&bundle).unwrap();
+        rosc::encoder::encode(&bundle).unwrap()
+    }
+
+    /// Issue 14, point 13: a bundle holding far more samples than one read takes loses none.
+    /// The rest of the datagram waits in the source and comes out, in order, on the next reads.
+    #[test]
+    fn a_bundle_larger_than_a_read_loses_nothing() {
+        let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
+        let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let bytes = thousand_hands(|k| (k % 300) as f32);
         assert!(bytes.len() <= DATAGRAM_MAX, "{} bytes", bytes.len());
         tx.send_to(&bytes, src.local_addr()).unwrap();
         let mut out = [DeviceSample::default(); 8];
@@ -573,19 +579,7 @@ pub(super) mod tests {
     fn a_flood_of_valid_samples_is_taken_at_the_sources_rate() {
         let mut src = OscHandSource::bind("127.0.0.1:0").unwrap();
         let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let content = (0..1000)
-            .map(|k| {
-                OscPacket::Message(rosc::OscMessage {
-                    addr: OSC_HAND_ADDRESS.into(),
-                    args: [k as f32 * 1e-3, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-                        .into_iter()
-                        .map(OscType::Float)
-                        .collect(),
-                })
-            })
-            .collect();
-        let bundle = OscPacket::Bundle(rosc::OscBundle { timetag: rosc::OscTime::from((0, 1)), content });
-        let bytes = rosc::encoder::encode(&bundle).unwrap();
+        let bytes = thousand_hands(|_| 1.0);
         let mut out = [DeviceSample::default(); 64];
         let (mut got, mut sent) = (0u64, 0u64);
         let start = std::time::Instant::now();
