@@ -1,7 +1,8 @@
 //! What every frond binary's `main` does the same way, so that the habits hold everywhere:
 //! - logging to stderr, coloured only on a terminal and never with `NO_COLOR` set
-//!   (<https://no-color.org>), a bad `--log-level` a usage error;
-//! - an error printed once, on one line, each cause said once ([`frond_protocol::error_text`]);
+//!   (<https://no-color.org>), a bad `--log-level` a usage error ([`LogArgs`], [`logging`]);
+//! - an error printed once, on one line, each cause said once ([`error_text`]), with the
+//!   binary's name in front (`NAME: error: ...`), clap's usage errors included ([`parse`]);
 //! - exit status 2 for usage errors (clap's own and [`UsageError`]), 1 for everything else;
 //! - notes and warnings through [`errln!`], which never panics on a closed stderr;
 //! - output through [`outln!`] and [`out!`]: a full disk behind stdout is an error like any
@@ -11,9 +12,42 @@
 //!   same clap definitions the binary parses with, so they cannot fall out of date.
 //!
 //! Binaries only: anyhow is this crate's currency because a binary's `run` returns it.
+//!
+//! A typical `main`:
+//! ```no_run
+//! use std::process::ExitCode;
+//! use clap::CommandFactory;
+//!
+//! #[derive(clap::Parser)]
+//! struct Args {
+//!     #[command(flatten)]
+//!     log: frond_binmain::LogArgs,
+//!     #[command(flatten)]
+//!     docs: frond_binmain::DocsArgs,
+//! }
+//!
+//! fn main() -> ExitCode {
+//!     if let Some(code) = frond_binmain::DocsArgs::early("demo", Args::command) {
+//!         return code;
+//!     }
+//!     let args: Args = match frond_binmain::parse("demo") {
+//!         Ok(args) => args,
+//!         Err(code) => return code,
+//!     };
+//!     if let Err(code) = args.log.init("demo") {
+//!         return code;
+//!     }
+//!     frond_binmain::exit("demo", Ok(()))
+//! }
+//! ```
+
+#![warn(missing_docs)]
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+mod error_text;
+pub use error_text::error_text;
 
 /// A problem with the command line found after clap parsed it (a value out of range, a missing
 /// companion option). `main` exits 2 for it, as clap does for its own errors.
@@ -115,6 +149,61 @@ pub fn colour() -> bool {
         && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }
 
+/// The `--log-level LEVEL` option, for a binary that logs: `#[command(flatten)]` it into the
+/// binary's clap arguments and call [`LogArgs::init`] once they are parsed. One definition, so
+/// every binary names, documents and defaults the option alike.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LogArgs {
+    /// Log level or filter (error, warn, info, debug, trace, or a tracing filter such as
+    /// `frond=debug`).
+    #[arg(long, default_value = "info", value_name = "LEVEL")]
+    pub log_level: String,
+}
+
+impl LogArgs {
+    /// Installs the tracing subscriber at the given level ([`logging`]): `Err(status 2)`,
+    /// already printed, for a level that does not parse.
+    pub fn init(&self, bin: &str) -> Result<(), ExitCode> {
+        logging(bin, &self.log_level)
+    }
+}
+
+/// Parses the process's arguments as `P`, as `P::parse()` does, except that a usage error is
+/// printed like every other error, with the binary's name in front (`BIN: error: ...`, then
+/// clap's usage lines), and returned as exit status 2 rather than exiting from inside clap.
+/// `--help` and `--version` print on stdout and return status 0.
+pub fn parse<P: clap::Parser>(bin: &str) -> Result<P, ExitCode> {
+    parse_from(bin, std::env::args_os())
+}
+
+/// [`parse`] from `args` (the program's name first).
+pub fn parse_from<P, I, T>(bin: &str, args: I) -> Result<P, ExitCode>
+where
+    P: clap::Parser,
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    P::try_parse_from(args).map_err(|e| clap_error(bin, &e))
+}
+
+/// Prints a clap error the way [`parse`] does and returns its exit status: `--help` and
+/// `--version` on stdout with status 0, a usage error as `BIN: error: ...` on stderr with 2.
+pub fn clap_error(bin: &str, e: &clap::Error) -> ExitCode {
+    if !e.use_stderr() {
+        // --help, --version: not an error.
+        let _ = e.print();
+        return ExitCode::SUCCESS;
+    }
+    errln!("{bin}: {}", clap_error_text(e).trim_end());
+    ExitCode::from(2)
+}
+
+/// A clap usage error's text, plain (no colour), starting `error: `.
+fn clap_error_text(e: &clap::Error) -> String {
+    let rendered = e.render().to_string();
+    if rendered.starts_with("error: ") { rendered } else { format!("error: {rendered}") }
+}
+
 /// Installs the tracing subscriber at `level` (an `EnvFilter` directive such as `info` or
 /// `frond_osc=debug`). A directive that does not parse is a usage error: it is printed and the
 /// exit status 2 returned, rather than silently logging at another level.
@@ -152,7 +241,7 @@ pub fn exit_with(
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_closed_stdout(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            say_error(bin, &frond_protocol::error_text(e.as_ref()));
+            say_error(bin, &error_text(e.as_ref()));
             if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some() || is_usage(c)) {
                 ExitCode::from(2)
             } else {
@@ -208,10 +297,7 @@ impl DocsArgs {
         let parser = DocsArgs::augment_args(clap::Command::new(bin.to_string()));
         let docs = match parser.try_get_matches_from(args).and_then(|m| DocsArgs::from_arg_matches(&m)) {
             Ok(d) => d,
-            Err(e) => {
-                let _ = e.print();
-                return Some(ExitCode::from(2));
-            }
+            Err(e) => return Some(clap_error(bin, &e)),
         };
         if let Some(shell) = docs.completions {
             return Some(exit(bin, completions(cmd(), bin, shell)));
@@ -317,6 +403,28 @@ mod tests {
         Bake,
         /// Serve.
         Serve,
+    }
+
+    #[derive(Debug, clap::Parser)]
+    #[command(name = "logs")]
+    struct Logs {
+        #[command(flatten)]
+        log: LogArgs,
+    }
+
+    #[test]
+    fn clap_usage_errors_exit_2_with_their_text_and_the_log_level_defaults_to_info() {
+        use clap::Parser;
+        let parsed: Logs = parse_from("logs", ["logs"]).unwrap();
+        assert_eq!(parsed.log.log_level, "info");
+        let parsed: Logs = parse_from("logs", ["logs", "--log-level", "warn"]).unwrap();
+        assert_eq!(parsed.log.log_level, "warn");
+        assert_eq!(parse_from::<Logs, _, _>("logs", ["logs", "--rate", "1"]).unwrap_err(), ExitCode::from(2));
+        let e = Logs::try_parse_from(["logs", "--rate", "1"]).unwrap_err();
+        let text = clap_error_text(&e);
+        assert!(text.starts_with("error: unexpected argument '--rate'"), "{text}");
+        assert!(text.contains("Usage: logs"), "{text}");
+        assert_eq!(parse_from::<Logs, _, _>("logs", ["logs", "--help"]).unwrap_err(), ExitCode::SUCCESS);
     }
 
     #[test]

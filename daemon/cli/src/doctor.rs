@@ -77,7 +77,7 @@ fn daemon(dir: &Path, status: &anyhow::Result<ControlReply>) -> Vec<Check> {
             "daemon",
             Verdict::Problem,
             format!("no daemon answers at {}", dir.display()),
-            Some(frond_protocol::error_text(e.as_ref())),
+            Some(frond_binmain::error_text(e.as_ref())),
         )],
     }
 }
@@ -359,7 +359,7 @@ fn reachable(dir: &Path, s: &frond_protocol::StatusReport) -> Check {
                 format!(
                     "an exporter run as you cannot subscribe at {}: {}",
                     dir.display(),
-                    frond_protocol::error_text(&e)
+                    frond_binmain::error_text(&e)
                 ),
                 Some(fix),
             )

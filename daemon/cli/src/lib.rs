@@ -119,7 +119,7 @@ fn exit_for(e: &anyhow::Error) -> ExitCode {
         frond_binmain::errln!("frond: interrupted");
         return ExitCode::from(130);
     }
-    frond_binmain::say_error("frond", &frond_protocol::error_text(e.as_ref()));
+    frond_binmain::say_error("frond", &frond_binmain::error_text(e.as_ref()));
     if e.downcast_ref::<UsageError>().is_some() { ExitCode::from(2) } else { ExitCode::FAILURE }
 }
 

@@ -168,7 +168,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // Once, on stderr (the journal under systemd): not also as a log line.
-            frond_binmain::say_error("frondd", &frond_protocol::error_text(&e));
+            frond_binmain::say_error("frondd", &frond_binmain::error_text(&e));
             // Hands that clash (two on one element, an element the rig lacks) are a problem of
             // the configuration, as the config file's own problems are: exit 2.
             if matches!(e, frondd::error::DaemonError::Hand { .. }) {

@@ -27,7 +27,7 @@ pub use control::{
     HistogramBucket, LatencySummary, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput, StageKey,
     StageSpec, StageStatus, StatusReport, SubscriberStatus,
 };
-pub use errors::{error_text, printable};
+pub use errors::printable;
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_CONTROL_REQUEST, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError,
     decode_frame, encode_frame, encode_frame_as, read_frame, read_frame_limited, write_frame,
