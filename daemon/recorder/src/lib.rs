@@ -20,6 +20,9 @@
 //! plus the End record are written once space returns (retried every `fsync_interval`) or on
 //! `record stop` (without them if they still do not fit). The fault is in [`RecorderCounters`]
 //! for `frond status` and `record stop`, and logged once, then once a minute with a count.
+
+#![warn(missing_docs)]
+
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::os::unix::fs::FileExt;

@@ -9,6 +9,8 @@
 //! - [`tree`]: the multiscale cage tree (section 5.2) and its `cage.json` form, validated on read;
 //! - [`build`]: a cage tree from a mask: crowns, lobes clustered inside them, level by level.
 
+#![warn(missing_docs)]
+
 pub mod build;
 pub mod contour;
 pub mod laplacian;
