@@ -24,9 +24,8 @@ use frond_protocol::{
 };
 use tracing::{info, warn};
 
-use crate::control_stage::Setup;
-use crate::engine::LoopCommand;
-use crate::publisher::{ElementsCell, SubscriberRegistry};
+use crate::handoff::{ElementsCell, LoopCommand};
+use crate::publisher::SubscriberRegistry;
 use crate::recorder::{RecorderCounters, RecorderMsg};
 use crate::stage::registry::StageRegistry;
 use crate::stats::LoopStats;
@@ -72,6 +71,16 @@ pub struct DaemonState {
     pub layer_playback: bool,
     /// The element table last announced.
     pub elements: ElementTable,
+}
+
+/// A rig, calibration and filter to put in force together.
+pub struct Setup {
+    /// The rig.
+    pub rig: Rig,
+    /// The calibration.
+    pub calibration: Calibration,
+    /// The jitter filter.
+    pub filter: FilterSpec,
 }
 
 /// One hand source, as control and status see it.

@@ -9,16 +9,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Acquire};
 use std::time::{Duration, Instant};
 
-use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
     ControlErrorKind, ControlReply, ElementTable, ServerMessage, StageInput, StageSpec, encode_frame,
 };
 use tracing::info;
 
 use crate::clock::monotonic_ns;
-use crate::control::{ControlContext, DaemonState, refuse};
-use crate::engine::LoopCommand;
-use crate::lanes::ELEMENTS_FRAME_MAX;
+use crate::control::{ControlContext, DaemonState, Setup, refuse};
+use crate::handoff::{ELEMENTS_FRAME_MAX, LoopCommand};
 use crate::stage::registry::{HandElement, Running, validate_stage_name};
 use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
 
@@ -26,16 +24,6 @@ use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
 const LAYER_STAGE: &str = "layer";
 /// How long a control request waits for the loop to apply a stage change.
 const APPLY_TIMEOUT: Duration = Duration::from_secs(1);
-
-/// A rig, calibration and filter to put in force together.
-pub struct Setup {
-    /// The rig.
-    pub rig: Rig,
-    /// The calibration.
-    pub calibration: Calibration,
-    /// The jitter filter.
-    pub filter: FilterSpec,
-}
 
 impl ControlContext {
     /// Puts `setup` in force: mapping, calibration and filter in the loop; when a rig is applied

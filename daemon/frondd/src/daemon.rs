@@ -15,13 +15,15 @@ use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION};
 use tracing::{error, info, warn};
 
 use crate::config::Config;
-use crate::control::{AccessPolicy, ControlContext, DaemonState, HandState, spawn_control};
-use crate::control_stage::Setup;
-use crate::engine::{Engine, EngineLinks, Garbage, HandInput, LoopCommand, LostSource, MAX_HANDS};
+use crate::control::{AccessPolicy, ControlContext, DaemonState, HandState, Setup, spawn_control};
+use crate::engine::{Engine, EngineLinks, HandInput};
 use crate::error::DaemonError;
+use crate::handoff::{
+    ElementsCell, Garbage, LoopCommand, LostSource, MAX_HANDS, MAX_SUBSCRIBERS, PublishQueue,
+};
 use crate::notify::Notifier;
 use crate::publisher::{
-    PUBLISH_QUEUE_FRAMES, PublishQueue, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
+    PUBLISH_QUEUE_FRAMES, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
 };
 use crate::realtime::{lock_memory, spawn_loop};
 use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
@@ -220,7 +222,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
 
     let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
     let publish_wake = publish_queue.wake();
-    let (slow_tx, slow_rx) = bounded(crate::engine::MAX_SUBSCRIBERS);
+    let (slow_tx, slow_rx) = bounded(MAX_SUBSCRIBERS);
     let inputs: Vec<HandInput> = hands
         .iter()
         .zip(opened.iter_mut())
@@ -237,7 +239,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             }
         })
         .collect();
-    let elements_cell = Arc::new(crate::publisher::ElementsCell::default());
+    let elements_cell = Arc::new(ElementsCell::default());
     let engine = Engine::with_hands(
         inputs,
         config.stall.as_nanos() as u64,

@@ -17,73 +17,23 @@ use crossbeam_channel::{Receiver, Sender};
 use frond_device::{DeviceSample, HandSource};
 use frond_motion::clip::Joints;
 use frond_motion::take::TakeFrame;
-use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, PoseFrame};
+use frond_motion::{FilterSpec, HandSample, Mapper, PoseFrame};
 use frond_protocol::{HandWire, Pose, PoseFlags};
 
 use crate::clock::monotonic_ns;
-use crate::lanes::{ELEMENTS_FRAME_MAX, Lane, Lanes, NewLane, SlowLane};
-use crate::publisher::PublishQueue;
+use crate::handoff::{
+    ELEMENTS_FRAME_MAX, ElementsCell, Garbage, LostSource, PublishQueue, PublisherWake, SlowLane,
+};
+/// Re-exported where the configuration's limits and `frond bench` have always named them.
+pub use crate::handoff::{LoopCommand, MAX_HANDS, MAX_SUBSCRIBERS};
+use crate::lanes::Lanes;
 use crate::stage::{FrameSink, LiveStage, MAX_STAGES, StageAction, StageCommand, TickContext};
 use crate::stats::LoopStats;
 
-/// Most subscribers served at once.
-pub const MAX_SUBSCRIBERS: usize = 64;
-/// Most hand sources read at once (two hands of one tracker, two gloves on one stage, ...).
-pub const MAX_HANDS: usize = 8;
 /// Reports read from the device per `read_pending` call.
 const SAMPLE_BATCH: usize = 64;
 /// `read_pending` calls per tick at most (a burst beyond this waits for the next tick).
 const MAX_READS_PER_TICK: usize = 16;
-
-/// Requests to the loop from the control and housekeeping threads.
-pub enum LoopCommand {
-    /// New mapping scales and tau (from the daemon's rig), for every hand that follows it.
-    SetMapping(MappingParams),
-    /// New calibration, for every hand that follows the daemon's.
-    SetCalibration(CalibrationParams),
-    /// New jitter filter (state is reset), for every hand that follows the daemon's.
-    SetFilter(FilterSpec),
-    /// Hand `hand` is published as element `element` from now on (its layer's id changed with
-    /// the rig).
-    SetHandElement {
-        /// Index of the hand.
-        hand: usize,
-        /// Its element id.
-        element: u16,
-    },
-    /// Start or stop forwarding frames to the recorder.
-    SetRecording(bool),
-    /// A (re)opened source for hand `.0`.
-    ReplaceSource(usize, Box<dyn HandSource>),
-    /// Testing aid (`frondd --test-hooks`): block the loop for this many milliseconds, as a hung
-    /// loop would, so tests can check that the watchdog pings stop.
-    Freeze(u32),
-    /// A live stage installed, removed or given an input, and/or a new element table.
-    Stage(Box<StageCommand>),
-    /// A new pose subscriber, for a direct lane (see [`crate::lanes`]).
-    AddSubscriber(Box<NewLane>),
-}
-
-/// Things the loop must not drop itself (dropping may free memory): handed to housekeeping.
-pub enum Garbage {
-    /// A source replaced by a newer one.
-    Source(Box<dyn HandSource>),
-    /// An applied stage command, holding the stage and the element table it replaced.
-    Stage(Box<StageCommand>),
-    /// What is left of a subscriber once admitted (its encoded Hello).
-    Admitted(Box<NewLane>),
-    /// A subscriber that left its direct lane (hung up, or no room anywhere).
-    Lane(Lane),
-}
-
-/// A hand's source the loop lost (a read failed), for the reopen thread to hand back with
-/// [`LoopCommand::ReplaceSource`].
-pub struct LostSource {
-    /// Index of the hand.
-    pub hand: usize,
-    /// The source, to reopen.
-    pub source: Box<dyn HandSource>,
-}
 
 /// One hand as the engine is given it: its mapper (rig, calibration, filter), source and element.
 pub struct HandInput {
@@ -122,7 +72,7 @@ pub struct EngineLinks {
     /// Counters read by status.
     pub stats: Arc<LoopStats>,
     /// The element table for the slow lane; the loop marks each table applied in it.
-    pub elements: Arc<crate::publisher::ElementsCell>,
+    pub elements: Arc<ElementsCell>,
 }
 
 /// The far ends of an engine's channels, from [`Engine::with_channels`].
@@ -132,7 +82,7 @@ pub struct EngineEnds {
     /// Frames the loop publishes.
     pub frames: Receiver<Pose>,
     /// Wakes whoever waits on `frames` through it (see [`crate::publisher::spawn_publisher`]).
-    pub publish_wake: Arc<crate::publisher::PublisherWake>,
+    pub publish_wake: Arc<PublisherWake>,
     /// Subscribers the loop moved to the slow lane.
     pub slow: Receiver<SlowLane>,
     /// Frames the loop hands to the recorder.
@@ -144,7 +94,7 @@ pub struct EngineEnds {
     /// The loop's counters.
     pub stats: Arc<LoopStats>,
     /// The element table cell the loop marks applied tables in.
-    pub elements: Arc<crate::publisher::ElementsCell>,
+    pub elements: Arc<ElementsCell>,
 }
 
 /// The loop's outputs: sequence numbers, lanes, queues. Apart from the stages, so that a stage
@@ -328,7 +278,7 @@ impl Engine {
         let (garbage_tx, garbage_rx) = crossbeam_channel::bounded(256);
         let (slow_tx, slow_rx) = crossbeam_channel::bounded(MAX_SUBSCRIBERS);
         let stats = Arc::new(LoopStats::default());
-        let elements = Arc::new(crate::publisher::ElementsCell::default());
+        let elements = Arc::new(ElementsCell::default());
         let publish_wake = publish.wake();
         let links = EngineLinks {
             commands: cmd_rx,

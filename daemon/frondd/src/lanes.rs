@@ -24,80 +24,14 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 
 use crossbeam_channel::Sender;
-use frond_protocol::{PatchableHello, Pose, ServerMessage, encode_frame};
+use frond_protocol::{Pose, ServerMessage, encode_frame};
 
-use crate::engine::{Garbage, MAX_SUBSCRIBERS};
-use crate::publisher::{PublisherWake, SubscriberCounters};
+/// Re-exported where `frond bench` has always named it.
+pub use crate::handoff::NewLane;
+use crate::handoff::{Garbage, Lane, MAX_SUBSCRIBERS, PublisherWake, SlowLane};
 
-/// Largest element-table frame the daemon sends (the control side refuses a stage change whose
-/// table would be larger).
-pub const ELEMENTS_FRAME_MAX: usize = 16 * 1024;
-/// Longest unsent tail handed to the slow lane: the rest of a `Hello` (which carries an element
-/// table) and a newer whole element table, or the rest of one pose frame (~230 bytes).
-pub const TAIL_MAX: usize = 1024 + 2 * ELEMENTS_FRAME_MAX;
 /// Bytes reserved for encoding one frame.
 const FRAME_BUF: usize = 4096;
-
-/// A subscriber the acceptor hands to the loop.
-pub struct NewLane {
-    /// Subscriber id (status, logs).
-    pub id: u64,
-    /// Its connection; taken by the loop.
-    pub stream: Option<UnixStream>,
-    /// Its counters; taken by the loop.
-    pub counters: Option<Arc<SubscriberCounters>>,
-    /// Its `Hello`, encoded.
-    pub hello: PatchableHello,
-    /// Room for an unsent tail ([`TAIL_MAX`] bytes), allocated here so the loop never has to.
-    pub tail: Option<Box<[u8]>>,
-}
-
-impl NewLane {
-    /// A subscriber on `stream` with its encoded `hello` (allocates its tail buffer).
-    pub fn new(
-        id: u64,
-        stream: UnixStream,
-        counters: Arc<SubscriberCounters>,
-        hello: PatchableHello,
-    ) -> Self {
-        NewLane {
-            id,
-            stream: Some(stream),
-            counters: Some(counters),
-            hello,
-            tail: Some(vec![0u8; TAIL_MAX].into_boxed_slice()),
-        }
-    }
-}
-
-/// A subscriber on its way from the loop to the publisher's slow lane.
-pub struct SlowLane {
-    /// Subscriber id.
-    pub id: u64,
-    /// Its connection.
-    pub stream: UnixStream,
-    /// Its counters.
-    pub counters: Arc<SubscriberCounters>,
-    /// The part of the last frames its socket did not take (sent first), in a buffer of
-    /// [`TAIL_MAX`] bytes.
-    pub tail: Box<[u8]>,
-    /// Bytes of `tail` in use.
-    pub tail_len: usize,
-    /// Sequence number of the first frame the slow lane owes it.
-    pub from_seq: u64,
-    /// Version of the last element table it was sent (or has in `tail`): the slow lane sends
-    /// only newer ones.
-    pub elements_version: u64,
-}
-
-/// A subscriber on a direct lane.
-pub struct Lane {
-    id: u64,
-    stream: UnixStream,
-    counters: Arc<SubscriberCounters>,
-    tail: Box<[u8]>,
-}
-
 /// What became of one `send` to a lane.
 enum Sent {
     All,
@@ -314,6 +248,8 @@ impl Lanes {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::handoff::{SubscriberCounters, TAIL_MAX};
+    use frond_protocol::PatchableHello;
 
     #[test]
     fn tails_up_to_tail_max_are_kept_longer_ones_refused() {

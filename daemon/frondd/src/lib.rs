@@ -17,6 +17,7 @@ mod control_stage;
 pub mod daemon;
 pub mod engine;
 pub mod error;
+pub mod handoff;
 pub mod lanes;
 pub mod log_limit;
 pub mod notify;

@@ -12,17 +12,18 @@
 
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed, Ordering::SeqCst, fence};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{Receiver, Sender, TryRecvError, TrySendError, bounded};
+use crossbeam_channel::{Receiver, Sender, TryRecvError};
 use frond_protocol::{Hello, PatchableHello, Pose, ServerMessage, SubscriberStatus, encode_frame};
 use tracing::{debug, info, warn};
 
-use crate::engine::{LoopCommand, MAX_SUBSCRIBERS};
-use crate::lanes::{NewLane, SlowLane};
+use crate::handoff::{
+    ElementsCell, LoopCommand, MAX_SUBSCRIBERS, NewLane, PublisherWake, SlowLane, SubscriberCounters,
+};
 
 /// How often the helper threads that wait on a socket or a channel look at their `stop` flag
 /// when nothing wakes them (the daemon wakes them at shutdown: see `daemon::wake_listeners`).
@@ -39,17 +40,6 @@ pub const PUBLISH_QUEUE_FRAMES: usize = 8192;
 const BACKLOG_BYTES_PER_FRAME: usize = 256;
 /// Frames the publisher encodes and writes together at most.
 const MAX_BATCH: usize = 256;
-
-/// Per-subscriber counters, shared by the publisher and status.
-#[derive(Default)]
-pub struct SubscriberCounters {
-    /// Frames handed to the subscriber's socket.
-    pub sent: AtomicU64,
-    /// Frames dropped because its backlog was full.
-    pub dropped: AtomicU64,
-    /// Set when the subscriber is gone.
-    pub closed: AtomicBool,
-}
 
 /// Registry entry for status reporting.
 struct Registered {
@@ -376,164 +366,4 @@ pub fn spawn_publisher(
             let _ = s.stream.shutdown(std::net::Shutdown::Both);
         }
     })
-}
-
-/// The element table in force, encoded as a frame, for the slow lane (the loop sends it to the
-/// direct lanes itself). The control thread stores a new one before it sends the stage change;
-/// the loop marks it applied with the sequence number of the first frame published under it;
-/// the publisher sends it to a slow subscriber right before that frame, and never a table the
-/// loop did not apply.
-pub struct ElementsCell {
-    frame: Mutex<Arc<[u8]>>,
-    version: AtomicU64,
-    from_seq: AtomicU64,
-}
-
-impl Default for ElementsCell {
-    fn default() -> Self {
-        ElementsCell {
-            frame: Mutex::default(),
-            version: AtomicU64::new(0),
-            from_seq: AtomicU64::new(u64::MAX),
-        }
-    }
-}
-
-/// What [`ElementsCell::load`] returns.
-pub struct ElementsSnapshot {
-    /// Table version (0 before the first).
-    pub version: u64,
-    /// First frame published under it, or `u64::MAX` while the loop has not applied it.
-    pub from_seq: u64,
-    /// The encoded frame.
-    pub frame: Arc<[u8]>,
-}
-
-impl ElementsCell {
-    /// Stores table `version`, encoded, not yet applied (control side).
-    pub fn store(&self, version: u64, frame: &[u8]) {
-        let mut f = self.frame.lock().unwrap_or_else(|e| e.into_inner());
-        *f = Arc::from(frame);
-        self.from_seq.store(u64::MAX, SeqCst);
-        self.version.store(version, SeqCst);
-    }
-
-    /// The loop applied table `version` before frame `from_seq` (no lock, no allocation).
-    pub fn applied(&self, version: u64, from_seq: u64) {
-        if self.version.load(SeqCst) == version {
-            self.from_seq.store(from_seq, SeqCst);
-        }
-    }
-
-    /// The current table, consistent: version, where it applies from, and its frame.
-    pub fn load(&self) -> ElementsSnapshot {
-        let f = self.frame.lock().unwrap_or_else(|e| e.into_inner());
-        // Under the lock: a store cannot change the frame between these reads; `applied` only
-        // ever sets `from_seq` of the version it names.
-        let version = self.version.load(SeqCst);
-        let from_seq = self.from_seq.load(SeqCst);
-        ElementsSnapshot { version, from_seq, frame: f.clone() }
-    }
-}
-
-/// How the loop wakes the publisher thread: a flag the publisher raises before it parks, and its
-/// thread handle.
-///
-/// Waiting in crossbeam's `recv_timeout` spins and calls `sched_yield` before it parks; at 1 kHz
-/// that spinning was a tenth of the publisher's CPU in `perf` (issue 9). Here the publisher
-/// parks at once and the loop unparks it only when the flag says it sleeps: one `futex` wake,
-/// no allocation, no lock.
-#[derive(Debug, Default)]
-pub struct PublisherWake {
-    parked: AtomicBool,
-    thread: OnceLock<thread::Thread>,
-    /// Subscribers on the slow lane (or on their way to it).
-    slow: AtomicUsize,
-}
-
-impl PublisherWake {
-    /// One more subscriber on the slow lane: frames wake the publisher from now on.
-    pub fn add_slow(&self) {
-        self.slow.fetch_add(1, SeqCst);
-    }
-
-    /// One subscriber fewer on the slow lane.
-    pub fn remove_slow(&self) {
-        self.slow.fetch_sub(1, SeqCst);
-    }
-
-    /// Called by the loop after each frame it queued: wakes the publisher if it serves anyone.
-    fn notify(&self) {
-        if self.slow.load(Relaxed) == 0 {
-            return;
-        }
-        // Pairs with the fence in `recv_timeout`: either the publisher's re-check sees the
-        // frame, or we see its flag.
-        fence(SeqCst);
-        if self.parked.load(Relaxed)
-            && self.parked.swap(false, SeqCst)
-            && let Some(t) = self.thread.get()
-        {
-            t.unpark();
-        }
-    }
-
-    /// The publisher's wait: the next frame, `Ok(None)` after `timeout` without one, or
-    /// `Err(Disconnected)` once the loop has gone. Only the publisher thread calls this.
-    pub fn recv_timeout(&self, rx: &Receiver<Pose>, timeout: Duration) -> Result<Option<Pose>, TryRecvError> {
-        match rx.try_recv() {
-            Ok(p) => return Ok(Some(p)),
-            Err(TryRecvError::Disconnected) => return Err(TryRecvError::Disconnected),
-            Err(TryRecvError::Empty) => {}
-        }
-        let _ = self.thread.get_or_init(thread::current);
-        self.parked.store(true, SeqCst);
-        fence(SeqCst);
-        match rx.try_recv() {
-            Ok(p) => {
-                self.parked.store(false, Relaxed);
-                return Ok(Some(p));
-            }
-            Err(TryRecvError::Disconnected) => return Err(TryRecvError::Disconnected),
-            Err(TryRecvError::Empty) => {}
-        }
-        thread::park_timeout(timeout);
-        self.parked.store(false, Relaxed);
-        match rx.try_recv() {
-            Ok(p) => Ok(Some(p)),
-            Err(TryRecvError::Empty) => Ok(None),
-            Err(TryRecvError::Disconnected) => Err(TryRecvError::Disconnected),
-        }
-    }
-}
-
-/// The loop's end of the publisher queue: one `try_send` per frame, drops counted.
-#[derive(Clone)]
-pub struct PublishQueue {
-    tx: Sender<Pose>,
-    wake: Arc<PublisherWake>,
-}
-
-impl PublishQueue {
-    /// A queue and the publisher's end of it.
-    pub fn new(frames: usize) -> (PublishQueue, Receiver<Pose>) {
-        let (tx, rx) = bounded(frames);
-        (PublishQueue { tx, wake: Arc::default() }, rx)
-    }
-
-    /// What [`spawn_publisher`] waits on (wakes it when this queue gets a frame).
-    pub fn wake(&self) -> Arc<PublisherWake> {
-        self.wake.clone()
-    }
-
-    /// Offers a frame; `false` when the publisher is behind by a whole queue (frame dropped).
-    pub fn offer(&self, pose: Pose) -> bool {
-        match self.tx.try_send(pose) {
-            Ok(()) => {
-                self.wake.notify();
-                true
-            }
-            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => false,
-        }
-    }
 }

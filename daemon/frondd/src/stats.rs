@@ -202,7 +202,7 @@ pub struct LoopStats {
     pub lateness: LatencyHistogram,
     /// Each hand source's own counters, by its index in the configuration (only the first
     /// `hands` configured are used).
-    pub hands: [HandStats; crate::engine::MAX_HANDS],
+    pub hands: [HandStats; crate::handoff::MAX_HANDS],
 }
 
 /// One hand source's counters, written by the loop.

@@ -10,7 +10,8 @@ use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, Source
 use frond_motion::{FilterSpec, HandSample, Mapper, Rig};
 use frond_protocol::{ServerMessage, read_frame};
 use frondd::engine::Engine;
-use frondd::publisher::{PublisherConfig, SubscriberCounters, spawn_publisher};
+use frondd::handoff::SubscriberCounters;
+use frondd::publisher::{PublisherConfig, spawn_publisher};
 
 mod common;
 use common::{new_lane, subscriber_pair};

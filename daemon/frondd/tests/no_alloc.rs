@@ -336,7 +336,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     assert!(walk.contains("goal pose of frame 600") && !walk.contains("planning"), "{walk}");
     assert_eq!(report.controls.load().unwrap().direction_deg, 180.0, "the keys reached the field");
     // Every applied command came back to be dropped off the loop.
-    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::engine::Garbage::Stage(_))).count(), 14);
+    assert_eq!(garbage_rx.try_iter().filter(|g| matches!(g, frondd::handoff::Garbage::Stage(_))).count(), 14);
 }
 
 /// Counts the poses a subscriber reads (into `count` as it goes) and checks they are consecutive

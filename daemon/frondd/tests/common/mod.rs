@@ -5,7 +5,7 @@ use std::os::unix::net::UnixStream;
 use std::sync::Arc;
 
 use frondd::engine::LoopCommand;
-use frondd::publisher::SubscriberCounters;
+use frondd::handoff::SubscriberCounters;
 
 /// A subscriber socket pair: the daemon's end and the subscriber's end. `small`: a small send
 /// buffer on the daemon's end, so a subscriber that does not read fills it within a few dozen
@@ -41,7 +41,7 @@ pub fn new_lane(id: u64, stream: UnixStream, counters: Arc<SubscriberCounters>) 
         elements: Default::default(),
         next_seq: 0,
     };
-    LoopCommand::AddSubscriber(Box::new(frondd::lanes::NewLane::new(
+    LoopCommand::AddSubscriber(Box::new(frondd::handoff::NewLane::new(
         id,
         stream,
         counters,
