@@ -3,10 +3,10 @@
 //! validates is then used to parse reports, which checks the parser's reliance on the profile
 //! validation ("every offset + size <= report_len") with hostile profiles.
 
-use frond_device::glove::{GloveReport, REPORT_LEN, encode_report};
 use frond_device::profile::{CHANNEL_KEYS, FROND_GLOVE_TOML, PROFILE_KEYS};
 use frond_device::{ChannelId, DeviceProfile, ProfileError, ReportError, ReportParser};
 use frond_fuzz::{Rng, Target, as_text, assert_message, fuzz, toml_outcome};
+use frond_vhid::glove::{GloveReport, REPORT_LEN, encode_report};
 
 /// Sets the reference glove's checksum byte so the 8-bit sum is 0 (the inputs then reach the
 /// channel range checks instead of stopping at the checksum).

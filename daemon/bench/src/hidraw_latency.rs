@@ -4,7 +4,7 @@
 //!
 //! The node is the virtual glove's FUSE node (`frond-vhid --clock monotonic --backend fuse`, in
 //! its own process, as the `fuse_*` rows of `glove_latency` use), so it needs `/dev/fuse`. The
-//! glove stamps each report's `u32` device time (bytes 5..9, [`frond_device::glove::TIME_OFFSET`])
+//! glove stamps each report's `u32` device time (bytes 5..9, [`frond_vhid::glove::TIME_OFFSET`])
 //! with the host's `CLOCK_MONOTONIC` microseconds at the write; `frondd` carries it as the pose's
 //! device time, the relay's readers read it from the forwarded report, so both latencies are
 //! receipt time minus write time on one clock. Every open handle of the node has its own report
@@ -15,8 +15,8 @@ use std::path::Path;
 use std::thread;
 use std::time::Duration;
 
-use frond_device::glove::TIME_OFFSET;
-use frond_device::vhid::monotonic_us_u32;
+use frond_vhid::glove::TIME_OFFSET;
+use frond_vhid::monotonic_us_u32;
 use serde_json::json;
 
 use crate::Options;
@@ -51,7 +51,7 @@ pub fn hidraw_latency(o: &Options) -> Result<Section, String> {
         (Duration::from_secs(1), Duration::from_secs(5))
     };
     let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir().map_err(|e| e.to_string())?;
-    let node = dir.path().join("glove").join(frond_device::vhid::NODE_NAME);
+    let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
     let node_arg = node.to_string_lossy().into_owned();
     let (_vhid, node, _out) = start_vhid(
         o,
@@ -103,7 +103,7 @@ pub fn hidraw_latency(o: &Options) -> Result<Section, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use frond_device::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
+    use frond_vhid::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
 
     #[test]
     fn the_stamp_is_receipt_minus_the_reports_device_time() {

@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use frond_device::vhid::monotonic_us_u32;
 use frond_protocol::{LatencySummary, PoseFlags, ServerMessage, read_frame};
+use frond_vhid::monotonic_us_u32;
 use frondd::clock::{monotonic_ns, sleep_until_ns};
 use frondd::stats::LatencyHistogram;
 use serde_json::json;
@@ -219,7 +219,7 @@ fn glove_latency_over(
     let mut _vhid = None;
     let daemon = match transport {
         Transport::Fuse => {
-            let node = dir.path().join("glove").join(frond_device::vhid::NODE_NAME);
+            let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
             let node_arg = node.to_string_lossy().into_owned();
             let (vhid, node, out) = start_vhid(
                 o,

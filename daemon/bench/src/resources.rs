@@ -98,7 +98,7 @@ fn fanout_floor_cpu(
 fn sway_jsonl(path: &Path, seconds: u32) -> Result<(), String> {
     let mut text = String::new();
     for k in 0..seconds * 1000 {
-        let (hand, _) = frond_device::vhid::sway_sample(f64::from(k) / 1000.0);
+        let (hand, _) = frond_vhid::sway_sample(f64::from(k) / 1000.0);
         frond_motion::jsonl::write_hand_line(&hand, &mut text);
         if !text.ends_with('\n') {
             text.push('\n');
@@ -212,7 +212,7 @@ pub fn daemon_resources(o: &Options) -> Result<Section, String> {
 
     // The same with the virtual glove in its own process, where a node can be served.
     let fuse = if Path::new("/dev/fuse").exists() {
-        let node = dir.path().join("glove").join(frond_device::vhid::NODE_NAME);
+        let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
         let node_arg = node.to_string_lossy().into_owned();
         let (_vhid, node, _out) =
             start_vhid(o, &["--sway", "--rate", "1000", "--backend", "fuse", "--node", &node_arg])?;

@@ -3,12 +3,12 @@
 
 use std::sync::Arc;
 
-use frond_device::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
-use frond_device::vhid::sway_sample;
 use frond_device::{
     DeviceProfile, DeviceSample, HandSource, ReportParser, SourceCounters, SourceError, SourceKind,
 };
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
+use frond_vhid::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
+use frond_vhid::sway_sample;
 
 /// The grass rig frondd embeds as its default.
 pub fn grass() -> Rig {
@@ -48,7 +48,7 @@ impl TickGlove {
     }
 
     /// The next report's bytes (a 1 kHz schedule of the sway).
-    pub fn next_report(&mut self) -> [u8; frond_device::glove::REPORT_LEN] {
+    pub fn next_report(&mut self) -> [u8; frond_vhid::glove::REPORT_LEN] {
         let t_us = u64::from(self.seq) * 1000;
         let (hand, flex) = sway_sample(t_us as f64 / 1e6);
         let (report, _) = GloveReport::from_degrees(self.seq, t_us as u32, &hand, flex, STATUS_TRACKING_OK);

@@ -257,7 +257,7 @@ pub struct Config {
     pub virtual_rate_hz: u32,
     /// Device clock of the built-in virtual glove (`monotonic` lets subscribers measure
     /// glove-to-receipt latency).
-    pub virtual_clock: frond_device::DeviceClock,
+    pub virtual_clock: frond_vhid::DeviceClock,
     /// Subscriber queue length.
     pub queue_frames: usize,
     /// Subscriber limit.
@@ -495,11 +495,11 @@ impl Config {
         let virtual_rate_hz =
             range(&mut errors, "source.virtual_rate_hz", raw.source.virtual_rate_hz.or(Some(1000)), 1, 8000);
         let virtual_clock = match raw.source.virtual_clock.as_deref() {
-            None | Some("schedule") => frond_device::DeviceClock::Schedule,
-            Some("monotonic") => frond_device::DeviceClock::Monotonic,
+            None | Some("schedule") => frond_vhid::DeviceClock::Schedule,
+            Some("monotonic") => frond_vhid::DeviceClock::Monotonic,
             Some(other) => {
                 errors.push(format!("source.virtual_clock: {other:?} is not one of schedule, monotonic"));
-                frond_device::DeviceClock::Schedule
+                frond_vhid::DeviceClock::Schedule
             }
         };
         let queue_frames = range(
@@ -628,9 +628,9 @@ mod tests {
     #[test]
     fn virtual_clock_defaults_to_schedule_and_is_checked() {
         let c = Config::load(None, RawConfig::default()).unwrap();
-        assert_eq!(c.virtual_clock, frond_device::DeviceClock::Schedule);
+        assert_eq!(c.virtual_clock, frond_vhid::DeviceClock::Schedule);
         let raw = RawConfig::parse("[source]\nvirtual_clock = \"monotonic\"\n", "t").unwrap();
-        assert_eq!(Config::validate(raw).unwrap().virtual_clock, frond_device::DeviceClock::Monotonic);
+        assert_eq!(Config::validate(raw).unwrap().virtual_clock, frond_vhid::DeviceClock::Monotonic);
         let raw = RawConfig::parse("[source]\nvirtual_clock = \"wall\"\n", "t").unwrap();
         let errors = Config::validate(raw).unwrap_err().problems;
         assert_eq!(errors, ["source.virtual_clock: \"wall\" is not one of schedule, monotonic"]);

@@ -10,10 +10,10 @@ use std::os::unix::fs::MetadataExt;
 use std::path::Path;
 use std::sync::Arc;
 
-use frond_device::vhid::{InProcessGlove, VirtualGloveConfig};
 use frond_device::{
     DeviceProfile, HandSource, HidSource, OscHandSource, ReplaySource, SourceCounters, SourceKind,
 };
+use frond_vhid::{InProcessGlove, VirtualGloveConfig};
 use tracing::{info, warn};
 
 use crate::config::{Config, HandConfig, SourceChoice};
@@ -142,7 +142,7 @@ fn open_virtual(
         // The first hand's node where it always was; the others beside it, by name.
         let dir =
             if index == 0 { socket_dir.join("vhid") } else { socket_dir.join(format!("vhid-{}", hand.name)) };
-        match frond_device::vhid::mount_fuse(&dir, glove.clone()) {
+        match frond_vhid::mount_fuse(&dir, glove.clone()) {
             Ok(handle) => {
                 let node = handle.node_path().to_path_buf();
                 let profile = DeviceProfile::frond_glove();

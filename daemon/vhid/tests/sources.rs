@@ -6,10 +6,8 @@ use std::time::Duration;
 
 use common::*;
 use frond_device::jsonl::parse_hand_text;
-use frond_device::vhid::GloveSource;
-use frond_device::{
-    FaultPlan, HandSource, InProcessGlove, ReplaySource, SourceError, UnplugPlan, VirtualGloveConfig,
-};
+use frond_device::{HandSource, ReplaySource, SourceError};
+use frond_vhid::{FaultPlan, GloveSource, InProcessGlove, UnplugPlan, VirtualGloveConfig};
 
 #[test]
 fn replay_delivers_the_file_in_order_then_nothing() {
@@ -67,7 +65,7 @@ fn in_process_glove_parses_the_same_reports_and_unplugs() {
             ..FaultPlan::default()
         },
         start_delay_ms: 0,
-        clock: frond_device::DeviceClock::Schedule,
+        clock: frond_vhid::DeviceClock::Schedule,
     };
     let mut src = InProcessGlove::new(cfg).unwrap();
     assert_eq!(src.kind().to_string(), "in-process");
@@ -76,7 +74,7 @@ fn in_process_glove_parses_the_same_reports_and_unplugs() {
     for (i, s) in first.iter().enumerate() {
         assert_eq!(s.device_seq, i as u32);
         assert_eq!(s.device_time_us, i as u64 * 2000);
-        let (hand, _) = frond_device::vhid::sway_sample(i as f64 / 500.0);
+        let (hand, _) = frond_vhid::sway_sample(i as f64 / 500.0);
         for (got, want) in s.raw.wrist_deg.iter().zip(hand.wrist_deg) {
             assert!((got - want).abs() <= 0.005 + 1e-5, "{got} vs {want}");
         }
@@ -98,7 +96,7 @@ fn faults_are_counted_by_the_parser() {
         source: GloveSource::Sway { rate_hz: 2000.0 },
         faults: FaultPlan { drop_prob: 0.2, corrupt_prob: 0.2, ..FaultPlan::default() },
         start_delay_ms: 0,
-        clock: frond_device::DeviceClock::Schedule,
+        clock: frond_vhid::DeviceClock::Schedule,
     };
     let mut src = InProcessGlove::new(cfg).unwrap();
     let got = read_n(&mut src, 400, Duration::from_secs(20)).unwrap();
@@ -130,7 +128,7 @@ fn in_process_glove_rings_its_ready_descriptor_per_report_and_at_unplug() {
             ..FaultPlan::default()
         },
         start_delay_ms: 300,
-        clock: frond_device::DeviceClock::Schedule,
+        clock: frond_vhid::DeviceClock::Schedule,
     };
     let mut src = InProcessGlove::new(cfg).unwrap();
     let fd = src.ready_fd().expect("an eventfd");

@@ -32,7 +32,7 @@ use fuser::{
     ReplyData, ReplyDirectory, ReplyEmpty, ReplyEntry, ReplyIoctl, ReplyOpen, ReplyPoll, Request, SessionACL,
 };
 
-use super::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
+use crate::generator::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
 use crate::glove::{PRODUCT_ID, REPORT_DESCRIPTOR, REPORT_LEN, VENDOR_ID};
 
 /// File name of the node inside the mount directory.

@@ -11,8 +11,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{CommandFactory, Parser, ValueEnum};
-use frond_device::vhid::{
-    self, DeviceClock, FaultPlan, GloveSource, UnplugPlan, VhidStats, VirtualGloveConfig, uhid::UhidGlove,
+use frond_vhid::{
+    self as vhid, DeviceClock, FaultPlan, GloveSource, UnplugPlan, VhidStats, VirtualGloveConfig,
+    uhid::UhidGlove,
 };
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -148,10 +148,8 @@ pub fn checksum_byte(bytes: &[u8]) -> u8 {
     sum8(bytes).wrapping_neg()
 }
 
-/// 8-bit wrapping sum of `bytes`.
-pub fn sum8(bytes: &[u8]) -> u8 {
-    bytes.iter().fold(0u8, |s, b| s.wrapping_add(*b))
-}
+/// 8-bit wrapping sum of `bytes` (the parser's check, defined beside it in `frond-device`).
+pub use frond_device::report::sum8;
 
 #[cfg(test)]
 mod tests {

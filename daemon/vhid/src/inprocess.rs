@@ -11,12 +11,12 @@ use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 
-use super::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
-use crate::doorbell::Doorbell;
+use crate::generator::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
 use crate::glove::REPORT_LEN;
-use crate::profile::DeviceProfile;
-use crate::report::{DeviceSample, ReportParser, SourceCounters};
-use crate::source::{HandSource, SourceError, SourceKind};
+use frond_device::doorbell::Doorbell;
+use frond_device::profile::DeviceProfile;
+use frond_device::report::{DeviceSample, ReportParser, SourceCounters};
+use frond_device::source::{HandSource, SourceError, SourceKind};
 
 /// Reports buffered between the generator and the reader.
 const QUEUE_LEN: usize = 256;
@@ -81,8 +81,8 @@ impl InProcessGlove {
         let sink = Box::new(QueueSink { tx, plug: Arc::clone(&plug), bell: Arc::clone(&bell) });
         let thread = spawn_generator(generator, sink, Arc::clone(&stop), Arc::clone(&stats))?;
         let describe = match &config.source {
-            super::GloveSource::Sway { rate_hz } => format!("virtual glove sway at {rate_hz} Hz"),
-            super::GloveSource::Jsonl { path, .. } => {
+            crate::generator::GloveSource::Sway { rate_hz } => format!("virtual glove sway at {rate_hz} Hz"),
+            crate::generator::GloveSource::Jsonl { path, .. } => {
                 format!("virtual glove playing {}", path.display())
             }
         };

@@ -1,11 +1,7 @@
-//! The virtual glove: a report generator that plays a JSONL hand file or a procedural sway as
-//! reference-glove reports ([`crate::glove`]), with fault injection, served as a device node:
-//!
-//! - [`mount_fuse`]: a FUSE file that behaves as a hidraw node (used where `/dev/uhid` is absent,
-//!   e.g. this machine and CI). Opened through the same hidapi code path as a physical glove.
-//! - [`uhid::UhidGlove`]: a kernel HID device through `/dev/uhid` (a real `/dev/hidrawN`).
-//! - [`InProcessGlove`]: the generator inside the daemon feeding a bounded lock-free queue, for
-//!   when no node can be created; same report bytes, same parser.
+//! The virtual glove's report generator and its settings: what it plays ([`GloveSource`]), the
+//! faults it injects ([`FaultPlan`]), its device clock, and the thread that produces
+//! reference-glove reports on schedule into a [`ReportSink`] (a FUSE node, `/dev/uhid`, an
+//! in-process queue or OSC datagrams).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -17,16 +13,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
 use crate::glove::{GloveReport, REPORT_LEN, STATUS_TRACKING_OK, encode_report};
-use crate::jsonl::{HandFileError, load_hand_file};
-
-mod fuse;
-mod inprocess;
-mod osc_out;
-pub mod uhid;
-
-pub use fuse::{NODE_NAME, VirtualGloveHandle, mount_fuse, mount_fuse_node};
-pub use inprocess::InProcessGlove;
-pub use osc_out::OscGlove;
+use frond_device::jsonl::{HandFileError, load_hand_file};
 
 /// Highest report rate of the virtual glove.
 pub const MAX_RATE_HZ: f64 = 8000.0;

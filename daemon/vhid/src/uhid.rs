@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
+use crate::generator::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
 use crate::glove::{PRODUCT_ID, REPORT_DESCRIPTOR, REPORT_LEN, VENDOR_ID};
 
 /// Path of the UHID character device.

@@ -8,17 +8,15 @@ use std::time::{Duration, Instant};
 
 use common::*;
 use frond_device::jsonl::parse_hand_text;
-use frond_device::vhid::{GloveSource, mount_fuse};
-use frond_device::{
-    DeviceProfile, FaultPlan, HandSource, HidSource, SourceError, SourceKind, UnplugPlan, VirtualGloveConfig,
-};
+use frond_device::{DeviceProfile, HandSource, HidSource, SourceError, SourceKind};
+use frond_vhid::{FaultPlan, GloveSource, UnplugPlan, VirtualGloveConfig, mount_fuse};
 
 fn jsonl_config(path: &std::path::Path, start_delay_ms: u64) -> VirtualGloveConfig {
     VirtualGloveConfig {
         source: GloveSource::Jsonl { path: path.to_owned(), looped: false },
         faults: FaultPlan::default(),
         start_delay_ms,
-        clock: frond_device::DeviceClock::Schedule,
+        clock: frond_vhid::DeviceClock::Schedule,
     }
 }
 
@@ -137,7 +135,7 @@ fn blocking_reads_are_parked_until_a_report_arrives() {
         assert_eq!(f.read(&mut r).unwrap(), 64);
         assert_eq!(r[0], 1);
         assert_eq!(u32::from_le_bytes([r[1], r[2], r[3], r[4]]), 0);
-        assert_eq!(frond_device::glove::sum8(&r), 0);
+        assert_eq!(frond_vhid::glove::sum8(&r), 0);
     }
 }
 

@@ -8,12 +8,11 @@ use std::time::Duration;
 
 use common::*;
 use frond_alloc_count::{CountingAlloc, count_allocations};
-use frond_device::glove::{GloveReport, encode_report};
-use frond_device::vhid::mount_fuse;
 use frond_device::{
-    DeviceProfile, DeviceSample, HandSource, HidSource, InProcessGlove, ReplaySource, ReportParser,
-    SourceKind, VirtualGloveConfig,
+    DeviceProfile, DeviceSample, HandSource, HidSource, ReplaySource, ReportParser, SourceKind,
 };
+use frond_vhid::glove::{GloveReport, encode_report};
+use frond_vhid::{InProcessGlove, VirtualGloveConfig, mount_fuse};
 
 #[global_allocator]
 static GLOBAL: CountingAlloc = CountingAlloc;

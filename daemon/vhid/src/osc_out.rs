@@ -13,11 +13,11 @@ use std::thread::JoinHandle;
 
 use rosc::{OscMessage, OscPacket, OscType};
 
-use super::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
+use crate::generator::{Generator, ReportSink, VhidError, VhidStats, VirtualGloveConfig, spawn_generator};
 use crate::glove::REPORT_LEN;
-use crate::profile::DeviceProfile;
-use crate::report::ReportParser;
-use crate::source::OSC_HAND_ADDRESS;
+use frond_device::profile::DeviceProfile;
+use frond_device::report::ReportParser;
+use frond_device::source::OSC_HAND_ADDRESS;
 
 struct OscSink {
     socket: UdpSocket,
