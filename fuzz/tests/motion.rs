@@ -2,12 +2,14 @@
 //! and take files. Accepted inputs must survive the format's own writer: writing the parsed value
 //! and parsing it again gives the same value (the writers document this round trip).
 
-use frond_fuzz::{Rng, Target, as_text, assert_message, assert_round_trip, fuzz, toml_outcome};
-use frond_motion::take::{MAGIC, RECORD_HEAD_LEN, encode_file_start, encode_record};
-use frond_motion::{
-    Calibration, CalibrationError, FilterSpec, HandSample, JsonlError, PoseFrame, Rig, RigError, TakeError,
-    TakeFrame, TakeHeader, TakeRecord, parse_hand_line, parse_pose_line, scan_take, write_hand_line,
+use frond_formats::take::{MAGIC, RECORD_HEAD_LEN, encode_file_start, encode_record};
+use frond_formats::{
+    JsonlError, TakeError, TakeRecord, parse_hand_line, parse_pose_line, scan_take, write_hand_line,
     write_pose_line,
+};
+use frond_fuzz::{Rng, Target, as_text, assert_message, assert_round_trip, fuzz, toml_outcome};
+use frond_motion::{
+    Calibration, CalibrationError, FilterSpec, HandSample, PoseFrame, Rig, RigError, TakeFrame, TakeHeader,
 };
 
 const RIGS: [&str; 3] = [
@@ -222,14 +224,14 @@ fn fuzz_jsonl_pose_lines() {
         parse_pose_line(s).expect("seed lines are valid");
     }
     let report = fuzz(Target::new("jsonl-pose").seeds(seeds).text().dict(JSON_TOKENS).max_len(1024), |b| {
-        match frond_motion::jsonl::parse_pose_line_with_seq(&as_text(b)) {
+        match frond_formats::jsonl::parse_pose_line_with_seq(&as_text(b)) {
             Ok((seq, p)) => {
                 assert!(p.t.is_finite());
                 assert!(p.joints_deg.iter().flatten().all(|v| v.is_finite()));
                 let mut line = String::new();
                 write_pose_line(&p, seq, &mut line);
                 let (seq2, again) =
-                    frond_motion::jsonl::parse_pose_line_with_seq(&line).expect("own line parses");
+                    frond_formats::jsonl::parse_pose_line_with_seq(&line).expect("own line parses");
                 assert_eq!((seq2, again.joints_deg), (seq, p.joints_deg), "pose changed through {line}");
                 assert_time_close(again.t, p.t, &line);
                 assert_eq!(parse_pose_line(&as_text(b)).map(|q| q.joints_deg), Ok(p.joints_deg));

@@ -83,7 +83,7 @@ fn demo_keeps_the_console_live_until_ctrl_c_and_previews_the_whole_take() {
     }
     // The whole take in the preview: its frames at 30 fps span the take's time.
     let take =
-        frond_motion::take::scan_take(&std::fs::read(dir.path().join("live-demo.take")).unwrap()).unwrap();
+        frond_formats::take::scan_take(&std::fs::read(dir.path().join("live-demo.take")).unwrap()).unwrap();
     let main: Vec<f64> = take.frames.iter().filter(|f| f.element == 0).map(|f| f.pose.t).collect();
     let take_s = main[main.len() - 1] - main[0];
     assert!(take_s > 2.5, "a 3 s take lasted {take_s} s");
@@ -102,7 +102,7 @@ fn demo_records_a_take_bakes_a_glb_and_leaves_no_daemon() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "demo failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     let take = std::fs::read(dir.path().join("e2e-demo.take")).expect("take on disk");
-    let scan = frond_motion::take::scan_take(&take).unwrap();
+    let scan = frond_formats::take::scan_take(&take).unwrap();
     assert!(scan.ended, "take not closed");
     // 1.5 s of a 1 kHz glove: every report is a frame (allow for start-up and a loaded machine).
     assert!(scan.frames.len() > 700, "{} frames", scan.frames.len());

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use crate::hostile::rss_kib;
 use frond_e2e::{Daemon, bin, wait_for};
-use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
+use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
 
 /// A tmpfs of `size` mounted at `dir`, unmounted when dropped (even when the test fails).
@@ -151,7 +151,7 @@ fn a_full_disk_mid_recording_keeps_every_record_closes_when_space_returns_and_re
         daemon.status().recorder_error
     );
     let bytes = std::fs::read(&path).unwrap();
-    let scan = frond_motion::scan_take(&bytes).unwrap();
+    let scan = frond_formats::scan_take(&bytes).unwrap();
     assert!(scan.ended && scan.torn_bytes == 0 && scan.skipped.is_empty(), "{scan:?}");
     assert!(scan.frames.len() as u64 >= kept && !scan.frames.is_empty());
     // No frame that was on the disk during the fault is lost: they start the closed take.
@@ -229,7 +229,7 @@ fn a_flipped_bit_in_a_recorded_take_costs_only_the_record_it_hits() {
     let repaired = std::fs::read(&path).unwrap();
     let got: Vec<u64> = records(&repaired).iter().filter_map(|r| r.2).collect();
     assert_eq!(got, want);
-    let scan = frond_motion::scan_take(&repaired).unwrap();
+    let scan = frond_formats::scan_take(&repaired).unwrap();
     assert!(scan.ended && scan.skipped.is_empty());
     // A second repair right away: nothing to do, not "may still be recording".
     let again = daemon.frond_ok(&["take", "repair", "flip"]);

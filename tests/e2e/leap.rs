@@ -539,7 +539,7 @@ fn sigterm_ends_the_daemon_while_a_leap_service_floods_pings_and_never_reads() {
     assert!(!daemon.socket_dir.join("control.sock").exists(), "control socket left behind");
     assert!(!daemon.socket_dir.join("poses.sock").exists(), "poses socket left behind");
     let bytes = std::fs::read(daemon.takes_dir.join("flood.take")).unwrap();
-    let scan = frond_motion::take::scan_take(&bytes).unwrap();
+    let scan = frond_formats::take::scan_take(&bytes).unwrap();
     assert!(scan.ended, "take not finished");
     assert_eq!(scan.torn_bytes, 0);
 }

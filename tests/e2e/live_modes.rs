@@ -6,6 +6,7 @@ use std::collections::HashSet;
 use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
+use frond_formats::layers::TakeBytes;
 use frond_motion::field::FieldParams;
 use frond_protocol::{ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};

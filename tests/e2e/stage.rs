@@ -94,7 +94,7 @@ fn sigterm_finishes_the_take_and_removes_the_sockets() {
     assert!(!daemon.socket_dir.join("control.sock").exists());
     assert!(!daemon.socket_dir.join("poses.sock").exists());
     let bytes = std::fs::read(daemon.takes_dir.join("term.take")).unwrap();
-    let scan = frond_motion::take::scan_take(&bytes).unwrap();
+    let scan = frond_formats::take::scan_take(&bytes).unwrap();
     assert!(scan.ended, "take not finished");
     assert_eq!(scan.torn_bytes, 0);
     assert!(scan.frames.len() > 100, "{} frames", scan.frames.len());
@@ -144,7 +144,7 @@ fn kill_9_while_recording_loses_no_written_frame() {
     daemon.proc.child.wait().unwrap();
     let path = daemon.takes_dir.join("crash.take");
     let bytes = std::fs::read(&path).unwrap();
-    let scan = frond_motion::take::scan_take(&bytes).expect("a killed take still scans");
+    let scan = frond_formats::take::scan_take(&bytes).expect("a killed take still scans");
     assert!(!scan.ended);
     assert!(
         scan.frames.len() as u64 >= before,
@@ -158,7 +158,7 @@ fn kill_9_while_recording_loses_no_written_frame() {
     let out = daemon.frond().args(["take", "repair", "crash"]).output().unwrap();
     assert!(out.status.success(), "repair failed: {}", String::from_utf8_lossy(&out.stderr));
     let repaired = std::fs::read(&path).unwrap();
-    let rescan = frond_motion::take::scan_take(&repaired).unwrap();
+    let rescan = frond_formats::take::scan_take(&repaired).unwrap();
     assert!(rescan.ended);
     assert_eq!(rescan.frames.len(), scan.frames.len());
     // A restarted daemon refuses to overwrite it.

@@ -48,7 +48,7 @@ fn ns_of(mut f: impl FnMut()) -> f64 {
 /// The simulation step against one 12 x 12 matrix-vector product (the least one conjugate
 /// gradient iteration of the step does).
 pub fn sim_step(o: &Options) -> Part {
-    let rig: Rig = match frond_motion::rig_files::embedded_rig("grass") {
+    let rig: Rig = match frond_formats::rig_files::embedded_rig("grass") {
         Some(Ok(loaded)) => loaded.rig,
         Some(Err(e)) => return Err((Status::Error, e.to_string())),
         None => return Err((Status::Error, "no embedded grass rig".into())),

@@ -99,7 +99,7 @@ fn sway_jsonl(path: &Path, seconds: u32) -> Result<(), String> {
     let mut text = String::new();
     for k in 0..seconds * 1000 {
         let (hand, _) = frond_vhid::sway_sample(f64::from(k) / 1000.0);
-        frond_motion::jsonl::write_hand_line(&hand, &mut text);
+        frond_formats::jsonl::write_hand_line(&hand, &mut text);
         if !text.ends_with('\n') {
             text.push('\n');
         }

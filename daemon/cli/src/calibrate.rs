@@ -39,7 +39,7 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
         }
     };
     // Refused before the user performs the steps, not after.
-    if let Err(e) = frond_motion::rig_files::output_destination(&output) {
+    if let Err(e) = frond_formats::rig_files::output_destination(&output) {
         return usage(format!("cannot write {}: {e}", output.display()));
     }
     let mut control = Control::from_global(g)?;
@@ -163,9 +163,9 @@ pub(crate) fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
     write_atomically_bytes(path, text.as_bytes())
 }
 
-/// Writes `bytes` to `path` atomically ([`frond_motion::rig_files::write_file_atomically`]).
+/// Writes `bytes` to `path` atomically ([`frond_formats::rig_files::write_file_atomically`]).
 pub(crate) fn write_atomically_bytes(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    frond_motion::rig_files::write_file_atomically(path, bytes)
+    frond_formats::rig_files::write_file_atomically(path, bytes)
         .map_err(|e| anyhow!("cannot write {}: {e}", path.display()))
 }
 

@@ -113,7 +113,7 @@ fn unexpected(reply: &ControlReply) -> anyhow::Error {
 /// Reads a text file, naming it in the error.
 /// Reads a small regular text file (FIFOs, devices and files over 1 MiB are refused unread).
 pub(crate) fn read_text(path: &Path, what: &str) -> anyhow::Result<String> {
-    frond_motion::rig_files::read_small_text(path, frond_motion::rig_files::MAX_RIG_FILE_BYTES)
+    frond_formats::rig_files::read_small_text(path, frond_formats::rig_files::MAX_RIG_FILE_BYTES)
         .map_err(|e| anyhow!("cannot read {what} file {}: {}", path.display(), e.reason()))
 }
 
@@ -126,9 +126,9 @@ pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, Stri
 
 /// Reads and validates a rig file (the one rig loader, `frond_motion::rig_files`).
 /// A rig given on the command line: an embedded name (`grass`, `flower`, `shrub`) or a rig file,
-/// read the way the daemon reads it (`frond_motion::rig_files::load_rig`).
+/// read the way the daemon reads it (`frond_formats::rig_files::load_rig`).
 pub(crate) fn load_rig(spec: &Path) -> anyhow::Result<(Rig, String)> {
-    let loaded = frond_motion::rig_files::load_rig(&spec.to_string_lossy())?;
+    let loaded = frond_formats::rig_files::load_rig(&spec.to_string_lossy())?;
     Ok((loaded.rig, loaded.text))
 }
 
@@ -150,7 +150,7 @@ pub(crate) fn apply_calibration(g: &Global, file: &Path) -> anyhow::Result<()> {
 
 pub(crate) fn set_rig(g: &Global, file: &Path) -> anyhow::Result<()> {
     // An embedded name or a file, as `frondd --rig` takes it (the one rig loader).
-    let loaded = frond_motion::rig_files::load_rig(&file.to_string_lossy())?;
+    let loaded = frond_formats::rig_files::load_rig(&file.to_string_lossy())?;
     // Every rig names itself (validation refuses an empty name): the daemon, status and takes
     // go by that name, whatever the file is called.
     let name = loaded.rig.name.clone();

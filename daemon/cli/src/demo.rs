@@ -321,7 +321,7 @@ fn preview_frames(duration_s: f64) -> (u32, f64) {
 /// demo needs no files from the source tree. Returns the GIF, its frames and rate.
 fn warp_preview(take_path: &str) -> anyhow::Result<(PathBuf, u32, f64)> {
     let bytes = std::fs::read(take_path).with_context(|| format!("cannot read {take_path}"))?;
-    let scan = frond_motion::take::scan_take(&bytes).map_err(|e| anyhow!("{take_path}: {e}"))?;
+    let scan = frond_formats::take::scan_take(&bytes).map_err(|e| anyhow!("{take_path}: {e}"))?;
     let (frames, fps) = preview_frames(scan.duration_s());
     let (frames_arg, fps_arg) = (frames.to_string(), fps.to_string());
     let warp = find_program("frond-warp")?;

@@ -88,7 +88,7 @@ pub(crate) fn field_start(
     }
     // The daemon takes it in one control request: no larger than that.
     let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
-    let field_json = frond_motion::rig_files::read_small_text(field, max)
+    let field_json = frond_formats::rig_files::read_small_text(field, max)
         .map_err(|e| anyhow::anyhow!("cannot read field file {}: {}", field.display(), e.reason()))?;
     let mut c = Control::from_global(g)?;
     let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };

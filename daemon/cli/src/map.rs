@@ -13,7 +13,7 @@ use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use anyhow::{Context, bail};
-use frond_motion::jsonl::{parse_hand_line, write_pose_line};
+use frond_formats::jsonl::{parse_hand_line, write_pose_line};
 use frond_motion::{Calibration, Mapper};
 
 use crate::control::{load_calibration, load_rig, parse_filter};

@@ -8,8 +8,8 @@
 use std::io::Write;
 
 use anyhow::anyhow;
+use frond_formats::jsonl::write_pose_line;
 use frond_motion::PoseFrame;
-use frond_motion::jsonl::write_pose_line;
 use frond_motion::timeline::{AlignError, align};
 
 use crate::args::Global;

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use anyhow::anyhow;
-use frond_motion::bvh::{self, BvhPlant};
+use frond_formats::bvh::{self, BvhPlant};
 use frond_motion::clip::Clip;
 use frond_motion::field::{Field, MAX_FIELD_FILE_BYTES};
 use frond_motion::rig::Rig;
@@ -61,7 +61,7 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
             }
         }
         (Some(field_path), Some(duration_s)) => {
-            let text = frond_motion::rig_files::read_small_text(field_path, MAX_FIELD_FILE_BYTES)
+            let text = frond_formats::rig_files::read_small_text(field_path, MAX_FIELD_FILE_BYTES)
                 .map_err(|e| anyhow!("cannot read field {}: {}", field_path.display(), e.reason()))?;
             let field = Field::from_json(&text).map_err(|e| anyhow!("{}: {e}", field_path.display()))?;
             if field.plants.is_empty() {

@@ -4,12 +4,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::anyhow;
+use frond_formats::graph_file::GraphFile;
+use frond_formats::graph_file::MAX_GRAPH_FILE_BYTES;
 use frond_motion::clip::Clip;
-use frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
 use frond_motion::graph::walk::PosePlan;
 use frond_motion::graph::{
-    ControlPoint, EdgeKind, GraphError, GraphFile, GraphParams, MotionGraph, PoseGoalSpec, Walker,
-    build_graph, control_positions_m, nearest_node,
+    ControlPoint, EdgeKind, GraphError, GraphParams, MotionGraph, PoseGoalSpec, Walker, build_graph,
+    control_positions_m, nearest_node,
 };
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::sample::PoseFrame;
@@ -208,7 +209,7 @@ pub(crate) fn default_graph_path(g: &Global, name: &str) -> PathBuf {
 
 /// Reads and checks a graph file (regular, at most [`MAX_GRAPH_FILE_BYTES`]).
 pub(crate) fn read_graph_file(path: &Path) -> anyhow::Result<GraphFile> {
-    let text = frond_motion::rig_files::read_small_text(path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
+    let text = frond_formats::rig_files::read_small_text(path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
         let hint = if path.exists() { String::new() } else { missing_graph_hint(path) };
         anyhow!("cannot read {}: {}{hint}", path.display(), e.reason())
     })?;

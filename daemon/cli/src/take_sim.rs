@@ -41,7 +41,7 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
     let sim = match &a.sim {
         None => rig.sim,
         Some(path) => {
-            let text = frond_motion::rig_files::read_small_text(path, MAX_SIM_FILE_BYTES)
+            let text = frond_formats::rig_files::read_small_text(path, MAX_SIM_FILE_BYTES)
                 .map_err(|e| anyhow!("cannot read {}: {}", path.display(), e.reason()))?;
             sim_from_toml_str(&text, rig.sim_node_heights_m())
                 .map_err(|e| anyhow!("{}: {e}", path.display()))?
@@ -137,10 +137,10 @@ fn progress_bar(duration_s: f64, fps: f64) -> indicatif::ProgressBar {
     bar
 }
 
-/// Creates the `--states` file where [`frond_motion::rig_files::output_destination`] allows
+/// Creates the `--states` file where [`frond_formats::rig_files::output_destination`] allows
 /// (never over a device, FIFO or directory; into a directory that exists).
 fn create(path: &Path) -> anyhow::Result<std::fs::File> {
-    let to = frond_motion::rig_files::output_destination(path)
+    let to = frond_formats::rig_files::output_destination(path)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
     std::fs::File::create(&to).with_context(|| format!("cannot create {}", path.display()))
 }

@@ -10,13 +10,15 @@ use std::io::Write;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, anyhow};
+use frond_formats::import::{ImportKind, import_jsonl};
+use frond_formats::jsonl::write_pose_line;
+use frond_formats::layers::TakeBytes;
 use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};
 use frond_motion::controls::{Retime, retime};
-use frond_motion::edit::{ImportKind, import_jsonl, post_filter, resample_frames, splice};
+use frond_motion::edit::{post_filter, resample_frames, splice};
 use frond_motion::field::{FieldParams, make_field};
 use frond_motion::guided::{GuidedParams, guided};
-use frond_motion::jsonl::write_pose_line;
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::looping::{LoopParams, PlaybackParams, find_transitions, loop_clip};
 use frond_motion::rig::DEFAULT_THUMB_RANGE_DEG;
@@ -176,7 +178,7 @@ pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
             };
             let mut mapper = Mapper::new(mapping, cal.params(), spec);
             let text =
-                frond_motion::rig_files::read_small_text(&file, frond_motion::jsonl::MAX_HAND_FILE_BYTES)
+                frond_formats::rig_files::read_small_text(&file, frond_formats::jsonl::MAX_HAND_FILE_BYTES)
                     .map_err(|e| anyhow!("cannot read {}: {}", file.display(), e.reason()))?;
             let frames =
                 import_jsonl(&text, kind, &mut mapper).map_err(|e| anyhow!("{}: {e}", file.display()))?;

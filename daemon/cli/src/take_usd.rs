@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use anyhow::anyhow;
-use frond_motion::usd::{UsdTake, write_usda};
+use frond_formats::usd::{UsdTake, write_usda};
 
 use crate::args::Global;
 use crate::takes::{TakeForFile, take_for_file};
@@ -44,7 +44,7 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     let fps = TakeForFile::fps(a.fps, "USD")?;
     let take = take_for_file(g, a.name, a.rig)?;
     let (scan, loaded) = (&take.scan, &take.rig);
-    let model = frond_motion::rig_files::plant_model(loaded).map_err(|e| anyhow!("{e}"))?;
+    let model = frond_formats::rig_files::plant_model(loaded).map_err(|e| anyhow!("{e}"))?;
     let poses: Vec<_> = take.resampled(fps, a.force)?.iter().map(|p| p.joints_deg).collect();
     let joint_names: [String; 4] = std::array::from_fn(|j| loaded.rig.joints[j].name.clone());
     let timecode = crate::takes::start_timecode(scan, fps, a.timecode_start)?;

@@ -15,10 +15,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, anyhow, bail};
-use frond_motion::jsonl::write_pose_line;
+use frond_formats::jsonl::write_pose_line;
+use frond_formats::scan_take;
+use frond_formats::take_repair::Repaired;
 use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES};
-use frond_motion::take_repair::Repaired;
-use frond_motion::{PoseFrame, TakeScan, resample, resample_plan, scan_take};
+use frond_motion::{PoseFrame, TakeScan, resample, resample_plan};
 use frond_protocol::paths;
 use serde::Serialize;
 
@@ -28,7 +29,7 @@ use crate::usage;
 
 /// A take without an End record modified more recently than this may still be recording;
 /// `repair` leaves it alone.
-const RECENT: Duration = frond_motion::take_repair::MAY_BE_RECORDING;
+const RECENT: Duration = frond_formats::take_repair::MAY_BE_RECORDING;
 /// `take export --fps` and the baker refuse to resample to more frames than this unless
 /// `--force` (10 hours at 30 FPS); [`MAX_RESAMPLED_FRAMES`] is the limit even with `--force`.
 pub(crate) const MAX_EXPORT_FRAMES: u64 = 1_080_000;
@@ -43,7 +44,7 @@ pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
     let not_a_file = |path: &Path| {
         std::fs::metadata(path)
             .ok()
-            .and_then(|m| frond_motion::rig_files::not_regular(m.file_type()))
+            .and_then(|m| frond_formats::rig_files::not_regular(m.file_type()))
             .map(|what| anyhow!("{} is {what}, not a take file", path.display()))
     };
     if looks_like_path {
@@ -76,7 +77,7 @@ pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
 
 /// A take file's bytes: a regular file within `rig_files::MAX_TAKE_FILE_BYTES`.
 pub(crate) fn read_take_bytes(path: &Path) -> anyhow::Result<Vec<u8>> {
-    frond_motion::rig_files::read_take_file(path)
+    frond_formats::rig_files::read_take_file(path)
         .map_err(|e| anyhow!("cannot read take {}: {}", path.display(), e.reason()))
 }
 
@@ -377,7 +378,7 @@ pub(crate) fn export(
 
 /// The repaired bytes of a take (`frond_motion::take_repair`), errors as `anyhow`.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
-    frond_motion::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
+    frond_formats::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
 }
 
 /// `repair`'s report: exactly what was dropped.
@@ -417,7 +418,7 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
 pub(crate) struct TakeForFile {
     pub path: PathBuf,
     pub scan: TakeScan,
-    pub rig: frond_motion::rig_files::LoadedRig,
+    pub rig: frond_formats::rig_files::LoadedRig,
     pub source: Vec<PoseFrame>,
 }
 
@@ -458,13 +459,16 @@ pub(crate) fn start_timecode(
     Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))
 }
 
-/// The rig a take was recorded on ([`frond_motion::rig_files::recorded_rig`]: an embedded rig,
+/// The rig a take was recorded on ([`frond_formats::rig_files::recorded_rig`]: an embedded rig,
 /// never a path), as a usage error naming the take.
-pub(crate) fn recorded_rig(take: &str, rig_name: &str) -> anyhow::Result<frond_motion::rig_files::LoadedRig> {
+pub(crate) fn recorded_rig(
+    take: &str,
+    rig_name: &str,
+) -> anyhow::Result<frond_formats::rig_files::LoadedRig> {
     if rig_name.is_empty() {
         return usage(format!("{take} names no rig; give one with --rig NAME|FILE"));
     }
-    frond_motion::rig_files::recorded_rig(rig_name).or_else(|e| usage(format!("{take}: {e}")))
+    frond_formats::rig_files::recorded_rig(rig_name).or_else(|e| usage(format!("{take}: {e}")))
 }
 
 /// Reads take `name` and its rig for a file export.
@@ -473,7 +477,7 @@ pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyho
     let (scan, _) = read_scan(&path)?;
     warn_damage(&path, &scan);
     let rig = match (rig, &scan.header) {
-        (Some(r), _) => frond_motion::rig_files::load_rig(&r.to_string_lossy())?,
+        (Some(r), _) => frond_formats::rig_files::load_rig(&r.to_string_lossy())?,
         (None, header) => {
             recorded_rig(&path.display().to_string(), header.as_ref().map_or("", |h| h.rig_name.as_str()))?
         }
@@ -487,7 +491,7 @@ pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyho
 
 #[cfg(test)]
 mod tests {
-    use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
+    use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
     use frond_motion::{HandSample, TakeFrame};
     use frond_protocol::PoseFlags;
 

@@ -9,8 +9,8 @@ use std::fmt::Write as _;
 use std::io::Write;
 
 use anyhow::Context;
+use frond_formats::jsonl::write_pose_line;
 use frond_motion::PoseFrame;
-use frond_motion::jsonl::write_pose_line;
 use frond_protocol::{Pose, PoseFlags, paths};
 use std::time::Duration;
 
@@ -405,7 +405,7 @@ mod tests {
         assert_eq!(v["flags"], serde_json::json!(["held", "filtered"]));
         assert_eq!(v["seq"], 42);
         // The line still parses as a pose line with the same frame.
-        let (seq, frame) = frond_motion::jsonl::parse_pose_line_with_seq(&s).unwrap();
+        let (seq, frame) = frond_formats::jsonl::parse_pose_line_with_seq(&s).unwrap();
         assert_eq!(seq, Some(42));
         assert_eq!(frame, pose_frame(&pose(PoseFlags::default())));
     }

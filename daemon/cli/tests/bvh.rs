@@ -52,7 +52,7 @@ fn blender_imports_the_bvh_and_its_bones_follow_the_take() {
     assert_eq!(field_text.matches("ROOT ").count(), 6);
     assert!(field_text.contains("Frames: 61\n"), "2 s at 30 fps, both ends");
 
-    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let heights =
         frond_motion::sim::node_heights_m(std::array::from_fn(|j| rig.joints[j].height_m), &rig.mesh);
     let names: Vec<&str> = rig.joints.iter().map(|j| j.name.as_str()).collect();

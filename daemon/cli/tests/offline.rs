@@ -4,8 +4,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+use frond_formats::jsonl::parse_pose_line;
 use frond_motion::PoseFrame;
-use frond_motion::jsonl::parse_pose_line;
 
 fn frond() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));

@@ -7,6 +7,7 @@ mod common;
 use std::path::Path;
 
 use common::{failed, frond, ok};
+use frond_formats::layers::TakeBytes;
 use serde_json::Value;
 
 /// A minute of gusty wind on the grass rig, then its graph.

@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, SystemTime};
 
-use frond_motion::jsonl::{parse_pose_line, write_pose_line};
-use frond_motion::take::{TakeRecord, encode_file_start, encode_record};
+use frond_formats::jsonl::{parse_pose_line, write_pose_line};
+use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
 use frond_protocol::PoseFlags;
 

@@ -27,7 +27,7 @@ fn usd_core_and_blender_read_the_skeleton_and_its_animation() {
             assert!(text.starts_with("#usda 1.0\n"), "{}", &text[..40]);
             assert!(text.contains("upAxis = \"Y\"") && text.contains("timeCodesPerSecond = 30"));
         }
-        let loaded = frond_motion::rig_files::load_rig(rig).unwrap().rig;
+        let loaded = frond_formats::rig_files::load_rig(rig).unwrap().rig;
         let names: Vec<&str> = loaded.joints.iter().map(|j| j.name.as_str()).collect();
         let heights: Vec<f32> = loaded.joints.iter().map(|j| j.height_m).collect();
         let spec = serde_json::json!({

@@ -1,14 +1,15 @@
 //! Loading JSONL hand recordings: one `{"t":0.0333,"wrist":[p,y,r],"thumb":[g1,g2,g3]}` per line
 //! (seconds, degrees).
 //!
-//! Lines are parsed by `frond_motion::jsonl::parse_hand_line`; this module adds line numbers,
+//! Lines are parsed by `frond_formats::jsonl::parse_hand_line`; this module adds line numbers,
 //! blank-line skipping and, for the virtual glove's schedule, the non-decreasing-time check
 //! ([`load_hand_file`]). `--replay` takes the times as they are ([`load_hand_recording`]): a
 //! jump, a step back or a repeat is a discontinuity there, as in `frond map`.
 
 use std::path::{Path, PathBuf};
 
-use frond_motion::{HandSample, JsonlError};
+use frond_formats::JsonlError;
+use frond_motion::HandSample;
 
 /// Why a hand file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -23,7 +24,7 @@ pub enum HandFileError {
     },
     /// The file is not a regular file, too large, or not text.
     #[error("cannot read hand file {}: {}", .0.path().display(), .0.reason())]
-    File(frond_motion::rig_files::FileError),
+    File(frond_formats::rig_files::FileError),
     /// A line is not a valid hand sample, or its time is earlier than the previous line's.
     #[error("{path}:{line}: {error}")]
     Line {
@@ -61,7 +62,7 @@ pub enum HandLineError {
 /// Parses one line of the hand format (the shared parser of `frond_motion`, so the device path
 /// and `frond map` read files identically).
 pub fn parse_hand_line(line: &str) -> Result<HandSample, HandLineError> {
-    Ok(frond_motion::jsonl::parse_hand_line(line)?)
+    Ok(frond_formats::jsonl::parse_hand_line(line)?)
 }
 
 /// Parses a whole hand file; blank lines are skipped; times must not decrease.
@@ -97,7 +98,7 @@ fn parse_lines(path: &Path, text: &str, ordered: bool) -> Result<Vec<HandSample>
     Ok(out)
 }
 
-pub use frond_motion::jsonl::MAX_HAND_FILE_BYTES;
+pub use frond_formats::jsonl::MAX_HAND_FILE_BYTES;
 
 /// Loads a hand file into memory: a regular file of at most [`MAX_HAND_FILE_BYTES`] (a FIFO or
 /// a device is refused without blocking); times must not decrease ([`parse_hand_text`]).
@@ -112,8 +113,8 @@ pub fn load_hand_recording(path: &Path) -> Result<Vec<HandSample>, HandFileError
 }
 
 fn read_hand_text(path: &Path) -> Result<String, HandFileError> {
-    frond_motion::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(|e| match e {
-        frond_motion::rig_files::FileError::Read { path, source } => HandFileError::Io { path, source },
+    frond_formats::rig_files::read_small_text(path, MAX_HAND_FILE_BYTES).map_err(|e| match e {
+        frond_formats::rig_files::FileError::Read { path, source } => HandFileError::Io { path, source },
         other => HandFileError::File(other),
     })
 }

@@ -328,7 +328,7 @@ pub enum ProfileError {
     },
     /// The file is not a regular file, too large, or not text.
     #[error("cannot read device profile {}: {}", .0.path().display(), .0.reason())]
-    File(frond_motion::rig_files::FileError),
+    File(frond_formats::rig_files::FileError),
     /// The text is not TOML; carries the TOML parser's message.
     #[error("device profile is not valid TOML: {0}")]
     Syntax(String),
@@ -354,8 +354,8 @@ impl DeviceProfile {
     /// Loads a profile file (a regular file of at most [`MAX_PROFILE_FILE_BYTES`]).
     pub fn load(path: &Path) -> Result<Self, ProfileError> {
         let text =
-            frond_motion::rig_files::read_small_text(path, MAX_PROFILE_FILE_BYTES).map_err(|e| match e {
-                frond_motion::rig_files::FileError::Read { path, source } => {
+            frond_formats::rig_files::read_small_text(path, MAX_PROFILE_FILE_BYTES).map_err(|e| match e {
+                frond_formats::rig_files::FileError::Read { path, source } => {
                     ProfileError::Io { path, source }
                 }
                 other => ProfileError::File(other),

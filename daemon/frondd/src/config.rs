@@ -574,7 +574,7 @@ impl Config {
     pub fn load(file: Option<&Path>, overrides: RawConfig) -> Result<Config, ConfigError> {
         let mut raw = RawConfig::parse(DEFAULT_CONFIG, "embedded default config")?;
         if let Some(path) = file {
-            let text = frond_motion::rig_files::read_small_text(path, MAX_CONFIG_FILE_BYTES)
+            let text = frond_formats::rig_files::read_small_text(path, MAX_CONFIG_FILE_BYTES)
                 .map_err(|e| ConfigError::one(format!("cannot read the config: {e}")))?;
             raw = raw.overlay(RawConfig::parse(&text, &path.display().to_string())?);
         }

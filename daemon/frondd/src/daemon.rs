@@ -31,7 +31,7 @@ use crate::source::{SourceFactory, open_source};
 use crate::stats::LoopStats;
 
 /// Rigs built into the binary, by name.
-pub use frond_motion::rig_files::EMBEDDED_RIGS;
+pub use frond_formats::rig_files::EMBEDDED_RIGS;
 
 /// Reloads the configuration on SIGHUP (re-reads the config file with the same overrides).
 pub type ConfigLoader = Box<dyn Fn() -> Result<Config, crate::config::ConfigError> + Send>;
@@ -61,12 +61,12 @@ pub struct Dirs {
 
 /// Loads a rig by embedded name or path (the one rig loader, `frond_motion::rig_files`).
 pub fn load_rig(spec: &str) -> Result<Rig, DaemonError> {
-    Ok(frond_motion::rig_files::load_rig(spec)?.rig)
+    Ok(frond_formats::rig_files::load_rig(spec)?.rig)
 }
 
 fn load_calibration(path: Option<&Path>, rig: &Rig) -> Result<Calibration, DaemonError> {
     let Some(path) = path else { return Ok(Calibration::neutral_for(rig)) };
-    let text = frond_motion::rig_files::read_small_text(path, frond_motion::rig_files::MAX_RIG_FILE_BYTES)
+    let text = frond_formats::rig_files::read_small_text(path, frond_formats::rig_files::MAX_RIG_FILE_BYTES)
         .map_err(DaemonError::CalibrationFile)?;
     let mut cal = Calibration::from_toml_str(&text)
         .map_err(|source| DaemonError::Calibration { path: path.to_path_buf(), source })?;

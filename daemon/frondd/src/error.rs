@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use frond_motion::rig_files::{FileError, RigFileError};
+use frond_formats::rig_files::{FileError, RigFileError};
 use frond_motion::{CalibrationError, FilterSpecError};
 
 /// What stopped `frondd` from starting (or a reload from applying).

@@ -90,7 +90,7 @@ fn check_node(path: &Path) -> Result<()> {
         return Ok(());
     }
     // A regular file is a FUSE-served node (the virtual glove) or a test double.
-    match frond_motion::rig_files::not_regular(ft) {
+    match frond_formats::rig_files::not_regular(ft) {
         None => Ok(()),
         Some(what) => Err(DaemonError::Source(format!(
             "{} is not a hidraw node (it is {what}); give the glove's /dev/hidrawN",

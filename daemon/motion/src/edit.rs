@@ -1,5 +1,4 @@
-//! Take editing (seed 000, sections 6.3 "Animation editing" and 7.2): import from JSONL,
-//! resampling, post-processing low-pass, and splicing a re-authored range with linear blends.
+//! Take editing (seed 000, sections 6.3 "Animation editing" and 7.2): resampling, post-processing low-pass, and splicing a re-authored range with linear blends.
 //!
 //! All functions work on the frames of one layer; the `frond take` commands apply them to a
 //! chosen layer and keep the others.
@@ -8,109 +7,15 @@ use thiserror::Error;
 
 use crate::clip::lerp_joints;
 use crate::filter::{FilterSpec, LowPass, OneEuro};
-use crate::jsonl::{JsonlError, parse_hand_line, parse_pose_line};
-use crate::mapping::Mapper;
 use crate::sample::{HandSample, JOINTS, PoseFrame};
 use crate::take::{MAX_RESAMPLED_FRAMES, TakeFrame, resample};
 
 /// Why an edit was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum EditError {
-    /// A JSONL line could not be read.
-    #[error("line {line}: {error}")]
-    Line {
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong with it.
-        error: JsonlError,
-    },
-    /// A line's time is earlier than the previous line's.
-    #[error("line {line}: time {t} goes backwards (previous line has {prev})")]
-    Backwards {
-        /// 1-based line number.
-        line: usize,
-        /// Its time.
-        t: f64,
-        /// The previous time.
-        prev: f64,
-    },
-    /// A JSONL line is neither a hand sample nor a pose.
-    #[error("line {line}: neither a hand sample (`wrist`, `thumb`) nor a pose (`joints`)")]
-    UnknownLine {
-        /// 1-based line number.
-        line: usize,
-    },
-    /// Nothing to import.
-    #[error("no samples or poses in the input")]
-    Empty,
     /// A parameter is out of range.
     #[error("{0}")]
     Invalid(String),
-}
-
-/// What a JSONL file holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ImportKind {
-    /// Decide from the first line: `wrist` means hand samples, `joints` poses.
-    Auto,
-    /// Hand samples `{"t","wrist","thumb"}`, mapped with a rig (seed 000, Eq. 2-4).
-    Hand,
-    /// Poses `{"t","joints"}` as written by `frond take export --jsonl`.
-    Pose,
-}
-
-/// Imports a JSONL file as global-layer frames. Hand samples go through `mapper` (calibrate,
-/// filter, map: the live code path) and are kept as the frames' hand samples; poses are taken
-/// as they are once every joint angle is within the limit of [`PoseFrame::check_plausible`]
-/// (±[`crate::plausible::MAX_POSE_ANGLE_DEG`]). Blank lines are skipped; times must not go
-/// backwards.
-pub fn import_jsonl(text: &str, kind: ImportKind, mapper: &mut Mapper) -> Result<Vec<TakeFrame>, EditError> {
-    let mut out = Vec::new();
-    let mut kind = kind;
-    let mut prev_t = f64::NEG_INFINITY;
-    for (i, line) in text.lines().enumerate() {
-        let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        if kind == ImportKind::Auto {
-            kind = if line.contains("\"wrist\"") {
-                ImportKind::Hand
-            } else if line.contains("\"joints\"") {
-                ImportKind::Pose
-            } else {
-                return Err(EditError::UnknownLine { line: n });
-            };
-        }
-        let (pose, hand) = match kind {
-            ImportKind::Hand => {
-                let raw = parse_hand_line(line).map_err(|error| EditError::Line { line: n, error })?;
-                let (hand, pose) = mapper.process(&raw);
-                (pose, hand)
-            }
-            _ => {
-                let pose = parse_pose_line(line).map_err(|error| EditError::Line { line: n, error })?;
-                pose.check_plausible()
-                    .map_err(|e| EditError::Line { line: n, error: JsonlError::Implausible(e) })?;
-                (pose, HandSample { t: pose.t, ..Default::default() })
-            }
-        };
-        if pose.t < prev_t {
-            return Err(EditError::Backwards { line: n, t: pose.t, prev: prev_t });
-        }
-        prev_t = pose.t;
-        out.push(TakeFrame {
-            seq: out.len() as u64,
-            device_time_us: (pose.t * 1e6).round().max(0.0) as u64,
-            pose,
-            hand,
-            ..Default::default()
-        });
-    }
-    if out.is_empty() {
-        return Err(EditError::Empty);
-    }
-    Ok(out)
 }
 
 /// Resamples hand samples like [`resample`] does poses: output `k` at `t = k / fps` relative to
@@ -280,17 +185,7 @@ pub fn splice(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::CalibrationParams;
-    use crate::mapping::MappingParams;
     use proptest::prelude::*;
-
-    fn mapper() -> Mapper {
-        Mapper::new(
-            MappingParams::default(),
-            CalibrationParams::neutral([60.0, 70.0, 60.0]),
-            FilterSpec::None,
-        )
-    }
 
     fn frames(values: &[f32]) -> Vec<TakeFrame> {
         values
@@ -303,79 +198,6 @@ mod tests {
                 ..Default::default()
             })
             .collect()
-    }
-
-    #[test]
-    fn import_hand_and_pose_lines() {
-        let hand = "{\"t\":0,\"wrist\":[20,-10,30],\"thumb\":[30,35,15]}\n\n{\"t\":0.1,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n";
-        let f = import_jsonl(hand, ImportKind::Auto, &mut mapper()).unwrap();
-        assert_eq!(f.len(), 2);
-        // Eq. 2-4 by hand (see mapping tests): tau 2, unit scales.
-        assert_eq!(
-            f[0].pose.joints_deg,
-            [[20.0, -10.0, 0.0], [10.0, -5.0, 0.0], [10.0, -5.0, 30.0], [5.0, -2.5, 30.0]]
-        );
-        assert_eq!(f[0].hand.wrist_deg, [20.0, -10.0, 30.0]);
-        assert_eq!(f[1].device_time_us, 100_000);
-        let pose = "{\"t\":1.5,\"joints\":[[1,2,3],[4,5,6],[7,8,9],[10,11,12]]}\n";
-        let f = import_jsonl(pose, ImportKind::Auto, &mut mapper()).unwrap();
-        assert_eq!(f[0].pose.joints_deg[3], [10.0, 11.0, 12.0]);
-    }
-
-    #[test]
-    fn import_errors_name_the_line() {
-        let m = &mut mapper();
-        let e = import_jsonl(
-            "{\"t\":0,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n{\"t\":1,\"wrist\":[0,0],\"thumb\":[0,0,0]}",
-            ImportKind::Auto,
-            m,
-        );
-        assert_eq!(e.unwrap_err().to_string(), "line 2: field `wrist`: expected 3 elements, found 2");
-        let e = import_jsonl(
-            "{\"t\":1,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}\n{\"t\":0.5,\"wrist\":[0,0,0],\"thumb\":[0,0,0]}",
-            ImportKind::Hand,
-            m,
-        );
-        assert_eq!(e.unwrap_err().to_string(), "line 2: time 0.5 goes backwards (previous line has 1)");
-        assert_eq!(
-            import_jsonl("{\"x\":1}", ImportKind::Auto, m).unwrap_err().to_string(),
-            "line 1: neither a hand sample (`wrist`, `thumb`) nor a pose (`joints`)"
-        );
-        assert_eq!(import_jsonl("\n\n", ImportKind::Auto, m).unwrap_err(), EditError::Empty);
-        // Pose angles are bounded: ±360 passes (so does a pose of thousands of degrees), 1e30 and
-        // 3e38 are refused.
-        let ok = "{\"t\":0,\"joints\":[[360,-360,0],[0,0,0],[0,0,0],[0,0,0]]}\n";
-        assert_eq!(
-            import_jsonl(ok, ImportKind::Auto, m).unwrap()[0].pose.joints_deg[0],
-            [360.0, -360.0, 0.0]
-        );
-        let e = import_jsonl(
-            &format!("{ok}\n{{\"t\":0.1,\"joints\":[[0,0,0],[1e30,0,0],[0,0,0],[0,0,0]]}}"),
-            ImportKind::Auto,
-            m,
-        );
-        assert_eq!(
-            e.unwrap_err().to_string(),
-            "line 3: `joints[1][0]`: 1000000000000000000000000000000 degrees is not a joint angle (finite, within ±1000000)"
-        );
-        let e =
-            import_jsonl("{\"t\":0,\"joints\":[[0,0,0],[0,0,0],[0,0,0],[0,0,-3e38]]}", ImportKind::Pose, m);
-        assert_eq!(
-            e.unwrap_err(),
-            EditError::Line {
-                line: 1,
-                error: JsonlError::Implausible(crate::plausible::Implausible::JointAngle {
-                    field: "joints[3][2]",
-                    value: -3e38
-                })
-            }
-        );
-        assert!(
-            import_jsonl("nope", ImportKind::Pose, m)
-                .unwrap_err()
-                .to_string()
-                .starts_with("line 1: not JSON")
-        );
     }
 
     #[test]

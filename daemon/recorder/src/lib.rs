@@ -33,9 +33,8 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
-use frond_motion::take::{
-    RECORD_HEAD_LEN, TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record,
-};
+use frond_formats::take::{RECORD_HEAD_LEN, TakeRecord, encode_file_start, encode_record};
+use frond_motion::take::{TakeFrame, TakeHeader};
 use frond_motion::{HandSample, PoseFrame};
 use rtrb::{Consumer, Producer, RingBuffer};
 use tracing::{error, info, warn};
@@ -405,7 +404,7 @@ fn handle(
             }
             let mut head = Vec::new();
             encode_file_start(&mut head);
-            frond_motion::layers::encode_header(&header, &elements, &mut head);
+            frond_formats::layers::encode_header(&header, &elements, &mut head);
             let result = OpenOptions::new().write(true).create_new(true).open(&path).and_then(|mut file| {
                 let written = file.write_all(&head).and_then(|()| file.sync_data());
                 if let Err(e) = written {

@@ -71,9 +71,9 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
         "/api/playback/stop" => ControlRequest::StageStop { name: "playback".into() },
         "/api/rig" => {
             let name = text("rig")?;
-            let Some(loaded) = frond_motion::rig_files::embedded_rig(&name) else {
+            let Some(loaded) = frond_formats::rig_files::embedded_rig(&name) else {
                 let known: Vec<&str> =
-                    frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect();
+                    frond_formats::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect();
                 return Err(format!("no embedded rig {name:?}; the console offers {}", known.join(", ")));
             };
             let loaded = loaded.map_err(|e| e.to_string())?;

@@ -177,7 +177,7 @@ mod tests {
         // A valid rig file the name points at, and files a name must never make it read.
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("mine.toml");
-        std::fs::write(&file, frond_motion::rig_files::EMBEDDED_RIGS[0].1).unwrap();
+        std::fs::write(&file, frond_formats::rig_files::EMBEDDED_RIGS[0].1).unwrap();
         assert!(load(file.to_str().unwrap()).is_ok(), "the file is a rig --rig would load");
         for name in [file.to_str().unwrap(), "/dev/zero", "/etc/passwd", "mine.toml"] {
             let e = load_recorded(name).unwrap_err();
@@ -186,7 +186,7 @@ mod tests {
                     &e,
                     SceneError::Load {
                         reason: frond_gltf::BakeError::Rig(
-                            frond_motion::rig_files::RigFileError::NotEmbedded { .. }
+                            frond_formats::rig_files::RigFileError::NotEmbedded { .. }
                         ),
                         ..
                     }

@@ -8,11 +8,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant, SystemTime};
 
+use frond_formats::jsonl::write_pose_line;
+use frond_formats::rig_files::RigFileError;
+use frond_formats::scan_take;
 use frond_gltf::{BakeError, BakeOptions, Baker, LoadedRig, TakeInput};
 use frond_motion::field::{Field, FieldParams, make_field};
-use frond_motion::jsonl::write_pose_line;
-use frond_motion::rig_files::RigFileError;
-use frond_motion::{TakeScan, resample, resample_plan, scan_take};
+use frond_motion::{TakeScan, resample, resample_plan};
 use frond_protocol::paths;
 use serde_json::{Value, json};
 
@@ -45,8 +46,8 @@ fn take_path(dir: &Path, name: &str) -> Result<PathBuf, TakeError> {
 /// Take `name`'s path and bytes (a regular file within the take size limit; 404 when absent).
 fn read_bytes(dir: &Path, name: &str) -> Result<(PathBuf, Vec<u8>), TakeError> {
     let path = take_path(dir, name)?;
-    let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| match &e {
-        frond_motion::rig_files::FileError::Read { source, .. }
+    let bytes = frond_formats::rig_files::read_take_file(&path).map_err(|e| match &e {
+        frond_formats::rig_files::FileError::Read { source, .. }
             if source.kind() == std::io::ErrorKind::NotFound =>
         {
             err(404, format!("no take {name:?} in {}", dir.display()))
@@ -280,7 +281,7 @@ pub fn field(dir: &Path, ask: &FieldRequest) -> Result<Field, TakeError> {
 /// readable records kept, the rest dropped, closed with an End record; refused while it may
 /// still be recording. `{"repaired": bool, "message"}`.
 pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {
-    use frond_motion::take_repair::{MAY_BE_RECORDING, repaired_bytes};
+    use frond_formats::take_repair::{MAY_BE_RECORDING, repaired_bytes};
     let (path, bytes) = read_bytes(dir, name)?;
     let Some((fixed, r)) =
         repaired_bytes(&bytes).map_err(|e| err(409, format!("{}: {e}", path.display())))?
@@ -301,7 +302,7 @@ pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {
             ),
         ));
     }
-    frond_motion::rig_files::write_file_atomically(&path, &fixed)
+    frond_formats::rig_files::write_file_atomically(&path, &fixed)
         .map_err(|e| err(500, format!("cannot write {}: {e}", path.display())))?;
     Ok(json!({ "repaired": true, "message": r.report(&path.display().to_string()) }))
 }

@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use frond_console::access::Access;
 use frond_console::server::{Config, Console};
-use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
+use frond_motion::take::{TakeFrame, TakeHeader};
 use frond_motion::{HandSample, JOINTS, PoseFrame};
 
 /// A console on a free loopback port, its directories, and the port's address.
@@ -210,7 +211,7 @@ fn head_answers_carry_gets_headers_and_no_body() {
 
 /// The grass rig's file renamed `name` (its `name = "grass"` line replaced).
 fn rig_named(name: &str) -> String {
-    let grass = frond_motion::rig_files::EMBEDDED_RIGS[0].1;
+    let grass = frond_formats::rig_files::EMBEDDED_RIGS[0].1;
     assert!(grass.contains("\nname = \"grass\"\n"));
     grass.replacen("\nname = \"grass\"\n", &format!("\nname = \"{name}\"\n"), 1)
 }

@@ -25,14 +25,14 @@ pub enum BakeError {
     },
     /// The take file could not be read, is not a regular file, or is too large.
     #[error("cannot read take {}: {}", .0.path().display(), .0.reason())]
-    TakeFile(frond_motion::rig_files::FileError),
+    TakeFile(frond_formats::rig_files::FileError),
     /// The take file is damaged (bad magic, corrupt record in the middle, bad structure).
     #[error("take {origin} is damaged: {source}")]
     TakeDamaged {
         /// The take file (or `<memory>`).
         origin: String,
         /// What the take reader found.
-        source: frond_motion::TakeError,
+        source: frond_formats::TakeError,
     },
     /// The bake would have more keys than the limit.
     #[error("take `{name}` at {fps} FPS would be {keys} keys, more than the limit of {limit}{hint}")]
@@ -56,7 +56,7 @@ pub enum BakeError {
     },
     /// The rig could not be found, read or validated (every problem with its path).
     #[error(transparent)]
-    Rig(#[from] frond_motion::rig_files::RigFileError),
+    Rig(#[from] frond_formats::rig_files::RigFileError),
     /// The rig's mesh could not be built or loaded.
     #[error("rig {origin}: mesh: {reason}")]
     RigMesh {

@@ -53,7 +53,7 @@ impl Field {
     /// Reads and checks a field file.
     pub fn read(path: &Path) -> Result<Field, BakeError> {
         let origin = path.display().to_string();
-        let text = frond_motion::rig_files::read_small_text(path, frond_motion::field::MAX_FIELD_FILE_BYTES)
+        let text = frond_formats::rig_files::read_small_text(path, frond_motion::field::MAX_FIELD_FILE_BYTES)
             .map_err(|e| BakeError::Field {
                 origin: origin.clone(),
                 reason: format!("cannot read: {}", e.reason()),

@@ -4,13 +4,14 @@
 
 use std::path::{Path, PathBuf};
 
+use frond_formats::scan_take;
 use frond_motion::mesh::PlantModel;
-use frond_motion::{Rig, TakeFrame, TakeHeader, scan_take};
+use frond_motion::{Rig, TakeFrame, TakeHeader};
 
 use crate::error::BakeError;
 
 /// The rigs of `rig-files/plants/`, built into the binary: `(name, TOML text)`.
-pub use frond_motion::rig_files::EMBEDDED_RIGS;
+pub use frond_formats::rig_files::EMBEDDED_RIGS;
 
 /// A validated rig and where it came from.
 #[derive(Debug, Clone)]
@@ -23,8 +24,8 @@ pub struct LoadedRig {
     pub dir: Option<PathBuf>,
 }
 
-impl From<frond_motion::rig_files::LoadedRig> for LoadedRig {
-    fn from(l: frond_motion::rig_files::LoadedRig) -> Self {
+impl From<frond_formats::rig_files::LoadedRig> for LoadedRig {
+    fn from(l: frond_formats::rig_files::LoadedRig) -> Self {
         LoadedRig { rig: l.rig, origin: l.origin, dir: l.dir }
     }
 }
@@ -33,39 +34,39 @@ impl LoadedRig {
     /// Parses a rig from TOML text (no I/O). `origin` names it in errors.
     pub fn from_toml(text: &str, origin: impl Into<String>, dir: Option<PathBuf>) -> Result<Self, BakeError> {
         let origin = origin.into();
-        Ok(frond_motion::rig_files::rig_from_text(text.to_string(), origin, "", dir)?.into())
+        Ok(frond_formats::rig_files::rig_from_text(text.to_string(), origin, "", dir)?.into())
     }
 
     /// An embedded rig by name (`grass`, `flower`, `shrub`).
     pub fn embedded(name: &str) -> Option<Result<Self, BakeError>> {
-        frond_motion::rig_files::embedded_rig(name).map(|r| Ok(r?.into()))
+        frond_formats::rig_files::embedded_rig(name).map(|r| Ok(r?.into()))
     }
 
     /// `--rig`: a file path (with `/` or ending in `.toml`), else an embedded rig name, else a
     /// file of that name (the one rig loader, `frond_motion::rig_files`).
     pub fn resolve(arg: &str) -> Result<Self, BakeError> {
-        Ok(frond_motion::rig_files::load_rig(arg)?.into())
+        Ok(frond_formats::rig_files::load_rig(arg)?.into())
     }
 
     /// The rig a take was recorded on (or a daemon reports), by the name it keeps: an embedded
-    /// rig only, never a path (`frond_motion::rig_files::recorded_rig`): the name comes from a
+    /// rig only, never a path (`frond_formats::rig_files::recorded_rig`): the name comes from a
     /// file or a peer, and must not make a baker read a file it names. A rig loaded from a file
     /// is refused (`RigFileError::NotEmbedded`); the caller asks for it with `--rig FILE`.
     pub fn recorded(name: &str) -> Result<Self, BakeError> {
-        Ok(frond_motion::rig_files::recorded_rig(name)?.into())
+        Ok(frond_formats::rig_files::recorded_rig(name)?.into())
     }
 
     /// The plant geometry: the procedural shape the rig names, or its glTF/GLB mesh file (read
     /// relative to the rig file, skin weights from the file where it has them), by
-    /// `frond_motion::rig_files::plant_model`.
+    /// `frond_formats::rig_files::plant_model`.
     pub fn model(&self) -> Result<PlantModel, BakeError> {
-        let loaded = frond_motion::rig_files::LoadedRig {
+        let loaded = frond_formats::rig_files::LoadedRig {
             rig: self.rig.clone(),
             text: String::new(),
             origin: self.origin.clone(),
             dir: self.dir.clone(),
         };
-        frond_motion::rig_files::plant_model(&loaded)
+        frond_formats::rig_files::plant_model(&loaded)
             .map_err(|e| BakeError::RigMesh { origin: e.origin, reason: e.reason })
     }
 }
@@ -105,7 +106,7 @@ impl TakeInput {
         Ok(TakeInput {
             name,
             header: scan.header,
-            element_names: frond_motion::layers::header_element_names(bytes),
+            element_names: frond_formats::layers::header_element_names(bytes),
             frames: scan.frames,
             torn_bytes: scan.torn_bytes,
             ended: scan.ended,
@@ -117,8 +118,8 @@ impl TakeInput {
     /// in `takes_dir`.
     pub fn resolve(arg: &str, takes_dir: &Path) -> Result<Self, BakeError> {
         let path = take_path(arg, takes_dir)?;
-        let bytes = frond_motion::rig_files::read_take_file(&path).map_err(|e| match e {
-            frond_motion::rig_files::FileError::Read { source, .. }
+        let bytes = frond_formats::rig_files::read_take_file(&path).map_err(|e| match e {
+            frond_formats::rig_files::FileError::Read { source, .. }
                 if source.kind() == std::io::ErrorKind::NotFound =>
             {
                 BakeError::TakeNotFound { arg: arg.to_string(), path: path.clone() }

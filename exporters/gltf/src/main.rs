@@ -215,7 +215,7 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
     let rig = LoadedRig::resolve(&a.common.rig)?;
     let model = rig.model()?;
     // Refuse an unwritable destination before the performance, not after it.
-    if let Err(e) = frond_motion::rig_files::output_destination(&a.common.output) {
+    if let Err(e) = frond_formats::rig_files::output_destination(&a.common.output) {
         bail!("cannot write {}: {e}", a.common.output.display());
     }
     let stop = Arc::new(AtomicBool::new(false));

@@ -89,14 +89,14 @@ fn output_err(path: &Path, reason: impl Into<String>) -> BakeError {
     BakeError::Output { path: path.to_path_buf(), reason: reason.into() }
 }
 
-/// Where `path` may be written ([`frond_motion::rig_files::output_destination`]): never over a
+/// Where `path` may be written ([`frond_formats::rig_files::output_destination`]): never over a
 /// device, FIFO or directory, through a symbolic link to its file, into a directory that exists.
 fn destination(path: &Path) -> Result<PathBuf, BakeError> {
-    frond_motion::rig_files::output_destination(path).map_err(|e| output_err(path, e.to_string()))
+    frond_formats::rig_files::output_destination(path).map_err(|e| output_err(path, e.to_string()))
 }
 
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile, BakeError> {
-    let dir = frond_motion::rig_files::parent_dir(path);
+    let dir = frond_formats::rig_files::parent_dir(path);
     // Like any new file: 0666 less the umask (a temporary file defaults to 0600).
     let mode = std::os::unix::fs::PermissionsExt::from_mode(0o666);
     let mut tmp = tempfile::Builder::new()

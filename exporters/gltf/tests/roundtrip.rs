@@ -112,7 +112,7 @@ fn grass_take_round_trips_through_the_gltf_crate() {
     let anim = doc.animations().next().unwrap();
     assert_eq!(anim.name(), Some("sway1"));
     assert_eq!(anim.channels().count(), 4);
-    let frames = frond_motion::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
+    let frames = frond_formats::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
     for ch in anim.channels() {
         assert_eq!(ch.sampler().interpolation(), gltf::animation::Interpolation::Linear);
         assert_eq!(ch.target().property(), gltf::animation::Property::Rotation);
@@ -186,7 +186,7 @@ fn layered_take_animates_each_leaf_skeleton_with_its_layer() {
         }
     }
     // 12 channels; leaf joints follow layer 1 (held at its first pose before it starts at +0.5 s).
-    let frames = frond_motion::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
+    let frames = frond_formats::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
     let anim = doc.animations().next().unwrap();
     assert_eq!(anim.channels().count(), 12);
     for ch in anim.channels() {
@@ -232,7 +232,7 @@ fn field_shares_one_mesh_and_delays_each_plant() {
     assert_eq!(doc.animations().count(), 1);
 
     // Clip of the take at the field's 30 FPS, from the raw frames.
-    let frames = frond_motion::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
+    let frames = frond_formats::scan_take(&std::fs::read(&take).unwrap()).unwrap().frames;
     let clip_len = 61;
     let anim = doc.animations().next().unwrap();
     assert_eq!(anim.channels().count(), 20);
@@ -297,7 +297,7 @@ fn grove_gives_each_plant_its_own_take_on_a_grid() {
         let root = skin.skeleton().unwrap();
         assert_eq!(root.name(), Some(format!("grass_{i}").as_str()));
         assert_eq!(root.transform().decomposed().0, at[i], "plant {i}");
-        let frames = frond_motion::scan_take(&std::fs::read(takes[i].0).unwrap()).unwrap().frames;
+        let frames = frond_formats::scan_take(&std::fs::read(takes[i].0).unwrap()).unwrap().frames;
         for (j, joint) in skin.joints().enumerate() {
             let ch = anim.channels().find(|c| c.target().node().index() == joint.index()).unwrap();
             let (times, quats) = rotations(&ch, &buffers);

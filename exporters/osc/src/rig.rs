@@ -1,12 +1,12 @@
 //! What VMC needs from a rig: joint rest heights and the bone names sent for the joints (the
 //! rig's `[vmc] bones` table when it has one, for receivers that only accept humanoid bone names;
 //! else its joint names). The rig itself comes from the one rig loader,
-//! [`frond_motion::rig_files::load_rig`]: an embedded rig by name or a rig file, validated as the
+//! [`frond_formats::rig_files::load_rig`]: an embedded rig by name or a rig file, validated as the
 //! daemon validates it.
 
+use frond_formats::rig_files::{LoadedRig, load_rig};
 use frond_motion::Rig;
 use frond_motion::rig::MAX_VMC_BONE_NAME_BYTES;
-use frond_motion::rig_files::{LoadedRig, load_rig};
 use thiserror::Error;
 
 use crate::encode::VmcRig;
@@ -16,7 +16,7 @@ use crate::encode::VmcRig;
 pub enum RigFileError {
     /// The rig could not be loaded (not found, unreadable, or invalid: every problem named).
     #[error(transparent)]
-    Load(#[from] frond_motion::rig_files::RigFileError),
+    Load(#[from] frond_formats::rig_files::RigFileError),
     /// A joint name to be sent as a bone name is longer than an OSC bone name may be.
     #[error(
         "{origin}: joints[{joint}].name is {bytes} bytes; VMC bone names are 1 to {MAX_VMC_BONE_NAME_BYTES} bytes (give the rig a [vmc] bones table)"
@@ -98,7 +98,7 @@ mod tests {
 
     fn parse(text: &str) -> Result<RigFile, RigFileError> {
         let loaded =
-            frond_motion::rig_files::rig_from_text(text.to_string(), "test rig".into(), "test", None)?;
+            frond_formats::rig_files::rig_from_text(text.to_string(), "test rig".into(), "test", None)?;
         from_loaded(&loaded)
     }
 

@@ -17,6 +17,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+use frond_formats::layers::TakeBytes;
 use frond_motion::rig::Rig;
 use frond_protocol::Pose;
 use support::*;
@@ -156,7 +157,7 @@ fn blender_addon_drives_the_armature_and_records() {
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
     // The armature a user has: frond-gltf's GLB of the daemon's rig (grass), imported by Blender.
-    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let glb = bake_rest_glb(&gltf, "grass", tmp.path());
     let flower = bake_rest_glb(&gltf, "flower", tmp.path());
     let heights: Vec<String> = rig.joints.iter().map(|j| j.height_m.to_string()).collect();
@@ -204,7 +205,7 @@ fn vmc4b_in_blender_drives_the_imported_armature_from_the_default_stream() {
     let Some((frondd, py, gltf)) = blender_tools() else { return };
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
-    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let glb = bake_rest_glb(&gltf, "grass", tmp.path());
     let bones: Vec<String> = ["Hips", "Spine", "Chest", "Neck"]
         .iter()
@@ -269,7 +270,7 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     let frond = frondd.with_file_name("frond");
     let daemon = start_daemon(&frondd);
     let tmp = tempfile::tempdir().unwrap();
-    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
     let run_frond = |args: &[&str]| {
         let out = Command::new(&frond)

@@ -6,7 +6,7 @@ use proptest::prelude::*;
 
 /// A rig's text through the one rig loader, as `--rig` reads a file.
 fn parse(text: &str) -> Result<rig::RigFile, rig::RigFileError> {
-    let loaded = frond_motion::rig_files::rig_from_text(text.to_string(), "rig".into(), "rig", None)?;
+    let loaded = frond_formats::rig_files::rig_from_text(text.to_string(), "rig".into(), "rig", None)?;
     rig::from_loaded(&loaded)
 }
 

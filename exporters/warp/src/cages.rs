@@ -6,7 +6,7 @@ use std::path::Path;
 use frond_cage::mvc::mean_value_coordinates;
 use frond_cage::tree::contains;
 use frond_cage::{BuildOptions, CageTree, Point, build_cage_tree};
-use frond_motion::rig_files::{FileError, read_small_text};
+use frond_formats::rig_files::{FileError, read_small_text};
 use thiserror::Error;
 
 use crate::layers::{SceneError, read_image};
@@ -79,9 +79,9 @@ pub fn build_file(layer: &Path, opts: &BuildOptions) -> Result<(CageTree, String
     Ok((tree, text))
 }
 
-/// Writes `text` to `path` atomically ([`frond_motion::rig_files::write_file_atomically`]).
+/// Writes `text` to `path` atomically ([`frond_formats::rig_files::write_file_atomically`]).
 pub fn write_file(path: &Path, text: &str) -> std::io::Result<()> {
-    frond_motion::rig_files::write_file_atomically(path, text.as_bytes())
+    frond_formats::rig_files::write_file_atomically(path, text.as_bytes())
 }
 
 /// Parses `X,Y` (finite numbers).

@@ -71,7 +71,7 @@ pub enum SceneError {
         /// Which input.
         what: &'static str,
         /// Why.
-        error: frond_motion::rig_files::FileError,
+        error: frond_formats::rig_files::FileError,
     },
     /// No vegetation layer was given: every frame would be the picture itself.
     #[error(
@@ -294,7 +294,7 @@ impl Scene {
 /// Reads and decodes an image file: a regular file of at most [`MAX_IMAGE_FILE_BYTES`] (a FIFO or
 /// a device is refused without blocking), sides of at most [`MAX_IMAGE_SIDE_PX`].
 pub fn read_image(what: &'static str, path: &Path) -> Result<image::DynamicImage, SceneError> {
-    let bytes = frond_motion::rig_files::read_small_file(path, MAX_IMAGE_FILE_BYTES)
+    let bytes = frond_formats::rig_files::read_small_file(path, MAX_IMAGE_FILE_BYTES)
         .map_err(|error| SceneError::File { what, error })?;
     let read_err = |source| SceneError::Read { what, path: path.to_path_buf(), source };
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))

@@ -189,7 +189,7 @@ fn serve_cage(args: ServeArgs) -> anyhow::Result<()> {
     ck.finish()?;
     let rig = match &args.cage.rig {
         Some(spec) => {
-            let rig = frond_motion::rig_files::load_rig(spec).with_context(|| format!("rig {spec}"))?;
+            let rig = frond_formats::rig_files::load_rig(spec).with_context(|| format!("rig {spec}"))?;
             Some((rig.rig.name.clone(), frond_motion::skeleton::Skeleton::from_rig(&rig.rig)))
         }
         None => None,
@@ -230,11 +230,11 @@ fn render_cage(args: RenderArgs) -> anyhow::Result<()> {
     // an embedded rig only, as a name read from a take is never opened as a path.
     let rig = match (&args.cage.rig, track.rig_name.as_deref().filter(|n| !n.is_empty())) {
         (Some(spec), _) => {
-            frond_motion::rig_files::load_rig(spec).with_context(|| format!("--rig {spec}"))?
+            frond_formats::rig_files::load_rig(spec).with_context(|| format!("--rig {spec}"))?
         }
-        (None, Some(name)) => frond_motion::rig_files::recorded_rig(name)
+        (None, Some(name)) => frond_formats::rig_files::recorded_rig(name)
             .with_context(|| format!("the rig take {} was recorded on", take.display()))?,
-        (None, None) => frond_motion::rig_files::recorded_rig("grass")?,
+        (None, None) => frond_formats::rig_files::recorded_rig("grass")?,
     };
     let scene = load_scene(&args.scene)?;
     let job = frond_warp::cage_skin::CageTakeJob {
@@ -266,7 +266,7 @@ fn morph(a: MorphArgs) -> anyhow::Result<()> {
     let out = out?;
     out.check_destination()?;
     if let Some(report) = &a.report
-        && let Err(e) = frond_motion::rig_files::output_destination(report)
+        && let Err(e) = frond_formats::rig_files::output_destination(report)
     {
         anyhow::bail!("cannot write {}: {e}", report.display());
     }

@@ -19,7 +19,7 @@ use frond_cage::raster::fill_polygon;
 use frond_cage::sketch::Sketch;
 use frond_cage::tree::outside_by;
 use frond_cage::{BuildOptions, CageTree, Point, build_cage_tree};
-use frond_motion::rig_files::read_small_text;
+use frond_formats::rig_files::read_small_text;
 
 use crate::Scene;
 use crate::cages::{CageCommandError, read_cage_file};

@@ -16,7 +16,7 @@ mod output;
 
 use crate::compose::Animator;
 use crate::wind::{HandWind, SimWind};
-use frond_motion::rig_files::AtomicOutput;
+use frond_formats::rig_files::AtomicOutput;
 use output::{GifWriter, frames_dir};
 
 /// What blows the picture in an offline render.
@@ -75,7 +75,7 @@ pub enum RenderError {
 
 impl OutputKind {
     /// Checks where the output goes before anything is rendered, as
-    /// [`frond_motion::rig_files::output_destination`] does for every file frond writes: a GIF
+    /// [`frond_formats::rig_files::output_destination`] does for every file frond writes: a GIF
     /// or WebP is a regular file (or a new one in a directory that exists), never a FIFO (the
     /// render would hang on it), a device or a directory; a directory of frames is a directory,
     /// or a new one whose parent exists (a mistyped path is not made into a tree).
@@ -83,7 +83,7 @@ impl OutputKind {
         let refused = |path: &Path, source| RenderError::Write { path: path.to_path_buf(), source };
         match self {
             OutputKind::Gif(path) | OutputKind::Webp(path) => {
-                frond_motion::rig_files::output_destination(path).map(|_| ()).map_err(|e| refused(path, e))
+                frond_formats::rig_files::output_destination(path).map(|_| ()).map_err(|e| refused(path, e))
             }
             OutputKind::Dir(path) => frames_dir(path, false).map_err(|e| refused(path, e)),
         }
@@ -122,9 +122,9 @@ pub struct PoseTrack {
 impl PoseTrack {
     /// Reads a `.take` file (frond's take format) and keeps the root joint of every frame.
     pub fn from_take(path: &Path) -> Result<PoseTrack, RenderError> {
-        let bytes = frond_motion::rig_files::read_take_file(path)
+        let bytes = frond_formats::rig_files::read_take_file(path)
             .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.reason() })?;
-        let scan = frond_motion::take::scan_take(&bytes)
+        let scan = frond_formats::take::scan_take(&bytes)
             .map_err(|e| RenderError::Take { path: path.to_path_buf(), message: e.to_string() })?;
         let poses = scan.poses();
         if poses.is_empty() {
@@ -277,7 +277,7 @@ impl Sink {
                     image::ExtendedColorType::Rgba8,
                 )
                 .map_err(|source| RenderError::Encode { path: path.clone(), source })?;
-                frond_motion::rig_files::write_file_atomically(&path, &png)
+                frond_formats::rig_files::write_file_atomically(&path, &png)
                     .map_err(|source| RenderError::Write { path, source })
             }
         }
@@ -297,7 +297,7 @@ impl Sink {
                     })
                     .map_err(|source| RenderError::Write { path, source })
             }
-            Sink::Webp(path, anim) => frond_motion::rig_files::write_file_atomically(&path, &anim.finish())
+            Sink::Webp(path, anim) => frond_formats::rig_files::write_file_atomically(&path, &anim.finish())
                 .map_err(|source| RenderError::Write { path, source }),
         }
     }

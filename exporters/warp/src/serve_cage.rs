@@ -207,7 +207,7 @@ fn on_daemon(shared: &Mutex<Shared>, fixed_rig: bool, event: DaemonEvent<'_>) {
         DaemonEvent::State(state) => shared.lock().expect("lock").daemon = state,
         DaemonEvent::Rig(name) if !fixed_rig => {
             // An embedded rig only: a name a peer sends is never opened as a path.
-            let loaded = frond_motion::rig_files::recorded_rig(name);
+            let loaded = frond_formats::rig_files::recorded_rig(name);
             let mut s = shared.lock().expect("lock");
             match loaded {
                 Ok(rig) => {

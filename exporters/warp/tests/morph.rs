@@ -340,7 +340,7 @@ fn the_skeleton_driven_cage_mode_turns_the_plant_with_the_take() {
     // The skeleton stands at the crown's bottom centre; the crown's top is the top joint.
     let (x0, x1) = inp.crown.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[0]), b.max(p[0])));
     let (y0, y1) = inp.crown.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[1]), b.max(p[1])));
-    let rig = frond_motion::rig_files::load_rig("grass").unwrap().rig;
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let (h0, h3) = (rig.joints[0].height_m as f64, rig.joints[3].height_m as f64);
     let scale = (y1 - y0) / h3;
     let c = [(x0 + x1) / 2.0, y1 - scale * h0];
@@ -435,7 +435,7 @@ fn a_takes_rig_name_is_never_opened_as_a_path() {
     // embedded one; a rig file is given with --rig FILE.
     let inp = inputs();
     let rig_file = inp.dir.join("mine.toml");
-    let grass = frond_motion::rig_files::EMBEDDED_RIGS[0].1;
+    let grass = frond_formats::rig_files::EMBEDDED_RIGS[0].1;
     std::fs::write(&rig_file, grass.replacen("\nname = \"grass\"\n", "\nname = \"mine\"\n", 1)).unwrap();
     let render = |take: &Path, out: &Path, extra: &[&str]| {
         let mut args = vec!["render", "--mode", "cage", "--image", s(&inp.bg), "--layer", s(&inp.layer)];

@@ -296,8 +296,8 @@ fn exposure(mode: u32) -> Option<String> {
 pub fn read_token_file(path: &Path) -> Result<String, TokenFileError> {
     use std::os::unix::fs::PermissionsExt;
     let read = |reason: String| TokenFileError::Read { path: path.to_path_buf(), reason };
-    let text =
-        frond_motion::rig_files::read_small_text(path, MAX_TOKEN_FILE_BYTES).map_err(|e| read(e.reason()))?;
+    let text = frond_formats::rig_files::read_small_text(path, MAX_TOKEN_FILE_BYTES)
+        .map_err(|e| read(e.reason()))?;
     let mode = std::fs::metadata(path).map_err(|e| read(e.to_string()))?.permissions().mode() & 0o777;
     if let Some(who) = exposure(mode) {
         return Err(TokenFileError::Exposed { path: path.to_path_buf(), mode, who });

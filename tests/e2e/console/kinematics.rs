@@ -105,8 +105,8 @@ pub(super) fn check_bones(d: &Driver, element: u16, model: &PlantModel) -> [[f32
 }
 
 pub(super) fn model(rig: &str) -> PlantModel {
-    let loaded = frond_motion::rig_files::embedded_rig(rig).unwrap().unwrap();
-    frond_motion::rig_files::plant_model(&loaded).unwrap()
+    let loaded = frond_formats::rig_files::embedded_rig(rig).unwrap().unwrap();
+    frond_formats::rig_files::plant_model(&loaded).unwrap()
 }
 
 pub(super) fn heights(d: &Driver) -> [f64; 4] {

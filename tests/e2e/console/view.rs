@@ -93,7 +93,7 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     let frames: u64 = said.split_whitespace().nth(2).and_then(|n| n.parse().ok()).expect(&said);
     let take = daemon.takes_dir.join("console_take.take");
     let bytes = std::fs::read(&take).expect("the take file");
-    let scan = frond_motion::scan_take(&bytes).expect("a sound take");
+    let scan = frond_formats::scan_take(&bytes).expect("a sound take");
     assert!(scan.ended, "the take is closed");
     assert_eq!(scan.frames.len() as u64, frames, "{said}");
     assert!(frames > 100, "0.3 s at 1 kHz: {said}");
@@ -269,8 +269,8 @@ fn a_torn_take_is_listed_torn_and_repaired_from_the_page() {
     // A crash mid-record: the End record gone and half a record after the last frame.
     let path = daemon.takes_dir.join("cut.take");
     let bytes = std::fs::read(&path).unwrap();
-    let sound = frond_motion::scan_take(&bytes).unwrap();
-    let end = sound.valid_len as usize - frond_motion::take::RECORD_HEAD_LEN - 9;
+    let sound = frond_formats::scan_take(&bytes).unwrap();
+    let end = sound.valid_len as usize - frond_formats::take::RECORD_HEAD_LEN - 9;
     let mut torn = bytes[..end].to_vec();
     torn.extend_from_slice(&bytes[end - 20..end - 3]);
     std::fs::write(&path, &torn).unwrap();
@@ -292,7 +292,7 @@ fn a_torn_take_is_listed_torn_and_repaired_from_the_page() {
         (r[3] == "complete").then_some(r)
     });
     assert_eq!(fixed[1].as_str().unwrap(), sound.frames.len().to_string(), "every frame kept: {fixed}");
-    let after = frond_motion::scan_take(&std::fs::read(&path).unwrap()).unwrap();
+    let after = frond_formats::scan_take(&std::fs::read(&path).unwrap()).unwrap();
     assert!(after.ended && after.torn_bytes == 0, "{after:?}");
     assert_eq!(after.frames, sound.frames);
     let said = d.script("return document.getElementById('control-result').textContent;");

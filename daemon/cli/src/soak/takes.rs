@@ -45,14 +45,14 @@ fn clip_runs(seen: &[(u64, u64)], lo: u64, hi: u64) -> Vec<(u64, u64)> {
 /// Reads the take back and compares its frames with `part` of `seen`, the fresh recorded frames
 /// a healthy subscriber received (as runs).
 pub(super) fn read_take(t: &mut TakeFigures, seen: &[(u64, u64)], part: Part) {
-    let bytes = match frond_motion::rig_files::read_take_file(Path::new(&t.path)) {
+    let bytes = match frond_formats::rig_files::read_take_file(Path::new(&t.path)) {
         Ok(b) => b,
         Err(e) => {
             t.error = Some(format!("cannot read: {}", e.reason()));
             return;
         }
     };
-    match frond_motion::scan_take(&bytes) {
+    match frond_formats::scan_take(&bytes) {
         Ok(scan) => {
             let mut runs = Vec::new();
             let mut increasing = true;

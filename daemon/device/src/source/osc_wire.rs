@@ -232,7 +232,7 @@ mod tests {
             let live = ours(&rosc::encoder::encode(&packet).unwrap());
             let fmt = |v: &[f32]| v.iter().map(|a| a.to_string()).collect::<Vec<_>>().join(",");
             let line = format!(r#"{{"t":{t},"wrist":[{}],"thumb":[{}]}}"#, fmt(&angles[..3]), fmt(&angles[3..]));
-            let offline = frond_motion::parse_hand_line(&line);
+            let offline = frond_formats::parse_hand_line(&line);
             let rule = t.is_finite() && t >= 0.0 && angles.iter().all(|a| a.is_finite() && a.abs() <= 360.0);
             prop_assert_eq!(matches!(live[..], [Ok(_)]), rule, "live {:?}", live);
             prop_assert_eq!(offline.is_ok(), rule, "{} -> {:?}", line, offline);

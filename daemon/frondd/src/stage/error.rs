@@ -1,8 +1,8 @@
 //! Why a stage could not be named, placed or built: one enum whose messages name the problem.
 
+use frond_formats::take::TakeError;
 use frond_motion::field::FieldError;
 use frond_motion::looping::LoopError;
-use frond_motion::take::TakeError;
 
 use super::MAX_STAGES;
 use super::registry::MAX_STAGE_NAME;

@@ -11,9 +11,11 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU32, AtomicU64, Ordering::Relaxed};
 
+use frond_formats::graph_file::GraphFile;
+use frond_formats::layers::TakeBytes;
 use frond_motion::clip::Joints;
 use frond_motion::graph::walk::PosePlanner;
-use frond_motion::graph::{Goal, GraphFile, MotionGraph, NearestNodeSearch, Walker};
+use frond_motion::graph::{Goal, MotionGraph, NearestNodeSearch, Walker};
 use frond_motion::layers::{GLOBAL_LAYER, Take};
 use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
@@ -38,7 +40,7 @@ pub const MIN_PLAN_NODES_PER_TICK: usize = 64;
 /// ([`GraphStage::new`]); [`build`] sets it from the stage's share of the tick.
 pub const DEFAULT_CATCH_UP_FRAMES: u64 = 32;
 /// Largest graph file read, bytes.
-pub const MAX_GRAPH_FILE_BYTES: u64 = frond_motion::graph::file::MAX_GRAPH_FILE_BYTES;
+pub const MAX_GRAPH_FILE_BYTES: u64 = frond_formats::graph_file::MAX_GRAPH_FILE_BYTES;
 /// Smallest bend of the root, degrees, that sets a goal from the hand (below it the plants walk
 /// at random).
 pub const HAND_GOAL_MIN_BEND_DEG: f32 = 5.0;
@@ -468,7 +470,7 @@ fn load_source(take: &str, graph: &str, ctx: &BuildContext) -> Result<(GraphSour
     frond_protocol::paths::validate_take_name(graph)
         .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: format!("graph name: {e}") })?;
     let path = ctx.takes_dir.join(format!("{graph}.graph.json"));
-    let text = frond_motion::rig_files::read_small_text(&path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
+    let text = frond_formats::rig_files::read_small_text(&path, MAX_GRAPH_FILE_BYTES).map_err(|e| {
         BuildError::invalid(format!("cannot read graph {graph:?} at {}: {}", path.display(), e.reason()))
     })?;
     let file =

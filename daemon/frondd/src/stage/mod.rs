@@ -253,7 +253,7 @@ pub fn read_take(takes_dir: &Path, name: &str) -> Result<Vec<u8>, BuildError> {
     frond_protocol::paths::validate_take_name(name)
         .map_err(|e| BuildError { kind: ControlErrorKind::BadName, message: e.to_string() })?;
     let path = takes_dir.join(format!("{name}.take"));
-    frond_motion::rig_files::read_small_file(&path, MAX_STAGE_TAKE_BYTES).map_err(|e| {
+    frond_formats::rig_files::read_small_file(&path, MAX_STAGE_TAKE_BYTES).map_err(|e| {
         BuildError::invalid(format!("cannot read take {name:?} at {}: {}", path.display(), e.reason()))
     })
 }

@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use frond_formats::layers::TakeBytes;
 use frond_motion::clip::Clip;
 use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};

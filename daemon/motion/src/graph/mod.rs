@@ -6,8 +6,9 @@
 //! (5.3) into one strongly connected graph that a walk ([`walk`]) can traverse forever.
 //!
 //! - [`build`]: [`build_graph`] and its [`GraphParams`];
-//! - [`file`](mod@file): the documented `NAME.graph.json` format ([`GraphFile`]) and its validation;
 //! - [`walk`]: random, goal-directed (6.1.2) and pose-goal walks and their in-between frames.
+//!
+//! The graph file (`NAME.graph.json`) is `frond_formats::graph_file`.
 
 use glam::{Mat4, Vec3};
 use thiserror::Error;
@@ -16,13 +17,11 @@ use crate::sample::{JOINTS, PoseFrame};
 use crate::skeleton::Skeleton;
 
 pub mod build;
-pub mod file;
 #[cfg(test)]
 mod tests;
 pub mod walk;
 
 pub use build::{GraphParams, build_graph};
-pub use file::{GRAPH_FILE_VERSION, GraphFile, GraphFileError};
 pub use walk::{Goal, WalkStep, Walker};
 
 /// Most samples a graph is built from (an hour at 300 frames per second).

@@ -5,8 +5,14 @@ use glam::{DVec3, Vec3};
 
 use super::*;
 use crate::rig::{Rig, RigError};
-use crate::rig_files::EMBEDDED_RIGS;
 use crate::skeleton::Skeleton;
+
+/// The shipped plant rigs, `(name, TOML text)` (the list `frond_formats::rig_files` builds in).
+const EMBEDDED_RIGS: [(&str, &str); 3] = [
+    ("grass", include_str!("../../../../rig-files/plants/grass.toml")),
+    ("flower", include_str!("../../../../rig-files/plants/flower.toml")),
+    ("shrub", include_str!("../../../../rig-files/plants/shrub.toml")),
+];
 
 const HEIGHTS: [f64; NODES] = [0.0, 0.1, 0.2, 0.3, 0.4];
 

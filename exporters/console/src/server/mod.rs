@@ -210,7 +210,7 @@ impl Console {
             },
             "/api/rigs" => Response::json(
                 200,
-                &json!(frond_motion::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
+                &json!(frond_formats::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect::<Vec<_>>()),
             ),
             "/api/calibrate" => Response::json(200, &self.calibrations.state()),
             "/api/field" => Response::json(
@@ -294,7 +294,7 @@ impl Console {
                     // file, as a name from a peer is never opened as a path.
                     scene::SceneError::Load {
                         reason:
-                            frond_gltf::BakeError::Rig(frond_motion::rig_files::RigFileError::NotEmbedded {
+                            frond_gltf::BakeError::Rig(frond_formats::rig_files::RigFileError::NotEmbedded {
                                 name,
                                 embedded,
                             }),

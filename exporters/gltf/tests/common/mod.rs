@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use frond_formats::layers::TakeBytes;
 use frond_motion::layers::Take;
 use frond_motion::{JOINTS, PoseFrame, TakeFrame, TakeHeader};
 

@@ -1,5 +1,5 @@
 //! How rendered frames reach the disk: the GIF encoder's writer (into a
-//! `frond_motion::rig_files::AtomicOutput`), and the directory of PNG frames checked and made.
+//! `frond_formats::rig_files::AtomicOutput`), and the directory of PNG frames checked and made.
 
 use std::io::Write;
 use std::path::Path;
@@ -16,7 +16,7 @@ pub(crate) fn frames_dir(path: &Path, create: bool) -> std::io::Result<()> {
             ErrorKind::InvalidInput,
             format!(
                 "it is {}, not a directory",
-                frond_motion::rig_files::not_regular(meta.file_type()).unwrap_or("a regular file")
+                frond_formats::rig_files::not_regular(meta.file_type()).unwrap_or("a regular file")
             ),
         )),
         Err(e) if e.kind() == ErrorKind::NotFound => {
@@ -26,7 +26,7 @@ pub(crate) fn frames_dir(path: &Path, create: bool) -> std::io::Result<()> {
                     "it is a symbolic link to a directory that does not exist; remove the link or name the directory itself",
                 ));
             }
-            let dir = frond_motion::rig_files::parent_dir(path);
+            let dir = frond_formats::rig_files::parent_dir(path);
             if !dir.is_dir() {
                 return Err(Error::new(
                     ErrorKind::NotFound,

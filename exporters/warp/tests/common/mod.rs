@@ -4,7 +4,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use frond_motion::take::{TakeFrame, TakeHeader, TakeRecord, encode_file_start, encode_record};
+use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
+use frond_motion::take::{TakeFrame, TakeHeader};
 use frond_motion::{HandSample, PoseFrame};
 
 /// The binary under test.

@@ -27,11 +27,11 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use super::build::GraphParams;
-use super::{
+use frond_motion::graph::GraphParams;
+use frond_motion::graph::{
     ControlPoint, Edge, EdgeKind, MAX_EXTEND, MAX_GRAPH_SAMPLES, MAX_INBETWEENS, MotionGraph, Pruned,
 };
-use crate::sample::PoseFrame;
+use frond_motion::sample::PoseFrame;
 
 /// The format version this build writes and reads.
 pub const GRAPH_FILE_VERSION: u32 = 1;
@@ -200,7 +200,7 @@ impl GraphFile {
 
     /// The control point.
     pub fn control_point(&self) -> Result<ControlPoint, GraphFileError> {
-        self.control.parse().map_err(|e: super::GraphError| invalid("control", e.to_string()))
+        self.control.parse().map_err(|e: frond_motion::graph::GraphError| invalid("control", e.to_string()))
     }
 
     fn check(&self) -> Result<(), GraphFileError> {

@@ -11,7 +11,7 @@
 
 use std::fmt::Write;
 
-use crate::sample::JOINTS;
+use frond_motion::sample::JOINTS;
 
 /// Joint angles of one frame: `[pitch, yaw, roll]` per joint, degrees.
 pub type Joints = [[f32; 3]; JOINTS];

@@ -2,7 +2,8 @@
 //! for every filter kind, and encoding a Frame record into a buffer with room.
 //! Only the test's own thread is counted: the test harness's threads may allocate meanwhile.
 
-use frond_motion::take::{TakeFrame, TakeRecord, encode_record};
+use frond_formats::take::{TakeRecord, encode_record};
+use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams};
 
 mod common;

@@ -1,10 +1,11 @@
 //! Take codec: round trips, torn tails, corruption, and property tests over arbitrary bytes and
 //! every prefix of valid files.
 
-use frond_motion::take::{
-    MAGIC, RECORD_HEAD_LEN, Skipped, TakeError, TakeFrame, TakeHeader, TakeRecord, encode_file_start,
-    encode_record, scan_take, scan_take_salvaging,
+use frond_formats::take::{
+    MAGIC, RECORD_HEAD_LEN, TakeError, TakeRecord, encode_file_start, encode_record, scan_take,
+    scan_take_salvaging,
 };
+use frond_motion::take::{Skipped, TakeFrame, TakeHeader};
 use frond_motion::{HandSample, PoseFrame};
 use proptest::prelude::*;
 

@@ -12,9 +12,9 @@
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::mesh::SkinnedMesh;
-use crate::sample::JOINTS;
-use crate::skeleton::Skeleton;
+use frond_motion::mesh::SkinnedMesh;
+use frond_motion::sample::JOINTS;
+use frond_motion::skeleton::Skeleton;
 
 /// Why a glTF mesh was refused.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]

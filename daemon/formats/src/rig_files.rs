@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::rig::{Rig, RigError};
+use frond_motion::rig::{Rig, RigError};
 
 /// The rigs of `rig-files/plants/`, built into every binary: `(name, TOML text)`.
 pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
@@ -334,7 +334,7 @@ pub fn read_small_file(path: &Path, max: u64) -> Result<Vec<u8>, FileError> {
 }
 
 /// Largest take file a command reads, bytes: about 16 million frames, the resampling limit
-/// ([`crate::take::MAX_RESAMPLED_FRAMES`]).
+/// ([`frond_motion::take::MAX_RESAMPLED_FRAMES`]).
 pub const MAX_TAKE_FILE_BYTES: u64 = 2 << 30;
 /// Largest mesh file (`.glb`) a rig may name, bytes.
 pub const MAX_MESH_FILE_BYTES: u64 = 256 << 20;
@@ -569,12 +569,12 @@ pub struct PlantModelError {
 /// The plant geometry of a loaded rig: the procedural shape its `[mesh]` names, or its
 /// glTF/GLB mesh file (read relative to the rig file, at most [`MAX_MESH_FILE_BYTES`], skin
 /// weights from the file where it has them). The one loader for every exporter.
-pub fn plant_model(loaded: &LoadedRig) -> Result<crate::mesh::PlantModel, PlantModelError> {
-    use crate::rig::MeshSpec;
+pub fn plant_model(loaded: &LoadedRig) -> Result<frond_motion::mesh::PlantModel, PlantModelError> {
+    use frond_motion::rig::MeshSpec;
     let err = |reason: String| PlantModelError { origin: loaded.origin.clone(), reason };
     match &loaded.rig.mesh {
         MeshSpec::Procedural { .. } => {
-            crate::mesh::procedural_model(&loaded.rig).map_err(|e| err(e.to_string()))
+            frond_motion::mesh::procedural_model(&loaded.rig).map_err(|e| err(e.to_string()))
         }
         MeshSpec::File { path } => {
             let full = match &loaded.dir {
@@ -583,11 +583,11 @@ pub fn plant_model(loaded: &LoadedRig) -> Result<crate::mesh::PlantModel, PlantM
             };
             let bytes = read_small_file(&full, MAX_MESH_FILE_BYTES)
                 .map_err(|e| err(format!("cannot read {}: {}", full.display(), e.reason())))?;
-            let skeleton = crate::skeleton::Skeleton::from_rig(&loaded.rig);
+            let skeleton = frond_motion::skeleton::Skeleton::from_rig(&loaded.rig);
             let names: Vec<String> = loaded.rig.joints.iter().map(|j| j.name.clone()).collect();
             let stem = crate::gltf_mesh::load_gltf_mesh(&bytes, &skeleton, &names)
                 .map_err(|e| err(format!("{}: {e}", full.display())))?;
-            Ok(crate::mesh::PlantModel { skeleton, stem, elements: Vec::new() })
+            Ok(frond_motion::mesh::PlantModel { skeleton, stem, elements: Vec::new() })
         }
     }
 }

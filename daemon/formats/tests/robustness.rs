@@ -1,6 +1,6 @@
 //! `Mapper::process` and the parsers never panic, and finite input never gives NaN or infinity.
 
-use frond_motion::jsonl::{parse_hand_line, parse_pose_line};
+use frond_formats::jsonl::{parse_hand_line, parse_pose_line};
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, Rig};
 use proptest::prelude::*;
 

@@ -4,12 +4,14 @@
 //! into a clip (`retime`, `loop`, `field`, `guided`, `align`) and retimed at speed 1; each gives
 //! `n` frames, for every length 1..=400 at 24, 25, 30 and 60 FPS.
 
+use frond_formats::import::{ImportKind, import_jsonl};
+use frond_formats::write_pose_line;
 use frond_motion::calibration::CalibrationParams;
 use frond_motion::clip::{Clip, frame_count};
 use frond_motion::controls::{Retime, retime};
-use frond_motion::edit::{ImportKind, import_jsonl, resample_frames};
+use frond_motion::edit::resample_frames;
 use frond_motion::layers::{GLOBAL_LAYER, Take};
-use frond_motion::{FilterSpec, Mapper, MappingParams, PoseFrame, TakeHeader, resample, write_pose_line};
+use frond_motion::{FilterSpec, Mapper, MappingParams, PoseFrame, TakeHeader, resample};
 
 /// Seconds rounded to the microsecond, written with six decimals and read back.
 fn six_decimals(t: f64) -> f64 {
@@ -35,7 +37,7 @@ fn header() -> TakeHeader {
 fn the_issue_case_six_decimals_200_frames_at_30_fps() {
     let text = exported(200, 30.0);
     assert!(text.lines().last().unwrap().contains("\"t\":6.633333"), "{}", text.lines().last().unwrap());
-    let poses: Vec<PoseFrame> = text.lines().map(|l| frond_motion::parse_pose_line(l).unwrap()).collect();
+    let poses: Vec<PoseFrame> = text.lines().map(|l| frond_formats::parse_pose_line(l).unwrap()).collect();
     assert_eq!(resample(&poses, 30.0).len(), 200);
     assert_eq!(frame_count(6.633333, 30.0), 200);
 }

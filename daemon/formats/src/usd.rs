@@ -16,9 +16,9 @@ use std::fmt::Write;
 
 use glam::{Mat4, Quat, Vec3};
 
-use crate::mesh::{PlantModel, SkinnedMesh};
-use crate::sample::JOINTS;
-use crate::skeleton::joint_rotation;
+use frond_motion::mesh::{PlantModel, SkinnedMesh};
+use frond_motion::sample::JOINTS;
+use frond_motion::skeleton::joint_rotation;
 
 /// What a USD layer of a take says about itself.
 #[derive(Debug, Clone, PartialEq)]

@@ -18,7 +18,7 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 use thiserror::Error;
 
-use crate::sample::{HandSample, JOINTS, PoseFrame};
+use frond_motion::sample::{HandSample, JOINTS, PoseFrame};
 
 /// Why a line could not be parsed. The `field` strings are paths such as `wrist[1]` or
 /// `joints[2][0]`.
@@ -66,7 +66,7 @@ pub enum JsonlError {
     },
     /// A hand sample outside the plausibility limits every hand source applies.
     #[error(transparent)]
-    Implausible(#[from] crate::plausible::Implausible),
+    Implausible(#[from] frond_motion::plausible::Implausible),
 }
 
 fn type_name(v: &Value) -> &'static str {
@@ -148,7 +148,7 @@ pub fn parse_hand_line(line: &str) -> Result<HandSample, JsonlError> {
     let wrist_deg = vec3(field(&obj, "wrist")?, "wrist")?;
     let thumb_deg = vec3(field(&obj, "thumb")?, "thumb")?;
     let hand = HandSample { t, wrist_deg, thumb_deg };
-    // The limits every live source applies (`crate::plausible`).
+    // The limits every live source applies (`frond_motion::plausible`).
     hand.check_plausible()?;
     Ok(hand)
 }

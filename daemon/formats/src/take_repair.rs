@@ -5,7 +5,8 @@
 use std::time::Duration;
 
 use crate::take::{RecordAt, TakeRecord, encode_record};
-use crate::{Skipped, scan_take, scan_take_salvaging};
+use crate::take::{scan_take, scan_take_salvaging};
+use frond_motion::take::Skipped;
 
 /// A take without an End record modified more recently than this may still be recording:
 /// repair leaves it alone.
