@@ -6,7 +6,11 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Parser, Subcommand};
+
+pub use crate::bench::BenchArgs;
+pub use crate::calibrate::CalibrateArgs;
+pub use crate::global::Global;
 
 /// frond: operate the hand-to-plant puppet daemon.
 #[derive(Debug, Parser)]
@@ -18,30 +22,6 @@ pub struct Cli {
     /// The command to run.
     #[command(subcommand)]
     pub command: Command,
-}
-
-/// Where the daemon's sockets and takes are.
-#[derive(Debug, Clone, Args)]
-pub struct Global {
-    /// Directory of the daemon's sockets (poses.sock, control.sock)
-    /// [default: $XDG_RUNTIME_DIR/frond, /run/frond for root].
-    #[arg(long, global = true, env = "FROND_SOCKET_DIR", value_name = "DIR")]
-    pub socket_dir: Option<PathBuf>,
-    /// Directory of recorded takes [default: $XDG_DATA_HOME/frond/takes].
-    #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR")]
-    pub takes_dir: Option<PathBuf>,
-    /// Send control commands (status, record, mark, rig set, filter, stage ...) to a daemon on
-    /// another host, through its frond-zenoh bridge started with --control:
-    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]`. Needs --as and --key-file.
-    #[arg(long, global = true, env = "FROND_REMOTE", value_name = "ADDRESS")]
-    pub remote: Option<frond_sdk::Source>,
-    /// The principal remote control requests are signed as (a name in the bridge's --control
-    /// file).
-    #[arg(long = "as", global = true, env = "FROND_REMOTE_AS", value_name = "NAME")]
-    pub remote_as: Option<String>,
-    /// The principal's key: a file holding its hex key, readable by its owner only.
-    #[arg(long = "key-file", global = true, env = "FROND_REMOTE_KEY_FILE", value_name = "FILE")]
-    pub remote_key_file: Option<PathBuf>,
 }
 
 /// `frond` commands.
@@ -211,41 +191,6 @@ pub enum Command {
         #[arg(long, default_value_t = 0x5EED, value_name = "N")]
         seed: u64,
     },
-}
-
-/// `frond bench` options.
-#[derive(Debug, Clone, Args)]
-pub struct BenchArgs {
-    /// Short measurements (about 1-2 s each), for CI.
-    #[arg(long)]
-    pub quick: bool,
-    /// Print the report as one JSON document instead of a table.
-    #[arg(long)]
-    pub json: bool,
-    /// Run only this section (repeatable): loop_timing, glove_latency, tick_cost, max_rate,
-    /// daemon_resources, components, osc_latency, hidraw_latency, zenoh.
-    #[arg(long, value_name = "NAME")]
-    pub section: Vec<String>,
-}
-
-/// `frond calibrate` options.
-#[derive(Debug, Clone, Args)]
-pub struct CalibrateArgs {
-    /// Whose calibration this is (the file is named after it).
-    #[arg(long, value_name = "NAME")]
-    pub user: String,
-    /// Seconds for each step.
-    #[arg(long, default_value_t = 4.0, value_name = "S")]
-    pub seconds_per_step: f64,
-    /// Do not wait for Enter before each step.
-    #[arg(long)]
-    pub yes: bool,
-    /// Output file [default: $XDG_CONFIG_HOME/frond/calibrations/NAME.toml].
-    #[arg(short = 'o', long, value_name = "FILE")]
-    pub output: Option<PathBuf>,
-    /// Also apply the new calibration to the running daemon.
-    #[arg(long)]
-    pub apply: bool,
 }
 
 /// `frond calibration ...`

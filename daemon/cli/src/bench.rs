@@ -4,8 +4,8 @@
 use std::process::Command;
 
 use anyhow::Context;
+use clap::Args;
 
-use crate::args::BenchArgs;
 use crate::demo::find_program;
 
 /// Runs `frond-bench` (beside `frond`, else on `PATH`); its report goes to stdout, progress to
@@ -25,7 +25,22 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<()> {
     let status = cmd.status().with_context(|| format!("cannot run {}", program.display()))?;
     match status.code() {
         Some(0) => Ok(()),
-        Some(code) => Err(crate::ChildFailed(code.clamp(1, 255) as u8).into()),
+        Some(code) => Err(crate::error::ChildFailed(code.clamp(1, 255) as u8).into()),
         None => Err(anyhow::anyhow!("{} was killed: {status}", program.display())),
     }
+}
+
+/// `frond bench` options.
+#[derive(Debug, Clone, Args)]
+pub struct BenchArgs {
+    /// Short measurements (about 1-2 s each), for CI.
+    #[arg(long)]
+    pub quick: bool,
+    /// Print the report as one JSON document instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Run only this section (repeatable): loop_timing, glove_latency, tick_cost, max_rate,
+    /// daemon_resources, components, osc_latency, hidraw_latency, zenoh.
+    #[arg(long, value_name = "NAME")]
+    pub section: Vec<String>,
 }

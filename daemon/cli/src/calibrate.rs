@@ -9,15 +9,36 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, anyhow, bail};
+use clap::Args;
 use frond_motion::calibrate::{Raw, STEPS, compute};
 use frond_protocol::{ControlReply, ControlRequest, paths};
 
-use crate::args::{CalibrateArgs, Global};
 use crate::control::Control;
-use crate::usage;
+use crate::error::usage;
+use crate::global::Global;
 
 /// Poll period for raw samples (about 50 Hz).
 const POLL: Duration = Duration::from_millis(20);
+
+/// `frond calibrate` options.
+#[derive(Debug, Clone, Args)]
+pub struct CalibrateArgs {
+    /// Whose calibration this is (the file is named after it).
+    #[arg(long, value_name = "NAME")]
+    pub user: String,
+    /// Seconds for each step.
+    #[arg(long, default_value_t = 4.0, value_name = "S")]
+    pub seconds_per_step: f64,
+    /// Do not wait for Enter before each step.
+    #[arg(long)]
+    pub yes: bool,
+    /// Output file [default: $XDG_CONFIG_HOME/frond/calibrations/NAME.toml].
+    #[arg(short = 'o', long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Also apply the new calibration to the running daemon.
+    #[arg(long)]
+    pub apply: bool,
+}
 
 pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     if let Err(e) = paths::validate_take_name(&a.user) {

@@ -10,8 +10,8 @@ use frond_sdk::ControlClient;
 use frond_sdk::control_auth::ControlKey;
 use frond_sdk::zenoh_control::RemoteControl;
 
-use crate::args::Global;
-use crate::usage;
+use crate::error::usage;
+use crate::global::Global;
 
 /// Largest marker label the daemon accepts, bytes.
 const MAX_LABEL_BYTES: usize = 256;
@@ -240,14 +240,14 @@ mod tests {
     #[test]
     fn bad_take_names_are_usage_errors() {
         let err = check_take_name("../etc").unwrap_err();
-        assert!(err.downcast_ref::<crate::UsageError>().is_some());
+        assert!(err.downcast_ref::<crate::error::UsageError>().is_some());
         check_take_name("take_1").unwrap();
     }
 
     #[test]
     fn a_bad_filter_is_a_usage_error() {
         let err = parse_filter("butterworth").unwrap_err();
-        assert!(err.downcast_ref::<crate::UsageError>().is_some());
+        assert!(err.downcast_ref::<crate::error::UsageError>().is_some());
         assert!(err.to_string().contains("butterworth"), "{err}");
     }
 }

@@ -20,9 +20,10 @@ use anyhow::{Context, anyhow, bail};
 use frond_protocol::{CONTROL_SOCKET, POSES_SOCKET, PoseFlags, paths};
 use frond_sdk::{Event, SdkError, Subscriber};
 
-use crate::args::Global;
 use crate::control::{Control, check_take_name};
-use crate::{Interrupted, signals, tap, usage};
+use crate::error::{Interrupted, usage};
+use crate::global::Global;
+use crate::{signals, tap};
 
 /// How long the daemon gets to create its sockets.
 const READY_TIMEOUT: Duration = Duration::from_secs(20);

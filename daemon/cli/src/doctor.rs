@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use frond_protocol::{ControlReply, ControlRequest, paths};
 use serde::Serialize;
 
-use crate::args::Global;
 use crate::control::Control;
+use crate::global::Global;
 
 /// The glove the udev rule and the default device profile name (pid.codes).
 const GLOVE_HID_ID: &str = "00001209:0000F0D1";

@@ -9,8 +9,8 @@ use frond_protocol::{
     ControlReply, ControlRequest, GraphGoal, GraphSource, MAX_GRAPH_SOURCES, StageInput, StageSpec,
 };
 
-use crate::args::Global;
 use crate::control::Control;
+use crate::global::Global;
 
 /// The stage's name.
 const STAGE: &str = "graph";
@@ -74,7 +74,7 @@ pub(crate) fn sim(g: &Global, cmd: SimCommand) -> anyhow::Result<()> {
     match cmd {
         SimCommand::Start { rig, wind } => {
             if let Err(e) = wind.parse::<frond_motion::sim::WindSpec>() {
-                return crate::usage(format!("--wind {wind:?}: {e}"));
+                return crate::error::usage(format!("--wind {wind:?}: {e}"));
             }
             let rig_toml = match &rig {
                 Some(spec) => Some(crate::control::load_rig(spec)?.1),
@@ -149,17 +149,17 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
     match cmd {
         GraphCommand::Play { takes, graph, plants, seed } => {
             if !(1..=64).contains(&plants) {
-                return crate::usage(format!("--plants must be 1..=64, got {plants}"));
+                return crate::error::usage(format!("--plants must be 1..=64, got {plants}"));
             }
             let max = MAX_GRAPH_SOURCES.min(usize::from(plants));
             if takes.len() > max {
-                return crate::usage(format!(
+                return crate::error::usage(format!(
                     "{plants} plants walk at most {max} takes, got {}",
                     takes.len()
                 ));
             }
             if !graph.is_empty() && graph.len() != takes.len() {
-                return crate::usage(format!(
+                return crate::error::usage(format!(
                     "give one --graph per take ({} takes, {} graphs), or none for each take's own",
                     takes.len(),
                     graph.len()
@@ -171,13 +171,13 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
                 let graph = match graph.get(i) {
                     Some(arg) => match graph_name(arg, &takes_dir) {
                         Ok(name) => name,
-                        Err(e) => return crate::usage(format!("--graph {arg:?}: {e}")),
+                        Err(e) => return crate::error::usage(format!("--graph {arg:?}: {e}")),
                     },
                     None => take.clone(),
                 };
                 for (what, name) in [("take", take), ("--graph", &graph)] {
                     if let Err(e) = frond_protocol::paths::validate_take_name(name) {
-                        return crate::usage(format!("{what}: {e}"));
+                        return crate::error::usage(format!("{what}: {e}"));
                     }
                 }
                 sources.push(GraphSource { take: take.clone(), graph });
@@ -205,7 +205,7 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
         GraphCommand::Goal { kind, value } => {
             let goal = match parse_goal(&kind, value.as_deref()) {
                 Ok(goal) => goal,
-                Err(e) => return crate::usage(e),
+                Err(e) => return crate::error::usage(e),
             };
             let mut c = Control::from_global(g)?;
             c.expect_ok(&ControlRequest::StageInput {

@@ -13,6 +13,8 @@ mod control;
 mod demo;
 mod docs;
 mod doctor;
+mod error;
+mod global;
 mod graph_live;
 mod live;
 mod map;
@@ -23,6 +25,7 @@ mod status;
 mod take_align;
 mod take_bvh;
 mod take_graph;
+mod take_io;
 mod take_sim;
 mod take_tools;
 mod take_usd;
@@ -31,55 +34,14 @@ mod tap;
 mod tap_stage;
 
 use std::ffi::OsString;
-use std::fmt;
 use std::io::{self, Write};
 use std::process::ExitCode;
 
 use clap::Parser;
 
 pub use args::{Cli, Command};
-
-/// An error in what the user asked for (exit status 2).
-#[derive(Debug)]
-pub struct UsageError(pub String);
-
-impl fmt::Display for UsageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
-
-/// Shorthand for returning a [`UsageError`].
-pub(crate) fn usage<T>(msg: impl Into<String>) -> anyhow::Result<T> {
-    Err(UsageError(msg.into()).into())
-}
-
-/// A program `frond` ran for the user (e.g. `frond-bench`) failed and already said why on
-/// stderr: exit with its status, adding nothing.
-#[derive(Debug)]
-pub struct ChildFailed(pub u8);
-
-impl fmt::Display for ChildFailed {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "exit status {}", self.0)
-    }
-}
-
-impl std::error::Error for ChildFailed {}
-
-/// The user pressed Ctrl-C (or the command got SIGTERM); exit status 130.
-#[derive(Debug)]
-pub struct Interrupted;
-
-impl fmt::Display for Interrupted {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("interrupted")
-    }
-}
-
-impl std::error::Error for Interrupted {}
+use error::usage;
+pub use error::{ChildFailed, Interrupted, UsageError};
 
 /// Parses `args` and runs the command; returns the process exit code.
 pub fn main_with_args<I, T>(args: I) -> ExitCode
@@ -128,9 +90,12 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match cli.command {
         Command::Status { json, from } => status::run(g, json, from.as_ref()),
-        Command::Tap { jsonl, count, include_held, element, from } => {
-            tap::run(g, jsonl, count, include_held, element.as_deref(), from.as_ref())
-        }
+        Command::Tap { jsonl, count, include_held, element, from } => match from {
+            Some(frond_sdk::Source::Zenoh(addr)) if !addr.is_concrete() => {
+                tap_stage::run(&addr, jsonl, count, include_held, element.as_deref())
+            }
+            from => tap::run(g, jsonl, count, include_held, element.as_deref(), from.as_ref()),
+        },
         Command::Map { rig, calibration, filter, input } => {
             map::run(&rig, calibration.as_deref(), filter.as_deref(), input.as_deref())
         }

@@ -6,12 +6,12 @@ use std::path::Path;
 
 use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StageInput, StageKey, StageSpec};
 
-use crate::args::Global;
 use crate::control::{Control, check_take_name};
+use crate::global::Global;
 
 pub(crate) fn play(g: &Global, take: Option<String>, stop: bool, seed: u64) -> anyhow::Result<()> {
     if !stop && take.is_none() {
-        return crate::usage("frond play needs a TAKE or --stop");
+        return crate::error::usage("frond play needs a TAKE or --stop");
     }
     if let Some(t) = &take {
         check_take_name(t)?;
@@ -84,7 +84,7 @@ pub(crate) fn field_start(
 ) -> anyhow::Result<()> {
     check_take_name(take)?;
     if !(1..=64).contains(&plants) {
-        return crate::usage(format!("--plants must be 1..=64, got {plants}"));
+        return crate::error::usage(format!("--plants must be 1..=64, got {plants}"));
     }
     // The daemon takes it in one control request: no larger than that.
     let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
@@ -108,7 +108,7 @@ pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
 fn key_request(key: &str) -> anyhow::Result<ControlRequest> {
     let key: StageKey = match key.parse() {
         Ok(k) => k,
-        Err(e) => return crate::usage(e.to_string()),
+        Err(e) => return crate::error::usage(e.to_string()),
     };
     Ok(ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(key) })
 }

@@ -22,7 +22,7 @@
 use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::thread::JoinHandle;
@@ -36,37 +36,26 @@ use crate::control::Control;
 
 mod clients;
 mod faults;
+mod procs;
+mod schedule;
 mod takes;
 
-use crate::{Interrupted, signals, usage};
+use crate::error::{Interrupted, usage};
+use crate::signals;
 pub use clients::SubscriberFigures;
 use clients::{spawn_exporter, spawn_subscriber};
+pub use procs::ProcSample;
+use procs::{Proc, log_tail, sample_proc, settled_sample};
+pub use schedule::{CORRUPT_PROB, FIRST_UNPLUG_MS, UNPLUG_EVERY_MS, UNPLUG_MS};
 pub use takes::TakeFigures;
 use takes::{Part, read_take};
 
-/// Length of each unplug window.
-pub const UNPLUG_MS: u64 = 300;
-/// Period of the unplugs; the first comes at [`FIRST_UNPLUG_MS`].
-pub const UNPLUG_EVERY_MS: u64 = 15_000;
-/// First unplug, after the glove's first report.
-pub const FIRST_UNPLUG_MS: u64 = 8_000;
-/// Probability that the glove corrupts a report.
-pub const CORRUPT_PROB: f64 = 0.01;
 /// Largest allowed time from a replug to the first fresh frame (issue 8).
 pub const REOPEN_LIMIT_MS: f64 = 500.0;
 /// Largest allowed RSS growth after the warm-up.
 pub const RSS_GROWTH_LIMIT_KIB: i64 = 2048;
 /// How long a SIGTERMed daemon may take to exit before it is killed.
 const STOP_TIMEOUT: Duration = Duration::from_secs(5);
-
-/// One sample of the daemon process.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-pub struct ProcSample {
-    pub t_s: f64,
-    pub rss_kib: i64,
-    pub threads: i64,
-    pub fds: i64,
-}
 
 /// Everything `frond soak` measured, and the verdict.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -183,88 +172,6 @@ fn print_human(r: &SoakReport) -> Result<(), frond_binmain::StdoutError> {
     Ok(())
 }
 
-/// A child process stopped (SIGTERM, then SIGKILL) on drop.
-struct Proc {
-    child: Child,
-    exited: Option<ExitStatus>,
-}
-
-impl Proc {
-    fn alive(&mut self) -> bool {
-        if self.exited.is_none() {
-            self.exited = self.child.try_wait().ok().flatten();
-        }
-        self.exited.is_none()
-    }
-
-    /// SIGTERM, wait up to `timeout`, then SIGKILL; returns the status and whether it needed
-    /// the kill.
-    fn stop(&mut self, timeout: Duration) -> (Option<ExitStatus>, bool) {
-        if !self.alive() {
-            return (self.exited, false);
-        }
-        // SAFETY: kill(2) on our own unreaped child (alive() just saw it running).
-        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
-        let start = Instant::now();
-        while start.elapsed() < timeout {
-            if !self.alive() {
-                return (self.exited, false);
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        let _ = self.child.kill();
-        self.exited = self.child.wait().ok();
-        (self.exited, true)
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.stop(Duration::from_secs(3));
-    }
-}
-
-fn log_tail(path: &Path) -> String {
-    let text = std::fs::read_to_string(path).unwrap_or_default();
-    let lines: Vec<&str> = text.lines().collect();
-    lines[lines.len().saturating_sub(15)..].iter().map(|l| format!("    {l}\n")).collect()
-}
-
-/// Reads RSS, threads and open files of `pid`.
-fn sample_proc(pid: u32, t0: Instant) -> Option<ProcSample> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let field = |key: &str| -> Option<i64> {
-        let line = status.lines().find(|l| l.starts_with(key))?;
-        line[key.len()..].split_whitespace().next()?.parse().ok()
-    };
-    let fds = std::fs::read_dir(format!("/proc/{pid}/fd")).ok()?.count() as i64;
-    Some(ProcSample {
-        t_s: t0.elapsed().as_secs_f64(),
-        rss_kib: field("VmRSS:")?,
-        threads: field("Threads:")?,
-        fds,
-    })
-}
-
-/// A sample once threads and open files held still for 500 ms and `done` holds (at most 5 s).
-fn settled_sample(pid: u32, t0: Instant, done: impl Fn(&ProcSample) -> bool) -> Option<ProcSample> {
-    let start = Instant::now();
-    let mut last = sample_proc(pid, t0)?;
-    let mut still_since = Instant::now();
-    loop {
-        std::thread::sleep(Duration::from_millis(50));
-        let s = sample_proc(pid, t0)?;
-        if (s.threads, s.fds) != (last.threads, last.fds) {
-            still_since = Instant::now();
-        }
-        last = s;
-        let still = still_since.elapsed() >= Duration::from_millis(500);
-        if (still && done(&s)) || start.elapsed() > Duration::from_secs(5) {
-            return Some(s);
-        }
-    }
-}
-
 /// Runs the scenario for `duration` and returns the figures with the verdict in `failures`.
 pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     let mut r = SoakReport {
@@ -279,87 +186,205 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
         bail!("the soak needs /dev/fuse (and root) for the virtual glove's hidraw node");
     }
     let (frondd, vhid) = (crate::demo::find_program("frondd")?, crate::demo::find_program("frond-vhid")?);
-    let root = tempfile::Builder::new().prefix("frond-soak-").tempdir().context("temp dir")?;
-    let (socket_dir, takes_dir) = (root.path().join("run"), root.path().join("takes"));
-    let (vhid_log, daemon_log) = (root.path().join("vhid.log"), root.path().join("frondd.log"));
+    let files = Files::new()?;
     // Dropped after the daemon (declared before it): the takes live on a small tmpfs.
-    let _tmpfs = faults::Tmpfs::mount(&takes_dir)?;
+    let _tmpfs = faults::Tmpfs::mount(&files.takes_dir)?;
 
-    let mut glove = {
-        let mut child = Command::new(&vhid)
-            .args(["--backend", "fuse", "--rate", "1000", "--jitter-us", "200"])
-            .args(["--corrupt", &CORRUPT_PROB.to_string(), "--seed", &seed.to_string()])
-            .args(["--unplug-at-ms", &FIRST_UNPLUG_MS.to_string(), "--unplug-ms", &UNPLUG_MS.to_string()])
-            .args(["--unplug-every-ms", &UNPLUG_EVERY_MS.to_string()])
-            .args(["--time-jump-at-ms", &faults::TIME_JUMP_AT_MS.to_string()])
-            .args(["--time-jump-ms", &faults::TIME_JUMP_MS.to_string()])
-            .args(["--time-jump-s", &faults::TIME_JUMP_S.to_string()])
-            .arg("--node")
-            .arg(root.path().join("glove").join("hidraw-frond"))
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(File::create(&vhid_log)?)
-            .spawn()
-            .with_context(|| format!("cannot start {}", vhid.display()))?;
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().context("vhid stdout")?).read_line(&mut line)?;
-        let proc = Proc { child, exited: None };
-        if line.trim().is_empty() {
-            bail!("frond-vhid printed no node path; its log:\n{}", log_tail(&vhid_log));
-        }
-        (proc, PathBuf::from(line.trim()))
-    };
+    let (mut glove, node) = start_glove(&vhid, &files, seed)?;
     let glove_started = Instant::now();
-    let mut daemon = Proc {
-        child: Command::new(&frondd)
-            .arg("--socket-dir")
-            .arg(&socket_dir)
-            .arg("--takes-dir")
-            .arg(&takes_dir)
-            .args(["--source", "hid", "--device"])
-            .arg(&glove.1)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(File::create(&daemon_log)?)
-            .spawn()
-            .with_context(|| format!("cannot start {}", frondd.display()))?,
-        exited: None,
-    };
+    let mut daemon = start_daemon(&frondd, &files, &node)?;
     let pid = daemon.child.id();
     let t0 = Instant::now();
-    let mut control = loop {
-        if let Ok(c) = Control::connect(&socket_dir)
-            && socket_dir.join(POSES_SOCKET).exists()
-        {
-            break c;
-        }
-        if !daemon.alive() || t0.elapsed() > Duration::from_secs(20) {
-            bail!("frondd did not start; its log:\n{}", log_tail(&daemon_log));
-        }
-        std::thread::sleep(Duration::from_millis(25));
-    };
+    let control = wait_for_daemon(&mut daemon, &files, t0)?;
     // Idle counts before any client: the daemon with its device and no connection, once the
     // counts hold still for half a second.
     drop(control);
     r.idle_before = settled_sample(pid, t0, |_| true).context("cannot read /proc of frondd")?;
-    control = Control::connect(&socket_dir)?;
+    let mut control = Control::connect(&files.socket_dir)?;
 
-    let stop = Arc::new(AtomicBool::new(false));
-    let mut subs: Vec<JoinHandle<SubscriberFigures>> = Vec::new();
-    for i in 1..=3 {
-        subs.push(spawn_subscriber(&socket_dir, format!("healthy-{i}"), None, &stop)?);
-    }
-    subs.push(spawn_subscriber(&socket_dir, "slow".into(), Some(Duration::from_millis(2)), &stop)?);
-    let restarts = Arc::new(AtomicU64::new(0));
-    let exporter = spawn_exporter(&socket_dir, seed, &stop, &restarts)?;
+    let clients = Clients::start(&files.socket_dir, seed)?;
     // The first take runs into a full disk part way through; a second one follows it.
-    r.faults.disk_filler_bytes = faults::fill_disk(&takes_dir, duration)?;
+    r.faults.disk_filler_bytes = faults::fill_disk(&files.takes_dir, duration)?;
     let first_take = format!("soak-{seed:x}");
-    let take_name = format!("soak-{seed:x}-after");
     control.record_start(&first_take)?;
 
-    // The run: one status request and one /proc sample a second, the pause and the freeing of
-    // the disk on the way.
+    let run =
+        Run { pid, t0, duration, takes_dir: &files.takes_dir, second_take: format!("soak-{seed:x}-after") };
+    let after_warmup = run_faults(&mut r, &run, &mut control, &mut daemon, &clients.stop)?;
+    r.daemon_alive_at_end = daemon.alive();
+    let final_sample = sample_proc(pid, t0);
+
+    let status = if r.daemon_alive_at_end {
+        let rec = control.record_stop().context("record stop")?;
+        r.take.frames_reported = rec.frames;
+        r.take.recorder_dropped = rec.dropped;
+        r.take.path = rec.path;
+        Some(control.status()?)
+    } else {
+        None
+    };
+    let exporter_figures = clients.finish(&mut r);
+    if let Some(s) = &status {
+        status_figures(&mut r, s);
+    }
+    drop(control);
+
+    // Idle counts after every client left (writer threads and sockets need a moment to go).
+    let before = r.idle_before;
+    r.idle_after =
+        settled_sample(pid, t0, |s| s.threads == before.threads && s.fds == before.fds).unwrap_or_default();
+    stop_daemon(&mut r, &mut daemon);
+    glove.stop(Duration::from_secs(3));
+    let glove_elapsed = glove_started.elapsed();
+
+    let first_take_path = files.takes_dir.join(format!("{first_take}.take"));
+    let windows = figures(&mut r, &first_take_path, exporter_figures, after_warmup, final_sample);
+    verdict(&mut r, windows, glove_elapsed);
+    if !r.failures.is_empty() {
+        frond_binmain::errln!("frondd log (last lines):\n{}", log_tail(&files.daemon_log));
+        frond_binmain::errln!("frond-vhid log (last lines):\n{}", log_tail(&files.vhid_log));
+    }
+    Ok(r)
+}
+
+/// The soak's private directory: the daemon's sockets, the takes (a tmpfs mounted later), the
+/// glove's node and both programs' logs. Removed when dropped.
+struct Files {
+    root: tempfile::TempDir,
+    socket_dir: PathBuf,
+    takes_dir: PathBuf,
+    vhid_log: PathBuf,
+    daemon_log: PathBuf,
+}
+
+impl Files {
+    fn new() -> anyhow::Result<Files> {
+        let root = tempfile::Builder::new().prefix("frond-soak-").tempdir().context("temp dir")?;
+        let at = |name: &str| root.path().join(name);
+        Ok(Files {
+            socket_dir: at("run"),
+            takes_dir: at("takes"),
+            vhid_log: at("vhid.log"),
+            daemon_log: at("frondd.log"),
+            root,
+        })
+    }
+}
+
+/// Starts `frond-vhid` as a FUSE hidraw node with the soak's fault schedule; returns it and the
+/// node's path, which it prints first.
+fn start_glove(vhid: &Path, files: &Files, seed: u64) -> anyhow::Result<(Proc, PathBuf)> {
+    let mut child = Command::new(vhid)
+        .args(["--backend", "fuse", "--rate", "1000", "--jitter-us", "200"])
+        .args(["--corrupt", &CORRUPT_PROB.to_string(), "--seed", &seed.to_string()])
+        .args(["--unplug-at-ms", &FIRST_UNPLUG_MS.to_string(), "--unplug-ms", &UNPLUG_MS.to_string()])
+        .args(["--unplug-every-ms", &UNPLUG_EVERY_MS.to_string()])
+        .args(["--time-jump-at-ms", &faults::TIME_JUMP_AT_MS.to_string()])
+        .args(["--time-jump-ms", &faults::TIME_JUMP_MS.to_string()])
+        .args(["--time-jump-s", &faults::TIME_JUMP_S.to_string()])
+        .arg("--node")
+        .arg(files.root.path().join("glove").join("hidraw-frond"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(File::create(&files.vhid_log)?)
+        .spawn()
+        .with_context(|| format!("cannot start {}", vhid.display()))?;
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().context("vhid stdout")?).read_line(&mut line)?;
+    let proc = Proc::new(child);
+    if line.trim().is_empty() {
+        bail!("frond-vhid printed no node path; its log:\n{}", log_tail(&files.vhid_log));
+    }
+    Ok((proc, PathBuf::from(line.trim())))
+}
+
+/// Starts `frondd` on the glove's `node` in the soak's private directories.
+fn start_daemon(frondd: &Path, files: &Files, node: &Path) -> anyhow::Result<Proc> {
+    let child = Command::new(frondd)
+        .arg("--socket-dir")
+        .arg(&files.socket_dir)
+        .arg("--takes-dir")
+        .arg(&files.takes_dir)
+        .args(["--source", "hid", "--device"])
+        .arg(node)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(File::create(&files.daemon_log)?)
+        .spawn()
+        .with_context(|| format!("cannot start {}", frondd.display()))?;
+    Ok(Proc::new(child))
+}
+
+/// A control connection once the daemon answers and its pose socket exists (at most 20 s
+/// from `t0`).
+fn wait_for_daemon(daemon: &mut Proc, files: &Files, t0: Instant) -> anyhow::Result<Control> {
+    loop {
+        if let Ok(c) = Control::connect(&files.socket_dir)
+            && files.socket_dir.join(POSES_SOCKET).exists()
+        {
+            return Ok(c);
+        }
+        if !daemon.alive() || t0.elapsed() > Duration::from_secs(20) {
+            bail!("frondd did not start; its log:\n{}", log_tail(&files.daemon_log));
+        }
+        std::thread::sleep(Duration::from_millis(25));
+    }
+}
+
+/// The soak's clients: three healthy subscribers, a slow one and the reconnecting exporter,
+/// all stopped by `stop`.
+struct Clients {
+    stop: Arc<AtomicBool>,
+    subs: Vec<JoinHandle<SubscriberFigures>>,
+    exporter: JoinHandle<SubscriberFigures>,
+    restarts: Arc<AtomicU64>,
+}
+
+impl Clients {
+    fn start(socket_dir: &Path, seed: u64) -> anyhow::Result<Clients> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut subs: Vec<JoinHandle<SubscriberFigures>> = Vec::new();
+        for i in 1..=3 {
+            subs.push(spawn_subscriber(socket_dir, format!("healthy-{i}"), None, &stop)?);
+        }
+        subs.push(spawn_subscriber(socket_dir, "slow".into(), Some(Duration::from_millis(2)), &stop)?);
+        let restarts = Arc::new(AtomicU64::new(0));
+        let exporter = spawn_exporter(socket_dir, seed, &stop, &restarts)?;
+        Ok(Clients { stop, subs, exporter, restarts })
+    }
+
+    /// Stops the clients and puts the subscribers' figures and the exporter's restarts into
+    /// `r`; returns the exporter's figures.
+    fn finish(self, r: &mut SoakReport) -> SubscriberFigures {
+        self.stop.store(true, Relaxed);
+        r.subscribers = self.subs.into_iter().map(|h| h.join().unwrap_or_default()).collect();
+        let exporter_figures = self.exporter.join().unwrap_or_default();
+        r.exporter_restarts = self.restarts.load(Relaxed);
+        exporter_figures
+    }
+}
+
+/// What the fault loop needs to know of the run.
+struct Run<'a> {
+    pid: u32,
+    t0: Instant,
+    duration: Duration,
+    takes_dir: &'a Path,
+    /// The take recorded once the disk has room again.
+    second_take: String,
+}
+
+/// The run: one status request and one /proc sample a second, the pause and the freeing of the
+/// disk on the way, until `run.duration` or the daemon's end. Returns the sample taken after
+/// the warm-up.
+fn run_faults(
+    r: &mut SoakReport,
+    run: &Run,
+    control: &mut Control,
+    daemon: &mut Proc,
+    stop: &AtomicBool,
+) -> anyhow::Result<Option<ProcSample>> {
+    let (t0, duration) = (run.t0, run.duration);
     let warmup = Duration::from_secs(10).min(duration / 4);
     let mut after_warmup: Option<ProcSample> = None;
     let mut second_take_started = false;
@@ -377,7 +402,7 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
         // only then can the daemon find stale reports queued behind it when it resumes (on a
         // loaded machine the glove may still be unplugged, or not yet opened, at PAUSE_AT).
         if r.faults.pause_ms.is_none() && t0.elapsed() >= faults::PAUSE_AT && streaming {
-            r.faults.pause_ms = Some(faults::pause(pid));
+            r.faults.pause_ms = Some(faults::pause(run.pid));
         }
         let status = control.status().context("status request during the soak")?;
         streaming = status.source.reports > last_reports;
@@ -389,7 +414,7 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
             (r.faults.disk_error, r.faults.disk_error_at_s) = (Some(e), Some(at_s));
         }
         if r.faults.disk_freed_at_s.is_none() && at_s >= duration.as_secs_f64() * faults::DISK_FREED_AT {
-            faults::free_disk(&takes_dir)?;
+            faults::free_disk(run.takes_dir)?;
             r.faults.disk_freed_at_s = Some(at_s);
         } else if !second_take_started && r.faults.disk_freed_at_s.is_some_and(|t| at_s >= t + 2.0) {
             // Room again for two seconds: the recorder has closed the cut take. Ending it
@@ -398,62 +423,55 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
                 Ok(rec) => format!("ok: {} frames", rec.frames),
                 Err(e) => format!("{e:#}"),
             });
-            control.record_start(&take_name)?;
+            control.record_start(&run.second_take)?;
             second_take_started = true;
         }
-        if let Some(s) = sample_proc(pid, t0) {
+        if let Some(s) = sample_proc(run.pid, t0) {
             if t0.elapsed() >= warmup && after_warmup.is_none() {
                 after_warmup = Some(s);
             }
             r.samples.push(s);
         }
     }
-    r.daemon_alive_at_end = daemon.alive();
-    let final_sample = sample_proc(pid, t0);
+    Ok(after_warmup)
+}
 
-    let status = if r.daemon_alive_at_end {
-        let rec = control.record_stop().context("record stop")?;
-        r.take.frames_reported = rec.frames;
-        r.take.recorder_dropped = rec.dropped;
-        r.take.path = rec.path;
-        Some(control.status()?)
-    } else {
-        None
-    };
-    stop.store(true, Relaxed);
-    r.subscribers = subs.into_iter().map(|h| h.join().unwrap_or_default()).collect();
-    let mut exporter_figures = exporter.join().unwrap_or_default();
-    r.exporter_restarts = restarts.load(Relaxed);
-    if let Some(s) = &status {
-        if let Some(h) = s.hands.first() {
-            r.faults.discontinuities = h.discontinuities;
-            r.faults.stale_skipped = h.stale_skipped;
-        }
-        r.ticks = s.ticks;
-        r.reports = s.source.reports;
-        r.rejected_reports = s.source.rejected;
-        r.publish_drops = s.publish_drops;
-        r.device_events = s.device_events.clone();
+/// The daemon's own counts at the end of the run, from its last status.
+fn status_figures(r: &mut SoakReport, s: &frond_protocol::StatusReport) {
+    if let Some(h) = s.hands.first() {
+        r.faults.discontinuities = h.discontinuities;
+        r.faults.stale_skipped = h.stale_skipped;
     }
-    drop(control);
+    r.ticks = s.ticks;
+    r.reports = s.source.reports;
+    r.rejected_reports = s.source.rejected;
+    r.publish_drops = s.publish_drops;
+    r.device_events = s.device_events.clone();
+}
 
-    // Idle counts after every client left (writer threads and sockets need a moment to go).
-    let before = r.idle_before;
-    r.idle_after =
-        settled_sample(pid, t0, |s| s.threads == before.threads && s.fds == before.fds).unwrap_or_default();
-
+/// SIGTERM to the daemon; how it exited and how long it took go into `r`.
+fn stop_daemon(r: &mut SoakReport, daemon: &mut Proc) {
     let stop_start = Instant::now();
     let (exit, killed) = daemon.stop(STOP_TIMEOUT);
     r.daemon_stop_ms = Some(stop_start.elapsed().as_secs_f64() * 1000.0);
     r.daemon_exit =
         exit.map(|s| if killed { format!("{s} (killed after {STOP_TIMEOUT:?})") } else { s.to_string() });
-    glove.0.stop(Duration::from_secs(3));
-    let glove_elapsed = glove_started.elapsed();
+}
 
+/// The figures read after the run: both takes against what healthy-1 saw, the reopen times,
+/// the slow subscriber's drops, memory, threads and files. Returns how many device-lost
+/// windows the subscribers saw.
+fn figures(
+    r: &mut SoakReport,
+    first_take_path: &Path,
+    mut exporter_figures: SubscriberFigures,
+    after_warmup: Option<ProcSample>,
+    final_sample: Option<ProcSample>,
+) -> u64 {
     // The takes, against the recorded frames healthy-1 saw: the cut one up to its last frame
     // (no frame before the fault lost), the next one from its first.
     let seen = r.subscribers.first().map(|s| s.recorded_runs.clone()).unwrap_or_default();
-    r.faults.first_take.path = takes_dir.join(format!("{first_take}.take")).display().to_string();
+    r.faults.first_take.path = first_take_path.display().to_string();
     read_take(&mut r.faults.first_take, &seen, Part::UpToItsEnd);
     if !r.take.path.is_empty() {
         read_take(&mut r.take, &seen, Part::FromItsStart);
@@ -470,12 +488,7 @@ pub fn soak(duration: Duration, seed: u64) -> anyhow::Result<SoakReport> {
     r.rss_growth_kib = r.rss_kib_end - r.rss_kib_after_warmup;
     r.threads_max = r.samples.iter().map(|s| s.threads).max().unwrap_or(0);
     r.fds_max = r.samples.iter().map(|s| s.fds).max().unwrap_or(0);
-    verdict(&mut r, windows.len() as u64, glove_elapsed);
-    if !r.failures.is_empty() {
-        frond_binmain::errln!("frondd log (last lines):\n{}", log_tail(&daemon_log));
-        frond_binmain::errln!("frond-vhid log (last lines):\n{}", log_tail(&vhid_log));
-    }
-    Ok(r)
+    windows.len() as u64
 }
 
 fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {

@@ -31,9 +31,10 @@ use frond_sdk::stage_time::ClockOffset;
 use frond_sdk::zenoh_stage::Stage;
 use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
 
-use crate::args::Global;
 use crate::control::check_take_name;
-use crate::{Interrupted, signals, usage};
+use crate::error::{Interrupted, usage};
+use crate::global::Global;
+use crate::signals;
 
 /// Clock exchanges per source (the shortest round trip wins).
 const CLOCK_EXCHANGES: usize = 16;

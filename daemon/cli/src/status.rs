@@ -4,8 +4,8 @@ use std::fmt::Write as _;
 
 use frond_protocol::StatusReport;
 
-use crate::args::Global;
 use crate::control::Control;
+use crate::global::Global;
 
 /// How long `frond status --from zenoh:...` waits for a bridge to answer.
 const STATUS_WAIT: std::time::Duration = std::time::Duration::from_secs(5);

@@ -12,9 +12,9 @@ use frond_formats::jsonl::write_pose_line;
 use frond_motion::PoseFrame;
 use frond_motion::timeline::{AlignError, align};
 
-use crate::args::Global;
+use crate::error::usage;
+use crate::global::Global;
 use crate::takes::{read_scan, resolve, warn_damage};
-use crate::usage;
 
 /// Most takes one alignment reads.
 pub(crate) const MAX_ALIGNED_TAKES: usize = 64;

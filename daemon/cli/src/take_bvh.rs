@@ -12,9 +12,9 @@ use frond_motion::rig::Rig;
 use frond_motion::sample::JOINTS;
 use frond_motion::sim::node_heights_m;
 
-use crate::args::Global;
+use crate::error::usage;
+use crate::global::Global;
 use crate::takes::{MAX_EXPORT_FRAMES, TakeForFile, take_for_file};
-use crate::usage;
 
 /// Longest field export, seconds.
 const MAX_FIELD_DURATION_S: f64 = 24.0 * 3600.0;

@@ -16,11 +16,11 @@ use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::sample::PoseFrame;
 use frond_motion::skeleton::Skeleton;
 
-use crate::args::Global;
 use crate::calibrate::write_atomically_bytes;
 use crate::control::load_rig;
-use crate::take_tools::{Output, check_fps, emit, global_clip, read_take};
-use crate::usage;
+use crate::error::usage;
+use crate::global::Global;
+use crate::take_io::{Output, check_fps, emit, global_clip, read_take};
 
 /// Longest walk, seconds (an hour).
 const MAX_WALK_S: f64 = 3600.0;

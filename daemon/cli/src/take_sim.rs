@@ -6,33 +6,52 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, anyhow};
+use clap::Args;
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::sim::{SimError, WindSpec, sim_from_toml_str, simulate_each};
 use frond_motion::take::TakeHeader;
 
-use crate::args::Global;
 use crate::control::load_rig;
-use crate::take_tools::{Output, emit};
-use crate::usage;
+use crate::error::usage;
+use crate::global::Global;
+use crate::take_io::{Output, emit};
 
 /// Largest `--sim` file read, bytes.
 const MAX_SIM_FILE_BYTES: u64 = 1 << 20;
 
 /// What `frond take simulate` was asked.
-pub(crate) struct Simulate {
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Take name to write.
     pub name: String,
+    /// Rig: an embedded name or a rig file (TOML).
+    #[arg(long, value_name = "NAME|FILE")]
     pub rig: PathBuf,
+    /// A TOML file with a `[sim]` table replacing the rig's.
+    #[arg(long, value_name = "FILE")]
     pub sim: Option<PathBuf>,
+    /// The wind.
+    #[arg(long, value_name = "SPEC")]
     pub wind: String,
-    pub duration_s: f64,
+    /// Seconds to simulate.
+    #[arg(long, value_name = "S")]
+    pub duration: f64,
+    /// Frames per second of the take.
+    #[arg(long, default_value_t = 30.0, value_name = "FPS")]
     pub fps: f64,
+    /// Also write every frame's node positions, velocities and forces (JSON Lines).
+    #[arg(long, value_name = "FILE.jsonl")]
     pub states: Option<PathBuf>,
+    /// Print the poses as JSON Lines instead of writing the take.
+    #[arg(long)]
     pub jsonl: bool,
+    /// Replace an existing take (and states file) of the same name.
+    #[arg(long)]
     pub force: bool,
 }
 
 /// Runs the simulation and writes the take (or the poses as JSON Lines) and the states.
-pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: SimulateArgs) -> anyhow::Result<()> {
     let wind: WindSpec = match a.wind.parse() {
         Ok(w) => w,
         Err(e) => return usage(format!("--wind {:?}: {e}", a.wind)),
@@ -59,8 +78,8 @@ pub(crate) fn run(g: &Global, a: Simulate) -> anyhow::Result<()> {
     };
     let mut poses = Vec::new();
     let mut write_error = None;
-    let bar = progress_bar(a.duration_s, a.fps);
-    let result = simulate_each(&rig, &sim, wind, a.duration_s, a.fps, &mut |plant, pose| {
+    let bar = progress_bar(a.duration, a.fps);
+    let result = simulate_each(&rig, &sim, wind, a.duration, a.fps, &mut |plant, pose| {
         if poses.len() % 64 == 0 {
             bar.set_position(poses.len() as u64);
         }

@@ -6,48 +6,47 @@
 //! the result's global poses as JSON Lines on stdout instead. Everything works at `--fps`
 //! (default 30, the seed's rate): recorded 1 kHz takes are resampled first.
 
-use std::io::Write;
-use std::time::{SystemTime, UNIX_EPOCH};
-
-use anyhow::{Context, anyhow};
+use anyhow::anyhow;
 use frond_formats::import::{ImportKind, import_jsonl};
-use frond_formats::jsonl::write_pose_line;
-use frond_formats::layers::TakeBytes;
 use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};
 use frond_motion::controls::{Retime, retime};
-use frond_motion::edit::{post_filter, resample_frames, splice};
+use frond_motion::edit::{post_filter, splice};
 use frond_motion::field::{FieldParams, make_field};
 use frond_motion::guided::{GuidedParams, guided};
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::looping::{LoopParams, PlaybackParams, find_transitions, loop_clip};
 use frond_motion::rig::DEFAULT_THUMB_RANGE_DEG;
 use frond_motion::{Calibration, FilterSpec, Mapper, TakeFrame, TakeHeader};
-use frond_protocol::paths;
 
-use crate::args::Global;
 use crate::calibrate::write_atomically_bytes;
 use crate::control::load_rig;
-use crate::usage;
+use crate::error::{UsageError, usage};
+use crate::global::Global;
+use crate::take_io::{Output, check_fps, emit, global_clip, layer_clip, read_take, resample_layer};
+use crate::takes::check_output_frames;
 
 mod args;
-pub use args::{Output, TakeTool};
+pub use args::TakeTool;
+use args::{
+    AlignArgs, FieldArgs, FilterArgs, GuidedArgs, ImportArgs, LoopArgs, ResampleArgs, RetimeArgs, SpliceArgs,
+};
 
-pub(crate) fn read_take(g: &Global, name: &str) -> anyhow::Result<Take> {
-    let path = crate::takes::resolve(g, name)?;
-    let bytes = crate::takes::read_take_bytes(&path)?;
-    // One read of the bytes: the take and what it skipped.
-    let (take, damage) =
-        Take::from_bytes_noting_damage(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    crate::takes::warn_damaged(&path, damage.as_deref(), take.frames.len());
-    Ok(take)
-}
-
-pub(crate) fn check_fps(fps: f64) -> anyhow::Result<()> {
-    if fps.is_finite() && fps > 0.0 && fps <= 1000.0 {
-        Ok(())
-    } else {
-        usage(format!("--fps must be in (0, 1000], got {fps}"))
+/// Runs one toolkit command.
+pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
+    match cmd {
+        TakeTool::Import(a) => import(g, a),
+        TakeTool::Simulate(a) => crate::take_sim::run(g, a),
+        TakeTool::Graph(a) => crate::take_graph::graph(g, a),
+        TakeTool::Walk(a) => crate::take_graph::walk(g, a),
+        TakeTool::Resample(a) => resample(g, a),
+        TakeTool::Filter(a) => filter(g, a),
+        TakeTool::Splice(a) => splice_takes(g, a),
+        TakeTool::Loop(a) => loop_take(g, a),
+        TakeTool::Field(a) => field(g, a),
+        TakeTool::Retime(a) => retime_take(g, a),
+        TakeTool::Guided(a) => guided_take(g, a),
+        TakeTool::Align(a) => align_takes(g, a),
     }
 }
 
@@ -57,75 +56,6 @@ fn triple(flag: &str, text: &str) -> anyhow::Result<[f64; 3]> {
         Ok(v) if v.len() == 3 && v.iter().all(|x| x.is_finite()) => Ok([v[0], v[1], v[2]]),
         _ => usage(format!("{flag} takes three comma-separated numbers, got {text:?}")),
     }
-}
-
-fn now_unix_s() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs())
-}
-
-/// The take's global layer resampled at `fps`, refused past the output limit unless `force`
-/// (`None`: the command has no way past it) rather than cut short
-/// ([`crate::takes::check_resample_with`]).
-pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
-    layer_clip(take, GLOBAL_LAYER, fps, what, force)
-}
-
-/// One layer of a take resampled at `fps`, checked like [`global_clip`].
-fn layer_clip(take: &Take, id: u16, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
-    let poses: Vec<_> = take.layer(id, false).iter().map(|f| f.pose).collect();
-    crate::takes::check_resample_with(&format!("take {what:?}"), &poses, fps, force)?;
-    let c = take.clip(id, fps);
-    if c.is_empty() {
-        anyhow::bail!("take {what:?} has no {} frames", take.layer_name(id));
-    }
-    Ok(c)
-}
-
-/// One layer's frames resampled at `fps` ([`resample_frames`]), refused past the output limit
-/// unless `force` ([`crate::takes::check_resample`]) rather than cut short.
-fn resample_layer(frames: &[TakeFrame], fps: f64, force: bool, what: &str) -> anyhow::Result<Vec<TakeFrame>> {
-    let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
-    crate::takes::check_resample(what, &poses, fps, force)?;
-    Ok(resample_frames(frames, fps).map_err(|e| crate::UsageError(e.to_string()))?)
-}
-
-/// Writes the result: JSONL of its global layer on stdout, or `OUT.take` in the takes dir.
-pub(crate) fn emit(g: &Global, mut take: Take, default_name: String, out: &Output) -> anyhow::Result<()> {
-    if out.jsonl {
-        let mut w = frond_binmain::StdoutWriter::lock();
-        let mut line = String::with_capacity(256);
-        for f in take.layer(GLOBAL_LAYER, true) {
-            line.clear();
-            write_pose_line(&f.pose, None, &mut line);
-            line.push('\n');
-            w.write_all(line.as_bytes())?;
-        }
-        w.flush()?;
-        return Ok(());
-    }
-    let name = out.output.clone().unwrap_or(default_name);
-    write_take(g, &mut take, &name, out.force)
-}
-
-fn write_take(g: &Global, take: &mut Take, name: &str, force: bool) -> anyhow::Result<()> {
-    if let Err(e) = paths::validate_take_name(name) {
-        return usage(e.to_string());
-    }
-    let dir = paths::takes_dir(g.takes_dir.clone());
-    let path = dir.join(format!("{name}.take"));
-    if path.exists() && !force {
-        return usage(format!(
-            "{} exists; use --force to replace it or -o to choose another name",
-            path.display()
-        ));
-    }
-    take.header.name = name.to_string();
-    take.header.created_unix_s = now_unix_s();
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    write_atomically_bytes(&path, &take.to_bytes())?;
-    let frames = take.layer(GLOBAL_LAYER, true).len();
-    frond_binmain::outln!("wrote {} ({} frames, {} layers)", path.display(), frames, take.layer_ids().len())?;
-    Ok(())
 }
 
 /// A derived take: `src`'s header and names, the global layer replaced by `clip`.
@@ -140,271 +70,249 @@ fn derived(src: &Take, clip: &Clip, keep_other_layers: bool) -> Take {
     t
 }
 
-/// Runs one toolkit command.
-pub fn run(g: &Global, cmd: TakeTool) -> anyhow::Result<()> {
-    match cmd {
-        TakeTool::Import { file, name, rig, calibration, filter, kind, jsonl, force } => {
-            let kind = match kind.as_str() {
-                "auto" => ImportKind::Auto,
-                "hand" => ImportKind::Hand,
-                "pose" => ImportKind::Pose,
-                other => return usage(format!("--kind must be auto, hand or pose, got {other:?}")),
-            };
-            let (rig, rig_name) = match &rig {
-                Some(p) => {
-                    let (r, _) = load_rig(p)?;
-                    let n = r.name.clone();
-                    (Some(r), n)
-                }
-                None => (None, "none".to_string()),
-            };
-            let mapping = rig.as_ref().map(|r| r.mapping()).unwrap_or_default();
-            let cal = match (&calibration, &rig) {
-                (Some(p), _) => crate::control::load_calibration(p)?.0,
-                (None, Some(r)) => Calibration::neutral_for(r),
-                (None, None) => Calibration {
-                    id: "none".into(),
-                    neutral_wrist_deg: [0.0; 3],
-                    neutral_thumb_deg: [0.0; 3],
-                    thumb_range_deg: DEFAULT_THUMB_RANGE_DEG,
-                    wrist_range_deg: None,
-                },
-            };
-            let spec = match &filter {
-                Some(s) => {
-                    s.parse::<FilterSpec>().map_err(|e| crate::UsageError(format!("--filter: {e}")))?
-                }
-                None => rig.as_ref().map_or(FilterSpec::None, |r| r.filter),
-            };
-            let mut mapper = Mapper::new(mapping, cal.params(), spec);
-            let text =
-                frond_formats::rig_files::read_small_text(&file, frond_formats::jsonl::MAX_HAND_FILE_BYTES)
-                    .map_err(|e| anyhow!("cannot read {}: {}", file.display(), e.reason()))?;
-            let frames =
-                import_jsonl(&text, kind, &mut mapper).map_err(|e| anyhow!("{}: {e}", file.display()))?;
-            let header = TakeHeader {
-                name: name.clone(),
-                rig_name,
-                calibration_id: cal.id.clone(),
-                filter: spec.to_string(),
-                tick_rate_hz: 0,
-                created_unix_s: 0,
-                daemon_version: format!("frond {} (import)", env!("CARGO_PKG_VERSION")),
-                joint_names: rig
-                    .as_ref()
-                    .map_or_else(|| (0..4).map(|i| format!("joint{i}")).collect(), |r| r.joint_names()),
-                clock: None,
-                stage: None,
-            };
-            let mut take = Take::new(header);
-            take.set_layer(GLOBAL_LAYER, None, frames);
-            let out = Output { output: Some(name.clone()), jsonl, force, fps: 30.0 };
-            emit(g, take, name, &out)
-        }
-        TakeTool::Simulate { name, rig, sim, wind, duration, fps, states, jsonl, force } => {
-            crate::take_sim::run(
-                g,
-                crate::take_sim::Simulate {
-                    name,
-                    rig,
-                    sim,
-                    wind,
-                    duration_s: duration,
-                    fps,
-                    states,
-                    jsonl,
-                    force,
-                },
-            )
-        }
-        TakeTool::Graph(a) => crate::take_graph::graph(g, a),
-        TakeTool::Walk(a) => crate::take_graph::walk(g, a),
-        TakeTool::Resample { name, out } => {
-            check_fps(out.fps)?;
-            let src = read_take(g, &name)?;
-            let mut t = src.clone();
-            t.frames.clear();
-            t.markers.clear();
-            t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
-            for id in src.layer_ids() {
-                let what = format!("take {name:?}, layer {id}");
-                let f = resample_layer(&src.layer(id, false), out.fps, out.force, &what)?;
-                t.set_layer(id, None, f);
-            }
-            emit(g, t, format!("{name}-resample"), &out)
-        }
-        TakeTool::Filter { name, filter, layer, out } => {
-            check_fps(out.fps)?;
-            let spec =
-                filter.parse::<FilterSpec>().map_err(|e| crate::UsageError(format!("--filter: {e}")))?;
-            let src = read_take(g, &name)?;
-            let Some(id) = src.layer_id(&layer).filter(|id| src.layer_ids().contains(id)) else {
-                return usage(format!(
-                    "take {name:?} has no layer {layer:?} (layers: {:?})",
-                    layer_names(&src)
-                ));
-            };
-            let frames =
-                resample_layer(&src.layer(id, false), out.fps, out.force, &format!("take {name:?}"))?;
-            let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
-            let filtered =
-                post_filter(&poses, spec).map_err(|e| crate::UsageError(format!("--filter: {e}")))?;
-            let mut t = src.clone();
-            t.markers.clear();
-            t.header.filter = format!("{} + post {spec}", t.header.filter);
-            t.set_layer(
-                id,
-                None,
-                frames.into_iter().zip(filtered).map(|(mut f, p)| {
-                    f.pose = p;
-                    f
-                }),
-            );
-            emit(g, t, format!("{name}-filter"), &out)
-        }
-        TakeTool::Splice { base, from, to, with, blend, out } => {
-            check_fps(out.fps)?;
-            let b = read_take(g, &base)?;
-            let n = read_take(g, &with)?;
-            let frame_of = |flag: &str, v: &str| -> anyhow::Result<usize> {
-                if let Ok(k) = v.parse::<usize>() {
-                    return Ok(k);
-                }
-                match b.marker_time(v) {
-                    Some(t) => Ok((t * out.fps).round() as usize),
-                    None => usage(format!("{flag} {v:?} is neither a frame number nor a marker of {base:?}")),
-                }
-            };
-            let (f0, f1) = (frame_of("--from", &from)?, frame_of("--to", &to)?);
-            let bf =
-                resample_layer(&b.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {base:?}"))?;
-            let nf =
-                resample_layer(&n.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {with:?}"))?;
-            let spliced =
-                splice(&bf, f0, f1, &nf, blend, out.fps).map_err(|e| crate::UsageError(e.to_string()))?;
-            let mut t = b.clone();
-            t.frames.clear();
-            t.markers.clear();
-            t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
-            t.set_layer(GLOBAL_LAYER, None, spliced);
-            emit(g, t, format!("{base}-splice"), &out)
-        }
-        TakeTool::Loop { name, regions, per_region, window, seed, duration, threshold, explain, out } => {
-            check_fps(out.fps)?;
-            if !(duration.is_finite() && duration > 0.0 && duration <= 86_400.0) {
-                return usage(format!("--duration must be in (0, 86400] seconds, got {duration}"));
-            }
-            if !(threshold.is_finite() && threshold > 0.0) {
-                return usage(format!("--threshold must be > 0 degrees, got {threshold}"));
-            }
-            let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
-            let t = find_transitions(&clip, &LoopParams { regions, per_region, window })
-                .map_err(|e| crate::UsageError(format!("{name}: {e}")))?;
-            if explain {
-                frond_binmain::outln!("{}", t.explain_json())?;
-                return Ok(());
-            }
-            let frames = frond_motion::clip::frames_needed(duration, out.fps);
-            crate::takes::check_output_frames("the loop", frames, duration, out.fps, out.force)?;
-            let count = frame_count(duration, out.fps);
-            let (looped, _) = loop_clip(
-                &clip,
-                &t,
-                seed,
-                PlaybackParams { threshold_deg: threshold, max_inserted: 10 },
-                0,
-                count,
-            );
-            emit(g, derived(&src, &looped, false), format!("{name}-loop"), &out)
-        }
-        TakeTool::Field { name, rows, cols, cell, speed, direction, density, seed, fps, output } => {
-            check_fps(fps)?;
-            let src = read_take(g, &name)?;
-            let clip = global_clip(&src, fps, &name, None)?;
-            let params = FieldParams {
-                rows,
-                cols,
-                cell_m: cell,
-                speed_m_s: speed,
-                direction_deg: direction,
-                density,
-                seed,
-            };
-            let field =
-                make_field(&params, &name, clip.len(), fps).map_err(|e| crate::UsageError(e.to_string()))?;
-            write_atomically_bytes(&output, field.to_json().as_bytes())?;
-            frond_binmain::outln!("wrote {} ({} plants)", output.display(), field.plants.len())?;
-            Ok(())
-        }
-        TakeTool::Retime { name, speed, scale, rotate, delay, out } => {
-            check_fps(out.fps)?;
-            let delays_s = triple("--delay", &delay)?;
-            let src = read_take(g, &name)?;
-            let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
-            if speed.is_finite() && speed > 0.0 {
-                let seconds = clip.duration_s() / speed;
-                let frames = frond_motion::clip::frames_needed(seconds, out.fps);
-                let what = format!("take {name:?} at --speed {speed}");
-                crate::takes::check_output_frames(&what, frames, seconds, out.fps, out.force)?;
-            }
-            let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
-                .map_err(|e| crate::UsageError(e.to_string()))?;
-            emit(g, derived(&src, &r, false), format!("{name}-retime"), &out)
-        }
-        TakeTool::Guided { name, sigma, sg, thumb_range, rig, out } => {
-            check_fps(out.fps)?;
-            let sigma_s = triple("--sigma", &sigma)?;
-            let s_g = triple("--sg", &sg)?;
-            let range = match (thumb_range, &rig) {
-                (Some(r), _) => r,
-                (None, Some(p)) => load_rig(p)?.0.thumb_range_deg[2],
-                (None, None) => DEFAULT_THUMB_RANGE_DEG[2],
-            };
-            let src = read_take(g, &name)?;
-            let layer: Vec<TakeFrame> = src.layer(GLOBAL_LAYER, false);
-            let frames = resample_layer(&layer, out.fps, out.force, &format!("take {name:?}"))?;
-            if frames.is_empty() {
-                anyhow::bail!("take {name:?} has no global frames");
-            }
-            let clip = Clip { fps: out.fps, frames: frames.iter().map(|f| f.pose).collect() };
-            let hands: Vec<_> = frames.iter().map(|f| f.hand).collect();
-            let gp = GuidedParams { sigma_s, s_g, g3_range_deg: range };
-            let result = guided(&clip, &hands, &gp).map_err(|e| crate::UsageError(e.to_string()))?;
-            let mut t = derived(&src, &result, false);
-            t.set_layer(GLOBAL_LAYER, None, frames_from_clip(&result, GLOBAL_LAYER, 0, Some(&hands)));
-            emit(g, t, format!("{name}-guided"), &out)
-        }
-        TakeTool::Align { global, secondary, window, seed, layer, explain, out } => {
-            check_fps(out.fps)?;
-            if layer == "global" || layer.parse::<u16>().is_ok() {
-                return usage(format!("--layer must be an element name such as leaf, got {layer:?}"));
-            }
-            let gt = read_take(g, &global)?;
-            let st = read_take(g, &secondary)?;
-            let gc = global_clip(&gt, out.fps, &global, Some(out.force))?;
-            // A secondary recorded with `frond record layer` holds only its layer: that is its motion.
-            let sc = layer_clip(
-                &st,
-                st.main_layer().unwrap_or(GLOBAL_LAYER),
-                out.fps,
-                &secondary,
-                Some(out.force),
-            )?;
-            let transitions = find_transitions(&sc, &LoopParams::default()).ok();
-            let (aligned, steps) =
-                align(&gc, &sc, transitions.as_ref(), window, seed).map_err(crate::UsageError)?;
-            if explain {
-                frond_binmain::errln!("{}", serde_json::to_string(&steps)?);
-            }
-            let mut t = derived(&gt, &gc, false);
-            let id = t.layer_id(&layer).unwrap_or(t.element_names.len() as u16 + 1);
-            t.set_layer(id, Some(&layer), frames_from_clip(&aligned, id, 0, None));
-            emit(g, t, format!("{global}-aligned"), &out)
-        }
-    }
-}
-
 fn layer_names(t: &Take) -> Vec<String> {
     t.layer_ids().into_iter().map(|id| t.layer_name(id)).collect()
+}
+
+/// `frond take import`: hand samples mapped (or poses taken as they are) into a take.
+fn import(g: &Global, a: ImportArgs) -> anyhow::Result<()> {
+    let kind = match a.kind.as_str() {
+        "auto" => ImportKind::Auto,
+        "hand" => ImportKind::Hand,
+        "pose" => ImportKind::Pose,
+        other => return usage(format!("--kind must be auto, hand or pose, got {other:?}")),
+    };
+    let (rig, rig_name) = match &a.rig {
+        Some(p) => {
+            let (r, _) = load_rig(p)?;
+            let n = r.name.clone();
+            (Some(r), n)
+        }
+        None => (None, "none".to_string()),
+    };
+    let mapping = rig.as_ref().map(|r| r.mapping()).unwrap_or_default();
+    let cal = import_calibration(a.calibration.as_deref(), rig.as_ref())?;
+    let spec = match &a.filter {
+        Some(s) => s.parse::<FilterSpec>().map_err(|e| UsageError(format!("--filter: {e}")))?,
+        None => rig.as_ref().map_or(FilterSpec::None, |r| r.filter),
+    };
+    let mut mapper = Mapper::new(mapping, cal.params(), spec);
+    let file = &a.file;
+    let text = frond_formats::rig_files::read_small_text(file, frond_formats::jsonl::MAX_HAND_FILE_BYTES)
+        .map_err(|e| anyhow!("cannot read {}: {}", file.display(), e.reason()))?;
+    let frames = import_jsonl(&text, kind, &mut mapper).map_err(|e| anyhow!("{}: {e}", file.display()))?;
+    let header = TakeHeader {
+        name: a.name.clone(),
+        rig_name,
+        calibration_id: cal.id.clone(),
+        filter: spec.to_string(),
+        tick_rate_hz: 0,
+        created_unix_s: 0,
+        daemon_version: format!("frond {} (import)", env!("CARGO_PKG_VERSION")),
+        joint_names: rig
+            .as_ref()
+            .map_or_else(|| (0..4).map(|i| format!("joint{i}")).collect(), |r| r.joint_names()),
+        clock: None,
+        stage: None,
+    };
+    let mut take = Take::new(header);
+    take.set_layer(GLOBAL_LAYER, None, frames);
+    let out = Output { output: Some(a.name.clone()), jsonl: a.jsonl, force: a.force, fps: 30.0 };
+    emit(g, take, a.name, &out)
+}
+
+/// The calibration `frond take import` maps hand samples with: `--calibration`'s, else the
+/// rig's neutral one, else none (zero neutral, the default thumb ranges).
+fn import_calibration(
+    file: Option<&std::path::Path>,
+    rig: Option<&frond_motion::Rig>,
+) -> anyhow::Result<Calibration> {
+    Ok(match (file, rig) {
+        (Some(p), _) => crate::control::load_calibration(p)?.0,
+        (None, Some(r)) => Calibration::neutral_for(r),
+        (None, None) => Calibration {
+            id: "none".into(),
+            neutral_wrist_deg: [0.0; 3],
+            neutral_thumb_deg: [0.0; 3],
+            thumb_range_deg: DEFAULT_THUMB_RANGE_DEG,
+            wrist_range_deg: None,
+        },
+    })
+}
+
+/// `frond take resample`: every layer at `--fps`.
+fn resample(g: &Global, a: ResampleArgs) -> anyhow::Result<()> {
+    let (name, out) = (a.name, a.out);
+    check_fps(out.fps)?;
+    let src = read_take(g, &name)?;
+    let mut t = src.clone();
+    t.frames.clear();
+    t.markers.clear();
+    t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
+    for id in src.layer_ids() {
+        let what = format!("take {name:?}, layer {id}");
+        let f = resample_layer(&src.layer(id, false), out.fps, out.force, &what)?;
+        t.set_layer(id, None, f);
+    }
+    emit(g, t, format!("{name}-resample"), &out)
+}
+
+/// `frond take filter`: a zero-phase low-pass of one layer.
+fn filter(g: &Global, a: FilterArgs) -> anyhow::Result<()> {
+    let FilterArgs { name, filter, layer, out } = a;
+    check_fps(out.fps)?;
+    let spec = filter.parse::<FilterSpec>().map_err(|e| UsageError(format!("--filter: {e}")))?;
+    let src = read_take(g, &name)?;
+    let Some(id) = src.layer_id(&layer).filter(|id| src.layer_ids().contains(id)) else {
+        return usage(format!("take {name:?} has no layer {layer:?} (layers: {:?})", layer_names(&src)));
+    };
+    let frames = resample_layer(&src.layer(id, false), out.fps, out.force, &format!("take {name:?}"))?;
+    let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
+    let filtered = post_filter(&poses, spec).map_err(|e| UsageError(format!("--filter: {e}")))?;
+    let mut t = src.clone();
+    t.markers.clear();
+    t.header.filter = format!("{} + post {spec}", t.header.filter);
+    t.set_layer(
+        id,
+        None,
+        frames.into_iter().zip(filtered).map(|(mut f, p)| {
+            f.pose = p;
+            f
+        }),
+    );
+    emit(g, t, format!("{name}-filter"), &out)
+}
+
+/// `frond take splice`: frames FROM..=TO of BASE re-authored with NEW.
+fn splice_takes(g: &Global, a: SpliceArgs) -> anyhow::Result<()> {
+    let SpliceArgs { base, from, to, with, blend, out } = a;
+    check_fps(out.fps)?;
+    let b = read_take(g, &base)?;
+    let n = read_take(g, &with)?;
+    let frame_of = |flag: &str, v: &str| -> anyhow::Result<usize> {
+        if let Ok(k) = v.parse::<usize>() {
+            return Ok(k);
+        }
+        match b.marker_time(v) {
+            Some(t) => Ok((t * out.fps).round() as usize),
+            None => usage(format!("{flag} {v:?} is neither a frame number nor a marker of {base:?}")),
+        }
+    };
+    let (f0, f1) = (frame_of("--from", &from)?, frame_of("--to", &to)?);
+    let bf = resample_layer(&b.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {base:?}"))?;
+    let nf = resample_layer(&n.layer(GLOBAL_LAYER, false), out.fps, out.force, &format!("take {with:?}"))?;
+    let spliced = splice(&bf, f0, f1, &nf, blend, out.fps).map_err(|e| UsageError(e.to_string()))?;
+    let mut t = b.clone();
+    t.frames.clear();
+    t.markers.clear();
+    t.header.tick_rate_hz = out.fps.round().max(1.0) as u32;
+    t.set_layer(GLOBAL_LAYER, None, spliced);
+    emit(g, t, format!("{base}-splice"), &out)
+}
+
+/// `frond take loop`: endless animation by looping (seed 000, Eq. 5).
+fn loop_take(g: &Global, a: LoopArgs) -> anyhow::Result<()> {
+    let LoopArgs { name, regions, per_region, window, seed, duration, threshold, explain, out } = a;
+    check_fps(out.fps)?;
+    if !(duration.is_finite() && duration > 0.0 && duration <= 86_400.0) {
+        return usage(format!("--duration must be in (0, 86400] seconds, got {duration}"));
+    }
+    if !(threshold.is_finite() && threshold > 0.0) {
+        return usage(format!("--threshold must be > 0 degrees, got {threshold}"));
+    }
+    let src = read_take(g, &name)?;
+    let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
+    let t = find_transitions(&clip, &LoopParams { regions, per_region, window })
+        .map_err(|e| UsageError(format!("{name}: {e}")))?;
+    if explain {
+        frond_binmain::outln!("{}", t.explain_json())?;
+        return Ok(());
+    }
+    let frames = frond_motion::clip::frames_needed(duration, out.fps);
+    check_output_frames("the loop", frames, duration, out.fps, out.force)?;
+    let count = frame_count(duration, out.fps);
+    let playback = PlaybackParams { threshold_deg: threshold, max_inserted: 10 };
+    let (looped, _) = loop_clip(&clip, &t, seed, playback, 0, count);
+    emit(g, derived(&src, &looped, false), format!("{name}-loop"), &out)
+}
+
+/// `frond take field`: a field of plants playing the take (Eq. 6-7), written as field.json.
+fn field(g: &Global, a: FieldArgs) -> anyhow::Result<()> {
+    let FieldArgs { name, rows, cols, cell, speed, direction, density, seed, fps, output } = a;
+    check_fps(fps)?;
+    let src = read_take(g, &name)?;
+    let clip = global_clip(&src, fps, &name, None)?;
+    let params =
+        FieldParams { rows, cols, cell_m: cell, speed_m_s: speed, direction_deg: direction, density, seed };
+    let field = make_field(&params, &name, clip.len(), fps).map_err(|e| UsageError(e.to_string()))?;
+    write_atomically_bytes(&output, field.to_json().as_bytes())?;
+    frond_binmain::outln!("wrote {} ({} plants)", output.display(), field.plants.len())?;
+    Ok(())
+}
+
+/// `frond take retime`: speed, scale, bend rotation and rigidity delays (seed 000, section 6.3).
+fn retime_take(g: &Global, a: RetimeArgs) -> anyhow::Result<()> {
+    let RetimeArgs { name, speed, scale, rotate, delay, out } = a;
+    check_fps(out.fps)?;
+    let delays_s = triple("--delay", &delay)?;
+    let src = read_take(g, &name)?;
+    let clip = global_clip(&src, out.fps, &name, Some(out.force))?;
+    if speed.is_finite() && speed > 0.0 {
+        let seconds = clip.duration_s() / speed;
+        let frames = frond_motion::clip::frames_needed(seconds, out.fps);
+        let what = format!("take {name:?} at --speed {speed}");
+        check_output_frames(&what, frames, seconds, out.fps, out.force)?;
+    }
+    let r = retime(&clip, &Retime { speed, scale, rotate_deg: rotate, delays_s })
+        .map_err(|e| UsageError(e.to_string()))?;
+    emit(g, derived(&src, &r, false), format!("{name}-retime"), &out)
+}
+
+/// `frond take guided`: guided procedural motion (seed 000, Eq. 8).
+fn guided_take(g: &Global, a: GuidedArgs) -> anyhow::Result<()> {
+    let GuidedArgs { name, sigma, sg, thumb_range, rig, out } = a;
+    check_fps(out.fps)?;
+    let sigma_s = triple("--sigma", &sigma)?;
+    let s_g = triple("--sg", &sg)?;
+    let range = match (thumb_range, &rig) {
+        (Some(r), _) => r,
+        (None, Some(p)) => load_rig(p)?.0.thumb_range_deg[2],
+        (None, None) => DEFAULT_THUMB_RANGE_DEG[2],
+    };
+    let src = read_take(g, &name)?;
+    let layer: Vec<TakeFrame> = src.layer(GLOBAL_LAYER, false);
+    let frames = resample_layer(&layer, out.fps, out.force, &format!("take {name:?}"))?;
+    if frames.is_empty() {
+        anyhow::bail!("take {name:?} has no global frames");
+    }
+    let clip = Clip { fps: out.fps, frames: frames.iter().map(|f| f.pose).collect() };
+    let hands: Vec<_> = frames.iter().map(|f| f.hand).collect();
+    let gp = GuidedParams { sigma_s, s_g, g3_range_deg: range };
+    let result = guided(&clip, &hands, &gp).map_err(|e| UsageError(e.to_string()))?;
+    let mut t = derived(&src, &result, false);
+    t.set_layer(GLOBAL_LAYER, None, frames_from_clip(&result, GLOBAL_LAYER, 0, Some(&hands)));
+    emit(g, t, format!("{name}-guided"), &out)
+}
+
+/// `frond take align`: a secondary take aligned with a global one (section 6.5), as a layer.
+fn align_takes(g: &Global, a: AlignArgs) -> anyhow::Result<()> {
+    let AlignArgs { global, secondary, window, seed, layer, explain, out } = a;
+    check_fps(out.fps)?;
+    if layer == "global" || layer.parse::<u16>().is_ok() {
+        return usage(format!("--layer must be an element name such as leaf, got {layer:?}"));
+    }
+    let gt = read_take(g, &global)?;
+    let st = read_take(g, &secondary)?;
+    let gc = global_clip(&gt, out.fps, &global, Some(out.force))?;
+    // A secondary recorded with `frond record layer` holds only its layer: that is its motion.
+    let sc = layer_clip(&st, st.main_layer().unwrap_or(GLOBAL_LAYER), out.fps, &secondary, Some(out.force))?;
+    let transitions = find_transitions(&sc, &LoopParams::default()).ok();
+    let (aligned, steps) = align(&gc, &sc, transitions.as_ref(), window, seed).map_err(UsageError)?;
+    if explain {
+        frond_binmain::errln!("{}", serde_json::to_string(&steps)?);
+    }
+    let mut t = derived(&gt, &gc, false);
+    let id = t.layer_id(&layer).unwrap_or(t.element_names.len() as u16 + 1);
+    t.set_layer(id, Some(&layer), frames_from_clip(&aligned, id, 0, None));
+    emit(g, t, format!("{global}-aligned"), &out)
 }

@@ -8,9 +8,9 @@ use std::path::Path;
 use anyhow::anyhow;
 use frond_formats::usd::{UsdTake, write_usda};
 
-use crate::args::Global;
+use crate::error::usage;
+use crate::global::Global;
 use crate::takes::{TakeForFile, take_for_file};
-use crate::usage;
 
 /// What `--usd` was asked.
 pub(crate) struct UsdExport<'a> {

@@ -23,9 +23,9 @@ use frond_motion::{PoseFrame, TakeScan, resample, resample_plan};
 use frond_protocol::paths;
 use serde::Serialize;
 
-use crate::args::Global;
 use crate::calibrate::write_atomically_bytes;
-use crate::usage;
+use crate::error::usage;
+use crate::global::Global;
 
 /// A take without an End record modified more recently than this may still be recording;
 /// `repair` leaves it alone.
@@ -450,10 +450,11 @@ pub(crate) fn start_timecode(
     fps: f64,
     start: Option<&str>,
 ) -> anyhow::Result<Option<frond_motion::timecode::Timecode>> {
-    let rate = frond_motion::timecode::nominal_rate(fps).map_err(|e| crate::UsageError(e.to_string()))?;
+    let rate =
+        frond_motion::timecode::nominal_rate(fps).map_err(|e| crate::error::UsageError(e.to_string()))?;
     if let Some(text) = start {
         let tc = frond_motion::timecode::Timecode::parse(text, rate)
-            .map_err(|e| crate::UsageError(format!("--timecode-start {e}")))?;
+            .map_err(|e| crate::error::UsageError(format!("--timecode-start {e}")))?;
         return Ok(Some(tc));
     }
     Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))

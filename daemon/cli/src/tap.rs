@@ -16,8 +16,10 @@ use std::time::Duration;
 
 use frond_sdk::{Event, SdkError, Subscriber};
 
-use crate::args::Global;
+use crate::global::Global;
 
+/// `frond tap` on one source: this host's daemon, or one bridge (`--from` a concrete
+/// address; a selector over several is followed by the `tap_stage` module).
 pub(crate) fn run(
     g: &Global,
     jsonl: bool,
@@ -26,11 +28,6 @@ pub(crate) fn run(
     element: Option<&str>,
     from: Option<&frond_sdk::Source>,
 ) -> anyhow::Result<()> {
-    if let Some(frond_sdk::Source::Zenoh(addr)) = from
-        && !addr.is_concrete()
-    {
-        return crate::tap_stage::run(addr, jsonl, count, include_held, element);
-    }
     let dir = paths::socket_dir(g.socket_dir.clone());
     let source = from.cloned().unwrap_or_else(|| frond_sdk::Source::Socket(dir.clone()));
     let mut sub =
@@ -43,7 +40,8 @@ pub(crate) fn run(
         })?;
     let mut names = sub.hello().joint_names.clone();
     // `--element`: an id, or a name looked up in the element table (again when it changes).
-    let pick = |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::usage);
+    let pick =
+        |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::error::usage);
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
     if let Some(note) = unannounced(only, &table) {

@@ -12,7 +12,7 @@ use frond_protocol::{CONTROL_SOCKET, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 use serde::Serialize;
 
-use super::{FIRST_UNPLUG_MS, UNPLUG_EVERY_MS, UNPLUG_MS};
+use super::schedule::{FIRST_UNPLUG_MS, UNPLUG_EVERY_MS, UNPLUG_MS};
 
 /// One lost-device window as a healthy subscriber saw it.
 #[derive(Debug, Clone, Serialize)]

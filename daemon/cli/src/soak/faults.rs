@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use serde::Serialize;
 
-use super::TakeFigures;
+use super::takes::TakeFigures;
 
 /// The glove's clock is off from this many milliseconds after its first report...
 pub const TIME_JUMP_AT_MS: u64 = 2_500;

@@ -1,0 +1,31 @@
+//! The options every `frond` command takes: where the daemon's sockets and takes are, and how to
+//! reach a daemon on another host. A module of its own, importing nothing of the crate, so that
+//! the commands use it without importing the command-line tree that is built from them.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+/// Where the daemon's sockets and takes are.
+#[derive(Debug, Clone, Args)]
+pub struct Global {
+    /// Directory of the daemon's sockets (poses.sock, control.sock)
+    /// [default: $XDG_RUNTIME_DIR/frond, /run/frond for root].
+    #[arg(long, global = true, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    pub socket_dir: Option<PathBuf>,
+    /// Directory of recorded takes [default: $XDG_DATA_HOME/frond/takes].
+    #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR")]
+    pub takes_dir: Option<PathBuf>,
+    /// Send control commands (status, record, mark, rig set, filter, stage ...) to a daemon on
+    /// another host, through its frond-zenoh bridge started with --control:
+    /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]`. Needs --as and --key-file.
+    #[arg(long, global = true, env = "FROND_REMOTE", value_name = "ADDRESS")]
+    pub remote: Option<frond_sdk::Source>,
+    /// The principal remote control requests are signed as (a name in the bridge's --control
+    /// file).
+    #[arg(long = "as", global = true, env = "FROND_REMOTE_AS", value_name = "NAME")]
+    pub remote_as: Option<String>,
+    /// The principal's key: a file holding its hex key, readable by its owner only.
+    #[arg(long = "key-file", global = true, env = "FROND_REMOTE_KEY_FILE", value_name = "FILE")]
+    pub remote_key_file: Option<PathBuf>,
+}
