@@ -174,14 +174,16 @@ const MAX_MARKER_LABEL_BYTES: usize = 256;
 /// checked where it enters with the rule for every other name (calibration ids, rig names):
 /// not blank, at most [`MAX_MARKER_LABEL_BYTES`], no control characters (issue 42: a line break
 /// or an escape sequence would draw a fake line wherever the label is shown).
-fn check_marker_label(label: &str) -> Result<(), String> {
+fn check_marker_label(label: &str) -> Result<(), BadMarkerLabel> {
     let mut problems = frond_motion::Problems::default();
-    if problems.name("label", label, MAX_MARKER_LABEL_BYTES) {
-        Ok(())
-    } else {
-        Err(problems.0.iter().map(|p| format!("marker {p}")).collect::<Vec<_>>().join("; "))
-    }
+    if problems.name("label", label, MAX_MARKER_LABEL_BYTES) { Ok(()) } else { Err(BadMarkerLabel(problems)) }
 }
+
+/// Why a marker label was refused: every problem [`check_marker_label`] found, each said as
+/// `marker label: ...`, joined by `; `.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{}", .0.0.iter().map(|p| format!("marker {p}")).collect::<Vec<_>>().join("; "))]
+struct BadMarkerLabel(frond_motion::Problems);
 
 pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
     static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
@@ -469,7 +471,7 @@ impl ControlContext {
 
     fn mark(&self, label: String) -> ControlReply {
         if let Err(why) = check_marker_label(&label) {
-            return refuse(ControlErrorKind::BadRequest, why);
+            return refuse(ControlErrorKind::BadRequest, why.to_string());
         }
         if self.lock().recording.is_none() {
             return refuse(ControlErrorKind::WrongState, "no take is being recorded");
@@ -793,14 +795,17 @@ mod tests {
     /// now follows the calibration id's rule (printable, not blank, bounded).
     #[test]
     fn a_marker_label_is_printable_and_bounded() {
-        let e = check_marker_label("x\n\u{1b}[31mFAKE").unwrap_err();
+        let e = check_marker_label("x\n\u{1b}[31mFAKE").unwrap_err().to_string();
         assert_eq!(e, "marker label: contains the control character '\\n'; a name must be printable");
-        let e = check_marker_label("a\u{1b}[2Kb").unwrap_err();
+        let e = check_marker_label("a\u{1b}[2Kb").unwrap_err().to_string();
         assert_eq!(e, "marker label: contains the control character '\\u{1b}'; a name must be printable");
-        let e = check_marker_label(&"x".repeat(257)).unwrap_err();
+        let e = check_marker_label(&"x".repeat(257)).unwrap_err().to_string();
         assert_eq!(e, "marker label: is 257 bytes; the limit is 256");
-        assert_eq!(check_marker_label("  ").unwrap_err(), "marker label: must not be empty");
-        assert_eq!(check_marker_label(""), Err("marker label: must not be empty".into()));
+        assert_eq!(check_marker_label("  ").unwrap_err().to_string(), "marker label: must not be empty");
+        assert_eq!(
+            check_marker_label("").map_err(|e| e.to_string()),
+            Err("marker label: must not be empty".into())
+        );
         assert_eq!(check_marker_label(&"x".repeat(256)), Ok(()));
         assert_eq!(check_marker_label("pétale 2 — take 3"), Ok(()));
     }

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Acquire};
 use std::time::{Duration, Instant};
 
+use frond_protocol::control::StageKind;
 use frond_protocol::{
     ControlErrorKind, ControlReply, ElementTable, ServerMessage, StageInput, StageSpec, encode_frame,
 };
@@ -21,7 +22,11 @@ use crate::stage::registry::{HandElement, Running, validate_stage_name};
 use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
 
 /// Stage name of a layer being recorded.
-const LAYER_STAGE: &str = "layer";
+const LAYER_STAGE: &str = StageKind::Layer.as_str();
+/// Stage name of the guided motion a rig's `[guided]` table starts.
+const GUIDED_STAGE: &str = StageKind::Guided.as_str();
+/// Stage name of the playback `frond record layer --over TAKE` starts under the layer.
+const PLAYBACK_STAGE: &str = StageKind::Playback.as_str();
 /// How long a control request waits for the loop to apply a stage change.
 const APPLY_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -76,11 +81,11 @@ impl ControlContext {
             let now_ns = monotonic_ns();
             let guided = {
                 let free = state.stages.free_ids(0);
-                let ctx = self.build_context(state, "guided", &free, now_ns);
+                let ctx = self.build_context(state, GUIDED_STAGE, &free, now_ns);
                 stage::guided::from_rig(&ctx)
             };
-            if guided.is_some() || state.stages.slot_of("guided").is_some() {
-                self.install(state, "guided", guided)?;
+            if guided.is_some() || state.stages.slot_of(GUIDED_STAGE).is_some() {
+                self.install(state, GUIDED_STAGE, guided)?;
             } else {
                 self.announce(state)?;
             }
@@ -128,7 +133,7 @@ impl ControlContext {
             Ok(b) => b,
             Err(e) => return refuse(e.kind, e.message),
         };
-        let kind = built.info.kind;
+        let kind = built.info.kind.as_str();
         match self.install(&mut state, &name, Some(built)) {
             Ok(()) => {
                 info!(stage = %name, kind, "live stage started");
@@ -223,7 +228,7 @@ impl ControlContext {
         };
         let undo_playback = |ctx: &ControlContext| {
             if started_playback {
-                let _ = ctx.stage_stop("playback");
+                let _ = ctx.stage_stop(PLAYBACK_STAGE);
             }
         };
         {
@@ -255,7 +260,7 @@ impl ControlContext {
         }
         let _ = self.install(&mut state, LAYER_STAGE, None);
         if std::mem::take(&mut state.layer_playback) {
-            let _ = self.install(&mut state, "playback", None);
+            let _ = self.install(&mut state, PLAYBACK_STAGE, None);
         }
     }
 

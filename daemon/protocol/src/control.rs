@@ -168,15 +168,56 @@ pub enum StageSpec {
 }
 
 impl StageSpec {
-    /// The kind's name, which is also the stage's default name.
-    pub fn kind(&self) -> &'static str {
+    /// The kind of stage it runs (its name is also the stage's default name).
+    pub fn kind(&self) -> StageKind {
         match self {
-            StageSpec::Playback { .. } => "playback",
-            StageSpec::Field { .. } => "field",
-            StageSpec::Guided { .. } => "guided",
-            StageSpec::Graph { .. } => "graph",
-            StageSpec::Sim { .. } => "sim",
+            StageSpec::Playback { .. } => StageKind::Playback,
+            StageSpec::Field { .. } => StageKind::Field,
+            StageSpec::Guided { .. } => StageKind::Guided,
+            StageSpec::Graph { .. } => StageKind::Graph,
+            StageSpec::Sim { .. } => StageKind::Sim,
         }
+    }
+}
+
+/// Every kind of live stage, defined once: a new kind added here makes the compiler list each
+/// place that must handle it (its [`StageSpec`] variant, the daemon's builders).
+///
+/// It travels only as its name ([`StageKind::as_str`]), in [`StageStatus::kind`], which stays
+/// text so that a client still reads the status of a daemon that runs a kind it does not know.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum StageKind {
+    /// A looped take ([`StageSpec::Playback`]).
+    Playback,
+    /// Layer recording: the hand published as a rig's secondary element (`frond record layer`).
+    Layer,
+    /// A field of plants ([`StageSpec::Field`]).
+    Field,
+    /// Guided motion on the live mapping ([`StageSpec::Guided`], or a rig's `[guided]` table).
+    Guided,
+    /// Motion-graph walkers ([`StageSpec::Graph`]).
+    Graph,
+    /// The simulated plant ([`StageSpec::Sim`]).
+    Sim,
+}
+
+impl StageKind {
+    /// Its name: the default name of a stage of this kind, and its kind in `frond status`.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            StageKind::Playback => "playback",
+            StageKind::Layer => "layer",
+            StageKind::Field => "field",
+            StageKind::Guided => "guided",
+            StageKind::Graph => "graph",
+            StageKind::Sim => "sim",
+        }
+    }
+}
+
+impl std::fmt::Display for StageKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 
@@ -457,7 +498,7 @@ pub struct HandStatus {
 pub struct StageStatus {
     /// Its name.
     pub name: String,
-    /// Its kind (`playback`, `layer`, `field`, `guided`).
+    /// Its kind ([`StageKind::as_str`]: `playback`, `layer`, `field`, `guided`, `graph`, `sim`).
     pub kind: String,
     /// What it is doing, in words (read from its own lock-free cell).
     pub state: String,

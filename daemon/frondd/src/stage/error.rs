@@ -4,8 +4,7 @@ use frond_formats::take::TakeError;
 use frond_motion::field::FieldError;
 use frond_motion::looping::LoopError;
 
-use super::MAX_STAGES;
-use super::registry::MAX_STAGE_NAME;
+use super::{MAX_STAGE_NAME, MAX_STAGES};
 
 /// What is wrong with a stage request.
 #[derive(Debug, thiserror::Error)]

@@ -9,6 +9,7 @@ use frond_motion::clip::Joints;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::{Field, FieldPlayer};
 use frond_motion::{HandSample, PoseFrame};
+use frond_protocol::control::StageKind;
 use frond_protocol::{StageInput, StageKey};
 
 use super::error::StageError;
@@ -244,7 +245,7 @@ pub fn build(
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
-            kind: "field",
+            kind: StageKind::Field,
             report,
             elements,
             hand_element: None,

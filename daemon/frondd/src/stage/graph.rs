@@ -19,6 +19,7 @@ use frond_motion::graph::{Goal, MotionGraph, NearestNodeSearch, Walker};
 use frond_motion::layers::{GLOBAL_LAYER, Take};
 use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
+use frond_protocol::control::StageKind;
 use frond_protocol::{ControlErrorKind, GraphGoal, StageInput};
 
 use super::budget::{self, TickWork};
@@ -430,7 +431,7 @@ pub fn build(
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
-            kind: "graph",
+            kind: StageKind::Graph,
             report,
             elements,
             hand_element: None,

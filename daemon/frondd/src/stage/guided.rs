@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::{HandSample, PoseFrame};
+use frond_protocol::control::StageKind;
 
 use super::error::StageError;
 use super::{BuildContext, BuildError, BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
@@ -60,7 +61,7 @@ fn built(params: GuidedParams, text: String, ctx: &BuildContext) -> BuiltStage {
     BuiltStage {
         stage: Box::new(GuidedStage::new(params, ctx.tick_rate_hz)),
         info: StageInfo {
-            kind: "guided",
+            kind: StageKind::Guided,
             report: Arc::new(FixedReport(format!("guided motion {text}"))),
             elements: Vec::new(),
             hand_element: None,

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::error::StageError;
@@ -51,7 +52,7 @@ pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, St
     Ok(BuiltStage {
         stage: Box::new(LayerStage::new(id)),
         info: StageInfo {
-            kind: "layer",
+            kind: StageKind::Layer,
             report: Arc::new(FixedReport(format!("recording layer {layer}"))),
             elements: Vec::new(),
             hand_element: Some(ElementInfo {

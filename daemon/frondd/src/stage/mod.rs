@@ -30,10 +30,13 @@ use std::sync::atomic::AtomicBool;
 
 use frond_motion::clip::Joints;
 use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_protocol::control::StageKind;
 use frond_protocol::{ControlErrorKind, ElementInfo, RigInfo, StageInput, StageSpec};
 
 /// Stage slots in the loop (stages running at once).
 pub const MAX_STAGES: usize = 8;
+/// Longest stage name.
+pub const MAX_STAGE_NAME: usize = 32;
 
 /// What a stage sees at each tick.
 #[derive(Debug, Clone, Copy)]
@@ -104,8 +107,8 @@ pub struct BuiltStage {
 /// What the control side knows of a stage: its kind, status cell, elements and inputs.
 #[derive(Clone)]
 pub struct StageInfo {
-    /// Its kind (`playback`, `layer`, `field`, `guided`).
-    pub kind: &'static str,
+    /// Its kind.
+    pub kind: StageKind,
     /// Its status cell.
     pub report: Arc<dyn StageReport>,
     /// Elements it publishes itself.

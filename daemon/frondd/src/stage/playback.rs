@@ -8,6 +8,7 @@ use frond_motion::clip::Clip;
 use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};
 use frond_motion::take::resample_plan;
+use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::error::StageError;
@@ -99,7 +100,7 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
-            kind: "playback",
+            kind: StageKind::Playback,
             report: Arc::new(FixedReport(format!("looping take {take} as the global element{damage}"))),
             elements: vec![ElementInfo {
                 id: 0,

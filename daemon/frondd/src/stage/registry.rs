@@ -7,10 +7,8 @@ use frond_motion::rig::MAX_RIG_ELEMENTS;
 use frond_protocol::{ElementInfo, ElementKind, ElementTable, StageStatus};
 
 use super::error::StageError;
-use super::{MAX_STAGES, StageInfo};
+use super::{MAX_STAGE_NAME, MAX_STAGES, StageInfo};
 
-/// Longest stage name.
-pub const MAX_STAGE_NAME: usize = 32;
 /// Element ids handed to stages come from `FIRST_STAGE_ELEMENT..`, above the rig's layers.
 pub const FIRST_STAGE_ELEMENT: u16 = MAX_RIG_ELEMENTS as u16 + 1;
 /// Free element ids offered to a stage being built, at most.
@@ -187,8 +185,9 @@ mod tests {
 
     use super::*;
     use crate::stage::{FixedReport, no_input};
+    use frond_protocol::control::StageKind;
 
-    fn built(kind: &'static str, ids: &[u16], hand: Option<u16>) -> StageInfo {
+    fn built(kind: StageKind, ids: &[u16], hand: Option<u16>) -> StageInfo {
         let info = |id: u16, kind: ElementKind| ElementInfo {
             id,
             name: format!("e{id}"),
@@ -198,7 +197,7 @@ mod tests {
         };
         StageInfo {
             kind,
-            report: Arc::new(FixedReport(kind.into())),
+            report: Arc::new(FixedReport(kind.to_string())),
             elements: ids.iter().map(|&id| info(id, ElementKind::FieldPlant)).collect(),
             hand_element: hand.map(|id| info(id, ElementKind::Layer)),
             accepts: no_input,
@@ -223,7 +222,7 @@ mod tests {
     #[test]
     fn slots_are_reused_by_name_and_run_out() {
         let mut r = StageRegistry::default();
-        let a = built("field", &[], None);
+        let a = built(StageKind::Field, &[], None);
         let slot = r.slot_for("a").unwrap();
         r.replace(slot, Some(Running::new("a", a.clone())));
         assert_eq!(r.slot_for("a").unwrap(), slot, "same name, same slot");
@@ -241,7 +240,10 @@ mod tests {
         let mut r = StageRegistry::default();
         r.replace(
             0,
-            Some(Running::new("f", built("field", &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None))),
+            Some(Running::new(
+                "f",
+                built(StageKind::Field, &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None),
+            )),
         );
         assert_eq!(r.free_ids(1)[..2], [FIRST_STAGE_ELEMENT + 2, FIRST_STAGE_ELEMENT + 3]);
         assert_eq!(r.free_ids(0)[0], FIRST_STAGE_ELEMENT, "replacing slot 0 frees its ids");
@@ -250,11 +252,11 @@ mod tests {
     #[test]
     fn a_stage_may_not_publish_an_id_another_stage_publishes() {
         let mut r = StageRegistry::default();
-        r.replace(0, Some(Running::new("a", built("playback", &[0], None))));
-        assert_eq!(r.collision(1, &built("playback", &[0], None)), Some((0, "a".to_string())));
-        assert_eq!(r.collision(0, &built("playback", &[0], None)), None, "replacing itself is fine");
-        assert_eq!(r.collision(1, &built("field", &[40], None)), None);
-        assert_eq!(r.collision(1, &built("layer", &[], Some(0))), Some((0, "a".to_string())));
+        r.replace(0, Some(Running::new("a", built(StageKind::Playback, &[0], None))));
+        assert_eq!(r.collision(1, &built(StageKind::Playback, &[0], None)), Some((0, "a".to_string())));
+        assert_eq!(r.collision(0, &built(StageKind::Playback, &[0], None)), None, "replacing itself is fine");
+        assert_eq!(r.collision(1, &built(StageKind::Field, &[40], None)), None);
+        assert_eq!(r.collision(1, &built(StageKind::Layer, &[], Some(0))), Some((0, "a".to_string())));
     }
 
     #[test]
@@ -268,8 +270,8 @@ mod tests {
         assert_eq!((t.elements[0].id, t.elements[0].kind), (0, ElementKind::Hand));
         assert_eq!(t.joint_names(0).unwrap().len(), 4);
         // A layer moves the hand to its id; a field adds its plants.
-        r.replace(0, Some(Running::new("layer", built("layer", &[], Some(1)))));
-        r.replace(1, Some(Running::new("field", built("field", &[40, 41], None))));
+        r.replace(0, Some(Running::new("layer", built(StageKind::Layer, &[], Some(1)))));
+        r.replace(1, Some(Running::new("field", built(StageKind::Field, &[40, 41], None))));
         let t = r.next_table(&rig, &hands, 0);
         assert_eq!(t.version, 2);
         let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id, e.kind)).collect();
@@ -291,7 +293,7 @@ mod tests {
         assert_eq!(got, [(0, "flower", ElementKind::Hand, "left"), (1, "leaf", ElementKind::Layer, "right")]);
         assert_eq!(t.rigs.len(), 1, "one rig, named once");
         // A stage relabelling the primary hand onto a field-plant-free id 2 leaves the right hand.
-        r.replace(0, Some(Running::new("layer", built("layer", &[], Some(2)))));
+        r.replace(0, Some(Running::new("layer", built(StageKind::Layer, &[], Some(2)))));
         let t = r.next_table(&flower, &hands, 0);
         let ids: Vec<u16> = t.elements.iter().map(|e| e.id).collect();
         assert_eq!(ids, [1, 2]);

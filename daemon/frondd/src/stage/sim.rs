@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 use frond_motion::sim::{PlantSim, WindSpec};
 use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::budget::{self, TickWork};
@@ -192,7 +193,7 @@ pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<B
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
-            kind: "sim",
+            kind: StageKind::Sim,
             report,
             elements: vec![ElementInfo {
                 id: 0,
