@@ -85,7 +85,62 @@ fn main() -> ExitCode {
     if let Err(code) = frond_binmain::logging("frondd", &args.log_level) {
         return code;
     }
+    match Options::from_args(args).and_then(run_daemon) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(exit) => exit.report(),
+    }
+}
 
+/// The command line, validated: what the daemon runs with besides the configuration's contents.
+struct Options {
+    /// `--config`: the file whose keys override the embedded defaults.
+    config_file: Option<PathBuf>,
+    /// `--config-optional`: a missing `config_file` means the embedded defaults.
+    config_optional: bool,
+    /// What the command line sets over the file (`--rate`, `--rig`, `--source`, `--hand`, ...).
+    overrides: RawConfig,
+    /// Socket and takes directories.
+    dirs: Dirs,
+    /// `--test-hooks`.
+    test_hooks: bool,
+}
+
+impl Options {
+    /// Validates the raw arguments (the `--hand` flags, and that they replace the single hand's
+    /// options rather than meet them).
+    fn from_args(args: Args) -> Result<Options, Exit> {
+        let overrides = overrides(&args)?;
+        Ok(Options {
+            config_file: args.config,
+            config_optional: args.config_optional,
+            overrides,
+            dirs: Dirs {
+                socket_dir: paths::socket_dir(args.socket_dir),
+                takes_dir: paths::takes_dir(args.takes_dir),
+            },
+            test_hooks: args.test_hooks,
+        })
+    }
+
+    /// Reads the configuration now, and returns with it the loader SIGHUP reads it again with.
+    fn load_config(&self) -> Result<(Config, ConfigLoader), Exit> {
+        let (path, optional, overrides) =
+            (self.config_file.clone(), self.config_optional, self.overrides.clone());
+        let loader: ConfigLoader =
+            Box::new(move || Config::load(present_file(&path, optional).as_deref(), overrides.clone()));
+        let file = present_file(&self.config_file, self.config_optional);
+        if let (Some(p), None) = (&self.config_file, &file) {
+            tracing::info!(path = %p.display(), "no config file there (optional): the embedded defaults apply");
+        }
+        let config = Config::load(file.as_deref(), self.overrides.clone())
+            .map_err(|errors| Exit::Usage(errors.problems.iter().map(ToString::to_string).collect()))?;
+        Ok((config, loader))
+    }
+}
+
+/// What the command line sets over the configuration file: `--source` (or the kind `--replay`
+/// or `--device` implies), every `--hand`, and the single hand's options, which `--hand` replaces.
+fn overrides(args: &Args) -> Result<RawConfig, Exit> {
     let source = args.source.clone().or_else(|| {
         if args.replay.is_some() {
             Some("replay".into())
@@ -95,61 +150,38 @@ fn main() -> ExitCode {
             None
         }
     });
-    let mut hands = Vec::new();
-    for (i, flag) in args.hands.iter().enumerate() {
-        match RawHand::parse_flag(flag) {
-            Ok(hand) => hands.push(hand),
-            Err(e) => {
-                frond_binmain::say_error("frondd", &format!("--hand (#{}): {e}", i + 1));
-                return ExitCode::from(2);
-            }
-        }
-    }
+    let hands = (args.hands.iter().enumerate())
+        .map(|(i, flag)| {
+            RawHand::parse_flag(flag).map_err(|e| Exit::Usage(vec![format!("--hand (#{}): {e}", i + 1)]))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     if !hands.is_empty() && (source.is_some() || args.profile.is_some()) {
-        frond_binmain::say_error(
-            "frondd",
-            "--hand replaces --source, --device, --replay and --profile; give each hand its own",
-        );
-        return ExitCode::from(2);
+        return Err(Exit::Usage(vec![
+            "--hand replaces --source, --device, --replay and --profile; give each hand its own".into(),
+        ]));
     }
     let overrides = RawConfig::from_overrides(
         args.rate,
-        args.rig,
-        args.calibration,
-        args.filter,
+        args.rig.clone(),
+        args.calibration.clone(),
+        args.filter.clone(),
         source,
-        args.profile,
-        args.device,
-        args.replay,
-    )
-    .with_hands(hands);
-    let (config_path, optional) = (args.config.clone(), args.config_optional);
-    // The file to read now: none when it is optional and absent.
-    let present = move || {
-        config_path.clone().filter(|p| {
-            !(optional
-                && std::fs::symlink_metadata(p).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound))
-        })
-    };
-    let reload_overrides = overrides.clone();
-    let reload_present = present.clone();
-    let loader: ConfigLoader =
-        Box::new(move || Config::load(reload_present().as_deref(), reload_overrides.clone()));
-    let file = present();
-    if let (Some(p), None) = (&args.config, &file) {
-        tracing::info!(path = %p.display(), "no config file there (optional): the embedded defaults apply");
-    }
-    let config = match Config::load(file.as_deref(), overrides) {
-        Ok(c) => c,
-        Err(errors) => {
-            for e in errors.problems {
-                frond_binmain::say_error("frondd", &e.to_string());
-            }
-            return ExitCode::from(2);
-        }
-    };
-    let dirs =
-        Dirs { socket_dir: paths::socket_dir(args.socket_dir), takes_dir: paths::takes_dir(args.takes_dir) };
+        args.profile.clone(),
+        args.device.clone(),
+        args.replay.clone(),
+    );
+    Ok(overrides.with_hands(hands))
+}
+
+/// The configuration file to read now: `path`, unless it is optional and absent.
+fn present_file(path: &Option<PathBuf>, optional: bool) -> Option<PathBuf> {
+    path.clone().filter(|p| {
+        !(optional && std::fs::symlink_metadata(p).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound))
+    })
+}
+
+/// The flags the signals set: SIGTERM and SIGINT `stop`, SIGHUP `reload`.
+fn signal_flags() -> Result<(Arc<AtomicBool>, Arc<AtomicBool>), Exit> {
     let stop = Arc::new(AtomicBool::new(false));
     let reload = Arc::new(AtomicBool::new(false));
     let handlers = [
@@ -158,22 +190,50 @@ fn main() -> ExitCode {
         (signal_hook::consts::SIGHUP, &reload),
     ];
     for (signal, flag) in handlers {
-        if let Err(e) = signal_hook::flag::register(signal, flag.clone()) {
-            frond_binmain::say_error("frondd", &format!("cannot install the signal handler: {e}"));
-            return ExitCode::FAILURE;
-        }
+        signal_hook::flag::register(signal, flag.clone())
+            .map_err(|e| Exit::Failure(format!("cannot install the signal handler: {e}")))?;
     }
-    let options = RunOptions { dirs, stop, reload, loader, test_hooks: args.test_hooks };
-    match run(config, options) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            // Once, on stderr (the journal under systemd): not also as a log line.
-            frond_binmain::say_error("frondd", &frond_binmain::error_text(&e));
-            // Hands that clash (two on one element, an element the rig lacks) are a problem of
-            // the configuration, as the config file's own problems are: exit 2.
-            if matches!(e, frondd::error::DaemonError::Hand { .. }) {
+    Ok((stop, reload))
+}
+
+/// Loads the configuration, installs the signal handlers and runs the daemon until it stops.
+fn run_daemon(options: Options) -> Result<(), Exit> {
+    let (config, loader) = options.load_config()?;
+    let (stop, reload) = signal_flags()?;
+    let run_options = RunOptions { dirs: options.dirs, stop, reload, loader, test_hooks: options.test_hooks };
+    run(config, run_options).map_err(|e| {
+        let text = frond_binmain::error_text(&e);
+        // Hands that clash (two on one element, an element the rig lacks) are a problem of the
+        // configuration, as the config file's own problems are: exit 2.
+        if matches!(e, frondd::error::DaemonError::Hand { .. }) {
+            Exit::Usage(vec![text])
+        } else {
+            Exit::Failure(text)
+        }
+    })
+}
+
+/// Why `frondd` stopped with an error, and so its exit status.
+enum Exit {
+    /// The command line or the configuration is wrong: every problem, one line each; exit 2.
+    Usage(Vec<String>),
+    /// Anything else: exit 1.
+    Failure(String),
+}
+
+impl Exit {
+    /// Says why, once, on stderr (the journal under systemd: not also as a log line), and gives
+    /// the exit status.
+    fn report(self) -> ExitCode {
+        match self {
+            Exit::Usage(problems) => {
+                for problem in problems {
+                    frond_binmain::say_error("frondd", &problem);
+                }
                 ExitCode::from(2)
-            } else {
+            }
+            Exit::Failure(text) => {
+                frond_binmain::say_error("frondd", &text);
                 ExitCode::FAILURE
             }
         }
