@@ -161,12 +161,15 @@ fn file_key(path: &Path) -> Option<FileKey> {
     Some((m.len(), m.modified().ok(), m.ino()))
 }
 
-/// One take's summary for the list (the take read once, within the take size limit).
+/// One take's summary for the list (the take read once, within the take size limit). Its frames
+/// and duration are those of the take's main element, as `frond take list` counts them: the
+/// plant's, or a layer take's layer (`TakeScan::main_frame_count`; a take of `frond record
+/// layer` holds only its layer's frames).
 fn summarise(dir: &Path, name: &str) -> Value {
     match read(dir, name) {
         Ok((scan, size)) => json!({
             "name": name,
-            "frames": scan.frames.iter().filter(|f| f.element == 0).count(),
+            "frames": scan.main_frame_count(),
             "duration_s": scan.duration_s(),
             "size_bytes": size,
             "state": scan.state(size),

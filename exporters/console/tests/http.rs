@@ -121,6 +121,12 @@ fn write_take(dir: &Path, name: &str, frames: usize, step_s: f64) {
 
 /// [`write_take`] with a header that names rig `rig`.
 fn write_take_on(dir: &Path, name: &str, rig: &str, frames: usize, step_s: f64) {
+    write_take_of(dir, name, rig, 0, frames, step_s)
+}
+
+/// [`write_take_on`] with every frame on element `element` (a take of `frond record layer`
+/// holds only its layer's frames).
+fn write_take_of(dir: &Path, name: &str, rig: &str, element: u16, frames: usize, step_s: f64) {
     let mut out = Vec::new();
     encode_file_start(&mut out);
     encode_record(&TakeRecord::Header(TakeHeader::offline(name, rig, 1000)), &mut out);
@@ -131,7 +137,7 @@ fn write_take_on(dir: &Path, name: &str, rig: &str, frames: usize, step_s: f64) 
             device_time_us: (t * 1e6) as u64,
             host_ns: (t * 1e9) as u64,
             flags: 0,
-            element: 0,
+            element,
             pose: PoseFrame { t, joints_deg: [[(i % 30) as f32, 0.0, 0.0]; JOINTS] },
             hand: HandSample { t, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
         };
@@ -376,6 +382,21 @@ fn the_takes_index_reads_a_take_again_only_when_its_file_changed() {
     assert_eq!(now["takes"].as_array().unwrap().len(), 1, "{now}");
     assert_eq!(now["takes"][0]["name"], "b");
     assert_eq!(now["takes"][0]["frames"], 3);
+}
+
+#[test]
+fn a_layer_take_lists_the_frames_and_time_of_its_layer() {
+    // A take of `frond record layer` holds only its layer's frames: here 25 frames of element 2,
+    // 0.1 s apart (2.4 s from the first to the last), beside a plant take of 10.
+    let dir = tempfile::tempdir().unwrap();
+    write_take_of(dir.path(), "leaf", "grass", 2, 25, 0.1);
+    write_take(dir.path(), "plant", 10, 0.1);
+    let listed = frond_console::takes::TakeIndex::new(dir.path().to_path_buf()).list();
+    let leaf = &listed["takes"][0];
+    assert_eq!(leaf["name"], "leaf", "{listed}");
+    assert_eq!(leaf["frames"], 25, "{listed}");
+    assert!((leaf["duration_s"].as_f64().unwrap() - 2.4).abs() < 1e-9, "{listed}");
+    assert_eq!(listed["takes"][1]["frames"], 10, "{listed}");
 }
 
 #[test]
