@@ -24,7 +24,8 @@ the background (given, or inpainted where masks fully cover the picture). Per fr
 Pixels outside every layer never change (unless --sway-margin lets layers grow).
 
 Live: `serve` subscribes to frondd (--socket-dir, env FROND_SOCKET_DIR): the root joint's bend
-sets the wind direction and strength, the sway rate the interval. Without a daemon it falls back to
+sets the wind direction and strength (full at 15.075 degrees, the simulated plant's bend in a
+10 m/s wind), the sway rate the interval. Without a daemon it falls back to
 a procedural wind with the page's settings and says so, or with --wind-sim to seed 003's
 simulation wind (speed=S,dir=DEG,gust=G,seed=N[,until=S], as frond take simulate --wind; strength
 = speed / 10 m/s); render takes --wind-sim too.
@@ -46,7 +47,12 @@ Examples:
 
 /// `frond-warp`.
 #[derive(Debug, Parser)]
-#[command(name = "frond-warp", version, about = "Hand-driven vegetation-in-the-wind preview (seed 001)", long_about = ABOUT)]
+#[command(
+    name = "frond-warp",
+    version,
+    about = "Hand-driven vegetation-in-the-wind preview (seed 001)",
+    long_about = ABOUT
+)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]

@@ -5,9 +5,16 @@
 //! about +X, yaw about +Z) tilts the stem tip `R (0, 1, 0)`. The tip's sideways offset `x` is the
 //! wind's horizontal component on the picture and its offset towards the viewer `z` the vertical
 //! one (the picture is seen from slightly above: towards the viewer is down). The bend angle sets
-//! the strength (`bend / full_bend_deg`, clamped to [0, 1]) and the sway rate (direction reversals
+//! the strength (`bend / FULL_BEND_DEG`, clamped to [0, 1]) and the sway rate (direction reversals
 //! of the bend, with hysteresis) sets the interval between injections: a hand swaying at 1 Hz blows
 //! a gust per second; a hand held still and bent blows a steady wind (interval 0).
+//!
+//! The two mappings are calibrated on each other: [`FULL_BEND_DEG`] is the bend of seed 003's
+//! simulated plant (section 4.2) at rest in a steady wind of [`FULL_SIM_WIND_M_S`], the wind at
+//! which the simulation mapping reaches full strength. A plant bent as that wind bends it blows the
+//! picture as that wind does, so a simulated take (`frond take simulate`, or `frond sim start`
+//! live) and `--wind-sim` of the same spec move the picture alike; a hand that bends the plant as
+//! far is a wind that strong.
 //!
 //! Simulation mapping ([`SimWind`]): the wind that blows seed 003's simulated plant
 //! (`frond_motion::sim::Wind`, the spec `frond take simulate --wind` and `frond sim start --wind`
@@ -20,22 +27,36 @@ use frond_protocol::convention::joint_matrix;
 
 use crate::params::WindParams;
 
-/// Bend of the root joint at which the strength reaches 1.
-pub const FULL_BEND_DEG: f32 = 40.0;
+/// Bend of the root joint at which the strength reaches 1, degrees: the root bend of seed 003's
+/// simulated plant (section 4.2, Eq. 1-3: `frond_motion::sim` with the default `[sim]` of
+/// frondd's default rig, grass) at rest in a steady wind of [`FULL_SIM_WIND_M_S`]. For small
+/// angles the default `[sim]` bends every joint 0.15 rad per 5 m/s, which would be 17.2 degrees
+/// at 10 m/s; the simulation settles at 15.07. A test runs the simulation to rest and checks this
+/// value; the embedded flower and shrub rigs (default `[sim]` too) settle within 0.2 degrees of it.
+pub const FULL_BEND_DEG: f32 = 15.075;
 /// A reversal counts only after the bend came back this far from its extreme.
 const REVERSAL_HYSTERESIS_DEG: f32 = 2.0;
 /// Without a reversal for this long, the wind is steady.
 const SWAY_TIMEOUT_S: f64 = 3.0;
 
-/// Direction (degrees, 0 = right, 90 = down) and strength in [0, 1] from a root joint rotation.
-pub fn hand_to_wind(root_deg: [f32; 3]) -> (f32, f32) {
+/// The stem tip `R (0, 1, 0)` of a root joint rotation (the rotation matrix's second column).
+fn stem_tip(root_deg: [f32; 3]) -> [f64; 3] {
     let m = joint_matrix(root_deg);
-    // Tip of the stem: R * (0, 1, 0) = second column.
-    let tip = [m[0][1], m[1][1], m[2][1]];
-    let bend_deg = (tip[1].clamp(-1.0, 1.0)).acos().to_degrees() as f32;
+    [m[0][1], m[1][1], m[2][1]]
+}
+
+/// How far a root joint rotation tilts the stem from upright, degrees (0..=180).
+pub fn root_bend_deg(root_deg: [f32; 3]) -> f32 {
+    stem_tip(root_deg)[1].clamp(-1.0, 1.0).acos().to_degrees() as f32
+}
+
+/// Direction (degrees, 0 = right, 90 = down) and strength in [0, 1] (`bend / FULL_BEND_DEG`)
+/// from a root joint rotation.
+pub fn hand_to_wind(root_deg: [f32; 3]) -> (f32, f32) {
+    let tip = stem_tip(root_deg);
     let (x, z) = (tip[0] as f32, tip[2] as f32);
     let direction = if x.abs() + z.abs() < 1e-9 { 0.0 } else { z.atan2(x).to_degrees() };
-    (direction, (bend_deg / FULL_BEND_DEG).clamp(0.0, 1.0))
+    (direction, (root_bend_deg(root_deg) / FULL_BEND_DEG).clamp(0.0, 1.0))
 }
 
 /// Measures how fast the hand sways from the root joint's bend over time.
@@ -112,7 +133,7 @@ impl HandWind {
 }
 
 /// Wind speed of the simulation at which the picture's wind strength reaches 1, m/s (a strong
-/// breeze, Beaufort 5-6).
+/// breeze, Beaufort 5-6); the simulated plant's bend in it is [`FULL_BEND_DEG`].
 pub const FULL_SIM_WIND_M_S: f64 = 10.0;
 
 /// Direction (degrees, 0 = right, 90 = down) and strength in [0, 1] of a simulation wind
@@ -186,14 +207,49 @@ mod tests {
     #[test]
     fn upright_root_is_calm_and_bends_map_to_directions() {
         assert_eq!(hand_to_wind([0.0, 0.0, 0.0]).1, 0.0);
-        // Yaw about +Z by -20 degrees tips the stem towards +X: wind to the right, half strength.
-        let (dir, s) = hand_to_wind([0.0, -20.0, 0.0]);
-        assert!(dir.abs() < 1e-3 && (s - 0.5).abs() < 1e-3, "{dir} {s}");
-        // Pitch about +X by +20 degrees tips it towards +Z (the viewer): wind downwards.
-        let (dir, s) = hand_to_wind([20.0, 0.0, 0.0]);
-        assert!((dir - 90.0).abs() < 1e-3 && (s - 0.5).abs() < 1e-3, "{dir} {s}");
+        // Yaw about +Z by -6 degrees tips the stem towards +X: wind to the right, 6/15.075 of
+        // the full strength.
+        let (dir, s) = hand_to_wind([0.0, -6.0, 0.0]);
+        assert!(dir.abs() < 1e-3 && (s - 6.0 / 15.075).abs() < 1e-4, "{dir} {s}");
+        // Pitch about +X by +6 degrees tips it towards +Z (the viewer): wind downwards.
+        let (dir, s) = hand_to_wind([6.0, 0.0, 0.0]);
+        assert!((dir - 90.0).abs() < 1e-3 && (s - 6.0 / 15.075).abs() < 1e-4, "{dir} {s}");
         // Beyond the full bend the strength saturates at 1.
-        assert_eq!(hand_to_wind([0.0, 80.0, 0.0]).1, 1.0);
+        assert_eq!(hand_to_wind([0.0, 20.0, 0.0]).1, 1.0);
+        assert!((root_bend_deg([0.0, -6.0, 0.0]) - 6.0).abs() < 1e-4);
+    }
+
+    /// The root joint of `rig_toml`'s plant (its `[sim]`), simulated from rest in a steady
+    /// `FULL_SIM_WIND_M_S` wind for 20 s, at its last frame; checked to be at rest (the last two
+    /// seconds within 0.001 degrees of it).
+    fn root_at_rest_in_the_full_wind(rig_toml: &str) -> [f32; 3] {
+        let rig = frond_motion::rig::Rig::from_toml_str(rig_toml).unwrap();
+        let spec = format!("speed={FULL_SIM_WIND_M_S},dir=0,gust=0,seed=0").parse().unwrap();
+        let poses = frond_motion::sim::simulate(&rig, &rig.sim, spec, 20.0, 10.0).unwrap();
+        let bends: Vec<f32> = poses.iter().map(|p| root_bend_deg(p.joints_deg[0])).collect();
+        let rest = bends[bends.len() - 1];
+        let settled = &bends[bends.len() - 21..];
+        assert!(settled.iter().all(|b| (b - rest).abs() < 1e-3), "not at rest: {settled:?}");
+        poses[poses.len() - 1].joints_deg[0]
+    }
+
+    #[test]
+    fn full_strength_is_the_simulated_plants_bend_in_the_full_wind() {
+        // Seed 003, section 4.2: frondd's default rig (grass) with its default [sim].
+        let root = root_at_rest_in_the_full_wind(include_str!("../../../rig-files/plants/grass.toml"));
+        let rest = root_bend_deg(root);
+        assert!((rest - FULL_BEND_DEG).abs() < 0.01, "the plant rests at {rest} degrees");
+        // So a plant bent by the full wind blows the picture at the full wind's strength.
+        assert!((hand_to_wind(root).1 - 1.0).abs() < 1e-3, "{:?}", hand_to_wind(root));
+        assert_eq!(sim_to_wind([FULL_SIM_WIND_M_S, 0.0, 0.0]).1, 1.0);
+        // The other embedded rigs' plants rest close by.
+        for rig in [
+            include_str!("../../../rig-files/plants/flower.toml"),
+            include_str!("../../../rig-files/plants/shrub.toml"),
+        ] {
+            let rest = root_bend_deg(root_at_rest_in_the_full_wind(rig));
+            assert!((rest - FULL_BEND_DEG).abs() < 0.2, "a plant rests at {rest} degrees");
+        }
     }
 
     #[test]
@@ -209,10 +265,10 @@ mod tests {
         assert!((wind.interval_s - 1.0).abs() < 0.05, "interval {}", wind.interval_s);
         // Held still and bent: steady wind after the timeout.
         for k in 0..400 {
-            hw.update(5.0 + k as f64 / 100.0, [0.0, -30.0, 0.0], &mut wind);
+            hw.update(5.0 + k as f64 / 100.0, [0.0, -12.0, 0.0], &mut wind);
         }
         assert_eq!(wind.interval_s, 0.0);
-        assert!((wind.strength - 0.75).abs() < 1e-3);
+        assert!((wind.strength - 12.0 / 15.075).abs() < 1e-4);
     }
 
     #[test]

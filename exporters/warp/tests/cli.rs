@@ -179,10 +179,10 @@ fn the_simulation_wind_blows_the_picture() {
     let (pic, mask) = inputs(t.path());
     let render = |extra: &[&str], out: &Path| render_20(&pic, &mask, extra, out);
     // A steady 6 m/s towards +X is strength 6/10 = 0.6 towards the right; so is a hand held
-    // with the root yawed -24 degrees (tip towards +X, 24/40 of the full bend): two mappings
-    // worked out by hand must blow the picture alike.
+    // with the root yawed -9.045 degrees (tip towards +X, 0.6 of the full bend, 15.075 degrees):
+    // two mappings worked out by hand must blow the picture alike.
     let take = t.path().join("held.take");
-    write_take_with(&take, 200, |_| -24.0);
+    write_take_with(&take, 200, |_| -0.6 * 15.075);
     let sim = render(&["--wind-sim", "speed=6,dir=0,gust=0,seed=1"], &t.path().join("sim/"));
     let held = render(&["--take", s(&take)], &t.path().join("held/"));
     let still = render(&["--strength", "0"], &t.path().join("still/"));
@@ -229,6 +229,38 @@ fn the_simulation_wind_blows_the_picture() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_simulated_take_blows_the_picture_as_its_wind_does() {
+    // Seed 003's plant (frondd's default rig, grass, and its default [sim]) simulated from rest
+    // in a steady 10 m/s wind towards +X for 8 s at 100 FPS; its last 2 s (the plant at rest,
+    // bent by that wind) are the take. A plant bent by the full wind blows the picture as that
+    // wind does (`--wind-sim` at 10 m/s is full strength): the same frames within 5 % of the
+    // motion. (A root bend of 40 degrees was full strength: the take blew at 0.38 of it.)
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let rig =
+        frond_motion::rig::Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
+    let spec = "speed=10,dir=0,gust=0,seed=0";
+    let poses = frond_motion::sim::simulate(&rig, &rig.sim, spec.parse().unwrap(), 8.0, 100.0).unwrap();
+    let take = t.path().join("gale.take");
+    let at_rest = poses[600..].iter().enumerate().map(|(k, p)| {
+        let t = k as f64 / 100.0;
+        (frond_motion::PoseFrame { t, ..*p }, frond_motion::HandSample { t, ..Default::default() })
+    });
+    common::write_poses(&take, "grass", at_rest);
+    let render = |extra: &[&str], out: &Path| render_20(&pic, &mask, extra, out);
+    let simulated = render(&["--take", s(&take)], &t.path().join("take/"));
+    let wind = render(&["--wind-sim", spec], &t.path().join("sim/"));
+    let still = render(&["--strength", "0"], &t.path().join("still/"));
+    let mean_diff = |a: &[u8], b: &[u8]| {
+        a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / a.len() as f64
+    };
+    let moved = mean_diff(&wind[19], &still[19]);
+    assert!(moved > 1.0, "the simulation's wind did not move the picture ({moved})");
+    let apart = mean_diff(&simulated[19], &wind[19]);
+    assert!(apart < 0.05 * moved, "the simulated take and its wind disagree: {apart} of {moved}");
 }
 
 #[test]

@@ -36,6 +36,21 @@ pub fn write_take_with(path: &Path, frames: u64, yaw: impl Fn(f64) -> f32) {
 
 /// [`write_take_with`] with a header that names rig `rig`.
 pub fn write_take_on(path: &Path, rig: &str, frames: u64, yaw: impl Fn(f64) -> f32) {
+    write_poses(
+        path,
+        rig,
+        (0..frames).map(|k| {
+            let t = k as f64 / 100.0;
+            let yaw = yaw(t);
+            let pose = PoseFrame { t, joints_deg: [[0.0, yaw, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] };
+            (pose, HandSample { t, wrist_deg: [0.0, yaw, 0.0], thumb_deg: [0.0; 3] })
+        }),
+    );
+}
+
+/// A take on rig `rig` of `frames` (pose and hand sample), 100 Hz apart (frame `k` recorded at
+/// `k / 100` s).
+pub fn write_poses(path: &Path, rig: &str, frames: impl Iterator<Item = (PoseFrame, HandSample)>) {
     let mut out = Vec::new();
     encode_file_start(&mut out);
     encode_record(
@@ -45,19 +60,19 @@ pub fn write_take_on(path: &Path, rig: &str, frames: u64, yaw: impl Fn(f64) -> f
         }),
         &mut out,
     );
-    for k in 0..frames {
-        let t = k as f64 / 100.0;
-        let yaw = yaw(t);
+    let mut written = 0;
+    for (k, (pose, hand)) in (0u64..).zip(frames) {
         let frame = TakeFrame {
             seq: k,
             device_time_us: k * 10_000,
             host_ns: k * 10_000_000,
-            pose: PoseFrame { t, joints_deg: [[0.0, yaw, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]] },
-            hand: HandSample { t, wrist_deg: [0.0, yaw, 0.0], thumb_deg: [0.0; 3] },
+            pose,
+            hand,
             ..TakeFrame::default()
         };
         encode_record(&TakeRecord::Frame(frame), &mut out);
+        written = k + 1;
     }
-    encode_record(&TakeRecord::End { frames }, &mut out);
+    encode_record(&TakeRecord::End { frames: written }, &mut out);
     std::fs::write(path, out).unwrap();
 }
