@@ -41,6 +41,8 @@ struct Args {
     /// Leave out the seed-001 warp preview panel (it only runs while a page shows it).
     #[arg(long)]
     no_warp: bool,
+    #[command(flatten)]
+    log: frond_binmain::LogArgs,
     /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
     #[allow(dead_code)]
     #[command(flatten)]
@@ -116,5 +118,12 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-console", Args::command) {
         return code;
     }
-    frond_binmain::exit("frond-console", run(Args::parse()))
+    let args: Args = match frond_binmain::parse("frond-console") {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
+    if let Err(code) = args.log.init("frond-console") {
+        return code;
+    }
+    frond_binmain::exit("frond-console", run(args))
 }

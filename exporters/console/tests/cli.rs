@@ -97,6 +97,24 @@ fn a_token_file_others_may_read_is_refused_with_the_fix() {
 }
 
 #[test]
+fn the_log_level_is_checked_as_frondd_checks_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // A level that does not parse is a usage error naming the option and the value.
+    let (code, stderr) = refused(&dir, &["--log-level", "frond=loud"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.starts_with("frond-console: error: --log-level \"frond=loud\": "), "{stderr}");
+    // A level and a filter are taken: the console starts and says where it listens.
+    for level in ["debug", "warn,frond_sdk=trace"] {
+        let mut child = console(&dir, &["--log-level", level]);
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let _ = child.kill();
+        let _ = child.wait();
+        assert!(line.starts_with("frond-console: http://127.0.0.1:"), "--log-level {level}: {line:?}");
+    }
+}
+
+#[test]
 fn a_full_stdout_ends_the_console_with_an_error_not_a_panic() {
     // The URL line to a full disk (/dev/full): an error like any other, exit 1; `println!`
     // panicked (exit 101).

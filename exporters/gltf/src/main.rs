@@ -16,11 +16,15 @@ use frond_gltf::{BakeOptions, Baked, Baker, Field, Format, LoadedRig, TakeInput,
 #[command(
     name = "frond-gltf",
     version,
-    about = "Bake frond takes into skinned, animated glTF 2.0 (GLB) files"
+    about = "Bake frond takes into skinned, animated glTF 2.0 (GLB) files",
+    // `--log-level` before or after the subcommand.
+    mut_arg("log_level", |a| a.global(true))
 )]
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    #[command(flatten)]
+    log: frond_binmain::LogArgs,
     /// Handled by `DocsArgs::early` before parsing; here for `--help` and the man page.
     #[allow(dead_code)]
     #[command(flatten)]
@@ -108,7 +112,13 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-gltf", Cli::command) {
         return code;
     }
-    let cli = Cli::parse();
+    let cli: Cli = match frond_binmain::parse("frond-gltf") {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
+    if let Err(code) = cli.log.init("frond-gltf") {
+        return code;
+    }
     let result = match cli.command {
         Command::Bake(a) => bake(a),
         Command::Live(a) => live(a),

@@ -319,3 +319,27 @@ fn names_from_a_take_reach_the_terminal_escaped() {
     );
     assert!(stderr.contains(r"take layer 1 `vine\u{1b}[2J` matches no secondary element"), "{stderr}");
 }
+
+#[test]
+fn the_log_level_is_checked_as_frondd_checks_it() {
+    let (dir, take, keep) = scratch("t");
+    let k = keep.to_str().unwrap();
+    let out = format!("{k}/out.glb");
+    let bake = ["bake", "--take", take.to_str().unwrap(), "--rig", "grass", "-o", &out, "--quiet"];
+    // A level that does not parse is a usage error naming the option and the value, before or
+    // after the subcommand, and nothing is baked.
+    let e = refused(&keep, &[&bake[..], &["--log-level", "frond=loud"]].concat());
+    assert!(e.starts_with("frond-gltf: error: --log-level \"frond=loud\": "), "{e}");
+    let e = refused(&keep, &[&["--log-level", "loud=5=6"][..], &bake[..]].concat());
+    assert!(e.starts_with("frond-gltf: error: --log-level \"loud=5=6\": "), "{e}");
+    // A level and a filter are taken, in either place: the bake is made.
+    for args in [
+        [&bake[..], &["--log-level", "debug"]].concat(),
+        [&["--log-level", "warn,frond_sdk=trace"][..], &bake[..]].concat(),
+    ] {
+        run_ok(&args);
+        assert!(std::fs::metadata(&out).unwrap().len() > 0, "{args:?}");
+        std::fs::remove_file(&out).unwrap();
+    }
+    drop(dir);
+}

@@ -51,12 +51,17 @@ Examples:
     name = "frond-warp",
     version,
     about = "Hand-driven vegetation-in-the-wind preview (seed 001)",
-    long_about = ABOUT
+    long_about = ABOUT,
+    // `--log-level` before or after the subcommand.
+    mut_arg("log_level", |a| a.global(true))
 )]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// `--log-level LEVEL` (what `frond-warp serve` logs of its daemon connection).
+    #[command(flatten)]
+    pub log: frond_binmain::LogArgs,
     /// `--man DIR`, `--completions SHELL`: handled by `DocsArgs::early` before parsing.
     #[command(flatten)]
     pub docs: frond_binmain::DocsArgs,

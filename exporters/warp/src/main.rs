@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use anyhow::Context;
-use clap::{CommandFactory, Parser};
+use clap::CommandFactory;
 use frond_warp::cli::{BenchArgs, CageCommand, Cli, Command, MorphArgs, RenderArgs, SceneArgs, ServeArgs};
 use frond_warp::params::Checker;
 use frond_warp::render::{OutputKind, PoseTrack, WindDriver};
@@ -13,7 +13,13 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-warp", Cli::command) {
         return code;
     }
-    let cli = Cli::parse();
+    let cli: Cli = match frond_binmain::parse("frond-warp") {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
+    if let Err(code) = cli.log.init("frond-warp") {
+        return code;
+    }
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Serve(args) => serve(args),

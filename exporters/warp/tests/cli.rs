@@ -264,6 +264,36 @@ fn a_simulated_take_blows_the_picture_as_its_wind_does() {
 }
 
 #[test]
+fn the_log_level_is_checked_as_frondd_checks_it() {
+    let t = tempfile::tempdir().unwrap();
+    let (pic, mask) = inputs(t.path());
+    let out = t.path().join("out/");
+    let render =
+        ["render", "--image", s(&pic), "--layer", s(&mask), "--frames", "2", "-o", s(&out), "--quiet"];
+    // A level that does not parse is a usage error naming the option and the value, before or
+    // after the subcommand, and nothing is rendered.
+    for args in [
+        [&render[..], &["--log-level", "frond=loud"]].concat(),
+        [&["--log-level", "frond=loud"][..], &render[..]].concat(),
+    ] {
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).starts_with("frond-warp: error: --log-level \"frond=loud\": "), "{}", stderr(&o));
+        assert!(!out.exists(), "{args:?} rendered");
+    }
+    // A level and a filter are taken, in either place: the frames are rendered.
+    for args in [
+        [&render[..], &["--log-level", "debug"]].concat(),
+        [&["--log-level", "warn,frond_sdk=trace"][..], &render[..]].concat(),
+    ] {
+        let o = run(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        assert_eq!(frames(&out).len(), 2, "{args:?}");
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+#[test]
 fn bad_input_gives_clear_errors() {
     let t = tempfile::tempdir().unwrap();
     let (pic, mask) = inputs(t.path());
