@@ -163,125 +163,18 @@ impl CageTree {
     }
 }
 
+/// The tree a file describes, or every problem with it (at most [`MAX_PROBLEMS`] listed):
+/// limits first, then ids and parents, then each cage's kind and outline.
 fn validate(raw: RawTree) -> Result<CageTree, CageError> {
     let mut problems = Vec::new();
-    let mut push = |p: String| problems.push(p);
-    if raw.version != CAGE_FILE_VERSION {
-        push(format!("version: {} is not {CAGE_FILE_VERSION}, the version this frond reads", raw.version));
-    }
-    let [w, h] = raw.size;
-    for (name, v) in [("size[0] (width)", w), ("size[1] (height)", h)] {
-        if !(1..=MAX_SIDE_PX).contains(&v) {
-            push(format!("{name}: {v} px is outside 1..={MAX_SIDE_PX}"));
-        }
-    }
-    if raw.cages.is_empty() || raw.cages.len() > MAX_CAGES {
-        push(format!("cages: {} cages; a tree has 1 to {MAX_CAGES}", raw.cages.len()));
+    if !check_limits(&raw, &mut problems) {
         return Err(CageError::Invalid(problems));
     }
-    let total: usize = raw.cages.iter().map(|c| c.vertices.len()).sum();
-    if total > MAX_TOTAL_VERTICES {
-        push(format!("cages: {total} vertices in all; at most {MAX_TOTAL_VERTICES}"));
-        return Err(CageError::Invalid(problems));
-    }
-    let name = |i: usize, c: &RawCage| format!("cages[{i}] (id {})", c.id);
-    let mut by_id = HashMap::new();
-    for (i, c) in raw.cages.iter().enumerate() {
-        if let Some(first) = by_id.insert(c.id, i) {
-            push(format!("{}: id {} is already cages[{first}]'s", name(i, c), c.id));
-        }
-    }
-    // Parents: existing, and no cycles.
-    let parent_index = |c: &RawCage| c.parent.and_then(|p| by_id.get(&p).copied());
-    for (i, c) in raw.cages.iter().enumerate() {
-        match c.parent {
-            Some(p) if p == c.id => push(format!("{}: parent: a cage cannot be its own parent", name(i, c))),
-            Some(p) if !by_id.contains_key(&p) => push(format!("{}: parent: no cage has id {p}", name(i, c))),
-            _ => {}
-        }
-        let (mut at, mut steps) = (i, 0);
-        while let Some(p) = parent_index(&raw.cages[at]) {
-            steps += 1;
-            if p == i || steps > raw.cages.len() {
-                push(format!("{}: parent: the parents loop back to this cage", name(i, c)));
-                break;
-            }
-            at = p;
-        }
-    }
-    let mut children = vec![Vec::new(); raw.cages.len()];
-    for (i, c) in raw.cages.iter().enumerate() {
-        if let Some(p) = parent_index(c)
-            && p != i
-        {
-            children[p].push(i);
-        }
-    }
-    for (i, c) in raw.cages.iter().enumerate() {
-        let n = c.vertices.len();
-        match (c.kind, children[i].is_empty()) {
-            (CageKind::Leaf, false) => push(format!(
-                "{}: kind: a leaf cage has no children, this one has {}",
-                name(i, c),
-                children[i].len()
-            )),
-            (CageKind::Internal, true) => push(format!(
-                "{}: kind: an internal cage carries children, this one has none (make it a leaf)",
-                name(i, c)
-            )),
-            _ => {}
-        }
-        if !(3..=MAX_CAGE_VERTICES).contains(&n) {
-            push(format!("{}: vertices: {n} vertices; a cage has 3 to {MAX_CAGE_VERTICES}", name(i, c)));
-            continue;
-        }
-        let mut shape_ok = true;
-        for (k, v) in c.vertices.iter().enumerate() {
-            if !(v[0].is_finite() && v[1].is_finite()) {
-                push(format!("{} vertex {k}: [{}, {}] is not a finite point", name(i, c), v[0], v[1]));
-                shape_ok = false;
-            } else if v[0] < 0.0 || v[1] < 0.0 || v[0] > f64::from(w) || v[1] > f64::from(h) {
-                push(format!(
-                    "{} vertex {k}: [{}, {}] lies outside the {w}x{h} picture",
-                    name(i, c),
-                    v[0],
-                    v[1]
-                ));
-            }
-            if *v == c.vertices[(k + 1) % n] {
-                push(format!("{} vertex {k}: repeats the next vertex", name(i, c)));
-                shape_ok = false;
-            }
-        }
-        if !shape_ok {
-            continue;
-        }
-        let area2 = signed_area2(&c.vertices);
-        if area2 <= 0.0 {
-            push(format!(
-                "{}: vertices run clockwise (signed area {:.1} px^2); cages run counter-clockwise \
-                 in image coordinates as written: reverse them",
-                name(i, c),
-                area2 / 2.0
-            ));
-        } else if !Polygon::new(to_line_string(&c.vertices, true), Vec::new()).is_valid() {
-            push(format!("{}: vertices: the outline crosses itself", name(i, c)));
-        }
-        if let Some(p) = parent_index(c)
-            && p != i
-            && (3..=MAX_CAGE_VERTICES).contains(&raw.cages[p].vertices.len())
-        {
-            let parent = &raw.cages[p].vertices;
-            if let Some(k) = c.vertices.iter().position(|&v| outside_by(parent, v) > INSIDE_TOLERANCE_PX) {
-                push(format!(
-                    "{} vertex {k}: [{}, {}] lies outside its parent cage id {} (by more than {INSIDE_TOLERANCE_PX} px)",
-                    name(i, c),
-                    c.vertices[k][0],
-                    c.vertices[k][1],
-                    raw.cages[p].id
-                ));
-            }
-        }
+    let by_id = index_ids(&raw.cages, &mut problems);
+    check_parents(&raw.cages, &by_id, &mut problems);
+    let children = children_of(&raw.cages, &by_id);
+    for (i, kids) in children.iter().enumerate() {
+        check_cage(&raw, i, &by_id, kids, &mut problems);
     }
     if !problems.is_empty() {
         if problems.len() > MAX_PROBLEMS {
@@ -291,7 +184,182 @@ fn validate(raw: RawTree) -> Result<CageTree, CageError> {
         }
         return Err(CageError::Invalid(problems));
     }
-    // Parents before children: breadth first from the roots, ids kept.
+    Ok(in_tree_order(raw, &by_id, &children))
+}
+
+/// The version, the picture's size and the counts; `false` when the cages are too many (or
+/// none) to look at one by one.
+fn check_limits(raw: &RawTree, problems: &mut Vec<String>) -> bool {
+    if raw.version != CAGE_FILE_VERSION {
+        problems.push(format!(
+            "version: {} is not {CAGE_FILE_VERSION}, the version this frond reads",
+            raw.version
+        ));
+    }
+    let [w, h] = raw.size;
+    for (name, v) in [("size[0] (width)", w), ("size[1] (height)", h)] {
+        if !(1..=MAX_SIDE_PX).contains(&v) {
+            problems.push(format!("{name}: {v} px is outside 1..={MAX_SIDE_PX}"));
+        }
+    }
+    if raw.cages.is_empty() || raw.cages.len() > MAX_CAGES {
+        problems.push(format!("cages: {} cages; a tree has 1 to {MAX_CAGES}", raw.cages.len()));
+        return false;
+    }
+    let total: usize = raw.cages.iter().map(|c| c.vertices.len()).sum();
+    if total > MAX_TOTAL_VERTICES {
+        problems.push(format!("cages: {total} vertices in all; at most {MAX_TOTAL_VERTICES}"));
+        return false;
+    }
+    true
+}
+
+/// How a problem names cage `i`: its place in the file and its id.
+fn cage_name(i: usize, c: &RawCage) -> String {
+    format!("cages[{i}] (id {})", c.id)
+}
+
+/// Each id's index in the file (the first, for an id given twice, which is a problem).
+fn index_ids(cages: &[RawCage], problems: &mut Vec<String>) -> HashMap<u32, usize> {
+    let mut by_id = HashMap::new();
+    for (i, c) in cages.iter().enumerate() {
+        if let Some(first) = by_id.insert(c.id, i) {
+            problems.push(format!("{}: id {} is already cages[{first}]'s", cage_name(i, c), c.id));
+        }
+    }
+    by_id
+}
+
+/// The index of `c`'s parent, if it names an existing cage.
+fn parent_index(by_id: &HashMap<u32, usize>, c: &RawCage) -> Option<usize> {
+    c.parent.and_then(|p| by_id.get(&p).copied())
+}
+
+/// Parents: existing, and no cycles.
+fn check_parents(cages: &[RawCage], by_id: &HashMap<u32, usize>, problems: &mut Vec<String>) {
+    for (i, c) in cages.iter().enumerate() {
+        match c.parent {
+            Some(p) if p == c.id => {
+                problems.push(format!("{}: parent: a cage cannot be its own parent", cage_name(i, c)))
+            }
+            Some(p) if !by_id.contains_key(&p) => {
+                problems.push(format!("{}: parent: no cage has id {p}", cage_name(i, c)))
+            }
+            _ => {}
+        }
+        let (mut at, mut steps) = (i, 0);
+        while let Some(p) = parent_index(by_id, &cages[at]) {
+            steps += 1;
+            if p == i || steps > cages.len() {
+                problems.push(format!("{}: parent: the parents loop back to this cage", cage_name(i, c)));
+                break;
+            }
+            at = p;
+        }
+    }
+}
+
+/// Each cage's children's indices, in file order.
+fn children_of(cages: &[RawCage], by_id: &HashMap<u32, usize>) -> Vec<Vec<usize>> {
+    let mut children = vec![Vec::new(); cages.len()];
+    for (i, c) in cages.iter().enumerate() {
+        if let Some(p) = parent_index(by_id, c)
+            && p != i
+        {
+            children[p].push(i);
+        }
+    }
+    children
+}
+
+/// Cage `i` on its own: its kind against its children, its vertices (count, finite, inside the
+/// picture, none repeated), its winding, a simple outline, and inside its parent.
+fn check_cage(
+    raw: &RawTree,
+    i: usize,
+    by_id: &HashMap<u32, usize>,
+    children: &[usize],
+    problems: &mut Vec<String>,
+) {
+    let c = &raw.cages[i];
+    let [w, h] = raw.size;
+    let n = c.vertices.len();
+    match (c.kind, children.is_empty()) {
+        (CageKind::Leaf, false) => problems.push(format!(
+            "{}: kind: a leaf cage has no children, this one has {}",
+            cage_name(i, c),
+            children.len()
+        )),
+        (CageKind::Internal, true) => problems.push(format!(
+            "{}: kind: an internal cage carries children, this one has none (make it a leaf)",
+            cage_name(i, c)
+        )),
+        _ => {}
+    }
+    if !(3..=MAX_CAGE_VERTICES).contains(&n) {
+        problems.push(format!(
+            "{}: vertices: {n} vertices; a cage has 3 to {MAX_CAGE_VERTICES}",
+            cage_name(i, c)
+        ));
+        return;
+    }
+    let mut shape_ok = true;
+    for (k, v) in c.vertices.iter().enumerate() {
+        if !(v[0].is_finite() && v[1].is_finite()) {
+            problems.push(format!(
+                "{} vertex {k}: [{}, {}] is not a finite point",
+                cage_name(i, c),
+                v[0],
+                v[1]
+            ));
+            shape_ok = false;
+        } else if v[0] < 0.0 || v[1] < 0.0 || v[0] > f64::from(w) || v[1] > f64::from(h) {
+            problems.push(format!(
+                "{} vertex {k}: [{}, {}] lies outside the {w}x{h} picture",
+                cage_name(i, c),
+                v[0],
+                v[1]
+            ));
+        }
+        if *v == c.vertices[(k + 1) % n] {
+            problems.push(format!("{} vertex {k}: repeats the next vertex", cage_name(i, c)));
+            shape_ok = false;
+        }
+    }
+    if !shape_ok {
+        return;
+    }
+    let area2 = signed_area2(&c.vertices);
+    if area2 <= 0.0 {
+        problems.push(format!(
+            "{}: vertices run clockwise (signed area {:.1} px^2); cages run counter-clockwise \
+             in image coordinates as written: reverse them",
+            cage_name(i, c),
+            area2 / 2.0
+        ));
+    } else if !Polygon::new(to_line_string(&c.vertices, true), Vec::new()).is_valid() {
+        problems.push(format!("{}: vertices: the outline crosses itself", cage_name(i, c)));
+    }
+    if let Some(p) = parent_index(by_id, c)
+        && p != i
+        && (3..=MAX_CAGE_VERTICES).contains(&raw.cages[p].vertices.len())
+    {
+        let parent = &raw.cages[p].vertices;
+        if let Some(k) = c.vertices.iter().position(|&v| outside_by(parent, v) > INSIDE_TOLERANCE_PX) {
+            problems.push(format!(
+                "{} vertex {k}: [{}, {}] lies outside its parent cage id {} (by more than {INSIDE_TOLERANCE_PX} px)",
+                cage_name(i, c),
+                c.vertices[k][0],
+                c.vertices[k][1],
+                raw.cages[p].id
+            ));
+        }
+    }
+}
+
+/// The valid tree with parents before children (breadth first from the roots), ids kept and
+/// parent and child links turned into indices of the new order.
+fn in_tree_order(raw: RawTree, by_id: &HashMap<u32, usize>, children: &[Vec<usize>]) -> CageTree {
     let mut order: Vec<usize> = (0..raw.cages.len()).filter(|&i| raw.cages[i].parent.is_none()).collect();
     let mut k = 0;
     while k < order.len() {
@@ -316,7 +384,7 @@ fn validate(raw: RawTree) -> Result<CageTree, CageError> {
             }
         })
         .collect();
-    Ok(CageTree { size: raw.size, cages })
+    CageTree { size: raw.size, cages }
 }
 
 /// 0 when `p` is inside the closed polygon (or on it), else its distance to the outline.
