@@ -10,24 +10,23 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender, bounded};
 use frond_device::HandSource;
+use frond_motion::take::TakeFrame;
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
-use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION};
+use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION, Pose};
 use tracing::{error, info, warn};
 
 use crate::config::Config;
 use crate::control::{AccessPolicy, ControlContext, DaemonState, HandState, Setup, spawn_control};
-use crate::engine::{Engine, EngineLinks, HandInput};
+use crate::engine::{Engine, EngineEnds, HandInput};
 use crate::error::DaemonError;
-use crate::handoff::{
-    ElementsCell, Garbage, LoopCommand, LostSource, MAX_HANDS, MAX_SUBSCRIBERS, PublishQueue,
-};
+use crate::handoff::{Garbage, LoopCommand, LostSource, MAX_HANDS, PublisherWake, SlowLane};
 use crate::notify::Notifier;
 use crate::publisher::{
-    PUBLISH_QUEUE_FRAMES, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
+    HelloSource, PUBLISH_QUEUE_FRAMES, PublisherConfig, SubscriberRegistry, spawn_acceptor, spawn_publisher,
 };
 use crate::realtime::{lock_memory, spawn_loop};
 use crate::recorder::{RecorderCounters, RecorderMsg, spawn_recorder};
-use crate::source::{SourceFactory, open_source};
+use crate::source::{OpenedSource, SourceFactory, open_source};
 use crate::stats::LoopStats;
 
 /// Rigs built into the binary, by name.
@@ -184,31 +183,99 @@ fn set_up_hands(config: &Config, rig: &Rig) -> Result<Vec<ResolvedHand>, DaemonE
     Ok(out)
 }
 
-/// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`).
+/// Runs the daemon until `stop` is set (by SIGTERM/SIGINT in `main`): starts the loop, the
+/// recorder and the threads around them, keeps house on this thread, then shuts down in order.
 pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
     let started = Instant::now();
-    let rig = load_rig(&config.rig)?;
-    let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
-    let filter = filter_for(&config, &rig)?;
+    let setup = load_setup(&config)?;
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
+    let hands = set_up_hands(&config, &setup.rig)?;
+    let mut opened = open_sources(&config, &dirs.socket_dir)?;
+    let (awaited, awaited_rx) = await_absent(&mut opened);
+    let (engine, ends) = Engine::with_hands_and_channels(
+        hand_inputs(&hands, &mut opened, &setup),
+        config.stall.as_nanos() as u64,
+        PUBLISH_QUEUE_FRAMES,
+        crate::recorder::RECORDER_RING_FRAMES,
+    );
+    let EngineEnds {
+        commands,
+        frames,
+        publish_wake,
+        slow,
+        recorder: recorder_frames,
+        reopen,
+        garbage,
+        stats,
+        elements,
+    } = ends;
+    let (rec_tx, rec_rx) = bounded::<RecorderMsg>(64);
+    let realtime = start_realtime(&config, engine, &stats, recorder_frames, rec_rx, &memory)?;
+    let state = initial_state(&setup, hands, &opened, &awaited, realtime.tuning.clone(), started);
+    let ctx = Arc::new(ControlContext {
+        state: Mutex::new(state),
+        stats,
+        registry: Arc::new(SubscriberRegistry::default()),
+        recorder_counters: realtime.recorder_counters.clone(),
+        commands: commands.clone(),
+        recorder: rec_tx.clone(),
+        started,
+        takes_dir: dirs.takes_dir.clone(),
+        tick_rate_hz: config.tick_rate_hz,
+        access: access_policy(&config),
+        test_hooks,
+        elements_cell: elements,
+        recording_session: Mutex::new(()),
+    });
+    // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
+    {
+        let mut state = ctx.lock();
+        ctx.apply_setup(&mut state, setup, true).map_err(|reply| {
+            DaemonError::Setup(format!("applying the rig at start-up: {}", reply_text(&reply)))
+        })?;
+    }
+    let serve_ends = ServeEnds { frames, publish_wake, slow, reopen, awaited: awaited_rx };
+    let serving = serve(&config, &dirs.socket_dir, &ctx, serve_ends)?;
 
-    let hands = set_up_hands(&config, &rig)?;
+    let notifier = Notifier::from_env();
+    notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
+    info!(socket_dir = %dirs.socket_dir.display(), takes_dir = %dirs.takes_dir.display(), "frondd ready");
+
+    let reload_fn = |ctx: &ControlContext| reload_config(ctx, &loader, &config);
+    let sockets = [&serving.pose_socket, &serving.control_socket];
+    housekeeping(&ctx, &garbage, &notifier, &stop, &reload, &reload_fn, &sockets);
+
+    notifier.notify("STOPPING=1");
+    info!("stopping");
+    shut_down(ctx, realtime, serving, (commands, rec_tx), opened)
+}
+
+/// The rig, calibration and filter the configuration names.
+fn load_setup(config: &Config) -> Result<Setup, DaemonError> {
+    let rig = load_rig(&config.rig)?;
+    let calibration = load_calibration(config.calibration.as_deref(), &rig)?;
+    let filter = filter_for(config, &rig)?;
+    Ok(Setup { rig, calibration, filter })
+}
+
+/// Opens every configured hand's source (one whose device is absent is awaited, not refused).
+fn open_sources(config: &Config, socket_dir: &Path) -> Result<Vec<OpenedSource>, DaemonError> {
     let mut opened = Vec::with_capacity(config.hands.len());
     for (i, hand) in config.hands.iter().enumerate() {
-        let source = open_source(&config, i, hand, &dirs.socket_dir)?;
+        let source = open_source(config, i, hand, socket_dir)?;
         if source.source.is_some() {
             info!(hand = %hand.name, kind = %source.kind, path = %source.path, "hand source ready");
         }
         opened.push(source);
     }
+    Ok(opened)
+}
 
-    let stats = Arc::new(LoopStats::default());
-    let (cmd_tx, cmd_rx) = bounded::<LoopCommand>(256);
-    let (rec_tx, rec_rx) = bounded::<RecorderMsg>(64);
-    let (frames_tx, frames_rx) = crate::recorder::frame_ring(crate::recorder::RECORDER_RING_FRAMES);
-    let (reopen_tx, reopen_rx) = bounded::<LostSource>(MAX_HANDS);
+/// Takes the factories of the sources whose device is absent, for the reopen thread: the hands
+/// awaited, and the channel that carries their factories.
+fn await_absent(opened: &mut [OpenedSource]) -> (Vec<usize>, Receiver<(usize, SourceFactory)>) {
     let (await_tx, await_rx) = bounded::<(usize, SourceFactory)>(MAX_HANDS);
     let mut awaited = Vec::new();
     for (i, o) in opened.iter_mut().enumerate() {
@@ -217,61 +284,80 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             awaited.push(i);
         }
     }
-    drop(await_tx);
-    let (garbage_tx, garbage_rx) = bounded::<Garbage>(256);
+    (awaited, await_rx)
+}
 
-    let (publish_queue, publish_rx) = PublishQueue::new(PUBLISH_QUEUE_FRAMES);
-    let publish_wake = publish_queue.wake();
-    let (slow_tx, slow_rx) = bounded(MAX_SUBSCRIBERS);
-    let inputs: Vec<HandInput> = hands
+/// Every hand as the engine takes it: its mapper (its own setup, or the daemon's), its source
+/// (taken from `opened`) and its element.
+fn hand_inputs(hands: &[ResolvedHand], opened: &mut [OpenedSource], setup: &Setup) -> Vec<HandInput> {
+    hands
         .iter()
         .zip(opened.iter_mut())
         .map(|(hand, o)| {
-            let mapper = match &hand.own {
-                Some(own) => Mapper::new(own.rig.mapping(), own.calibration.params(), own.filter),
-                None => Mapper::new(rig.mapping(), calibration.params(), filter),
-            };
+            let own = hand.own.as_ref().unwrap_or(setup);
             HandInput {
-                mapper,
+                mapper: Mapper::new(own.rig.mapping(), own.calibration.params(), own.filter),
                 source: o.source.take(),
                 element: hand.element,
                 follows_setup: hand.own.is_none(),
             }
         })
-        .collect();
-    let elements_cell = Arc::new(ElementsCell::default());
-    let engine = Engine::with_hands(
-        inputs,
-        config.stall.as_nanos() as u64,
-        EngineLinks {
-            commands: cmd_rx,
-            publish: publish_queue,
-            slow: slow_tx,
-            recorder: frames_tx,
-            reopen: reopen_tx,
-            garbage: garbage_tx,
-            stats: stats.clone(),
-            elements: elements_cell.clone(),
-        },
-    );
+        .collect()
+}
 
+/// The realtime loop's and the recorder's threads.
+struct Realtime {
+    /// The loop; gives the engine back when it ends.
+    rt: thread::JoinHandle<Engine>,
+    /// Set to end the loop.
+    stop: Arc<AtomicBool>,
+    /// The recorder.
+    recorder: thread::JoinHandle<()>,
+    /// The recorder's counters, for status.
+    recorder_counters: Arc<RecorderCounters>,
+    /// How the loop runs (scheduling, memory lock, CPU), for status.
+    tuning: String,
+}
+
+/// Starts the recorder and the realtime loop (pinned to its CPU, if one is set) and says how the
+/// loop runs.
+fn start_realtime(
+    config: &Config,
+    engine: Engine,
+    stats: &Arc<LoopStats>,
+    recorder_frames: rtrb::Consumer<TakeFrame>,
+    recorder_rx: Receiver<RecorderMsg>,
+    memory: &str,
+) -> Result<Realtime, DaemonError> {
     let recorder_counters = Arc::new(RecorderCounters::default());
-    let recorder = spawn_recorder(rec_rx, frames_rx, recorder_counters.clone(), config.fsync_interval)?;
-    let loop_stop = Arc::new(AtomicBool::new(false));
+    let recorder =
+        spawn_recorder(recorder_rx, recorder_frames, recorder_counters.clone(), config.fsync_interval)?;
+    let stop = Arc::new(AtomicBool::new(false));
     let (rt, rt_report) =
-        spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), loop_stop.clone())?;
+        spawn_loop(engine, config.tick_rate_hz, config.rt_priority, stats.clone(), stop.clone())?;
     let scheduling = rt_report.recv().unwrap_or_else(|_| "unknown".into());
     let pinning = crate::realtime::pin_thread(&rt, config.rt_cpu);
     info!(rate_hz = config.tick_rate_hz, %scheduling, memory_lock = %memory, cpu = %pinning, "realtime loop running");
-    let realtime = format!("scheduling {scheduling}; memory lock {memory}; pinned to {pinning}");
+    let tuning = format!("scheduling {scheduling}; memory lock {memory}; pinned to {pinning}");
+    Ok(Realtime { rt, stop, recorder, recorder_counters, tuning })
+}
 
+/// The daemon's state at start-up: the setup, every hand with its first event.
+fn initial_state(
+    setup: &Setup,
+    hands: Vec<ResolvedHand>,
+    opened: &[OpenedSource],
+    awaited: &[usize],
+    realtime: String,
+    started: Instant,
+) -> DaemonState {
     let mut state = DaemonState {
-        rig: rig.clone(),
-        calibration: calibration.clone(),
-        filter,
+        rig: setup.rig.clone(),
+        calibration: setup.calibration.clone(),
+        filter: setup.filter,
         hands: hands
             .into_iter()
-            .zip(&opened)
+            .zip(opened)
             .map(|(hand, o)| HandState {
                 name: hand.name,
                 kind: o.kind.clone(),
@@ -296,81 +382,111 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         let first_event = if awaited.contains(&i) { "not present; waiting for it" } else { "opened" };
         state.push_event(started, i, format!("{} {} {first_event}", o.kind, o.path));
     }
-    let ctx = Arc::new(ControlContext {
-        state: Mutex::new(state),
-        stats: stats.clone(),
-        registry: Arc::new(SubscriberRegistry::default()),
-        recorder_counters,
-        commands: cmd_tx.clone(),
-        recorder: rec_tx.clone(),
-        started,
-        takes_dir: dirs.takes_dir.clone(),
-        tick_rate_hz: config.tick_rate_hz,
-        access: AccessPolicy {
-            // SAFETY: geteuid has no preconditions and cannot fail.
-            own_uid: unsafe { libc::geteuid() },
-            // SAFETY: getegid has no preconditions and cannot fail.
-            own_gid: unsafe { libc::getegid() },
-            allowed_uids: config.allowed_uids.clone(),
-            allowed_gids: config.allowed_gids.clone(),
-        },
-        test_hooks,
-        elements_cell,
-        recording_session: Mutex::new(()),
-    });
-    // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
-    {
-        let mut state = ctx.lock();
-        ctx.apply_setup(&mut state, Setup { rig, calibration, filter }, true).map_err(|reply| {
-            DaemonError::Setup(format!("applying the rig at start-up: {}", reply_text(&reply)))
-        })?;
-    }
+    state
+}
 
-    let threads_stop = Arc::new(AtomicBool::new(false));
-    let (pose_listener, pose_path) = bind(&dirs.socket_dir, POSES_SOCKET)?;
-    let hello_ctx = ctx.clone();
-    let hello = Arc::new(move || {
-        let state = hello_ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+/// Who may use the control socket: this daemon's own user and group, and the configured ones.
+fn access_policy(config: &Config) -> AccessPolicy {
+    AccessPolicy {
+        // SAFETY: geteuid has no preconditions and cannot fail.
+        own_uid: unsafe { libc::geteuid() },
+        // SAFETY: getegid has no preconditions and cannot fail.
+        own_gid: unsafe { libc::getegid() },
+        allowed_uids: config.allowed_uids.clone(),
+        allowed_gids: config.allowed_gids.clone(),
+    }
+}
+
+/// The loop's channel ends that the threads around the sockets take.
+struct ServeEnds {
+    /// Frames for the publisher.
+    frames: Receiver<Pose>,
+    /// How the loop wakes the publisher.
+    publish_wake: Arc<PublisherWake>,
+    /// Subscribers moved to the slow lane.
+    slow: Receiver<SlowLane>,
+    /// Sources the loop lost.
+    reopen: Receiver<LostSource>,
+    /// Sources absent at start-up, with their factories.
+    awaited: Receiver<(usize, SourceFactory)>,
+}
+
+/// The threads that serve the sockets and reopen sources, and the sockets they serve.
+struct Serving {
+    /// Set to end the threads that do not take a peer's pace (accept, control, reopen).
+    stop: Arc<AtomicBool>,
+    publisher: thread::JoinHandle<()>,
+    acceptor: thread::JoinHandle<()>,
+    control: thread::JoinHandle<()>,
+    reopener: thread::JoinHandle<()>,
+    pose_socket: OwnedSocket,
+    control_socket: OwnedSocket,
+}
+
+/// Binds both sockets and starts the publisher, the acceptor, the control thread and the reopen
+/// thread.
+fn serve(
+    config: &Config,
+    socket_dir: &Path,
+    ctx: &Arc<ControlContext>,
+    ends: ServeEnds,
+) -> Result<Serving, DaemonError> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (pose_listener, pose_socket) = bind(socket_dir, POSES_SOCKET)?;
+    let publisher_config = PublisherConfig {
+        queue_frames: config.queue_frames,
+        write_timeout: config.write_timeout,
+        max_subscribers: config.max_subscribers,
+    };
+    let publisher = spawn_publisher(
+        ends.frames,
+        ends.publish_wake,
+        ends.slow,
+        ctx.elements_cell.clone(),
+        publisher_config,
+    )?;
+    let acceptor = spawn_acceptor(
+        pose_listener,
+        publisher_config,
+        ctx.commands.clone(),
+        hello_source(ctx),
+        ctx.registry.clone(),
+        stop.clone(),
+    )?;
+    let (control_listener, control_socket) = bind(socket_dir, CONTROL_SOCKET)?;
+    let control = spawn_control(control_listener, ctx.clone(), stop.clone())?;
+    let reopener =
+        spawn_reopener(ends.reopen, ends.awaited, ctx.commands.clone(), ctx.clone(), stop.clone())?;
+    Ok(Serving { stop, publisher, acceptor, control, reopener, pose_socket, control_socket })
+}
+
+/// The `Hello` a new subscriber gets: the rig and element table in force when it connects.
+fn hello_source(ctx: &Arc<ControlContext>) -> HelloSource {
+    let ctx = ctx.clone();
+    Arc::new(move || {
+        let state = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
         Hello {
             protocol_version: PROTOCOL_VERSION,
             daemon_version: env!("CARGO_PKG_VERSION").to_string(),
             rig_name: state.rig.name.clone(),
             joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
-            tick_rate_hz: hello_ctx.tick_rate_hz,
+            tick_rate_hz: ctx.tick_rate_hz,
             elements: state.elements.clone(),
             next_seq: 0,
         }
-    });
-    let publisher = PublisherConfig {
-        queue_frames: config.queue_frames,
-        write_timeout: config.write_timeout,
-        max_subscribers: config.max_subscribers,
-    };
-    let publisher_thread =
-        spawn_publisher(publish_rx, publish_wake, slow_rx, ctx.elements_cell.clone(), publisher)?;
-    let acceptor = spawn_acceptor(
-        pose_listener,
-        publisher,
-        cmd_tx.clone(),
-        hello,
-        ctx.registry.clone(),
-        threads_stop.clone(),
-    )?;
-    let (control_listener, control_path) = bind(&dirs.socket_dir, CONTROL_SOCKET)?;
-    let control = spawn_control(control_listener, ctx.clone(), threads_stop.clone())?;
-    let reopener = spawn_reopener(reopen_rx, await_rx, cmd_tx.clone(), ctx.clone(), threads_stop.clone())?;
+    })
+}
 
-    let notifier = Notifier::from_env();
-    notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
-    info!(socket_dir = %dirs.socket_dir.display(), takes_dir = %dirs.takes_dir.display(), "frondd ready");
-
-    let reload_fn = |ctx: &ControlContext| reload_config(ctx, &loader, &config);
-    let sockets = [&pose_path, &control_path];
-    housekeeping(&ctx, &garbage_rx, &notifier, &stop, &reload, &reload_fn, &sockets);
-
-    // Shutdown: finish the take first, so every frame the loop produced is in it.
-    notifier.notify("STOPPING=1");
-    info!("stopping");
+/// Shuts down in order: finishes the take first (so every frame the loop produced is in it),
+/// stops the loop and the threads, removes the sockets that are still this daemon's, then lets
+/// the publisher and the recorder end and the sources close.
+fn shut_down(
+    ctx: Arc<ControlContext>,
+    realtime: Realtime,
+    serving: Serving,
+    (commands, rec_tx): (Sender<LoopCommand>, Sender<RecorderMsg>),
+    opened: Vec<OpenedSource>,
+) -> Result<(), DaemonError> {
     if ctx.state.lock().unwrap_or_else(|e| e.into_inner()).recording.is_some() {
         match ctx.handle(frond_protocol::ControlRequest::RecordStop) {
             frond_protocol::ControlReply::Recording(r) => {
@@ -379,18 +495,19 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
             other => warn!(?other, "finishing the take at shutdown"),
         }
     }
-    loop_stop.store(true, Relaxed);
-    threads_stop.store(true, Relaxed);
-    wake_listeners(&[&pose_path, &control_path]);
-    let engine = rt.join().map_err(|_| DaemonError::LoopPanicked)?;
-    // The threads that take no peer's pace (each ends within its poll of `threads_stop`), then
-    // the sockets go: nobody new can connect, whatever the rest of the shutdown meets.
+    let Serving { stop, publisher, acceptor, control, reopener, pose_socket, control_socket } = serving;
+    realtime.stop.store(true, Relaxed);
+    stop.store(true, Relaxed);
+    wake_listeners(&[&pose_socket, &control_socket]);
+    let engine = realtime.rt.join().map_err(|_| DaemonError::LoopPanicked)?;
+    // The threads that take no peer's pace (each ends within its poll of `stop`), then the
+    // sockets go: nobody new can connect, whatever the rest of the shutdown meets.
     for (name, handle) in [("accept", acceptor), ("control", control), ("reopen", reopener)] {
         if handle.join().is_err() {
             error!(thread = name, "thread panicked");
         }
     }
-    for socket in [&pose_path, &control_path] {
+    for socket in [&pose_socket, &control_socket] {
         if !socket.remove_if_ours() {
             warn!(path = %socket.path.display(), "left the socket alone: it is no longer the one this daemon created");
         }
@@ -399,15 +516,15 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     // bounded time, never on its peer: `frond_device::LeapSource`) and the publisher's queue,
     // so that the publisher (its writes have a timeout) ends.
     drop(engine);
-    if publisher_thread.join().is_err() {
+    if publisher.join().is_err() {
         error!(thread = "publish", "thread panicked");
     }
-    drop(cmd_tx);
+    drop(commands);
     // Control connections still open hold senders of their own: tell the recorder to end.
     let _ = rec_tx.send(crate::recorder::RecorderMsg::Shutdown);
     drop(rec_tx);
     drop(ctx);
-    if recorder.join().is_err() {
+    if realtime.recorder.join().is_err() {
         error!("recorder thread panicked");
     }
     drop(opened); // unmounts the virtual glove nodes, if any
