@@ -288,7 +288,7 @@ pub(crate) fn recorded(file: &str) -> Vec<Value> {
 }
 
 /// The `which` hand of a recorded frame as a frond hand sample, worked out here from the JSON
-/// as LeapJS defines it (a second implementation beside `frond_motion::leap`): `Hand.pitch`
+/// as LeapJS defines it (a second implementation beside `frond_device::source::leap::frames`): `Hand.pitch`
 /// `atan2(d.y, -d.z)`, `yaw` `atan2(d.x, -d.z)`, `roll` `atan2(n.x, -n.y)` of the palm direction
 /// and normal; the thumb's bends are the angles between its successive bones' directions
 /// (`Bone.direction`: the negated third row of the bone's basis).
@@ -577,8 +577,8 @@ fn a_leap_frame_of_5000_hands_and_an_oversized_message_are_refused_and_counted()
     let ks = knowns(1.0, 2);
     let hand = json!({"id": 1, "type": "left", "direction": [0, 0, -1], "palmNormal": [0, -1, 0]});
     let many = json!({"id": 10, "timestamp": 10, "hands": vec![hand; 5000], "pointables": []}).to_string();
-    assert!(many.len() < frond_motion::leap::MAX_MESSAGE_BYTES, "{} bytes", many.len());
-    let huge = json!({"padding": "x".repeat(frond_motion::leap::MAX_MESSAGE_BYTES)}).to_string();
+    assert!(many.len() < frond_device::source::leap::MAX_MESSAGE_BYTES, "{} bytes", many.len());
+    let huge = json!({"padding": "x".repeat(frond_device::source::leap::MAX_MESSAGE_BYTES)}).to_string();
     // Popped from the end: a good frame, 5,000 hands, a good frame, the huge one.
     let script = vec![huge, frame(2, Some(ks[1])), many, frame(1, Some(ks[0]))];
     let log = dir.path().join("frondd.log");

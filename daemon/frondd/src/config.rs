@@ -218,24 +218,9 @@ impl RawConfig {
     }
 }
 
-/// Which hand source to use.
-#[derive(Debug, Clone, PartialEq)]
-pub enum SourceChoice {
-    /// A matching glove if present, else the virtual glove.
-    Auto,
-    /// The virtual glove (FUSE node, or in-process without FUSE).
-    Virtual,
-    /// The virtual glove in-process only.
-    InProcess,
-    /// A real device only.
-    Hid,
-    /// A JSONL hand recording.
-    Replay(PathBuf),
-    /// `/frond/hand` OSC messages on this UDP address.
-    Osc(String),
-    /// A Leap Motion / Ultraleap tracking service (`leap://HOST:PORT[?hand=left|right]`).
-    Leap(frond_device::LeapAddress),
-}
+/// Which hand source to use: the hand sources' own parsed form, each kind parsed by its backend
+/// in `frond_device::source` (one table, [`frond_device::BACKENDS`]).
+pub use frond_device::SourceSpec as SourceChoice;
 
 /// Validated configuration.
 #[derive(Debug, Clone)]
@@ -312,7 +297,7 @@ impl HandConfig {
     }
 }
 
-/// Parses a source kind (`key` names it in errors).
+/// Parses a source kind (`key` names it in errors) with the backend that takes it.
 fn source_choice(
     errors: &mut Vec<String>,
     key: &str,
@@ -320,39 +305,11 @@ fn source_choice(
     replay: Option<&str>,
     replay_key: &str,
 ) -> SourceChoice {
-    match kind {
-        "auto" => SourceChoice::Auto,
-        "virtual" => SourceChoice::Virtual,
-        "in-process" => SourceChoice::InProcess,
-        "hid" => SourceChoice::Hid,
-        "replay" => match replay {
-            Some(p) => SourceChoice::Replay(PathBuf::from(p)),
-            None => {
-                errors.push(format!("{replay_key}: required when {key} = \"replay\""));
-                SourceChoice::Auto
-            }
-        },
-        osc if osc.starts_with("osc://") => {
-            let addr = &osc["osc://".len()..];
-            if addr.parse::<std::net::SocketAddr>().is_err() {
-                errors.push(format!("{key}: {osc:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001"));
-            }
-            SourceChoice::Osc(addr.to_string())
-        }
-        leap if leap.starts_with("leap://") => match leap.parse::<frond_device::LeapAddress>() {
-            Ok(a) => SourceChoice::Leap(a),
-            Err(e) => {
-                errors.push(format!("{key}: {e}"));
-                SourceChoice::Auto
-            }
-        },
-        other => {
-            errors.push(format!(
-                "{key}: {other:?} is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
-            ));
-            SourceChoice::Auto
-        }
-    }
+    let input = frond_device::SpecInput { key, replay, replay_key };
+    frond_device::parse_spec(kind, &input).unwrap_or_else(|e| {
+        errors.push(e);
+        SourceChoice::Auto
+    })
 }
 
 /// Validates the `[[hands]]` list: names, kinds, and no two hands on one device or address.
@@ -378,10 +335,7 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         let source = match h.kind.as_deref() {
             Some(kind) => source_choice(errors, &key("kind"), kind, h.replay.as_deref(), &key("replay")),
             None => {
-                errors.push(format!(
-                    "{}: required (auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT)",
-                    key("kind")
-                ));
+                errors.push(format!("{}: required ({})", key("kind"), frond_device::kind_names()));
                 SourceChoice::Auto
             }
         };
@@ -405,7 +359,7 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         let comparable = hands.iter().enumerate().filter(|&(j, _)| kind_ok && valid_kind[j]);
         for (j, other) in comparable {
             let same_device = hand.device_path.is_some() && hand.device_path == other.device_path;
-            let same_address = same_service(&hand.source, &other.source);
+            let same_address = hand.source.same_service(&other.source);
             let both_search = matches!(hand.source, SourceChoice::Auto | SourceChoice::Hid)
                 && matches!(other.source, SourceChoice::Auto | SourceChoice::Hid)
                 && hand.device_path.is_none()
@@ -422,28 +376,6 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         hands.push(hand);
     }
     hands
-}
-
-/// Whether two hand sources would read the same service for the same hand: one OSC port
-/// (equal addresses, or one of them every interface: the second could not bind, or would take
-/// the first one's datagrams), or one Leap service (host and port, letters in either case) and
-/// one chirality. Two chiralities of one Leap service are two hands, as a tracker sees them.
-fn same_service(a: &SourceChoice, b: &SourceChoice) -> bool {
-    match (a, b) {
-        (SourceChoice::Osc(a), SourceChoice::Osc(b)) => {
-            match (a.parse::<std::net::SocketAddr>(), b.parse::<std::net::SocketAddr>()) {
-                (Ok(a), Ok(b)) => {
-                    a.port() == b.port()
-                        && (a.ip() == b.ip() || a.ip().is_unspecified() || b.ip().is_unspecified())
-                }
-                _ => a == b,
-            }
-        }
-        (SourceChoice::Leap(a), SourceChoice::Leap(b)) => {
-            a.hand == b.hand && a.host_port.eq_ignore_ascii_case(&b.host_port)
-        }
-        _ => false,
-    }
 }
 
 fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {

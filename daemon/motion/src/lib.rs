@@ -29,7 +29,6 @@ pub mod filter;
 pub mod graph;
 pub mod guided;
 pub mod layers;
-pub mod leap;
 pub mod looping;
 pub mod mapping;
 pub mod mesh;

@@ -21,6 +21,7 @@ pub mod errors;
 pub mod frame;
 pub mod paths;
 pub mod pose;
+pub mod source_kind;
 
 pub use control::{
     ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource, HandStatus,
@@ -36,6 +37,7 @@ pub use pose::{
     ElementInfo, ElementKind, ElementTable, HandWire, Hello, PatchableHello, Pose, PoseFlags, RigInfo,
     ServerMessage,
 };
+pub use source_kind::SourceKind;
 
 /// Default socket file names inside the socket directory.
 pub const POSES_SOCKET: &str = "poses.sock";

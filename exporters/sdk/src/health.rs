@@ -1,7 +1,7 @@
 //! What is wrong with a stage, in words, with the fix: read from the daemon's
 //! [`StatusReport`], so `frond doctor` and the console say the same thing.
 
-use frond_protocol::{SourceStatus, StatusReport};
+use frond_protocol::{SourceKind, SourceStatus, StatusReport};
 
 /// Below this share of the nominal tick rate the loop is reported as slow.
 pub const SLOW_RATE_SHARE: f64 = 0.95;
@@ -15,29 +15,37 @@ pub struct Problem {
     pub fix: String,
 }
 
-/// How to bring back a hand source of `kind` that is not connected.
+/// How to bring back a hand source of `kind` (its name in a status reply) that is not
+/// connected; a name this SDK does not know gets the general advice.
 pub fn source_fix(kind: &str) -> &'static str {
+    SourceKind::from_name(kind).map_or(CHECK_THE_SOURCE, source_kind_fix)
+}
+
+/// The general advice, for a source with no advice of its own.
+const CHECK_THE_SOURCE: &str =
+    "check the hand source in frondd.toml or on frondd's command line (`frond doctor`)";
+
+/// How to bring back a hand source of `kind` that is not connected.
+pub fn source_kind_fix(kind: SourceKind) -> &'static str {
     match kind {
-        k if k.starts_with("hid") => {
+        SourceKind::Hidraw => {
             "plug the glove in (USB or Bluetooth); the daemon reopens it by itself. If it stays \
              away, `frond doctor` checks the hidraw node, its permissions and the udev rule"
         }
-        "fuse-hidraw" | "virtual" => {
+        SourceKind::FuseHidraw => {
             "the virtual glove (frond-vhid) is gone: start it again, or run the daemon on \
              `--source in-process`"
         }
-        k if k.starts_with("osc") => {
+        SourceKind::Osc => {
             "no hand packets arrive: start the tracker bridge that sends /frond/hand (see \
              `frond-vhid --osc` for a reference sender) and check its address and port"
         }
-        k if k.starts_with("leap") => {
+        SourceKind::Leap => {
             "the Leap / Ultraleap tracking service does not answer: start it (its WebSocket on \
              port 6437); the daemon reconnects by itself"
         }
-        k if k.starts_with("replay") => {
-            "the replay ended or its file cannot be read: give another --replay file"
-        }
-        _ => "check the hand source in frondd.toml or on frondd's command line (`frond doctor`)",
+        SourceKind::Replay => "the replay ended or its file cannot be read: give another --replay file",
+        SourceKind::InProcess => CHECK_THE_SOURCE,
     }
 }
 

@@ -31,9 +31,17 @@ use std::os::unix::ffi::OsStrExt;
 
 use hidapi::{HidApi, HidDevice};
 
-use super::{HandSource, SourceError, SourceKind};
+use frond_protocol::SourceKind;
+
+use super::hand::{HandSource, SourceError};
+use super::spec::{Backend, SourceSpec};
 use crate::profile::DeviceProfile;
 use crate::report::{DeviceSample, ReportParser, SourceCounters};
+
+/// `hid`: a real glove only, matching the device profile (`path` names its node; without one
+/// the first matching device is used).
+pub(crate) const BACKEND: Backend =
+    Backend { syntax: "hid", parse: |kind, _| (kind == "hid").then_some(Ok(SourceSpec::Hid)) };
 
 /// How the device is found.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -18,12 +18,25 @@ use std::sync::atomic::Ordering;
 use frond_motion::HandSample;
 use rosc::{OscPacket, OscType};
 
+pub use super::osc_wire::OSC_HAND_ADDRESS;
 use super::osc_wire::{MAX_BUNDLE_DEPTH, Reject, for_each_hand};
-use super::{HandSource, SourceError, SourceKind};
+use frond_protocol::SourceKind;
+
+use super::hand::{HandSource, SourceError};
+use super::spec::{Backend, SourceSpec, SpecInput};
 use crate::report::{DeviceSample, SourceCounters};
 
-/// The OSC address of a hand sample.
-pub const OSC_HAND_ADDRESS: &str = "/frond/hand";
+/// `osc://IP:PORT`: `/frond/hand` messages received on that UDP address.
+pub(crate) const BACKEND: Backend = Backend { syntax: "osc://IP:PORT", parse };
+
+fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>> {
+    let addr = kind.strip_prefix("osc://")?;
+    Some(match addr.parse::<SocketAddr>() {
+        Ok(_) => Ok(SourceSpec::Osc(addr.to_string())),
+        Err(_) => Err(format!("{}: {kind:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001", input.key)),
+    })
+}
+
 /// Largest UDP datagram.
 const DATAGRAM_MAX: usize = 65_536;
 /// Samples one datagram can hold at most (a `/frond/hand` message takes 52 bytes in a bundle):

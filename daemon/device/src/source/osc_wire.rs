@@ -5,6 +5,9 @@
 
 use frond_motion::HandSample;
 
+/// The OSC address of a hand sample.
+pub const OSC_HAND_ADDRESS: &str = "/frond/hand";
+
 /// Deepest bundle nesting accepted (trackers send flat bundles).
 pub const MAX_BUNDLE_DEPTH: usize = 16;
 
@@ -31,7 +34,7 @@ fn osc_string(b: &[u8]) -> Option<(&[u8], &[u8])> {
 /// One OSC message: `/frond/hand` with seven numbers becomes a sample.
 fn message(b: &[u8]) -> Result<HandSample, Reject> {
     let (addr, rest) = osc_string(b).ok_or(Reject::Malformed)?;
-    if addr != super::osc::OSC_HAND_ADDRESS.as_bytes() {
+    if addr != OSC_HAND_ADDRESS.as_bytes() {
         // rosc refuses an address that is not UTF-8 text; so do we, as malformed.
         return Err(if std::str::from_utf8(addr).is_ok() { Reject::OtherAddress } else { Reject::Malformed });
     }

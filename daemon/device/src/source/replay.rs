@@ -19,9 +19,22 @@ use frond_motion::HandSample;
 use frond_motion::mapping::MAX_TIME_STEP_S;
 use frond_motion::mapping::breaks_timeline;
 
-use super::{HandSource, SourceError, SourceKind};
+use frond_protocol::SourceKind;
+
+use super::hand::{HandSource, SourceError};
+use super::spec::{Backend, SourceSpec, SpecInput};
 use crate::jsonl::{HandFileError, load_hand_recording};
 use crate::report::{DeviceSample, SourceCounters};
+
+/// `replay`: a JSONL hand recording, the file given under its own key.
+pub(crate) const BACKEND: Backend = Backend { syntax: "replay", parse };
+
+fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>> {
+    (kind == "replay").then(|| match input.replay {
+        Some(path) => Ok(SourceSpec::Replay(path.into())),
+        None => Err(format!("{}: required when {} = \"replay\"", input.replay_key, input.key)),
+    })
+}
 
 /// Plays a hand recording: from the first read (or [`ReplaySource::start`]) sample `i` becomes
 /// pending once `t_i - t_0` seconds have passed, while the times follow one timeline; after a

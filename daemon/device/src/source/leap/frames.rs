@@ -19,7 +19,7 @@ use std::marker::PhantomData;
 use serde::Deserialize;
 use serde::de::{Deserializer, Error as _, IgnoredAny, SeqAccess, Visitor};
 
-use crate::HandSample;
+use frond_motion::HandSample;
 
 /// Largest message accepted, bytes (a one-hand v6 frame of a real controller is about 4.7 KB,
 /// two hands about 10 KB; [`MAX_HANDS`] hands fit ten times over). The WebSocket client

@@ -1,0 +1,86 @@
+//! The one table of hand sources a configuration can name ([`BACKENDS`]), and what reads it:
+//! [`parse_spec`] for configurations, [`kind_names`] for help and errors.
+//!
+//! Adding a hand source: a module beside this one with its source type and its `BACKEND`
+//! entry, one line in [`BACKENDS`], and a [`SourceSpec`] variant (ARCHITECTURE.md, "Adding a
+//! hand source", walks through it).
+
+use super::spec::{Backend, SourceSpec, SpecInput};
+use super::{glove_kinds, hid, leap, osc, replay};
+
+/// Every hand source a configuration can name, in the order help and errors list them.
+pub const BACKENDS: [Backend; 7] = [
+    glove_kinds::AUTO,
+    glove_kinds::VIRTUAL,
+    glove_kinds::IN_PROCESS,
+    hid::BACKEND,
+    replay::BACKEND,
+    osc::BACKEND,
+    leap::BACKEND,
+];
+
+/// The kinds as help and errors list them: `auto, virtual, in-process, hid, replay,
+/// osc://IP:PORT, leap://HOST:PORT`.
+pub fn kind_names() -> String {
+    BACKENDS.iter().map(|b| b.syntax).collect::<Vec<_>>().join(", ")
+}
+
+/// Parses a kind text with the first backend that takes it; a text no backend takes is
+/// refused with the list of kinds.
+pub fn parse_spec(kind: &str, input: &SpecInput<'_>) -> Result<SourceSpec, String> {
+    BACKENDS
+        .iter()
+        .find_map(|b| (b.parse)(kind, input))
+        .unwrap_or_else(|| Err(format!("{}: {kind:?} is not one of {}", input.key, kind_names())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::LeapAddress;
+
+    fn input() -> SpecInput<'static> {
+        SpecInput { key: "source.kind", replay: None, replay_key: "source.replay" }
+    }
+
+    #[test]
+    fn the_names_are_the_documented_list() {
+        assert_eq!(kind_names(), "auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT");
+    }
+
+    #[test]
+    fn each_kind_reaches_its_own_backend() {
+        let with_replay = SpecInput { replay: Some("/r.jsonl"), ..input() };
+        assert_eq!(parse_spec("auto", &input()), Ok(SourceSpec::Auto));
+        assert_eq!(parse_spec("virtual", &input()), Ok(SourceSpec::Virtual));
+        assert_eq!(parse_spec("in-process", &input()), Ok(SourceSpec::InProcess));
+        assert_eq!(parse_spec("hid", &input()), Ok(SourceSpec::Hid));
+        assert_eq!(parse_spec("replay", &with_replay), Ok(SourceSpec::Replay("/r.jsonl".into())));
+        assert_eq!(
+            parse_spec("osc://127.0.0.1:9001", &input()),
+            Ok(SourceSpec::Osc("127.0.0.1:9001".into()))
+        );
+        let leap: LeapAddress = "leap://h:6437?hand=left".parse().unwrap();
+        assert_eq!(parse_spec("leap://h:6437?hand=left", &input()), Ok(SourceSpec::Leap(leap)));
+    }
+
+    #[test]
+    fn problems_name_their_key() {
+        assert_eq!(
+            parse_spec("replay", &input()),
+            Err("source.replay: required when source.kind = \"replay\"".into())
+        );
+        assert_eq!(
+            parse_spec("osc://nowhere", &input()),
+            Err("source.kind: \"osc://nowhere\": expected osc://IP:PORT, e.g. osc://127.0.0.1:9001".into())
+        );
+        assert_eq!(
+            parse_spec("usb", &input()),
+            Err("source.kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
+                .into())
+        );
+        assert!(
+            parse_spec("leap://nohost", &input()).unwrap_err().starts_with("source.kind: \"leap://nohost\"")
+        );
+    }
+}

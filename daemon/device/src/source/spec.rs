@@ -1,0 +1,76 @@
+//! [`SourceSpec`]: a hand source as a configuration names it, parsed and checked, not yet
+//! opened; and [`Backend`], the parse entry a backend's module registers in
+//! [`BACKENDS`](super::registry::BACKENDS).
+
+use std::path::PathBuf;
+
+use super::leap::address::LeapAddress;
+
+/// Which hand source to use: what one backend's parse entry made of a kind text
+/// (`frondd --source`, `[source] kind`, `[[hands]] kind`, `--hand NAME=KIND`).
+///
+/// A new backend adds its variant here; every `match` on it (opening it in the daemon,
+/// [`SourceSpec::same_service`]) then fails to compile until it handles the new kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceSpec {
+    /// A matching glove if present, else the virtual glove.
+    Auto,
+    /// The virtual glove (FUSE node, or in-process without FUSE).
+    Virtual,
+    /// The virtual glove in-process only.
+    InProcess,
+    /// A real device only.
+    Hid,
+    /// A JSONL hand recording.
+    Replay(PathBuf),
+    /// `/frond/hand` OSC messages on this UDP address.
+    Osc(String),
+    /// A Leap Motion / Ultraleap tracking service (`leap://HOST:PORT[?hand=left|right]`).
+    Leap(LeapAddress),
+}
+
+impl SourceSpec {
+    /// Whether two sources would read the same service for the same hand: one OSC port (equal
+    /// addresses, or one of them every interface: the second could not bind, or would take the
+    /// first one's datagrams), or one Leap service (host and port, letters in either case) and
+    /// one chirality. Two chiralities of one Leap service are two hands, as a tracker sees them.
+    /// (Two hands on one hidraw node are the daemon's check: it knows their `path`s.)
+    pub fn same_service(&self, other: &SourceSpec) -> bool {
+        match (self, other) {
+            (SourceSpec::Osc(a), SourceSpec::Osc(b)) => {
+                match (a.parse::<std::net::SocketAddr>(), b.parse::<std::net::SocketAddr>()) {
+                    (Ok(a), Ok(b)) => {
+                        a.port() == b.port()
+                            && (a.ip() == b.ip() || a.ip().is_unspecified() || b.ip().is_unspecified())
+                    }
+                    _ => a == b,
+                }
+            }
+            (SourceSpec::Leap(a), SourceSpec::Leap(b)) => {
+                a.hand == b.hand && a.host_port.eq_ignore_ascii_case(&b.host_port)
+            }
+            _ => false,
+        }
+    }
+}
+
+/// What a parse entry may read beside the kind text, and the keys its errors name.
+#[derive(Debug, Clone, Copy)]
+pub struct SpecInput<'a> {
+    /// The key the kind was given under (`source.kind`, `hands[1].kind`).
+    pub key: &'a str,
+    /// The replay file, when one was given (`source.replay`, `hands[1].replay`).
+    pub replay: Option<&'a str>,
+    /// The key of the replay file.
+    pub replay_key: &'a str,
+}
+
+/// One registered hand source: how configurations write it and its parse entry.
+#[derive(Debug, Clone, Copy)]
+pub struct Backend {
+    /// The kind as help and errors write it: `hid`, `osc://IP:PORT`.
+    pub syntax: &'static str,
+    /// The parse entry: `None` when `kind` is not this backend's; otherwise the spec, or the
+    /// problem as one line naming [`SpecInput::key`] (or the replay key).
+    pub parse: fn(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>>,
+}
