@@ -599,20 +599,7 @@ fn housekeeping(
     reload_fn: &dyn Fn(&ControlContext),
     sockets: &[&OwnedSocket],
 ) {
-    let stats = &ctx.stats;
-    let mut sockets_checked_at = Instant::now();
-    let mut sockets_gone = false;
-    let hands = ctx.lock().hands.len();
-    let mut last_ticks = stats.ticks.load(Relaxed);
-    let mut last_rate_at = Instant::now();
-    let mut connected: Vec<bool> = stats.hands[..hands].iter().map(|h| h.connected.load(Relaxed)).collect();
-    let mut stalls: Vec<u64> = stats.hands[..hands].iter().map(|h| h.stall_events.load(Relaxed)).collect();
-    // Time faults already told, per hand, and when last: one line, then at most one per 10 s.
-    let mut time_told: Vec<(u64, u64, Option<Instant>)> = vec![(0, 0, None); hands];
-    let mut refusals_told: Vec<RefusalsTold> = vec![RefusalsTold::default(); hands];
-    let watchdog = notifier.watchdog_interval().map(|d| d / 2);
-    let mut last_ping = Instant::now();
-    let mut ticks_at_ping = last_ticks;
+    let mut keeper = Housekeeper::new(ctx, notifier);
     while !stop.load(Relaxed) {
         // Ten times a second: what it does is for people and for `frond status`, and every
         // wake-up of the daemon costs CPU the realtime loop could use.
@@ -623,22 +610,81 @@ fn housekeeping(
             notifier.notify("READY=1");
         }
         while garbage.try_recv().is_ok() {}
-        for i in 0..hands {
+        keeper.tell_device_changes();
+        keeper.check_sockets(sockets);
+        keeper.tell_time_faults();
+        keeper.measure_rate();
+        keeper.feed_watchdog();
+    }
+}
+
+/// What housekeeping remembers from one round to the next, by job.
+struct Housekeeper<'a> {
+    ctx: &'a ControlContext,
+    notifier: &'a Notifier,
+    /// Hands in the daemon.
+    hands: usize,
+    /// Each hand's connection and stall count as last told.
+    connected: Vec<bool>,
+    stalls: Vec<u64>,
+    /// When the sockets were last checked, and whether one was found gone.
+    sockets_checked_at: Instant,
+    sockets_gone: bool,
+    /// Time faults already told, per hand, and when last: one line, then at most one per 10 s.
+    time_told: Vec<(u64, u64, Option<Instant>)>,
+    /// Refusals already told, per hand.
+    refusals_told: Vec<RefusalsTold>,
+    /// Ticks and time at the last rate measurement.
+    last_ticks: u64,
+    last_rate_at: Instant,
+    /// Half the service's watchdog interval, if it has one; the last ping and the ticks then.
+    watchdog: Option<Duration>,
+    last_ping: Instant,
+    ticks_at_ping: u64,
+}
+
+impl<'a> Housekeeper<'a> {
+    fn new(ctx: &'a ControlContext, notifier: &'a Notifier) -> Self {
+        let stats = &ctx.stats;
+        let hands = ctx.lock().hands.len();
+        let last_ticks = stats.ticks.load(Relaxed);
+        Housekeeper {
+            ctx,
+            notifier,
+            hands,
+            connected: stats.hands[..hands].iter().map(|h| h.connected.load(Relaxed)).collect(),
+            stalls: stats.hands[..hands].iter().map(|h| h.stall_events.load(Relaxed)).collect(),
+            sockets_checked_at: Instant::now(),
+            sockets_gone: false,
+            time_told: vec![(0, 0, None); hands],
+            refusals_told: vec![RefusalsTold::default(); hands],
+            last_ticks,
+            last_rate_at: Instant::now(),
+            watchdog: notifier.watchdog_interval().map(|d| d / 2),
+            last_ping: Instant::now(),
+            ticks_at_ping: last_ticks,
+        }
+    }
+
+    /// Logs and records each hand whose device was lost, stalled or resumed since last round.
+    fn tell_device_changes(&mut self) {
+        let (ctx, stats) = (self.ctx, &self.ctx.stats);
+        for i in 0..self.hands {
             let hand = &stats.hands[i];
             let now_connected = hand.connected.load(Relaxed);
-            if now_connected == connected[i] {
+            if now_connected == self.connected[i] {
                 continue;
             }
-            connected[i] = now_connected;
+            self.connected[i] = now_connected;
             let new_stalls = hand.stall_events.load(Relaxed);
             let what = if now_connected {
                 "device reports resumed"
-            } else if new_stalls != stalls[i] {
+            } else if new_stalls != self.stalls[i] {
                 "device stalled (no reports)"
             } else {
                 "device lost"
             };
-            stalls[i] = new_stalls;
+            self.stalls[i] = new_stalls;
             let mut state = ctx.lock();
             let name = state.hands[i].name.clone();
             if now_connected {
@@ -648,30 +694,41 @@ fn housekeeping(
             }
             state.push_event(ctx.started, i, what.to_string());
         }
-        if sockets_checked_at.elapsed() >= Duration::from_secs(1) {
-            sockets_checked_at = Instant::now();
-            let gone = sockets.iter().find(|s| !s.still_ours());
-            match (gone, sockets_gone) {
-                (Some(s), false) => {
-                    sockets_gone = true;
-                    error!(
-                        path = %s.path.display(),
-                        "this daemon's socket was removed or replaced (its directory deleted?): new clients cannot reach it; restart frondd"
-                    );
-                    ctx.lock().problems.push(format!(
-                        "socket {} was removed or replaced: new clients cannot connect; restart frondd",
-                        s.path.display()
-                    ));
-                }
-                (None, true) => {
-                    sockets_gone = false;
-                    info!("this daemon's sockets are back in place");
-                    ctx.lock().problems.retain(|p| !p.starts_with("socket "));
-                }
-                _ => {}
-            }
+    }
+
+    /// Once a second: whether the sockets are still this daemon's (a deleted directory makes
+    /// the daemon unreachable); a problem for `frond status` while one is not.
+    fn check_sockets(&mut self, sockets: &[&OwnedSocket]) {
+        if self.sockets_checked_at.elapsed() < Duration::from_secs(1) {
+            return;
         }
-        for (i, told) in time_told.iter_mut().enumerate() {
+        self.sockets_checked_at = Instant::now();
+        let gone = sockets.iter().find(|s| !s.still_ours());
+        match (gone, self.sockets_gone) {
+            (Some(s), false) => {
+                self.sockets_gone = true;
+                error!(
+                    path = %s.path.display(),
+                    "this daemon's socket was removed or replaced (its directory deleted?): new clients cannot reach it; restart frondd"
+                );
+                self.ctx.lock().problems.push(format!(
+                    "socket {} was removed or replaced: new clients cannot connect; restart frondd",
+                    s.path.display()
+                ));
+            }
+            (None, true) => {
+                self.sockets_gone = false;
+                info!("this daemon's sockets are back in place");
+                self.ctx.lock().problems.retain(|p| !p.starts_with("socket "));
+            }
+            _ => {}
+        }
+    }
+
+    /// Logs and records each hand's new device-time faults, at most once per hand every 10 s.
+    fn tell_time_faults(&mut self) {
+        let (ctx, stats) = (self.ctx, &self.ctx.stats);
+        for (i, told) in self.time_told.iter_mut().enumerate() {
             let hand = &stats.hands[i];
             let now = (hand.discontinuities.load(Relaxed), hand.stale_skipped.load(Relaxed));
             let due = told.2.is_none_or(|at| at.elapsed() >= Duration::from_secs(10));
@@ -686,23 +743,31 @@ fn housekeeping(
                 *told = (now.0, now.1, Some(Instant::now()));
             }
         }
-        let elapsed = last_rate_at.elapsed();
-        if elapsed >= Duration::from_secs(1) {
-            tell_refusals(ctx, &mut refusals_told);
-            let ticks = stats.ticks.load(Relaxed);
-            let rate = (ticks - last_ticks) as f64 / elapsed.as_secs_f64();
-            ctx.lock().achieved_rate_hz = rate;
-            last_ticks = ticks;
-            last_rate_at = Instant::now();
+    }
+
+    /// Once a second: the achieved rate for status, and the sources' refusals told.
+    fn measure_rate(&mut self) {
+        let elapsed = self.last_rate_at.elapsed();
+        if elapsed < Duration::from_secs(1) {
+            return;
         }
-        if let Some(interval) = watchdog {
-            // Feed the watchdog only while the loop is really ticking: a hung loop stops the pings.
-            let ticks = stats.ticks.load(Relaxed);
-            if last_ping.elapsed() >= interval && ticks > ticks_at_ping {
-                notifier.notify("WATCHDOG=1");
-                last_ping = Instant::now();
-                ticks_at_ping = ticks;
-            }
+        tell_refusals(self.ctx, &mut self.refusals_told);
+        let ticks = self.ctx.stats.ticks.load(Relaxed);
+        let rate = (ticks - self.last_ticks) as f64 / elapsed.as_secs_f64();
+        self.ctx.lock().achieved_rate_hz = rate;
+        self.last_ticks = ticks;
+        self.last_rate_at = Instant::now();
+    }
+
+    /// Feeds the service's watchdog only while the loop is really ticking: a hung loop stops
+    /// the pings.
+    fn feed_watchdog(&mut self) {
+        let Some(interval) = self.watchdog else { return };
+        let ticks = self.ctx.stats.ticks.load(Relaxed);
+        if self.last_ping.elapsed() >= interval && ticks > self.ticks_at_ping {
+            self.notifier.notify("WATCHDOG=1");
+            self.last_ping = Instant::now();
+            self.ticks_at_ping = ticks;
         }
     }
 }

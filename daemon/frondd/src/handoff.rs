@@ -304,7 +304,8 @@ impl PublishQueue {
         (PublishQueue { tx, wake: Arc::default() }, rx)
     }
 
-    /// What [`spawn_publisher`] waits on (wakes it when this queue gets a frame).
+    /// What [`spawn_publisher`](crate::publisher::spawn_publisher) waits on (wakes it when this
+    /// queue gets a frame).
     pub fn wake(&self) -> Arc<PublisherWake> {
         self.wake.clone()
     }

@@ -14,9 +14,9 @@
 //! housekeeping to be closed (closing and freeing are not the loop's business).
 //!
 //! New subscribers arrive from the acceptor with their `Hello` already encoded
-//! ([`PatchableHello`]); the loop writes in the sequence number of its next frame, so the
-//! subscriber's stream starts exactly there, and sends the element table in force right after
-//! it. A new element table (the live stages changed) goes to every lane between two frames.
+//! ([`PatchableHello`](frond_protocol::PatchableHello)); the loop writes in the sequence number
+//! of its next frame, so the subscriber's stream starts exactly there, and sends the element
+//! table in force right after it. A new element table (the live stages changed) goes to every lane between two frames.
 
 use std::os::fd::AsRawFd;
 use std::os::unix::net::UnixStream;

@@ -22,7 +22,8 @@ use frond_protocol::{Hello, PatchableHello, Pose, ServerMessage, SubscriberStatu
 use tracing::{debug, info, warn};
 
 use crate::handoff::{
-    ElementsCell, LoopCommand, MAX_SUBSCRIBERS, NewLane, PublisherWake, SlowLane, SubscriberCounters,
+    ElementsCell, ElementsSnapshot, LoopCommand, MAX_SUBSCRIBERS, NewLane, PublisherWake, SlowLane,
+    SubscriberCounters,
 };
 
 /// How often the helper threads that wait on a socket or a channel look at their `stop` flag
@@ -196,6 +197,62 @@ struct Subscriber {
 }
 
 impl Subscriber {
+    /// A subscriber the loop moved to the slow lane, with the unsent tail it had; backlog of
+    /// `cap` bytes.
+    fn from_slow_lane(lane: SlowLane, cap: usize) -> Self {
+        let _ = lane.stream.set_nonblocking(true);
+        let mut backlog = Vec::with_capacity(cap + 4096);
+        backlog.extend_from_slice(&lane.tail[..lane.tail_len]);
+        debug!(id = lane.id, from_seq = lane.from_seq, "subscriber moved to the slow lane");
+        // The loop's tail buffer goes back to be freed by dropping it here.
+        Subscriber {
+            id: lane.id,
+            stream: lane.stream,
+            counters: lane.counters,
+            backlog,
+            written: 0,
+            cap,
+            last_progress: Instant::now(),
+            from_seq: lane.from_seq,
+            table_version: lane.elements_version,
+        }
+    }
+
+    /// Queues the frames of `batch` owed to it, with a newer element `table` right before the
+    /// first frame published under it.
+    fn offer_owed(&mut self, batch: &Batch, table: &ElementsSnapshot) {
+        let starts = &batch.starts;
+        let Some(i) = starts.iter().position(|&(seq, _)| seq >= self.from_seq) else { return };
+        let split = (self.table_version < table.version && table.from_seq != u64::MAX)
+            .then(|| starts[i..].iter().position(|&(seq, _)| seq >= table.from_seq).map(|k| i + k))
+            .flatten();
+        match split {
+            Some(j) => {
+                if j > i {
+                    self.offer(&batch.bytes[starts[i].1..starts[j].1], (j - i) as u64);
+                }
+                self.offer_table(&table.frame, table.version);
+                self.offer(&batch.bytes[starts[j].1..], (starts.len() - j) as u64);
+            }
+            None => self.offer(&batch.bytes[starts[i].1..], (starts.len() - i) as u64),
+        }
+        self.from_seq = 0;
+    }
+
+    /// Ends it: marks it closed, shuts its socket and says why it left.
+    fn close(&self, reason: &str, wake: &PublisherWake) {
+        self.counters.closed.store(true, Relaxed);
+        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        wake.remove_slow();
+        debug!(
+            id = self.id,
+            sent = self.counters.sent.load(Relaxed),
+            dropped = self.counters.dropped.load(Relaxed),
+            "subscriber closed"
+        );
+        info!(id = self.id, reason, "pose subscriber left");
+    }
+
     fn pending(&self) -> usize {
         self.backlog.len() - self.written
     }
@@ -258,6 +315,8 @@ impl Subscriber {
 /// Runs the publisher until every frame sender is gone (the loop has stopped). `wake` is the
 /// [`PublishQueue::wake`] of the queue `frames` comes from; `slow` brings the subscribers the
 /// loop moved off their direct lane.
+///
+/// [`PublishQueue::wake`]: crate::handoff::PublishQueue::wake
 pub fn spawn_publisher(
     frames: Receiver<Pose>,
     wake: Arc<PublisherWake>,
@@ -267,95 +326,30 @@ pub fn spawn_publisher(
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-publish".into()).spawn(move || {
         let mut subs: Vec<Subscriber> = Vec::with_capacity(MAX_SUBSCRIBERS);
-        let mut batch: Vec<u8> = Vec::with_capacity(MAX_BATCH * BACKLOG_BYTES_PER_FRAME * 2);
-        // (sequence number, offset in `batch`) of each frame of the batch.
-        let mut starts: Vec<(u64, usize)> = Vec::with_capacity(MAX_BATCH);
-        let mut poses: Vec<Pose> = Vec::with_capacity(MAX_BATCH);
+        let mut batch = Batch::new();
         let cap = config.queue_frames.max(2) * BACKLOG_BYTES_PER_FRAME;
-        loop {
-            let first = match wake.recv_timeout(&frames, IDLE_DRAIN) {
-                Ok(p) => p,
-                Err(TryRecvError::Disconnected) => break,
-                Err(TryRecvError::Empty) => None,
-            };
-            poses.clear();
-            if let Some(p) = first {
-                poses.push(p);
-                while poses.len() < MAX_BATCH {
-                    let Ok(p) = frames.try_recv() else { break };
-                    poses.push(p);
-                }
-            }
+        while batch.take(&wake, &frames).is_ok() {
             // After taking the batch: the loop hands a subscriber over before it queues the
             // first frame owed to it, so every frame of this batch it is owed is covered here.
             while let Ok(lane) = slow.try_recv() {
-                let _ = lane.stream.set_nonblocking(true);
-                let mut backlog = Vec::with_capacity(cap + 4096);
-                backlog.extend_from_slice(&lane.tail[..lane.tail_len]);
-                debug!(id = lane.id, from_seq = lane.from_seq, "subscriber moved to the slow lane");
-                subs.push(Subscriber {
-                    id: lane.id,
-                    stream: lane.stream,
-                    counters: lane.counters,
-                    backlog,
-                    written: 0,
-                    cap,
-                    last_progress: Instant::now(),
-                    from_seq: lane.from_seq,
-                    table_version: lane.elements_version,
-                });
-                // The loop's tail buffer goes back to be freed by dropping it here.
-                drop(lane.tail);
+                subs.push(Subscriber::from_slow_lane(lane, cap));
             }
             if subs.is_empty() {
                 // Nobody on the slow lane: the frames were for the direct lanes only.
                 continue;
             }
-            batch.clear();
-            starts.clear();
-            for p in &poses {
-                starts.push((p.seq, batch.len()));
-                encode_frame(&ServerMessage::Pose(*p), &mut batch);
-            }
+            batch.encode();
             let now = Instant::now();
             // After taking the batch: the loop marks a table applied before it queues the first
             // frame of the new table, so a frame at or after `table_from` in this batch is seen
             // with its table.
             let table = tables.load();
             subs.retain_mut(|s| {
-                let owed = starts.iter().position(|&(seq, _)| seq >= s.from_seq);
-                if let Some(i) = owed {
-                    // A newer table goes right before the first frame published under it.
-                    let split = (s.table_version < table.version && table.from_seq != u64::MAX)
-                        .then(|| {
-                            starts[i..].iter().position(|&(seq, _)| seq >= table.from_seq).map(|k| i + k)
-                        })
-                        .flatten();
-                    match split {
-                        Some(j) => {
-                            if j > i {
-                                s.offer(&batch[starts[i].1..starts[j].1], (j - i) as u64);
-                            }
-                            s.offer_table(&table.frame, table.version);
-                            s.offer(&batch[starts[j].1..], (starts.len() - j) as u64);
-                        }
-                        None => s.offer(&batch[starts[i].1..], (starts.len() - i) as u64),
-                    }
-                    s.from_seq = 0;
-                }
+                s.offer_owed(&batch, &table);
                 match s.flush(now, config.write_timeout) {
                     Ok(()) => true,
                     Err(reason) => {
-                        s.counters.closed.store(true, Relaxed);
-                        let _ = s.stream.shutdown(std::net::Shutdown::Both);
-                        wake.remove_slow();
-                        debug!(
-                            id = s.id,
-                            sent = s.counters.sent.load(Relaxed),
-                            dropped = s.counters.dropped.load(Relaxed),
-                            "subscriber closed"
-                        );
-                        info!(id = s.id, reason, "pose subscriber left");
+                        s.close(reason, &wake);
                         false
                     }
                 }
@@ -366,4 +360,53 @@ pub fn spawn_publisher(
             let _ = s.stream.shutdown(std::net::Shutdown::Both);
         }
     })
+}
+
+/// The frames the publisher takes from its queue in one go, and their encoding (buffers kept
+/// from one batch to the next).
+struct Batch {
+    poses: Vec<Pose>,
+    /// The frames encoded one after the other.
+    bytes: Vec<u8>,
+    /// (sequence number, offset in `bytes`) of each frame.
+    starts: Vec<(u64, usize)>,
+}
+
+impl Batch {
+    fn new() -> Self {
+        Batch {
+            poses: Vec::with_capacity(MAX_BATCH),
+            bytes: Vec::with_capacity(MAX_BATCH * BACKLOG_BYTES_PER_FRAME * 2),
+            starts: Vec::with_capacity(MAX_BATCH),
+        }
+    }
+
+    /// Takes the next frames: waits for one (at most [`IDLE_DRAIN`], then the batch is empty)
+    /// and takes what else is queued, up to [`MAX_BATCH`]. `Err` once the loop has gone.
+    fn take(&mut self, wake: &PublisherWake, frames: &Receiver<Pose>) -> Result<(), TryRecvError> {
+        let first = match wake.recv_timeout(frames, IDLE_DRAIN) {
+            Ok(p) => p,
+            Err(TryRecvError::Disconnected) => return Err(TryRecvError::Disconnected),
+            Err(TryRecvError::Empty) => None,
+        };
+        self.poses.clear();
+        if let Some(p) = first {
+            self.poses.push(p);
+            while self.poses.len() < MAX_BATCH {
+                let Ok(p) = frames.try_recv() else { break };
+                self.poses.push(p);
+            }
+        }
+        Ok(())
+    }
+
+    /// Encodes the frames taken.
+    fn encode(&mut self) {
+        self.bytes.clear();
+        self.starts.clear();
+        for p in &self.poses {
+            self.starts.push((p.seq, self.bytes.len()));
+            encode_frame(&ServerMessage::Pose(*p), &mut self.bytes);
+        }
+    }
 }
