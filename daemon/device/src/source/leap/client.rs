@@ -105,17 +105,15 @@ impl Client {
             .ok_or_else(|| format!("{} resolves to no address", self.host_port))
     }
 
-    /// One connection: handshake, then frames until the service goes or we are asked to stop.
-    /// Ends with whether it got connected, and why not or why it ended.
-    fn session(&self) -> Result<(), (bool, String)> {
-        let not = |e: String| (false, e);
-        let addr = self.address().map_err(not)?;
-        let tcp =
-            TcpStream::connect_timeout(&addr, Duration::from_secs(1)).map_err(|e| not(e.to_string()))?;
+    /// Connects and shakes hands with the service, then asks it for frames; the WebSocket and
+    /// its URL (for logs).
+    fn connect(&self) -> Result<(tungstenite::WebSocket<ServiceStream>, String), String> {
+        let addr = self.address()?;
+        let tcp = TcpStream::connect_timeout(&addr, Duration::from_secs(1)).map_err(|e| e.to_string())?;
         tcp.set_nodelay(true).ok();
         // Every read waits at most READ_POLL, so that a stop is seen; the handshake as a whole
         // at most HANDSHAKE_TIMEOUT.
-        tcp.set_read_timeout(Some(READ_POLL)).map_err(|e| not(e.to_string()))?;
+        tcp.set_read_timeout(Some(READ_POLL)).map_err(|e| e.to_string())?;
         let stream = ServiceStream::new(tcp, Arc::clone(&self.stop), Instant::now() + HANDSHAKE_TIMEOUT);
         let url = format!("ws://{}/v6.json", self.host_port);
         let mut config = tungstenite::protocol::WebSocketConfig::default();
@@ -125,16 +123,23 @@ impl Client {
         config.write_buffer_size = 0;
         config.max_write_buffer_size = MAX_WRITE_BUFFER;
         let (mut ws, _) = handshake(url.as_str(), stream, config)
-            .map_err(|e| not(format!("WebSocket handshake with {url}: {e}")))?;
+            .map_err(|e| format!("WebSocket handshake with {url}: {e}"))?;
         ws.get_mut().deadline = None;
         for ask in [r#"{"background":true}"#, r#"{"focused":true}"#] {
             match ws.send(tungstenite::Message::text(ask)) {
                 Ok(()) => {}
                 // Queued: written with the next read's flush.
                 Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) => return Err(not(e.to_string())),
+                Err(e) => return Err(e.to_string()),
             }
         }
+        Ok((ws, url))
+    }
+
+    /// One connection: handshake, then frames until the service goes or we are asked to stop.
+    /// Ends with whether it got connected, and why not or why it ended.
+    fn session(&self) -> Result<(), (bool, String)> {
+        let (mut ws, url) = self.connect().map_err(|e| (false, e))?;
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let (mut warned_version, mut warned_pace) = (false, false);
         // When the service last sent a message frond could use (one it did not refuse).
@@ -206,33 +211,39 @@ impl Client {
             if parsed.is_ok() {
                 last_useful = Instant::now();
             }
-            match parsed {
-                Ok(LeapMessage::Version(6)) | Ok(LeapMessage::Other) => {}
-                Ok(LeapMessage::Version(v)) => {
-                    if !warned_version {
-                        tracing::warn!(service = %url, version = v, "the service speaks protocol {v}, not 6; reading its frames anyway");
-                        warned_version = true;
-                    }
+            self.take(parsed, &url, &mut warned_version);
+        }
+    }
+
+    /// Counts or queues one parsed message (`warned_version`: whether a protocol other than 6
+    /// was already logged).
+    fn take(&self, parsed: Result<LeapMessage, LeapError>, url: &str, warned_version: &mut bool) {
+        match parsed {
+            Ok(LeapMessage::Version(6)) | Ok(LeapMessage::Other) => {}
+            Ok(LeapMessage::Version(v)) => {
+                if !*warned_version {
+                    tracing::warn!(service = %url, version = v, "the service speaks protocol {v}, not 6; reading its frames anyway");
+                    *warned_version = true;
                 }
-                Ok(LeapMessage::Frame(frame)) => match hand_sample(&frame, self.hand) {
-                    Ok(Some(raw)) => self.push(frame.id, frame.timestamp, raw),
-                    Ok(None) => {} // the hand is not in view: no sample, the loop holds
-                    Err(LeapError::BadVector(_)) => {
-                        self.counters.out_of_range.fetch_add(1, Ordering::Relaxed);
-                    }
-                    Err(_) => {
-                        self.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                    }
-                },
-                Err(LeapError::TooMany { .. }) => {
-                    self.counters.too_many.fetch_add(1, Ordering::Relaxed);
-                }
-                Err(LeapError::TooLarge(_)) => {
-                    self.counters.oversized.fetch_add(1, Ordering::Relaxed);
+            }
+            Ok(LeapMessage::Frame(frame)) => match hand_sample(&frame, self.hand) {
+                Ok(Some(raw)) => self.push(frame.id, frame.timestamp, raw),
+                Ok(None) => {} // the hand is not in view: no sample, the loop holds
+                Err(LeapError::BadVector(_)) => {
+                    self.counters.out_of_range.fetch_add(1, Ordering::Relaxed);
                 }
                 Err(_) => {
                     self.counters.malformed.fetch_add(1, Ordering::Relaxed);
                 }
+            },
+            Err(LeapError::TooMany { .. }) => {
+                self.counters.too_many.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(LeapError::TooLarge(_)) => {
+                self.counters.oversized.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(_) => {
+                self.counters.malformed.fetch_add(1, Ordering::Relaxed);
             }
         }
     }
