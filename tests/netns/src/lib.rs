@@ -4,6 +4,8 @@
 //! creates lives in namespaces it made (named `frond<pid>-...`) and is deleted on drop, so no
 //! traffic leaves them and nothing is left behind.
 
+#![warn(missing_docs)]
+
 use std::ffi::OsStr;
 use std::net::Ipv4Addr;
 use std::process::Command;

@@ -6,6 +6,8 @@
 //! install them with `exporters/warp/tests/install-browser.sh`); under `CI=true` or
 //! `FROND_REQUIRE_BROWSER=1` a missing browser fails the test.
 
+#![warn(missing_docs)]
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
