@@ -94,7 +94,7 @@ struct Session {
     /// The latest raw sample and whether it was fresh.
     live: Option<(Raw, bool)>,
     /// The calibration's TOML text and warnings, or why it failed.
-    result: Option<Result<(String, Vec<String>), String>>,
+    result: Option<Result<(String, Vec<String>), CalibrationFailed>>,
     /// Why polling the daemon failed, if it did.
     error: Option<String>,
     /// The session's poller: it stops when this is set or another session has replaced it.
@@ -230,7 +230,7 @@ impl Calibrations {
             "live": s.live.map(|(r, fresh)| json!({ "wrist_deg": r.wrist_deg, "thumb_deg": r.thumb_deg, "fresh": fresh })),
             "result": match &s.result {
                 Some(Ok((toml, warnings))) => json!({ "toml": toml, "warnings": warnings }),
-                Some(Err(e)) => json!({ "error": e }),
+                Some(Err(e)) => json!({ "error": e.to_string() }),
                 None => Value::Null,
             },
             "error": s.error,
@@ -281,11 +281,17 @@ impl Calibrations {
     }
 }
 
+/// Why the recorded steps gave no calibration: `frond_motion::calibrate::compute`'s words.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{0}")]
+struct CalibrationFailed(String);
+
 /// The calibration of a session whose every step is recorded: its TOML (as `frond calibrate`
 /// writes it) and warnings.
-fn finish(s: &Session) -> Result<(String, Vec<String>), String> {
+fn finish(s: &Session) -> Result<(String, Vec<String>), CalibrationFailed> {
     let r = &s.recorded;
-    let m = compute(&s.user, &r[0], [&r[1], &r[2], &r[3]], &r[4])?;
+    let m = compute(&s.user, &r[0], [&r[1], &r[2], &r[3]], &r[4])
+        .map_err(|e| CalibrationFailed(e.to_string()))?;
     let text = format!(
         "# frond calibration for {:?}, measured by frond-console's guided calibration (seed 000, section 5.4)\n{}",
         s.user,

@@ -12,7 +12,7 @@
 //! action is never sent twice.
 
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use frond_protocol::{ControlReply, ControlRequest, StatusReport};
@@ -54,7 +54,7 @@ impl Kept {
 /// The last status read and when.
 struct Cached {
     at: Instant,
-    report: Result<StatusReport, String>,
+    report: Result<StatusReport, Arc<ControlClientError>>,
 }
 
 /// The console's link to the daemon.
@@ -73,9 +73,9 @@ impl DaemonLink {
         DaemonLink { socket_dir, status: Mutex::default(), actions: Mutex::default() }
     }
 
-    /// The daemon's status, at most [`STATUS_FRESH`] old (an error in words when it cannot be
-    /// read).
-    pub(crate) fn status(&self) -> Result<StatusReport, String> {
+    /// The daemon's status, at most [`STATUS_FRESH`] old (the error, shared with the requests
+    /// answered from the same cache, when it cannot be read).
+    pub(crate) fn status(&self) -> Result<StatusReport, Arc<ControlClientError>> {
         let mut guard = lock(&self.status);
         let (kept, cached) = &mut *guard;
         if let Some(c) = cached.as_ref().filter(|c| c.at.elapsed() < STATUS_FRESH) {
@@ -87,7 +87,7 @@ impl DaemonLink {
             // The kept connection may have been closed by the daemon: once more, anew.
             report = read_again(kept, &self.socket_dir);
         }
-        let report = report.map_err(|e| e.to_string());
+        let report = report.map_err(Arc::new);
         *cached = Some(Cached { at: Instant::now(), report: report.clone() });
         report
     }

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use frond_warp::wind::HandWind;
-use frond_warp::{Animator, LayerInput, LayerParams, Scene, SceneParams};
+use frond_warp::{Animator, InvalidParams, LayerInput, LayerParams, Scene, SceneError, SceneParams};
 use serde_json::{Value, json};
 
 use crate::relay::Live;
@@ -44,10 +44,20 @@ pub struct WarpPanel {
 }
 
 /// The panel's scene: the sample grass picture (320 x 240) and its matte.
-pub fn sample_scene() -> Result<Scene, String> {
+pub fn sample_scene() -> Result<Scene, SceneError> {
     let (picture, mask, _scale) = frond_warp::samples::grass();
     Scene::build(picture, vec![("grass".to_string(), LayerInput::Mask(mask))], None, None)
-        .map_err(|e| e.to_string())
+}
+
+/// Why the warp panel could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum WarpPanelError {
+    /// The parameters do not fit the scene.
+    #[error(transparent)]
+    Params(#[from] InvalidParams),
+    /// The animator's thread could not be started.
+    #[error(transparent)]
+    Thread(#[from] std::io::Error),
 }
 
 /// The panel's parameters: visible motion at the page's size (see the module docs).
@@ -60,14 +70,15 @@ pub fn panel_params() -> SceneParams {
 
 impl WarpPanel {
     /// Starts the animator thread on `scene`, its wind from `live`'s element 0.
-    pub fn start(live: Arc<Live>, scene: Scene, params: SceneParams) -> Result<Arc<WarpPanel>, String> {
-        let animator = Animator::new(scene, params).map_err(|e| e.to_string())?;
+    pub fn start(
+        live: Arc<Live>,
+        scene: Scene,
+        params: SceneParams,
+    ) -> Result<Arc<WarpPanel>, WarpPanelError> {
+        let animator = Animator::new(scene, params)?;
         let panel = Arc::new(WarpPanel::default());
         let me = Arc::clone(&panel);
-        std::thread::Builder::new()
-            .name("console-warp".into())
-            .spawn(move || me.run(animator, &live))
-            .map_err(|e| e.to_string())?;
+        std::thread::Builder::new().name("console-warp".into()).spawn(move || me.run(animator, &live))?;
         Ok(panel)
     }
 

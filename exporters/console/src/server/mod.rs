@@ -97,12 +97,35 @@ struct Counters {
     refused: AtomicU64,
 }
 
+/// Why the view has no rig to show (answered 503).
+#[derive(Debug, Clone, thiserror::Error)]
+enum NoScene {
+    /// No `--rig` and no daemon's hello yet.
+    #[error("the daemon is not connected yet: its rig is not known")]
+    NotConnected,
+    /// The daemon's rig came from a file: the operator gives the console that file, as a name
+    /// from a peer is never opened as a path.
+    #[error(
+        "the daemon's rig {name:?} is not an embedded rig ({embedded}): it was loaded \
+         from a file; start frond-console with --rig FILE (that rig's file) to show it"
+    )]
+    FromFile {
+        /// The daemon's rig's name.
+        name: String,
+        /// The embedded rigs' names.
+        embedded: String,
+    },
+    /// The rig could not be loaded or baked (kept, shared, for the next requests).
+    #[error(transparent)]
+    Load(Arc<scene::SceneError>),
+}
+
 /// The running console.
 pub struct Console {
     config: Config,
     live: Arc<Live>,
     counters: Counters,
-    scenes: Mutex<HashMap<String, Result<Arc<RigScene>, String>>>,
+    scenes: Mutex<HashMap<String, Result<Arc<RigScene>, NoScene>>>,
     /// The plants' ground positions of the field this console started, `[x, z]` metres.
     field: Mutex<Option<Value>>,
     /// The warp preview panel, when on.
@@ -202,11 +225,11 @@ impl Console {
             "/api/status" => self.status(),
             "/api/scene" => match self.scene() {
                 Ok(s) => Response::json(200, &s.map),
-                Err(e) => Response::error(503, e),
+                Err(e) => Response::error(503, e.to_string()),
             },
             "/rig.glb" => match self.scene() {
                 Ok(s) => Response::new(200, "model/gltf-binary", s.glb.clone()),
-                Err(e) => Response::error(503, e),
+                Err(e) => Response::error(503, e.to_string()),
             },
             "/api/rigs" => Response::json(
                 200,
@@ -279,11 +302,11 @@ impl Console {
 
     /// The rig to show: `--rig`, else the daemon's (loaded once per name): an embedded rig only,
     /// as the name comes from the daemon and is never opened as a path here.
-    fn scene(&self) -> Result<Arc<RigScene>, String> {
+    fn scene(&self) -> Result<Arc<RigScene>, NoScene> {
         let name = match (&self.config.rig, &self.live.lock().hello) {
             (Some(scene), _) => return Ok(Arc::clone(scene)),
             (None, Some(h)) => h.rig_name.clone(),
-            (None, None) => return Err("the daemon is not connected yet: its rig is not known".into()),
+            (None, None) => return Err(NoScene::NotConnected),
         };
         let mut cache = self.scenes.lock().unwrap_or_else(|e| e.into_inner());
         cache
@@ -299,11 +322,8 @@ impl Console {
                                 embedded,
                             }),
                         ..
-                    } => format!(
-                        "the daemon's rig {name:?} is not an embedded rig ({embedded}): it was loaded \
-                         from a file; start frond-console with --rig FILE (that rig's file) to show it"
-                    ),
-                    e => e.to_string(),
+                    } => NoScene::FromFile { name, embedded },
+                    e => NoScene::Load(Arc::new(e)),
                 })
             })
             .clone()
