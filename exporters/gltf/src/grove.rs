@@ -48,50 +48,10 @@ impl Baker {
         progress: Progress<'_>,
     ) -> Result<Baked, BakeError> {
         let fps = opts.checked_fps()?;
-        if takes.is_empty() || takes.len() > MAX_GROVE_PLANTS {
-            return Err(BakeError::Option {
-                option: "--take",
-                reason: format!("a grove has 1 to {MAX_GROVE_PLANTS} takes, got {}", takes.len()),
-            });
-        }
-        if !(spacing_m.is_finite() && spacing_m > 0.0 && spacing_m <= MAX_SPACING_M) {
-            return Err(BakeError::Option {
-                option: "--spacing",
-                reason: format!("must be metres above 0 and at most {MAX_SPACING_M}, got {spacing_m}"),
-            });
-        }
-        // Budgets first: keys per channel, and keys over every plant.
-        let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
-        let (limit, hint) = opts.key_limit();
-        let mut all_keys = 0u64;
-        for take in takes {
-            let (keys, _) = Layers::plan(&take.frames, fps);
-            all_keys = all_keys.saturating_add(keys);
-            if keys > limit || all_keys > hard {
-                let (keys, limit) = if keys > limit { (keys, limit) } else { (all_keys, hard) };
-                return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
-            }
-        }
-        let mut notes = Vec::new();
-        let mut layers = Vec::with_capacity(takes.len());
-        for take in takes {
-            let l = Layers::from_frames(&take.frames, fps)
-                .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
-            notes.extend(crate::bake::take_notes(rig, take));
-            layers.push(l);
-        }
+        check_grove(takes, spacing_m, fps, opts)?;
+        let (layers, mut notes) = grove_layers(rig, takes, fps)?;
         let keys = layers.iter().map(|l| l.times_s.len()).max().unwrap_or(1);
         let times_s: Vec<f64> = (0..keys).map(|k| k as f64 / fps).collect();
-        for (take, l) in takes.iter().zip(&layers) {
-            let uniform = l.times_s.iter().enumerate().all(|(k, &t)| (t - k as f64 / fps).abs() < 1e-6);
-            if !uniform {
-                notes.push(format!(
-                    "take `{}` has steps in time longer than {} s: its keys follow its frames, not its clock",
-                    take.name,
-                    frond_motion::take::MAX_INTERPOLATED_GAP_S
-                ));
-            }
-        }
 
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
         let assets =
@@ -145,6 +105,66 @@ impl Baker {
             stats: BakeStats { plants: n, keys, channels, vertices: assets.vertices },
         })
     }
+}
+
+/// The grove's options and budgets, checked before anything is built: 1 to
+/// [`MAX_GROVE_PLANTS`] takes, a spacing within (0, [`MAX_SPACING_M`]], and the keys of every
+/// take within the per-channel limit and of all of them within the resampling limit.
+fn check_grove(takes: &[TakeInput], spacing_m: f32, fps: f64, opts: &BakeOptions) -> Result<(), BakeError> {
+    if takes.is_empty() || takes.len() > MAX_GROVE_PLANTS {
+        return Err(BakeError::Option {
+            option: "--take",
+            reason: format!("a grove has 1 to {MAX_GROVE_PLANTS} takes, got {}", takes.len()),
+        });
+    }
+    if !(spacing_m.is_finite() && spacing_m > 0.0 && spacing_m <= MAX_SPACING_M) {
+        return Err(BakeError::Option {
+            option: "--spacing",
+            reason: format!("must be metres above 0 and at most {MAX_SPACING_M}, got {spacing_m}"),
+        });
+    }
+    // Budgets first: keys per channel, and keys over every plant.
+    let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
+    let (limit, hint) = opts.key_limit();
+    let mut all_keys = 0u64;
+    for take in takes {
+        let (keys, _) = Layers::plan(&take.frames, fps);
+        all_keys = all_keys.saturating_add(keys);
+        if keys > limit || all_keys > hard {
+            let (keys, limit) = if keys > limit { (keys, limit) } else { (all_keys, hard) };
+            return Err(BakeError::TooManyKeys { name: take.name.clone(), keys, fps, limit, hint });
+        }
+    }
+    Ok(())
+}
+
+/// Every take's layers resampled at `fps`, and the notes about them: the take's own (rig
+/// mismatch, damage) and, for a take whose keys are not uniform in time (a step longer than
+/// frond interpolates over), that its keys follow its frames.
+fn grove_layers(
+    rig: &LoadedRig,
+    takes: &[TakeInput],
+    fps: f64,
+) -> Result<(Vec<Layers>, Vec<String>), BakeError> {
+    let mut notes = Vec::new();
+    let mut layers = Vec::with_capacity(takes.len());
+    for take in takes {
+        let l = Layers::from_frames(&take.frames, fps)
+            .ok_or_else(|| BakeError::TakeEmpty { name: take.name.clone() })?;
+        notes.extend(crate::bake::take_notes(rig, take));
+        layers.push(l);
+    }
+    for (take, l) in takes.iter().zip(&layers) {
+        let uniform = l.times_s.iter().enumerate().all(|(k, &t)| (t - k as f64 / fps).abs() < 1e-6);
+        if !uniform {
+            notes.push(format!(
+                "take `{}` has steps in time longer than {} s: its keys follow its frames, not its clock",
+                take.name,
+                frond_motion::take::MAX_INTERPOLATED_GAP_S
+            ));
+        }
+    }
+    Ok((layers, notes))
 }
 
 #[cfg(test)]
