@@ -220,7 +220,7 @@ pub fn bench_cage(w: usize, h: usize, iterations: usize) -> CageBench {
     let sketch = Sketch { closed: true, points: ellipse };
     let (cages, vertices) = (tree.cages.len(), tree.cages[0].vertices.len());
     let plan = MorphPlan::new(tree, &sketch, MorphOptions::default());
-    let mut frames = crate::morph::MorphFrames::new(&scene, &plan);
+    let mut frames = crate::morph_frames::MorphFrames::new(&scene, &plan);
     let mut frame = scene.background.clone();
     let src = synthetic_frame(w, h);
     let mut dst = vec![0u8; src.len()];

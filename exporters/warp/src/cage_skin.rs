@@ -17,7 +17,7 @@ use glam::Vec3;
 
 use crate::Scene;
 use crate::cages::CageCommandError;
-use crate::morph::MorphFrames;
+use crate::morph_frames::MorphFrames;
 use crate::render::{OutputKind, PoseTrack, Progress, Sink};
 
 /// A crown cage bound to a skeleton at a point of the picture.

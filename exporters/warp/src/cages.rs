@@ -84,9 +84,18 @@ pub fn write_file(path: &Path, text: &str) -> std::io::Result<()> {
     frond_formats::rig_files::write_file_atomically(path, text.as_bytes())
 }
 
+/// A point argument that is not `X,Y` of finite numbers (named `--at` as `cage coords` takes it;
+/// `--anchor` reports it under its own name too).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("--at {text:?}: expected X,Y in image pixels, e.g. 120.5,80")]
+pub struct BadPoint {
+    /// The argument as given.
+    pub text: String,
+}
+
 /// Parses `X,Y` (finite numbers).
-pub fn parse_point(text: &str) -> Result<Point, String> {
-    let bad = || format!("--at {text:?}: expected X,Y in image pixels, e.g. 120.5,80");
+pub fn parse_point(text: &str) -> Result<Point, BadPoint> {
+    let bad = || BadPoint { text: text.to_string() };
     let (x, y) = text.split_once(',').ok_or_else(bad)?;
     let (x, y): (f64, f64) = (x.trim().parse().map_err(|_| bad())?, y.trim().parse().map_err(|_| bad())?);
     if !(x.is_finite() && y.is_finite()) {
@@ -108,8 +117,8 @@ pub fn coords_json(tree: &CageTree, id: u32, points: &[String]) -> Result<String
         let ids: Vec<String> = tree.cages.iter().map(|c| c.id.to_string()).take(20).collect();
         CageCommandError::Argument(format!("--id {id}: no such cage (ids: {})", ids.join(", ")))
     })?;
-    let parsed: Result<Vec<Point>, String> = points.iter().map(|p| parse_point(p)).collect();
-    let parsed = parsed.map_err(CageCommandError::Argument)?;
+    let parsed: Result<Vec<Point>, BadPoint> = points.iter().map(|p| parse_point(p)).collect();
+    let parsed = parsed.map_err(|e| CageCommandError::Argument(e.to_string()))?;
     let cage = &tree.cages[index].vertices;
     let mut weights = Vec::new();
     let mut rows = Vec::with_capacity(parsed.len());

@@ -23,6 +23,7 @@ pub mod cage_skin;
 pub mod cages;
 pub mod cli;
 pub mod morph;
+pub mod morph_frames;
 pub mod render;
 pub mod samples;
 pub mod serve;

@@ -171,7 +171,7 @@ fn check_cage_mode(
     wind_sim: Option<&str>,
     layers: usize,
     cage: &frond_warp::cli::CageArgs,
-) -> Option<Result<[f64; 2], String>> {
+) -> Option<Result<[f64; 2], frond_warp::cages::BadPoint>> {
     if let Some(spec) = wind_sim {
         ck.push("--wind-sim", spec, "the cage mode has no wind; drop it");
     }
@@ -392,60 +392,72 @@ fn bench(args: BenchArgs) -> anyhow::Result<()> {
         });
         frond_binmain::outln!("{v}")?;
     } else {
+        print_bench(&warp, &kernels, &pipeline, cage.as_ref(), args.write_field.as_deref())?;
+    }
+    Ok(())
+}
+
+/// `frond-warp bench`'s results as text (without `--json`).
+fn print_bench(
+    warp: &frond_warp::bench::WarpBench,
+    kernels: &[frond_warp::bench::WarpBench],
+    pipeline: &[frond_warp::bench::PipelineBench],
+    cage: Option<&frond_warp::bench::CageBench>,
+    write_field: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    frond_binmain::outln!(
+        "warp {}x{} ({}): median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms ({:.0} Mpx/s, single \
+         thread, {} iterations)",
+        warp.width,
+        warp.height,
+        warp.kernel,
+        warp.median_ms,
+        warp.min_ms,
+        warp.median_cpu_ms,
+        warp.mpix_per_s,
+        warp.iterations
+    )?;
+    for k in kernels {
         frond_binmain::outln!(
-            "warp {}x{} ({}): median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms ({:.0} Mpx/s, single \
-             thread, {} iterations)",
-            warp.width,
-            warp.height,
-            warp.kernel,
-            warp.median_ms,
-            warp.min_ms,
-            warp.median_cpu_ms,
-            warp.mpix_per_s,
-            warp.iterations
+            "  kernel {}: median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms",
+            k.kernel,
+            k.median_ms,
+            k.min_ms,
+            k.median_cpu_ms
         )?;
-        for k in &kernels {
-            frond_binmain::outln!(
-                "  kernel {}: median {:.2} ms, min {:.2} ms, median thread CPU {:.2} ms",
-                k.kernel,
-                k.median_ms,
-                k.min_ms,
-                k.median_cpu_ms
-            )?;
-        }
-        for p in pipeline {
-            frond_binmain::outln!(
-                "pipeline {}x{}: {:.1} frames/s ({} frames)",
-                p.width,
-                p.height,
-                p.fps,
-                p.frames
-            )?;
-        }
-        if let Some(c) = &cage {
-            frond_binmain::outln!(
-                "cage morph {}x{} ({} cages of {} vertices): frame {:.2} ms (tree {:.2}, field {:.2}, layer {:.2}, \
-                 warp {:.2}) against the plain remap's {:.2} ms: {:.2}x",
-                c.width,
-                c.height,
-                c.cages,
-                c.vertices,
-                c.frame_ms,
-                c.tree_update_ms,
-                c.field_ms,
-                c.layer_ms,
-                c.warp_ms,
-                c.remap_ms,
-                c.frame_ms / c.remap_ms
-            )?;
-        }
-        if let Some(dir) = &args.write_field {
-            frond_binmain::outln!(
-                "field written to {} (python3 exporters/warp/bench/remap.py {})",
-                dir.display(),
-                dir.display()
-            )?;
-        }
+    }
+    for p in pipeline {
+        frond_binmain::outln!(
+            "pipeline {}x{}: {:.1} frames/s ({} frames)",
+            p.width,
+            p.height,
+            p.fps,
+            p.frames
+        )?;
+    }
+    if let Some(c) = cage {
+        frond_binmain::outln!(
+            "cage morph {}x{} ({} cages of {} vertices): frame {:.2} ms (tree {:.2}, field {:.2}, layer {:.2}, \
+             warp {:.2}) against the plain remap's {:.2} ms: {:.2}x",
+            c.width,
+            c.height,
+            c.cages,
+            c.vertices,
+            c.frame_ms,
+            c.tree_update_ms,
+            c.field_ms,
+            c.layer_ms,
+            c.warp_ms,
+            c.remap_ms,
+            c.frame_ms / c.remap_ms
+        )?;
+    }
+    if let Some(dir) = write_field {
+        frond_binmain::outln!(
+            "field written to {} (python3 exporters/warp/bench/remap.py {})",
+            dir.display(),
+            dir.display()
+        )?;
     }
     Ok(())
 }

@@ -108,14 +108,19 @@ pub enum Horizon {
     None,
 }
 
+/// A horizon name that is not `bottom`, `top` or `none`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("horizon `{0}` is not one of bottom, top, none")]
+pub struct UnknownHorizon(pub String);
+
 impl std::str::FromStr for Horizon {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownHorizon;
+    fn from_str(s: &str) -> Result<Self, UnknownHorizon> {
         match s {
             "bottom" => Ok(Horizon::Bottom),
             "top" => Ok(Horizon::Top),
             "none" => Ok(Horizon::None),
-            other => Err(format!("horizon `{other}` is not one of bottom, top, none")),
+            other => Err(UnknownHorizon(other.to_string())),
         }
     }
 }

@@ -198,10 +198,10 @@ pub fn serve(animator: Animator, opts: ServeOptions) -> anyhow::Result<()> {
             text(200, &body.to_string(), "application/json")
         }
         ("POST", "/params") => {
-            match body_text(req).and_then(|body| {
-                serde_json::from_str::<Controls>(body).map_err(|e| format!("bad controls JSON: {e}"))
-            }) {
-                Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+            match body_text(req)
+                .and_then(|body| serde_json::from_str::<Controls>(body).map_err(BadBody::Controls))
+            {
+                Err(e) => text(400, &e.to_string(), "text/plain; charset=utf-8"),
                 Ok(ctl) => {
                     let mut s = shared.lock().expect("lock");
                     let base = s.pending.clone().unwrap_or_else(|| s.params.clone());
@@ -269,9 +269,23 @@ impl Bound {
     }
 }
 
+/// Why a `POST` body was refused (answered 400 with this text).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum BadBody {
+    /// The bytes are not UTF-8.
+    #[error("request body is not UTF-8")]
+    NotUtf8,
+    /// `/params`: not the page's controls.
+    #[error("bad controls JSON: {0}")]
+    Controls(serde_json::Error),
+    /// `/sketch` (the cage mode): not a sketch of the picture.
+    #[error("sketch: {0}")]
+    Sketch(frond_cage::sketch::SketchError),
+}
+
 /// The request's body as UTF-8 text (its size is bounded by the server's limits).
-pub(crate) fn body_text(req: &Request) -> Result<&str, String> {
-    std::str::from_utf8(&req.body).map_err(|_| "request body is not UTF-8".to_string())
+pub(crate) fn body_text(req: &Request) -> Result<&str, BadBody> {
+    std::str::from_utf8(&req.body).map_err(|_| BadBody::NotUtf8)
 }
 
 /// `GET /frame[?have=N]`: frame `frame_no` as [`raw_frame`], or 204 (no body) when the client

@@ -39,8 +39,11 @@ use frond_web::server::Routes;
 
 use crate::Scene;
 use crate::cage_skin::CageSkin;
-use crate::morph::{MAX_SKETCH_FILE_BYTES, MorphFrames};
-use crate::serve::{DaemonEvent, DaemonState, bind, body_text, follow_daemon, latest_frame, raw_frame, text};
+use crate::morph::MAX_SKETCH_FILE_BYTES;
+use crate::morph_frames::MorphFrames;
+use crate::serve::{
+    BadBody, DaemonEvent, DaemonState, bind, body_text, follow_daemon, latest_frame, raw_frame, text,
+};
 
 /// Frame rate of the cage preview.
 pub const CAGE_SERVE_FPS: f64 = 30.0;
@@ -179,13 +182,13 @@ pub fn serve_cage(scene: Scene, tree: CageTree, opts: CageServeOptions) -> anyho
             text(200, &body.to_string(), "application/json")
         }
         ("POST", "/sketch") => match body_text(req)
-            .and_then(|body| Sketch::from_json(body, tree.size).map_err(|e| format!("sketch: {e}")))
+            .and_then(|body| Sketch::from_json(body, tree.size).map_err(BadBody::Sketch))
         {
             Ok(sketch) => {
                 shared.lock().expect("lock").request = Some(Some(sketch));
                 text(200, "ok", "text/plain")
             }
-            Err(msg) => text(400, &msg, "text/plain; charset=utf-8"),
+            Err(e) => text(400, &e.to_string(), "text/plain; charset=utf-8"),
         },
         ("POST", "/reset") => {
             shared.lock().expect("lock").request = Some(None);
