@@ -6,7 +6,9 @@
 //! [`LtcEvent`]s: each frame's label, lock, loss and jumps. It reads 24, 25, 29.97 drop-frame
 //! and 30 fps, whatever the level or polarity of the signal, because it decodes biphase mark
 //! code by the intervals between transitions, not by levels.
-//! [`FrameRate`] and [`SmpteTime`] hold the drop-frame arithmetic (label <-> frame count).
+//! [`FrameRate`] and [`SmpteTime`] hold the drop-frame arithmetic (label <-> frame count);
+//! [`StageClock`] gives the stage timecode at any host monotonic instant, interpolated from the
+//! last frame.
 //!
 //! No I/O and no allocation after [`LtcDecoder::new`]: the caller feeds samples from a
 //! capture device, a file or a pipe on a helper thread (never the realtime loop) and maps
@@ -19,10 +21,12 @@
 #![warn(missing_docs)]
 
 mod biphase;
+mod clock;
 mod decoder;
 mod frame;
 mod timecode;
 
+pub use clock::{StageClock, StageTime};
 pub use decoder::{
     LOCK_FRAMES, LtcCounters, LtcDecoder, LtcError, LtcEvent, LtcFrame, MAX_SAMPLE_RATE_HZ,
     MIN_SAMPLE_RATE_HZ,
