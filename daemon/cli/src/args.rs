@@ -219,27 +219,7 @@ pub enum RecordCommand {
     /// Start recording a take NAME into the daemon's takes directory. With --stage: record
     /// every source of a stage over Zenoh, from this host, each to its own take NAME-<source>
     /// in --takes-dir, on one timeline (see `frond take export --align`), until Ctrl-C or --for.
-    Start {
-        /// Take name: letters, digits, '-', '_', '.'.
-        name: String,
-        /// Record every source of this Zenoh stage (its frond-zenoh bridges) instead of the
-        /// local daemon; runs in the foreground.
-        #[arg(long, value_name = "STAGE")]
-        stage: Option<String>,
-        /// Zenoh endpoint to connect to, e.g. tcp/10.0.0.5:7447 (repeatable; default: find the
-        /// bridges by scouting).
-        #[arg(long, value_name = "ENDPOINT", requires = "stage")]
-        connect: Vec<String>,
-        /// A Zenoh configuration file (mode, routers, TLS, credentials).
-        #[arg(long, value_name = "FILE", requires = "stage")]
-        zenoh_config: Option<PathBuf>,
-        /// Stop after this many seconds (default: at Ctrl-C).
-        #[arg(long = "for", value_name = "SECONDS", requires = "stage")]
-        duration_s: Option<f64>,
-        /// How long to wait for the stage's first source, seconds.
-        #[arg(long, value_name = "SECONDS", default_value_t = 10.0, requires = "stage")]
-        wait: f64,
-    },
+    Start(crate::stage_record::RecordStart),
     /// Stop the current recording and print the take's path and frame count.
     Stop,
     /// Record a secondary layer (seed 000, section 5.3): the hand animates the rig's element
@@ -299,63 +279,7 @@ pub enum TakeCommand {
     /// Held frames (repeats of the previous pose) are skipped unless --include-held is given, so
     /// each line is one device sample with its recorded time. With --fps the poses are
     /// resampled by linear interpolation and `t` counts from 0.
-    Export {
-        /// Take name (or a path to a .take file).
-        name: String,
-        /// With --align: the other takes to put on the same timeline.
-        #[arg(value_name = "TAKE", requires = "align")]
-        more: Vec<String>,
-        /// Put NAME and the TAKEs on one stage timeline (the takes of one `record start
-        /// --stage`, or takes of one host): every main-skeleton frame of all of them in time
-        /// order, {"seq","t","joints","take","stage_ns","host_ns"} a line, `t` in seconds from
-        /// the first frame of any.
-        #[arg(long, conflicts_with_all = ["bvh", "usd", "fps", "timecode", "timecode_start"])]
-        align: bool,
-        /// JSON Lines output on stdout (the default).
-        #[arg(long, conflicts_with_all = ["bvh", "usd"])]
-        jsonl: bool,
-        /// BVH (Biovision Hierarchy) into -o FILE: the mocap exchange format MotionBuilder, Maya
-        /// and Blender import; metres, Y up, channels Zrotation Xrotation Yrotation (frond's
-        /// R = R_yaw R_pitch R_roll), at --fps (default 30).
-        #[arg(long, requires = "output", group = "file_format")]
-        bvh: bool,
-        /// USD (UsdSkel) layer into -o FILE.usda (text) or FILE.usdc (binary): the rig's skinned
-        /// mesh, skeleton and the take's animation, Y up, metres, time codes at --fps (default 30).
-        #[arg(long, requires = "output", group = "file_format", conflicts_with = "field")]
-        usd: bool,
-        /// Output file (with --bvh or --usd).
-        #[arg(short = 'o', long = "output", value_name = "FILE", requires = "file_format")]
-        output: Option<PathBuf>,
-        /// Rig whose joint names, heights (and, for USD, mesh) the file takes [default: the
-        /// take's rig when it is an embedded one; a rig loaded from a file must be given here].
-        #[arg(long, value_name = "NAME|FILE", requires = "file_format")]
-        rig: Option<PathBuf>,
-        /// Field file (field.json from `frond take field`): every plant of the field, one BVH
-        /// root each (with --bvh and --duration).
-        #[arg(long, value_name = "FILE", requires_all = ["bvh", "duration"])]
-        field: Option<PathBuf>,
-        /// Length of a field export, seconds.
-        #[arg(long, value_name = "S", requires = "field")]
-        duration: Option<f64>,
-        /// Resample to this many frames per second (e.g. 30, the seed's rate).
-        #[arg(long, value_name = "FPS")]
-        fps: Option<f64>,
-        /// Also print held frames (every recorded tick); ignored with --fps.
-        #[arg(long)]
-        include_held: bool,
-        /// SMPTE timecode of the first frame, HH:MM:SS:FF at --fps (with --usd or --timecode;
-        /// BVH has no timecode field) [default: the time of day, UTC, the take's first frame was
-        /// recorded at, when the take knows it].
-        #[arg(long, value_name = "HH:MM:SS:FF", conflicts_with = "bvh")]
-        timecode_start: Option<String>,
-        /// JSON Lines: add each frame's SMPTE timecode ("tc": "HH:MM:SS:FF", at --fps) from the
-        /// take's recording clock or --timecode-start.
-        #[arg(long, requires = "fps", conflicts_with_all = ["bvh", "usd"])]
-        timecode: bool,
-        /// Resample past the export limit (1,080,000 frames); never past 16,777,216.
-        #[arg(long)]
-        force: bool,
-    },
+    Export(crate::take_export::ExportArgs),
     /// Cut a torn tail off a take (after a crash) and close it, keeping every complete frame.
     /// Refuses takes modified in the last few seconds, which may still be recording.
     Repair {

@@ -1,6 +1,7 @@
-//! The options every `frond` command takes: where the daemon's sockets and takes are, and how to
-//! reach a daemon on another host. A module of its own, importing nothing of the crate, so that
-//! the commands use it without importing the command-line tree that is built from them.
+//! The options every `frond` command takes: where the daemon's sockets and takes are, how to
+//! reach a daemon on another host, and the log level. A module of its own, importing nothing of
+//! the crate, so that the commands use it without importing the command-line tree that is built
+//! from them.
 
 use std::path::PathBuf;
 
@@ -28,4 +29,8 @@ pub struct Global {
     /// The principal's key: a file holding its hex key, readable by its owner only.
     #[arg(long = "key-file", global = true, env = "FROND_REMOTE_KEY_FILE", value_name = "FILE")]
     pub remote_key_file: Option<PathBuf>,
+    /// Log level or filter of the libraries frond runs on (its Zenoh sessions among them):
+    /// error, warn, info, debug, trace, or a tracing filter such as `zenoh=debug` [default: off].
+    #[arg(long, global = true, value_name = "LEVEL")]
+    pub log_level: Option<String>,
 }

@@ -24,6 +24,8 @@ mod stage_record;
 mod status;
 mod take_align;
 mod take_bvh;
+mod take_export;
+mod take_file;
 mod take_graph;
 mod take_io;
 mod take_sim;
@@ -40,7 +42,6 @@ use std::process::ExitCode;
 use clap::Parser;
 
 pub use args::{Cli, Command};
-use error::usage;
 pub use error::{ChildFailed, Interrupted, UsageError};
 
 /// Parses `args` and runs the command; returns the process exit code.
@@ -64,6 +65,13 @@ where
             return ExitCode::from(2);
         }
     };
+    // Without --log-level nothing is installed: the libraries' logs stay unwritten, as they
+    // always were.
+    if let Some(level) = &cli.global.log_level
+        && let Err(code) = frond_binmain::logging("frond", level)
+    {
+        return code;
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => exit_for(&e),
@@ -106,37 +114,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Rig(args::RigCommand::Set { file }) => control::set_rig(g, &file),
         Command::Filter { spec } => control::set_filter(g, &spec),
         Command::Mark { label } => control::mark(g, &label),
-        Command::Record(args::RecordCommand::Start { name, stage: None, .. }) => {
-            control::record_start(g, &name)
-        }
-        Command::Record(args::RecordCommand::Start {
-            name,
-            stage: Some(stage),
-            connect,
-            zenoh_config,
-            duration_s,
-            wait,
-        }) => {
-            let seconds = |what: &str, s: f64| match s {
-                s if s.is_finite() && s > 0.0 && s <= 7.0 * 86_400.0 => {
-                    Ok(std::time::Duration::from_secs_f64(s))
-                }
-                _ => usage(format!("{what} {s}: seconds, more than 0 and at most a week")),
-            };
-            let duration = duration_s.map(|s| seconds("--for", s)).transpose()?;
-            let wait = seconds("--wait", wait)?;
-            stage_record::run(
-                g,
-                &stage_record::StageRecord {
-                    name: &name,
-                    stage: &stage,
-                    connect: &connect,
-                    zenoh_config: zenoh_config.as_deref(),
-                    duration,
-                    wait,
-                },
-            )
-        }
+        Command::Record(args::RecordCommand::Start(a)) => match &a.stage {
+            None => control::record_start(g, &a.name),
+            Some(stage) => stage_record::start(g, stage, &a),
+        },
         Command::Record(args::RecordCommand::Stop) => control::record_stop(g),
         Command::Record(args::RecordCommand::Layer { name, layer, over, seed }) => {
             live::record_layer(g, &name, &layer, over, seed)
@@ -152,62 +133,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(cmd) => graph_live::sim(g, cmd),
         Command::Guided { spec } => live::guided(g, &spec),
         Command::Take(args::TakeCommand::List { json }) => takes::list(g, json),
-        Command::Take(args::TakeCommand::Export { name, more, align: true, include_held, .. }) => {
-            let names: Vec<String> = std::iter::once(name).chain(more).collect();
-            take_align::export_aligned(g, &names, include_held)
-        }
-        Command::Take(args::TakeCommand::Export {
-            name,
-            more: _,
-            align: _,
-            jsonl: _,
-            bvh,
-            usd,
-            output,
-            rig,
-            field,
-            duration,
-            fps,
-            include_held,
-            timecode_start,
-            timecode,
-            force,
-        }) => match (bvh, output) {
-            (false, Some(output)) if usd => take_usd::export_usd(
-                g,
-                take_usd::UsdExport {
-                    name: &name,
-                    output: &output,
-                    fps,
-                    rig: rig.as_deref(),
-                    timecode_start: timecode_start.as_deref(),
-                    force,
-                },
-            ),
-            (true, Some(output)) => take_bvh::export_bvh(
-                g,
-                take_bvh::BvhExport {
-                    name: &name,
-                    output: &output,
-                    fps,
-                    rig: rig.as_deref(),
-                    field: field.as_deref(),
-                    duration_s: duration,
-                    force,
-                },
-            ),
-            _ if timecode_start.is_some() && !timecode => {
-                usage("--timecode-start goes with --usd or --timecode")
-            }
-            _ => takes::export(
-                g,
-                &name,
-                fps,
-                include_held,
-                timecode.then_some(timecode_start.as_deref()),
-                force,
-            ),
-        },
+        Command::Take(args::TakeCommand::Export(a)) => take_export::run(g, a),
         Command::Take(args::TakeCommand::Repair { name }) => takes::repair(g, &name),
         Command::Take(args::TakeCommand::Tool(t)) => take_tools::run(g, t),
         Command::Demo { seconds, name, stay } => demo::run(g, seconds, name, stay),

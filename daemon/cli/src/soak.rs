@@ -500,6 +500,44 @@ fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
         Some(s) if s == "exit status: 0" => {}
         other => f.push(format!("frondd did not exit 0 on SIGTERM: {other:?}")),
     }
+    subscriber_failures(r, windows, glove_elapsed, &mut f);
+    let t = &r.take;
+    if let Some(e) = &t.error {
+        f.push(format!("take {}: {e}", t.path));
+    } else if !t.ended
+        || t.torn_bytes > 0
+        || t.seq_breaks > 0
+        || t.frames != t.frames_reported
+        || t.frames == 0
+    {
+        f.push(format!(
+            "take incomplete: {} frames ({} reported), ended {}, torn {} bytes, {} seq breaks",
+            t.frames, t.frames_reported, t.ended, t.torn_bytes, t.seq_breaks
+        ));
+    }
+    if t.recorder_dropped > 0 {
+        f.push(format!("the recorder dropped {} frames", t.recorder_dropped));
+    }
+    faults::verdict(&r.faults, &mut f);
+    if r.rss_growth_kib >= RSS_GROWTH_LIMIT_KIB {
+        f.push(format!(
+            "RSS grew {} KiB after warm-up ({} -> {} KiB), limit {RSS_GROWTH_LIMIT_KIB}",
+            r.rss_growth_kib, r.rss_kib_after_warmup, r.rss_kib_end
+        ));
+    }
+    let (a, b) = (r.idle_before, r.idle_after);
+    if a.threads != b.threads || a.fds != b.fds {
+        f.push(format!(
+            "idle counts changed: threads {} -> {}, open files {} -> {}",
+            a.threads, b.threads, a.fds, b.fds
+        ));
+    }
+    r.failures = f;
+}
+
+/// The verdict on what the subscribers saw: no gap outside the unplug windows, every unplug
+/// seen, the device back within [`REOPEN_LIMIT_MS`] of each replug.
+fn subscriber_failures(r: &SoakReport, windows: u64, glove_elapsed: Duration, f: &mut Vec<String>) {
     for s in &r.subscribers {
         if s.name != "slow" && s.gaps_outside_unplug_windows > 0 {
             f.push(format!(
@@ -542,36 +580,4 @@ fn verdict(r: &mut SoakReport, windows: u64, glove_elapsed: Duration) {
             w.first_seq, w.last_seq, w.frames, w.reopen_ms
         ));
     }
-    let t = &r.take;
-    if let Some(e) = &t.error {
-        f.push(format!("take {}: {e}", t.path));
-    } else if !t.ended
-        || t.torn_bytes > 0
-        || t.seq_breaks > 0
-        || t.frames != t.frames_reported
-        || t.frames == 0
-    {
-        f.push(format!(
-            "take incomplete: {} frames ({} reported), ended {}, torn {} bytes, {} seq breaks",
-            t.frames, t.frames_reported, t.ended, t.torn_bytes, t.seq_breaks
-        ));
-    }
-    if t.recorder_dropped > 0 {
-        f.push(format!("the recorder dropped {} frames", t.recorder_dropped));
-    }
-    faults::verdict(&r.faults, &mut f);
-    if r.rss_growth_kib >= RSS_GROWTH_LIMIT_KIB {
-        f.push(format!(
-            "RSS grew {} KiB after warm-up ({} -> {} KiB), limit {RSS_GROWTH_LIMIT_KIB}",
-            r.rss_growth_kib, r.rss_kib_after_warmup, r.rss_kib_end
-        ));
-    }
-    let (a, b) = (r.idle_before, r.idle_after);
-    if a.threads != b.threads || a.fds != b.fds {
-        f.push(format!(
-            "idle counts changed: threads {} -> {}, open files {} -> {}",
-            a.threads, b.threads, a.fds, b.fds
-        ));
-    }
-    r.failures = f;
 }

@@ -44,9 +44,55 @@ const SOURCE_TIMEOUT: Duration = Duration::from_secs(10);
 const REDISCOVER: Duration = Duration::from_secs(1);
 /// Most takes one stage recording opens.
 const MAX_TAKES: usize = 32;
-/// Highest element id of a rig's secondary layer (README, "Socket protocol": 0 is the global
-/// element, `1..=32` the rig's layers); live stages' elements are not part of a performer's take.
+/// Highest element id of a rig's secondary layer (docs/protocol.md: 0 is the global element,
+/// `1..=32` the rig's layers); live stages' elements are not part of a performer's take.
 const MAX_LAYER_ID: u16 = 32;
+
+/// What `frond record start` was asked (with `--stage`, a stage recording; without, the
+/// daemon's own).
+#[derive(Debug, clap::Args)]
+pub struct RecordStart {
+    /// Take name: letters, digits, '-', '_', '.'.
+    pub name: String,
+    /// Record every source of this Zenoh stage (its frond-zenoh bridges) instead of the
+    /// local daemon; runs in the foreground.
+    #[arg(long, value_name = "STAGE")]
+    pub stage: Option<String>,
+    /// Zenoh endpoint to connect to, e.g. tcp/10.0.0.5:7447 (repeatable; default: find the
+    /// bridges by scouting).
+    #[arg(long, value_name = "ENDPOINT", requires = "stage")]
+    pub connect: Vec<String>,
+    /// A Zenoh configuration file (mode, routers, TLS, credentials).
+    #[arg(long, value_name = "FILE", requires = "stage")]
+    pub zenoh_config: Option<PathBuf>,
+    /// Stop after this many seconds (default: at Ctrl-C).
+    #[arg(long = "for", value_name = "SECONDS", requires = "stage")]
+    pub duration_s: Option<f64>,
+    /// How long to wait for the stage's first source, seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0, requires = "stage")]
+    pub wait: f64,
+}
+
+/// `frond record start --stage STAGE`: the durations checked, then [`run`].
+pub(crate) fn start(g: &Global, stage: &str, a: &RecordStart) -> anyhow::Result<()> {
+    let seconds = |what: &str, s: f64| match s {
+        s if s.is_finite() && s > 0.0 && s <= 7.0 * 86_400.0 => Ok(Duration::from_secs_f64(s)),
+        _ => usage(format!("{what} {s}: seconds, more than 0 and at most a week")),
+    };
+    let duration = a.duration_s.map(|s| seconds("--for", s)).transpose()?;
+    let wait = seconds("--wait", a.wait)?;
+    run(
+        g,
+        &StageRecord {
+            name: &a.name,
+            stage,
+            connect: &a.connect,
+            zenoh_config: a.zenoh_config.as_deref(),
+            duration,
+            wait,
+        },
+    )
+}
 
 /// What `frond record start NAME --stage STAGE` was given.
 pub(crate) struct StageRecord<'a> {
@@ -87,25 +133,7 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
     let stage = Stage::open(a.stage, &template)?;
     signals::install().context("installing the signal handlers")?;
 
-    // The first sources: wait for at least one.
-    let started = Instant::now();
-    let mut sources = Vec::new();
-    while sources.is_empty() {
-        if signals::interrupted() {
-            return Err(Interrupted.into());
-        }
-        if started.elapsed() >= a.wait {
-            bail!(
-                "no source on stage {:?} answered within {:?} (is a frond-zenoh bridge running with \
-                 --stage {}, and reachable? give --connect tcp/HOST:PORT when scouting cannot find it)",
-                a.stage,
-                a.wait,
-                a.stage
-            );
-        }
-        sources = stage.sources(Duration::from_millis(500))?;
-    }
-
+    let mut sources = first_sources(&stage, a)?;
     let stop = Arc::new(AtomicBool::new(false));
     let mut takes: BTreeMap<String, JoinHandle<anyhow::Result<Finished>>> = BTreeMap::new();
     let deadline = a.duration.map(|d| Instant::now() + d);
@@ -122,39 +150,9 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
                 );
                 continue;
             }
-            let offset = match stage.clock_offset(&source, CLOCK_EXCHANGES, SOURCE_TIMEOUT) {
-                Ok(o) => o,
-                Err(e) => {
-                    frond_binmain::errln!(
-                        "frond: warning: source {source}: no clock reading ({e}); not recording it"
-                    );
-                    continue;
-                }
-            };
-            let addr = stage.source_addr(&source)?;
-            let take = format!("{}-{source}", a.name);
-            let path = takes_dir.join(format!("{take}.take"));
-            frond_binmain::outln!(
-                "recording {source} to {} (its clock is {:+.3} ms from this host's, within {:.3} ms)",
-                path.display(),
-                offset.offset_ns as f64 / 1e6,
-                offset.rtt_ns as f64 / 2e6
-            )?;
-            let job = SourceJob {
-                stage: a.stage.to_owned(),
-                source: source.clone(),
-                addr,
-                session: stage.session().clone(),
-                take,
-                path,
-                offset,
-            };
-            let stop = stop.clone();
-            let handle = std::thread::Builder::new()
-                .name(format!("record-{source}"))
-                .spawn(move || job.record(&stop))
-                .context("starting a recording thread")?;
-            takes.insert(source, handle);
+            if let Some(handle) = start_source(&stage, a, &takes_dir, &source, &stop)? {
+                takes.insert(source, handle);
+            }
         }
         if signals::interrupted() || deadline.is_some_and(|d| Instant::now() >= d) {
             break;
@@ -172,6 +170,77 @@ pub(crate) fn run(g: &Global, a: &StageRecord) -> anyhow::Result<()> {
         }
     }
     stop.store(true, Ordering::SeqCst);
+    finish(takes)
+}
+
+/// The stage's first sources: waits for at least one, at most `a.wait`.
+fn first_sources(stage: &Stage, a: &StageRecord) -> anyhow::Result<Vec<String>> {
+    let started = Instant::now();
+    let mut sources = Vec::new();
+    while sources.is_empty() {
+        if signals::interrupted() {
+            return Err(Interrupted.into());
+        }
+        if started.elapsed() >= a.wait {
+            bail!(
+                "no source on stage {:?} answered within {:?} (is a frond-zenoh bridge running with \
+                 --stage {}, and reachable? give --connect tcp/HOST:PORT when scouting cannot find it)",
+                a.stage,
+                a.wait,
+                a.stage
+            );
+        }
+        sources = stage.sources(Duration::from_millis(500))?;
+    }
+    Ok(sources)
+}
+
+/// Starts recording `source` to its take `NAME-<source>` on a thread of its own; `None` (said
+/// on stderr) when its clock cannot be read.
+fn start_source(
+    stage: &Stage,
+    a: &StageRecord,
+    takes_dir: &Path,
+    source: &str,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<Option<JoinHandle<anyhow::Result<Finished>>>> {
+    let offset = match stage.clock_offset(source, CLOCK_EXCHANGES, SOURCE_TIMEOUT) {
+        Ok(o) => o,
+        Err(e) => {
+            frond_binmain::errln!(
+                "frond: warning: source {source}: no clock reading ({e}); not recording it"
+            );
+            return Ok(None);
+        }
+    };
+    let addr = stage.source_addr(source)?;
+    let take = format!("{}-{source}", a.name);
+    let path = takes_dir.join(format!("{take}.take"));
+    frond_binmain::outln!(
+        "recording {source} to {} (its clock is {:+.3} ms from this host's, within {:.3} ms)",
+        path.display(),
+        offset.offset_ns as f64 / 1e6,
+        offset.rtt_ns as f64 / 2e6
+    )?;
+    let job = SourceJob {
+        stage: a.stage.to_owned(),
+        source: source.to_owned(),
+        addr,
+        session: stage.session().clone(),
+        take,
+        path,
+        offset,
+    };
+    let stop = stop.clone();
+    let handle = std::thread::Builder::new()
+        .name(format!("record-{source}"))
+        .spawn(move || job.record(&stop))
+        .context("starting a recording thread")?;
+    Ok(Some(handle))
+}
+
+/// Waits for every source's recording to end and says how each went; an error if any failed.
+fn finish(takes: BTreeMap<String, JoinHandle<anyhow::Result<Finished>>>) -> anyhow::Result<()> {
     let mut failed = 0;
     for (source, handle) in takes {
         match handle.join() {

@@ -73,22 +73,50 @@ pub(crate) fn human_duration(s: f64) -> String {
 pub(crate) fn render(r: &StatusReport) -> String {
     use frond_protocol::printable as p;
     let mut o = String::new();
-    let src = &r.source;
     let _ = writeln!(o, "daemon       frondd {}, up {}", p(&r.daemon_version), human_duration(r.uptime_s));
     for problem in &r.problems {
         let _ = writeln!(o, "PROBLEM      {}", p(problem));
     }
-    let source_line = |s: &frond_protocol::SourceStatus| {
-        format!(
-            "{} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
-            p(&s.kind),
-            p(&s.path),
-            if s.connected { "connected" } else { "NOT CONNECTED" },
-            s.reports,
-            s.rejected,
-            s.device_seq_gaps
-        )
-    };
+    hands(&mut o, r);
+    let _ = writeln!(o, "rig          {}", p(&r.rig_name));
+    let _ = writeln!(o, "calibration  {}", p(&r.calibration_id));
+    let _ = writeln!(o, "filter       {}", p(&r.filter));
+    let _ = writeln!(
+        o,
+        "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} device wakes, {} publish drops)",
+        r.tick_rate_hz, r.achieved_rate_hz, r.ticks, r.held_ticks, r.device_wakes, r.publish_drops
+    );
+    let l = &r.lateness;
+    let _ = writeln!(
+        o,
+        "lateness     p50 {:.1} us, p99 {:.1} us, p99.9 {:.1} us, max {:.1} us ({} samples)",
+        l.p50_us, l.p99_us, l.p999_us, l.max_us, l.samples
+    );
+    if !r.realtime.is_empty() {
+        let _ = writeln!(o, "realtime     {}", p(&r.realtime));
+    }
+    recording_and_subscribers(&mut o, r);
+    stages_elements_and_events(&mut o, r);
+    o
+}
+
+/// One hand source's line: kind, path, connection and counts.
+fn source_line(s: &frond_protocol::SourceStatus) -> String {
+    use frond_protocol::printable as p;
+    format!(
+        "{} {} ({}; {} reports, {} rejected, {} device sequence gaps)",
+        p(&s.kind),
+        p(&s.path),
+        if s.connected { "connected" } else { "NOT CONNECTED" },
+        s.reports,
+        s.rejected,
+        s.device_seq_gaps
+    )
+}
+
+/// [`render`]'s hand sources: one `source` line, or each hand with its element and counts.
+fn hands(o: &mut String, r: &StatusReport) {
+    use frond_protocol::printable as p;
     if r.hands.len() > 1 {
         let _ = writeln!(o, "hands        {}", r.hands.len());
         for h in &r.hands {
@@ -110,25 +138,13 @@ pub(crate) fn render(r: &StatusReport) -> String {
             );
         }
     } else {
-        let _ = writeln!(o, "source       {}", source_line(src));
+        let _ = writeln!(o, "source       {}", source_line(&r.source));
     }
-    let _ = writeln!(o, "rig          {}", p(&r.rig_name));
-    let _ = writeln!(o, "calibration  {}", p(&r.calibration_id));
-    let _ = writeln!(o, "filter       {}", p(&r.filter));
-    let _ = writeln!(
-        o,
-        "rate         {} Hz nominal, {:.1} Hz achieved ({} ticks, {} held, {} device wakes, {} publish drops)",
-        r.tick_rate_hz, r.achieved_rate_hz, r.ticks, r.held_ticks, r.device_wakes, r.publish_drops
-    );
-    let l = &r.lateness;
-    let _ = writeln!(
-        o,
-        "lateness     p50 {:.1} us, p99 {:.1} us, p99.9 {:.1} us, max {:.1} us ({} samples)",
-        l.p50_us, l.p99_us, l.p999_us, l.max_us, l.samples
-    );
-    if !r.realtime.is_empty() {
-        let _ = writeln!(o, "realtime     {}", p(&r.realtime));
-    }
+}
+
+/// [`render`]'s recording, recorder error and subscribers.
+fn recording_and_subscribers(o: &mut String, r: &StatusReport) {
+    use frond_protocol::printable as p;
     match &r.recording {
         Some(rec) => {
             let _ = writeln!(
@@ -162,6 +178,11 @@ pub(crate) fn render(r: &StatusReport) -> String {
             );
         }
     }
+}
+
+/// [`render`]'s live stages, elements and device events.
+fn stages_elements_and_events(o: &mut String, r: &StatusReport) {
+    use frond_protocol::printable as p;
     if r.stages.is_empty() {
         let _ = writeln!(o, "stages       none");
     } else {
@@ -181,7 +202,6 @@ pub(crate) fn render(r: &StatusReport) -> String {
             let _ = writeln!(o, "  {}", p(e));
         }
     }
-    o
 }
 
 /// Elements in runs of one kind and source: `0 hand grass`, `33-48 field-plant (field, 16)`.

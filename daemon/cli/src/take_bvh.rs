@@ -14,7 +14,7 @@ use frond_motion::sim::node_heights_m;
 
 use crate::error::usage;
 use crate::global::Global;
-use crate::takes::{MAX_EXPORT_FRAMES, TakeForFile, take_for_file};
+use crate::take_file::{MAX_EXPORT_FRAMES, TakeForFile, take_for_file};
 
 /// Longest field export, seconds.
 const MAX_FIELD_DURATION_S: f64 = 24.0 * 3600.0;
@@ -81,7 +81,7 @@ pub(crate) fn export_bvh(g: &Global, a: BvhExport<'_>) -> anyhow::Result<()> {
             }
             let frames = frames as usize;
             let what = take.path.display().to_string();
-            crate::takes::check_resample(&what, &take.source, field.fps, a.force)?;
+            crate::take_file::check_resample(&what, &take.source, field.fps, a.force)?;
             let clip = Clip::from_poses(&frond_motion::resample(&take.source, field.fps), field.fps);
             let digits = field.plants.len().to_string().len();
             let plants: Vec<BvhPlant> = field

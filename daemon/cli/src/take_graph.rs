@@ -84,7 +84,8 @@ fn control_path(
     let rig = match rig {
         Some(spec) => load_rig(spec)?.0,
         None => {
-            crate::takes::recorded_rig(&format!("take {:?}", take.header.name), &take.header.rig_name)?.rig
+            crate::take_file::recorded_rig(&format!("take {:?}", take.header.name), &take.header.rig_name)?
+                .rig
         }
     };
     let top_m = rig.sim_node_heights_m()[4] as f32;
@@ -282,6 +283,38 @@ fn walk_source(g: &Global, a: &Walk, name: &str, graph_path: PathBuf) -> anyhow:
 
 /// Walks the graphs and writes one take per plant.
 pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
+    let (plants, base) = check_walk(g, &a)?;
+    let mut sources = Vec::with_capacity(a.names.len());
+    for (i, name) in a.names.iter().enumerate() {
+        let path = a.graph.get(i).cloned().unwrap_or_else(|| default_graph_path(g, name));
+        sources.push(walk_source(g, &a, name, path)?);
+    }
+    // Count what the walk makes before making it, as every take tool does: at most
+    // MAX_EXPORT_FRAMES in all without --force, never more than MAX_RESAMPLED_FRAMES.
+    let total: u64 = (0..plants as usize).map(|p| walk_frames(&a, &sources[p % sources.len()])).sum();
+    check_walk_frames(total, plants, a.duration, a.force)?;
+    // Each plant's take is written as soon as it is walked: one plant's frames in memory at a
+    // time, not every plant's.
+    let mut explains = Vec::new();
+    for plant in 0..plants {
+        // Plant p: take p mod count.
+        let src = &sources[plant as usize % sources.len()];
+        explains.extend(walk_plant(g, &a, src, (plant, plants), &base)?);
+    }
+    if a.explain {
+        let graphs: Vec<_> = sources.iter().map(|s| &s.graph_path).collect();
+        frond_binmain::errln!(
+            "{}",
+            serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains })
+        );
+    }
+    Ok(())
+}
+
+/// Checks what `frond take walk` was asked before reading or walking anything, every output
+/// name included (no half-written set of takes); returns the number of plants and the output
+/// name of the first.
+fn check_walk(g: &Global, a: &Walk) -> anyhow::Result<(u32, String)> {
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= MAX_WALK_S) {
         return usage(format!("--duration must be in (0, {MAX_WALK_S}] seconds, got {}", a.duration));
     }
@@ -307,7 +340,6 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
         return usage("--jsonl prints one plant; use it with one take and without --plants, or write takes");
     }
     let base = a.output.clone().unwrap_or_else(|| format!("{}-walk", a.names[0]));
-    // Check every output name before reading or walking (no half-written set of takes).
     for plant in 0..plants {
         let name = plant_take_name(&base, plant);
         if let Err(e) = frond_protocol::paths::validate_take_name(&name) {
@@ -321,80 +353,72 @@ pub(crate) fn walk(g: &Global, a: Walk) -> anyhow::Result<()> {
             ));
         }
     }
-    let mut sources = Vec::with_capacity(a.names.len());
-    for (i, name) in a.names.iter().enumerate() {
-        let path = a.graph.get(i).cloned().unwrap_or_else(|| default_graph_path(g, name));
-        sources.push(walk_source(g, &a, name, path)?);
-    }
-    // Count what the walk makes before making it, as every take tool does: at most
-    // MAX_EXPORT_FRAMES in all without --force, never more than MAX_RESAMPLED_FRAMES.
-    let frames_of = |src: &Source| (a.duration * src.fps).round().max(1.0) as u64;
-    let total: u64 = (0..plants as usize).map(|p| frames_of(&sources[p % sources.len()])).sum();
-    check_walk_frames(total, plants, a.duration, a.force)?;
-    // Each plant's take is written as soon as it is walked: one plant's frames in memory at a
-    // time, not every plant's.
-    let mut explains = Vec::new();
-    for plant in 0..plants {
-        // Plant p: take p mod count, seed + p, starting at a node spread over its graph.
-        let src = &sources[plant as usize % sources.len()];
-        let (graph, poses) = (&src.graph, &src.poses);
-        let start = (plant as u64 * graph.len() as u64 / plants as u64) as u32;
-        let seed = a.seed.wrapping_add(plant as u64);
-        let mut w = Walker::new(graph, start, seed, src.fps);
-        w.set_goal(src.goal.clone());
-        let frames = frames_of(src) as usize;
-        let mut walked = Vec::with_capacity(frames);
-        let mut taken = Vec::new();
-        for _ in 0..frames {
-            let s = w.next_frame(graph, poses);
-            if a.explain
-                && let (Some(node), Some(e)) = (s.node, s.chose)
-                && e.kind == EdgeKind::Transition
-            {
-                taken.push(serde_json::json!({
-                    "t": s.pose.t,
-                    "from_frame": graph.node_frames[node as usize],
-                    "to_frame": graph.node_frames[e.to as usize],
-                    "inbetweens": e.inbetweens,
-                }));
-            }
-            walked.push(s.pose);
-        }
-        let clip = Clip { fps: src.fps, frames: walked };
-        let mut out_take = src.template.clone();
-        out_take.header.tick_rate_hz = src.fps.round().max(1.0) as u32;
-        out_take.header.filter = format!("walk of {} seed={seed} goal={}", src.name, goal_name(&a));
-        out_take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
-        let name = plant_take_name(&base, plant);
-        let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps: src.fps };
-        emit(g, out_take, name, &out)?;
-        if a.explain {
-            explains.push(serde_json::json!({
-                "plant": plant,
-                "take": src.name,
-                "graph": src.graph_path,
-                "seed": seed,
-                "start_frame": graph.node_frames[start as usize],
-                "end_node_frame": graph.node_frames[w.node() as usize],
-                "transitions_taken": w.transitions_taken(),
-                "transitions": taken,
+    Ok((plants, base))
+}
+
+/// Frames of one plant's walk of `src`.
+fn walk_frames(a: &Walk, src: &Source) -> u64 {
+    (a.duration * src.fps).round().max(1.0) as u64
+}
+
+/// Walks plant `plant` of `plants` on `src` (seed + plant, starting at a node spread over its
+/// graph) and writes its take; with `--explain`, what it did.
+fn walk_plant(
+    g: &Global,
+    a: &Walk,
+    src: &Source,
+    (plant, plants): (u32, u32),
+    base: &str,
+) -> anyhow::Result<Option<serde_json::Value>> {
+    let (graph, poses) = (&src.graph, &src.poses);
+    let start = (plant as u64 * graph.len() as u64 / plants as u64) as u32;
+    let seed = a.seed.wrapping_add(plant as u64);
+    let mut w = Walker::new(graph, start, seed, src.fps);
+    w.set_goal(src.goal.clone());
+    let frames = walk_frames(a, src) as usize;
+    let mut walked = Vec::with_capacity(frames);
+    let mut taken = Vec::new();
+    for _ in 0..frames {
+        let s = w.next_frame(graph, poses);
+        if a.explain
+            && let (Some(node), Some(e)) = (s.node, s.chose)
+            && e.kind == EdgeKind::Transition
+        {
+            taken.push(serde_json::json!({
+                "t": s.pose.t,
+                "from_frame": graph.node_frames[node as usize],
+                "to_frame": graph.node_frames[e.to as usize],
+                "inbetweens": e.inbetweens,
             }));
         }
+        walked.push(s.pose);
     }
-    if a.explain {
-        let graphs: Vec<_> = sources.iter().map(|s| &s.graph_path).collect();
-        frond_binmain::errln!(
-            "{}",
-            serde_json::json!({ "graphs": graphs, "goal": goal_name(&a), "plants": explains })
-        );
-    }
-    Ok(())
+    let clip = Clip { fps: src.fps, frames: walked };
+    let mut out_take = src.template.clone();
+    out_take.header.tick_rate_hz = src.fps.round().max(1.0) as u32;
+    out_take.header.filter = format!("walk of {} seed={seed} goal={}", src.name, goal_name(a));
+    out_take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));
+    let name = plant_take_name(base, plant);
+    let out = Output { output: Some(name.clone()), jsonl: a.jsonl, force: a.force, fps: src.fps };
+    emit(g, out_take, name, &out)?;
+    Ok(a.explain.then(|| {
+        serde_json::json!({
+            "plant": plant,
+            "take": src.name,
+            "graph": src.graph_path,
+            "seed": seed,
+            "start_frame": graph.node_frames[start as usize],
+            "end_node_frame": graph.node_frames[w.node() as usize],
+            "transitions_taken": w.transitions_taken(),
+            "transitions": taken,
+        })
+    }))
 }
 
 /// Refuses a walk of `plants` takes lasting `duration_s` that makes `total` frames in all: more
-/// than [`crate::takes::MAX_EXPORT_FRAMES`] without `force`, or than [`MAX_RESAMPLED_FRAMES`].
+/// than [`crate::take_file::MAX_EXPORT_FRAMES`] without `force`, or than [`MAX_RESAMPLED_FRAMES`].
 fn check_walk_frames(total: u64, plants: u32, duration_s: f64, force: bool) -> anyhow::Result<()> {
-    use crate::takes::MAX_EXPORT_FRAMES;
+    use crate::take_file::MAX_EXPORT_FRAMES;
     use frond_motion::take::MAX_RESAMPLED_FRAMES;
     let what = format!("the walk of {plants} plants for {duration_s} s makes {total} frames in all");
     if total > MAX_RESAMPLED_FRAMES as u64 {

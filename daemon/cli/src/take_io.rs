@@ -19,7 +19,7 @@ use frond_protocol::paths;
 use crate::calibrate::write_atomically_bytes;
 use crate::error::{UsageError, usage};
 use crate::global::Global;
-use crate::takes;
+use crate::{take_file, takes};
 
 /// Where a command's result goes.
 #[derive(Debug, Clone, Args)]
@@ -66,7 +66,7 @@ fn now_unix_s() -> u64 {
 
 /// The take's global layer resampled at `fps`, refused past the output limit unless `force`
 /// (`None`: the command has no way past it) rather than cut short
-/// ([`takes::check_resample_with`]).
+/// ([`take_file::check_resample_with`]).
 pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: Option<bool>) -> anyhow::Result<Clip> {
     layer_clip(take, GLOBAL_LAYER, fps, what, force)
 }
@@ -80,7 +80,7 @@ pub(crate) fn layer_clip(
     force: Option<bool>,
 ) -> anyhow::Result<Clip> {
     let poses: Vec<_> = take.layer(id, false).iter().map(|f| f.pose).collect();
-    takes::check_resample_with(&format!("take {what:?}"), &poses, fps, force)?;
+    take_file::check_resample_with(&format!("take {what:?}"), &poses, fps, force)?;
     let c = take.clip(id, fps);
     if c.is_empty() {
         anyhow::bail!("take {what:?} has no {} frames", take.layer_name(id));
@@ -89,7 +89,7 @@ pub(crate) fn layer_clip(
 }
 
 /// One layer's frames resampled at `fps` ([`resample_frames`]), refused past the output limit
-/// unless `force` ([`takes::check_resample`]) rather than cut short.
+/// unless `force` ([`take_file::check_resample`]) rather than cut short.
 pub(crate) fn resample_layer(
     frames: &[TakeFrame],
     fps: f64,
@@ -97,7 +97,7 @@ pub(crate) fn resample_layer(
     what: &str,
 ) -> anyhow::Result<Vec<TakeFrame>> {
     let poses: Vec<_> = frames.iter().map(|f| f.pose).collect();
-    takes::check_resample(what, &poses, fps, force)?;
+    take_file::check_resample(what, &poses, fps, force)?;
     Ok(resample_frames(frames, fps).map_err(|e| UsageError(e.to_string()))?)
 }
 

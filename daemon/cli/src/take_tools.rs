@@ -23,8 +23,8 @@ use crate::calibrate::write_atomically_bytes;
 use crate::control::load_rig;
 use crate::error::{UsageError, usage};
 use crate::global::Global;
+use crate::take_file::check_output_frames;
 use crate::take_io::{Output, check_fps, emit, global_clip, layer_clip, read_take, resample_layer};
-use crate::takes::check_output_frames;
 
 mod args;
 pub use args::TakeTool;

@@ -10,7 +10,7 @@ use frond_formats::usd::{UsdTake, write_usda};
 
 use crate::error::usage;
 use crate::global::Global;
-use crate::takes::{TakeForFile, take_for_file};
+use crate::take_file::{TakeForFile, take_for_file};
 
 /// What `--usd` was asked.
 pub(crate) struct UsdExport<'a> {
@@ -47,7 +47,7 @@ pub(crate) fn export_usd(g: &Global, a: UsdExport<'_>) -> anyhow::Result<()> {
     let model = frond_formats::rig_files::plant_model(loaded).map_err(|e| anyhow!("{e}"))?;
     let poses: Vec<_> = take.resampled(fps, a.force)?.iter().map(|p| p.joints_deg).collect();
     let joint_names: [String; 4] = std::array::from_fn(|j| loaded.rig.joints[j].name.clone());
-    let timecode = crate::takes::start_timecode(scan, fps, a.timecode_start)?;
+    let timecode = crate::take_file::start_timecode(scan, fps, a.timecode_start)?;
     let h = scan.header.as_ref();
     let info = [
         ("timecode_start", timecode.map(|t| t.to_string()).unwrap_or_default()),

@@ -15,11 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, anyhow, bail};
-use frond_formats::jsonl::write_pose_line;
 use frond_formats::scan_take;
 use frond_formats::take_repair::Repaired;
-use frond_motion::take::{MAX_INTERPOLATED_GAP_S, MAX_RESAMPLED_FRAMES};
-use frond_motion::{PoseFrame, TakeScan, resample, resample_plan};
+use frond_motion::TakeScan;
 use frond_protocol::paths;
 use serde::Serialize;
 
@@ -30,10 +28,6 @@ use crate::global::Global;
 /// A take without an End record modified more recently than this may still be recording;
 /// `repair` leaves it alone.
 const RECENT: Duration = frond_formats::take_repair::MAY_BE_RECORDING;
-/// `take export --fps` and the baker refuse to resample to more frames than this unless
-/// `--force` (10 hours at 30 FPS); [`MAX_RESAMPLED_FRAMES`] is the limit even with `--force`.
-pub(crate) const MAX_EXPORT_FRAMES: u64 = 1_080_000;
-
 /// Finds a take: a path to an existing file (containing `/` or ending in `.take`), else
 /// `NAME.take` in the takes directory.
 pub(crate) fn resolve(g: &Global, name: &str) -> anyhow::Result<PathBuf> {
@@ -233,149 +227,6 @@ fn duration_text(seconds: f64) -> String {
     if seconds.abs() < 1e8 { format!("{seconds:.2}s") } else { format!("{seconds:.2e}s") }
 }
 
-/// The poses `export` prints: main skeleton, held frames dropped unless asked for, resampled
-/// when `fps` is given.
-pub(crate) fn export_poses(scan: &TakeScan, fps: Option<f64>, include_held: bool) -> Vec<PoseFrame> {
-    let poses = scan.main_poses(include_held);
-    match fps {
-        Some(fps) => resample(&poses, fps),
-        None => poses,
-    }
-}
-
-/// Checks a resampling before it is done: refuses past [`MAX_EXPORT_FRAMES`] unless `force`
-/// (never past [`MAX_RESAMPLED_FRAMES`]) and warns about time discontinuities.
-pub(crate) fn check_resample(what: &str, poses: &[PoseFrame], fps: f64, force: bool) -> anyhow::Result<()> {
-    check_resample_with(what, poses, fps, Some(force))
-}
-
-/// Checks an output of `frames` frames at `fps` (`seconds` long) before it is made: past
-/// [`MAX_EXPORT_FRAMES`] only with `force`, never past [`MAX_RESAMPLED_FRAMES`]: refused, never
-/// cut short. `what` names the output in the message.
-pub(crate) fn check_output_frames(
-    what: &str,
-    frames: u64,
-    seconds: f64,
-    fps: f64,
-    force: bool,
-) -> anyhow::Result<()> {
-    if frames > MAX_RESAMPLED_FRAMES as u64 {
-        bail!(
-            "{what} lasts {seconds:.1} s: {frames} frames at {fps} FPS, more than the {MAX_RESAMPLED_FRAMES} any output may have"
-        );
-    }
-    if !force && frames > MAX_EXPORT_FRAMES {
-        bail!(
-            "{what} lasts {seconds:.1} s: {frames} frames at {fps} FPS, more than {MAX_EXPORT_FRAMES}; pass --force to go past it"
-        );
-    }
-    Ok(())
-}
-
-/// [`check_resample`] for a command with (`Some(force)`) or without (`None`: the limit holds and
-/// no `--force` is offered) a way past the limit.
-pub(crate) fn check_resample_with(
-    what: &str,
-    poses: &[PoseFrame],
-    fps: f64,
-    force: Option<bool>,
-) -> anyhow::Result<()> {
-    let plan = resample_plan(poses, fps);
-    if let Some(i) = plan.first_discontinuity {
-        frond_binmain::errln!(
-            "frond: warning: {what}: {} step{} in time longer than {MAX_INTERPOLATED_GAP_S} s or backwards \
-             (the first before pose {i}, the largest forward {:.3} s): each is a discontinuity, \
-             not interpolated",
-            plan.discontinuities,
-            if plan.discontinuities == 1 { "" } else { "s" },
-            plan.largest_gap_s
-        );
-    }
-    plan.check(fps, MAX_RESAMPLED_FRAMES as u64).map_err(|e| anyhow!("{what}: {e} (the hard limit)"))?;
-    match force {
-        Some(true) => {}
-        Some(false) => plan.check(fps, MAX_EXPORT_FRAMES).map_err(|e| {
-            anyhow!("{what}: {e} ({:.1} s of output); pass --force to go past it", plan.duration_s)
-        })?,
-        None => plan
-            .check(fps, MAX_EXPORT_FRAMES)
-            .map_err(|e| anyhow!("{what}: {e} ({:.1} s of output)", plan.duration_s))?,
-    }
-    Ok(())
-}
-
-pub(crate) fn export(
-    g: &Global,
-    name: &str,
-    fps: Option<f64>,
-    include_held: bool,
-    timecode: Option<Option<&str>>,
-    force: bool,
-) -> anyhow::Result<()> {
-    if let Some(fps) = fps
-        && !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0)
-    {
-        return usage(format!("--fps must be greater than 0 and at most 10000, got {fps}"));
-    }
-    let path = resolve(g, name)?;
-    let (scan, _) = read_scan(&path)?;
-    warn_damage(&path, &scan);
-    if scan.torn_bytes > 0 {
-        frond_binmain::errln!(
-            "frond: warning: {} ends with a torn record ({} bytes); exporting the {} complete frames",
-            path.display(),
-            scan.torn_bytes,
-            scan.frames.len()
-        );
-    } else if !scan.ended {
-        frond_binmain::errln!(
-            "frond: warning: {} is not closed (still recording?); exporting what is there",
-            path.display()
-        );
-    }
-    if let Some(k) = scan.main_element().filter(|&k| k > 0) {
-        frond_binmain::errln!(
-            "frond: note: {} is a layer take (its frames are element {k}, a secondary layer): exporting that layer",
-            path.display()
-        );
-    }
-    let mut poses = scan.main_poses(include_held);
-    if let Some(fps) = fps {
-        check_resample(&path.display().to_string(), &poses, fps, force)?;
-        poses = resample(&poses, fps);
-    }
-    // `--timecode`: frame k of the export is the start plus k frames (on the --fps grid).
-    let start = match (timecode, fps) {
-        (Some(given), Some(fps)) => match start_timecode(&scan, fps, given)? {
-            Some(tc) => Some(tc),
-            None => {
-                return usage(format!(
-                    "{} has no recording clock (made offline?): give --timecode-start HH:MM:SS:FF",
-                    path.display()
-                ));
-            }
-        },
-        _ => None,
-    };
-    let mut out = frond_binmain::StdoutWriter::lock();
-    let mut line = String::with_capacity(256);
-    for (k, p) in poses.iter().enumerate() {
-        line.clear();
-        write_pose_line(p, None, &mut line);
-        if let Some(tc) = start
-            && line.ends_with('}')
-        {
-            line.pop();
-            use std::fmt::Write as _;
-            let _ = write!(line, ",\"tc\":\"{}\"}}", tc.plus_frames(k as u64));
-        }
-        line.push('\n');
-        out.write_all(line.as_bytes())?;
-    }
-    out.flush()?;
-    Ok(())
-}
-
 /// The repaired bytes of a take (`frond_motion::take_repair`), errors as `anyhow`.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
     frond_formats::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
@@ -412,91 +263,14 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A take to write as a file of another format (`--bvh`, `--usd`): its path, its scan (damage
-/// warned about), the rig it is written on (`--rig`, else the take's own) and its main-skeleton
-/// poses (at least one).
-pub(crate) struct TakeForFile {
-    pub path: PathBuf,
-    pub scan: TakeScan,
-    pub rig: frond_formats::rig_files::LoadedRig,
-    pub source: Vec<PoseFrame>,
-}
-
-/// Frame rate of a file export (BVH, USD): `--fps`, or the seed's authoring rate.
-pub(crate) const DEFAULT_FILE_FPS: f64 = 30.0;
-
-impl TakeForFile {
-    /// `--fps` of a `format` export checked (default [`DEFAULT_FILE_FPS`]).
-    pub fn fps(fps: Option<f64>, format: &str) -> anyhow::Result<f64> {
-        let fps = fps.unwrap_or(DEFAULT_FILE_FPS);
-        if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-            return usage(format!("--fps must be above 0 and at most 1000 for {format}, got {fps}"));
-        }
-        Ok(fps)
-    }
-
-    /// The main-skeleton poses resampled to `fps`, refused past the export limits first.
-    pub fn resampled(&self, fps: f64, force: bool) -> anyhow::Result<Vec<PoseFrame>> {
-        check_resample(&self.path.display().to_string(), &self.source, fps, force)?;
-        Ok(resample(&self.source, fps))
-    }
-}
-
-/// Timecode of the first exported frame at `fps`: `start` (`HH:MM:SS:FF`) if given, else the
-/// wall-clock time of day (UTC) the take's first kept frame was recorded at, when the take
-/// knows it (recorded by a daemon that writes its clock).
-pub(crate) fn start_timecode(
-    scan: &TakeScan,
-    fps: f64,
-    start: Option<&str>,
-) -> anyhow::Result<Option<frond_motion::timecode::Timecode>> {
-    let rate =
-        frond_motion::timecode::nominal_rate(fps).map_err(|e| crate::error::UsageError(e.to_string()))?;
-    if let Some(text) = start {
-        let tc = frond_motion::timecode::Timecode::parse(text, rate)
-            .map_err(|e| crate::error::UsageError(format!("--timecode-start {e}")))?;
-        return Ok(Some(tc));
-    }
-    Ok(scan.header.as_ref().and_then(|h| h.start_timecode(&scan.frames, fps)))
-}
-
-/// The rig a take was recorded on ([`frond_formats::rig_files::recorded_rig`]: an embedded rig,
-/// never a path), as a usage error naming the take.
-pub(crate) fn recorded_rig(
-    take: &str,
-    rig_name: &str,
-) -> anyhow::Result<frond_formats::rig_files::LoadedRig> {
-    if rig_name.is_empty() {
-        return usage(format!("{take} names no rig; give one with --rig NAME|FILE"));
-    }
-    frond_formats::rig_files::recorded_rig(rig_name).or_else(|e| usage(format!("{take}: {e}")))
-}
-
-/// Reads take `name` and its rig for a file export.
-pub(crate) fn take_for_file(g: &Global, name: &str, rig: Option<&Path>) -> anyhow::Result<TakeForFile> {
-    let path = resolve(g, name)?;
-    let (scan, _) = read_scan(&path)?;
-    warn_damage(&path, &scan);
-    let rig = match (rig, &scan.header) {
-        (Some(r), _) => frond_formats::rig_files::load_rig(&r.to_string_lossy())?,
-        (None, header) => {
-            recorded_rig(&path.display().to_string(), header.as_ref().map_or("", |h| h.rig_name.as_str()))?
-        }
-    };
-    let source = export_poses(&scan, None, false);
-    if source.is_empty() {
-        bail!("{} has no frames of the main skeleton to export", path.display());
-    }
-    Ok(TakeForFile { path, scan, rig, source })
-}
-
 #[cfg(test)]
 mod tests {
     use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
-    use frond_motion::{HandSample, TakeFrame};
+    use frond_motion::{HandSample, PoseFrame, TakeFrame};
     use frond_protocol::PoseFlags;
 
     use super::*;
+    use crate::take_file::export_poses;
 
     fn frame(seq: u64, t: f64, flags: PoseFlags) -> TakeFrame {
         TakeFrame {

@@ -30,14 +30,7 @@ pub(crate) fn run(
 ) -> anyhow::Result<()> {
     let dir = paths::socket_dir(g.socket_dir.clone());
     let source = from.cloned().unwrap_or_else(|| frond_sdk::Source::Socket(dir.clone()));
-    let mut sub =
-        Subscriber::options().read_timeout(Some(SILENCE_POLL)).subscribe(&source).map_err(|e| match e {
-            SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
-                &dir.join(frond_protocol::POSES_SOCKET),
-                &source
-            )),
-            other => other.into(),
-        })?;
+    let mut sub = subscribe(&dir, &source)?;
     let mut names = sub.hello().joint_names.clone();
     // `--element`: an id, or a name looked up in the element table (again when it changes).
     let pick =
@@ -96,12 +89,7 @@ pub(crate) fn run(
                 names = h.joint_names;
             }
             Event::Elements(new) => {
-                let list: Vec<String> = new
-                    .elements
-                    .iter()
-                    .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), frond_protocol::printable(&e.name)))
-                    .collect();
-                frond_binmain::errln!("frond tap: elements now: {}", list.join(", "));
+                say_elements(&new);
                 table = new;
                 if element.is_some_and(|e| e.parse::<u16>().is_err()) {
                     only = pick(&table)?;
@@ -115,6 +103,28 @@ pub(crate) fn run(
             }
         }
     }
+}
+
+/// Subscribes to `source`'s poses, reading with a timeout so that a silent stream is noticed;
+/// a daemon not running at `dir` is said with how to start it.
+fn subscribe(dir: &std::path::Path, source: &frond_sdk::Source) -> anyhow::Result<Subscriber> {
+    Subscriber::options().read_timeout(Some(SILENCE_POLL)).subscribe(source).map_err(|e| match e {
+        SdkError::NotRunning { source, .. } => anyhow::anyhow!(frond_sdk::control::not_running_message(
+            &dir.join(frond_protocol::POSES_SOCKET),
+            &source
+        )),
+        other => other.into(),
+    })
+}
+
+/// Says a new element table on stderr: `id kind name` each.
+fn say_elements(table: &frond_protocol::ElementTable) {
+    let list: Vec<String> = table
+        .elements
+        .iter()
+        .map(|e| format!("{} {} {}", e.id, e.kind.as_str(), frond_protocol::printable(&e.name)))
+        .collect();
+    frond_binmain::errln!("frond tap: elements now: {}", list.join(", "));
 }
 
 /// How often `frond tap` looks up from a silent stream.

@@ -137,8 +137,9 @@ fn a_walk_writes_one_take_per_plant_and_explains_itself() {
 
 #[test]
 fn a_walk_counts_its_frames_before_making_them() {
-    // The README's promise for every take tool: more than 1,080,000 frames only with --force,
-    // never more than 16,777,216, counted before anything is walked or written.
+    // The promise for every take tool (docs/security-and-limits.md, "Time"): more than 1,080,000
+    // frames only with --force, never more than 16,777,216, counted before anything is walked or
+    // written.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     simulated(d);
