@@ -1,6 +1,7 @@
-//! Fuzzes the motion crate's parsers: rigs, calibrations, filter specs, JSONL hand and pose lines,
-//! and take files. Accepted inputs must survive the format's own writer: writing the parsed value
-//! and parsing it again gives the same value (the writers document this round trip).
+//! Fuzzes the parsers of frond-motion (rigs, calibrations, filter specs) and frond-formats (JSONL
+//! hand and pose lines, take files). Accepted inputs must survive the format's own writer: writing
+//! the parsed value and parsing it again gives the same value (the writers document this round
+//! trip).
 
 use frond_formats::take::{MAGIC, RECORD_HEAD_LEN, encode_file_start, encode_record};
 use frond_formats::{

@@ -217,7 +217,7 @@ impl PlantModel {
 /// Why a model could not be built.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum MeshError {
-    /// The rig points at a file: load it with `crate::gltf_mesh::load_gltf_mesh`.
+    /// The rig points at a file: load it with `frond_formats::gltf_mesh::load_gltf_mesh`.
     #[error("rig `{rig}` uses the mesh file `{path}`; load it with the glTF reader")]
     FileMesh {
         /// Rig name.

@@ -1,5 +1,5 @@
 //! The `[mesh]` table of a rig file (see `rig-files/plants/grass.toml`): a procedural shape
-//! built by `crate::mesh`, or a glTF/GLB file read by `crate::gltf_mesh`. Parsed into a raw form
+//! built by `crate::mesh`, or a glTF/GLB file read by `frond_formats::gltf_mesh`. Parsed into a raw form
 //! with unknown fields refused, then validated into [`MeshSpec`] with every problem's path.
 //! Private; the types are re-exported from `crate::rig`.
 
@@ -42,7 +42,7 @@ pub enum MeshSpec {
         /// segment.
         height_m: Option<f32>,
     },
-    /// A glTF/GLB file, relative to the rig file; read with `crate::gltf_mesh`.
+    /// A glTF/GLB file, relative to the rig file; read with `frond_formats::gltf_mesh`.
     File {
         /// Path as written in the rig file.
         path: String,
