@@ -16,11 +16,13 @@ use frondd::clock::monotonic_ns;
 use serde_json::{Value, json};
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::latency::Subscribers;
 use crate::procs::{Daemon, find_bin};
 use crate::report::{Bound, Measurement, Section, Status};
 use crate::tick::median;
 
+/// A part of section 6, or why it is not measured: the status and the reason the report gives.
 type Part = Result<Section, (Status, String)>;
 
 fn part(name: &str, title: &str, f: impl FnOnce() -> Part) -> Section {
@@ -95,15 +97,15 @@ fn sway_joints(n: usize, fps: f64) -> Vec<Joints> {
 }
 
 /// A field of `rows x cols` plants over a 10 s sway at 30 FPS, as `bench_field_1000` builds it.
-fn field_player(rows: usize, cols: usize) -> Result<(FieldPlayer, Vec<Joints>), String> {
+fn field_player(rows: usize, cols: usize) -> Result<(FieldPlayer, Vec<Joints>), BenchError> {
     if rows * cols == 1000 {
         return Ok(bench_field_1000());
     }
     let clip = Clip::from_joints(sway_joints(300, 30.0), 30.0);
-    let transitions = find_transitions(&clip, &LoopParams::default()).map_err(|e| e.to_string())?;
+    let transitions = find_transitions(&clip, &LoopParams::default())?;
     let params =
         FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 30.0, density: 1.0, seed: 1 };
-    let field = make_field(&params, "bench", clip.len(), clip.fps).map_err(|e| e.to_string())?;
+    let field = make_field(&params, "bench", clip.len(), clip.fps)?;
     let out = vec![[[0.0; 3]; JOINTS]; field.plants.len()];
     Ok((FieldPlayer::new(field, clip, &transitions, 1, FieldControls::default()), out))
 }
@@ -113,7 +115,7 @@ fn field_playback(o: &Options) -> Part {
     let mut measurements = Vec::new();
     let mut details = serde_json::Map::new();
     for (rows, cols) in [(20, 50), (100, 100)] {
-        let (mut player, mut out) = field_player(rows, cols).map_err(|e| (Status::Error, e))?;
+        let (mut player, mut out) = field_player(rows, cols).map_err(|e| (Status::Error, e.to_string()))?;
         let plants = out.len();
         let mut t = 0.0;
         for _ in 0..30 {
@@ -283,7 +285,7 @@ fn python() -> String {
 }
 
 fn warp(o: &Options) -> Part {
-    let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e))?;
+    let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e.to_string()))?;
     let script = remap_py();
     if !script.is_file() {
         return Err((Status::NotAvailable, format!("{} not found (set FROND_REMAP_PY)", script.display())));
@@ -355,7 +357,7 @@ fn warp(o: &Options) -> Part {
 /// Seed 004: one morph frame of a 13-cage tree at 1080p against the plain seed-001 remap timed
 /// in the same run, interleaved (`frond-warp bench --cage-frames N`).
 fn cage_warp(o: &Options) -> Part {
-    let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e))?;
+    let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e.to_string()))?;
     let frames = if o.quick { 3 } else { 20 };
     let mut cmd = Command::new(&bin);
     cmd.args(["bench", "--json", "--pipeline-frames", "0", "--iterations", "1", "--cage-frames"])
@@ -411,13 +413,13 @@ fn cage_warp(o: &Options) -> Part {
 }
 
 fn osc(o: &Options) -> Part {
-    let bin = find_bin(o, "frond-osc").map_err(|e| (Status::NotAvailable, e))?;
+    let bin = find_bin(o, "frond-osc").map_err(|e| (Status::NotAvailable, e.to_string()))?;
     let seconds = if o.quick { 1.0 } else { 10.0 };
-    let daemon =
-        Daemon::start(o, &["--source", "in-process", "--rate", "1000"]).map_err(|e| (Status::Error, e))?;
+    let daemon = Daemon::start(o, &["--source", "in-process", "--rate", "1000"])
+        .map_err(|e| (Status::Error, e.to_string()))?;
     // Baseline in the same window: a pose-socket subscriber here, daemon stamp -> receipt.
     let mut subs = Subscribers::new(1);
-    subs.grow_to(&daemon.poses_socket(), 1).map_err(|e| (Status::Error, e))?;
+    subs.grow_to(&daemon.poses_socket(), 1).map_err(|e| (Status::Error, e.to_string()))?;
     subs.record(Some(0));
     let mut cmd = Command::new(&bin);
     cmd.arg("--socket-dir")
@@ -458,16 +460,15 @@ fn osc(o: &Options) -> Part {
 fn console_page(
     addr: std::net::SocketAddr,
     stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-) -> Result<std::thread::JoinHandle<u64>, String> {
+) -> Result<std::thread::JoinHandle<u64>, BenchError> {
     use std::io::{Read, Write};
-    let mut s = std::net::TcpStream::connect(addr).map_err(|e| format!("connect to frond-console: {e}"))?;
+    let mut s = std::net::TcpStream::connect(addr).map_err(BenchError::at("connect to frond-console"))?;
     write!(
         s,
         "GET /ws HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
          Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
-    )
-    .map_err(|e| e.to_string())?;
-    s.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| e.to_string())?;
+    )?;
+    s.set_read_timeout(Some(Duration::from_millis(200)))?;
     Ok(std::thread::spawn(move || {
         let mut buf = [0u8; 16384];
         let mut total = 0u64;
@@ -491,16 +492,17 @@ fn console(o: &Options) -> Part {
     use std::io::BufRead;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicBool, Ordering};
-    let bin = find_bin(o, "frond-console").map_err(|e| (Status::NotAvailable, e))?;
-    let frond = find_bin(o, "frond").map_err(|e| (Status::NotAvailable, e))?;
+    let bin = find_bin(o, "frond-console").map_err(|e| (Status::NotAvailable, e.to_string()))?;
+    let frond = find_bin(o, "frond").map_err(|e| (Status::NotAvailable, e.to_string()))?;
     let (warm, window) = if o.quick {
         (Duration::from_millis(500), Duration::from_secs(2))
     } else {
         (Duration::from_secs(2), Duration::from_secs(10))
     };
-    let daemon =
-        Daemon::start(o, &["--source", "in-process", "--rate", "1000"]).map_err(|e| (Status::Error, e))?;
+    let daemon = Daemon::start(o, &["--source", "in-process", "--rate", "1000"])
+        .map_err(|e| (Status::Error, e.to_string()))?;
     let err = |e: String| (Status::Error, e);
+    let failed = |e: BenchError| err(e.to_string());
     let mut child = Command::new(&bin)
         .arg("--socket-dir")
         .arg(&daemon.socket_dir)
@@ -528,10 +530,12 @@ fn console(o: &Options) -> Part {
         .map_err(|e| err(format!("cannot start frond tap: {e}")))?;
     let tap = crate::procs::Proc { child: tap };
     let stop = Arc::new(AtomicBool::new(false));
-    let pages =
-        [console_page(addr, stop.clone()).map_err(err)?, console_page(addr, stop.clone()).map_err(err)?];
+    let pages = [
+        console_page(addr, stop.clone()).map_err(failed)?,
+        console_page(addr, stop.clone()).map_err(failed)?,
+    ];
     std::thread::sleep(warm);
-    let cpu = |pid| crate::procs::process_cpu_ns(pid).map_err(err);
+    let cpu = |pid| crate::procs::process_cpu_ns(pid).map_err(failed);
     let (c0, t0, w0) = (cpu(console.pid())?, cpu(tap.pid())?, monotonic_ns());
     std::thread::sleep(window);
     let (c1, t1, w1) = (cpu(console.pid())?, cpu(tap.pid())?, monotonic_ns());

@@ -20,6 +20,7 @@ use frond_vhid::monotonic_us_u32;
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::latency::Subscribers;
 use crate::procs::{Daemon, start_vhid};
 use crate::relay::{Relay, against_relay};
@@ -36,7 +37,7 @@ pub fn hidraw_stamp(report: &[u8]) -> Option<u64> {
 }
 
 /// Section 8.
-pub fn hidraw_latency(o: &Options) -> Result<Section, String> {
+pub fn hidraw_latency(o: &Options) -> Result<Section, BenchError> {
     if !Path::new("/dev/fuse").exists() {
         return Ok(Section::unavailable(
             "hidraw_latency",
@@ -50,7 +51,7 @@ pub fn hidraw_latency(o: &Options) -> Result<Section, String> {
     } else {
         (Duration::from_secs(1), Duration::from_secs(5))
     };
-    let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir().map_err(|e| e.to_string())?;
+    let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir()?;
     let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
     let node_arg = node.to_string_lossy().into_owned();
     let (_vhid, node, _out) = start_vhid(

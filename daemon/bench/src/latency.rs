@@ -17,6 +17,7 @@ use frondd::stats::LatencyHistogram;
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::procs::{Daemon, start_vhid};
 use crate::report::{Bound, Measurement, Section};
 
@@ -62,10 +63,10 @@ impl Subscribers {
     }
 
     /// Connects until `n` subscribers read `socket`, and waits until each has a pose.
-    pub fn grow_to(&mut self, socket: &Path, n: usize) -> Result<(), String> {
+    pub fn grow_to(&mut self, socket: &Path, n: usize) -> Result<(), BenchError> {
         while self.threads.len() < n {
-            let mut stream = UnixStream::connect(socket).map_err(|e| format!("{}: {e}", socket.display()))?;
-            stream.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| e.to_string())?;
+            let mut stream = UnixStream::connect(socket).map_err(BenchError::at(socket))?;
+            stream.set_read_timeout(Some(Duration::from_millis(200)))?;
             let (phase, hists, stop) = (self.phase.clone(), self.hists.clone(), self.stop.clone());
             let frames = Arc::new(AtomicU64::new(0));
             self.frames.push(frames.clone());
@@ -96,7 +97,9 @@ impl Subscribers {
         let deadline = Instant::now() + Duration::from_secs(10);
         while self.frames.iter().any(|f| f.load(Relaxed) == 0) {
             if Instant::now() > deadline {
-                return Err(format!("not every one of {n} subscribers received a pose within 10 s"));
+                return Err(BenchError::NoData(format!(
+                    "not every one of {n} subscribers received a pose within 10 s"
+                )));
             }
             thread::sleep(Duration::from_millis(10));
         }
@@ -130,8 +133,8 @@ impl Drop for Subscribers {
 
 /// Round trips of a 64-byte message between two threads over a Unix socket pair, one every
 /// millisecond (like the glove's reports) for `dur`, recorded into `hist`.
-pub fn socket_round_trips(dur: Duration, hist: &LatencyHistogram) -> Result<(), String> {
-    let (mut a, mut b) = UnixStream::pair().map_err(|e| e.to_string())?;
+pub fn socket_round_trips(dur: Duration, hist: &LatencyHistogram) -> Result<(), BenchError> {
+    let (mut a, mut b) = UnixStream::pair()?;
     let echo = thread::spawn(move || {
         let mut msg = [0u8; 64];
         while b.read_exact(&mut msg).is_ok() {
@@ -149,8 +152,8 @@ pub fn socket_round_trips(dur: Duration, hist: &LatencyHistogram) -> Result<(), 
         deadline += period;
         let t0 = monotonic_ns();
         msg[..8].copy_from_slice(&t0.to_le_bytes());
-        a.write_all(&msg).map_err(|e| e.to_string())?;
-        a.read_exact(&mut msg).map_err(|e| e.to_string())?;
+        a.write_all(&msg)?;
+        a.read_exact(&mut msg)?;
         hist.record(monotonic_ns() - t0);
     }
     drop(a);
@@ -184,7 +187,7 @@ impl Transport {
 }
 
 /// Section 2.
-pub fn glove_latency(o: &Options) -> Result<Section, String> {
+pub fn glove_latency(o: &Options) -> Result<Section, BenchError> {
     const TITLE: &str = "virtual glove report write -> subscriber receipt (glove clock = host CLOCK_MONOTONIC, frondd at 1 kHz) vs Unix socket round trip";
     let mut measurements = Vec::new();
     let mut details = serde_json::Map::new();
@@ -212,10 +215,10 @@ pub fn glove_latency(o: &Options) -> Result<Section, String> {
 fn glove_latency_over(
     o: &Options,
     transport: Transport,
-) -> Result<(Vec<Measurement>, serde_json::Value), String> {
+) -> Result<(Vec<Measurement>, serde_json::Value), BenchError> {
     let (slices, slice) =
         if o.quick { (2, Duration::from_millis(300)) } else { (10, Duration::from_secs(1)) };
-    let dir = tempfile::Builder::new().prefix("frond-bench-vhid-").tempdir().map_err(|e| e.to_string())?;
+    let dir = tempfile::Builder::new().prefix("frond-bench-vhid-").tempdir()?;
     let mut _vhid = None;
     let daemon = match transport {
         Transport::Fuse => {
@@ -245,7 +248,7 @@ fn glove_latency_over(
                 &config,
                 "[source]\nkind = \"in-process\"\nvirtual_rate_hz = 1000\nvirtual_clock = \"monotonic\"\n",
             )
-            .map_err(|e| format!("{}: {e}", config.display()))?;
+            .map_err(BenchError::at(&config))?;
             let config = config.to_string_lossy().into_owned();
             Daemon::start(o, &["--config", &config, "--rate", "1000"])?
         }
@@ -273,7 +276,7 @@ fn glove_latency_over(
             summary(&rtt),
         );
         if g.samples == 0 {
-            return Err(format!("no fresh poses reached the {n} subscribers"));
+            return Err(BenchError::NoData(format!("no fresh poses reached the {n} subscribers")));
         }
         for (q, gv, rv) in
             [("p50", g.p50_us, r.p50_us), ("p99", g.p99_us, r.p99_us), ("p999", g.p999_us, r.p999_us)]

@@ -13,6 +13,7 @@
 
 pub mod alloc;
 pub mod components;
+pub mod error;
 pub mod hidraw_latency;
 pub mod latency;
 pub mod loops;
@@ -30,6 +31,7 @@ pub mod zenoh;
 use std::path::PathBuf;
 use std::time::Instant;
 
+pub use error::BenchError;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
@@ -108,7 +110,7 @@ pub fn run(options: &Options) -> Report {
             _ => Ok(components::components(options)),
         };
         let mut section =
-            result.unwrap_or_else(|e| Section::unavailable(name, title(name), Status::Error, e));
+            result.unwrap_or_else(|e| Section::unavailable(name, title(name), Status::Error, e.to_string()));
         section.seconds = started.elapsed().as_secs_f64();
         if options.progress {
             eprintln!("frond bench: {name} done in {:.1} s", section.seconds);

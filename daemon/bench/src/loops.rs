@@ -17,6 +17,7 @@ use frondd::realtime::spawn_loop;
 use frondd::stats::{LatencyHistogram, LoopStats};
 use serde::Serialize;
 
+use crate::error::BenchError;
 use crate::rig::{TickGlove, grass, mapper};
 
 /// SCHED_FIFO priority the bench's loops ask for (when the machine grants it).
@@ -61,19 +62,19 @@ impl LoopRun {
 }
 
 /// Asks for SCHED_FIFO on the calling thread; returns what was obtained.
-pub fn set_fifo(priority: u8) -> Result<(), String> {
+pub fn set_fifo(priority: u8) -> Result<(), BenchError> {
     if priority == 0 {
-        return Err("not asked".into());
+        return Err(BenchError::FifoNotAsked);
     }
     let param = libc::sched_param { sched_priority: i32::from(priority) };
     // SAFETY: `param` is a valid sched_param; pid 0 is the calling thread.
     let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
-    if rc == 0 { Ok(()) } else { Err(std::io::Error::last_os_error().to_string()) }
+    if rc == 0 { Ok(()) } else { Err(std::io::Error::last_os_error().into()) }
 }
 
 /// Whether this process may use SCHED_FIFO (probed on a short-lived thread).
-pub fn probe_fifo(priority: u8) -> Result<(), String> {
-    thread::spawn(move || set_fifo(priority)).join().unwrap_or_else(|_| Err("probe thread panicked".into()))
+pub fn probe_fifo(priority: u8) -> Result<(), BenchError> {
+    thread::spawn(move || set_fifo(priority)).join().unwrap_or(Err(BenchError::Panicked("probe thread")))
 }
 
 /// Which loop to pace.
@@ -153,7 +154,7 @@ impl Accum {
     }
 
     /// Runs one slice of the full loop.
-    pub fn full(&mut self, full: &mut FullLoop, dur: Duration, priority: u8) -> Result<(), String> {
+    pub fn full(&mut self, full: &mut FullLoop, dur: Duration, priority: u8) -> Result<(), BenchError> {
         let slice = full.run(self.rate_hz, dur, priority, &self.stats)?;
         self.slices.push(slice);
         Ok(())
@@ -182,8 +183,8 @@ pub struct FullLoop {
 
 impl FullLoop {
     /// Builds the engine, publisher and `subscribers` connected clients.
-    pub fn new(subscribers: usize) -> Result<FullLoop, String> {
-        let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir().map_err(|e| e.to_string())?;
+    pub fn new(subscribers: usize) -> Result<FullLoop, BenchError> {
+        let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir()?;
         let (engine, mut ends) = Engine::with_channels(
             mapper(),
             Some(Box::new(TickGlove::new())),
@@ -194,7 +195,7 @@ impl FullLoop {
         let publish_rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
         let slow_rx = std::mem::replace(&mut ends.slow, crossbeam_channel::never());
         let path = dir.path().join(frond_protocol::POSES_SOCKET);
-        let listener = UnixListener::bind(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let listener = UnixListener::bind(&path).map_err(BenchError::at(&path))?;
         let stop_all = Arc::new(AtomicBool::new(false));
         let registry = Arc::new(SubscriberRegistry::default());
         let rig = grass();
@@ -213,8 +214,7 @@ impl FullLoop {
             max_subscribers: 64,
         };
         let publisher =
-            spawn_publisher(publish_rx, ends.publish_wake.clone(), slow_rx, Default::default(), config)
-                .map_err(|e| e.to_string())?;
+            spawn_publisher(publish_rx, ends.publish_wake.clone(), slow_rx, Default::default(), config)?;
         let acceptor = spawn_acceptor(
             listener,
             config,
@@ -222,12 +222,11 @@ impl FullLoop {
             Arc::new(move || hello.clone()),
             registry.clone(),
             stop_all.clone(),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let received = Arc::new(AtomicU64::new(0));
         let mut clients = Vec::new();
         for _ in 0..subscribers {
-            let stream = UnixStream::connect(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let stream = UnixStream::connect(&path).map_err(BenchError::at(&path))?;
             let received = received.clone();
             clients.push(thread::spawn(move || drain(stream, &received)));
         }
@@ -247,10 +246,10 @@ impl FullLoop {
         let warm = Arc::new(LoopStats::default());
         while full.registry.snapshot().iter().filter(|s| s.sent > 0).count() < subscribers {
             if Instant::now() > deadline {
-                return Err(format!(
+                return Err(BenchError::NoData(format!(
                     "only {} of {subscribers} subscribers connected",
                     full.registry.snapshot().len()
-                ));
+                )));
             }
             full.run(1000.0, Duration::from_millis(50), 0, &warm)?;
         }
@@ -270,17 +269,16 @@ impl FullLoop {
         dur: Duration,
         priority: u8,
         stats: &Arc<LoopStats>,
-    ) -> Result<(u64, f64), String> {
-        let engine = self.engine.take().ok_or("the engine was lost")?;
+    ) -> Result<(u64, f64), BenchError> {
+        let engine = self.engine.take().ok_or(BenchError::EngineLost)?;
         let ticks_before = stats.lateness.count();
         let stop = Arc::new(AtomicBool::new(false));
         let start = monotonic_ns();
         let (handle, _report) =
-            spawn_loop(engine, rate_hz.round() as u32, priority, stats.clone(), stop.clone())
-                .map_err(|e| e.to_string())?;
+            spawn_loop(engine, rate_hz.round() as u32, priority, stats.clone(), stop.clone())?;
         thread::sleep(dur);
         stop.store(true, Relaxed);
-        let engine = handle.join().map_err(|_| "the loop thread panicked".to_string())?;
+        let engine = handle.join().map_err(|_| BenchError::Panicked("the loop thread"))?;
         let seconds = (monotonic_ns() - start) as f64 / 1e9;
         self.engine = Some(engine);
         Ok((stats.lateness.count() - ticks_before, seconds))

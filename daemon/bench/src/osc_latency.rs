@@ -16,6 +16,7 @@ use frondd::clock::{monotonic_ns, sleep_until_ns};
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::latency::Subscribers;
 use crate::procs::Daemon;
 use crate::relay::{Relay, against_relay};
@@ -37,8 +38,8 @@ fn hand_datagram(t_s: f64) -> [u8; 80] {
 }
 
 /// Sends a sample to `to` every millisecond for `dur`, stamped with the send time.
-pub fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, String> {
-    let socket = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
+pub fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, BenchError> {
+    let socket = UdpSocket::bind("127.0.0.1:0")?;
     let period = 1_000_000;
     let end = monotonic_ns() + dur.as_nanos() as u64;
     let mut deadline = monotonic_ns() + period;
@@ -47,16 +48,21 @@ pub fn send_for(to: std::net::SocketAddr, dur: Duration) -> Result<u64, String> 
         sleep_until_ns(deadline);
         deadline += period;
         let t = monotonic_ns() as f64 / 1e9;
-        socket.send_to(&hand_datagram(t), to).map_err(|e| e.to_string())?;
+        socket.send_to(&hand_datagram(t), to)?;
         sent += 1;
     }
     Ok(sent)
 }
 
+/// `127.0.0.1:port`.
+pub fn loopback(port: u16) -> std::net::SocketAddr {
+    std::net::SocketAddr::from(([127, 0, 0, 1], port))
+}
+
 /// A free UDP port on loopback (bound, read, released).
-pub fn free_port() -> Result<u16, String> {
-    let s = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
-    Ok(s.local_addr().map_err(|e| e.to_string())?.port())
+pub fn free_port() -> Result<u16, BenchError> {
+    let s = UdpSocket::bind("127.0.0.1:0")?;
+    Ok(s.local_addr()?.port())
 }
 
 /// The relay readers' [`crate::relay::Stamp`] of a forwarded `hand_datagram`: receipt time
@@ -68,24 +74,23 @@ pub fn osc_stamp(datagram: &[u8]) -> Option<u64> {
 }
 
 /// Runs `frond-relay` with `n` readers for `dur` of samples; the readers' latencies.
-fn relay_run(o: &Options, n: usize, dur: Duration) -> Result<LatencySummary, String> {
-    let port = free_port()?;
-    let addr = format!("127.0.0.1:{port}");
+fn relay_run(o: &Options, n: usize, dur: Duration) -> Result<LatencySummary, BenchError> {
+    let addr = loopback(free_port()?);
     let relay = Relay::start(o, &format!("udp:{addr}"), n, osc_stamp)?;
     relay.record(true);
-    send_for(addr.parse().map_err(|_| "bad relay address")?, dur)?;
+    send_for(addr, dur)?;
     thread::sleep(Duration::from_millis(50));
     Ok(relay.finish())
 }
 
 /// Section 7.
-pub fn osc_latency(o: &Options) -> Result<Section, String> {
+pub fn osc_latency(o: &Options) -> Result<Section, BenchError> {
     const TITLE: &str = "OSC hand sample sent -> subscriber receipt through frondd (1 kHz) vs frond-relay, a do-nothing relay to as many Unix socket readers";
     let dur = if o.quick { Duration::from_millis(800) } else { Duration::from_secs(5) };
     let port = free_port()?;
     let source = format!("osc://127.0.0.1:{port}");
     let daemon = Daemon::start(o, &["--source", &source, "--rate", "1000"])?;
-    let to: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().map_err(|_| "bad address")?;
+    let to = loopback(port);
     let counts = [1usize, 8, 32];
     let mut subs = Subscribers::new(counts.len());
     let mut measurements = Vec::new();

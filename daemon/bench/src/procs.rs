@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use frond_protocol::{ControlReply, ControlRequest, FrameBuf, read_frame, write_frame};
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::report::Machine;
 
 /// Directory of the workspace's binaries.
@@ -27,16 +28,9 @@ pub fn bin_dir(o: &Options) -> PathBuf {
 }
 
 /// Path of binary `name`, or why it is not there.
-pub fn find_bin(o: &Options, name: &str) -> Result<PathBuf, String> {
+pub fn find_bin(o: &Options, name: &str) -> Result<PathBuf, BenchError> {
     let p = bin_dir(o).join(name);
-    if p.is_file() {
-        Ok(p)
-    } else {
-        Err(format!(
-            "{} not found (build it: cargo build --release -p frond-cli -p frondd -p frond-device, or set FROND_BIN_DIR)",
-            p.display()
-        ))
-    }
+    if p.is_file() { Ok(p) } else { Err(BenchError::NotBuilt(p)) }
 }
 
 /// A child process, terminated (SIGTERM, then SIGKILL) when dropped.
@@ -71,7 +65,7 @@ impl Drop for Proc {
 }
 
 /// Starts `frond-vhid` with `args`; returns it and the node path it prints first.
-pub fn start_vhid(o: &Options, args: &[&str]) -> Result<(Proc, PathBuf, BufReader<ChildStdout>), String> {
+pub fn start_vhid(o: &Options, args: &[&str]) -> Result<(Proc, PathBuf, BufReader<ChildStdout>), BenchError> {
     let mut child = Command::new(find_bin(o, "frond-vhid")?)
         .args(args)
         .arg("--log-level")
@@ -79,13 +73,13 @@ pub fn start_vhid(o: &Options, args: &[&str]) -> Result<(Proc, PathBuf, BufReade
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
-        .map_err(|e| format!("cannot start frond-vhid: {e}"))?;
-    let mut out = BufReader::new(child.stdout.take().ok_or("frond-vhid has no stdout")?);
+        .map_err(BenchError::start("frond-vhid"))?;
+    let mut out = BufReader::new(child.stdout.take().ok_or(BenchError::NoPipe("frond-vhid has no stdout"))?);
     let proc = Proc { child };
     let mut line = String::new();
-    out.read_line(&mut line).map_err(|e| format!("reading frond-vhid's node path: {e}"))?;
+    out.read_line(&mut line).map_err(|source| BenchError::Read { what: "frond-vhid's node path", source })?;
     if line.trim().is_empty() {
-        return Err("frond-vhid printed no node path (see its error above)".into());
+        return Err(BenchError::NoNodePath);
     }
     Ok((proc, PathBuf::from(line.trim()), out))
 }
@@ -101,8 +95,8 @@ pub struct Daemon {
 
 impl Daemon {
     /// Starts `frondd` with `args` and waits until its control socket answers.
-    pub fn start(o: &Options, args: &[&str]) -> Result<Daemon, String> {
-        let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir().map_err(|e| e.to_string())?;
+    pub fn start(o: &Options, args: &[&str]) -> Result<Daemon, BenchError> {
+        let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir()?;
         let socket_dir = dir.path().join("run");
         let child = Command::new(find_bin(o, "frondd")?)
             .arg("--socket-dir")
@@ -114,7 +108,7 @@ impl Daemon {
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())
             .spawn()
-            .map_err(|e| format!("cannot start frondd: {e}"))?;
+            .map_err(BenchError::start("frondd"))?;
         let mut d = Daemon { proc: Proc { child }, socket_dir, _dir: dir };
         let deadline = Instant::now() + Duration::from_secs(20);
         loop {
@@ -122,29 +116,28 @@ impl Daemon {
                 return Ok(d);
             }
             if let Ok(Some(status)) = d.proc.child.try_wait() {
-                return Err(format!("frondd exited during start-up: {status}"));
+                return Err(BenchError::DaemonExited(status));
             }
             if Instant::now() > deadline {
-                return Err("frondd did not answer on its control socket within 20 s".into());
+                return Err(BenchError::DaemonSilent);
             }
             std::thread::sleep(Duration::from_millis(25));
         }
     }
 
     /// One control request.
-    pub fn control(&self, req: &ControlRequest) -> Result<ControlReply, String> {
-        let mut s = UnixStream::connect(self.socket_dir.join(frond_protocol::CONTROL_SOCKET))
-            .map_err(|e| e.to_string())?;
-        s.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;
-        write_frame(&mut s, &mut FrameBuf::default(), req).map_err(|e| e.to_string())?;
-        read_frame(&mut s, &mut Vec::new()).map_err(|e| e.to_string())
+    pub fn control(&self, req: &ControlRequest) -> Result<ControlReply, BenchError> {
+        let mut s = UnixStream::connect(self.socket_dir.join(frond_protocol::CONTROL_SOCKET))?;
+        s.set_read_timeout(Some(Duration::from_secs(10)))?;
+        write_frame(&mut s, &mut FrameBuf::default(), req)?;
+        Ok(read_frame(&mut s, &mut Vec::new())?)
     }
 
     /// The daemon's status.
-    pub fn status(&self) -> Result<frond_protocol::StatusReport, String> {
+    pub fn status(&self) -> Result<frond_protocol::StatusReport, BenchError> {
         match self.control(&ControlRequest::Status)? {
             ControlReply::Status(s) => Ok(*s),
-            other => Err(format!("unexpected status reply {other:?}")),
+            other => Err(BenchError::UnexpectedReply(format!("{other:?}"))),
         }
     }
 
@@ -156,11 +149,11 @@ impl Daemon {
 
 /// Nanoseconds every thread of process `pid` has run on a CPU (sum of
 /// `/proc/PID/task/*/schedstat`); threads that ended are not counted.
-pub fn process_cpu_ns(pid: u32) -> Result<u64, String> {
+pub fn process_cpu_ns(pid: u32) -> Result<u64, BenchError> {
     let dir = format!("/proc/{pid}/task");
     let mut total = 0u64;
-    for entry in std::fs::read_dir(&dir).map_err(|e| format!("{dir}: {e}"))? {
-        let path = entry.map_err(|e| e.to_string())?.path().join("schedstat");
+    for entry in std::fs::read_dir(&dir).map_err(BenchError::at(&dir))? {
+        let path = entry?.path().join("schedstat");
         if let Ok(text) = std::fs::read_to_string(&path) {
             total += text.split_whitespace().next().and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
         }
@@ -169,14 +162,14 @@ pub fn process_cpu_ns(pid: u32) -> Result<u64, String> {
 }
 
 /// A `kB` field of `/proc/PID/status` (`VmRSS`, `VmHWM`), in bytes.
-pub fn status_kb(pid: u32, field: &str) -> Result<u64, String> {
+pub fn status_kb(pid: u32, field: &str) -> Result<u64, BenchError> {
     let path = format!("/proc/{pid}/status");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{path}: {e}"))?;
+    let text = std::fs::read_to_string(&path).map_err(BenchError::at(&path))?;
     text.lines()
         .find_map(|l| l.strip_prefix(field).and_then(|r| r.strip_prefix(':')))
         .and_then(|v| v.split_whitespace().next()?.parse::<u64>().ok())
         .map(|kb| kb * 1024)
-        .ok_or_else(|| format!("{path}: no {field}"))
+        .ok_or_else(|| BenchError::ProcField { path, field: field.into() })
 }
 
 /// The machine, for the report header.

@@ -17,6 +17,7 @@ use frond_protocol::LatencySummary;
 use frondd::stats::LatencyHistogram;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::latency::timed_out;
 use crate::procs::{Proc, find_bin};
 use crate::report::{Bound, Measurement};
@@ -39,9 +40,8 @@ pub struct Relay {
 impl Relay {
     /// Starts `frond-relay SOURCE` (`udp:ADDR` or `hidraw:PATH`) with `n` readers and waits
     /// until they are all connected. Nothing is recorded until [`Relay::record`].
-    pub fn start(o: &Options, source: &str, n: usize, stamp: Stamp) -> Result<Relay, String> {
-        let dir =
-            tempfile::Builder::new().prefix("frond-bench-relay-").tempdir().map_err(|e| e.to_string())?;
+    pub fn start(o: &Options, source: &str, n: usize, stamp: Stamp) -> Result<Relay, BenchError> {
+        let dir = tempfile::Builder::new().prefix("frond-bench-relay-").tempdir()?;
         let path = dir.path().join("relay.sock");
         let mut child = Command::new(find_bin(o, "frond-relay")?)
             .arg(source)
@@ -50,8 +50,9 @@ impl Relay {
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
-            .map_err(|e| format!("cannot start frond-relay: {e}"))?;
-        let mut out = BufReader::new(child.stdout.take().ok_or("frond-relay has no stdout")?);
+            .map_err(BenchError::start("frond-relay"))?;
+        let mut out =
+            BufReader::new(child.stdout.take().ok_or(BenchError::NoPipe("frond-relay has no stdout"))?);
         let mut relay = Relay {
             proc: Proc { child },
             recording: Arc::new(AtomicBool::new(false)),
@@ -62,26 +63,26 @@ impl Relay {
             _dir: dir,
         };
         let mut line = String::new();
-        out.read_line(&mut line).map_err(|e| e.to_string())?;
+        out.read_line(&mut line)?;
         if line.trim() != "listening" {
-            return Err(format!(
+            return Err(BenchError::Peer(format!(
                 "frond-relay {source} said {line:?} instead of listening (see its error above)"
-            ));
+            )));
         }
         for _ in 0..n {
-            let s = UnixStream::connect(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let s = UnixStream::connect(&path).map_err(BenchError::at(&path))?;
             relay.spawn_reader(s, stamp)?;
         }
         line.clear();
-        out.read_line(&mut line).map_err(|e| e.to_string())?;
+        out.read_line(&mut line)?;
         if line.trim() != "ready" {
-            return Err(format!("frond-relay said {line:?} instead of ready"));
+            return Err(BenchError::Peer(format!("frond-relay said {line:?} instead of ready")));
         }
         Ok(relay)
     }
 
-    fn spawn_reader(&mut self, mut s: UnixStream, stamp: Stamp) -> Result<(), String> {
-        s.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| e.to_string())?;
+    fn spawn_reader(&mut self, mut s: UnixStream, stamp: Stamp) -> Result<(), BenchError> {
+        s.set_read_timeout(Some(Duration::from_millis(200)))?;
         let (hist, stop, recording) = (self.hist.clone(), self.stop.clone(), self.recording.clone());
         let frames = Arc::new(AtomicU64::new(0));
         self.frames.push(frames.clone());
@@ -119,14 +120,14 @@ impl Relay {
     }
 
     /// Waits until every reader has received something (the input is flowing).
-    pub fn wait_flowing(&self, within: Duration) -> Result<(), String> {
+    pub fn wait_flowing(&self, within: Duration) -> Result<(), BenchError> {
         let deadline = Instant::now() + within;
         while self.frames.iter().any(|f| f.load(Relaxed) == 0) {
             if Instant::now() > deadline {
-                return Err(format!(
+                return Err(BenchError::NoData(format!(
                     "not every one of frond-relay's {} readers received a report within {within:?}",
                     self.frames.len()
-                ));
+                )));
             }
             thread::sleep(Duration::from_millis(10));
         }
@@ -162,12 +163,12 @@ pub fn against_relay(
     n: usize,
     frondd: &LatencySummary,
     relay: &LatencySummary,
-) -> Result<Vec<Measurement>, String> {
+) -> Result<Vec<Measurement>, BenchError> {
     if frondd.samples == 0 || relay.samples == 0 {
-        return Err(format!(
+        return Err(BenchError::NoData(format!(
             "{what}: no samples with {n} readers (frondd {}, relay {})",
             frondd.samples, relay.samples
-        ));
+        )));
     }
     let rows = [("p50", frondd.p50_us, relay.p50_us, 1.3), ("p99", frondd.p99_us, relay.p99_us, 2.0)];
     Ok(rows

@@ -30,8 +30,9 @@ use frondd::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::latency::Subscribers;
-use crate::osc_latency::{free_port, osc_stamp, send_for};
+use crate::osc_latency::{free_port, loopback, osc_stamp, send_for};
 use crate::procs::{Daemon, Proc, process_cpu_ns, start_vhid, status_kb};
 use crate::relay::Relay;
 use crate::report::{Bound, Measurement, Section};
@@ -95,7 +96,7 @@ fn fanout_floor_cpu(
 }
 
 /// A 1 kHz hand recording of the virtual glove's sway, `seconds` long, as JSONL.
-fn sway_jsonl(path: &Path, seconds: u32) -> Result<(), String> {
+fn sway_jsonl(path: &Path, seconds: u32) -> Result<(), BenchError> {
     let mut text = String::new();
     for k in 0..seconds * 1000 {
         let (hand, _) = frond_vhid::sway_sample(f64::from(k) / 1000.0);
@@ -104,34 +105,32 @@ fn sway_jsonl(path: &Path, seconds: u32) -> Result<(), String> {
             text.push('\n');
         }
     }
-    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::write(path, text).map_err(BenchError::at(path))
 }
 
 /// The CPU (fraction of one core) of process `pid` over `window`, starting after `warm`, while
 /// this process sends it a 1 kHz OSC hand sample stream at `to`.
-fn cpu_while_sending(pid: u32, to: SocketAddr, warm: Duration, window: Duration) -> Result<f64, String> {
+fn cpu_while_sending(pid: u32, to: SocketAddr, warm: Duration, window: Duration) -> Result<f64, BenchError> {
     let sender = thread::spawn(move || send_for(to, warm + window + Duration::from_millis(100)));
     thread::sleep(warm);
     let (cpu0, wall0) = (process_cpu_ns(pid)?, monotonic_ns());
     thread::sleep(window);
     let (cpu1, wall1) = (process_cpu_ns(pid)?, monotonic_ns());
-    sender.join().map_err(|_| "the OSC sender thread panicked")??;
+    sender.join().map_err(|_| BenchError::Panicked("the OSC sender thread"))??;
     Ok((cpu1 - cpu0) as f64 / (wall1 - wall0) as f64)
 }
 
 /// `frondd` (OSC source, 1 kHz, 4 subscribers) and then `frond-relay` (4 readers), each fed the
 /// same 1 kHz OSC sender for the same window: their CPU, fractions of one core.
-fn osc_cpu_against_relay(o: &Options, warm: Duration, window: Duration) -> Result<(f64, f64), String> {
-    let port = free_port()?;
-    let to: SocketAddr = format!("127.0.0.1:{port}").parse().map_err(|_| "bad address")?;
+fn osc_cpu_against_relay(o: &Options, warm: Duration, window: Duration) -> Result<(f64, f64), BenchError> {
+    let to = loopback(free_port()?);
     let daemon = Daemon::start(o, &["--source", &format!("osc://{to}"), "--rate", "1000"])?;
     let mut subs = Subscribers::new(1);
     subs.grow_to(&daemon.poses_socket(), 4)?;
     let frondd = cpu_while_sending(daemon.proc.pid(), to, warm, window)?;
     drop(subs);
     drop(daemon);
-    let port = free_port()?;
-    let to: SocketAddr = format!("127.0.0.1:{port}").parse().map_err(|_| "bad address")?;
+    let to = loopback(free_port()?);
     let relay = Relay::start(o, &format!("udp:{to}"), 4, osc_stamp)?;
     let relay_cpu = cpu_while_sending(relay.pid(), to, warm, window)?;
     Ok((frondd, relay_cpu))
@@ -151,7 +150,12 @@ struct DaemonRun {
 
 /// Runs `frondd` with `args` at 1 kHz with 4 subscribers; measures it, the fan-out floor and a
 /// bare loop over the same window.
-fn measure_daemon(o: &Options, args: &[&str], warm: Duration, window: Duration) -> Result<DaemonRun, String> {
+fn measure_daemon(
+    o: &Options,
+    args: &[&str],
+    warm: Duration,
+    window: Duration,
+) -> Result<DaemonRun, BenchError> {
     let mut args = args.to_vec();
     args.extend(["--rate", "1000"]);
     let daemon = Daemon::start(o, &args)?;
@@ -166,8 +170,9 @@ fn measure_daemon(o: &Options, args: &[&str], warm: Duration, window: Duration) 
     thread::sleep(window);
     let (cpu1, wall1, frames1) = (process_cpu_ns(pid)?, monotonic_ns(), subs.frames());
     stop.store(true, Relaxed);
-    let (bare_cpu, bare_wall) = bare.join().map_err(|_| "the bare loop thread panicked")?;
-    let (floor_cpu, floor_wall) = floor.join().map_err(|_| "the fan-out floor thread panicked")?;
+    let (bare_cpu, bare_wall) = bare.join().map_err(|_| BenchError::Panicked("the bare loop thread"))?;
+    let (floor_cpu, floor_wall) =
+        floor.join().map_err(|_| BenchError::Panicked("the fan-out floor thread"))?;
     let wall = (wall1 - wall0) as f64;
     Ok(DaemonRun {
         cpu: (cpu1 - cpu0) as f64 / wall,
@@ -196,13 +201,13 @@ fn run_json(r: &DaemonRun) -> serde_json::Value {
 }
 
 /// Section 5.
-pub fn daemon_resources(o: &Options) -> Result<Section, String> {
+pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
     let (warm, window) = if o.quick {
         (Duration::from_millis(500), Duration::from_secs(2))
     } else {
         (Duration::from_secs(2), Duration::from_secs(20))
     };
-    let dir = tempfile::Builder::new().prefix("frond-bench-res-").tempdir().map_err(|e| e.to_string())?;
+    let dir = tempfile::Builder::new().prefix("frond-bench-res-").tempdir()?;
     let hand = dir.path().join("sway-1khz.jsonl");
     let seconds = (warm + window).as_secs() as u32 + 10;
     sway_jsonl(&hand, seconds)?;
@@ -227,7 +232,7 @@ pub fn daemon_resources(o: &Options) -> Result<Section, String> {
         .arg("30")
         .stdout(Stdio::null())
         .spawn()
-        .map_err(|e| format!("cannot start `sleep` for the memory baseline: {e}"))?;
+        .map_err(BenchError::start("`sleep` for the memory baseline"))?;
     let sleeper = Proc { child: sleeper };
     thread::sleep(Duration::from_millis(100));
     let idle_rss = status_kb(sleeper.pid(), "VmRSS")?;

@@ -12,6 +12,7 @@ use serde_json::json;
 
 use crate::Options;
 use crate::alloc::{count_allocations, counting_installed};
+use crate::error::BenchError;
 use crate::report::{Bound, Measurement, Section};
 use crate::rig::{TickGlove, mapper};
 use crate::timing::SUBSCRIBERS;
@@ -76,7 +77,7 @@ impl TickRig {
     }
 }
 
-fn engine() -> Result<TickRig, String> {
+fn engine() -> Result<TickRig, BenchError> {
     use std::io::Read;
     let (mut engine, mut ends) = Engine::with_channels(
         mapper(),
@@ -97,8 +98,8 @@ fn engine() -> Result<TickRig, String> {
     let mut readers = Vec::new();
     let mut daemon_ends = Vec::new();
     for id in 0..SUBSCRIBERS as u64 {
-        let (daemon_end, mut sub_end) = std::os::unix::net::UnixStream::pair().map_err(|e| e.to_string())?;
-        daemon_ends.push(daemon_end.try_clone().map_err(|e| e.to_string())?);
+        let (daemon_end, mut sub_end) = std::os::unix::net::UnixStream::pair()?;
+        daemon_ends.push(daemon_end.try_clone()?);
         readers.push(std::thread::spawn(move || {
             let mut buf = [0u8; 16 * 1024];
             while matches!(sub_end.read(&mut buf), Ok(n) if n > 0) {}
@@ -106,11 +107,14 @@ fn engine() -> Result<TickRig, String> {
         let lane = frondd::lanes::NewLane::new(id, daemon_end, Default::default(), hello.clone());
         ends.commands
             .send(frondd::engine::LoopCommand::AddSubscriber(Box::new(lane)))
-            .map_err(|_| "the engine's command queue is closed")?;
+            .map_err(|_| BenchError::EngineGone)?;
     }
     engine.tick(monotonic_ns());
     if engine.lanes().len() != SUBSCRIBERS {
-        return Err(format!("{} of {SUBSCRIBERS} subscribers on direct lanes", engine.lanes().len()));
+        return Err(BenchError::NoData(format!(
+            "{} of {SUBSCRIBERS} subscribers on direct lanes",
+            engine.lanes().len()
+        )));
     }
     let rx = std::mem::replace(&mut ends.frames, crossbeam_channel::never());
     Ok(TickRig { engine, rx, _ends: ends, _readers: readers, daemon_ends })
@@ -122,7 +126,7 @@ fn drain(rx: &Receiver<Pose>) {
 }
 
 /// Section 3.
-pub fn tick_cost(o: &Options) -> Result<Section, String> {
+pub fn tick_cost(o: &Options) -> Result<Section, BenchError> {
     let (batches, n) = if o.quick { (15, 20_000) } else { (41, 200_000) };
     // calibrate + filter (One Euro) + map, the loop's per-report work.
     let mut m = mapper();

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::loops::{Accum, FullLoop, LoopRun, Pacing};
 use crate::report::{Bound, Measurement, Section};
 
@@ -13,7 +14,7 @@ pub const SUBSCRIBERS: usize = 8;
 
 /// Section 1: lateness of the full loop, the bare `clock_nanosleep` loop and the naive sleep loop
 /// at 1 kHz and 8 kHz, run in alternating slices so all three see the same machine load.
-pub fn loop_timing(o: &Options, priority: u8) -> Result<Section, String> {
+pub fn loop_timing(o: &Options, priority: u8) -> Result<Section, BenchError> {
     let (total_s, slice_s) = if o.quick { (0.6, 0.2) } else { (20.0, 1.0) };
     let slice = Duration::from_secs_f64(slice_s);
     let slices = (total_s / slice_s).round() as usize;
@@ -72,10 +73,10 @@ pub fn loop_timing(o: &Options, priority: u8) -> Result<Section, String> {
 
 /// Highest rate at which `probe(rate)` is sustainable: doubling from 1 kHz, then bisecting.
 fn search(
-    mut probe: impl FnMut(f64) -> Result<LoopRun, String>,
+    mut probe: impl FnMut(f64) -> Result<LoopRun, BenchError>,
     cap_hz: f64,
     steps: usize,
-) -> Result<(f64, Vec<LoopRun>), String> {
+) -> Result<(f64, Vec<LoopRun>), BenchError> {
     let mut tried = Vec::new();
     let mut ok = 0.0;
     let mut bad = None;
@@ -114,7 +115,7 @@ fn search(
 /// Section 4: the highest sustainable tick rate of the full loop with 8 subscribers (p99 lateness
 /// under one period and at least 98% of the asked rate achieved), against the same search on the
 /// bare loop.
-pub fn max_rate(o: &Options, priority: u8) -> Result<Section, String> {
+pub fn max_rate(o: &Options, priority: u8) -> Result<Section, BenchError> {
     let probe_s = if o.quick { 0.15 } else { 1.0 };
     let probe = Duration::from_secs_f64(probe_s);
     let (cap, steps) = (256_000.0, if o.quick { 3 } else { 5 });

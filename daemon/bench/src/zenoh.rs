@@ -32,6 +32,7 @@ use serde::Deserialize;
 use serde_json::json;
 
 use crate::Options;
+use crate::error::BenchError;
 use crate::procs::{Daemon, Proc, find_bin, process_cpu_ns};
 use crate::report::{Bound, Measurement, Section};
 
@@ -73,7 +74,7 @@ struct Peer {
 }
 
 impl Peer {
-    fn spawn(o: &Options, host: &Host, program: &str, args: &[String]) -> Result<Peer, String> {
+    fn spawn(o: &Options, host: &Host, program: &str, args: &[String]) -> Result<Peer, BenchError> {
         let what = format!("{program} {} on {}", args.first().map_or("", String::as_str), host.ns);
         let mut child = host
             .command(find_bin(o, program)?)
@@ -82,9 +83,9 @@ impl Peer {
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
-            .map_err(|e| format!("cannot start {what}: {e}"))?;
-        let stdin = child.stdin.take().ok_or("no stdin")?;
-        let stdout = BufReader::new(child.stdout.take().ok_or("no stdout")?);
+            .map_err(BenchError::start(&what))?;
+        let stdin = child.stdin.take().ok_or(BenchError::NoPipe("no stdin"))?;
+        let stdout = BufReader::new(child.stdout.take().ok_or(BenchError::NoPipe("no stdout"))?);
         let (tx, lines) = crossbeam_channel::unbounded();
         thread::spawn(move || {
             for line in stdout.lines() {
@@ -98,33 +99,36 @@ impl Peer {
     }
 
     /// The next line, waiting at most `within`.
-    fn line(&mut self, within: Duration) -> Result<String, String> {
+    fn line(&mut self, within: Duration) -> Result<String, BenchError> {
         match self.lines.recv_timeout(within) {
             Ok(line) => Ok(line),
-            Err(RecvTimeoutError::Timeout) => Err(format!("{}: no answer within {within:?}", self.what)),
+            Err(RecvTimeoutError::Timeout) => {
+                Err(BenchError::Peer(format!("{}: no answer within {within:?}", self.what)))
+            }
             Err(RecvTimeoutError::Disconnected) => {
                 let status = self.proc.child.wait().map(|s| s.to_string()).unwrap_or_default();
-                Err(format!("{} ended ({status}); see its error above", self.what))
+                Err(BenchError::Peer(format!("{} ended ({status}); see its error above", self.what)))
             }
         }
     }
 
-    fn wait_ready(&mut self) -> Result<(), String> {
+    fn wait_ready(&mut self) -> Result<(), BenchError> {
         match self.line(READY_WITHIN)? {
             l if l == "ready" => Ok(()),
-            other => Err(format!("{} said {other:?} instead of ready", self.what)),
+            other => Err(BenchError::Peer(format!("{} said {other:?} instead of ready", self.what))),
         }
     }
 
-    fn send(&mut self, command: &str) -> Result<(), String> {
+    fn send(&mut self, command: &str) -> Result<(), BenchError> {
         writeln!(self.stdin, "{command}")
             .and_then(|()| self.stdin.flush())
-            .map_err(|e| format!("{}: {e}", self.what))
+            .map_err(|e| BenchError::Peer(format!("{}: {e}", self.what)))
     }
 
-    fn report(&mut self) -> Result<PeerReport, String> {
+    fn report(&mut self) -> Result<PeerReport, BenchError> {
         let line = self.line(Duration::from_secs(20))?;
-        serde_json::from_str(&line).map_err(|e| format!("{}: report {line:?}: {e}", self.what))
+        serde_json::from_str(&line)
+            .map_err(|e| BenchError::Peer(format!("{}: report {line:?}: {e}", self.what)))
     }
 }
 
@@ -155,11 +159,11 @@ impl Phase {
 
 /// Records on every subscriber for `window` while the host-0 processes `pids` run; their CPU
 /// over the same window.
-fn measure(subs: &mut [Peer], pids: &[u32], window: Duration) -> Result<Phase, String> {
+fn measure(subs: &mut [Peer], pids: &[u32], window: Duration) -> Result<Phase, BenchError> {
     // Every subscriber has a pose; Zenoh peers still find one another for a moment (scouting,
     // gossip). Steady state is what is measured.
     thread::sleep(SETTLE);
-    let cpu = || pids.iter().map(|&p| process_cpu_ns(p)).sum::<Result<u64, String>>();
+    let cpu = || pids.iter().map(|&p| process_cpu_ns(p)).sum::<Result<u64, BenchError>>();
     let (cpu0, t0) = (cpu()?, Instant::now());
     for s in subs.iter_mut() {
         s.send("record")?;
@@ -173,7 +177,7 @@ fn measure(subs: &mut [Peer], pids: &[u32], window: Duration) -> Result<Phase, S
     for s in subs.iter_mut() {
         let r = s.report()?;
         if r.frames == 0 {
-            return Err(format!("{} received no pose while recording", s.what));
+            return Err(BenchError::NoData(format!("{} received no pose while recording", s.what)));
         }
         phase.frames += r.frames;
         phase.gaps += r.gaps;
@@ -205,7 +209,7 @@ impl Stage<'_> {
         &self.lan.hosts[1 + i % (self.lan.hosts.len() - 1)]
     }
 
-    fn ensure_daemons(&mut self, n: usize) -> Result<(), String> {
+    fn ensure_daemons(&mut self, n: usize) -> Result<(), BenchError> {
         while self.daemons.len() < n {
             self.daemons.push(Daemon::start(self.o, &["--source", "in-process", "--rate", "1000"])?);
         }
@@ -213,7 +217,7 @@ impl Stage<'_> {
     }
 
     /// Plain UDP: one forwarder per source on host 0, `per_source` receivers for each.
-    fn udp(&mut self, sources: usize, per_source: usize) -> Result<Phase, String> {
+    fn udp(&mut self, sources: usize, per_source: usize) -> Result<Phase, BenchError> {
         self.ensure_daemons(sources)?;
         let mut subs = Vec::new();
         let mut forwarders = Vec::new();
@@ -246,7 +250,7 @@ impl Stage<'_> {
 
     /// Zenoh: one `frond-zenoh` per source on host 0, `per_source` subscribers for each
     /// (`frond-bench-peer MODE`: `zenoh-sub`, the SDK, or `zenoh-raw`, Zenoh's callback).
-    fn zenoh(&mut self, sources: usize, per_source: usize, mode: &str) -> Result<Phase, String> {
+    fn zenoh(&mut self, sources: usize, per_source: usize, mode: &str) -> Result<Phase, BenchError> {
         self.ensure_daemons(sources)?;
         let zenoh_bin = find_bin(self.o, "frond-zenoh")?;
         let mut bridges = Vec::new();
@@ -266,7 +270,7 @@ impl Stage<'_> {
                 // subscribers that never see a pose.
                 .stderr(Stdio::null())
                 .spawn()
-                .map_err(|e| format!("cannot start frond-zenoh: {e}"))?;
+                .map_err(BenchError::start("frond-zenoh"))?;
             bridges.push(Proc { child });
             for k in 0..per_source {
                 let i = s * per_source + k;
@@ -308,7 +312,7 @@ impl Stage<'_> {
     /// every millisecond and `zenoh-raw` on host 1 records it in Zenoh's callback, or `udp-pub`
     /// sends it in a datagram to `udp-sub`. What the transport alone costs between the same
     /// namespaces: the floor under the measured paths.
-    fn bare(&mut self, kind: Bare) -> Result<Phase, String> {
+    fn bare(&mut self, kind: Bare) -> Result<Phase, BenchError> {
         let host = self.listener(0);
         let (publisher, subscriber) = if kind == Bare::Udp {
             let bind = format!("0.0.0.0:{UDP_PORT}");
@@ -321,7 +325,7 @@ impl Stage<'_> {
             let mut config = String::new();
             if kind == Bare::ZenohLowLatency {
                 let path = self.scratch.path().join("lowlatency.json5");
-                std::fs::write(&path, LOW_LATENCY_CONFIG).map_err(|e| format!("{}: {e}", path.display()))?;
+                std::fs::write(&path, LOW_LATENCY_CONFIG).map_err(BenchError::at(&path))?;
                 config = format!("&config={}", path.display());
             }
             let address = |end: &str| format!("zenoh:frond/bench/bare?{end}={listen}{config}");
@@ -396,7 +400,7 @@ fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
 }
 
 /// Section 9.
-pub fn zenoh(o: &Options) -> Result<Section, String> {
+pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
     if let Some(why) = frond_netns::unavailable() {
         return Ok(Section::unavailable(
             "zenoh",
@@ -409,7 +413,7 @@ pub fn zenoh(o: &Options) -> Result<Section, String> {
         find_bin(o, bin)?;
     }
     let window = if o.quick { Duration::from_millis(1500) } else { Duration::from_secs(5) };
-    let scratch = tempfile::tempdir().map_err(|e| format!("a scratch directory: {e}"))?;
+    let scratch = tempfile::tempdir().map_err(BenchError::at("a scratch directory"))?;
     let mut stage = Stage { o, lan: Lan::new(4), daemons: Vec::new(), window, scratch };
     let mut measurements = Vec::new();
     let mut details = serde_json::Map::new();
