@@ -11,6 +11,8 @@ mod hand;
 mod hid;
 pub mod leap;
 mod osc;
+#[cfg(test)]
+mod osc_agreement;
 mod osc_wire;
 pub mod registry;
 mod replay;
