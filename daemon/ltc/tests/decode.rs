@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{add_noise, edges, labels, render};
+use common::{add_noise, edges, edges_at_speed, labels, render};
 use frond_ltc::{FrameRate, LtcDecoder, LtcEvent, SmpteTime};
 
 struct Decoded {
@@ -84,6 +84,26 @@ fn noise_inverted_polarity_and_odd_levels_do_not_matter() {
             add_noise(&mut samples, noise, i as u64);
             let got = decode(&samples, 48_000);
             assert_frame_for_frame(&sent, &got.frames, 1, &format!("{rate} amp {amp} noise {noise}"));
+        }
+    }
+}
+
+#[test]
+fn a_source_one_percent_off_speed_still_locks_at_its_rate() {
+    for rate in [FrameRate::Fps24, FrameRate::Fps25, FrameRate::Fps30] {
+        for speed in [0.99, 1.01] {
+            let sent = labels(rate, 3_000, 30);
+            let with_user: Vec<_> = sent.iter().map(|&t| (t, 0)).collect();
+            let samples =
+                render(&edges_at_speed(rate, &with_user, speed), 48_000, 30.5 / (rate.fps() * speed), 0.5);
+            let got = decode(&samples, 48_000);
+            assert_frame_for_frame(&sent, &got.frames, 1, &format!("{rate} at speed {speed}"));
+            let locked: Vec<_> = got
+                .events
+                .iter()
+                .filter_map(|e| if let LtcEvent::Locked { rate, .. } = e { Some(*rate) } else { None })
+                .collect();
+            assert_eq!(locked, [rate], "{rate} at speed {speed}");
         }
     }
 }

@@ -51,7 +51,12 @@ pub fn frame_bits(rate: FrameRate, t: SmpteTime, user: u32) -> [bool; 80] {
 /// Transition times (seconds) of the biphase-mark signal for these frames, from time 0, and
 /// the one that starts whatever follows them.
 pub fn edges(rate: FrameRate, frames: &[(SmpteTime, u32)]) -> Vec<f64> {
-    let bit_s = 1.0 / (80.0 * rate.fps());
+    edges_at_speed(rate, frames, 1.0)
+}
+
+/// [`edges`] played `speed` times as fast (a generator or tape off its nominal speed).
+pub fn edges_at_speed(rate: FrameRate, frames: &[(SmpteTime, u32)], speed: f64) -> Vec<f64> {
+    let bit_s = 1.0 / (80.0 * rate.fps() * speed);
     let mut out = Vec::new();
     for (k, &(t, user)) in frames.iter().enumerate() {
         for (i, bit) in frame_bits(rate, t, user).into_iter().enumerate() {
