@@ -212,14 +212,33 @@ impl ControlGate {
         frame: &[u8],
         now: Now,
     ) -> Result<Admitted, Refusal> {
-        use ControlErrorKind::{BadRequest, Internal, PermissionDenied};
-        let unauthenticated = "not authenticated: ";
+        let (env, request) = self.authenticate(envelope, key_expr, frame, now)?;
+        self.take_budget(&env, now)?;
+        let name = env.principal;
+        Ok(Admitted {
+            principal: name.clone(),
+            request,
+            slot: PendingSlot { state: self.state.clone(), principal: name },
+        })
+    }
+
+    /// The envelope and the request, when the envelope is signed by a principal of the policy
+    /// over this key and frame, fresh, and the frame is one request that principal may send.
+    /// Stateless: nothing is taken.
+    fn authenticate(
+        &self,
+        envelope: Option<&[u8]>,
+        key_expr: &str,
+        frame: &[u8],
+        now: Now,
+    ) -> Result<(Envelope, ControlRequest), Refusal> {
+        use ControlErrorKind::{BadRequest, PermissionDenied};
         let bytes = envelope.ok_or_else(|| {
             refusal(
                 None,
                 RefusalReason::Unsigned,
                 PermissionDenied,
-                format!("{unauthenticated}unsigned request"),
+                format!("{UNAUTHENTICATED}unsigned request"),
             )
         })?;
         if bytes.len() > MAX_ENVELOPE_LEN {
@@ -227,21 +246,20 @@ impl ControlGate {
                 None,
                 RefusalReason::Unsigned,
                 PermissionDenied,
-                format!("{unauthenticated}oversized envelope"),
+                format!("{UNAUTHENTICATED}oversized envelope"),
             ));
         }
         let env = Envelope::decode(bytes).map_err(|e| {
-            refusal(None, RefusalReason::Unsigned, PermissionDenied, format!("{unauthenticated}{e}"))
+            refusal(None, RefusalReason::Unsigned, PermissionDenied, format!("{UNAUTHENTICATED}{e}"))
         })?;
         let name = env.principal.as_str();
-        // The same answer for an unknown name and a wrong key: a peer learns nothing from it.
-        let bad = || {
-            format!(
-                "{unauthenticated}unknown principal or wrong key for {name:?} (see the bridge's --control file)"
-            )
-        };
         let Some(principal) = self.policy.principals.get(name) else {
-            return Err(refusal(Some(name), RefusalReason::UnknownPrincipal, PermissionDenied, bad()));
+            return Err(refusal(
+                Some(name),
+                RefusalReason::UnknownPrincipal,
+                PermissionDenied,
+                bad_key(name),
+            ));
         };
         if frame.len() > MAX_CONTROL_REQUEST + frond_protocol::HEADER_LEN {
             return Err(refusal(
@@ -252,14 +270,14 @@ impl ControlGate {
             ));
         }
         if !env.verify(&principal.key, key_expr, frame) {
-            return Err(refusal(Some(name), RefusalReason::BadSignature, PermissionDenied, bad()));
+            return Err(refusal(Some(name), RefusalReason::BadSignature, PermissionDenied, bad_key(name)));
         }
         if let Err(e) = check_issue_time(env.issued_unix_ms, now.unix_ms) {
             return Err(refusal(
                 Some(name),
                 RefusalReason::Stale,
                 PermissionDenied,
-                format!("{unauthenticated}{e} (are the hosts' clocks set, e.g. by NTP?)"),
+                format!("{UNAUTHENTICATED}{e} (are the hosts' clocks set, e.g. by NTP?)"),
             ));
         }
         let request = match frond_protocol::decode_frame::<ControlRequest>(frame) {
@@ -282,14 +300,26 @@ impl ControlGate {
                 format!("{name:?} may not send {} remotely (the bridge's --control file)", request.name()),
             ));
         }
+        Ok((env, request))
+    }
 
-        // Signed, fresh, well formed and allowed: now this principal's own state, checked in
-        // full before any of it is taken.
+    /// For a signed, fresh, well formed and allowed request: the principal's own state (a
+    /// replayed nonce, its rate, its pending requests and everyone's, its remembered nonces),
+    /// checked in full before any of it is taken; then the nonce is remembered, one request of
+    /// its budget spent and a pending slot held (released by the [`PendingSlot`]).
+    fn take_budget(&self, env: &Envelope, now: Now) -> Result<(), Refusal> {
+        use ControlErrorKind::{Internal, PermissionDenied};
+        let name = env.principal.as_str();
         let mut state = lock(&self.state);
         let pending_total = state.pending;
         let Some(mine) = state.principals.get_mut(name) else {
             // Unreachable: the state lists every principal of the policy.
-            return Err(refusal(Some(name), RefusalReason::UnknownPrincipal, PermissionDenied, bad()));
+            return Err(refusal(
+                Some(name),
+                RefusalReason::UnknownPrincipal,
+                PermissionDenied,
+                bad_key(name),
+            ));
         };
         if mine.nonces.contains_key(&env.nonce) {
             return Err(refusal(
@@ -352,13 +382,16 @@ impl ControlGate {
         mine.bucket.milli -= 1000;
         mine.pending += 1;
         state.pending += 1;
-        drop(state);
-        Ok(Admitted {
-            principal: name.to_owned(),
-            request,
-            slot: PendingSlot { state: self.state.clone(), principal: name.to_owned() },
-        })
+        Ok(())
     }
+}
+
+/// What every refusal of an unsigned or unverified request starts with.
+const UNAUTHENTICATED: &str = "not authenticated: ";
+
+/// The same answer for an unknown name and a wrong key: a peer learns nothing from it.
+fn bad_key(name: &str) -> String {
+    format!("{UNAUTHENTICATED}unknown principal or wrong key for {name:?} (see the bridge's --control file)")
 }
 
 #[cfg(test)]
