@@ -328,8 +328,7 @@ impl Bridge {
             keys::under(&self.config.addr.key, keys::STATUS),
             self.config.status_interval,
             self.shared.clone(),
-        )
-        .map_err(|reason| BridgeError::Declare { what: "the status publisher".into(), reason })?;
+        )?;
         let result = self.stream(stop);
         status.stop();
         self.set_alive(false);

@@ -13,7 +13,7 @@ use frond_sdk::ControlClient;
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 
-use crate::Shared;
+use crate::{BridgeError, Shared};
 
 /// How long one status request may take.
 const STATUS_TIMEOUT: Duration = Duration::from_secs(2);
@@ -40,13 +40,14 @@ pub(crate) fn spawn(
     key: String,
     interval: Duration,
     shared: Arc<Shared>,
-) -> Result<StatusPoller, String> {
+) -> Result<StatusPoller, BridgeError> {
+    let declare = |reason: String| BridgeError::Declare { what: "the status publisher".into(), reason };
     let publisher = session
         .declare_publisher(key)
         .congestion_control(CongestionControl::Drop)
         .priority(Priority::Data)
         .wait()
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| declare(e.to_string()))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     let thread = std::thread::Builder::new()
@@ -86,6 +87,6 @@ pub(crate) fn spawn(
                 }
             }
         })
-        .map_err(|e| format!("starting its thread: {e}"))?;
+        .map_err(|e| declare(format!("starting its thread: {e}")))?;
     Ok(StatusPoller { stop, thread: Some(thread) })
 }
