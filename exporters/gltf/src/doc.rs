@@ -3,14 +3,17 @@
 //! values written), the plant assets (one mesh, material and inverse-bind-matrix accessor shared
 //! by every plant of a document) and plant instances (a node hierarchy and a skin each).
 
-use glam::{Mat4, Quat, Vec3};
+use glam::{Mat4, Quat};
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 use json::{Index, accessor, buffer, mesh};
 use serde_json::Value;
 
 use frond_motion::JOINTS;
-use frond_motion::mesh::{PlantModel, SkinnedMesh};
+use frond_motion::mesh::PlantModel;
+
+use crate::bind::{BindGeometry, bind_geometry};
+pub use crate::bind::{ElementRig, pack_influences};
 
 /// A document being built: JSON plus the binary buffer (buffer 0).
 pub struct DocBuilder {
@@ -162,53 +165,8 @@ impl DocBuilder {
         joint_names: &[String; JOINTS],
         element_names: &[String],
     ) -> PlantAssets {
-        let heights = model.skeleton.heights_m;
-        let mut positions: Vec<[f32; 3]> = Vec::new();
-        let mut normals: Vec<[f32; 3]> = Vec::new();
-        let mut joints: Vec<[u16; 4]> = Vec::new();
-        let mut weights: Vec<[f32; 4]> = Vec::new();
-        let mut indices: Vec<u32> = Vec::new();
-        let mut ibm: Vec<Mat4> =
-            heights.iter().map(|&h| Mat4::from_translation(Vec3::new(0.0, -h, 0.0))).collect();
-
-        let mut add = |mesh: &SkinnedMesh, frame: Mat4, base: u16| {
-            let first = positions.len() as u32;
-            for ((p, n), w) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.weights) {
-                positions.push(frame.transform_point3(Vec3::from(*p)).to_array());
-                normals.push(frame.transform_vector3(Vec3::from(*n)).normalize_or(Vec3::Y).to_array());
-                let (j, w) = pack_influences(w, base);
-                joints.push(j);
-                weights.push(w);
-            }
-            // Degenerate triangles (two equal corners, e.g. where a strip meets a pointed tip)
-            // draw nothing; drop them.
-            for t in mesh.indices.chunks_exact(3) {
-                if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
-                    indices.extend(t.iter().map(|i| i + first));
-                }
-            }
-        };
-        add(&model.stem, Mat4::IDENTITY, 0);
-        let mut elements = Vec::with_capacity(model.elements.len());
-        for (k, e) in model.elements.iter().enumerate() {
-            let base = (JOINTS * (k + 1)) as u16;
-            let bind = Mat4::from_translation(Vec3::new(0.0, heights[e.attach_joint as usize], 0.0))
-                * e.attach_matrix();
-            add(&e.mesh, bind, base);
-            for &h in &e.skeleton.heights_m {
-                ibm.push((bind * Mat4::from_translation(Vec3::new(0.0, h, 0.0))).inverse());
-            }
-            let kind = element_names.get(e.element).cloned().unwrap_or_else(|| e.name.clone());
-            elements.push(ElementRig {
-                element: e.element,
-                instance: e.instance,
-                name: format!("{kind}{}", e.instance),
-                attach_joint: e.attach_joint as usize,
-                rotation: e.rotation,
-                offset_m: e.offset_m,
-                heights_m: e.skeleton.heights_m,
-            });
-        }
+        let BindGeometry { positions, normals, joints, weights, indices, ibm, elements } =
+            bind_geometry(model, element_names);
         let joint_count = ibm.len();
 
         let pos =
@@ -220,8 +178,22 @@ impl DocBuilder {
         let jnt = self.joints_attr(&joints, joint_count);
         let idx = self.indices(&indices, positions.len());
 
-        // Inverse bind matrices: column-major, the bottom row forced to exactly (0, 0, 0, 1)
-        // (an affine inverse can leave -0.0 or rounding noise there).
+        let ibm = self.inverse_bind_matrices(&ibm);
+
+        let mesh = self.plant_mesh([pos, nor, jnt, wgt], idx);
+        PlantAssets {
+            mesh,
+            ibm,
+            heights_m: model.skeleton.heights_m,
+            joint_names: joint_names.clone(),
+            elements,
+            vertices: positions.len(),
+        }
+    }
+
+    /// The inverse bind matrices as a `MAT4` accessor: column-major, the bottom row forced to
+    /// exactly (0, 0, 0, 1) (an affine inverse can leave -0.0 or rounding noise there).
+    fn inverse_bind_matrices(&mut self, ibm: &[Mat4]) -> Index<json::Accessor> {
         let mats: Vec<[f32; 16]> = ibm
             .iter()
             .map(|m| {
@@ -233,8 +205,16 @@ impl DocBuilder {
                 a.map(|x| if x == 0.0 { 0.0 } else { x })
             })
             .collect();
-        let ibm = self.float_attr(&mats, accessor::Type::Mat4, None, "inverse_bind_matrices");
+        self.float_attr(&mats, accessor::Type::Mat4, None, "inverse_bind_matrices")
+    }
 
+    /// The plant's material and its one skinned mesh over the accessors `[positions, normals,
+    /// joints, weights]` and `indices`.
+    fn plant_mesh(
+        &mut self,
+        [pos, nor, jnt, wgt]: [Index<json::Accessor>; 4],
+        idx: Index<json::Accessor>,
+    ) -> Index<json::Mesh> {
         let material = self.root.push(json::Material {
             name: Some("plant".to_string()),
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
@@ -250,7 +230,7 @@ impl DocBuilder {
         attributes.insert(Valid(mesh::Semantic::Normals), nor);
         attributes.insert(Valid(mesh::Semantic::Joints(0)), jnt);
         attributes.insert(Valid(mesh::Semantic::Weights(0)), wgt);
-        let mesh = self.root.push(json::Mesh {
+        self.root.push(json::Mesh {
             extensions: None,
             extras: None,
             name: Some("plant".to_string()),
@@ -264,15 +244,7 @@ impl DocBuilder {
                 targets: None,
             }],
             weights: None,
-        });
-        PlantAssets {
-            mesh,
-            ibm,
-            heights_m: heights,
-            joint_names: joint_names.clone(),
-            elements,
-            vertices: positions.len(),
-        }
+        })
     }
 
     fn joints_attr(&mut self, joints: &[[u16; 4]], joint_count: usize) -> Index<json::Accessor> {
@@ -504,33 +476,6 @@ impl DocBuilder {
     }
 }
 
-/// Joint indices and weights of one vertex for glTF: the non-zero influences first, unused
-/// slots joint 0 with weight 0 (the validator warns about a non-zero joint with zero weight),
-/// normalised so the `f32` sum is 1 as closely as `f32` allows.
-pub fn pack_influences(w: &[f32; JOINTS], base: u16) -> ([u16; 4], [f32; 4]) {
-    let mut joints = [0u16; 4];
-    let mut weights = [0f32; 4];
-    let total: f64 = w.iter().map(|&x| f64::from(x.max(0.0))).sum();
-    let mut n = 0;
-    for (i, &x) in w.iter().enumerate() {
-        if x > 0.0 && total > 0.0 {
-            joints[n] = base + i as u16;
-            weights[n] = (f64::from(x) / total) as f32;
-            n += 1;
-        }
-    }
-    if n == 0 {
-        joints[0] = base;
-        weights[0] = 1.0;
-        return (joints, weights);
-    }
-    // Put the rounding residue on the largest weight.
-    let sum: f32 = weights.iter().sum();
-    let big = (0..n).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
-    weights[big] += 1.0 - sum;
-    (joints, weights)
-}
-
 /// Where a plant stands: its root node's transform.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Placement {
@@ -557,25 +502,6 @@ impl Placement {
             scale,
         }
     }
-}
-
-/// One secondary element instance of the plant model, as the document sees it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ElementRig {
-    /// Index into the rig's secondary elements.
-    pub element: usize,
-    /// Which instance of that element.
-    pub instance: u32,
-    /// Node name of its attach node (`leaf0`); its joints are `leaf0_joint0`..`leaf0_joint3`.
-    pub name: String,
-    /// Main joint it hangs from.
-    pub attach_joint: usize,
-    /// Attach rotation `[x, y, z, w]`.
-    pub rotation: [f32; 4],
-    /// Attach offset, metres.
-    pub offset_m: [f32; 3],
-    /// Its own joint heights.
-    pub heights_m: [f32; JOINTS],
 }
 
 /// What every plant of a document shares: one mesh (all geometry in the plant's bind space,
@@ -616,21 +542,4 @@ pub struct AnimationBuilder {
     start: usize,
     channels: Vec<json::animation::Channel>,
     samplers: Vec<json::animation::Sampler>,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn influences_put_nonzero_weights_first() {
-        assert_eq!(pack_influences(&[0.0, 0.25, 0.75, 0.0], 4), ([5, 6, 0, 0], [0.25, 0.75, 0.0, 0.0]));
-        assert_eq!(pack_influences(&[1.0, 0.0, 0.0, 0.0], 0), ([0, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]));
-        assert_eq!(pack_influences(&[0.0; 4], 8), ([8, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]));
-        // Not summing to 1: renormalised.
-        let (_, w) = pack_influences(&[0.2, 0.2, 0.0, 0.0], 0);
-        assert_eq!(w, [0.5, 0.5, 0.0, 0.0]);
-        let (_, w) = pack_influences(&[0.1, 0.7, 0.2, 0.0], 0);
-        assert_eq!(w.iter().sum::<f32>(), 1.0);
-    }
 }

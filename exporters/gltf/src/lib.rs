@@ -26,6 +26,7 @@
 pub mod anim;
 pub mod bake;
 pub mod bench;
+pub mod bind;
 pub mod doc;
 pub mod error;
 pub mod field;
