@@ -22,9 +22,9 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+pub use crate::mapping::CalibrationParams;
 use crate::problems::Problems;
 use crate::rig::Rig;
-use crate::sample::HandSample;
 
 /// A validated calibration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -172,49 +172,10 @@ impl Calibration {
     }
 }
 
-/// What the mapping needs from a calibration. `Copy`, no heap.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CalibrationParams {
-    /// Wrist neutral `[pitch, yaw, roll]`, degrees.
-    pub neutral_wrist_deg: [f32; 3],
-    /// Thumb neutral `[g1, g2, g3]`, degrees.
-    pub neutral_thumb_deg: [f32; 3],
-    /// `G_R1..G_R3` (seed 000, Eq. 3), degrees.
-    pub thumb_range_deg: [f32; 3],
-    /// The comfortable wrist reach from the neutral, `[below, above]` for pitch and for yaw,
-    /// degrees (`neutral - min` and `max - neutral` of `wrist_range_deg`; at least
-    /// [`MIN_WRIST_REACH_DEG`] when validated), or `None` when the wrist was not measured. The
-    /// mapping scales the root so these reach the rig's `bend_range_deg` (section 5.4).
-    pub wrist_reach_deg: Option<[[f32; 2]; 2]>,
-}
-
-impl CalibrationParams {
-    /// Zero neutral with the given thumb ranges, no wrist reach.
-    pub fn neutral(thumb_range_deg: [f32; 3]) -> Self {
-        CalibrationParams {
-            neutral_wrist_deg: [0.0; 3],
-            neutral_thumb_deg: [0.0; 3],
-            thumb_range_deg,
-            wrist_reach_deg: None,
-        }
-    }
-
-    /// `W = wrist - neutral`, `G_i = thumb_i - neutral_i`; `t` unchanged. Differences of finite
-    /// values saturate at `±f32::MAX` instead of overflowing to infinity.
-    pub fn apply(&self, raw: &HandSample) -> HandSample {
-        let sub = |a: f32, b: f32| ((a as f64 - b as f64) as f32).clamp(-f32::MAX, f32::MAX);
-        let mut out = *raw;
-        for k in 0..3 {
-            out.wrist_deg[k] = sub(raw.wrist_deg[k], self.neutral_wrist_deg[k]);
-            out.thumb_deg[k] = sub(raw.thumb_deg[k], self.neutral_thumb_deg[k]);
-        }
-        out
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sample::HandSample;
 
     const ALICE: &str = r#"
 id = "alice"

@@ -4,40 +4,9 @@
 //! seed 000: Eq. 6-7 (`F_B(t) = F_A(t - gamma_B)`), the rigidity delays `P_i(t - delta_i)` of
 //! section 6.3 and Eq. 8 (`P_i(t) = P_0(t - s_g(i) G_3 sigma_i)`).
 
+use crate::resample::resample;
+pub use crate::resample::{FRAME_TOLERANCE, frame_count, frames_needed};
 use crate::sample::{JOINTS, PoseFrame};
-use crate::take::{MAX_RESAMPLED_FRAMES, resample};
-
-/// How far, in frames, a duration may fall short of a frame and still reach it
-/// ([`frame_count`]). Time stamps written with six decimals (as `frond take export --jsonl`
-/// writes them and `frond take import` reads them back) are each off by up to 0.5 µs, so a
-/// duration is off by up to 1 µs: 0.01 frame at 10 kHz, the highest rate any `--fps` accepts. A
-/// twentieth of a frame covers that with room to spare; the frame it admits lies at most 1/20
-/// of a frame past the last sample, where the last pose is held.
-pub const FRAME_TOLERANCE: f64 = 0.05;
-
-/// The one frame-count rule of every fixed-rate output (`--fps` resampling and export, retiming,
-/// loops, baked keys): frames `k = 0, 1, ...` at `t = k / fps` for every `k` with
-/// `k <= duration_s * fps + FRAME_TOLERANCE`, i.e. `floor(duration_s * fps + FRAME_TOLERANCE) +
-/// 1`. A sequence of `n` frames at `fps` therefore comes back as `n` frames even when its last
-/// time stamp was rounded down a little. A zero, negative or non-finite duration gives 1 frame
-/// (a single pose); a non-positive or non-finite `fps` gives 0. At most
-/// [`MAX_RESAMPLED_FRAMES`].
-pub fn frame_count(duration_s: f64, fps: f64) -> usize {
-    usize::try_from(frames_needed(duration_s, fps)).unwrap_or(usize::MAX).min(MAX_RESAMPLED_FRAMES)
-}
-
-/// [`frame_count`] without its cap (saturating at `u64::MAX`): what an output would need, to
-/// refuse it before anything is computed rather than cut it short.
-pub fn frames_needed(duration_s: f64, fps: f64) -> u64 {
-    if !(fps.is_finite() && fps > 0.0) {
-        return 0;
-    }
-    if !(duration_s.is_finite() && duration_s > 0.0) {
-        return 1;
-    }
-    // `as` saturates: a product past u64's range (or infinite) counts as u64::MAX frames.
-    ((duration_s * fps + FRAME_TOLERANCE).floor() as u64).saturating_add(1)
-}
 
 /// The 12 angles of one pose, per joint `[pitch, yaw, roll]`, degrees.
 pub type Joints = [[f32; 3]; JOINTS];
@@ -261,50 +230,6 @@ mod tests {
 
     fn j(v: f32) -> Joints {
         [[v, -v, 0.5 * v]; JOINTS]
-    }
-
-    #[test]
-    fn frame_count_by_hand() {
-        // 200 frames at 30 FPS whose last stamp was written with six decimals: 199 / 30 =
-        // 6.6333...3 became 6.633333, 198.99999 frames; it still reaches frame 199.
-        assert_eq!(frame_count(6.633333, 30.0), 200);
-        assert_eq!(frame_count(199.0 / 30.0, 30.0), 200);
-        // Rounded up instead (2.966667 for 89 / 30): no extra frame.
-        assert_eq!(frame_count(2.966667, 30.0), 90);
-        // Within a twentieth of a frame of the next frame reaches it; further short does not.
-        assert_eq!(frame_count(1.0 - 0.04 / 30.0, 30.0), 31);
-        assert_eq!(frame_count(1.0 - 0.06 / 30.0, 30.0), 30);
-        // Between frames: up to the last whole frame.
-        assert_eq!(frame_count(1.02, 30.0), 31);
-        assert_eq!(frame_count(1.049, 30.0), 32); // 31.47 frames
-        assert_eq!(frame_count(20.0, 30.0), 601);
-        // Degenerate input.
-        assert_eq!(frame_count(0.0, 30.0), 1);
-        assert_eq!(frame_count(-1.0, 30.0), 1);
-        assert_eq!(frame_count(f64::NAN, 30.0), 1);
-        assert_eq!(frame_count(f64::INFINITY, 30.0), 1);
-        assert_eq!(frame_count(1.0, 0.0), 0);
-        assert_eq!(frame_count(1.0, f64::NAN), 0);
-        assert_eq!(frame_count(1e30, 30.0), MAX_RESAMPLED_FRAMES);
-        assert_eq!(frames_needed(1e30, 30.0), u64::MAX);
-        // 3.5 s at speed 1e-9 and 30 FPS: 1.05e11 frames, one more for t = 0.
-        assert_eq!(frames_needed(3.5e9, 30.0), 105_000_000_001);
-        assert_eq!((frames_needed(0.0, 30.0), frames_needed(1.0, 0.0)), (1, 0));
-    }
-
-    proptest::proptest! {
-        /// `n` frames at a common rate, stamped with six decimals the way JSONL export writes
-        /// them (rounded to the microsecond, either way), count as `n` frames again.
-        #[test]
-        fn rounded_stamps_keep_their_frame_count(
-            n in 1usize..=20_000,
-            fps in proptest::sample::select(vec![24.0, 25.0, 29.97, 30.0, 48.0, 50.0, 60.0, 120.0, 1000.0, 10_000.0]),
-            t0_us in 0u64..10_000_000_000,
-        ) {
-            let stamp = |k: usize| ((t0_us as f64 / 1e6 + k as f64 / fps) * 1e6).round() / 1e6;
-            let d = stamp(n - 1) - stamp(0);
-            proptest::prop_assert_eq!(frame_count(d, fps), n, "duration {}", d);
-        }
     }
 
     #[test]

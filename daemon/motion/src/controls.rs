@@ -66,7 +66,7 @@ pub enum RetimeError {
     /// A rigidity delay is not between 0 and 60 seconds.
     #[error("--delay values must be between 0 and 60 seconds, got {0}")]
     Delay(f64),
-    /// The output would be longer than [`crate::take::MAX_RESAMPLED_FRAMES`] frames (a very
+    /// The output would be longer than [`crate::resample::MAX_RESAMPLED_FRAMES`] frames (a very
     /// slow speed): refused, never cut short.
     #[error(
         "the retimed clip would be {frames} frames ({seconds:.0} s at {fps} FPS), more than the {max} frames any output may have; use a faster --speed"
@@ -100,12 +100,12 @@ pub fn retime(clip: &Clip, r: &Retime) -> Result<Clip, RetimeError> {
         return Err(RetimeError::Delay(d));
     }
     let seconds = clip.duration_s() / r.speed;
-    let frames = crate::clip::frames_needed(seconds, clip.fps);
-    let max = crate::take::MAX_RESAMPLED_FRAMES as u64;
+    let frames = crate::resample::frames_needed(seconds, clip.fps);
+    let max = crate::resample::MAX_RESAMPLED_FRAMES as u64;
     if frames > max {
         return Err(RetimeError::TooLong { frames, seconds, fps: clip.fps, max });
     }
-    let count = crate::clip::frame_count(seconds, clip.fps);
+    let count = crate::resample::frame_count(seconds, clip.fps);
     let frames = (0..count).map(|k| {
         let t = k as f64 / clip.fps;
         let mut j = [[0.0; 3]; JOINTS];

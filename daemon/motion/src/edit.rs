@@ -7,8 +7,9 @@ use thiserror::Error;
 
 use crate::clip::lerp_joints;
 use crate::filter::{FilterSpec, LowPass, OneEuro};
+use crate::resample::{MAX_RESAMPLED_FRAMES, resample};
 use crate::sample::{HandSample, JOINTS, PoseFrame};
-use crate::take::{MAX_RESAMPLED_FRAMES, TakeFrame, resample};
+use crate::take::TakeFrame;
 
 /// Why an edit was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -47,8 +48,7 @@ pub fn resample_frames(frames: &[TakeFrame], fps: f64) -> Result<Vec<TakeFrame>,
     let hands: Vec<HandSample> = frames.iter().map(|f| HandSample { t: f.pose.t, ..f.hand }).collect();
     let p = resample(&poses, fps);
     let h = resample_hands(&hands, fps);
-    let (element, flags) =
-        frames.first().map_or((0, 0), |f| (f.element, f.flags & !crate::layers::FLAG_HELD));
+    let (element, flags) = frames.first().map_or((0, 0), |f| (f.element, f.flags & !crate::take::FLAG_HELD));
     Ok(p.into_iter()
         .zip(h)
         .enumerate()

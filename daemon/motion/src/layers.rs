@@ -12,12 +12,9 @@ use crate::clip::Clip;
 use crate::rig::ElementSpec;
 use crate::rng::SeededRng;
 use crate::sample::{HandSample, PoseFrame};
+pub use crate::take::{FLAG_HELD, FLAG_PLAYBACK};
 use crate::take::{TakeFrame, TakeHeader};
 
-/// The `held` pose flag (same bit as `frond_protocol::PoseFlags::HELD`): no new device report.
-pub const FLAG_HELD: u32 = 1;
-/// The `playback` pose flag (same bit as `frond_protocol::PoseFlags::PLAYBACK`).
-pub const FLAG_PLAYBACK: u32 = 1 << 4;
 /// Layer id of the global element.
 pub const GLOBAL_LAYER: u16 = 0;
 

@@ -35,6 +35,7 @@ pub mod mesh;
 pub mod plausible;
 pub mod problems;
 pub mod quantile;
+pub mod resample;
 pub mod rig;
 mod rig_mesh;
 pub mod rng;

@@ -14,7 +14,8 @@
 use glam::{Mat4, Quat, Vec3};
 use thiserror::Error;
 
-use crate::rig::{MeshShape, MeshSpec, Rig};
+use crate::rig::Rig;
+use crate::rig_mesh::{MeshShape, MeshSpec};
 use crate::sample::JOINTS;
 use crate::skeleton::{Skeleton, procedural_weights, skin_normal, skin_point};
 

@@ -18,8 +18,7 @@ use crate::problems::Problems;
 use crate::rig_mesh::RawMesh;
 pub use crate::rig_mesh::{MeshShape, MeshSpec};
 use crate::sample::JOINTS;
-use crate::sim::SimParams;
-use crate::sim::params::{RawSim, node_heights_m};
+use crate::sim::params::{NODES, RawSim, SimParams, node_heights_m};
 
 /// Default number of twistable joints (seed 000: "In most of our experiments, we set tau = 2").
 pub const DEFAULT_TAU: u8 = 2;
@@ -461,7 +460,7 @@ impl Rig {
 
     /// Rest heights of the simulated plant's nodes (joints 0..3 and the top, `mesh.height_m`),
     /// metres (see [`crate::sim::node_heights_m`]).
-    pub fn sim_node_heights_m(&self) -> [f64; crate::sim::NODES] {
+    pub fn sim_node_heights_m(&self) -> [f64; NODES] {
         node_heights_m(self.joints.each_ref().map(|j| j.height_m), &self.mesh)
     }
 

@@ -8,7 +8,7 @@
 //! `TakeHeader::stage`), and takes a daemon recorded on one host share that host's clock; either
 //! way, the wall-clock instants of several takes are on one timeline, and [`align`] merges them.
 
-use crate::layers::FLAG_HELD;
+use crate::take::FLAG_HELD;
 use crate::take::{TakeFrame, TakeScan};
 
 /// One frame on the stage timeline.

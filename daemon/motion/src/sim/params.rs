@@ -10,7 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::problems::Problems;
-use crate::rig::MeshSpec;
+use crate::rig_mesh::MeshSpec;
 use crate::sample::JOINTS;
 
 /// Free nodes of the simulated plant: joints 1..3 and the top.
