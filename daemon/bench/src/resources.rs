@@ -238,6 +238,19 @@ pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
     let idle_rss = status_kb(sleeper.pid(), "VmRSS")?;
     drop(sleeper);
 
+    Ok(resources_section(&replay, fuse.as_ref(), (osc_frondd, osc_relay), idle_rss, window))
+}
+
+/// Section 5's rows and details from its runs: `replay` (frondd replaying a 1 kHz recording),
+/// `fuse` (frondd reading the FUSE glove, where it could run), `(frondd, relay)` CPU with the
+/// same OSC sender, and an idle process's resident memory.
+fn resources_section(
+    replay: &DaemonRun,
+    fuse: Option<&DaemonRun>,
+    (osc_frondd, osc_relay): (f64, f64),
+    idle_rss: u64,
+    window: Duration,
+) -> Section {
     const FLOOR: &str = "minimal publisher: bare 1 kHz clock_nanosleep loop writing each frame to 4 reading threads, same window";
     let mut measurements = vec![
         Measurement::new(
@@ -276,12 +289,12 @@ pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
         .with_target("frondd under 16 MiB RSS", Bound::MaxMeasured, 16.0 * 1024.0 * 1024.0),
     ];
     let mut details = serde_json::Map::new();
-    details.insert("replay".into(), run_json(&replay));
+    details.insert("replay".into(), run_json(replay));
     details.insert(
         "osc_against_relay".into(),
         json!({ "window_s": window.as_secs_f64(), "frondd_cpu_fraction": osc_frondd, "relay_cpu_fraction": osc_relay }),
     );
-    if let Some(f) = &fuse {
+    if let Some(f) = fuse {
         measurements.push(Measurement::new(
             "frondd_cpu_fuse_glove_1000hz_4_subscribers",
             "fraction_of_core",
@@ -297,10 +310,10 @@ pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
         "source".into(),
         json!("target run (frondd_cpu_osc_*): frondd's OSC source and then frond-relay, each fed the same 1 kHz OSC sender of this process with 4 readers, CPU of the whole process over the same window length; frondd_cpu_1000hz_*: --replay of a 1 kHz recording (no device process or thread); fuse_glove: frond-vhid's FUSE node"),
     );
-    Ok(Section::ok(
+    Section::ok(
         "daemon_resources",
         "frondd CPU (fraction of one core) and resident memory at 1 kHz with 4 subscribers",
         measurements,
         serde_json::Value::Object(details),
-    ))
+    )
 }

@@ -190,50 +190,8 @@ pub fn tick_cost(o: &Options) -> Result<Section, BenchError> {
         "subscribers": SUBSCRIBERS,
         "subscribers_on_direct_lanes_after_timed_ticks": lanes_after_ticks,
     });
-    if counting_installed() {
-        let ticks = if o.quick { 20_000u64 } else { 200_000 };
-        let mut allocations = 0;
-        let mut done = 0;
-        while done < ticks {
-            let (_, a) = count_allocations(|| {
-                for _ in 0..tick_batch {
-                    now += 1_000_000;
-                    rig.engine.tick(now);
-                }
-            });
-            allocations += a;
-            done += tick_batch;
-            drain(&rig.rx);
-            rig.settle();
-        }
-        details["subscribers_on_direct_lanes_after_allocation_ticks"] = json!(rig.engine.lanes().len());
-        // Baseline: the same frames published the naive way, encoding each one into a fresh
-        // buffer per subscriber (what a loop without preallocated buffers does).
-        let pose = Pose::default();
-        let naive_frames = 2_000u64;
-        let (_, naive) = count_allocations(|| {
-            for _ in 0..naive_frames {
-                for _ in 0..SUBSCRIBERS {
-                    let mut buf = Vec::new();
-                    encode_frame(&ServerMessage::Pose(pose), &mut buf);
-                    black_box(&buf);
-                }
-            }
-        });
-        measurements.push(
-            Measurement::new(
-                "allocations_per_tick",
-                "allocations/tick",
-                allocations as f64 / ticks as f64,
-                "naive publish (a fresh buffer per encoded frame per subscriber), allocations/tick",
-                naive as f64 / naive_frames as f64,
-            )
-            .with_target("zero allocations per tick", Bound::MaxMeasured, 0.0),
-        );
-        details["allocation_ticks"] = json!(ticks);
-        details["allocations"] = json!(allocations);
-    } else {
-        details["allocations"] = json!({"status": "not available", "reason": "the counting allocator is not installed in this process (the frond binary installs it)"});
+    if let Some(m) = allocations_per_tick(o, &mut rig, now, tick_batch, &mut details) {
+        measurements.push(m);
     }
     Ok(Section::ok(
         "tick_cost",
@@ -241,4 +199,60 @@ pub fn tick_cost(o: &Options) -> Result<Section, BenchError> {
         measurements,
         details,
     ))
+}
+
+/// Allocations per engine tick (the realtime rule: none) against a naive publisher's, when
+/// this process counts allocations (the `frond-bench` binary installs the counting allocator);
+/// `None`, and the reason in `details`, when it does not. `now` is the engine's clock so far.
+fn allocations_per_tick(
+    o: &Options,
+    rig: &mut TickRig,
+    mut now: u64,
+    tick_batch: u64,
+    details: &mut serde_json::Value,
+) -> Option<Measurement> {
+    if !counting_installed() {
+        details["allocations"] = json!({"status": "not available", "reason": "the counting allocator is not installed in this process (the frond binary installs it)"});
+        return None;
+    }
+    let ticks = if o.quick { 20_000u64 } else { 200_000 };
+    let mut allocations = 0;
+    let mut done = 0;
+    while done < ticks {
+        let (_, a) = count_allocations(|| {
+            for _ in 0..tick_batch {
+                now += 1_000_000;
+                rig.engine.tick(now);
+            }
+        });
+        allocations += a;
+        done += tick_batch;
+        drain(&rig.rx);
+        rig.settle();
+    }
+    details["subscribers_on_direct_lanes_after_allocation_ticks"] = json!(rig.engine.lanes().len());
+    // Baseline: the same frames published the naive way, encoding each one into a fresh
+    // buffer per subscriber (what a loop without preallocated buffers does).
+    let pose = Pose::default();
+    let naive_frames = 2_000u64;
+    let (_, naive) = count_allocations(|| {
+        for _ in 0..naive_frames {
+            for _ in 0..SUBSCRIBERS {
+                let mut buf = Vec::new();
+                encode_frame(&ServerMessage::Pose(pose), &mut buf);
+                black_box(&buf);
+            }
+        }
+    });
+    let m = Measurement::new(
+        "allocations_per_tick",
+        "allocations/tick",
+        allocations as f64 / ticks as f64,
+        "naive publish (a fresh buffer per encoded frame per subscriber), allocations/tick",
+        naive as f64 / naive_frames as f64,
+    )
+    .with_target("zero allocations per tick", Bound::MaxMeasured, 0.0);
+    details["allocation_ticks"] = json!(ticks);
+    details["allocations"] = json!(allocations);
+    Some(m)
 }
