@@ -141,118 +141,20 @@ where
     let cases = case_count();
     let seed = env_u64("FROND_FUZZ_SEED").unwrap_or(DEFAULT_SEED) ^ fnv1a(target.name.as_bytes());
     if std::env::var_os("FROND_FUZZ_WRITE_SEEDS").is_some() {
-        let dir = corpus_dir(target.name);
-        std::fs::create_dir_all(&dir).expect("create corpus dir");
-        for (i, s) in target.seeds.iter().enumerate() {
-            std::fs::write(dir.join(format!("seed-{i:02}")), s).expect("write seed");
-        }
+        write_seeds(&target);
     }
     let corpus = corpus_files(target.name);
     let mut pool = target.seeds.clone();
     pool.extend(corpus.iter().map(|(_, b)| b.clone()));
-    let target = Arc::new(target);
-    let pool = Arc::new(pool);
-    let corpus_bytes: Arc<Vec<Vec<u8>>> = Arc::new(corpus.iter().map(|(_, b)| b.clone()).collect());
+    let inputs = Arc::new(Inputs { target, pool, corpus, seed });
 
     // The worker publishes the input it is on; the watchdog reads it when the worker stalls.
     let current = Arc::new(AtomicU64::new(u64::MAX));
-    type Done = Result<(Duration, Vec<(&'static str, u64)>), (u64, String)>;
     let (done_tx, done_rx) = mpsc::channel::<Done>();
-    let worker = {
-        let (target, pool, corpus_bytes, current) =
-            (Arc::clone(&target), Arc::clone(&pool), Arc::clone(&corpus_bytes), Arc::clone(&current));
-        std::thread::Builder::new()
-            .name(format!("fuzz-{}", target.name))
-            .stack_size(2 << 20)
-            .spawn(move || {
-                let mut slowest = Duration::ZERO;
-                let mut labels: Vec<(&'static str, u64)> = Vec::new();
-                let mut run = |at: u64, input: &[u8]| -> Result<(), (u64, String)> {
-                    current.store(at, Ordering::Release);
-                    let t = Instant::now();
-                    let r = catch_unwind(AssertUnwindSafe(|| check(input)));
-                    slowest = slowest.max(t.elapsed());
-                    let label = r.map_err(|p| (at, panic_text(&*p)))?;
-                    match labels.iter_mut().find(|(l, _)| *l == label) {
-                        Some((_, n)) => *n += 1,
-                        None => labels.push((label, 1)),
-                    }
-                    Ok(())
-                };
-                let result = (|| {
-                    for (i, input) in corpus_bytes.iter().enumerate() {
-                        run(PHASE_CORPUS | i as u64, input)?;
-                    }
-                    for i in 0..cases {
-                        let input = generate(&target, &pool, seed, i);
-                        run(i, &input)?;
-                    }
-                    Ok(())
-                })();
-                let _ = done_tx.send(result.map(|()| (slowest, labels)));
-            })
-            .expect("spawn fuzz worker")
-    };
-
-    let input_of = |at: u64| -> Vec<u8> {
-        if at & PHASE_CORPUS != 0 {
-            corpus_bytes[(at & !PHASE_CORPUS) as usize].clone()
-        } else {
-            generate(&target, &pool, seed, at)
-        }
-    };
-    let describe = |at: u64| -> String {
-        if at & PHASE_CORPUS != 0 {
-            format!("corpus file {}", corpus[(at & !PHASE_CORPUS) as usize].0.display())
-        } else {
-            format!("generated case {at} (FROND_FUZZ_SEED={:#x})", seed ^ fnv1a(target.name.as_bytes()))
-        }
-    };
-
-    // Watchdog: the worker must make progress on every input within the timeout.
-    let timeout = input_timeout();
-    let mut last_seen = u64::MAX;
-    let mut since = Instant::now();
-    let (slowest, labels) = loop {
-        match done_rx.recv_timeout(Duration::from_millis(100)) {
-            Ok(Ok(done)) => break done,
-            Ok(Err((at, msg))) => {
-                let input = input_of(at);
-                let saved = save_failure(target.name, "crash", &input);
-                let _ = worker.join();
-                panic!(
-                    "{}: {} panicked: {msg}\ninput ({} bytes) saved to {}",
-                    target.name,
-                    describe(at),
-                    input.len(),
-                    saved.display()
-                );
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => panic!("{}: fuzz worker died", target.name),
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                let at = current.load(Ordering::Acquire);
-                if at != last_seen {
-                    last_seen = at;
-                    since = Instant::now();
-                } else if since.elapsed() > timeout {
-                    let input = input_of(at);
-                    let saved = save_failure(target.name, "hang", &input);
-                    // The worker cannot be stopped; the panic ends the test (and the process
-                    // exits when the test harness finishes).
-                    panic!(
-                        "{}: {} ran longer than {timeout:?} (hang)\ninput ({} bytes) saved to {}",
-                        target.name,
-                        describe(at),
-                        input.len(),
-                        saved.display()
-                    );
-                }
-            }
-        }
-    };
-    let _ = worker.join();
+    let worker = spawn_worker(Arc::clone(&inputs), cases, check, Arc::clone(&current), done_tx);
+    let (slowest, labels) = watch(&inputs, worker, &done_rx, &current);
     let report = Report {
-        corpus: corpus.len() as u64,
+        corpus: inputs.corpus.len() as u64,
         generated: cases,
         slowest,
         elapsed: start.elapsed(),
@@ -261,7 +163,7 @@ where
     let outcomes: Vec<String> = report.outcomes.iter().map(|(l, n)| format!("{l} {n}")).collect();
     eprintln!(
         "{}: {} corpus files + {} generated inputs in {:.2?} (slowest input {:.2?}); {}",
-        target.name,
+        inputs.target.name,
         report.corpus,
         report.generated,
         report.elapsed,
@@ -269,6 +171,152 @@ where
         outcomes.join(", ")
     );
     report
+}
+
+/// Writes the built-in seeds of `target` into its corpus as `seed-NN` (`FROND_FUZZ_WRITE_SEEDS`).
+fn write_seeds(target: &Target) {
+    let dir = corpus_dir(target.name);
+    std::fs::create_dir_all(&dir).expect("create corpus dir");
+    for (i, s) in target.seeds.iter().enumerate() {
+        std::fs::write(dir.join(format!("seed-{i:02}")), s).expect("write seed");
+    }
+}
+
+/// What one fuzz run draws its inputs from, shared by the worker and the watchdog: the corpus
+/// (replayed first), the pool of seeds and corpus files that mutations start from, and the seed
+/// every generated case derives from.
+struct Inputs {
+    target: Target,
+    pool: Vec<Vec<u8>>,
+    corpus: Vec<(PathBuf, Vec<u8>)>,
+    seed: u64,
+}
+
+impl Inputs {
+    /// The bytes of input `at` (corpus file or generated case), recomputed for a failure report.
+    fn input_of(&self, at: u64) -> Vec<u8> {
+        if at & PHASE_CORPUS != 0 {
+            self.corpus[(at & !PHASE_CORPUS) as usize].1.clone()
+        } else {
+            generate(&self.target, &self.pool, self.seed, at)
+        }
+    }
+
+    /// Input `at` named so that it can be replayed: the corpus file, or the case and its seed.
+    fn describe(&self, at: u64) -> String {
+        if at & PHASE_CORPUS != 0 {
+            format!("corpus file {}", self.corpus[(at & !PHASE_CORPUS) as usize].0.display())
+        } else {
+            format!(
+                "generated case {at} (FROND_FUZZ_SEED={:#x})",
+                self.seed ^ fnv1a(self.target.name.as_bytes())
+            )
+        }
+    }
+}
+
+/// What the worker reports once: the slowest input and the outcome counts, or the input that
+/// panicked and its message.
+type Done = Result<(Duration, Vec<(&'static str, u64)>), (u64, String)>;
+
+/// Starts the worker thread (2 MiB stack, like the daemon's threads): it runs `check` on every
+/// corpus file, then on `cases` generated inputs, each under `catch_unwind`, publishing the input
+/// it is on in `current`, and sends its [`Done`] at the end or at the first panic.
+fn spawn_worker<F>(
+    inputs: Arc<Inputs>,
+    cases: u64,
+    check: F,
+    current: Arc<AtomicU64>,
+    done_tx: mpsc::Sender<Done>,
+) -> std::thread::JoinHandle<()>
+where
+    F: Fn(&[u8]) -> &'static str + Send + Sync + 'static,
+{
+    std::thread::Builder::new()
+        .name(format!("fuzz-{}", inputs.target.name))
+        .stack_size(2 << 20)
+        .spawn(move || {
+            let mut slowest = Duration::ZERO;
+            let mut labels: Vec<(&'static str, u64)> = Vec::new();
+            let mut run = |at: u64, input: &[u8]| -> Result<(), (u64, String)> {
+                current.store(at, Ordering::Release);
+                let t = Instant::now();
+                let r = catch_unwind(AssertUnwindSafe(|| check(input)));
+                slowest = slowest.max(t.elapsed());
+                let label = r.map_err(|p| (at, panic_text(&*p)))?;
+                match labels.iter_mut().find(|(l, _)| *l == label) {
+                    Some((_, n)) => *n += 1,
+                    None => labels.push((label, 1)),
+                }
+                Ok(())
+            };
+            let result = (|| {
+                for (i, (_, input)) in inputs.corpus.iter().enumerate() {
+                    run(PHASE_CORPUS | i as u64, input)?;
+                }
+                for i in 0..cases {
+                    let input = generate(&inputs.target, &inputs.pool, inputs.seed, i);
+                    run(i, &input)?;
+                }
+                Ok(())
+            })();
+            let _ = done_tx.send(result.map(|()| (slowest, labels)));
+        })
+        .expect("spawn fuzz worker")
+}
+
+/// The watchdog: waits for the worker's [`Done`] while the worker must make progress on every
+/// input within [`input_timeout`]. A panic or a hang saves the input into the corpus and panics
+/// naming it; otherwise joins the worker and returns the slowest input and the outcome counts.
+fn watch(
+    inputs: &Inputs,
+    worker: std::thread::JoinHandle<()>,
+    done_rx: &mpsc::Receiver<Done>,
+    current: &AtomicU64,
+) -> (Duration, Vec<(&'static str, u64)>) {
+    let name = inputs.target.name;
+    let timeout = input_timeout();
+    let mut last_seen = u64::MAX;
+    let mut since = Instant::now();
+    let done = loop {
+        match done_rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(Ok(done)) => break done,
+            Ok(Err((at, msg))) => {
+                let input = inputs.input_of(at);
+                let saved = save_failure(name, "crash", &input);
+                let _ = worker.join();
+                panic!(
+                    "{}: {} panicked: {msg}\ninput ({} bytes) saved to {}",
+                    name,
+                    inputs.describe(at),
+                    input.len(),
+                    saved.display()
+                );
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => panic!("{}: fuzz worker died", name),
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                let at = current.load(Ordering::Acquire);
+                if at != last_seen {
+                    last_seen = at;
+                    since = Instant::now();
+                } else if since.elapsed() > timeout {
+                    let input = inputs.input_of(at);
+                    let saved = save_failure(name, "hang", &input);
+                    // The worker cannot be stopped; the panic ends the test (and the process
+                    // exits when the test harness finishes).
+                    panic!(
+                        "{}: {} ran longer than {timeout:?} (hang)\ninput ({} bytes) saved to {}",
+                        name,
+                        inputs.describe(at),
+                        input.len(),
+                        saved.display()
+                    );
+                }
+            }
+        }
+    };
+    let _ = worker.join();
+    done
 }
 
 fn panic_text(p: &(dyn std::any::Any + Send)) -> String {

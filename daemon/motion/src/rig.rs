@@ -215,10 +215,58 @@ fn check_tau(p: &mut Problems, path: &str, tau: i64) -> u8 {
 }
 
 impl RawRig {
+    /// Validates every field into a [`Rig`], collecting every problem with its path: the name,
+    /// the ranges, the filter, the joints, the elements, the mesh, the guided parameters, the
+    /// VMC bones and the simulation, in that order.
     fn validate(self) -> Result<Rig, Problems> {
         let mut p = Problems::default();
-        // A take keeps its rig's name and exports look it up among the embedded rigs: a '/'
-        // would make it read as a path.
+        self.check_name(&mut p);
+        let tau = check_tau(&mut p, "tau", self.tau);
+        let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
+        for (k, v) in thumb_range_deg.iter().enumerate() {
+            p.thumb_range(format!("thumb_range_deg[{k}]"), *v);
+        }
+        self.check_bend_range(&mut p);
+        let filter = match &self.filter {
+            None => FilterSpec::None,
+            Some(text) => text.parse().unwrap_or_else(|e| {
+                p.push("filter", format!("{e}"));
+                FilterSpec::None
+            }),
+        };
+        let joints = self.validate_joints(&mut p);
+        let elements = self.validate_elements(&mut p);
+        let mesh = self.mesh.clone().unwrap_or_default().validate(&mut p, joints[JOINTS - 1].height_m);
+        self.check_guided(&mut p);
+        self.check_vmc(&mut p);
+
+        let heights = node_heights_m(joints.each_ref().map(|j| j.height_m), &mesh);
+        let sim = self.sim.clone().unwrap_or_default().validate(&mut p, heights);
+
+        if !p.is_empty() {
+            return Err(p);
+        }
+        let vmc_bones = self.vmc.map(|v| std::array::from_fn(|i| v.bones[i].clone()));
+        Ok(Rig {
+            name: self.name,
+            description: self.description,
+            joints,
+            tau,
+            thumb_range_deg,
+            bend_range_deg: self.bend_range_deg,
+            filter,
+            elements,
+            mesh,
+            guided: self.guided,
+            vmc_bones,
+            sim,
+        })
+    }
+
+    /// The rig name: a name (not blank, short, printable), and not a path: a take keeps its
+    /// rig's name and exports look it up among the embedded rigs, where a '/' would make it read
+    /// as a path.
+    fn check_name(&self, p: &mut Problems) {
         if p.name("name", &self.name, MAX_RIG_NAME_BYTES)
             && (self.name.contains('/') || self.name.starts_with('.') || self.name.ends_with(".toml"))
         {
@@ -227,11 +275,10 @@ impl RawRig {
                 "contains '/', starts with '.' or ends in .toml; a rig name is a name, not a path",
             );
         }
-        let tau = check_tau(&mut p, "tau", self.tau);
-        let thumb_range_deg = self.thumb_range_deg.unwrap_or(DEFAULT_THUMB_RANGE_DEG);
-        for (k, v) in thumb_range_deg.iter().enumerate() {
-            p.thumb_range(format!("thumb_range_deg[{k}]"), *v);
-        }
+    }
+
+    /// `bend_range_deg`: each of pitch and yaw above 0 and at most [`MAX_BEND_RANGE_DEG`].
+    fn check_bend_range(&self, p: &mut Problems) {
         for (k, v) in self.bend_range_deg.iter().flatten().enumerate() {
             if !(v.is_finite() && *v > 0.0 && *v <= MAX_BEND_RANGE_DEG) {
                 p.push(
@@ -243,14 +290,11 @@ impl RawRig {
                 );
             }
         }
-        let filter = match &self.filter {
-            None => FilterSpec::None,
-            Some(text) => text.parse().unwrap_or_else(|e| {
-                p.push("filter", format!("{e}"));
-                FilterSpec::None
-            }),
-        };
+    }
 
+    /// The four joints: unique names, heights above ground and strictly increasing, scales in
+    /// range. Missing joints stay at their defaults (the count is itself a problem).
+    fn validate_joints(&self, p: &mut Problems) -> [JointSpec; JOINTS] {
         if self.joints.len() != JOINTS {
             p.push("joints", format!("expected {JOINTS} joints, found {}", self.joints.len()));
         }
@@ -300,7 +344,12 @@ impl RawRig {
                 s_roll: raw.s_roll,
             };
         }
+        joints
+    }
 
+    /// The secondary elements: at most [`MAX_RIG_ELEMENTS`], each with a unique name, a joint to
+    /// hang from, a count, a length and its own `tau`.
+    fn validate_elements(&self, p: &mut Problems) -> Vec<ElementSpec> {
         if self.elements.len() > MAX_RIG_ELEMENTS {
             p.push(
                 "elements",
@@ -336,7 +385,7 @@ impl RawRig {
                     format!("must be at most {MAX_RIG_SIZE_M} metres, found {}", raw.length_m),
                 );
             }
-            let tau = check_tau(&mut p, &path("tau"), raw.tau);
+            let tau = check_tau(p, &path("tau"), raw.tau);
             elements.push(ElementSpec {
                 name: raw.name.clone(),
                 attach_joint,
@@ -345,8 +394,11 @@ impl RawRig {
                 tau,
             });
         }
+        elements
+    }
 
-        let mesh = self.mesh.clone().unwrap_or_default().validate(&mut p, joints[JOINTS - 1].height_m);
+    /// `[guided]`: every `sigma_s` and `s_g` between 0 and 60.
+    fn check_guided(&self, p: &mut Problems) {
         if let Some(g) = &self.guided {
             for (key, values) in [("guided.sigma_s", g.sigma_s), ("guided.s_g", g.s_g)] {
                 for (i, v) in values.iter().enumerate() {
@@ -356,7 +408,10 @@ impl RawRig {
                 }
             }
         }
+    }
 
+    /// `[vmc] bones`: one name per joint, each 1 to [`MAX_VMC_BONE_NAME_BYTES`] printable bytes.
+    fn check_vmc(&self, p: &mut Problems) {
         if let Some(vmc) = &self.vmc {
             if vmc.bones.len() != JOINTS {
                 p.push("vmc.bones", format!("expected {JOINTS} names, found {}", vmc.bones.len()));
@@ -372,28 +427,6 @@ impl RawRig {
                 }
             }
         }
-
-        let heights = node_heights_m(joints.each_ref().map(|j| j.height_m), &mesh);
-        let sim = self.sim.clone().unwrap_or_default().validate(&mut p, heights);
-
-        if !p.is_empty() {
-            return Err(p);
-        }
-        let vmc_bones = self.vmc.map(|v| std::array::from_fn(|i| v.bones[i].clone()));
-        Ok(Rig {
-            name: self.name,
-            description: self.description,
-            joints,
-            tau,
-            thumb_range_deg,
-            bend_range_deg: self.bend_range_deg,
-            filter,
-            elements,
-            mesh,
-            guided: self.guided,
-            vmc_bones,
-            sim,
-        })
     }
 }
 

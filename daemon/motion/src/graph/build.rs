@@ -112,6 +112,25 @@ pub fn build_graph(
     positions_m: &[[f64; 3]],
     params: &GraphParams,
 ) -> Result<MotionGraph, GraphError> {
+    check_samples(poses, positions_m, params)?;
+    let n = poses.len();
+    let mut pruned = Pruned::default();
+    let transitions = find_transitions(poses, positions_m, params, &mut pruned);
+    // Adjacency over frames (the backbone implicit): transitions by source and by target.
+    let succ = Rows::new(n, transitions.iter().map(|&(a, b, _)| (a as usize, b)));
+    let preds = Rows::new(n, transitions.iter().map(|&(a, b, _)| (b as usize, a)));
+    let alive = remove_dead_ends(n, &succ, &preds, &mut pruned);
+    let keep = keep_largest_part(n, &alive, &succ, &mut pruned);
+    connect(positions_m, &transitions, &keep, params, pruned)
+}
+
+/// The parameters are valid, the sample count is within bounds and matches the positions, and
+/// every position and angle is finite.
+fn check_samples(
+    poses: &[PoseFrame],
+    positions_m: &[[f64; 3]],
+    params: &GraphParams,
+) -> Result<(), GraphError> {
     params.check()?;
     let n = poses.len();
     if !(MIN_GRAPH_SAMPLES..=MAX_GRAPH_SAMPLES).contains(&n) || positions_m.len() != n {
@@ -122,6 +141,19 @@ pub fn build_graph(
             return Err(GraphError::NotFinite(i));
         }
     }
+    Ok(())
+}
+
+/// Section 5.3: the transitions `(from frame, to frame, in-betweens)` of every sample to its
+/// neighbours ahead within the radius, one per contiguous run, through the pose gate, the
+/// closest `max_transitions` of them; sorted, one per pair. Counts what it drops in `pruned`.
+fn find_transitions(
+    poses: &[PoseFrame],
+    positions_m: &[[f64; 3]],
+    params: &GraphParams,
+    pruned: &mut Pruned,
+) -> Vec<(u32, u32, u32)> {
+    let n = poses.len();
     let k = params.extend as usize;
     let mut steps_deg: Vec<f64> = poses.windows(2).map(|w| pose_distance_deg(&w[0], &w[1])).collect();
     steps_deg.sort_by(f64::total_cmp);
@@ -130,7 +162,6 @@ pub fn build_graph(
     let tree = RTree::bulk_load(
         positions_m.iter().enumerate().map(|(i, p)| GeomWithData::new(*p, i as u32)).collect(),
     );
-    let mut pruned = Pruned::default();
     // Transitions as (from frame, to frame, in-betweens).
     let mut transitions: Vec<(u32, u32, u32)> = Vec::new();
     let mut candidates: Vec<usize> = Vec::new();
@@ -186,10 +217,12 @@ pub fn build_graph(
     }
     transitions.sort_unstable();
     transitions.dedup_by_key(|e| (e.0, e.1));
+    transitions
+}
 
-    // Adjacency over frames (the backbone implicit): transitions by source and by target.
-    let succ = Rows::new(n, transitions.iter().map(|&(a, b, _)| (a as usize, b)));
-    let preds = Rows::new(n, transitions.iter().map(|&(a, b, _)| (b as usize, a)));
+/// Removes nodes with no way on, repeatedly (a frame whose only ways on lead to removed frames
+/// is removed too): which frames are alive, the dead ones recorded in `pruned`.
+fn remove_dead_ends(n: usize, succ: &Rows<u32>, preds: &Rows<u32>, pruned: &mut Pruned) -> Vec<bool> {
     let mut alive = vec![true; n];
     let mut out_degree: Vec<u32> = (0..n).map(|i| u32::from(i + 1 < n) + succ.row(i).len() as u32).collect();
     // Dead ends: remove nodes with no way on, repeatedly.
@@ -218,10 +251,15 @@ pub fn build_graph(
     }
     dead.sort_unstable();
     pruned.dead_end_frames = ranges(&dead);
+    alive
+}
 
+/// Which frames to keep: the alive ones in the largest strongly connected part (the rest
+/// recorded in `pruned`).
+fn keep_largest_part(n: usize, alive: &[bool], succ: &Rows<u32>, pruned: &mut Pruned) -> Vec<bool> {
     // The strongly connected parts of the survivors (Tarjan skips the dead): edge 0 is the
     // backbone where there is one, then the transitions.
-    let component = largest_scc(n, &alive, |i, e| {
+    let component = largest_scc(n, alive, |i, e| {
         let transition = match (i + 1 < n, e) {
             (true, 0) => return Some(i + 1),
             (true, e) => e - 1,
@@ -232,7 +270,19 @@ pub fn build_graph(
     let keep: Vec<bool> = (0..n).map(|i| alive[i] && component[i]).collect();
     let outside: Vec<u32> = (0..n).filter(|&i| alive[i] && !component[i]).map(|i| i as u32).collect();
     pruned.outside_largest_part_frames = ranges(&outside);
+    keep
+}
 
+/// The graph of the kept frames: their backbone edges, then the transitions between them.
+/// `Err` when fewer than two frames or no transition survived the pruning.
+fn connect(
+    positions_m: &[[f64; 3]],
+    transitions: &[(u32, u32, u32)],
+    keep: &[bool],
+    params: &GraphParams,
+    mut pruned: Pruned,
+) -> Result<MotionGraph, GraphError> {
+    let n = keep.len();
     let node_frames: Vec<u32> = (0..n).filter(|&i| keep[i]).map(|i| i as u32).collect();
     let kept_transitions =
         transitions.iter().filter(|&&(a, b, _)| keep[a as usize] && keep[b as usize]).count();
@@ -254,7 +304,7 @@ pub fn build_graph(
             edges.push(Edge { from: index[f], to: index[f + 1], kind: EdgeKind::Backbone, inbetweens: 0 });
         }
     }
-    for &(a, b, m) in &transitions {
+    for &(a, b, m) in transitions {
         if keep[a as usize] && keep[b as usize] {
             edges.push(Edge {
                 from: index[a as usize],
