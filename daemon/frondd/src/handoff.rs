@@ -5,10 +5,10 @@
 //! ([`PublishQueue`], [`PublisherWake`]), and the element table for the slow lane
 //! ([`ElementsCell`]).
 //!
-//! Both sides name these types, the loop ([`crate::engine`], [`crate::lanes`]) and the slow side
-//! ([`crate::publisher`], [`crate::control`], housekeeping in [`crate::daemon`]), so they live
-//! here, apart from either: neither side imports the other for them. Nothing here allocates,
-//! locks or blocks on the loop's side of a hand-off.
+//! Both sides name these types, the loop (`engine`, `lanes`) and the slow side (`publisher`,
+//! `control`, housekeeping in `daemon`), so they live here, apart from either: neither side
+//! imports the other for them, and this module names neither. Nothing here allocates, locks or
+//! blocks on the loop's side of a hand-off.
 
 use std::os::unix::net::UnixStream;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed, Ordering::SeqCst, fence};
@@ -53,7 +53,7 @@ pub enum LoopCommand {
     Freeze(u32),
     /// A live stage installed, removed or given an input, and/or a new element table.
     Stage(Box<StageCommand>),
-    /// A new pose subscriber, for a direct lane (see [`crate::lanes`]).
+    /// A new pose subscriber, for a direct lane (see `lanes`).
     AddSubscriber(Box<NewLane>),
 }
 
@@ -137,7 +137,7 @@ pub struct SlowLane {
     pub elements_version: u64,
 }
 
-/// A subscriber on a direct lane: in one of the loop's [`crate::lanes::Lanes`], or handed to
+/// A subscriber on a direct lane: in one of the loop's `lanes::Lanes`, or handed to
 /// housekeeping in [`Garbage::Lane`] to be closed.
 pub struct Lane {
     /// Subscriber id.
@@ -304,8 +304,7 @@ impl PublishQueue {
         (PublishQueue { tx, wake: Arc::default() }, rx)
     }
 
-    /// What [`spawn_publisher`](crate::publisher::spawn_publisher) waits on (wakes it when this
-    /// queue gets a frame).
+    /// What `publisher::spawn_publisher` waits on (wakes it when this queue gets a frame).
     pub fn wake(&self) -> Arc<PublisherWake> {
         self.wake.clone()
     }

@@ -15,7 +15,7 @@
 //! "graph walk frame") on the reference host with a margin of about three times, so that a
 //! slower host or a cold cache still fits.
 
-use super::{BuildError, MAX_STAGES};
+use super::error::{BuildError, MAX_STAGES};
 
 /// Nanoseconds in a second.
 const NS_PER_S: u64 = 1_000_000_000;

@@ -1,10 +1,32 @@
-//! Why a stage could not be named, placed or built: one enum whose messages name the problem.
+//! The limits a stage request is held to, and why one could not be named, placed or built: enums
+//! whose messages name the problem.
 
 use frond_formats::take::TakeError;
 use frond_motion::field::FieldError;
 use frond_motion::looping::LoopError;
+use frond_protocol::ControlErrorKind;
 
-use super::{MAX_STAGE_NAME, MAX_STAGES};
+/// Stage slots in the loop (stages running at once).
+pub const MAX_STAGES: usize = 8;
+/// Longest stage name.
+pub const MAX_STAGE_NAME: usize = 32;
+
+/// Why a stage could not be built.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct BuildError {
+    /// Refusal kind for the control reply.
+    pub kind: ControlErrorKind,
+    /// What is wrong, naming the problem.
+    pub message: String,
+}
+
+impl BuildError {
+    /// An `Invalid` refusal.
+    pub fn invalid(message: impl Into<String>) -> Self {
+        BuildError { kind: ControlErrorKind::Invalid, message: message.into() }
+    }
+}
 
 /// What is wrong with a stage request.
 #[derive(Debug, thiserror::Error)]

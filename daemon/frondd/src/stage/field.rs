@@ -12,11 +12,9 @@ use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
 use frond_protocol::{StageInput, StageKey};
 
-use super::error::StageError;
+use super::error::{BuildError, StageError};
+use super::live::{BuildContext, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext};
 use super::playback::{LoopedTake, looped_clip, note_damage};
-use super::{
-    BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
-};
 use crate::clock::NS_PER_S;
 
 /// Most field plants published per field frame.
@@ -232,16 +230,16 @@ pub fn build(
             "a field publishes 1..={MAX_FIELD_PLANTS} plants, not {plants}"
         )));
     }
-    let bytes = super::read_take(ctx.takes_dir, take)?;
+    let bytes = super::live::read_take(ctx.takes_dir, take)?;
     let field = Field::from_json(field_json)
         .map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
     let count = field.plants.len();
-    let ids = super::element_ids(ctx, usize::from(plants).min(count))?;
+    let ids = super::live::element_ids(ctx, usize::from(plants).min(count))?;
     let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
     let looped = looped_clip(&bytes).map_err(invalid)?;
     let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));
     let stage = FieldStage::new(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
-    let elements = super::plant_elements(ids, "plant", ctx);
+    let elements = super::live::plant_elements(ids, "plant", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
@@ -250,7 +248,7 @@ pub fn build(
             elements,
             hand_element: None,
             accepts: takes_keys,
-            rig: super::rig_info(ctx.rig),
+            rig: super::live::rig_info(ctx.rig),
             work: super::budget::TickWork {
                 asked_by: format!("a field publishing {} plants", ids.len()),
                 unit: "plant frames",

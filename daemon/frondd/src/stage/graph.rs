@@ -23,9 +23,8 @@ use frond_protocol::control::StageKind;
 use frond_protocol::{ControlErrorKind, GraphGoal, StageInput};
 
 use super::budget::{self, TickWork};
-use super::{
-    BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext,
-};
+use super::error::BuildError;
+use super::live::{BuildContext, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext};
 use crate::clock::NS_PER_S;
 
 /// Most plants of one graph stage.
@@ -406,7 +405,7 @@ pub fn build(
             sources.len()
         )));
     }
-    let ids = super::element_ids(ctx, plants)?;
+    let ids = super::live::element_ids(ctx, plants)?;
     let mut loaded = Vec::with_capacity(sources.len());
     let mut fps = None;
     for src in sources {
@@ -427,7 +426,7 @@ pub fn build(
     work.check(ctx.tick_rate_hz)?;
     let (stage, report) = GraphStage::new(loaded, ids, seed, fps, ctx.now_ns);
     let stage = stage.with_budget(catch_up, plan_nodes);
-    let elements = super::plant_elements(ids, "walker", ctx);
+    let elements = super::live::plant_elements(ids, "walker", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
@@ -436,7 +435,7 @@ pub fn build(
             elements,
             hand_element: None,
             accepts: takes_goals,
-            rig: super::rig_info(ctx.rig),
+            rig: super::live::rig_info(ctx.rig),
             work,
         },
     })
@@ -476,7 +475,7 @@ fn load_source(take: &str, graph: &str, ctx: &BuildContext) -> Result<(GraphSour
     })?;
     let file =
         GraphFile::from_json(&text).map_err(|e| BuildError::invalid(format!("{}: {e}", path.display())))?;
-    let bytes = super::read_take(ctx.takes_dir, take)?;
+    let bytes = super::live::read_take(ctx.takes_dir, take)?;
     let (t, damage) = Take::from_bytes_noting_damage(&bytes)
         .map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
     // The take is resampled to the graph's rate only once it is known to give the frames the

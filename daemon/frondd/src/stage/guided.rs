@@ -7,8 +7,8 @@ use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
 
-use super::error::StageError;
-use super::{BuildContext, BuildError, BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
+use super::error::{BuildError, StageError};
+use super::live::{BuildContext, BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Eq. 8 applied to every hand pose.
 pub struct GuidedStage {
@@ -66,7 +66,7 @@ fn built(params: GuidedParams, text: String, ctx: &BuildContext) -> BuiltStage {
             elements: Vec::new(),
             hand_element: None,
             accepts: no_input,
-            rig: super::rig_info(ctx.rig),
+            rig: super::live::rig_info(ctx.rig),
             work: super::budget::TickWork::small("guided hand frames"),
         },
     }

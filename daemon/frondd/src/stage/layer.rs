@@ -8,7 +8,7 @@ use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::error::StageError;
-use super::{BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
+use super::live::{BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Relabels the hand's frames as element `element`.
 pub struct LayerStage {
@@ -63,7 +63,7 @@ pub fn build(rig: &Rig, layer: &str, hand_source: &str) -> Result<BuiltStage, St
                 rig: rig.name.clone(),
             }),
             accepts: no_input,
-            rig: super::rig_info(rig),
+            rig: super::live::rig_info(rig),
             work: super::budget::TickWork::small("relabelled hand frames"),
         },
     })

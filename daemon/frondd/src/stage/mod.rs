@@ -20,182 +20,19 @@ pub mod field;
 pub mod graph;
 pub mod guided;
 pub mod layer;
+pub mod live;
 pub mod playback;
 pub mod registry;
 pub mod sim;
 
-use std::path::Path;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use frond_protocol::StageSpec;
 
-use frond_motion::clip::Joints;
-use frond_motion::{HandSample, PoseFrame, Rig};
-use frond_protocol::control::StageKind;
-use frond_protocol::{ControlErrorKind, ElementInfo, RigInfo, StageInput, StageSpec};
-
-/// Stage slots in the loop (stages running at once).
-pub const MAX_STAGES: usize = 8;
-/// Longest stage name.
-pub const MAX_STAGE_NAME: usize = 32;
-
-/// What a stage sees at each tick.
-#[derive(Debug, Clone, Copy)]
-pub struct TickContext {
-    /// Host monotonic time of the tick, nanoseconds.
-    pub now_ns: u64,
-    /// Device time of the latest hand report, microseconds.
-    pub device_time_us: u64,
-    /// The latest calibrated hand sample.
-    pub hand: HandSample,
-}
-
-/// Where a stage puts the frames it publishes.
-pub trait FrameSink {
-    /// Publishes `joints_deg` as element `element` (flagged `playback`).
-    fn emit(&mut self, element: u16, joints_deg: Joints);
-}
-
-/// Anything that produces poses in the realtime loop. Every method runs on the loop thread and
-/// must not allocate, lock, log or block.
-pub trait LiveStage: Send {
-    /// Called for every hand report after mapping, in slot order: may change the hand's pose and
-    /// the element it is published and recorded as.
-    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, _element: &mut u16) {}
-    /// The element the hand is published as while this stage runs, if it changes it (a layer):
-    /// also what the loop stamps on held frames.
-    fn hand_element(&self) -> Option<u16> {
-        None
-    }
-    /// Called once per tick, before the device is read: publishes the stage's own elements.
-    fn tick(&mut self, _ctx: &TickContext, _out: &mut dyn FrameSink) {}
-    /// Whether [`LiveStage::tick`] has work at every tick (the loop then never skips one).
-    fn every_tick(&self) -> bool {
-        false
-    }
-    /// A typed input while it runs. Inputs a stage does not take are ignored (the control side
-    /// refuses them before they get here).
-    fn input(&mut self, _input: StageInput) {}
-}
-
-/// A stage's status, read by `frond status` from any thread while the loop writes it.
-pub trait StageReport: Send + Sync {
-    /// One line: what the stage is doing.
-    fn describe(&self) -> String;
-    /// Work dropped to stay within its budget since it started ([`budget`]): 0 while it keeps up.
-    fn dropped_work(&self) -> u64 {
-        0
-    }
-}
-
-/// A report that never changes.
-pub struct FixedReport(pub String);
-
-impl StageReport for FixedReport {
-    fn describe(&self) -> String {
-        self.0.clone()
-    }
-}
-
-/// A stage ready to go into the loop, with what the control side keeps of it.
-pub struct BuiltStage {
-    /// The stage itself, for the loop.
-    pub stage: Box<dyn LiveStage>,
-    /// What the control side keeps.
-    pub info: StageInfo,
-}
-
-/// What the control side knows of a stage: its kind, status cell, elements and inputs.
-#[derive(Clone)]
-pub struct StageInfo {
-    /// Its kind.
-    pub kind: StageKind,
-    /// Its status cell.
-    pub report: Arc<dyn StageReport>,
-    /// Elements it publishes itself.
-    pub elements: Vec<ElementInfo>,
-    /// The element the hand is published as while it runs (a layer), if it changes it.
-    pub hand_element: Option<ElementInfo>,
-    /// Which [`StageInput`]s it takes, for the control side to refuse the others by name.
-    pub accepts: fn(&StageInput) -> bool,
-    /// The skeleton its elements use (the rig in force when it was built).
-    pub rig: RigInfo,
-    /// The most work it does in one tick ([`budget`]: checked by [`build`] against its share).
-    pub work: budget::TickWork,
-}
-
-impl StageInfo {
-    /// Every element id it publishes or puts the hand on.
-    pub fn element_ids(&self) -> impl Iterator<Item = u16> + '_ {
-        self.elements.iter().chain(&self.hand_element).map(|e| e.id)
-    }
-}
-
-/// A rig as the element table describes it.
-pub fn rig_info(rig: &Rig) -> RigInfo {
-    RigInfo { name: rig.name.clone(), joint_names: rig.joints.iter().map(|j| j.name.clone()).collect() }
-}
-
-/// The first `count` element ids no running stage uses, or a refusal saying how many are free.
-pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [u16], BuildError> {
-    ctx.free_ids.get(..count).ok_or_else(|| {
-        BuildError::invalid(format!("no room for {count} more elements ({} free)", ctx.free_ids.len()))
-    })
-}
-
-/// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants (a field's,
-/// a graph walk's), one per id.
-pub fn plant_elements(ids: &[u16], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
-    ids.iter()
-        .enumerate()
-        .map(|(i, &id)| ElementInfo {
-            id,
-            name: format!("{prefix}{i}"),
-            kind: frond_protocol::ElementKind::FieldPlant,
-            source: ctx.name.to_string(),
-            rig: ctx.rig.name.clone(),
-        })
-        .collect()
-}
-
-/// Takes no input.
-pub fn no_input(_: &StageInput) -> bool {
-    false
-}
-
-/// What building a stage may look at.
-pub struct BuildContext<'a> {
-    /// Where takes are.
-    pub takes_dir: &'a Path,
-    /// The active rig.
-    pub rig: &'a Rig,
-    /// The active calibration's `G_R3` (guided motion normalises `G_3` by it).
-    pub g3_range_deg: f32,
-    /// The loop's rate.
-    pub tick_rate_hz: u32,
-    /// Host time now (the stage's start).
-    pub now_ns: u64,
-    /// Element ids no running stage uses (other than the one being replaced), lowest first.
-    pub free_ids: &'a [u16],
-    /// The stage's name.
-    pub name: &'a str,
-}
-
-/// Why a stage could not be built.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{message}")]
-pub struct BuildError {
-    /// Refusal kind for the control reply.
-    pub kind: ControlErrorKind,
-    /// What is wrong, naming the problem.
-    pub message: String,
-}
-
-impl BuildError {
-    /// An `Invalid` refusal.
-    pub fn invalid(message: impl Into<String>) -> Self {
-        BuildError { kind: ControlErrorKind::Invalid, message: message.into() }
-    }
-}
+pub use error::{BuildError, MAX_STAGE_NAME, MAX_STAGES};
+pub use live::{
+    BuildContext, BuiltStage, FixedReport, FrameSink, LiveStage, MAX_STAGE_TAKE_BYTES, StageAction,
+    StageCommand, StageInfo, StageReport, TickContext, element_ids, no_input, plant_elements, read_take,
+    rig_info,
+};
 
 /// Builds the stage `spec` describes (off the realtime thread).
 /// Every stage's declared work per tick ([`StageInfo::work`]) must fit in its share of the tick

@@ -11,9 +11,9 @@ use frond_motion::take::resample_plan;
 use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
-use super::error::StageError;
-use super::{
-    BuildContext, BuildError, BuiltStage, FixedReport, FrameSink, LiveStage, StageInfo, TickContext, no_input,
+use super::error::{BuildError, StageError};
+use super::live::{
+    BuildContext, BuiltStage, FixedReport, FrameSink, LiveStage, StageInfo, TickContext, no_input,
 };
 use crate::clock::NS_PER_S;
 
@@ -93,7 +93,7 @@ impl LiveStage for PlaybackStage {
 
 /// Builds the playback of take `take` as the global element (id 0).
 pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
-    let bytes = super::read_take(ctx.takes_dir, take)?;
+    let bytes = super::live::read_take(ctx.takes_dir, take)?;
     let looped = looped_clip(&bytes).map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
     let damage = note_damage(take, &looped.damage);
     let stage = PlaybackStage::new(looped, seed, ctx.now_ns, 0);
@@ -111,7 +111,7 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
             }],
             hand_element: None,
             accepts: no_input,
-            rig: super::rig_info(ctx.rig),
+            rig: super::live::rig_info(ctx.rig),
             work: super::budget::TickWork::small("looped take frames"),
         },
     })

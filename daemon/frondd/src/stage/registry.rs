@@ -6,8 +6,8 @@ use frond_motion::Rig;
 use frond_motion::rig::MAX_RIG_ELEMENTS;
 use frond_protocol::{ElementInfo, ElementKind, ElementTable, StageStatus};
 
-use super::error::StageError;
-use super::{MAX_STAGE_NAME, MAX_STAGES, StageInfo};
+use super::error::{MAX_STAGE_NAME, MAX_STAGES, StageError};
+use super::live::StageInfo;
 
 /// Element ids handed to stages come from `FIRST_STAGE_ELEMENT..`, above the rig's layers.
 pub const FIRST_STAGE_ELEMENT: u16 = MAX_RIG_ELEMENTS as u16 + 1;
@@ -33,7 +33,7 @@ impl HandElement {
         };
         HandElement {
             info: ElementInfo { id, name, kind, source: source.to_string(), rig: rig.name.clone() },
-            rig: super::rig_info(rig),
+            rig: super::live::rig_info(rig),
         }
     }
 }
@@ -153,7 +153,7 @@ impl StageRegistry {
         }
         elements.sort_by_key(|e| e.id);
         // The rig in force, every hand's own rig, and every rig a running stage was built on.
-        let mut rigs = vec![super::rig_info(rig)];
+        let mut rigs = vec![super::live::rig_info(rig)];
         let others = hands.iter().map(|h| &h.rig).chain(self.iter().map(|r| &r.info.rig));
         for other in others {
             if !rigs.iter().any(|known| known.name == other.name) {

@@ -14,9 +14,10 @@ use frond_protocol::control::StageKind;
 use frond_protocol::{ElementInfo, ElementKind};
 
 use super::budget::{self, TickWork};
+use super::error::BuildError;
 use super::graph::bend_direction_deg;
-use super::{
-    BuildContext, BuildError, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext, no_input,
+use super::live::{
+    BuildContext, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext, no_input,
 };
 use crate::clock::NS_PER_S;
 
@@ -204,7 +205,7 @@ pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<B
             }],
             hand_element: None,
             accepts: no_input,
-            rig: super::rig_info(&rig),
+            rig: super::live::rig_info(&rig),
             work,
         },
     })
