@@ -253,7 +253,6 @@ fn glove_latency_over(
             Daemon::start(o, &["--config", &config, "--rate", "1000"])?
         }
     };
-    let prefix = transport.prefix();
     let counts = [1usize, 8, 32];
     let mut subs = Subscribers::new(counts.len());
     let mut measurements = Vec::new();
@@ -278,32 +277,7 @@ fn glove_latency_over(
         if g.samples == 0 {
             return Err(BenchError::NoData(format!("no fresh poses reached the {n} subscribers")));
         }
-        for (q, gv, rv) in
-            [("p50", g.p50_us, r.p50_us), ("p99", g.p99_us, r.p99_us), ("p999", g.p999_us, r.p999_us)]
-        {
-            let mut m = Measurement::new(
-                format!("{prefix}glove_to_subscriber_{q}_{n}_subscribers"),
-                "us",
-                gv,
-                format!("Unix socket round trip between two threads, {q}"),
-                rv,
-            );
-            if q == "p99" && n == 8 && transport == Transport::InProcess {
-                m = m.with_target(
-                    "glove-to-subscriber p99 <= 3x the raw socket round trip, 8 subscribers",
-                    Bound::MaxRatio,
-                    3.0,
-                );
-            }
-            measurements.push(m);
-        }
-        measurements.push(Measurement::new(
-            format!("{prefix}publish_to_subscriber_p99_{n}_subscribers"),
-            "us",
-            p.p99_us,
-            "Unix socket round trip between two threads, p99",
-            r.p99_us,
-        ));
+        measurements.extend(glove_rows(transport, n, &g, &p, &r));
         details.insert(
             format!("{n}_subscribers"),
             json!({
@@ -322,4 +296,44 @@ fn glove_latency_over(
     details.insert("device_wakes".into(), json!(status.as_ref().map(|s| s.device_wakes)));
     details.insert("daemon_realtime".into(), json!(status.as_ref().map(|s| s.realtime.clone())));
     Ok((measurements, serde_json::Value::Object(details)))
+}
+
+/// Section 2's rows for `n` subscribers over `transport`: glove-to-subscriber `g` at p50, p99
+/// and p99.9 and publish-to-subscriber `p` at p99, each beside the socket round trip `r`.
+fn glove_rows(
+    transport: Transport,
+    n: usize,
+    g: &LatencySummary,
+    p: &LatencySummary,
+    r: &LatencySummary,
+) -> Vec<Measurement> {
+    let prefix = transport.prefix();
+    let mut rows = Vec::new();
+    for (q, gv, rv) in
+        [("p50", g.p50_us, r.p50_us), ("p99", g.p99_us, r.p99_us), ("p999", g.p999_us, r.p999_us)]
+    {
+        let mut m = Measurement::new(
+            format!("{prefix}glove_to_subscriber_{q}_{n}_subscribers"),
+            "us",
+            gv,
+            format!("Unix socket round trip between two threads, {q}"),
+            rv,
+        );
+        if q == "p99" && n == 8 && transport == Transport::InProcess {
+            m = m.with_target(
+                "glove-to-subscriber p99 <= 3x the raw socket round trip, 8 subscribers",
+                Bound::MaxRatio,
+                3.0,
+            );
+        }
+        rows.push(m);
+    }
+    rows.push(Measurement::new(
+        format!("{prefix}publish_to_subscriber_p99_{n}_subscribers"),
+        "us",
+        p.p99_us,
+        "Unix socket round trip between two threads, p99",
+        r.p99_us,
+    ));
+    rows
 }
