@@ -30,7 +30,7 @@ use frond_protocol::{Hello, Pose, ServerMessage, decode_frame};
 
 use crate::conn::ReadOutcome;
 use crate::error::{ProtocolError, SdkError};
-use crate::source::ZenohAddr;
+use crate::source::{KEY_ROOT, ZenohAddr, check_name};
 use crate::{SubscriberOptions, check_hello};
 
 /// Zenoh's session, as the functions here take it (the SDK's Zenoh version).
@@ -514,14 +514,12 @@ const MAX_PRESENT: usize = 16;
 /// The error for `source_key`, which no bridge answered within `waited`, naming the sources
 /// (`<stage>/<source>`) whose bridges are on the network instead (their `alive` tokens).
 pub(crate) fn no_bridge(session: &::zenoh::Session, source_key: String, waited: Duration) -> SdkError {
-    let selector = format!("{}/*/*/{}", crate::source::KEY_ROOT, keys::ALIVE);
+    let selector = format!("{}/*/*/{}", KEY_ROOT, keys::ALIVE);
     let present = session.liveliness().get(selector).timeout(PRESENT_TIMEOUT).wait().ok().map(|replies| {
         let mut names = std::collections::BTreeSet::new();
         while let Ok(reply) = replies.recv() {
-            if let Some(key) =
-                reply.result().ok().and_then(|s| crate::zenoh_many::source_key_of(s.key_expr().as_str()))
-            {
-                names.insert(crate::zenoh_many::short(&key).to_owned());
+            if let Some(key) = reply.result().ok().and_then(|s| source_key_of(s.key_expr().as_str())) {
+                names.insert(short(&key).to_owned());
             }
         }
         let mut names: Vec<String> = names.into_iter().collect();
@@ -579,9 +577,7 @@ pub fn query_statuses_in(
             match decode_frame::<frond_protocol::ControlReply>(&bytes).map_err(|e| bad(e.into()))? {
                 Some((frond_protocol::ControlReply::Status(report), used)) if used == bytes.len() => {
                     let source = key.trim_end_matches("/status").to_owned();
-                    if !found.iter().any(|(k, _)| *k == source)
-                        && found.len() < crate::zenoh_stage::MAX_STAGE_SOURCES
-                    {
+                    if !found.iter().any(|(k, _)| *k == source) && found.len() < MAX_STAGE_SOURCES {
                         found.push((source, *report));
                     }
                 }
@@ -601,6 +597,26 @@ pub fn query_statuses_in(
         }
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// Most sources one stage listing returns; more tokens than this are not looked at.
+pub const MAX_STAGE_SOURCES: usize = 64;
+/// `frond/<stage>/<source>` of a token key `frond/<stage>/<source>/alive`, if the names are
+/// plain key chunks.
+pub(crate) fn source_key_of(token: &str) -> Option<String> {
+    let mut parts = token.split('/');
+    let (root, stage, source, leaf) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
+    if root != KEY_ROOT || leaf != keys::ALIVE || parts.next().is_some() {
+        return None;
+    }
+    check_name("stage", stage).ok()?;
+    check_name("source", source).ok()?;
+    Some(format!("{KEY_ROOT}/{stage}/{source}"))
+}
+
+/// `<stage>/<source>` of a source key `frond/<stage>/<source>`: how a source is named to people.
+pub fn short(key: &str) -> &str {
+    key.strip_prefix(KEY_ROOT).and_then(|k| k.strip_prefix('/')).unwrap_or(key)
 }
 
 #[cfg(test)]

@@ -21,8 +21,9 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, bounded};
 use frond_protocol::Hello;
 
 use crate::error::SdkError;
-use crate::source::{KEY_ROOT, ZenohAddr, check_name};
-use crate::zenoh::{FRAME_QUEUE, config, keys, open_session};
+use crate::source::ZenohAddr;
+pub use crate::zenoh::short;
+use crate::zenoh::{FRAME_QUEUE, config, keys, open_session, source_key_of};
 use crate::{Event, Subscriber, SubscriberOptions};
 
 /// Most sources one [`StageSubscriber`] follows; tokens of further sources are counted in
@@ -183,24 +184,6 @@ impl Drop for StageSubscriber {
             }
         }
     }
-}
-
-/// `frond/<stage>/<source>` of a token key `frond/<stage>/<source>/alive`, if the names are
-/// plain key chunks.
-pub(crate) fn source_key_of(token: &str) -> Option<String> {
-    let mut parts = token.split('/');
-    let (root, stage, source, leaf) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
-    if root != KEY_ROOT || leaf != keys::ALIVE || parts.next().is_some() {
-        return None;
-    }
-    check_name("stage", stage).ok()?;
-    check_name("source", source).ok()?;
-    Some(format!("{KEY_ROOT}/{stage}/{source}"))
-}
-
-/// `<stage>/<source>` of a source key `frond/<stage>/<source>`: how a source is named to people.
-pub fn short(key: &str) -> &str {
-    key.strip_prefix(KEY_ROOT).and_then(|k| k.strip_prefix('/')).unwrap_or(key)
 }
 
 /// Starts a follower for `key` unless one runs or the limit is reached. Runs on Zenoh's thread:

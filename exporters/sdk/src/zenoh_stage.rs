@@ -12,8 +12,7 @@ use crate::source::{KEY_ROOT, ZenohAddr, check_name};
 use crate::stage_time::{ClockOffset, ClockReading, realtime_ns};
 use crate::zenoh::{config, keys, open_session};
 
-/// Most sources one stage listing returns; more tokens than this are not looked at.
-pub const MAX_STAGE_SOURCES: usize = 64;
+pub use crate::zenoh::MAX_STAGE_SOURCES;
 /// Most clock exchanges one measurement makes.
 pub const MAX_CLOCK_EXCHANGES: usize = 64;
 
