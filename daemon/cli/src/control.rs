@@ -124,7 +124,7 @@ pub(crate) fn load_calibration(path: &Path) -> anyhow::Result<(Calibration, Stri
     Ok((cal, text))
 }
 
-/// Reads and validates a rig file (the one rig loader, `frond_motion::rig_files`).
+/// Reads and validates a rig file (the one rig loader, `frond_formats::rig_files`).
 /// A rig given on the command line: an embedded name (`grass`, `flower`, `shrub`) or a rig file,
 /// read the way the daemon reads it (`frond_formats::rig_files::load_rig`).
 pub(crate) fn load_rig(spec: &Path) -> anyhow::Result<(Rig, String)> {

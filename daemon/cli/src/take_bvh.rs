@@ -1,5 +1,5 @@
 //! `frond take export NAME --bvh -o FILE.bvh [--field field.json --duration S]`: a take (or every
-//! plant of a field) as BVH, the mocap exchange format (`frond_motion::bvh`), at `--fps`
+//! plant of a field) as BVH, the mocap exchange format (`frond_formats::bvh`), at `--fps`
 //! (default 30, the seed's rate), on the take's rig (or `--rig`).
 
 use std::path::Path;

@@ -1,5 +1,5 @@
 //! `frond take export NAME --usd -o FILE.usda|FILE.usdc`: a take as a USD (UsdSkel) layer
-//! (`frond_motion::usd`): the rig's skinned mesh, skeleton and the take's animation at `--fps`
+//! (`frond_formats::usd`): the rig's skinned mesh, skeleton and the take's animation at `--fps`
 //! (default 30), on the take's rig (or `--rig`). The binary form is the same layer in USD's crate
 //! format, written by openusd (vendored with a fix, `vendor/openusd`).
 

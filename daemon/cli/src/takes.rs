@@ -227,7 +227,7 @@ fn duration_text(seconds: f64) -> String {
     if seconds.abs() < 1e8 { format!("{seconds:.2}s") } else { format!("{seconds:.2e}s") }
 }
 
-/// The repaired bytes of a take (`frond_motion::take_repair`), errors as `anyhow`.
+/// The repaired bytes of a take (`frond_formats::take_repair`), errors as `anyhow`.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
     frond_formats::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
 }

@@ -80,7 +80,7 @@ pub struct SourceCounters {
     /// Messages that could not be decoded at all (OSC input: not OSC, wrong argument types).
     pub malformed: AtomicU64,
     /// Messages listing more than a frame may (a Leap frame of more than
-    /// `frond_motion::leap::MAX_HANDS` hands), refused at the first item too many.
+    /// `frond_device::source::leap::frames::MAX_HANDS` hands), refused at the first item too many.
     pub too_many: AtomicU64,
     /// Connections to a hand service dropped because it did not read what frond must write (a
     /// service that floods pings and never reads the pongs): not reports, so not in

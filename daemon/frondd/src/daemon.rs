@@ -58,7 +58,7 @@ pub struct Dirs {
     pub takes_dir: PathBuf,
 }
 
-/// Loads a rig by embedded name or path (the one rig loader, `frond_motion::rig_files`).
+/// Loads a rig by embedded name or path (the one rig loader, `frond_formats::rig_files`).
 pub fn load_rig(spec: &str) -> Result<Rig, DaemonError> {
     Ok(frond_formats::rig_files::load_rig(spec)?.rig)
 }

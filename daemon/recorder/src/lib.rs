@@ -1,7 +1,7 @@
 //! The recorder thread: writes takes off the realtime thread (frondd's recorder, and the stage
 //! recorder of `frond record start NAME --stage STAGE`, which writes what it receives over Zenoh).
 //!
-//! A take file is append-only (see `frond_motion::take`): every record is length-prefixed and
+//! A take file is append-only (see `frond_formats::take`): every record is length-prefixed and
 //! checksummed, so a reader can follow it while it grows and a crash leaves at most a torn tail.
 //! Durability policy: every batch is `write`n at once (so `kill -9` of the daemon loses nothing
 //! the loop handed over: the kernel has it), and the file is `fdatasync`ed at least every

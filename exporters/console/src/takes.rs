@@ -280,7 +280,7 @@ pub fn field(dir: &Path, ask: &FieldRequest) -> Result<Field, TakeError> {
     make_field(&params, name, plan.frames as usize, FIELD_FPS).map_err(|e| err(400, e.to_string()))
 }
 
-/// Repairs take `name` as `frond take repair NAME` does (`frond_motion::take_repair`): the
+/// Repairs take `name` as `frond take repair NAME` does (`frond_formats::take_repair`): the
 /// readable records kept, the rest dropped, closed with an End record; refused while it may
 /// still be recording. `{"repaired": bool, "message"}`.
 pub fn repair(dir: &Path, name: &str) -> Result<Value, TakeError> {

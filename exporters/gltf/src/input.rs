@@ -43,7 +43,7 @@ impl LoadedRig {
     }
 
     /// `--rig`: a file path (with `/` or ending in `.toml`), else an embedded rig name, else a
-    /// file of that name (the one rig loader, `frond_motion::rig_files`).
+    /// file of that name (the one rig loader, `frond_formats::rig_files`).
     pub fn resolve(arg: &str) -> Result<Self, BakeError> {
         Ok(frond_formats::rig_files::load_rig(arg)?.into())
     }

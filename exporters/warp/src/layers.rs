@@ -20,7 +20,7 @@ use thiserror::Error;
 use crate::inpaint::inpaint;
 
 /// Largest image file read (picture, layer, background, scale map), bytes: checked before
-/// reading, as for every file frond opens (`frond_motion::rig_files`).
+/// reading, as for every file frond opens (`frond_formats::rig_files`).
 pub const MAX_IMAGE_FILE_BYTES: u64 = 256 << 20;
 /// Largest decoded image side, pixels (a 16384 x 16384 RGBA picture is 1 GiB).
 pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
