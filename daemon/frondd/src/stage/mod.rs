@@ -11,8 +11,9 @@
 //! slots with one [`StageCommand`], and handed back to housekeeping to be dropped. In the loop
 //! they only call allocation-free, lock-free, non-blocking methods.
 //!
-//! Adding a motion source: one file here implementing [`LiveStage`] with a `build` function,
-//! one [`StageSpec`] variant (and its arm in [`build`]), one `frond` subcommand.
+//! Adding a live stage: one file here implementing [`LiveStage`] with a `build` function, one
+//! [`StageSpec`] and one `StageKind` variant (the compiler then asks for the arm in [`build`]),
+//! one `frond` subcommand; the recipe is in ARCHITECTURE.md, "Adding a live stage".
 
 pub mod budget;
 pub mod error;
