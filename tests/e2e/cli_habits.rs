@@ -214,3 +214,15 @@ fn a_daemon_whose_log_reader_went_away_keeps_running() {
     assert!(daemon.proc.child.try_wait().unwrap().is_none(), "frondd is still running");
     assert!(daemon.takes_dir.join("quiet.take").is_file());
 }
+
+#[test]
+fn an_unknown_flag_is_a_usage_error_with_the_name_in_front_everywhere() {
+    // `frond-relay` parses by hand (std and libc only, the bench's baseline) and says the same.
+    let others = ["frond", "frond-bench", "frond-bench-peer", "frond-relay"];
+    for name in BINARIES.iter().map(|(n, _)| *n).chain(others) {
+        let out = run(name, &["--no-such-flag"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name} --no-such-flag: {err}");
+        assert!(err.starts_with(&format!("{name}: error:")), "{name}: {err}");
+    }
+}

@@ -78,7 +78,10 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frondd", Args::command) {
         return code;
     }
-    let args = Args::parse();
+    let args: Args = match frond_binmain::parse("frondd") {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
     if args.print_default_config {
         return frond_binmain::exit("frondd", frond_binmain::out!("{DEFAULT_CONFIG}").map_err(Into::into));
     }

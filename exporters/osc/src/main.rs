@@ -221,7 +221,10 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-osc", Args::command) {
         return code;
     }
-    let args = Args::parse();
+    let args: Args = match frond_binmain::parse("frond-osc") {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
     if let Err(code) = frond_binmain::logging("frond-osc", &args.log_level) {
         return code;
     }

@@ -168,7 +168,10 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-zenoh", Args::command) {
         return code;
     }
-    let args = Args::parse();
+    let args: Args = match frond_binmain::parse("frond-zenoh") {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
     if let Err(code) = frond_binmain::logging("frond-zenoh", &args.log_level) {
         return code;
     }

@@ -304,21 +304,43 @@ fn udp_pub(to: &[String]) -> Result<(), String> {
     every_period(|bytes| fanout.send(bytes))
 }
 
+/// The remote end of `frond bench`'s `zenoh` section: one subscriber, bridge or bare sender.
+#[derive(clap::Parser)]
+#[command(name = "frond-bench-peer")]
+enum Peer {
+    /// Subscribes to ADDRESS with `frond_sdk`, as an exporter on another host does.
+    ZenohSub { address: String },
+    /// A bare Zenoh subscriber on ADDRESS's `poses` key.
+    ZenohRaw { address: String },
+    /// Receives poses as plain UDP datagrams on BIND.
+    UdpSub { bind: String },
+    /// Reads the daemon's pose stream and sends each pose in one UDP datagram to every ADDR.
+    UdpForward {
+        socket_dir: String,
+        #[arg(required = true, value_name = "ADDR")]
+        to: Vec<String>,
+    },
+    /// Puts a stamped pose on ADDRESS's `poses` key every millisecond.
+    ZenohPub { address: String },
+    /// Sends a stamped pose in one UDP datagram to every ADDR every millisecond.
+    UdpPub {
+        #[arg(required = true, value_name = "ADDR")]
+        to: Vec<String>,
+    },
+}
+
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let result = match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["zenoh-sub", address] => zenoh_sub(address),
-        ["zenoh-raw", address] => zenoh_raw(address),
-        ["udp-sub", bind] => udp_sub(bind),
-        ["udp-forward", dir, to @ ..] if !to.is_empty() => udp_forward(dir, &args[2..]),
-        ["zenoh-pub", address] => zenoh_pub(address),
-        ["udp-pub", to @ ..] if !to.is_empty() => udp_pub(&args[1..]),
-        _ => {
-            eprintln!(
-                "usage: frond-bench-peer zenoh-sub ADDRESS | zenoh-raw ADDRESS | udp-sub BIND | udp-forward SOCKET_DIR ADDR [ADDR ...] | zenoh-pub ADDRESS | udp-pub ADDR [ADDR ...]"
-            );
-            return ExitCode::from(2);
-        }
+    let peer: Peer = match frond_binmain::parse("frond-bench-peer") {
+        Ok(peer) => peer,
+        Err(code) => return code,
+    };
+    let result = match &peer {
+        Peer::ZenohSub { address } => zenoh_sub(address),
+        Peer::ZenohRaw { address } => zenoh_raw(address),
+        Peer::UdpSub { bind } => udp_sub(bind),
+        Peer::UdpForward { socket_dir, to } => udp_forward(socket_dir, to),
+        Peer::ZenohPub { address } => zenoh_pub(address),
+        Peer::UdpPub { to } => udp_pub(to),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -29,12 +29,9 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = match Args::try_parse() {
-        Ok(a) => a,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
-        }
+    let args: Args = match frond_binmain::parse("frond-bench") {
+        Ok(args) => args,
+        Err(code) => return code,
     };
     let unknown = frond_bench::unknown_sections(&args.section);
     if !unknown.is_empty() {

@@ -69,11 +69,11 @@ impl Input {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [source, path, readers] = args.as_slice() else {
-        eprintln!("usage: frond-relay udp:ADDR|hidraw:PATH SOCKET_PATH READERS");
+        eprintln!("frond-relay: error: usage: frond-relay udp:ADDR|hidraw:PATH SOCKET_PATH READERS");
         return ExitCode::from(2);
     };
     let Ok(readers) = readers.parse::<usize>() else {
-        eprintln!("frond-relay: READERS must be a number, not {readers:?}");
+        eprintln!("frond-relay: error: READERS must be a number, not {readers:?}");
         return ExitCode::from(2);
     };
     let run = || -> std::io::Result<()> {

@@ -293,7 +293,10 @@ fn main() -> ExitCode {
     if let Some(code) = frond_binmain::DocsArgs::early("frond-vhid", Args::command) {
         return code;
     }
-    let args = Args::parse();
+    let args: Args = match frond_binmain::parse("frond-vhid") {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
     if let Err(code) = frond_binmain::logging("frond-vhid", &args.log_level) {
         return code;
     }
