@@ -49,6 +49,21 @@ pub struct RawConfig {
     hands: Option<Vec<RawHand>>,
 }
 
+/// What is wrong with a `--hand` flag's text (before its values are validated with the rest of
+/// the configuration).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum HandFlagError {
+    /// No `=` between the hand's name and its kind.
+    #[error("{flag:?}: expected NAME=KIND[,key=value...], e.g. right=hid:/dev/hidraw4,element=leaf")]
+    NoKind { flag: String },
+    /// A part after the kind without `=`.
+    #[error("{flag:?}: {part:?} is not key=value")]
+    NotKeyValue { flag: String, part: String },
+    /// A key the flag does not take.
+    #[error("{flag:?}: unknown key {key:?} (expected element, rig, calibration, profile, path)")]
+    UnknownKey { flag: String, key: String },
+}
+
 /// One `[[hands]]` table (or one `--hand` flag).
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -69,13 +84,12 @@ impl RawHand {
     /// `leap://HOST:PORT[?hand=left|right]`) and
     /// the keys are `element`, `rig`, `calibration`, `profile` and `path`.
     pub fn parse_flag(flag: &str) -> Result<RawHand, ConfigError> {
-        Self::parse_flag_text(flag).map_err(ConfigError::one)
+        Self::parse_flag_text(flag).map_err(|e| ConfigError::one(e.to_string()))
     }
 
-    fn parse_flag_text(flag: &str) -> Result<RawHand, String> {
-        let (name, rest) = flag.split_once('=').ok_or_else(|| {
-            format!("{flag:?}: expected NAME=KIND[,key=value...], e.g. right=hid:/dev/hidraw4,element=leaf")
-        })?;
+    fn parse_flag_text(flag: &str) -> Result<RawHand, HandFlagError> {
+        let (name, rest) =
+            flag.split_once('=').ok_or_else(|| HandFlagError::NoKind { flag: flag.to_string() })?;
         let mut parts = rest.split(',');
         let kind = parts.next().unwrap_or_default();
         let mut hand = RawHand { name: Some(name.to_string()), ..Default::default() };
@@ -89,8 +103,10 @@ impl RawHand {
             hand.kind = Some(kind.to_string());
         }
         for part in parts {
-            let (key, value) =
-                part.split_once('=').ok_or_else(|| format!("{flag:?}: {part:?} is not key=value"))?;
+            let (key, value) = part.split_once('=').ok_or_else(|| HandFlagError::NotKeyValue {
+                flag: flag.to_string(),
+                part: part.to_string(),
+            })?;
             let slot = match key {
                 "element" => &mut hand.element,
                 "rig" => &mut hand.rig,
@@ -98,9 +114,7 @@ impl RawHand {
                 "profile" => &mut hand.profile,
                 "path" => &mut hand.path,
                 other => {
-                    return Err(format!(
-                        "{flag:?}: unknown key {other:?} (expected element, rig, calibration, profile, path)"
-                    ));
+                    return Err(HandFlagError::UnknownKey { flag: flag.to_string(), key: other.to_string() });
                 }
             };
             *slot = Some(value.to_string());
@@ -187,24 +201,20 @@ impl RawConfig {
         self
     }
 
-    /// Command-line overrides.
-    #[allow(clippy::too_many_arguments)]
-    pub fn from_overrides(
-        rate: Option<u32>,
-        rig: Option<String>,
-        calibration: Option<String>,
-        filter: Option<String>,
-        source: Option<String>,
-        profile: Option<String>,
-        device: Option<String>,
-        replay: Option<String>,
-    ) -> RawConfig {
+    /// The command line's overrides, as the keys they set.
+    pub fn from_overrides(o: Overrides) -> RawConfig {
         RawConfig {
-            tick_rate_hz: rate.map(i64::from),
-            rig,
-            calibration,
-            filter,
-            source: RawSource { kind: source, profile, path: device, replay, ..Default::default() },
+            tick_rate_hz: o.rate.map(i64::from),
+            rig: o.rig,
+            calibration: o.calibration,
+            filter: o.filter,
+            source: RawSource {
+                kind: o.source,
+                profile: o.profile,
+                path: o.device,
+                replay: o.replay,
+                ..Default::default()
+            },
             ..Default::default()
         }
     }
@@ -216,6 +226,27 @@ impl RawConfig {
         }
         self
     }
+}
+
+/// What frondd's command line sets over the configuration file; `None` leaves the file's key.
+#[derive(Debug, Default, Clone)]
+pub struct Overrides {
+    /// `--rate`: `tick_rate_hz`.
+    pub rate: Option<u32>,
+    /// `--rig`: `rig`.
+    pub rig: Option<String>,
+    /// `--calibration`: `calibration`.
+    pub calibration: Option<String>,
+    /// `--filter`: `filter`.
+    pub filter: Option<String>,
+    /// `--source` (or the kind `--device` and `--replay` imply): `source.kind`.
+    pub source: Option<String>,
+    /// `--profile`: `source.profile`.
+    pub profile: Option<String>,
+    /// `--device`: `source.path`.
+    pub device: Option<String>,
+    /// `--replay`: `source.replay`.
+    pub replay: Option<String>,
 }
 
 /// Which hand source to use: the hand sources' own parsed form, each kind parsed by its backend
@@ -387,8 +418,77 @@ fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) 
     v
 }
 
+/// The one hand of `[source]`, named [`SINGLE_HAND`], when no `[[hands]]` lists several.
+fn single_hand(errors: &mut Vec<String>, raw: &RawSource) -> HandConfig {
+    let kind = raw.kind.as_deref().unwrap_or("auto");
+    let source = source_choice(errors, "source.kind", kind, raw.replay.as_deref(), "source.replay");
+    HandConfig {
+        name: SINGLE_HAND.into(),
+        source,
+        profile: raw.profile.as_ref().map(PathBuf::from),
+        device_path: raw.path.as_ref().map(PathBuf::from),
+        rig: None,
+        calibration: None,
+        element: None,
+    }
+}
+
+/// `source.virtual_clock`: the built-in virtual glove's device clock.
+fn virtual_clock(errors: &mut Vec<String>, text: Option<&str>) -> frond_vhid::DeviceClock {
+    match text {
+        None | Some("schedule") => frond_vhid::DeviceClock::Schedule,
+        Some("monotonic") => frond_vhid::DeviceClock::Monotonic,
+        Some(other) => {
+            errors.push(format!("source.virtual_clock: {other:?} is not one of schedule, monotonic"));
+            frond_vhid::DeviceClock::Schedule
+        }
+    }
+}
+
+/// The `[publisher]` table, validated: queue length, subscriber limit, write timeout.
+struct PublisherLimits {
+    queue_frames: usize,
+    max_subscribers: usize,
+    write_timeout: Duration,
+}
+
+impl PublisherLimits {
+    fn validate(errors: &mut Vec<String>, raw: &RawPublisher) -> PublisherLimits {
+        let queue_frames =
+            range(errors, "publisher.queue_frames", raw.queue_frames.or(Some(1024)), 2, 1 << 20);
+        let max_subscribers = range(
+            errors,
+            "publisher.max_subscribers",
+            raw.max_subscribers.or(Some(64)),
+            1,
+            crate::engine::MAX_SUBSCRIBERS as i64,
+        );
+        let write_timeout_ms =
+            range(errors, "publisher.write_timeout_ms", raw.write_timeout_ms.or(Some(2000)), 10, 600_000);
+        PublisherLimits {
+            queue_frames: queue_frames as usize,
+            max_subscribers: max_subscribers as usize,
+            write_timeout: Duration::from_millis(write_timeout_ms as u64),
+        }
+    }
+}
+
+/// `control.allowed_uids` or `control.allowed_gids` (`key`): user or group ids.
+fn ids(errors: &mut Vec<String>, key: &str, v: Option<&[i64]>) -> Vec<u32> {
+    let mut out = Vec::new();
+    for (i, &id) in v.unwrap_or_default().iter().enumerate() {
+        match u32::try_from(id) {
+            Ok(id) => out.push(id),
+            Err(_) => errors.push(format!("{key}[{i}]: {id} is not a valid id")),
+        }
+    }
+    out
+}
+
 impl Config {
-    /// Validates a merged raw configuration, reporting every problem at once.
+    /// Validates a merged raw configuration, reporting every problem at once, in the order of
+    /// the keys: the loop and rig, the hands, the filter, `[source]`, `[publisher]`,
+    /// `[recorder]`, `[realtime]`, `[control]`.
     pub fn validate(raw: RawConfig) -> Result<Config, ConfigError> {
         let mut errors = Vec::new();
         let tick_rate_hz = range(&mut errors, "tick_rate_hz", raw.tick_rate_hz, 30, 8000) as u32;
@@ -398,25 +498,7 @@ impl Config {
         }
         let hands = match raw.hands {
             Some(list) => validate_hands(&mut errors, list),
-            None => {
-                let kind = raw.source.kind.unwrap_or_else(|| "auto".into());
-                let source = source_choice(
-                    &mut errors,
-                    "source.kind",
-                    &kind,
-                    raw.source.replay.as_deref(),
-                    "source.replay",
-                );
-                vec![HandConfig {
-                    name: SINGLE_HAND.into(),
-                    source,
-                    profile: raw.source.profile.map(PathBuf::from),
-                    device_path: raw.source.path.map(PathBuf::from),
-                    rig: None,
-                    calibration: None,
-                    element: None,
-                }]
-            }
+            None => vec![single_hand(&mut errors, &raw.source)],
         };
         if let Some(filter) = &raw.filter
             && let Err(e) = filter.parse::<frond_motion::FilterSpec>()
@@ -426,35 +508,8 @@ impl Config {
         let stall_ms = range(&mut errors, "source.stall_ms", raw.source.stall_ms.or(Some(250)), 10, 60_000);
         let virtual_rate_hz =
             range(&mut errors, "source.virtual_rate_hz", raw.source.virtual_rate_hz.or(Some(1000)), 1, 8000);
-        let virtual_clock = match raw.source.virtual_clock.as_deref() {
-            None | Some("schedule") => frond_vhid::DeviceClock::Schedule,
-            Some("monotonic") => frond_vhid::DeviceClock::Monotonic,
-            Some(other) => {
-                errors.push(format!("source.virtual_clock: {other:?} is not one of schedule, monotonic"));
-                frond_vhid::DeviceClock::Schedule
-            }
-        };
-        let queue_frames = range(
-            &mut errors,
-            "publisher.queue_frames",
-            raw.publisher.queue_frames.or(Some(1024)),
-            2,
-            1 << 20,
-        );
-        let max_subscribers = range(
-            &mut errors,
-            "publisher.max_subscribers",
-            raw.publisher.max_subscribers.or(Some(64)),
-            1,
-            crate::engine::MAX_SUBSCRIBERS as i64,
-        );
-        let write_timeout_ms = range(
-            &mut errors,
-            "publisher.write_timeout_ms",
-            raw.publisher.write_timeout_ms.or(Some(2000)),
-            10,
-            600_000,
-        );
+        let virtual_clock = virtual_clock(&mut errors, raw.source.virtual_clock.as_deref());
+        let publisher = PublisherLimits::validate(&mut errors, &raw.publisher);
         let fsync_ms = range(
             &mut errors,
             "recorder.fsync_interval_ms",
@@ -465,18 +520,8 @@ impl Config {
         let rt_cpu = range(&mut errors, "realtime.cpu", raw.realtime.cpu.or(Some(-1)), -1, 1023);
         let rt_priority =
             range(&mut errors, "realtime.priority", raw.realtime.priority.or(Some(0)), 0, 99) as u8;
-        let ids = |errors: &mut Vec<String>, key: &str, v: Option<Vec<i64>>| -> Vec<u32> {
-            let mut out = Vec::new();
-            for (i, id) in v.unwrap_or_default().into_iter().enumerate() {
-                match u32::try_from(id) {
-                    Ok(id) => out.push(id),
-                    Err(_) => errors.push(format!("{key}[{i}]: {id} is not a valid id")),
-                }
-            }
-            out
-        };
-        let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids);
-        let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids);
+        let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids.as_deref());
+        let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids.as_deref());
         if !errors.is_empty() {
             return Err(ConfigError { problems: errors });
         }
@@ -489,9 +534,9 @@ impl Config {
             stall: Duration::from_millis(stall_ms as u64),
             virtual_rate_hz: virtual_rate_hz as u32,
             virtual_clock,
-            queue_frames: queue_frames as usize,
-            max_subscribers: max_subscribers as usize,
-            write_timeout: Duration::from_millis(write_timeout_ms as u64),
+            queue_frames: publisher.queue_frames,
+            max_subscribers: publisher.max_subscribers,
+            write_timeout: publisher.write_timeout,
             fsync_interval: Duration::from_millis(fsync_ms as u64),
             rt_priority,
             lock_memory: raw.realtime.lock_memory.unwrap_or(false),
@@ -672,7 +717,7 @@ mod tests {
     fn overrides_win() {
         let c = Config::load(
             None,
-            RawConfig::from_overrides(Some(500), None, None, None, None, None, None, None),
+            RawConfig::from_overrides(Overrides { rate: Some(500), ..Default::default() }),
         )
         .unwrap();
         assert_eq!(c.tick_rate_hz, 500);

@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use clap::{CommandFactory, Parser};
 use frond_protocol::paths;
-use frondd::config::{Config, DEFAULT_CONFIG, RawConfig, RawHand};
+use frondd::config::{Config, DEFAULT_CONFIG, Overrides, RawConfig, RawHand};
 use frondd::daemon::{ConfigLoader, Dirs, RunOptions, run};
 
 /// frond daemon: reads a hand device at a fixed rate and publishes plant poses.
@@ -163,16 +163,16 @@ fn overrides(args: &Args) -> Result<RawConfig, Exit> {
             "--hand replaces --source, --device, --replay and --profile; give each hand its own".into(),
         ]));
     }
-    let overrides = RawConfig::from_overrides(
-        args.rate,
-        args.rig.clone(),
-        args.calibration.clone(),
-        args.filter.clone(),
+    let overrides = RawConfig::from_overrides(Overrides {
+        rate: args.rate,
+        rig: args.rig.clone(),
+        calibration: args.calibration.clone(),
+        filter: args.filter.clone(),
         source,
-        args.profile.clone(),
-        args.device.clone(),
-        args.replay.clone(),
-    );
+        profile: args.profile.clone(),
+        device: args.device.clone(),
+        replay: args.replay.clone(),
+    });
     Ok(overrides.with_hands(hands))
 }
 

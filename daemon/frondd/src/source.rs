@@ -25,8 +25,10 @@ fn source_error(e: impl std::fmt::Display) -> DaemonError {
     DaemonError::Source(e.to_string())
 }
 
-/// Opens a source that is not there yet; called every 100 ms by the reopen thread.
-pub type SourceFactory = Box<dyn FnMut() -> std::result::Result<Box<dyn HandSource>, String> + Send>;
+/// Opens a source that is not there yet; called every 100 ms by the reopen thread, which keeps
+/// trying while it fails with the device's own error.
+pub type SourceFactory =
+    Box<dyn FnMut() -> std::result::Result<Box<dyn HandSource>, frond_device::SourceError> + Send>;
 
 /// An opened source (or one still awaited) and what must live as long as it.
 pub struct OpenedSource {
@@ -117,7 +119,7 @@ fn awaited(profile: DeviceProfile, path: Option<std::path::PathBuf>, reason: Str
             Some(p) => HidSource::open_path(&profile, p, kind_of_node(p)),
             None => HidSource::open(&profile),
         };
-        src.map(|s| Box::new(s) as Box<dyn HandSource>).map_err(|e| e.to_string())
+        src.map(|s| Box::new(s) as Box<dyn HandSource>)
     });
     OpenedSource {
         source: None,
