@@ -84,8 +84,8 @@ pub enum ZenohSetupError {
     #[error("Zenoh: {0}")]
     Zenoh(String),
     /// `ZENOH_RUNTIME` holds a value Zenoh cannot use (see [`crate::zenoh_runtime_env`]).
-    #[error("{0}")]
-    RuntimeEnv(String),
+    #[error(transparent)]
+    RuntimeEnv(#[from] crate::zenoh_runtime_env::RuntimeEnvError),
 }
 
 /// Builds a Zenoh configuration: the file (if any, checked to be a regular file of at most
@@ -143,7 +143,7 @@ fn json_list(items: &[String]) -> String {
 
 /// Opens a session with [`config`], after checking `ZENOH_RUNTIME` (on which Zenoh panics).
 pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSetupError> {
-    crate::zenoh_runtime_env::check().map_err(ZenohSetupError::RuntimeEnv)?;
+    crate::zenoh_runtime_env::check()?;
     ::zenoh::open(config).wait().map_err(|e| ZenohSetupError::Zenoh(e.to_string()))
 }
 

@@ -63,36 +63,72 @@ struct Pools {
     net: Params,
 }
 
+/// Why Zenoh would refuse a `ZENOH_RUNTIME` value.
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum RuntimeValueError {
+    /// Longer than this module reads.
+    #[error("{len} bytes; at most {MAX_LEN}")]
+    TooLong {
+        /// The value's length in bytes.
+        len: usize,
+    },
+    /// Not RON in the shape Zenoh reads (unknown pool or field, wrong type, bad syntax).
+    #[error("not Zenoh's runtime syntax ({0}); for example `(rx: (worker_threads: 1))`")]
+    Syntax(Box<ron::error::SpannedError>),
+    /// A pool's `worker_threads` outside 1 to [`MAX_WORKER_THREADS`] (Zenoh panics on 0).
+    #[error("{pool}.worker_threads is {threads}; 1 to {MAX_WORKER_THREADS}")]
+    WorkerThreads {
+        /// The pool, as Zenoh spells it.
+        pool: &'static str,
+        /// The value given.
+        threads: usize,
+    },
+    /// A pool's `max_blocking_threads` outside 1 to [`MAX_BLOCKING_THREADS`].
+    #[error("{pool}.max_blocking_threads is {threads}; 1 to {MAX_BLOCKING_THREADS}")]
+    BlockingThreads {
+        /// The pool, as Zenoh spells it.
+        pool: &'static str,
+        /// The value given.
+        threads: usize,
+    },
+}
+
+/// This process's `ZENOH_RUNTIME` holds a value Zenoh would refuse: the value and why.
+#[derive(Debug, PartialEq, thiserror::Error)]
+#[error("{VAR}={value:?}: {why}; unset it for Zenoh's defaults")]
+pub struct RuntimeEnvError {
+    /// The variable's value.
+    pub value: String,
+    /// What is wrong with it (printed in this message, so not also a `source`).
+    pub why: RuntimeValueError,
+}
+
 /// Checks `value` as a `ZENOH_RUNTIME` setting; the problem when Zenoh would refuse it.
-pub fn check_value(value: &str) -> Result<(), String> {
+pub fn check_value(value: &str) -> Result<(), RuntimeValueError> {
     if value.len() > MAX_LEN {
-        return Err(format!("{} bytes; at most {MAX_LEN}", value.len()));
+        return Err(RuntimeValueError::TooLong { len: value.len() });
     }
     let pools: Pools = ron::Options::default()
         .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
         .from_str(value)
-        .map_err(|e| format!("not Zenoh's runtime syntax ({e}); for example `(rx: (worker_threads: 1))`"))?;
-    for (name, p) in
+        .map_err(|e| RuntimeValueError::Syntax(Box::new(e)))?;
+    for (pool, p) in
         [("app", &pools.app), ("acc", &pools.acc), ("tx", &pools.tx), ("rx", &pools.rx), ("net", &pools.net)]
     {
         if !(1..=MAX_WORKER_THREADS).contains(&p.worker_threads) {
-            return Err(format!("{name}.worker_threads is {}; 1 to {MAX_WORKER_THREADS}", p.worker_threads));
+            return Err(RuntimeValueError::WorkerThreads { pool, threads: p.worker_threads });
         }
         if !(1..=MAX_BLOCKING_THREADS).contains(&p.max_blocking_threads) {
-            return Err(format!(
-                "{name}.max_blocking_threads is {}; 1 to {MAX_BLOCKING_THREADS}",
-                p.max_blocking_threads
-            ));
+            return Err(RuntimeValueError::BlockingThreads { pool, threads: p.max_blocking_threads });
         }
     }
     Ok(())
 }
 
 /// Checks this process's `ZENOH_RUNTIME` (unset, or not Unicode, is Zenoh's defaults).
-pub fn check() -> Result<(), String> {
+pub fn check() -> Result<(), RuntimeEnvError> {
     match std::env::var(VAR) {
-        Ok(value) => check_value(&value)
-            .map_err(|why| format!("{VAR}={value:?}: {why}; unset it for Zenoh's defaults")),
+        Ok(value) => check_value(&value).map_err(|why| RuntimeEnvError { value, why }),
         Err(VarError::NotPresent | VarError::NotUnicode(_)) => Ok(()),
     }
 }
@@ -123,9 +159,9 @@ mod tests {
             ("(app: (worker_threads: 100000))", "1 to 256"),
             ("(rx: (worker_threads: -1))", "syntax"),
         ] {
-            let err = check_value(bad).unwrap_err();
+            let err = check_value(bad).unwrap_err().to_string();
             assert!(err.contains(says), "{bad:?}: {err}");
         }
-        assert!(check_value(&" ".repeat(MAX_LEN + 1)).unwrap_err().contains("at most"));
+        assert!(check_value(&" ".repeat(MAX_LEN + 1)).unwrap_err().to_string().contains("at most"));
     }
 }
