@@ -222,17 +222,28 @@ impl Access {
     }
 }
 
+/// Why a file's text is not a token ([`parse_token`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TokenError {
+    /// Shorter than [`MIN_TOKEN_BYTES`] or longer than [`MAX_TOKEN_BYTES`] once trimmed.
+    #[error("the token is {len} bytes; it must be {MIN_TOKEN_BYTES}-{MAX_TOKEN_BYTES}")]
+    Length {
+        /// The trimmed text's length in bytes.
+        len: usize,
+    },
+    /// Holds a character a header or cookie cannot carry as is.
+    #[error("the token holds {0:?}: use printable ASCII without spaces, ';' or ','")]
+    Character(char),
+}
+
 /// Reads a token from a file's text: trimmed, printable ASCII without spaces, 16-256 bytes.
-pub fn parse_token(text: &str) -> Result<String, String> {
+pub fn parse_token(text: &str) -> Result<String, TokenError> {
     let t = text.trim();
     if t.len() < MIN_TOKEN_BYTES || t.len() > MAX_TOKEN_BYTES {
-        return Err(format!(
-            "the token is {} bytes; it must be {MIN_TOKEN_BYTES}-{MAX_TOKEN_BYTES}",
-            t.len()
-        ));
+        return Err(TokenError::Length { len: t.len() });
     }
     if let Some(c) = t.chars().find(|c| !c.is_ascii_graphic() || *c == ';' || *c == ',') {
-        return Err(format!("the token holds {c:?}: use printable ASCII without spaces, ';' or ','"));
+        return Err(TokenError::Character(c));
     }
     Ok(t.to_string())
 }
@@ -269,8 +280,8 @@ pub enum TokenFileError {
     Token {
         /// The file.
         path: PathBuf,
-        /// Why.
-        reason: String,
+        /// Why (printed in this message, so not also a `source`).
+        reason: TokenError,
     },
 }
 
@@ -458,8 +469,8 @@ mod tests {
     #[test]
     fn tokens_from_files_are_checked_and_new_ones_are_random() {
         assert_eq!(parse_token(" 0123456789abcdef0123\n").unwrap(), T);
-        assert!(parse_token("short").unwrap_err().contains("5 bytes"));
-        assert!(parse_token("0123456789abcdef 0123").unwrap_err().contains("' '"));
+        assert!(parse_token("short").unwrap_err().to_string().contains("5 bytes"));
+        assert!(parse_token("0123456789abcdef 0123").unwrap_err().to_string().contains("' '"));
         assert!(parse_token(&"x".repeat(300)).is_err());
         let (a, b) = (new_token(), new_token());
         assert_eq!(a.len(), 32);
