@@ -2,6 +2,7 @@
 //! An accepted field is internally consistent (plant ids are their indices, sources exist,
 //! delays finite and >= 0) and its own `to_json` reads back.
 
+use frond_formats::field_json::FieldJson;
 use frond_fuzz::{Target, as_text, assert_message, fuzz};
 use frond_motion::field::{Field, FieldError, FieldParams, make_field};
 

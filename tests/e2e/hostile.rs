@@ -10,6 +10,7 @@ use std::sync::{Arc, Barrier};
 use std::time::{Duration, Instant};
 
 use frond_e2e::{Daemon, wait_for};
+use frond_formats::field_json::FieldJson;
 use frond_motion::field::{FieldParams, make_field};
 use frond_protocol::{
     CONTROL_SOCKET, ControlErrorKind, ControlReply, ControlRequest, FrameBuf, PROTOCOL_VERSION, StageSpec,

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use frond_formats::field_json::FieldJson;
 use frond_protocol::{ControlReply, ControlRequest, FrameBuf, read_frame, write_frame};
 
 pub use frond_netns as netns;

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use anyhow::anyhow;
 use frond_formats::bvh::{self, BvhPlant};
+use frond_formats::field_json::FieldJson;
 use frond_motion::clip::Clip;
 use frond_motion::field::{Field, MAX_FIELD_FILE_BYTES};
 use frond_motion::rig::Rig;

@@ -7,6 +7,7 @@
 //! (default 30, the seed's rate): recorded 1 kHz takes are resampled first.
 
 use anyhow::anyhow;
+use frond_formats::field_json::{FieldJson, TransitionsJson};
 use frond_formats::import::{ImportKind, import_jsonl};
 use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};

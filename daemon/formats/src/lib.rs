@@ -11,7 +11,8 @@
 //! - [`jsonl`]: hand samples and poses as JSON Lines; [`import`] turns such a file into frames;
 //! - [`bvh`] and [`usd`]: the exchange formats `frond take bvh` and `frond take usd` write;
 //! - [`gltf_mesh`]: a rig's glTF/GLB mesh;
-//! - [`graph_file`]: the motion graph file `NAME.graph.json`.
+//! - [`graph_file`]: the motion graph file `NAME.graph.json`;
+//! - [`field_json`]: `field.json` and the loop analysis `frond take loop --explain` prints.
 //!
 //! Parsers are pure (bytes in, values out) so they can be fuzzed (`fuzz/`); only [`rig_files`]
 //! touches the file system.
@@ -19,6 +20,7 @@
 #![warn(missing_docs)]
 
 pub mod bvh;
+pub mod field_json;
 pub mod gltf_mesh;
 pub mod graph_file;
 pub mod import;

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
+use frond_formats::field_json::FieldJson;
 use frond_formats::layers::TakeBytes;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
 use frondd::engine::{Engine, LoopCommand};

@@ -268,26 +268,6 @@ pub fn make_field(p: &FieldParams, take: &str, frames: usize, fps: f64) -> Resul
 }
 
 impl Field {
-    /// Writes `field.json` (pretty, with a trailing newline).
-    pub fn to_json(&self) -> String {
-        let mut s = serde_json::to_string_pretty(self).unwrap_or_default();
-        s.push('\n');
-        s
-    }
-
-    /// Reads and checks `field.json` ([`Field::check`]).
-    pub fn from_json(text: &str) -> Result<Field, FieldError> {
-        let f: Field = serde_json::from_str(text).map_err(|e| FieldError::Json(e.to_string()))?;
-        if f.version != FIELD_VERSION {
-            return Err(FieldError::Json(format!(
-                "version {} is not supported (expected {FIELD_VERSION})",
-                f.version
-            )));
-        }
-        f.check()?;
-        Ok(f)
-    }
-
     /// Checks every quantity that sizes memory or a loop against its limit
     /// ([`MAX_FIELD_CELLS`], [`MAX_FIELD_PLANTS`], [`MAX_FIELD_FRAMES`], [`MAX_FIELD_FPS`],
     /// [`MAX_FIELD_DELAY_S`]) and that the plants are consistent with the grid: a typed
@@ -676,15 +656,10 @@ mod tests {
     }
 
     #[test]
-    fn json_round_trip_and_errors() {
+    fn fields_are_reproducible_and_parameters_checked() {
         let f = make_field(&FieldParams { density: 0.5, ..params(3, 6) }, "t", 50, 30.0).unwrap();
         assert!(f.plants.len() < 18);
-        assert_eq!(Field::from_json(&f.to_json()).unwrap(), f);
         assert_eq!(make_field(&FieldParams { density: 0.5, ..params(3, 6) }, "t", 50, 30.0).unwrap(), f);
-        assert!(Field::from_json("{}").unwrap_err().to_string().starts_with("field.json: missing field"));
-        let mut g = f.clone();
-        g.version = 9;
-        assert!(Field::from_json(&g.to_json()).unwrap_err().to_string().contains("version 9"));
         for (p, msg) in [
             (FieldParams { rows: 0, ..params(1, 1) }, "--rows"),
             (FieldParams { cell_m: 0.0, ..params(1, 1) }, "--cell"),

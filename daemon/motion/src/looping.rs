@@ -71,11 +71,6 @@ pub struct Transitions {
 }
 
 impl Transitions {
-    /// `{"pivot":N,"transitions":[...]}`.
-    pub fn explain_json(&self) -> String {
-        serde_json::to_string(self).unwrap_or_default()
-    }
-
     /// Whether frame `i` is a transition frame.
     pub fn contains(&self, i: usize) -> bool {
         self.transitions.binary_search(&i).is_ok()
@@ -383,7 +378,6 @@ mod tests {
         assert_eq!(d, [6.0, 4.0, 4.0, 0.0, 4.0, 6.0, 6.0, 4.0]);
         let t = find_transitions(&c, &LoopParams { regions: 3, per_region: 1, window: 1 }).unwrap();
         assert_eq!(t, Transitions { pivot: 10, transitions: vec![2, 4, 8, 10] });
-        assert_eq!(t.explain_json(), r#"{"pivot":10,"transitions":[2,4,8,10]}"#);
         // P = 2: region 0 -> 2, 3; region 1 -> 4, 5; region 2 -> 8 (its only candidate).
         let t = find_transitions(&c, &LoopParams { regions: 3, per_region: 2, window: 1 }).unwrap();
         assert_eq!(t.transitions, [2, 3, 4, 5, 8, 10]);

@@ -3,6 +3,7 @@
 
 use std::time::{Duration, Instant};
 
+use frond_formats::field_json::FieldJson;
 use frond_motion::{JOINTS, PoseFrame, TakeFrame, TakeHeader};
 
 use crate::bake::{BakeOptions, Baker};

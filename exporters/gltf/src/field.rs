@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use frond_formats::field_json::FieldJson;
 use frond_motion::clip::Clip;
 use frond_motion::field::Field as MotionField;
 

@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
+use frond_formats::field_json::FieldJson;
 use frond_motion::clip::Joints;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::{Field, FieldPlayer};

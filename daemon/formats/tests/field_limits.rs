@@ -4,6 +4,7 @@
 //! written out from the documented limits (one hour at 30 FPS, a million cells), not taken
 //! from the constants under test.
 
+use frond_formats::field_json::FieldJson;
 use frond_motion::clip::Clip;
 use frond_motion::controls::FieldControls;
 use frond_motion::field::{Field, FieldError, FieldParams, FieldPlayer, make_field};
