@@ -93,53 +93,101 @@ pub(crate) fn sim(g: &Global, cmd: SimCommand) -> anyhow::Result<()> {
     }
 }
 
+/// What is wrong with `frond graph goal KIND [VALUE]` ([`parse_goal`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum GoalError {
+    /// `dir` with a value that is not a finite angle within +-360 degrees.
+    #[error("goal dir {0:?}: expected an angle in degrees within +-360")]
+    Angle(String),
+    /// `pose` with a value that is neither `frame=N` nor 12 angles: the parser's reason.
+    #[error("goal pose {0}")]
+    Pose(String),
+    /// `off` or `hand` given a value.
+    #[error("goal {kind} takes no value, got {value:?}")]
+    NoValueTaken {
+        /// The goal kind.
+        kind: String,
+        /// The value given.
+        value: String,
+    },
+    /// `dir` or `pose` without a value.
+    #[error("goal {0} needs a value (dir DEG, pose frame=N|12 angles)")]
+    ValueNeeded(String),
+    /// A kind that is none of the goals.
+    #[error("unknown goal {0:?}: expected dir DEG, hand, pose frame=N|12 angles, or off")]
+    Unknown(String),
+}
+
 /// Parses `frond graph goal KIND [VALUE]`.
-pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, String> {
+pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, GoalError> {
     match (kind, value) {
         ("off", None) => Ok(GraphGoal::Off),
         ("hand", None) => Ok(GraphGoal::Hand),
         ("dir", Some(v)) => match v.trim().parse::<f64>() {
             Ok(deg) if deg.is_finite() && deg.abs() <= 360.0 => Ok(GraphGoal::Dir { deg }),
-            _ => Err(format!("goal dir {v:?}: expected an angle in degrees within +-360")),
+            _ => Err(GoalError::Angle(v.to_string())),
         },
         ("pose", Some(v)) => match v.parse::<PoseGoalSpec>() {
             Ok(PoseGoalSpec::Frame(frame)) => Ok(GraphGoal::Frame { frame }),
             Ok(PoseGoalSpec::Angles(joints_deg)) => Ok(GraphGoal::Pose { joints_deg }),
-            Err(e) => Err(format!("goal pose {e}")),
+            Err(e) => Err(GoalError::Pose(e.to_string())),
         },
-        ("off" | "hand", Some(v)) => Err(format!("goal {kind} takes no value, got {v:?}")),
-        ("dir" | "pose", None) => Err(format!("goal {kind} needs a value (dir DEG, pose frame=N|12 angles)")),
-        (other, _) => {
-            Err(format!("unknown goal {other:?}: expected dir DEG, hand, pose frame=N|12 angles, or off"))
+        ("off" | "hand", Some(v)) => {
+            Err(GoalError::NoValueTaken { kind: kind.to_string(), value: v.to_string() })
         }
+        ("dir" | "pose", None) => Err(GoalError::ValueNeeded(kind.to_string())),
+        (other, _) => Err(GoalError::Unknown(other.to_string())),
     }
 }
 
+/// Why a `--graph` argument names no graph the daemon can read ([`graph_name`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum GraphFileError {
+    /// The path cannot be resolved (it does not exist, or a directory on it cannot be read):
+    /// the system's reason, as text so that the error compares.
+    #[error("cannot open the graph file: {0}")]
+    Open(String),
+    /// The path is a directory or another non-file.
+    #[error("not a regular file")]
+    NotAFile,
+    /// The file's name does not end in `.graph.json` after a name.
+    #[error("a graph file is named NAME{GRAPH_SUFFIX} (as `frond take graph` writes it)")]
+    Named,
+    /// The file lies outside the takes directory the daemon reads graphs from.
+    #[error(
+        "the daemon reads graphs only from its takes directory {}: build the graph there \
+         (`frond take graph TAKE`, the default) or copy the file into it",
+        takes_dir.display()
+    )]
+    OutsideTakesDir {
+        /// The takes directory.
+        takes_dir: std::path::PathBuf,
+    },
+}
+
+/// How a graph file's name ends.
+const GRAPH_SUFFIX: &str = ".graph.json";
+
 /// The graph name of a `--graph` argument: a NAME as it is, or a path (holding `/` or ending in
 /// `.graph.json`) to a graph file that lies in `takes_dir`, whose name it then gives.
-fn graph_name(arg: &str, takes_dir: &std::path::Path) -> Result<String, String> {
-    const SUFFIX: &str = ".graph.json";
-    if !arg.contains('/') && !arg.ends_with(SUFFIX) {
+fn graph_name(arg: &str, takes_dir: &std::path::Path) -> Result<String, GraphFileError> {
+    if !arg.contains('/') && !arg.ends_with(GRAPH_SUFFIX) {
         return Ok(arg.to_string());
     }
     let path = std::path::Path::new(arg);
-    let file = std::fs::canonicalize(path).map_err(|e| format!("cannot open the graph file: {e}"))?;
+    let file = std::fs::canonicalize(path).map_err(|e| GraphFileError::Open(e.to_string()))?;
     if !file.is_file() {
-        return Err("not a regular file".into());
+        return Err(GraphFileError::NotAFile);
     }
     let name = file
         .file_name()
         .and_then(|n| n.to_str())
-        .and_then(|n| n.strip_suffix(SUFFIX))
+        .and_then(|n| n.strip_suffix(GRAPH_SUFFIX))
         .filter(|n| !n.is_empty())
-        .ok_or_else(|| format!("a graph file is named NAME{SUFFIX} (as `frond take graph` writes it)"))?;
+        .ok_or(GraphFileError::Named)?;
     let in_takes_dir = std::fs::canonicalize(takes_dir).is_ok_and(|d| file.parent() == Some(d.as_path()));
     if !in_takes_dir {
-        return Err(format!(
-            "the daemon reads graphs only from its takes directory {}: build the graph there \
-             (`frond take graph TAKE`, the default) or copy the file into it",
-            takes_dir.display()
-        ));
+        return Err(GraphFileError::OutsideTakesDir { takes_dir: takes_dir.to_path_buf() });
     }
     Ok(name.to_string())
 }
@@ -205,7 +253,7 @@ pub(crate) fn run(g: &Global, cmd: GraphCommand) -> anyhow::Result<()> {
         GraphCommand::Goal { kind, value } => {
             let goal = match parse_goal(&kind, value.as_deref()) {
                 Ok(goal) => goal,
-                Err(e) => return crate::error::usage(e),
+                Err(e) => return crate::error::usage(e.to_string()),
             };
             let mut c = Control::from_global(g)?;
             c.expect_ok(&ControlRequest::StageInput {
@@ -243,13 +291,17 @@ mod tests {
         let inside = takes.path().join("breeze.graph.json");
         assert_eq!(graph_name(inside.to_str().unwrap(), takes.path()), Ok("breeze".into()));
         let outside = elsewhere.path().join("breeze.graph.json");
-        let e = graph_name(outside.to_str().unwrap(), takes.path()).unwrap_err();
+        let e = graph_name(outside.to_str().unwrap(), takes.path()).unwrap_err().to_string();
         assert!(e.contains("only from its takes directory"), "{e}");
-        let e = graph_name(takes.path().join("breeze.json").to_str().unwrap(), takes.path()).unwrap_err();
+        let e = graph_name(takes.path().join("breeze.json").to_str().unwrap(), takes.path())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("NAME.graph.json"), "{e}");
-        let e = graph_name(takes.path().join("gone.graph.json").to_str().unwrap(), takes.path()).unwrap_err();
+        let e = graph_name(takes.path().join("gone.graph.json").to_str().unwrap(), takes.path())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cannot open"), "{e}");
-        let e = graph_name(takes.path().to_str().unwrap(), takes.path()).unwrap_err();
+        let e = graph_name(takes.path().to_str().unwrap(), takes.path()).unwrap_err().to_string();
         assert!(e.contains("not a regular file"), "{e}");
     }
 
@@ -259,20 +311,27 @@ mod tests {
         assert_eq!(parse_goal("pose", Some("frame=12")), Ok(GraphGoal::Frame { frame: 12 }));
         assert_eq!(parse_goal("hand", None), Ok(GraphGoal::Hand));
         assert_eq!(parse_goal("off", None), Ok(GraphGoal::Off));
-        assert!(parse_goal("dir", Some("nan")).unwrap_err().contains("angle"));
-        assert!(parse_goal("dir", None).unwrap_err().contains("needs a value"));
+        assert!(parse_goal("dir", Some("nan")).unwrap_err().to_string().contains("angle"));
+        assert!(parse_goal("dir", None).unwrap_err().to_string().contains("needs a value"));
         assert!(
-            parse_goal("pose", Some("1,2,3")).unwrap_err().contains("12 finite angles"),
+            parse_goal("pose", Some("1,2,3")).unwrap_err().to_string().contains("12 finite angles"),
             "{:?}",
             parse_goal("pose", Some("1,2,3"))
         );
-        assert!(parse_goal("pose", Some("frame=x")).unwrap_err().contains("frame=N needs a frame number"));
+        assert!(
+            parse_goal("pose", Some("frame=x"))
+                .unwrap_err()
+                .to_string()
+                .contains("frame=N needs a frame number")
+        );
         let twelve = "1,2,3,4,5,6,7,8,9,10,11,-12";
         let want = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0], [10.0, 11.0, -12.0]];
         assert_eq!(parse_goal("pose", Some(twelve)), Ok(GraphGoal::Pose { joints_deg: want }));
-        assert!(parse_goal("pose", Some(&format!("{twelve},1"))).unwrap_err().contains("or more"));
-        assert!(parse_goal("north", None).unwrap_err().contains("unknown goal"));
-        assert!(parse_goal("off", Some("1")).unwrap_err().contains("takes no value"));
+        assert!(
+            parse_goal("pose", Some(&format!("{twelve},1"))).unwrap_err().to_string().contains("or more")
+        );
+        assert!(parse_goal("north", None).unwrap_err().to_string().contains("unknown goal"));
+        assert!(parse_goal("off", Some("1")).unwrap_err().to_string().contains("takes no value"));
     }
 }
 

@@ -33,8 +33,9 @@ pub(crate) fn run(
     let mut sub = subscribe(&dir, &source)?;
     let mut names = sub.hello().joint_names.clone();
     // `--element`: an id, or a name looked up in the element table (again when it changes).
-    let pick =
-        |table: &frond_protocol::ElementTable| pick_element(element, table).or_else(crate::error::usage);
+    let pick = |table: &frond_protocol::ElementTable| {
+        pick_element(element, table).or_else(|e| crate::error::usage(e.to_string()))
+    };
     let mut table = sub.elements().clone();
     let mut only = pick(&table)?;
     if let Some(note) = unannounced(only, &table) {
@@ -188,19 +189,29 @@ impl Silence {
     }
 }
 
+/// An `--element` name that the element table does not hold ([`pick_element`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("--element {want:?}: no such element (announced: {})", announced.join(", "))]
+pub(crate) struct NoSuchElement {
+    /// The name asked for.
+    pub want: String,
+    /// The names the table announces.
+    pub announced: Vec<String>,
+}
+
 /// The element id `--element` (`want`: an id, or a name in `table`) stands for; `None` without
 /// `--element`. `Err` says the name is not in the table and names those that are.
 pub(crate) fn pick_element(
     want: Option<&str>,
     table: &frond_protocol::ElementTable,
-) -> Result<Option<u16>, String> {
+) -> Result<Option<u16>, NoSuchElement> {
     let Some(want) = want else { return Ok(None) };
     if let Ok(id) = want.parse::<u16>() {
         return Ok(Some(id));
     }
-    table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| {
-        let known: Vec<&str> = table.elements.iter().map(|e| e.name.as_str()).collect();
-        format!("--element {want:?}: no such element (announced: {})", known.join(", "))
+    table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| NoSuchElement {
+        want: want.to_string(),
+        announced: table.elements.iter().map(|e| e.name.clone()).collect(),
     })
 }
 
@@ -385,7 +396,9 @@ mod tests {
         let table = frond_protocol::ElementTable::default();
         assert_eq!(pick_element(None, &table), Ok(None));
         assert_eq!(pick_element(Some("3"), &table), Ok(Some(3)));
-        assert!(pick_element(Some("leaf"), &table).unwrap_err().contains("\"leaf\": no such element"));
+        assert!(
+            pick_element(Some("leaf"), &table).unwrap_err().to_string().contains("\"leaf\": no such element")
+        );
         // An id not in the table is waited for, with a word.
         assert_eq!(unannounced(None, &table), None);
         assert_eq!(
