@@ -40,18 +40,74 @@ pub const PATHS: [&str; 11] = [
 /// Longest marker label, bytes (the daemon's limit).
 pub const MAX_LABEL_BYTES: usize = 256;
 
+/// What is wrong with a page's action ([`request`]); the page shows the message.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ActionError {
+    /// The body lacks a string field the action needs.
+    #[error("{path} needs {{\"{key}\": \"...\"}}")]
+    Missing {
+        /// The action's path.
+        path: String,
+        /// The field.
+        key: &'static str,
+    },
+    /// A take name (`name` or `take`) that is not one.
+    #[error("{key}: {why}")]
+    TakeName {
+        /// The field.
+        key: &'static str,
+        /// Why.
+        why: frond_protocol::paths::TakeNameError,
+    },
+    /// A marker label that is empty or longer than [`MAX_LABEL_BYTES`].
+    #[error("a marker label is 1-{MAX_LABEL_BYTES} bytes, not {len}")]
+    LabelLength {
+        /// The label's length in bytes.
+        len: usize,
+    },
+    /// No embedded rig has this name.
+    #[error("no embedded rig {name:?}; the console offers {known}")]
+    UnknownRig {
+        /// The name asked for.
+        name: String,
+        /// The embedded rigs' names, comma-separated.
+        known: String,
+    },
+    /// An embedded rig failed to load: the loader's message, kept as text because its error
+    /// holds an `io::Error` (not comparable) and embedded rigs are checked by their own tests.
+    #[error("{0}")]
+    BrokenRig(String),
+    /// A filter specification that does not parse.
+    #[error("filter {spec:?}: {why}")]
+    Filter {
+        /// The specification as posted.
+        spec: String,
+        /// Why.
+        why: frond_motion::FilterSpecError,
+    },
+    /// A calibration file's text that is not a calibration.
+    #[error("calibration: {0}")]
+    Calibration(frond_motion::CalibrationError),
+    /// A field key that is none of the stage's.
+    #[error(transparent)]
+    FieldKey(#[from] frond_protocol::control::UnknownStageKey),
+    /// No action has this path.
+    #[error("no action {0}")]
+    NoAction(String),
+}
+
 /// The request for action `path` with `body` (the JSON object the page posted), or what is
 /// wrong with it.
-pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
-    let text = |key: &str| -> Result<String, String> {
+pub fn request(path: &str, body: &Value) -> Result<ControlRequest, ActionError> {
+    let text = |key: &'static str| -> Result<String, ActionError> {
         body.get(key)
             .and_then(Value::as_str)
             .map(str::to_string)
-            .ok_or_else(|| format!("{path} needs {{\"{key}\": \"...\"}}"))
+            .ok_or_else(|| ActionError::Missing { path: path.to_string(), key })
     };
-    let take_name = |key: &str| -> Result<String, String> {
+    let take_name = |key: &'static str| -> Result<String, ActionError> {
         let name = text(key)?;
-        paths::validate_take_name(&name).map_err(|e| format!("{key}: {e}"))?;
+        paths::validate_take_name(&name).map_err(|why| ActionError::TakeName { key, why })?;
         Ok(name)
     };
     Ok(match path {
@@ -60,7 +116,7 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
         "/api/mark" => {
             let label = text("label")?;
             if label.is_empty() || label.len() > MAX_LABEL_BYTES {
-                return Err(format!("a marker label is 1-{MAX_LABEL_BYTES} bytes, not {}", label.len()));
+                return Err(ActionError::LabelLength { len: label.len() });
             }
             ControlRequest::Mark { label }
         }
@@ -74,25 +130,26 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
             let Some(loaded) = frond_formats::rig_files::embedded_rig(&name) else {
                 let known: Vec<&str> =
                     frond_formats::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect();
-                return Err(format!("no embedded rig {name:?}; the console offers {}", known.join(", ")));
+                return Err(ActionError::UnknownRig { name, known: known.join(", ") });
             };
-            let loaded = loaded.map_err(|e| e.to_string())?;
+            let loaded = loaded.map_err(|e| ActionError::BrokenRig(e.to_string()))?;
             ControlRequest::SetRig { name: loaded.rig.name.clone(), toml: loaded.text }
         }
         "/api/filter" => {
             let spec = text("spec")?;
-            let filter: FilterSpec = spec.trim().parse().map_err(|e| format!("filter {spec:?}: {e}"))?;
+            let filter: FilterSpec = match spec.trim().parse() {
+                Ok(filter) => filter,
+                Err(why) => return Err(ActionError::Filter { spec, why }),
+            };
             ControlRequest::SetFilter { spec: filter.to_string() }
         }
         "/api/calibration" => {
             let toml = text("toml")?;
-            let cal = Calibration::from_toml_str(&toml).map_err(|e| format!("calibration: {e}"))?;
+            let cal = Calibration::from_toml_str(&toml).map_err(ActionError::Calibration)?;
             ControlRequest::SetCalibration { id: cal.id.clone(), toml }
         }
         "/api/field/key" => {
-            let key = text("key")?;
-            let key: StageKey =
-                key.parse().map_err(|e: frond_protocol::control::UnknownStageKey| e.to_string())?;
+            let key: StageKey = text("key")?.parse()?;
             ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(key) }
         }
         "/api/field/stop" => ControlRequest::StageStop { name: "field".into() },
@@ -102,7 +159,7 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, String> {
                 ControlRequest::StageStart { name: None, spec: StageSpec::Guided { spec: spec.to_string() } }
             }
         },
-        other => return Err(format!("no action {other}")),
+        other => return Err(ActionError::NoAction(other.to_string())),
     })
 }
 
@@ -150,7 +207,7 @@ mod tests {
             ("/api/field/key", json!({"key": "sideways"}), "unknown field key"),
             ("/api/nothing", json!({}), "no action"),
         ] {
-            let e = request(path, &body).unwrap_err();
+            let e = request(path, &body).unwrap_err().to_string();
             assert!(e.contains(want), "{path} {body}: {e}");
         }
     }

@@ -34,6 +34,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
+use frond_formats::field_json::FieldJson;
 use frond_protocol::{ControlReply, ControlRequest, StageSpec};
 use frond_sdk::Hello;
 use serde_json::{Value, json};
@@ -447,7 +448,7 @@ impl Console {
         };
         let request = match actions::request(&req.path, &body) {
             Ok(r) => r,
-            Err(e) => return Response::error(400, e),
+            Err(e) => return Response::error(400, e.to_string()),
         };
         self.act(&request)
     }
