@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, anyhow};
 use clap::Args;
+use frond_formats::rig_toml::sim_from_toml_str;
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
-use frond_motion::sim::{SimError, WindSpec, sim_from_toml_str, simulate_each};
+use frond_motion::sim::{SimError, WindSpec, simulate_each};
 use frond_motion::take::TakeHeader;
 
 use crate::control::load_rig;

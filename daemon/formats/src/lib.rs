@@ -12,6 +12,7 @@
 //! - [`bvh`] and [`usd`]: the exchange formats `frond take bvh` and `frond take usd` write;
 //! - [`gltf_mesh`]: a rig's glTF/GLB mesh;
 //! - [`graph_file`]: the motion graph file `NAME.graph.json`;
+//! - [`rig_toml`]: the `[sim]` table of a `--sim` file;
 //! - [`field_json`]: `field.json` and the loop analysis `frond take loop --explain` prints.
 //!
 //! Parsers are pure (bytes in, values out) so they can be fuzzed (`fuzz/`); only [`rig_files`]
@@ -27,6 +28,7 @@ pub mod import;
 pub mod jsonl;
 pub mod layers;
 pub mod rig_files;
+pub mod rig_toml;
 pub mod take;
 pub mod take_repair;
 pub mod usd;

@@ -220,10 +220,12 @@ fn within(p: &mut Problems, path: String, v: f64, (lo, hi): (f64, f64), what: &s
     }
 }
 
-/// The `[sim]` table as written in a rig file; every key optional.
+/// The `[sim]` table as written in a rig file; every key optional. Public for the readers in
+/// frond-formats (rig files, `--sim` files); build a [`SimParams`] with [`RawSim::validate`].
+#[doc(hidden)]
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct RawSim {
+pub struct RawSim {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     mass_kg: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -258,7 +260,7 @@ fn take4(p: &mut Problems, key: &str, given: &Option<Vec<f64>>, default: [f64; 4
 impl RawSim {
     /// Validates the table; values not given take [`SimParams::defaults_for`] (damping defaults
     /// follow the stiffness and masses given).
-    pub(crate) fn validate(&self, p: &mut Problems, heights_m: [f64; NODES]) -> SimParams {
+    pub fn validate(&self, p: &mut Problems, heights_m: [f64; NODES]) -> SimParams {
         let d = SimParams::defaults_for(heights_m);
         let mut s = d;
         s.mass_kg = take4(p, "mass_kg", &self.mass_kg, d.mass_kg);
