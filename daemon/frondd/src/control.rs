@@ -1,171 +1,34 @@
 //! The control socket: status, rig/calibration/filter changes, recording, markers.
 //!
-//! Each connection gets a thread (bounded in number) that reads one request frame at a time,
-//! with a read timeout, and answers with one reply frame. Every refusal is a typed
-//! [`ControlError`] reply and a log line. Changes reach the realtime loop as [`LoopCommand`]s.
+//! Each connection gets a thread (bounded in number, `control_conn`)
+//! that reads one request frame at a time, with a read timeout, and answers with one reply
+//! frame; this module answers the requests (the live stages' in `control_stage`). Every refusal
+//! is a typed [`ControlError`](frond_protocol::ControlError) reply and a log line (`refuse`).
+//! Changes reach the realtime loop as [`LoopCommand`]s.
 
 pub use crate::access::{AccessError, AccessPolicy, PeerCred, peer_cred};
-use std::os::unix::net::{UnixListener, UnixStream};
-use std::path::PathBuf;
-use std::sync::atomic::Ordering::{AcqRel, Acquire, Relaxed};
-use std::sync::atomic::{AtomicBool, AtomicUsize};
-use std::sync::{Arc, Mutex};
+pub use crate::control_conn::{
+    CONTROL_READ_TIMEOUT, CONTROL_REQUEST_DEADLINE, ClientSlot, MAX_CONTROL_CLIENTS, MAX_CONTROL_REQUEST,
+    spawn_control,
+};
+pub use crate::control_state::{ControlContext, DEVICE_EVENTS_KEPT, DaemonState, HandState, Setup};
+
+use std::sync::atomic::Ordering::Relaxed;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
-use crossbeam_channel::{Sender, bounded};
-use frond_device::SourceCounters;
+use crossbeam_channel::bounded;
 use frond_motion::take::TakeHeader;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, DecodeError, ElementTable, FrameBuf,
-    HandStatus, ReadError, RecordingStatus, SourceStatus, StatusReport, encode_frame_as,
-    paths::validate_take_name, read_frame_limited, write_frame,
+    ControlErrorKind, ControlReply, ControlRequest, HandStatus, RecordingStatus, SourceStatus, StatusReport,
+    paths::validate_take_name,
 };
 use tracing::{info, warn};
 
-use crate::handoff::{ElementsCell, LoopCommand};
-use crate::publisher::SubscriberRegistry;
-use crate::recorder::{RecorderCounters, RecorderMsg};
-use crate::stage::registry::StageRegistry;
-use crate::stats::LoopStats;
-
-/// Most control connections at once.
-pub const MAX_CONTROL_CLIENTS: usize = 16;
-/// Idle time between two requests after which a control connection is closed.
-pub const CONTROL_READ_TIMEOUT: Duration = Duration::from_secs(30);
-/// Time a whole request may take to arrive, from its first byte to its last: a client that
-/// trickles a request (slow-loris) is answered `BadRequest` and cut off at this deadline, so it
-/// holds a connection slot for at most this long past its first byte. A full 256 KiB request
-/// over a local socket takes well under a millisecond.
-pub const CONTROL_REQUEST_DEADLINE: Duration = Duration::from_secs(5);
-/// Largest control request accepted, bytes.
-pub use frond_protocol::MAX_CONTROL_REQUEST;
-/// Device events kept for status.
-pub const DEVICE_EVENTS_KEPT: usize = 32;
-
-/// What the daemon is doing, as seen by control and status (not touched by the loop).
-pub struct DaemonState {
-    /// Active rig.
-    pub rig: Rig,
-    /// Active calibration.
-    pub calibration: Calibration,
-    /// Active filter.
-    pub filter: FilterSpec,
-    /// The hand sources, in configuration order (at least one).
-    pub hands: Vec<HandState>,
-    /// Device history of every hand, oldest first (prefixed by the hand's name when there are
-    /// several).
-    pub device_events: std::collections::VecDeque<String>,
-    /// What is wrong now and needs the operator (a removed socket, ...), one line each.
-    pub problems: Vec<String>,
-    /// Current take: name and path.
-    pub recording: Option<(String, PathBuf)>,
-    /// Ticks per second over the last second.
-    pub achieved_rate_hz: f64,
-    /// Realtime tuning in force.
-    pub realtime: String,
-    /// The live stages the loop runs.
-    pub stages: StageRegistry,
-    /// Whether the layer being recorded started the playback it records over.
-    pub layer_playback: bool,
-    /// The element table last announced.
-    pub elements: ElementTable,
-}
-
-/// A rig, calibration and filter to put in force together.
-pub struct Setup {
-    /// The rig.
-    pub rig: Rig,
-    /// The calibration.
-    pub calibration: Calibration,
-    /// The jitter filter.
-    pub filter: FilterSpec,
-}
-
-/// One hand source, as control and status see it.
-pub struct HandState {
-    /// Its name.
-    pub name: String,
-    /// Source kind (`hidraw`, `fuse-hidraw`, `in-process`, `replay`, `osc`).
-    pub kind: String,
-    /// Source path or description.
-    pub path: String,
-    /// The source's counters.
-    pub counters: Arc<SourceCounters>,
-    /// Its device history, oldest first.
-    pub events: std::collections::VecDeque<String>,
-    /// The secondary element of its rig it drives (`None`: the global element).
-    pub layer: Option<String>,
-    /// The element id it is published as.
-    pub element: u16,
-    /// Its own rig, calibration and filter; `None` when it follows the daemon's.
-    pub own: Option<Setup>,
-}
-
-impl HandState {
-    /// The rig this hand is mapped by: its own, or the daemon's.
-    pub fn rig<'a>(&'a self, state_rig: &'a Rig) -> &'a Rig {
-        self.own.as_ref().map_or(state_rig, |s| &s.rig)
-    }
-}
-
-impl DaemonState {
-    /// Adds a device event of hand `hand` (timestamped) to its history and the daemon's.
-    pub fn push_event(&mut self, started: Instant, hand: usize, text: String) {
-        let line = format!("+{:.3}s {text}", started.elapsed().as_secs_f64());
-        let several = self.hands.len() > 1;
-        if let Some(h) = self.hands.get_mut(hand) {
-            push_bounded(&mut h.events, line.clone());
-            let line = if several { format!("{}: {line}", h.name) } else { line };
-            push_bounded(&mut self.device_events, line);
-        }
-    }
-
-    /// The hand stages act on ([`crate::engine::primary_hand`], the loop's rule).
-    pub fn primary_hand(&self) -> usize {
-        crate::engine::primary_hand(self.hands.iter().map(|h| h.element))
-    }
-}
-
-fn push_bounded(events: &mut std::collections::VecDeque<String>, line: String) {
-    if events.len() == DEVICE_EVENTS_KEPT {
-        events.pop_front();
-    }
-    events.push_back(line);
-}
-
-/// Everything the control threads share.
-pub struct ControlContext {
-    /// Mutable daemon state.
-    pub state: Mutex<DaemonState>,
-    /// Loop counters.
-    pub stats: Arc<LoopStats>,
-    /// Subscribers.
-    pub registry: Arc<SubscriberRegistry>,
-    /// Recorder counters.
-    pub recorder_counters: Arc<RecorderCounters>,
-    /// Commands to the loop.
-    pub commands: Sender<LoopCommand>,
-    /// Messages to the recorder.
-    pub recorder: Sender<RecorderMsg>,
-    /// Daemon start.
-    pub started: Instant,
-    /// Where takes go.
-    pub takes_dir: PathBuf,
-    /// Nominal loop rate.
-    pub tick_rate_hz: u32,
-    /// Who may use the control socket.
-    pub access: AccessPolicy,
-    /// Whether testing aids (`FreezeLoop`) are enabled (`--test-hooks`).
-    pub test_hooks: bool,
-    /// The element table for the publisher's slow lane.
-    pub elements_cell: Arc<ElementsCell>,
-    /// Held across a whole `record start` / `record layer` / `record stop`, which take and drop
-    /// the state lock several times: two clients' sessions cannot interleave (one's failed start
-    /// undoing the other's layer, say).
-    pub recording_session: Mutex<()>,
-}
+use crate::control_state::refuse;
+use crate::handoff::LoopCommand;
+use crate::recorder::RecorderMsg;
 
 /// Longest marker label, bytes (`frond mark` and the console say the same).
 const MAX_MARKER_LABEL_BYTES: usize = 256;
@@ -185,31 +48,7 @@ fn check_marker_label(label: &str) -> Result<(), BadMarkerLabel> {
 #[error("{}", .0.0.iter().map(|p| format!("marker {p}")).collect::<Vec<_>>().join("; "))]
 struct BadMarkerLabel(frond_motion::Problems);
 
-pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
-    static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
-    let message = message.into();
-    // A client decides how often and with what text this runs: rate-limited and cut.
-    let verdict = REFUSALS.check(Instant::now());
-    if verdict.held_back_before > 0 {
-        warn!(count = verdict.held_back_before, "control refusals not logged (more than 10 in 10 s)");
-    }
-    if verdict.log {
-        warn!(?kind, message = %crate::log_limit::cut(&message), "control request refused");
-    }
-    ControlReply::Error(ControlError { kind, message })
-}
-
 impl ControlContext {
-    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, DaemonState> {
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    pub(crate) fn send_loop(&self, cmd: LoopCommand) -> Result<(), Box<ControlReply>> {
-        self.commands.send_timeout(cmd, Duration::from_millis(500)).map_err(|_| {
-            Box::new(refuse(ControlErrorKind::Internal, "the realtime loop is not accepting commands"))
-        })
-    }
-
     /// Answers one request; a panic while handling it (a bug) is caught, logged and answered
     /// `Internal`, so no panic reaches a client or ends its connection thread unanswered.
     pub fn handle_catching(&self, req: ControlRequest) -> ControlReply {
@@ -230,10 +69,6 @@ impl ControlContext {
                 )
             }
         }
-    }
-
-    fn recording_session(&self) -> std::sync::MutexGuard<'_, ()> {
-        self.recording_session.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// Answers one request.
@@ -558,231 +393,6 @@ impl ControlContext {
             problems: state.problems.clone(),
             recorder_error: self.recorder_counters.fault(),
             lateness_histogram: s.lateness.log2_buckets_us(),
-        }
-    }
-}
-
-/// Accepts control connections until `stop` is set.
-pub fn spawn_control(
-    listener: UnixListener,
-    ctx: Arc<ControlContext>,
-    stop: Arc<AtomicBool>,
-) -> std::io::Result<thread::JoinHandle<()>> {
-    listener.set_nonblocking(true)?;
-    thread::Builder::new().name("frond-control".into()).spawn(move || {
-        let clients = Arc::new(AtomicUsize::new(0));
-        while !stop.load(Relaxed) {
-            let stream = match listener.accept() {
-                Ok((s, _)) => s,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                    // Woken by a connection (at shutdown the daemon makes one), or every
-                    // `STOP_POLL` to look at `stop`.
-                    crate::clock::wait_readable(
-                        std::os::fd::AsFd::as_fd(&listener),
-                        crate::publisher::STOP_POLL,
-                    );
-                    continue;
-                }
-                Err(e) => {
-                    warn!(error = %e, "accepting a control connection failed");
-                    thread::sleep(Duration::from_millis(100));
-                    continue;
-                }
-            };
-            let Some(slot) = ClientSlot::take(&clients) else {
-                let mut stream = stream;
-                let _ = write_frame(
-                    &mut stream,
-                    &mut FrameBuf::default(),
-                    &refuse(ControlErrorKind::Internal, "too many control connections; try again"),
-                );
-                drain_queued(&mut stream);
-                continue;
-            };
-            let ctx = ctx.clone();
-            // The slot moves into the thread and is given back when it is dropped: when the
-            // connection ends, when the thread unwinds, or here if the thread never starts.
-            let spawned = thread::Builder::new().name("frond-control-conn".into()).spawn(move || {
-                let _slot = slot;
-                serve_connection(stream, &ctx);
-            });
-            if let Err(e) = spawned {
-                warn!(error = %e, "could not start a control connection thread");
-            }
-        }
-    })
-}
-
-/// One of the [`MAX_CONTROL_CLIENTS`] connection slots, held by a connection's thread and given
-/// back when dropped, however the thread ends (return, panic, or never started).
-#[derive(Debug)]
-pub struct ClientSlot(Arc<AtomicUsize>);
-
-impl ClientSlot {
-    /// A slot of `clients` (the count of slots held), or `None` when all are taken.
-    pub fn take(clients: &Arc<AtomicUsize>) -> Option<ClientSlot> {
-        clients
-            .fetch_update(AcqRel, Acquire, |n| (n < MAX_CONTROL_CLIENTS).then_some(n + 1))
-            .ok()
-            .map(|_| ClientSlot(clients.clone()))
-    }
-}
-
-impl Drop for ClientSlot {
-    fn drop(&mut self) {
-        self.0.fetch_sub(1, AcqRel);
-    }
-}
-
-/// Reads one request at a time from a control connection with two limits: at most
-/// [`CONTROL_READ_TIMEOUT`] idle before a request's first byte, and the whole request within
-/// [`CONTROL_REQUEST_DEADLINE`] of that byte (the socket's read timeout is set to what is left
-/// before each read, so a client that sends a byte now and then cannot stretch it).
-struct RequestReader<'a> {
-    stream: &'a UnixStream,
-    /// Deadline of the request being read; `None` until its first byte.
-    deadline: Option<Instant>,
-    /// Set when a read failed because the deadline passed.
-    expired: bool,
-}
-
-impl RequestReader<'_> {
-    /// Ready for the next request (idle timeout again).
-    fn next_request(&mut self) {
-        self.deadline = None;
-        self.expired = false;
-    }
-}
-
-impl std::io::Read for RequestReader<'_> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let timeout = match self.deadline {
-            None => CONTROL_READ_TIMEOUT,
-            Some(deadline) => {
-                let left = deadline.saturating_duration_since(Instant::now());
-                if left.is_zero() {
-                    self.expired = true;
-                    return Err(std::io::ErrorKind::TimedOut.into());
-                }
-                left
-            }
-        };
-        self.stream.set_read_timeout(Some(timeout))?;
-        let result = (&mut &*self.stream).read(buf);
-        match &result {
-            Ok(n) if *n > 0 && self.deadline.is_none() => {
-                self.deadline = Some(Instant::now() + CONTROL_REQUEST_DEADLINE);
-            }
-            Err(e)
-                if self.deadline.is_some()
-                    && matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
-            {
-                self.expired = true;
-            }
-            _ => {}
-        }
-        result
-    }
-}
-
-/// Reads and drops what a client already sent, without waiting (the stream is non-blocking,
-/// as accepted): closing a Unix socket with unread bytes resets it, and the client would lose
-/// the reply just written. What arrives later may still reset it; the acceptor must not wait.
-fn drain_queued(stream: &mut UnixStream) {
-    use std::io::Read;
-    let _ = stream.set_nonblocking(true);
-    let mut buf = [0u8; 4096];
-    let mut drained = 0;
-    while drained <= MAX_CONTROL_REQUEST {
-        match stream.read(&mut buf) {
-            Ok(0) | Err(_) => return,
-            Ok(n) => drained += n,
-        }
-    }
-}
-
-/// Closes a connection whose request was refused unread: the reply is written, then what the
-/// client still sends is read and dropped (at most a request's worth, for at most a second), so
-/// that closing with unread bytes does not reset the connection and lose the reply.
-fn close_after_refusal(mut stream: UnixStream) {
-    use std::io::Read;
-    let _ = stream.shutdown(std::net::Shutdown::Write);
-    let _ = stream.set_read_timeout(Some(Duration::from_millis(200)));
-    let deadline = Instant::now() + Duration::from_secs(1);
-    let mut buf = [0u8; 4096];
-    let mut drained = 0;
-    while drained <= MAX_CONTROL_REQUEST && Instant::now() < deadline {
-        match stream.read(&mut buf) {
-            Ok(0) | Err(_) => return,
-            Ok(n) => drained += n,
-        }
-    }
-}
-
-fn serve_connection(mut stream: UnixStream, ctx: &ControlContext) {
-    let _ = stream.set_nonblocking(false);
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
-    let mut scratch = Vec::new();
-    let mut out = FrameBuf::default();
-    let allowed = peer_cred(&stream).map_err(AccessError::Credentials);
-    if let Err(why) = allowed.and_then(|peer| ctx.access.check(&peer)) {
-        let _ =
-            write_frame(&mut stream, &mut out, &refuse(ControlErrorKind::PermissionDenied, why.to_string()));
-        return;
-    }
-    let reader_stream = stream.try_clone();
-    let Ok(reader_stream) = reader_stream else { return };
-    let mut reader = RequestReader { stream: &reader_stream, deadline: None, expired: false };
-    loop {
-        reader.next_request();
-        let reply = match read_frame_limited::<ControlRequest, _>(
-            &mut reader,
-            &mut scratch,
-            MAX_CONTROL_REQUEST,
-        ) {
-            Ok(req) => ctx.handle_catching(req),
-            Err(ReadError::Closed) => return,
-            Err(ReadError::Io(_)) if reader.expired => {
-                let reply = refuse(
-                    ControlErrorKind::BadRequest,
-                    format!(
-                        "the request did not arrive within {} s of its first byte; closing the connection",
-                        CONTROL_REQUEST_DEADLINE.as_secs()
-                    ),
-                );
-                let _ = write_frame(&mut stream, &mut out, &reply);
-                return;
-            }
-            Err(ReadError::Io(e))
-                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
-            {
-                return;
-            }
-            Err(ReadError::Decode(DecodeError::UnsupportedVersion { got, supported })) => {
-                // An older (or newer) client: answer in its own version, which every frond
-                // version can read for an `Error` reply, so it says what is wrong.
-                let reply = refuse(
-                    ControlErrorKind::BadRequest,
-                    format!(
-                        "this daemon speaks frond protocol version {supported}, the client version {got}; \
-                             use a frond, frondd and exporters of the same release"
-                    ),
-                );
-                let mut bytes = Vec::new();
-                encode_frame_as(got, &reply, &mut bytes);
-                let _ = std::io::Write::write_all(&mut stream, &bytes);
-                close_after_refusal(stream);
-                return;
-            }
-            Err(e) => {
-                let reply = refuse(ControlErrorKind::BadRequest, format!("bad control request: {e}"));
-                let _ = write_frame(&mut stream, &mut out, &reply);
-                close_after_refusal(stream);
-                return;
-            }
-        };
-        if write_frame(&mut stream, &mut out, &reply).is_err() {
-            return;
         }
     }
 }

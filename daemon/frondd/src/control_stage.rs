@@ -16,7 +16,7 @@ use frond_protocol::{
 use tracing::info;
 
 use crate::clock::monotonic_ns;
-use crate::control::{ControlContext, DaemonState, Setup, refuse};
+use crate::control_state::{ControlContext, DaemonState, Setup, refuse};
 use crate::handoff::{ELEMENTS_FRAME_MAX, LoopCommand};
 use crate::stage::registry::{HandElement, Running, validate_stage_name};
 use crate::stage::{self, BuildContext, BuiltStage, StageAction, StageCommand};
