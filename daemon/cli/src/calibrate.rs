@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, anyhow, bail};
 use clap::Args;
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::calibrate::{Raw, STEPS, compute};
 use frond_protocol::{ControlReply, ControlRequest, paths};
 

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use anyhow::anyhow;
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StatusReport, paths};
 use frond_sdk::ControlClient;

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::Calibration;
 use frond_protocol::{
     ControlReply, ControlRequest, FrameBuf, HandWire, Hello, LatencySummary, Pose, PoseFlags,

@@ -1,7 +1,9 @@
-//! The TOML files of the motion math: the `[sim]` table a `--sim FILE.toml` holds. What the
-//! values mean and how they are checked is `frond_motion` ([`RawSim::validate`]); this module
-//! only reads the text.
+//! The TOML files of the motion math: calibration files ([`CalibrationText`]) and the `[sim]`
+//! table a `--sim FILE.toml` holds. What the values mean and how they are checked is
+//! `frond_motion` ([`Calibration::validate`], [`RawSim::validate`]); this module only reads and
+//! writes the text.
 
+use frond_motion::calibration::{Calibration, CalibrationError};
 use frond_motion::problems::Problems;
 use frond_motion::sim::params::RawSim;
 use frond_motion::sim::{NODES, SimFileError, SimParams};
@@ -19,4 +21,27 @@ pub fn sim_from_toml_str(text: &str, heights_m: [f64; NODES]) -> Result<SimParam
     let mut p = Problems::default();
     let sim = doc.sim.validate(&mut p, heights_m);
     if p.is_empty() { Ok(sim) } else { Err(SimFileError::Invalid(p)) }
+}
+
+/// A calibration file: `use frond_formats::rig_toml::CalibrationText;` and call
+/// `Calibration::from_toml_str(text)` / `calibration.to_toml_string()`.
+pub trait CalibrationText: Sized {
+    /// Parses and validates a calibration file.
+    fn from_toml_str(text: &str) -> Result<Self, CalibrationError>;
+    /// Writes the calibration as TOML; [`CalibrationText::from_toml_str`] reads it back identically.
+    fn to_toml_string(&self) -> String;
+}
+
+impl CalibrationText for Calibration {
+    fn from_toml_str(text: &str) -> Result<Calibration, CalibrationError> {
+        let c: Calibration =
+            toml::from_str(text).map_err(|e| CalibrationError::Toml(e.to_string().trim_end().to_string()))?;
+        c.validate().map_err(CalibrationError::Invalid)?;
+        Ok(c)
+    }
+
+    fn to_toml_string(&self) -> String {
+        // Serializing plain strings and f32 arrays cannot fail.
+        toml::to_string(self).unwrap_or_default()
+    }
 }

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender, bounded};
 use frond_device::HandSource;
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::take::TakeFrame;
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
 use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION, Pose};

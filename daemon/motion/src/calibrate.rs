@@ -186,8 +186,6 @@ mod tests {
         assert_eq!(c.thumb_range_deg, [35.0, 70.0, 63.0]);
         assert_eq!(c.wrist_range_deg, Some([[-50.0, 60.0], [-20.0, 30.0], [-70.0, 80.0]]));
         assert!(m.warnings.is_empty(), "{:?}", m.warnings);
-        // The file it writes reads back identically.
-        assert_eq!(Calibration::from_toml_str(&c.to_toml_string()).unwrap(), c);
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! The shipped rig and calibration files parse, validate and say what their comments say.
 
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::{Calibration, FilterSpec, Rig};
 
 const GRASS: &str = include_str!("../../../rig-files/plants/grass.toml");

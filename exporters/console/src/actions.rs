@@ -18,6 +18,7 @@
 //!
 //! A rig is taken by embedded name only: a browser does not name files on the daemon's machine.
 
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::{Calibration, FilterSpec};
 use frond_protocol::{ControlRequest, StageInput, StageKey, StageSpec, paths};
 use serde_json::Value;

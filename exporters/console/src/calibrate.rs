@@ -13,6 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+use frond_formats::rig_toml::CalibrationText;
 use frond_motion::calibrate::{Raw, STEPS, compute};
 use frond_protocol::{ControlReply, ControlRequest, paths};
 use frond_sdk::ControlClient;

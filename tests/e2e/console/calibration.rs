@@ -3,6 +3,7 @@
 use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
+use frond_formats::rig_toml::CalibrationText;
 use frond_webdriver::{Driver, browser, poll, start_session};
 use serde_json::json;
 
