@@ -1,5 +1,6 @@
-//! Every command in the docs runs as written: the README's and the guide's (`docs/*.md`) fenced
-//! `sh` and `bash` blocks are run, command by command, against the
+//! Every command in the docs runs as written: the README's, the guide's (`docs/*.md`) and the
+//! exporters' READMEs' (`exporters/*/README.md`) fenced `sh` and `bash` blocks are run, command by
+//! command, against the
 //! built binaries, in a private directory (socket and takes directories of its own), with a
 //! daemon on the virtual glove where a block asks for one. The convention is written down in
 //! `docs/README.md` ("Commands in the docs are tested"):
@@ -368,6 +369,18 @@ fn run_page(page: &str) -> Vec<String> {
     failures
 }
 
+/// The exporters' READMEs, relative to the repository.
+fn exporter_pages() -> Vec<String> {
+    let mut pages: Vec<String> = std::fs::read_dir(repo_root().join("exporters"))
+        .expect("exporters/")
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .map(|n| format!("exporters/{n}/README.md"))
+        .filter(|p| repo_root().join(p).is_file())
+        .collect();
+    pages.sort();
+    pages
+}
+
 /// The guide's pages, relative to the repository.
 fn guide_pages() -> Vec<String> {
     let mut pages: Vec<String> = std::fs::read_dir(repo_root().join("docs"))
@@ -416,11 +429,18 @@ pages! {
     guide_stage => "docs/stage.md",
     guide_testing => "docs/testing.md",
     guide_zenoh => "docs/zenoh.md",
+    exporter_console => "exporters/console/README.md",
+    exporter_gltf => "exporters/gltf/README.md",
+    exporter_osc => "exporters/osc/README.md",
+    exporter_sdk => "exporters/sdk/README.md",
+    exporter_warp => "exporters/warp/README.md",
+    exporter_zenoh => "exporters/zenoh/README.md",
 }
 
 #[test]
-fn every_guide_page_has_its_test() {
-    let missing: Vec<String> = guide_pages().into_iter().filter(|p| !PAGES.contains(&p.as_str())).collect();
+fn every_guide_page_and_exporter_readme_has_its_test() {
+    let missing: Vec<String> =
+        guide_pages().into_iter().chain(exporter_pages()).filter(|p| !PAGES.contains(&p.as_str())).collect();
     assert!(missing.is_empty(), "add these pages to `pages!` in tests/e2e/docs.rs: {missing:?}");
 }
 
@@ -451,10 +471,7 @@ fn docs_links_lead_somewhere_and_the_guide_lists_every_page() {
     let repo = repo_root();
     let mut pages = vec!["README.md".to_string(), "ARCHITECTURE.md".to_string()];
     pages.extend(guide_pages());
-    pages.extend(
-        ["console", "gltf", "osc", "warp", "zenoh", "sdk"].map(|e| format!("exporters/{e}/README.md")),
-    );
-    pages.retain(|p| repo.join(p).exists());
+    pages.extend(exporter_pages());
     let mut broken = Vec::new();
     for page in &pages {
         let text = std::fs::read_to_string(repo.join(page)).expect("a page");
