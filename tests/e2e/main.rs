@@ -27,6 +27,7 @@ mod stage_control;
 mod stage_lossless;
 mod stage_net;
 mod stage_router;
+mod structure;
 mod systemd;
 mod systemd_boot;
 mod take_tools;
