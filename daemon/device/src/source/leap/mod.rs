@@ -13,19 +13,19 @@
 //! stalled device; a hand out of view does the same. The loop's side never blocks or allocates.
 //!
 //! The service is a peer, not a friend (issue 42): nothing it does can hold the daemon.
-//! - Writes never wait ([`ServiceStream`](stream::ServiceStream): `MSG_DONTWAIT`, a bounded write buffer). Pongs that
-//!   it does not read for [`PEER_WRITE_DEADLINE`](client::PEER_WRITE_DEADLINE) drop the connection (counted as
-//!   `peers_dropped`); reads wait at most [`READ_POLL`](client::READ_POLL) and end as soon as the source is asked
+//! - Writes never wait (`stream::ServiceStream`: `MSG_DONTWAIT`, a bounded write buffer). Pongs that
+//!   it does not read for `client::PEER_WRITE_DEADLINE` drop the connection (counted as
+//!   `peers_dropped`); reads wait at most `client::READ_POLL` and end as soon as the source is asked
 //!   to stop, even in the middle of a message trickled byte by byte.
-//! - Dropping the source waits at most [`STOP_WAIT`](source::STOP_WAIT) for the thread (a name lookup of the
+//! - Dropping the source waits at most `source::STOP_WAIT` for the thread (a name lookup of the
 //!   service's host cannot be interrupted); a thread still busy then is left to end by itself.
 //! - A message longer than [`MAX_MESSAGE_BYTES`] is refused from its header (tungstenite's
 //!   limit; counted as `oversized`, the connection is dropped), a frame listing more than
 //!   `MAX_HANDS` hands at the first one too many (`too_many`), before the rest is parsed.
-//! - Reads are paced ([`READ_BUDGET`](stream::READ_BUDGET) per [`READ_WINDOW`](stream::READ_WINDOW)) in bytes and in frames: each
-//!   WebSocket frame costs [`FRAME_COST`](stream::FRAME_COST) besides its bytes, so endless empty messages or
+//! - Reads are paced (`stream::READ_BUDGET` per `stream::READ_WINDOW`) in bytes and in frames: each
+//!   WebSocket frame costs `stream::FRAME_COST` besides its bytes, so endless empty messages or
 //!   zero-length fragments cost a bounded share of a core; a service that keeps the budget spent
-//!   for [`JUNK_DEADLINE`](client::JUNK_DEADLINE) without a message frond can use is dropped (`peers_dropped`).
+//!   for `client::JUNK_DEADLINE` without a message frond can use is dropped (`peers_dropped`).
 //! - Connection warnings are rate-limited ([`crate::log_limit`]); refused messages are only
 //!   counted here, and the daemon says their counts by reason at a bounded rate.
 
