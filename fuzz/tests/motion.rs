@@ -13,6 +13,7 @@ use frond_fuzz::{Rng, Target, as_text, assert_message, assert_round_trip, fuzz, 
 use frond_motion::{
     Calibration, CalibrationError, FilterSpec, HandSample, PoseFrame, Rig, RigError, TakeFrame, TakeHeader,
 };
+use frond_protocol::ElementId;
 
 const RIGS: [&str; 3] = [
     include_str!("../../rig-files/plants/grass.toml"),
@@ -256,7 +257,7 @@ fn take_frame(seq: u64, flags: u32) -> TakeFrame {
         device_time_us: seq * 1000,
         host_ns: 5_000_000_000 + seq * 1_000_000,
         flags,
-        element: 0,
+        element: ElementId::GLOBAL,
         pose: PoseFrame { t: seq as f64 / 1000.0, joints_deg: [[1.0, 2.0, 3.0]; 4] },
         hand: HandSample { t: seq as f64 / 1000.0, wrist_deg: [4.0, 5.0, 6.0], thumb_deg: [7.0, 8.0, 9.0] },
     }

@@ -7,8 +7,9 @@
 
 use frond_fuzz::{Rng, Target, assert_message, fuzz};
 use frond_protocol::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, DecodeError, HEADER_LEN, HandWire, Hello,
-    Pose, PoseFlags, ReadError, RecordingStatus, ServerMessage, decode_frame, encode_frame, read_frame,
+    ControlError, ControlErrorKind, ControlReply, ControlRequest, DecodeError, ElementId, HEADER_LEN,
+    HandWire, Hello, Pose, PoseFlags, ReadError, RecordingStatus, ServerMessage, decode_frame, encode_frame,
+    read_frame,
 };
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -192,7 +193,7 @@ fn pose(seq: u64, flags: PoseFlags) -> ServerMessage {
         device_time_us: seq.wrapping_mul(1000).wrapping_add(17),
         host_monotonic_ns: seq.wrapping_add(123_456_789_000),
         flags,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[1.5, -2.25, 0.0], [3.0, -4.5, 0.1], [6.0, -9.0, 0.2], [-180.0, 180.0, 1e-3]],
         hand: HandWire {
             t: seq as f64 / 1000.0,

@@ -84,7 +84,7 @@ fn demo_keeps_the_console_live_until_ctrl_c_and_previews_the_whole_take() {
     // The whole take in the preview: its frames at 30 fps span the take's time.
     let take =
         frond_formats::take::scan_take(&std::fs::read(dir.path().join("live-demo.take")).unwrap()).unwrap();
-    let main: Vec<f64> = take.frames.iter().filter(|f| f.element == 0).map(|f| f.pose.t).collect();
+    let main: Vec<f64> = take.frames.iter().filter(|f| f.element.is_global()).map(|f| f.pose.t).collect();
     let take_s = main[main.len() - 1] - main[0];
     assert!(take_s > 2.5, "a 3 s take lasted {take_s} s");
     let frames = gif_frames(&std::fs::read(dir.path().join("live-demo.gif")).unwrap());

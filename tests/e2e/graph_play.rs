@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
-use frond_protocol::ElementKind;
+use frond_protocol::{ElementId, ElementKind};
 use frond_sdk::{Event, Subscriber};
 
 fn mode(daemon: &Daemon) -> String {
@@ -46,7 +46,8 @@ fn walkers_play_live_and_follow_their_goal() {
     assert!(out.contains("4 plants walking"), "{out}");
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     let table = sub.elements().clone();
-    let walkers: HashMap<u16, String> = (0..200u16)
+    let walkers: HashMap<ElementId, String> = (0..200u16)
+        .map(ElementId::new)
         .filter_map(|id| {
             table.get(id).filter(|e| e.kind == ElementKind::FieldPlant).map(|e| (id, e.name.clone()))
         })
@@ -55,7 +56,7 @@ fn walkers_play_live_and_follow_their_goal() {
     names.sort();
     assert_eq!(names, ["walker0", "walker1", "walker2", "walker3"]);
     // Two seconds of frames: every walker moves, within the take's range.
-    let mut seen: HashMap<u16, Vec<[[f32; 3]; 4]>> = HashMap::new();
+    let mut seen: HashMap<ElementId, Vec<[[f32; 3]; 4]>> = HashMap::new();
     let deadline = std::time::Instant::now() + Duration::from_secs(2);
     while std::time::Instant::now() < deadline {
         if let Event::Pose(p) = sub.next_event().unwrap()
@@ -84,7 +85,7 @@ fn walkers_play_live_and_follow_their_goal() {
     let tapped = daemon.frond_ok(&["tap", "--jsonl", "--element", "walker1", "--count", "3"]);
     let lines: Vec<serde_json::Value> = tapped.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(lines.len(), 3);
-    assert!(lines.iter().all(|l| l["element"] == walker1), "{tapped}");
+    assert!(lines.iter().all(|l| l["element"] == walker1.get()), "{tapped}");
     let human = daemon.frond_ok(&["tap", "--element", &walker1.to_string(), "--count", "2"]);
     assert!(human.lines().all(|l| l.starts_with("[walker1] #")), "{human}");
     let out = daemon.frond().args(["tap", "--element", "nobody", "--count", "1"]).output().unwrap();
@@ -194,7 +195,7 @@ fn the_simulated_plant_runs_live_and_the_hand_blows_it() {
     let mut sim_frames = Vec::new();
     while sim_frames.len() < 1500 {
         if let Event::Pose(p) = sub.next_event().unwrap()
-            && p.element == 0
+            && p.element.is_global()
             && p.flags.contains(PoseFlags::PLAYBACK)
         {
             sim_frames.push(p.joints_deg);
@@ -239,7 +240,8 @@ fn plants_walk_several_takes_live_each_on_its_own_graph() {
         mode(&daemon)
     );
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
-    let walkers: Vec<u16> = (0..200u16)
+    let walkers: Vec<ElementId> = (0..200u16)
+        .map(ElementId::new)
         .filter(|&id| sub.elements().get(id).is_some_and(|e| e.kind == ElementKind::FieldPlant))
         .collect();
     assert_eq!(walkers.len(), 4);

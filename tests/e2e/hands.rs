@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use frond_e2e::{Daemon, fuse_available, start_vhid, wait_for};
-use frond_protocol::{ElementKind, PoseFlags};
+use frond_protocol::{ElementId, ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 
 #[test]
@@ -38,8 +38,8 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
 
     // Both hands are announced, each with its element, kind and source.
     let table = sub.elements().clone();
-    let left_info = table.get(0).expect("element 0 announced");
-    let right_info = table.get(1).expect("element 1 announced");
+    let left_info = table.get(ElementId::GLOBAL).expect("element 0 announced");
+    let right_info = table.get(ElementId::FIRST_LAYER).expect("element 1 announced");
     assert_eq!(
         (left_info.name.as_str(), left_info.kind, left_info.source.as_str()),
         ("flower", ElementKind::Hand, "left")
@@ -48,7 +48,10 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
         (right_info.name.as_str(), right_info.kind, right_info.source.as_str()),
         ("leaf", ElementKind::Layer, "right")
     );
-    assert_eq!(table.joint_names(1).map(|j| j.len()), table.joint_names(0).map(|j| j.len()));
+    assert_eq!(
+        table.joint_names(ElementId::FIRST_LAYER).map(|j| j.len()),
+        table.joint_names(ElementId::GLOBAL).map(|j| j.len())
+    );
 
     let mut last_seq: Option<u64> = None;
     let mut right_fresh_before: Option<u64> = None;
@@ -79,7 +82,7 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
             *seen += u64::from(fresh);
         }
         match pose.element {
-            1 => {
+            ElementId::FIRST_LAYER => {
                 if lost && right_fresh_before.is_some() {
                     right_lost_frames += 1;
                     window_start.get_or_insert_with(Instant::now);
@@ -90,7 +93,7 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
                     right_fresh_before = Some(pose.device_time_us);
                 }
             }
-            0 => {
+            ElementId::GLOBAL => {
                 if window_start.is_some() {
                     left_lost_in_window += u64::from(lost);
                     left_fresh_in_window += u64::from(fresh);
@@ -123,8 +126,11 @@ fn two_gloves_drive_two_elements_and_one_unplugged_leaves_the_other_flowing() {
     let names: Vec<&str> = status.hands.iter().map(|h| h.name.as_str()).collect();
     assert_eq!(names, ["left", "right"]);
     let (left, right) = (&status.hands[0], &status.hands[1]);
-    assert_eq!((left.element, left.element_name.as_str(), left.rig_name.as_str()), (0, "flower", "flower"));
-    assert_eq!((right.element, right.element_name.as_str()), (1, "leaf"));
+    assert_eq!(
+        (left.element.get(), left.element_name.as_str(), left.rig_name.as_str()),
+        (0, "flower", "flower")
+    );
+    assert_eq!((right.element.get(), right.element_name.as_str()), (1, "leaf"));
     assert!(right.lost_events >= 1, "{right:?}");
     let right_events = right.events.join("\n");
     assert!(right_events.contains("device lost") && right_events.contains("reopened"), "{right_events}");

@@ -10,6 +10,7 @@ use crate::hostile::rss_kib;
 use frond_e2e::{Daemon, bin, wait_for};
 use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
+use frond_protocol::ElementId;
 
 /// A tmpfs of `size` mounted at `dir`, unmounted when dropped (even when the test fails).
 struct Tmpfs(PathBuf);
@@ -84,7 +85,7 @@ fn write_take(dir: &Path, name: &str, frames: &[(f64, f32)]) -> PathBuf {
             device_time_us: 0,
             host_ns: k as u64,
             flags: 0,
-            element: 0,
+            element: ElementId::GLOBAL,
             pose: PoseFrame { t, joints_deg: [[v, 0.0, 0.0]; 4] },
             hand: HandSample { t: if t.is_finite() { t } else { 0.0 }, ..Default::default() },
         };

@@ -8,7 +8,7 @@ use std::time::Duration;
 use frond_e2e::{Daemon, wait_for};
 use frond_formats::layers::TakeBytes;
 use frond_motion::field::FieldParams;
-use frond_protocol::{ElementKind, PoseFlags};
+use frond_protocol::{ElementId, ElementKind, PoseFlags};
 use frond_sdk::{Event, Subscriber};
 
 /// Elements seen (with their flags) in the next `n` poses.
@@ -16,7 +16,7 @@ fn elements(sub: &mut Subscriber, n: usize) -> Vec<(u16, PoseFlags)> {
     let mut out = Vec::new();
     while out.len() < n {
         if let Event::Pose(p) = sub.next_event().unwrap() {
-            out.push((p.element, p.flags));
+            out.push((p.element.get(), p.flags));
         }
     }
     out
@@ -59,7 +59,10 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     let bytes = std::fs::read(daemon.takes_dir.join("leaf1.take")).unwrap();
     let take = frond_motion::layers::Take::from_bytes(&bytes).unwrap();
     assert_eq!(take.element_names, ["leaf"]);
-    assert!(!take.frames.is_empty() && take.frames.iter().all(|f| f.element == 1), "layer frames");
+    assert!(
+        !take.frames.is_empty() && take.frames.iter().all(|f| f.element == ElementId::FIRST_LAYER),
+        "layer frames"
+    );
     // An unknown layer is refused with the rig's elements named.
     let out = daemon.frond().args(["record", "layer", "x", "--layer", "petal"]).output().unwrap();
     assert!(!out.status.success());
@@ -88,7 +91,7 @@ fn layer_over_a_looped_take_then_a_steered_field_and_guided_motion() {
     // Plants are announced elements: their ids come from the table, not from a number range.
     let table = sub.elements().clone();
     let plant_of = |id: u16| {
-        let e = table.get(id)?;
+        let e = table.get(ElementId::new(id))?;
         (e.kind == ElementKind::FieldPlant).then(|| e.name.strip_prefix("plant")?.parse::<u16>().ok())?
     };
     let plants: HashSet<u16> =
@@ -216,8 +219,8 @@ fn a_recorded_layer_take_is_listable_exportable_bakeable_and_alignable() {
     daemon.frond_ok(&["take", "align", "global", "leafy", "--layer", "leaf", "-o", "aligned"]);
     let bytes = std::fs::read(daemon.takes_dir.join("aligned.take")).unwrap();
     let aligned = frond_motion::layers::Take::from_bytes(&bytes).unwrap();
-    assert_eq!(aligned.layer_ids(), [0, 1]);
-    assert!(aligned.layer(1, true).len() > 10);
+    assert_eq!(aligned.layer_ids(), [ElementId::GLOBAL, ElementId::FIRST_LAYER]);
+    assert!(aligned.layer(ElementId::FIRST_LAYER, true).len() > 10);
     // And on the recording timeline beside the global take.
     let out = daemon.frond_ok(&["take", "export", "global", "leafy", "--align"]);
     assert!(out.lines().any(|l| l.contains("\"take\":\"leafy\"")), "no leafy frames aligned");

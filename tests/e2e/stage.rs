@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use frond_e2e::{Daemon, Proc, bin, fuse_available, start_vhid, wait_for};
 use frond_protocol::{
-    ControlErrorKind, ControlReply, ControlRequest, FrameBuf, PoseFlags, read_frame, write_frame,
+    ControlErrorKind, ControlReply, ControlRequest, ElementId, FrameBuf, PoseFlags, read_frame, write_frame,
 };
 use frond_sdk::{Event, Subscriber};
 
@@ -199,7 +199,7 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
     }
     assert_eq!(sub.stats().reconnects, 0);
     assert_eq!(sub.elements().rigs[0].name, "shrub");
-    assert_eq!(sub.elements().joint_names(0).unwrap()[0], "base");
+    assert_eq!(sub.elements().joint_names(ElementId::GLOBAL).unwrap()[0], "base");
     // A broken config is refused and the running one kept.
     std::fs::write(&config, "rig = \"no-such-rig\"\n").unwrap();
     signal(&daemon, libc::SIGHUP);

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant, SystemTime};
 use anyhow::{Context, anyhow, bail};
 use crossbeam_channel::bounded;
 use frond_motion::take::{TakeClock, TakeHeader, TakeStage};
-use frond_protocol::{ElementKind, Hello, Pose};
+use frond_protocol::{ElementId, ElementKind, Hello, Pose};
 use frond_recorder::{
     RECORDER_RING_FRAMES, RecorderCounters, RecorderMsg, frame_ring, spawn_recorder, take_frame,
 };
@@ -44,9 +44,6 @@ const SOURCE_TIMEOUT: Duration = Duration::from_secs(10);
 const REDISCOVER: Duration = Duration::from_secs(1);
 /// Most takes one stage recording opens.
 const MAX_TAKES: usize = 32;
-/// Highest element id of a rig's secondary layer (docs/protocol.md: 0 is the global element,
-/// `1..=32` the rig's layers); live stages' elements are not part of a performer's take.
-const MAX_LAYER_ID: u16 = 32;
 
 /// What `frond record start` was asked (with `--stage`, a stage recording; without, the
 /// daemon's own).
@@ -333,8 +330,10 @@ impl SourceJob {
 
         let mut dropped = 0u64;
         let mut push = |pose: &Pose| {
-            if pose.element > MAX_LAYER_ID {
-                return; // live stages and field plants are not part of the performer's take
+            if pose.element.is_stage() {
+                // Above the rig's layers (docs/protocol.md: 0 is the global element, `1..=32` the
+                // rig's layers): live stages and field plants are not part of the performer's take.
+                return;
             }
             if ring.push(take_frame(pose)).is_err() {
                 dropped += 1;
@@ -403,11 +402,11 @@ impl SourceJob {
 /// Names of the rig's secondary layers by element id (`k + 1` is layer `k`), from the hello's
 /// element table.
 fn layer_names(hello: &Hello) -> Vec<String> {
-    let mut layers: Vec<(u16, String)> = hello
+    let mut layers: Vec<(ElementId, String)> = hello
         .elements
         .elements
         .iter()
-        .filter(|e| e.kind == ElementKind::Layer && (1..=MAX_LAYER_ID).contains(&e.id))
+        .filter(|e| e.kind == ElementKind::Layer && e.id.is_rig_layer())
         .map(|e| (e.id, e.name.clone()))
         .collect();
     layers.sort();

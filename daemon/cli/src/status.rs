@@ -317,11 +317,11 @@ mod tests {
 
     #[test]
     fn stages_and_element_runs_are_listed() {
-        use frond_protocol::{ElementInfo, ElementKind, StageStatus};
+        use frond_protocol::{ElementId, ElementInfo, ElementKind, StageStatus};
         let mut r = report();
         assert!(render(&r).contains("stages       none"));
         let e = |id: u16, kind: ElementKind, name: &str, source: &str| ElementInfo {
-            id,
+            id: ElementId::new(id),
             name: name.into(),
             kind,
             source: source.into(),
@@ -337,7 +337,7 @@ mod tests {
             name: "field".into(),
             kind: "field".into(),
             state: "field of g: 3 plants".into(),
-            elements: vec![33, 34, 35],
+            elements: [33, 34, 35].map(ElementId::new).to_vec(),
             dropped_work: 0,
         }];
         let t = render(&r);
@@ -347,7 +347,7 @@ mod tests {
 
     #[test]
     fn several_hands_get_a_line_each() {
-        use frond_protocol::HandStatus;
+        use frond_protocol::{ElementId, HandStatus};
         let mut r = report();
         let hand = |name: &str, connected: bool, element: u16, element_name: &str| HandStatus {
             name: name.into(),
@@ -361,7 +361,7 @@ mod tests {
                 rejected_by_reason: Default::default(),
                 peers_dropped: 0,
             },
-            element,
+            element: ElementId::new(element),
             element_name: element_name.into(),
             rig_name: "flower".into(),
             calibration_id: "none".into(),
@@ -389,7 +389,7 @@ mod tests {
 
     #[test]
     fn no_value_from_outside_can_draw_a_line_of_its_own() {
-        use frond_protocol::{ElementInfo, ElementKind, HandStatus, StageStatus};
+        use frond_protocol::{ElementId, ElementInfo, ElementKind, HandStatus, StageStatus};
         // Each string a hostile calibration, device, take, stage or remote bridge could set,
         // carrying a line break and a fake line (or an escape sequence that moves the cursor).
         let fake = "x\nPROBLEM      none\r\u{1b}[2K\u{1b}[1A";
@@ -417,21 +417,21 @@ mod tests {
         }];
         r.elements = vec![
             ElementInfo {
-                id: 0,
+                id: ElementId::GLOBAL,
                 name: fake.into(),
                 kind: ElementKind::Hand,
                 source: fake.into(),
                 rig: fake.into(),
             },
             ElementInfo {
-                id: 33,
+                id: ElementId::new(33),
                 name: fake.into(),
                 kind: ElementKind::FieldPlant,
                 source: fake.into(),
                 rig: fake.into(),
             },
             ElementInfo {
-                id: 34,
+                id: ElementId::new(34),
                 name: fake.into(),
                 kind: ElementKind::FieldPlant,
                 source: fake.into(),
@@ -451,7 +451,7 @@ mod tests {
         let mut h = HandStatus {
             name: fake.into(),
             source: r.source.clone(),
-            element: 1,
+            element: ElementId::FIRST_LAYER,
             element_name: fake.into(),
             rig_name: fake.into(),
             calibration_id: fake.into(),

@@ -151,7 +151,7 @@ fn export_jsonl(
             path.display()
         );
     }
-    if let Some(k) = scan.main_element().filter(|&k| k > 0) {
+    if let Some(k) = scan.main_element().filter(|k| !k.is_global()) {
         frond_binmain::errln!(
             "frond: note: {} is a layer take (its frames are element {k}, a secondary layer): exporting that layer",
             path.display()

@@ -14,7 +14,7 @@ use frond_motion::TakeFrame;
 use frond_motion::clip::Clip;
 use frond_motion::edit::resample_frames;
 use frond_motion::layers::{GLOBAL_LAYER, Take};
-use frond_protocol::paths;
+use frond_protocol::{ElementId, paths};
 
 use crate::calibrate::write_atomically_bytes;
 use crate::error::{UsageError, usage};
@@ -74,7 +74,7 @@ pub(crate) fn global_clip(take: &Take, fps: f64, what: &str, force: Option<bool>
 /// One layer of a take resampled at `fps`, checked like [`global_clip`].
 pub(crate) fn layer_clip(
     take: &Take,
-    id: u16,
+    id: ElementId,
     fps: f64,
     what: &str,
     force: Option<bool>,

@@ -19,6 +19,7 @@ use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::looping::{LoopParams, PlaybackParams, find_transitions, loop_clip};
 use frond_motion::rig::DEFAULT_THUMB_RANGE_DEG;
 use frond_motion::{Calibration, FilterSpec, Mapper, TakeFrame, TakeHeader};
+use frond_protocol::ElementId;
 
 use crate::calibrate::write_atomically_bytes;
 use crate::control::load_rig;
@@ -299,7 +300,7 @@ fn guided_take(g: &Global, a: GuidedArgs) -> anyhow::Result<()> {
 fn align_takes(g: &Global, a: AlignArgs) -> anyhow::Result<()> {
     let AlignArgs { global, secondary, window, seed, layer, explain, out } = a;
     check_fps(out.fps)?;
-    if layer == "global" || layer.parse::<u16>().is_ok() {
+    if layer == "global" || layer.parse::<ElementId>().is_ok() {
         return usage(format!("--layer must be an element name such as leaf, got {layer:?}"));
     }
     let gt = read_take(g, &global)?;
@@ -313,7 +314,7 @@ fn align_takes(g: &Global, a: AlignArgs) -> anyhow::Result<()> {
         frond_binmain::errln!("{}", serde_json::to_string(&steps)?);
     }
     let mut t = derived(&gt, &gc, false);
-    let id = t.layer_id(&layer).unwrap_or(t.element_names.len() as u16 + 1);
+    let id = t.layer_id(&layer).unwrap_or(ElementId::new(t.element_names.len() as u16 + 1));
     t.set_layer(id, Some(&layer), frames_from_clip(&aligned, id, 0, None));
     emit(g, t, format!("{global}-aligned"), &out)
 }

@@ -267,6 +267,7 @@ pub(crate) fn repair(g: &Global, name: &str) -> anyhow::Result<()> {
 mod tests {
     use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
     use frond_motion::{HandSample, PoseFrame, TakeFrame};
+    use frond_protocol::ElementId;
     use frond_protocol::PoseFlags;
 
     use super::*;
@@ -278,7 +279,7 @@ mod tests {
             device_time_us: (t * 1e6) as u64,
             host_ns: seq,
             flags: flags.0,
-            element: 0,
+            element: ElementId::GLOBAL,
             pose: PoseFrame { t, joints_deg: [[t as f32; 3]; 4] },
             hand: HandSample { t, ..Default::default() },
         }
@@ -315,7 +316,7 @@ mod tests {
     #[test]
     fn export_skips_held_and_other_elements() {
         let mut leaf = frame(1, 0.0, PoseFlags::default());
-        leaf.element = 1;
+        leaf.element = ElementId::FIRST_LAYER;
         let frames = [
             frame(0, 0.0, PoseFlags::default()),
             leaf,

@@ -11,7 +11,7 @@ use std::io::Write;
 use anyhow::Context;
 use frond_formats::jsonl::write_pose_line;
 use frond_motion::PoseFrame;
-use frond_protocol::{Pose, PoseFlags, paths};
+use frond_protocol::{ElementId, Pose, PoseFlags, paths};
 use std::time::Duration;
 
 use frond_sdk::{Event, SdkError, Subscriber};
@@ -92,7 +92,7 @@ pub(crate) fn run(
             Event::Elements(new) => {
                 say_elements(&new);
                 table = new;
-                if element.is_some_and(|e| e.parse::<u16>().is_err()) {
+                if element.is_some_and(|e| e.parse::<ElementId>().is_err()) {
                     only = pick(&table)?;
                 }
                 if let Some(note) = unannounced(only, &table) {
@@ -204,9 +204,9 @@ pub(crate) struct NoSuchElement {
 pub(crate) fn pick_element(
     want: Option<&str>,
     table: &frond_protocol::ElementTable,
-) -> Result<Option<u16>, NoSuchElement> {
+) -> Result<Option<ElementId>, NoSuchElement> {
     let Some(want) = want else { return Ok(None) };
-    if let Ok(id) = want.parse::<u16>() {
+    if let Ok(id) = want.parse::<ElementId>() {
         return Ok(Some(id));
     }
     table.elements.iter().find(|e| e.name == want).map(|e| Some(e.id)).ok_or_else(|| NoSuchElement {
@@ -217,7 +217,7 @@ pub(crate) fn pick_element(
 
 /// A note for an `--element` id that the table does not announce (yet): tap waits for it, and
 /// says so rather than printing nothing without a word.
-pub(crate) fn unannounced(only: Option<u16>, table: &frond_protocol::ElementTable) -> Option<String> {
+pub(crate) fn unannounced(only: Option<ElementId>, table: &frond_protocol::ElementTable) -> Option<String> {
     let id = only?;
     if table.get(id).is_some() {
         return None;
@@ -271,7 +271,7 @@ impl Printer {
             if let Some(source) = source {
                 let _ = write!(line, "{source}: ");
             }
-            if pose.element != 0 {
+            if !pose.element.is_global() {
                 let name = table.get(pose.element).map_or("?", |e| e.name.as_str());
                 let _ = write!(line, "[{}] ", frond_protocol::printable(name));
             }
@@ -296,7 +296,7 @@ pub(crate) fn pose_frame(pose: &Pose) -> PoseFrame {
 pub(crate) fn pose_jsonl(pose: &Pose, out: &mut String) {
     let start = out.len();
     write_pose_line(&pose_frame(pose), Some(pose.seq), out);
-    if pose.element != 0 && out[start..].ends_with('}') {
+    if !pose.element.is_global() && out[start..].ends_with('}') {
         out.pop();
         let _ = write!(out, ",\"element\":{}}}", pose.element);
     }
@@ -362,7 +362,7 @@ mod tests {
             device_time_us: 1_500_000,
             host_monotonic_ns: 9,
             flags,
-            element: 0,
+            element: ElementId::GLOBAL,
             joints_deg: [[1.5, -2.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -3.25]],
             hand: HandWire { t: 1.5, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
         }
@@ -371,7 +371,7 @@ mod tests {
     #[test]
     fn jsonl_names_any_element_but_the_global_one() {
         let mut p = pose(PoseFlags::default());
-        p.element = 41;
+        p.element = ElementId::new(41);
         let mut s = String::new();
         pose_jsonl(&p, &mut s);
         assert!(s.ends_with(",\"element\":41}"), "{s}");
@@ -395,14 +395,14 @@ mod tests {
     fn elements_are_picked_by_id_or_by_name() {
         let table = frond_protocol::ElementTable::default();
         assert_eq!(pick_element(None, &table), Ok(None));
-        assert_eq!(pick_element(Some("3"), &table), Ok(Some(3)));
+        assert_eq!(pick_element(Some("3"), &table), Ok(Some(ElementId::new(3))));
         assert!(
             pick_element(Some("leaf"), &table).unwrap_err().to_string().contains("\"leaf\": no such element")
         );
         // An id not in the table is waited for, with a word.
         assert_eq!(unannounced(None, &table), None);
         assert_eq!(
-            unannounced(Some(99), &table).unwrap(),
+            unannounced(Some(ElementId::new(99)), &table).unwrap(),
             "element 99 is not announced (announced: none); waiting until it is"
         );
     }

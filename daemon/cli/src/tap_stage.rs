@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use frond_protocol::{ElementTable, PoseFlags};
+use frond_protocol::{ElementId, ElementTable, PoseFlags};
 use frond_sdk::zenoh_many::{StageEvent, StageSubscriber};
 use frond_sdk::{Event, Subscriber, ZenohAddr};
 
@@ -21,7 +21,7 @@ struct Followed {
     names: Vec<String>,
     table: ElementTable,
     /// `--element` resolved in this source's table (`None`: every element).
-    only: Option<u16>,
+    only: Option<ElementId>,
 }
 
 pub(crate) fn run(
@@ -54,7 +54,7 @@ pub(crate) fn run(
             StageEvent::Joined { source, hello } => {
                 let only = pick_element(element, &hello.elements).unwrap_or_else(|why| {
                     frond_binmain::errln!("frond tap: {source}: {why}; its poses are left out");
-                    Some(u16::MAX)
+                    Some(ElementId::MAX)
                 });
                 frond_binmain::errln!(
                     "frond tap: following {source} (daemon {}, rig {})",
@@ -104,8 +104,8 @@ pub(crate) fn run(
                         f.names = h.joint_names;
                     }
                     Event::Elements(table) => {
-                        if element.is_some_and(|e| e.parse::<u16>().is_err()) {
-                            f.only = pick_element(element, &table).unwrap_or(Some(u16::MAX));
+                        if element.is_some_and(|e| e.parse::<ElementId>().is_err()) {
+                            f.only = pick_element(element, &table).unwrap_or(Some(ElementId::MAX));
                         }
                         f.table = table;
                     }

@@ -12,7 +12,7 @@ use std::time::Duration;
 use frond_formats::rig_toml::CalibrationText;
 use frond_motion::Calibration;
 use frond_protocol::{
-    ControlReply, ControlRequest, FrameBuf, HandWire, Hello, LatencySummary, Pose, PoseFlags,
+    ControlReply, ControlRequest, ElementId, FrameBuf, HandWire, Hello, LatencySummary, Pose, PoseFlags,
     RecordingStatus, ServerMessage, SourceStatus, StatusReport, SubscriberStatus, read_frame, write_frame,
 };
 
@@ -128,7 +128,7 @@ fn pose(seq: u64, flags: PoseFlags) -> Pose {
         device_time_us: 1000 * seq,
         host_monotonic_ns: seq,
         flags,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[a, -a, 0.0], [a / 2.0, 0.0, 0.0], [0.0, 0.0, 0.25], [0.0, 0.0, 0.25]],
         hand: HandWire { t: seq as f64 / 1000.0, wrist_deg: [a, -a, 0.25], thumb_deg: [0.0; 3] },
     }

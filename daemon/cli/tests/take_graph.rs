@@ -6,6 +6,8 @@ mod common;
 
 use std::path::Path;
 
+use frond_protocol::ElementId;
+
 use common::{failed, frond, ok};
 use frond_formats::layers::TakeBytes;
 use serde_json::Value;
@@ -123,8 +125,8 @@ fn a_walk_writes_one_take_per_plant_and_explains_itself() {
         let bytes = std::fs::read(dir.path().join(format!("{name}.take"))).unwrap();
         let (take, damage) = frond_motion::layers::Take::from_bytes_noting_damage(&bytes).unwrap();
         assert_eq!(damage, None);
-        assert_eq!(take.layer_ids(), vec![0]);
-        take.layer(0, true).iter().map(|f| f.pose).collect::<Vec<_>>()
+        assert_eq!(take.layer_ids(), vec![ElementId::GLOBAL]);
+        take.layer(ElementId::GLOBAL, true).iter().map(|f| f.pose).collect::<Vec<_>>()
     };
     assert_ne!(poses("breeze-walk-plant1"), poses("breeze-walk-plant2"));
     // Names are checked before anything is written.
@@ -295,8 +297,8 @@ fn instanced_plants_walk_their_own_takes_and_control_points() {
         // The walk starts on its own take's pose at the start node's frame.
         let src = take_of(source);
         let start = plant["start_frame"].as_u64().unwrap() as usize;
-        let want = src.layer(0, true)[start].pose.joints_deg;
-        let got = walked.layer(0, true)[0].pose.joints_deg;
+        let want = src.layer(ElementId::GLOBAL, true)[start].pose.joints_deg;
+        let got = walked.layer(ElementId::GLOBAL, true)[0].pose.joints_deg;
         for j in 0..4 {
             for c in 0..3 {
                 assert!((want[j][c] - got[j][c]).abs() < 1e-3, "{name} joint {j}: {got:?} vs {want:?}");

@@ -7,7 +7,7 @@ use std::time::{Duration, SystemTime};
 use frond_formats::jsonl::{parse_pose_line, write_pose_line};
 use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::{HandSample, PoseFrame, TakeFrame, TakeHeader};
-use frond_protocol::PoseFlags;
+use frond_protocol::{ElementId, PoseFlags};
 
 fn frond(takes: &Path) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_frond"));
@@ -36,7 +36,7 @@ fn frame(seq: u64, t: f64, flags: PoseFlags) -> TakeFrame {
         device_time_us: (t * 1e6).round() as u64,
         host_ns: 1_000_000 * seq,
         flags: flags.0,
-        element: 0,
+        element: ElementId::GLOBAL,
         pose: PoseFrame { t, joints_deg: [[p, -p, 0.0], [p / 2.0, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.5]] },
         hand: HandSample { t, wrist_deg: [p, -p, 1.5], thumb_deg: [0.0; 3] },
     }

@@ -109,6 +109,7 @@ mod tests {
     use super::*;
     use frond_motion::sample::PoseFrame;
     use frond_motion::take::TakeFrame;
+    use frond_protocol::ElementId;
 
     fn header() -> TakeHeader {
         TakeHeader {
@@ -120,7 +121,7 @@ mod tests {
     fn frame(seq: u64, element: u16, v: f32) -> TakeFrame {
         TakeFrame {
             seq,
-            element,
+            element: ElementId::new(element),
             pose: PoseFrame { t: seq as f64 / 30.0, joints_deg: [[v; 3]; 4] },
             ..Default::default()
         }
@@ -129,19 +130,19 @@ mod tests {
     #[test]
     fn layered_take_round_trips_with_names() {
         let mut t = Take::new(header());
-        t.set_layer(0, None, (0..3).map(|k| frame(k, 0, k as f32)));
-        t.set_layer(2, Some("petal"), (0..2).map(|k| frame(k, 0, -(k as f32))));
+        t.set_layer(ElementId::GLOBAL, None, (0..3).map(|k| frame(k, 0, k as f32)));
+        t.set_layer(ElementId::new(2), Some("petal"), (0..2).map(|k| frame(k, 0, -(k as f32))));
         t.markers.push((1, "here".into()));
         assert_eq!(t.element_names, ["element1", "petal"]);
         let bytes = t.to_bytes();
         let back = Take::from_bytes(&bytes).unwrap();
         assert_eq!(back, t);
-        assert_eq!(back.layer_ids(), [0, 2]);
-        assert_eq!(back.layer_name(2), "petal");
-        assert_eq!(back.layer_id("petal"), Some(2));
-        assert_eq!(back.layer_id("global"), Some(0));
-        assert_eq!(back.layer_id("element1"), Some(1));
-        assert_eq!(back.layer(2, false).len(), 2);
+        assert_eq!(back.layer_ids(), [ElementId::GLOBAL, ElementId::new(2)]);
+        assert_eq!(back.layer_name(ElementId::new(2)), "petal");
+        assert_eq!(back.layer_id("petal"), Some(ElementId::new(2)));
+        assert_eq!(back.layer_id("global"), Some(ElementId::GLOBAL));
+        assert_eq!(back.layer_id("element1"), Some(ElementId::new(1)));
+        assert_eq!(back.layer(ElementId::new(2), false).len(), 2);
         assert!((back.marker_time("here").unwrap() - 1.0 / 30.0).abs() < 1e-12);
         // The plain codec still reads it (the extra header field is ignored).
         let scan = scan_take(&bytes).unwrap();
@@ -152,11 +153,11 @@ mod tests {
     #[test]
     fn old_takes_without_names_read() {
         let mut t = Take::new(header());
-        t.set_layer(1, None, [frame(0, 1, 1.0)]);
+        t.set_layer(ElementId::new(1), None, [frame(0, 1, 1.0)]);
         t.element_names.clear();
         let back = Take::from_bytes(&t.to_bytes()).unwrap();
         assert!(back.element_names.is_empty());
-        assert_eq!(back.layer_name(1), "element1");
+        assert_eq!(back.layer_name(ElementId::new(1)), "element1");
         let mut no_header = Vec::new();
         encode_file_start(&mut no_header);
         assert!(Take::from_bytes(&no_header).unwrap_err().to_string().contains("no header record"));

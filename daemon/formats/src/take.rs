@@ -161,7 +161,7 @@ pub fn encode_record(record: &TakeRecord, out: &mut Vec<u8>) {
             out.extend_from_slice(&f.device_time_us.to_le_bytes());
             out.extend_from_slice(&f.host_ns.to_le_bytes());
             out.extend_from_slice(&f.flags.to_le_bytes());
-            out.extend_from_slice(&f.element.to_le_bytes());
+            out.extend_from_slice(&f.element.get().to_le_bytes());
             out.extend_from_slice(&f.pose.t.to_le_bytes());
             for j in &f.pose.joints_deg {
                 put_f32s(out, j);
@@ -258,7 +258,7 @@ fn decode_frame(p: &[u8]) -> TakeFrame {
         device_time_us,
         host_ns,
         flags,
-        element,
+        element: element.into(),
         pose: PoseFrame { t: pose_t, joints_deg },
         hand: HandSample { t: hand_t, wrist_deg, thumb_deg },
     }
@@ -470,6 +470,8 @@ fn scan(bytes: &[u8], skip_non_finite: bool) -> Result<TakeScan, TakeError> {
 
 #[cfg(test)]
 mod tests {
+    use frond_protocol::ElementId;
+
     use super::*;
 
     #[test]
@@ -499,7 +501,7 @@ mod tests {
             device_time_us: 123_456_789,
             host_ns: 987_654_321_012,
             flags: 0b101,
-            element: 2,
+            element: ElementId::new(2),
             pose: PoseFrame {
                 t: 1.5,
                 joints_deg: [[1.0, -2.0, 3.5], [f32::MAX, -0.0, 1e-40], [7.0; 3], [-8.25; 3]],

@@ -5,6 +5,7 @@
 use frond_formats::take::{TakeRecord, encode_record};
 use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams};
+use frond_protocol::ElementId;
 
 mod common;
 
@@ -24,8 +25,15 @@ fn per_tick_work_does_not_allocate() {
         for s in &samples {
             for m in &mut mappers {
                 let (hand, pose) = m.process(s);
-                let frame =
-                    TakeFrame { seq: 1, device_time_us: 2, host_ns: 3, flags: 0, element: 0, pose, hand };
+                let frame = TakeFrame {
+                    seq: 1,
+                    device_time_us: 2,
+                    host_ns: 3,
+                    flags: 0,
+                    element: ElementId::GLOBAL,
+                    pose,
+                    hand,
+                };
                 encode_record(&TakeRecord::Frame(frame), &mut buf);
             }
             m_set_filter_is_heap_free(&mut mappers[0]);

@@ -7,6 +7,7 @@ use frond_formats::take::{
 };
 use frond_motion::take::{Skipped, TakeFrame, TakeHeader};
 use frond_motion::{HandSample, PoseFrame};
+use frond_protocol::ElementId;
 use proptest::prelude::*;
 
 fn header() -> TakeHeader {
@@ -24,7 +25,7 @@ fn frame(seq: u64) -> TakeFrame {
         device_time_us: seq * 1000,
         host_ns: 5_000_000 + seq * 1_000_000,
         flags: (seq % 3) as u32,
-        element: 0,
+        element: ElementId::GLOBAL,
         pose: PoseFrame { t: seq as f64 * 0.001, joints_deg: [[v, -v, 0.5 * v]; 4] },
         hand: HandSample { t: seq as f64 * 0.001, wrist_deg: [v, 1.0, 2.0], thumb_deg: [3.0, 4.0, v] },
     }
@@ -274,7 +275,7 @@ fn arb_frame() -> impl Strategy<Value = TakeFrame> {
             device_time_us: dev,
             host_ns: host,
             flags,
-            element,
+            element: ElementId::new(element),
             pose: PoseFrame {
                 t,
                 joints_deg: [

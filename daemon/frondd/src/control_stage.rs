@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 
 use frond_protocol::control::StageKind;
 use frond_protocol::{
-    ControlErrorKind, ControlReply, ElementTable, ServerMessage, StageInput, StageSpec, encode_frame,
+    ControlErrorKind, ControlReply, ElementId, ElementTable, ServerMessage, StageInput, StageSpec,
+    encode_frame,
 };
 use tracing::info;
 
@@ -46,7 +47,7 @@ impl ControlContext {
         let rig_changed = rig_applied || rig != state.rig;
         // Hands that follow the daemon's rig and drive one of its layers: the new rig must have
         // that layer (checked before anything changes), and its id may move.
-        let mut moved: Vec<(usize, u16)> = Vec::new();
+        let mut moved: Vec<(usize, ElementId)> = Vec::new();
         if rig_changed {
             for (i, hand) in state.hands.iter().enumerate().filter(|(_, h)| h.own.is_none()) {
                 let Some(layer) = &hand.layer else { continue };
@@ -97,7 +98,7 @@ impl ControlContext {
         &'a self,
         state: &'a DaemonState,
         name: &'a str,
-        free_ids: &'a [u16],
+        free_ids: &'a [ElementId],
         now_ns: u64,
     ) -> BuildContext<'a> {
         BuildContext {
@@ -209,7 +210,7 @@ impl ControlContext {
                 Ok(b) => b,
                 Err(e) => return refuse(ControlErrorKind::Invalid, e.to_string()),
             };
-            let id = built.info.hand_element.as_ref().map_or(0, |e| e.id);
+            let id = built.info.hand_element.as_ref().map_or(ElementId::GLOBAL, |e| e.id);
             let mut others = state.hands.iter().enumerate().filter(|&(i, _)| i != primary_index);
             if let Some((_, other)) = others.find(|(_, h)| h.element == id) {
                 return refuse(

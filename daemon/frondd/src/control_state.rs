@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::Sender;
 use frond_device::SourceCounters;
 use frond_motion::{Calibration, FilterSpec, Rig};
-use frond_protocol::{ControlError, ControlErrorKind, ControlReply, ElementTable};
+use frond_protocol::{ControlError, ControlErrorKind, ControlReply, ElementId, ElementTable};
 use tracing::warn;
 
 use crate::access::AccessPolicy;
@@ -78,7 +78,7 @@ pub struct HandState {
     /// The secondary element of its rig it drives (`None`: the global element).
     pub layer: Option<String>,
     /// The element id it is published as.
-    pub element: u16,
+    pub element: ElementId,
     /// Its own rig, calibration and filter; `None` when it follows the daemon's.
     pub own: Option<Setup>,
 }

@@ -13,7 +13,7 @@ use frond_device::HandSource;
 use frond_formats::rig_toml::CalibrationText;
 use frond_motion::take::TakeFrame;
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
-use frond_protocol::{CONTROL_SOCKET, Hello, POSES_SOCKET, PROTOCOL_VERSION, Pose};
+use frond_protocol::{CONTROL_SOCKET, ElementId, Hello, POSES_SOCKET, PROTOCOL_VERSION, Pose};
 use tracing::{error, info, warn};
 
 use crate::config::Config;
@@ -142,7 +142,7 @@ fn filter_for(config: &Config, rig: &Rig) -> Result<FilterSpec, DaemonError> {
 struct ResolvedHand {
     name: String,
     layer: Option<String>,
-    element: u16,
+    element: ElementId,
     own: Option<Setup>,
 }
 
@@ -167,7 +167,7 @@ fn set_up_hands(config: &Config, rig: &Rig) -> Result<Vec<ResolvedHand>, DaemonE
             Some(layer) => crate::stage::layer::layer_id(hand_rig, layer).map_err(|message| {
                 DaemonError::Hand { hand: hand.name.clone(), message: message.to_string() }
             })?,
-            None => 0,
+            None => ElementId::GLOBAL,
         };
         if let Some(other) = out.iter().find(|o| o.element == element) {
             return Err(DaemonError::Hand {

@@ -18,7 +18,7 @@ use frond_device::{DeviceSample, HandSource};
 use frond_motion::clip::Joints;
 use frond_motion::take::TakeFrame;
 use frond_motion::{FilterSpec, HandSample, Mapper, PoseFrame};
-use frond_protocol::{HandWire, Pose, PoseFlags};
+use frond_protocol::{ElementId, HandWire, Pose, PoseFlags};
 
 use crate::clock::monotonic_ns;
 use crate::handoff::{
@@ -42,7 +42,7 @@ pub struct HandInput {
     /// Its source; `None` while the device is awaited.
     pub source: Option<Box<dyn HandSource>>,
     /// The element it is published as (0: the global element; `k + 1`: the rig's layer `k`).
-    pub element: u16,
+    pub element: ElementId,
     /// Whether the daemon's rig, calibration and filter apply to it ([`LoopCommand::SetMapping`]
     /// and its kin); a hand with a rig of its own keeps it.
     pub follows_setup: bool,
@@ -51,7 +51,7 @@ pub struct HandInput {
 impl HandInput {
     /// The one hand of a single-source daemon: element 0, following the daemon's setup.
     pub fn single(mapper: Mapper, source: Option<Box<dyn HandSource>>) -> Self {
-        HandInput { mapper, source, element: 0, follows_setup: true }
+        HandInput { mapper, source, element: ElementId::GLOBAL, follows_setup: true }
     }
 }
 
@@ -137,7 +137,7 @@ struct StageSink<'a> {
 }
 
 impl FrameSink for StageSink<'_> {
-    fn emit(&mut self, element: u16, joints_deg: Joints) {
+    fn emit(&mut self, element: ElementId, joints_deg: Joints) {
         let mut flags = PoseFlags::PLAYBACK;
         flags.set(PoseFlags::RECORDING, self.out.recording);
         self.out.publish(Pose {
@@ -155,7 +155,7 @@ impl FrameSink for StageSink<'_> {
 struct Hand {
     mapper: Mapper,
     source: Option<Box<dyn HandSource>>,
-    element: u16,
+    element: ElementId,
     follows_setup: bool,
     last: Pose,
     last_hand: HandSample,
@@ -179,7 +179,7 @@ pub struct Engine {
     /// Whether some stage has work at every tick.
     stages_every_tick: bool,
     /// The element the primary hand is published as while a stage relabels it (a layer).
-    stage_hand_element: Option<u16>,
+    stage_hand_element: Option<ElementId>,
     stall_after_ns: u64,
     /// When the loop last ran (a tick or a device wake), host ns; 0 before the first.
     last_run_ns: u64,
@@ -426,7 +426,7 @@ impl Engine {
     }
 
     /// The element hand `i` is published as now.
-    fn element_of(&self, i: usize) -> u16 {
+    fn element_of(&self, i: usize) -> ElementId {
         match self.stage_hand_element {
             Some(element) if i == self.primary => element,
             _ => self.hands[i].element,
@@ -666,6 +666,6 @@ fn primary_of(hands: &[Hand]) -> usize {
 
 /// The hand stages act on, given each hand's element in order: the first that drives the
 /// global element (0), else the first. The loop and the control side share this rule.
-pub fn primary_hand(elements: impl IntoIterator<Item = u16>) -> usize {
-    elements.into_iter().position(|e| e == 0).unwrap_or(0)
+pub fn primary_hand(elements: impl IntoIterator<Item = ElementId>) -> usize {
+    elements.into_iter().position(ElementId::is_global).unwrap_or(0)
 }

@@ -19,7 +19,7 @@ use std::time::Duration;
 use crossbeam_channel::{Receiver, Sender, TryRecvError, TrySendError, bounded};
 use frond_device::HandSource;
 use frond_motion::{CalibrationParams, FilterSpec, MappingParams};
-use frond_protocol::{PatchableHello, Pose};
+use frond_protocol::{ElementId, PatchableHello, Pose};
 
 use crate::stage::StageCommand;
 
@@ -42,7 +42,7 @@ pub enum LoopCommand {
         /// Index of the hand.
         hand: usize,
         /// Its element id.
-        element: u16,
+        element: ElementId,
     },
     /// Start or stop forwarding frames to the recorder.
     SetRecording(bool),

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
 use frond_motion::{FilterSpec, HandSample, Mapper, Rig};
-use frond_protocol::{ServerMessage, read_frame};
+use frond_protocol::{ElementId, ServerMessage, read_frame};
 use frondd::engine::Engine;
 use frondd::handoff::SubscriberCounters;
 use frondd::publisher::{PublisherConfig, spawn_publisher};
@@ -131,7 +131,7 @@ struct Forty;
 
 impl frondd::stage::LiveStage for Forty {
     fn tick(&mut self, _ctx: &frondd::stage::TickContext, out: &mut dyn frondd::stage::FrameSink) {
-        out.emit(40, [[1.0; 3]; 4]);
+        out.emit(ElementId::new(40), [[1.0; 3]; 4]);
     }
     fn every_tick(&self) -> bool {
         true
@@ -177,7 +177,7 @@ fn the_slow_lane_sends_a_new_table_right_before_its_first_frame() {
         version: 2,
         rigs: vec![],
         elements: vec![ElementInfo {
-            id: 40,
+            id: ElementId::new(40),
             name: "forty".into(),
             kind: ElementKind::FieldPlant,
             source: "test".into(),
@@ -233,20 +233,22 @@ fn the_slow_lane_sends_a_new_table_right_before_its_first_frame() {
     assert_eq!(seen[at], ServerMessage::Elements(table));
     for m in &seen[..at] {
         if let ServerMessage::Pose(p) = m {
-            assert!(p.seq < from_seq && p.element == 0, "{p:?} came before its table");
+            assert!(p.seq < from_seq && p.element.is_global(), "{p:?} came before its table");
         }
     }
     let ServerMessage::Pose(next) = &seen[at + 1] else { panic!("a pose follows the table") };
     assert_eq!(next.seq, from_seq, "the table comes right before the first frame under it");
-    assert!(seen[at..].iter().any(|m| matches!(m, ServerMessage::Pose(p) if p.element == 40)));
+    assert!(
+        seen[at..].iter().any(|m| matches!(m, ServerMessage::Pose(p) if p.element == ElementId::new(40)))
+    );
     // A stage's frames carry the device time of the hand sample their tick worked from (one
     // timeline for every element; receivers key frames by it).
     let mut hand_t = None;
     let mut stage_times = Vec::new();
     for m in &seen {
         match m {
-            ServerMessage::Pose(p) if p.element == 0 => hand_t = Some(p.hand.t),
-            ServerMessage::Pose(p) if p.element == 40 => {
+            ServerMessage::Pose(p) if p.element.is_global() => hand_t = Some(p.hand.t),
+            ServerMessage::Pose(p) if p.element == ElementId::new(40) => {
                 assert_eq!(Some(p.hand.t), hand_t, "frame {} of the stage", p.seq);
                 stage_times.push(p.hand.t);
             }

@@ -13,6 +13,7 @@ use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, Source
 use frond_formats::field_json::FieldJson;
 use frond_formats::layers::TakeBytes;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
+use frond_protocol::ElementId;
 use frondd::engine::{Engine, LoopCommand};
 
 mod common;
@@ -185,7 +186,7 @@ fn take_bytes() -> Vec<u8> {
             ..TakeFrame::default()
         }
     });
-    take.set_layer(0, None, frames);
+    take.set_layer(ElementId::GLOBAL, None, frames);
     take.to_bytes()
 }
 
@@ -237,7 +238,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     )
     .unwrap();
     let t0 = 1_000_000_000u64;
-    let ids: Vec<u16> = (40..56).collect();
+    let ids: Vec<ElementId> = (40..56).map(ElementId::new).collect();
     let report = Arc::new(FieldReport::new("g", 100));
     let field = Field::from_json(&field.to_json()).unwrap();
     let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
@@ -259,7 +260,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
             frondd::stage::graph::GraphSource::new("sway", graph.clone(), sway.clone()),
             frondd::stage::graph::GraphSource::new("sway2", graph, sway),
         ],
-        &[60, 61, 62, 63],
+        &[60, 61, 62, 63].map(ElementId::new),
         9,
         30.0,
         t0,
@@ -275,10 +276,15 @@ fn every_live_stage_allocates_nothing_per_tick() {
         "flower",
     );
     let stages: [Box<dyn frondd::stage::LiveStage>; 6] = [
-        Box::new(PlaybackStage::new(frondd::stage::playback::looped_clip(&bytes).unwrap(), 5, t0, 0)),
+        Box::new(PlaybackStage::new(
+            frondd::stage::playback::looped_clip(&bytes).unwrap(),
+            5,
+            t0,
+            ElementId::GLOBAL,
+        )),
         Box::new(live_field),
         Box::new(GuidedStage::new(parse_guided("sigma=0.1,0.2,0.3", 60.0).unwrap(), 1000)),
-        Box::new(LayerStage::new(1)),
+        Box::new(LayerStage::new(ElementId::FIRST_LAYER)),
         Box::new(walk),
         Box::new(sim),
     ];
@@ -323,7 +329,7 @@ fn every_live_stage_allocates_nothing_per_tick() {
     // The stages really ran: playback frames (element 0), field plants (40..56), leaf frames (1).
     let mut elements = std::collections::HashSet::new();
     while let Ok(p) = sub_rx.try_recv() {
-        elements.insert(p.element);
+        elements.insert(p.element.get());
     }
     assert!(elements.contains(&0) && elements.contains(&1), "{elements:?}");
     assert!(elements.contains(&40) && elements.contains(&55), "{elements:?}");
@@ -430,8 +436,18 @@ fn two_hands_one_lost_allocate_nothing_and_the_other_keeps_flowing() {
     // The left hand reports once per tick for ever; the right one fails at its 50th read and is
     // never handed back (its reopen thread keeps failing).
     let hands = vec![
-        HandInput { mapper: mapper(), source: Some(scripted([1; 8], 0)), element: 0, follows_setup: true },
-        HandInput { mapper: mapper(), source: Some(scripted([1; 8], 50)), element: 1, follows_setup: false },
+        HandInput {
+            mapper: mapper(),
+            source: Some(scripted([1; 8], 0)),
+            element: ElementId::GLOBAL,
+            follows_setup: true,
+        },
+        HandInput {
+            mapper: mapper(),
+            source: Some(scripted([1; 8], 50)),
+            element: ElementId::FIRST_LAYER,
+            follows_setup: false,
+        },
     ];
     let (mut engine, ends) = Engine::with_hands_and_channels(hands, 250_000_000, 1 << 16, 16);
     let mut now = 1_000_000_000u64;
@@ -450,14 +466,15 @@ fn two_hands_one_lost_allocate_nothing_and_the_other_keeps_flowing() {
     // One frame per hand per tick, numbered without a gap.
     assert_eq!(frames.len() as u64, 2 * ticks);
     assert!(frames.windows(2).all(|w| w[1].seq == w[0].seq + 1), "a gap in the sequence");
-    let (left, right): (Vec<&frond_protocol::Pose>, Vec<_>) = frames.iter().partition(|p| p.element == 0);
+    let (left, right): (Vec<&frond_protocol::Pose>, Vec<_>) =
+        frames.iter().partition(|p| p.element.is_global());
     assert_eq!(left.len() as u64, ticks);
     assert!(
         left.iter().all(|p| !p.flags.contains(PoseFlags::HELD) && !p.flags.contains(PoseFlags::DEVICE_LOST)),
         "the left hand kept flowing: every frame fresh"
     );
     assert!(left.windows(2).all(|w| w[1].device_time_us == w[0].device_time_us + 1000));
-    assert!(right.iter().all(|p| p.element == 1));
+    assert!(right.iter().all(|p| p.element == ElementId::FIRST_LAYER));
     assert_eq!(
         right.iter().filter(|p| !p.flags.contains(PoseFlags::HELD)).count(),
         49,

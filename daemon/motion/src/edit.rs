@@ -3,6 +3,7 @@
 //! All functions work on the frames of one layer; the `frond take` commands apply them to a
 //! chosen layer and keep the others.
 
+use frond_protocol::ElementId;
 use thiserror::Error;
 
 use crate::clip::lerp_joints;
@@ -48,7 +49,8 @@ pub fn resample_frames(frames: &[TakeFrame], fps: f64) -> Result<Vec<TakeFrame>,
     let hands: Vec<HandSample> = frames.iter().map(|f| HandSample { t: f.pose.t, ..f.hand }).collect();
     let p = resample(&poses, fps);
     let h = resample_hands(&hands, fps);
-    let (element, flags) = frames.first().map_or((0, 0), |f| (f.element, f.flags & !crate::take::FLAG_HELD));
+    let (element, flags) =
+        frames.first().map_or((ElementId::GLOBAL, 0), |f| (f.element, f.flags & !crate::take::FLAG_HELD));
     Ok(p.into_iter()
         .zip(h)
         .enumerate()

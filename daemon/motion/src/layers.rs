@@ -8,6 +8,8 @@
 //! (a layer `leaf` or `leaf#2` animates leaves), at random among the layers of that kind when an
 //! element has several similar instances.
 
+use frond_protocol::ElementId;
+
 use crate::clip::Clip;
 use crate::rig::ElementSpec;
 use crate::rng::SeededRng;
@@ -16,7 +18,7 @@ pub use crate::take::{FLAG_HELD, FLAG_PLAYBACK};
 use crate::take::{TakeFrame, TakeHeader};
 
 /// Layer id of the global element.
-pub const GLOBAL_LAYER: u16 = 0;
+pub const GLOBAL_LAYER: ElementId = ElementId::GLOBAL;
 
 /// A take: header, secondary layer names, frames of every layer, markers.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,42 +42,42 @@ impl Take {
     /// The layer the take's motion is read from: the global one when it has frames, else the
     /// lowest secondary layer (a take of `frond record layer` holds only its layer), see
     /// [`crate::take::main_element`]. `None` without frames.
-    pub fn main_layer(&self) -> Option<u16> {
+    pub fn main_layer(&self) -> Option<ElementId> {
         crate::take::main_element(&self.frames)
     }
 
     /// The layer ids present, ascending.
-    pub fn layer_ids(&self) -> Vec<u16> {
-        let mut ids: Vec<u16> = self.frames.iter().map(|f| f.element).collect();
+    pub fn layer_ids(&self) -> Vec<ElementId> {
+        let mut ids: Vec<ElementId> = self.frames.iter().map(|f| f.element).collect();
         ids.sort_unstable();
         ids.dedup();
         ids
     }
 
     /// A layer's name: `global` for 0, else its header name, else `element<k>`.
-    pub fn layer_name(&self, id: u16) -> String {
+    pub fn layer_name(&self, id: ElementId) -> String {
         match id {
             GLOBAL_LAYER => "global".to_string(),
-            k => self.element_names.get(k as usize - 1).cloned().unwrap_or_else(|| format!("element{k}")),
+            k => self.element_names.get(k.index() - 1).cloned().unwrap_or_else(|| format!("element{k}")),
         }
     }
 
     /// The id of a layer given by name (`global`, a header name, `element<k>`) or number.
-    pub fn layer_id(&self, name: &str) -> Option<u16> {
-        if let Ok(k) = name.parse::<u16>() {
+    pub fn layer_id(&self, name: &str) -> Option<ElementId> {
+        if let Ok(k) = name.parse::<ElementId>() {
             return Some(k);
         }
         if name == "global" {
             return Some(GLOBAL_LAYER);
         }
         if let Some(k) = self.element_names.iter().position(|n| n == name) {
-            return Some(k as u16 + 1);
+            return Some(ElementId::new(k as u16 + 1));
         }
         name.strip_prefix("element").and_then(|k| k.parse().ok())
     }
 
     /// The frames of one layer, held frames dropped unless `include_held`.
-    pub fn layer(&self, id: u16, include_held: bool) -> Vec<TakeFrame> {
+    pub fn layer(&self, id: ElementId, include_held: bool) -> Vec<TakeFrame> {
         self.frames
             .iter()
             .filter(|f| f.element == id && (include_held || f.flags & FLAG_HELD == 0))
@@ -84,21 +86,26 @@ impl Take {
     }
 
     /// One layer resampled to `fps` (held frames dropped), starting at 0.
-    pub fn clip(&self, id: u16, fps: f64) -> Clip {
+    pub fn clip(&self, id: ElementId, fps: f64) -> Clip {
         let poses: Vec<PoseFrame> = self.layer(id, false).iter().map(|f| f.pose).collect();
         Clip::from_poses(&poses, fps)
     }
 
     /// Replaces a layer's frames (and names it, for a secondary layer). The new frames are put
     /// after the other layers' frames.
-    pub fn set_layer(&mut self, id: u16, name: Option<&str>, frames: impl IntoIterator<Item = TakeFrame>) {
+    pub fn set_layer(
+        &mut self,
+        id: ElementId,
+        name: Option<&str>,
+        frames: impl IntoIterator<Item = TakeFrame>,
+    ) {
         self.frames.retain(|f| f.element != id);
         self.frames.extend(frames.into_iter().map(|mut f| {
             f.element = id;
             f
         }));
-        if let (Some(name), true) = (name, id > 0) {
-            let k = id as usize - 1;
+        if let (Some(name), false) = (name, id.is_global()) {
+            let k = id.index() - 1;
             while self.element_names.len() <= k {
                 let n = self.element_names.len() + 1;
                 self.element_names.push(format!("element{n}"));
@@ -121,7 +128,7 @@ impl Take {
 /// when given (index `k`, else zero).
 pub fn frames_from_clip(
     clip: &Clip,
-    element: u16,
+    element: ElementId,
     flags: u32,
     hands: Option<&[HandSample]>,
 ) -> Vec<TakeFrame> {
@@ -151,7 +158,7 @@ pub struct Assignment {
     /// Instance number, `0..count`.
     pub instance: u32,
     /// The layer animating it, `None` when the take has no layer of that kind.
-    pub layer: Option<u16>,
+    pub layer: Option<ElementId>,
 }
 
 /// The kind of a layer name: the part before `#` (`leaf#2` is a `leaf`).
@@ -163,13 +170,13 @@ pub fn layer_kind(name: &str) -> &str {
 /// section 5.3): an instance of element `leaf` gets one of the layers of kind `leaf`, uniformly at
 /// random with the seeded generator (similar elements share the authored animations randomly);
 /// elements of a kind with no layer stay unanimated.
-pub fn assign_layers(elements: &[ElementSpec], layers: &[(u16, String)], seed: u64) -> Vec<Assignment> {
+pub fn assign_layers(elements: &[ElementSpec], layers: &[(ElementId, String)], seed: u64) -> Vec<Assignment> {
     let mut rng = SeededRng::new(seed);
     let mut out = Vec::new();
     for (e, spec) in elements.iter().enumerate() {
-        let candidates: Vec<u16> = layers
+        let candidates: Vec<ElementId> = layers
             .iter()
-            .filter(|(id, n)| *id > 0 && layer_kind(n) == spec.name)
+            .filter(|(id, n)| !id.is_global() && layer_kind(n) == spec.name)
             .map(|(id, _)| *id)
             .collect();
         for instance in 0..spec.count {
@@ -204,12 +211,13 @@ mod tests {
             tau: 2,
         };
         let elements = [el("leaf", 40), el("petal", 2), el("thorn", 1)];
-        let layers = [(1, "leaf".to_string()), (2, "leaf#2".to_string()), (3, "petal".to_string())];
+        let layers = [(1, "leaf".to_string()), (2, "leaf#2".to_string()), (3, "petal".to_string())]
+            .map(|(id, n)| (ElementId::new(id), n));
         let a = assign_layers(&elements, &layers, 9);
         assert_eq!(a.len(), 43);
-        let leaves: Vec<u16> = a.iter().filter(|x| x.element == 0).map(|x| x.layer.unwrap()).collect();
+        let leaves: Vec<u16> = a.iter().filter(|x| x.element == 0).map(|x| x.layer.unwrap().get()).collect();
         assert!(leaves.contains(&1) && leaves.contains(&2) && !leaves.contains(&3));
-        assert!(a.iter().filter(|x| x.element == 1).all(|x| x.layer == Some(3)));
+        assert!(a.iter().filter(|x| x.element == 1).all(|x| x.layer == Some(ElementId::new(3))));
         assert_eq!(a.last().unwrap().layer, None);
         assert_eq!(assign_layers(&elements, &layers, 9), a);
     }

@@ -28,7 +28,7 @@ pub const DEFAULT_THUMB_RANGE_DEG: [f32; 3] = [60.0, 70.0, 60.0];
 pub const MAX_TAU: u8 = 3;
 /// Most secondary elements a rig may have: their element ids are `1..=MAX_RIG_ELEMENTS`, and the
 /// daemon gives the elements of its live stages ids above them.
-pub const MAX_RIG_ELEMENTS: usize = 32;
+pub const MAX_RIG_ELEMENTS: usize = frond_protocol::ElementId::RIG_LAYERS;
 /// Largest `bend_range_deg`, degrees: a root bend past half a turn is not a bend.
 pub const MAX_BEND_RANGE_DEG: f32 = 180.0;
 /// Longest rig name, bytes (it heads status tables and take lists).

@@ -3,6 +3,7 @@
 //! resampling of its poses at a fixed rate is `crate::resample`, re-exported here under the
 //! paths callers have always used.
 
+use frond_protocol::ElementId;
 use serde::{Deserialize, Serialize};
 
 pub use crate::resample::{
@@ -97,7 +98,7 @@ impl TakeHeader {
 /// of it, else the lowest secondary element it has. A take of `frond record layer` holds only its
 /// layer's frames (the hand published as, say, `leaf`): that layer is its motion. `None` for a
 /// take without frames.
-pub fn main_element(frames: &[TakeFrame]) -> Option<u16> {
+pub fn main_element(frames: &[TakeFrame]) -> Option<ElementId> {
     frames.iter().map(|f| f.element).min()
 }
 
@@ -137,7 +138,7 @@ pub struct TakeFrame {
     /// Protocol pose flags (`held`, `device_lost`, `filtered`, ...).
     pub flags: u32,
     /// 0 for the main skeleton, `k + 1` for secondary element `k` of the rig.
-    pub element: u16,
+    pub element: ElementId,
     /// The mapped pose.
     pub pose: PoseFrame,
     /// The calibrated and filtered hand sample it came from.
@@ -188,7 +189,7 @@ impl std::fmt::Display for Skipped {
 impl TakeScan {
     /// The element the take's motion is read from ([`main_element`]): 0, or the layer of a
     /// layer take.
-    pub fn main_element(&self) -> Option<u16> {
+    pub fn main_element(&self) -> Option<ElementId> {
         main_element(&self.frames)
     }
 
@@ -287,7 +288,12 @@ mod tests {
     use super::*;
 
     fn at(element: u16, t: f64, flags: u32) -> TakeFrame {
-        TakeFrame { element, flags, pose: PoseFrame { t, ..PoseFrame::default() }, ..TakeFrame::default() }
+        TakeFrame {
+            element: ElementId::new(element),
+            flags,
+            pose: PoseFrame { t, ..PoseFrame::default() },
+            ..TakeFrame::default()
+        }
     }
 
     #[test]
@@ -296,7 +302,7 @@ mod tests {
         // 0.25..1.0 s, one of them held.
         let frames = vec![at(2, 0.25, 0), at(2, 0.5, FLAG_HELD), at(2, 0.75, 0), at(2, 1.0, 0)];
         let scan = TakeScan { frames, ..TakeScan::default() };
-        assert_eq!(scan.main_element(), Some(2));
+        assert_eq!(scan.main_element(), Some(ElementId::new(2)));
         assert_eq!(scan.main_frame_count(), 4);
         assert_eq!(scan.duration_s(), 0.75);
         let t: Vec<f64> = scan.main_poses(false).iter().map(|p| p.t).collect();
@@ -309,7 +315,7 @@ mod tests {
         // The plant (element 0) over 0..2 s and a leaf (element 1) over 0..0.5 s: the plant.
         let frames = vec![at(1, 0.0, 0), at(0, 0.0, 0), at(1, 0.5, 0), at(0, 2.0, 0)];
         let scan = TakeScan { frames, ..TakeScan::default() };
-        assert_eq!(scan.main_element(), Some(0));
+        assert_eq!(scan.main_element(), Some(ElementId::GLOBAL));
         assert_eq!(scan.main_frame_count(), 2);
         assert_eq!(scan.duration_s(), 2.0);
         assert_eq!(TakeScan::default().main_element(), None);

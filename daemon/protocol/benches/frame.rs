@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use frond_protocol::{HandWire, Pose, PoseFlags, ServerMessage, decode_frame, encode_frame};
+use frond_protocol::{ElementId, HandWire, Pose, PoseFlags, ServerMessage, decode_frame, encode_frame};
 
 fn pose() -> Pose {
     Pose {
@@ -13,7 +13,7 @@ fn pose() -> Pose {
         device_time_us: 987_654_321,
         host_monotonic_ns: 12_345_678_901_234,
         flags: PoseFlags::FILTERED,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[12.5, -3.25, 0.0], [6.0, -1.5, 0.0], [6.0, -1.5, 4.0], [3.5, -0.5, 4.0]],
         hand: HandWire { t: 12.345, wrist_deg: [12.5, -3.25, 4.0], thumb_deg: [25.0, 30.0, 35.0] },
     }

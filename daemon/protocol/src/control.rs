@@ -6,6 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::ElementId;
+
 /// A request from `frond` (or any client) to the daemon.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ControlRequest {
@@ -467,7 +469,7 @@ pub struct HandStatus {
     /// Its device.
     pub source: SourceStatus,
     /// The element id it is published as.
-    pub element: u16,
+    pub element: ElementId,
     /// That element's name (the rig's name for the global element, else the layer's).
     pub element_name: String,
     /// The rig it is mapped by.
@@ -503,7 +505,7 @@ pub struct StageStatus {
     /// What it is doing, in words (read from its own lock-free cell).
     pub state: String,
     /// Ids of the elements it publishes.
-    pub elements: Vec<u16>,
+    pub elements: Vec<ElementId>,
     /// Work it dropped to keep within its share of the tick since it started (simulation steps,
     /// graph walk frames): it kept real time and the loop its rate, but showed less than asked.
     /// 0 while it keeps up (and from daemons that do not count it); `state` says so in words.

@@ -17,6 +17,7 @@
 
 pub mod control;
 pub mod convention;
+pub mod element_id;
 pub mod errors;
 pub mod frame;
 pub mod paths;
@@ -28,6 +29,7 @@ pub use control::{
     HistogramBucket, LatencySummary, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput, StageKey,
     StageSpec, StageStatus, StatusReport, SubscriberStatus,
 };
+pub use element_id::ElementId;
 pub use errors::printable;
 pub use frame::{
     DecodeError, FrameBuf, HEADER_LEN, MAX_CONTROL_REQUEST, MAX_FRAME_LEN, PROTOCOL_VERSION, ReadError,

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::ElementId;
+
 /// Everything the daemon sends on `poses.sock`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ServerMessage {
@@ -42,12 +44,12 @@ pub struct RigInfo {
 
 impl ElementTable {
     /// The element with this id, if announced.
-    pub fn get(&self, id: u16) -> Option<&ElementInfo> {
+    pub fn get(&self, id: ElementId) -> Option<&ElementInfo> {
         self.elements.iter().find(|e| e.id == id)
     }
 
     /// Joint names of element `id`'s skeleton, if announced.
-    pub fn joint_names(&self, id: u16) -> Option<&[String]> {
+    pub fn joint_names(&self, id: ElementId) -> Option<&[String]> {
         let e = self.get(id)?;
         self.rigs.iter().find(|r| r.name == e.rig).map(|r| r.joint_names.as_slice())
     }
@@ -88,7 +90,7 @@ impl ElementKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ElementInfo {
     /// The id its [`Pose`] frames carry in [`Pose::element`].
-    pub id: u16,
+    pub id: ElementId,
     /// A readable name: the rig for the global element, the layer's name, `field/plant3`, ...
     pub name: String,
     /// What produces it.
@@ -205,7 +207,7 @@ pub struct Pose {
     /// Element id, announced in the [`ElementTable`]: 0 is the plant's global element, 1..
     /// secondary layers (rig elements in order); stages publish theirs under ids the daemon
     /// assigns (look them up in the table, never guess from the number).
-    pub element: u16,
+    pub element: ElementId,
     /// Joint rotations `[pitch, yaw, roll]` in degrees, joint 0 = root, 3 = top.
     pub joints_deg: [[f32; 3]; 4],
     /// The calibrated (and filtered) hand sample behind this pose.
@@ -265,7 +267,7 @@ mod tests {
                 version: 3,
                 rigs: vec![RigInfo { name: "grass".into(), joint_names: vec!["root".into()] }],
                 elements: vec![ElementInfo {
-                    id: 0,
+                    id: ElementId::GLOBAL,
                     name: "grass".into(),
                     kind: ElementKind::Hand,
                     source: "hand".into(),

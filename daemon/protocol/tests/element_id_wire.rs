@@ -1,10 +1,10 @@
-//! Element ids on the wire: a [`Pose`]'s element, an [`ElementTable`]'s ids and a status reply's
-//! element ids encode as plain MessagePack unsigned integers, byte for byte what a bare `u16`
-//! gave before `ElementId` existed (the expected bytes below were taken from that encoder).
+//! Element ids on the wire: a [`Pose`]'s element and an [`ElementTable`]'s ids encode as plain
+//! MessagePack unsigned integers, byte for byte what a bare `u16` gave before [`ElementId`]
+//! existed (the expected bytes below were taken from that encoder, commit b151c7a).
 
 use frond_protocol::{
-    ElementInfo, ElementKind, ElementTable, HandWire, Pose, PoseFlags, RigInfo, ServerMessage, decode_frame,
-    encode_frame,
+    ElementId, ElementInfo, ElementKind, ElementTable, HandWire, Pose, PoseFlags, RigInfo, ServerMessage,
+    decode_frame, encode_frame,
 };
 
 fn pose(element: u16) -> ServerMessage {
@@ -13,7 +13,7 @@ fn pose(element: u16) -> ServerMessage {
         device_time_us: 1,
         host_monotonic_ns: 2,
         flags: PoseFlags::PLAYBACK,
-        element,
+        element: ElementId::new(element),
         joints_deg: [[0.0; 3]; 4],
         hand: HandWire { t: 0.5, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
     })
@@ -21,7 +21,7 @@ fn pose(element: u16) -> ServerMessage {
 
 fn table() -> ServerMessage {
     let info = |id: u16, name: &str, kind| ElementInfo {
-        id,
+        id: ElementId::new(id),
         name: name.into(),
         kind,
         source: "s".into(),

@@ -1,8 +1,8 @@
 //! Framing and message tests: round trips, fixed bytes, truncation, garbage, versions.
 
 use frond_protocol::{
-    ControlReply, ControlRequest, DecodeError, FrameBuf, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags,
-    ReadError, ServerMessage, decode_frame, encode_frame, read_frame,
+    ControlReply, ControlRequest, DecodeError, ElementId, FrameBuf, HandWire, Hello, PROTOCOL_VERSION, Pose,
+    PoseFlags, ReadError, ServerMessage, decode_frame, encode_frame, read_frame,
 };
 use proptest::prelude::*;
 
@@ -12,7 +12,7 @@ fn sample_pose() -> Pose {
         device_time_us: 1_234_567,
         host_monotonic_ns: 9_876_543_210,
         flags: PoseFlags::HELD | PoseFlags::FILTERED,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[1.5, -2.0, 0.0], [3.0, 4.0, 0.0], [5.0, 6.0, 7.5], [8.0, 9.0, 7.5]],
         hand: HandWire { t: 1.234567, wrist_deg: [10.0, 20.0, 30.0], thumb_deg: [1.0, 2.0, 3.0] },
     }

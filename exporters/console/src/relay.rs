@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use frond_sdk::{Event, Hello, Pose, Subscriber};
+use frond_sdk::{ElementId, Event, Hello, Pose, Subscriber};
 
 /// Most elements whose latest pose is kept (a field of plants is at most a few hundred).
 pub const MAX_ELEMENTS: usize = 1024;
@@ -111,7 +111,7 @@ impl Live {
 
     /// Copies into `out` the latest poses whose `seq` differs from the one in `sent` (element id
     /// -> last sent seq, updated), and returns the state version.
-    pub fn changed_since(&self, sent: &mut Vec<(u16, u64)>, out: &mut Vec<Pose>) -> u64 {
+    pub fn changed_since(&self, sent: &mut Vec<(ElementId, u64)>, out: &mut Vec<Pose>) -> u64 {
         out.clear();
         let s = self.lock();
         for p in &s.poses {
@@ -137,13 +137,13 @@ impl Live {
         if at.elapsed() > fresh || !s.connected {
             return None;
         }
-        s.poses.iter().find(|p| p.element == 0).map(|p| p.joints_deg[0])
+        s.poses.iter().find(|p| p.element.is_global()).map(|p| p.joints_deg[0])
     }
 
     fn store(&self, pose: Pose) {
         let mut s = self.lock();
         s.frames += 1;
-        if pose.element == 0 {
+        if pose.element.is_global() {
             s.main_at = Some(Instant::now());
         }
         // Same machine, same clock: the pose's publish stamp to its arrival here.
@@ -171,7 +171,7 @@ impl Live {
     fn set_hello(&self, hello: Hello) {
         let mut s = self.lock();
         // Elements that are no longer announced keep no pose.
-        s.poses.retain(|p| hello.elements.get(p.element).is_some() || p.element == 0);
+        s.poses.retain(|p| hello.elements.get(p.element).is_some() || p.element.is_global());
         s.hello = Some(hello);
         s.connected = true;
         s.why.clear();
@@ -249,7 +249,7 @@ mod tests {
             device_time_us: 0,
             host_monotonic_ns: 0,
             flags: Default::default(),
-            element,
+            element: ElementId::new(element),
             joints_deg: [[0.0; 3]; 4],
             hand: Default::default(),
         }
@@ -263,12 +263,12 @@ mod tests {
         live.store(pose(0, 2));
         live.store(pose(3, 2));
         live.changed_since(&mut sent, &mut out);
-        assert_eq!(out.iter().map(|p| (p.element, p.seq)).collect::<Vec<_>>(), [(0, 2), (3, 2)]);
+        assert_eq!(out.iter().map(|p| (p.element.get(), p.seq)).collect::<Vec<_>>(), [(0, 2), (3, 2)]);
         live.changed_since(&mut sent, &mut out);
         assert!(out.is_empty(), "nothing new: nothing sent");
         live.store(pose(3, 5));
         live.changed_since(&mut sent, &mut out);
-        assert_eq!(out.iter().map(|p| (p.element, p.seq)).collect::<Vec<_>>(), [(3, 5)]);
+        assert_eq!(out.iter().map(|p| (p.element.get(), p.seq)).collect::<Vec<_>>(), [(3, 5)]);
         assert_eq!(live.lock().frames, 4);
     }
 

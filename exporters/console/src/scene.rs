@@ -83,7 +83,7 @@ pub fn bake(rig: &LoadedRig) -> Result<RigScene, frond_gltf::BakeError> {
         device_time_us: 0,
         host_ns: 0,
         flags: 0,
-        element: 0,
+        element: frond_protocol::ElementId::GLOBAL,
         pose: PoseFrame { t: 0.0, joints_deg: [[0.0; 3]; JOINTS] },
         hand: HandSample { t: 0.0, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
     };

@@ -13,6 +13,7 @@ use frond_console::server::{Config, Console};
 use frond_formats::take::{TakeRecord, encode_file_start, encode_record};
 use frond_motion::take::{TakeFrame, TakeHeader};
 use frond_motion::{HandSample, JOINTS, PoseFrame};
+use frond_protocol::ElementId;
 
 /// A console on a free loopback port, its directories, and the port's address.
 struct Served {
@@ -137,7 +138,7 @@ fn write_take_of(dir: &Path, name: &str, rig: &str, element: u16, frames: usize,
             device_time_us: (t * 1e6) as u64,
             host_ns: (t * 1e9) as u64,
             flags: 0,
-            element,
+            element: ElementId::new(element),
             pose: PoseFrame { t, joints_deg: [[(i % 30) as f32, 0.0, 0.0]; JOINTS] },
             hand: HandSample { t, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
         };

@@ -4,8 +4,8 @@
 
 use frond_motion::take::MAX_INTERPOLATED_GAP_S;
 use frond_motion::{JOINTS, PoseFrame, TakeFrame, resample_across_gaps};
-use frond_protocol::PoseFlags;
 use frond_protocol::convention::joint_quat;
+use frond_protocol::{ElementId, PoseFlags};
 
 /// Per joint `[pitch, yaw, roll]`, degrees.
 pub type Joints = [[f32; 3]; JOINTS];
@@ -17,7 +17,7 @@ pub const MAX_FPS: f64 = 1000.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layer {
     /// Element id: 0 for the plant, `k + 1` for the rig's secondary element `k`.
-    pub element: u16,
+    pub element: ElementId,
     /// One pose per key of [`Layers::times_s`].
     pub poses: Vec<Joints>,
 }
@@ -49,10 +49,10 @@ impl Layers {
             frames.iter().filter(|f| !PoseFlags(f.flags).contains(PoseFlags::HELD) && f.pose.t.is_finite())
         };
         kept().next()?;
-        let rest_plant = !kept().any(|f| f.element == 0);
+        let rest_plant = !kept().any(|f| f.element.is_global());
         let timeline = TimeLine::new(kept().map(|f| f.pose.t), fps);
         let t_end = timeline.end();
-        let mut ids: Vec<u16> = kept().map(|f| f.element).collect();
+        let mut ids: Vec<ElementId> = kept().map(|f| f.element).collect();
         ids.sort_unstable();
         ids.dedup();
         let mut layers = Vec::with_capacity(ids.len());
@@ -81,7 +81,7 @@ impl Layers {
             layers.push(Layer { element: id, poses: resampled.iter().map(|p| p.joints_deg).collect() });
         }
         if rest_plant {
-            let rest = Layer { element: 0, poses: vec![[[0.0; 3]; JOINTS]; times_s.len()] };
+            let rest = Layer { element: ElementId::GLOBAL, poses: vec![[[0.0; 3]; JOINTS]; times_s.len()] };
             layers.insert(0, rest);
         }
         Some(Layers { fps, times_s, layers })
@@ -206,7 +206,7 @@ mod tests {
 
     fn frame(element: u16, t: f64, a: f32, flags: u32) -> TakeFrame {
         TakeFrame {
-            element,
+            element: ElementId::new(element),
             flags,
             pose: PoseFrame { t, joints_deg: [[a, 0.0, 0.0]; JOINTS] },
             ..TakeFrame::default()
@@ -273,7 +273,7 @@ mod tests {
         let frames = [frame(1, 5.0, 10.0, 0), frame(1, 6.0, 30.0, 0)];
         let l = Layers::from_frames(&frames, 2.0).unwrap();
         assert_eq!(l.times_s, [0.0, 0.5, 1.0]);
-        assert_eq!(l.layers.iter().map(|l| l.element).collect::<Vec<_>>(), [0, 1]);
+        assert_eq!(l.layers.iter().map(|l| l.element.get()).collect::<Vec<_>>(), [0, 1]);
         assert_eq!(l.main().poses, vec![[[0.0f32; 3]; JOINTS]; 3]);
         assert_eq!(l.layers[1].poses.iter().map(|p| p[0][0]).collect::<Vec<_>>(), [10.0, 20.0, 30.0]);
     }

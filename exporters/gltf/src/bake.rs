@@ -8,7 +8,7 @@ use serde_json::json;
 use frond_motion::JOINTS;
 use frond_motion::clip::Clip;
 use frond_motion::mesh::PlantModel;
-use frond_protocol::printable;
+use frond_protocol::{ElementId, printable};
 
 use crate::anim::{Joints, Layers, check_fps, push_joint_quats};
 use crate::doc::{AnimationBuilder, DocBuilder, Placement, PlantAssets, PlantNodes};
@@ -284,10 +284,10 @@ pub(crate) fn joint_channels(
 /// assigned to otherwise.
 pub(crate) fn targets(
     nodes: &PlantNodes,
-    assignment: &[Option<u16>],
-    layer: u16,
+    assignment: &[Option<ElementId>],
+    layer: ElementId,
 ) -> Vec<[gltf_json::Index<gltf_json::Node>; JOINTS]> {
-    if layer == 0 {
+    if layer.is_global() {
         return vec![nodes.main];
     }
     nodes.elements.iter().zip(assignment).filter(|(_, a)| **a == Some(layer)).map(|(j, _)| *j).collect()
@@ -303,11 +303,11 @@ pub(crate) fn assign(
     seed: u64,
     assets: &PlantAssets,
     notes: &mut Vec<String>,
-) -> Vec<Option<u16>> {
-    let named: Vec<(u16, String)> = layers
+) -> Vec<Option<ElementId>> {
+    let named: Vec<(ElementId, String)> = layers
         .layers
         .iter()
-        .filter(|l| l.element > 0)
+        .filter(|l| !l.element.is_global())
         .map(|l| (l.element, take.layer_name(l.element, &rig.rig)))
         .collect();
     let chosen = assign_layers(&rig.rig.elements, &named, seed);
@@ -347,7 +347,7 @@ pub(crate) fn take_notes(rig: &LoadedRig, take: &TakeInput) -> Vec<String> {
     if let Some(damage) = &take.damage {
         notes.push(format!("take `{}` is damaged: {damage}; baked the readable frames", take.name));
     }
-    if let Some(k) = frond_motion::take::main_element(&take.frames).filter(|&k| k > 0) {
+    if let Some(k) = frond_motion::take::main_element(&take.frames).filter(|k| !k.is_global()) {
         notes.push(format!(
             "take `{}` is a layer take (no frames of the plant, element 0): its layers from element {k} move on a plant at rest",
             printable(&take.name)

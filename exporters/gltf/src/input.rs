@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use frond_formats::scan_take;
 use frond_motion::mesh::PlantModel;
 use frond_motion::{Rig, TakeFrame, TakeHeader};
+use frond_protocol::ElementId;
 
 use crate::error::BakeError;
 
@@ -140,8 +141,8 @@ pub fn take_path(arg: &str, takes_dir: &Path) -> Result<PathBuf, BakeError> {
 impl TakeInput {
     /// The name of layer `id` (> 0): the take's own name for it, else the rig's element of the
     /// same index (takes recorded before layer names), else `element<id>`.
-    pub fn layer_name(&self, id: u16, rig: &frond_motion::Rig) -> String {
-        let k = usize::from(id).saturating_sub(1);
+    pub fn layer_name(&self, id: ElementId, rig: &frond_motion::Rig) -> String {
+        let k = id.index().saturating_sub(1);
         self.element_names
             .get(k)
             .or_else(|| rig.elements.get(k).map(|e| &e.name))

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use common::*;
 use frond_protocol::frame::FrameBuf;
-use frond_protocol::{HandWire, Hello, Pose, PoseFlags, ServerMessage};
+use frond_protocol::{ElementId, HandWire, Hello, Pose, PoseFlags, ServerMessage};
 
 fn hello() -> ServerMessage {
     ServerMessage::Hello(Hello {
@@ -35,7 +35,7 @@ fn pose(seq: u64, recording: bool) -> ServerMessage {
         device_time_us: seq * 10_000,
         host_monotonic_ns: seq * 10_000_000,
         flags,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[seq as f32, 0.0, 0.0]; 4],
         hand: HandWire { t, ..HandWire::default() },
     })

@@ -20,7 +20,7 @@ fn expected_angles(
     t: f64,
     joint: usize,
 ) -> [f32; 3] {
-    let layer: Vec<_> = frames.iter().filter(|f| f.element == element).collect();
+    let layer: Vec<_> = frames.iter().filter(|f| f.element.get() == element).collect();
     let t = t0 + t;
     if t <= layer[0].pose.t {
         return layer[0].pose.joints_deg[joint];

@@ -119,6 +119,7 @@ impl Resampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_protocol::ElementId;
 
     fn pose(seq: u64) -> Pose {
         Pose { seq, ..Pose::default() }
@@ -171,11 +172,11 @@ mod tests {
     #[test]
     fn elements_are_resampled_separately() {
         let mut r = Resampler::new(50.0);
-        r.push(Pose { seq: 1, element: 0, ..Pose::default() }, 0);
-        r.push(Pose { seq: 1, element: 3, ..Pose::default() }, 0);
-        r.push(Pose { seq: 2, element: 0, ..Pose::default() }, 1);
+        r.push(Pose { seq: 1, element: ElementId::GLOBAL, ..Pose::default() }, 0);
+        r.push(Pose { seq: 1, element: ElementId::new(3), ..Pose::default() }, 0);
+        r.push(Pose { seq: 2, element: ElementId::GLOBAL, ..Pose::default() }, 1);
         let mut got = Vec::new();
-        r.poll(2, |p| got.push((p.element, p.seq)));
+        r.poll(2, |p| got.push((p.element.get(), p.seq)));
         assert_eq!(got, [(0, 2), (3, 1)]);
     }
 }

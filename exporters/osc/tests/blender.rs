@@ -19,6 +19,7 @@ use std::process::{Command, Stdio};
 
 use frond_formats::layers::TakeBytes;
 use frond_motion::rig::Rig;
+use frond_protocol::ElementId;
 use frond_protocol::Pose;
 use support::*;
 
@@ -39,7 +40,11 @@ fn write_take(dir: &Path, name: &str, rig: &str, frames: usize, sway: bool) -> P
         })
         .collect();
     let clip = frond_motion::clip::Clip { fps: 30.0, frames };
-    take.set_layer(0, None, frond_motion::layers::frames_from_clip(&clip, 0, 0, None));
+    take.set_layer(
+        ElementId::GLOBAL,
+        None,
+        frond_motion::layers::frames_from_clip(&clip, ElementId::GLOBAL, 0, None),
+    );
     std::fs::create_dir_all(dir).unwrap();
     let path = dir.join(format!("{name}.take"));
     std::fs::write(&path, take.to_bytes()).unwrap();
@@ -307,7 +312,8 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     let (_, poses) = collector.finish();
     stop_and_stderr(osc);
 
-    let by_key: HashMap<(u16, u32), &Pose> = poses.iter().map(|p| ((p.element, p.seq as u32), p)).collect();
+    let by_key: HashMap<(u16, u32), &Pose> =
+        poses.iter().map(|p| ((p.element.get(), p.seq as u32), p)).collect();
     let frames = read_jsonl(&out);
     assert_eq!(frames.len(), 200);
     let mut armatures = std::collections::BTreeMap::new();
@@ -368,7 +374,7 @@ fn blender_addon_drives_the_leaves_from_a_live_layer() {
     assert_eq!(frames.len(), 100);
     let mut bent = 0;
     for f in &frames {
-        assert_eq!(f["element"].as_u64(), Some(u64::from(layer.id)));
+        assert_eq!(f["element"].as_u64(), Some(u64::from(layer.id.get())));
         let seq = f["seq"].as_u64().unwrap() as u32;
         let pose = by_seq.get(&seq).unwrap_or_else(|| panic!("layer frame {seq} unknown to the SDK"));
         for (k, instance) in f["quats"].as_array().unwrap().iter().enumerate() {

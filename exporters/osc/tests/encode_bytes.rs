@@ -6,7 +6,7 @@
 use frond_osc::encode::{
     ClockOffset, Datagrams, EncodeError, FrondEncoder, MAX_DATAGRAM_BYTES, VmcEncoder, VmcRig,
 };
-use frond_protocol::{HandWire, Pose, PoseFlags};
+use frond_protocol::{ElementId, HandWire, Pose, PoseFlags};
 use rosc::{OscPacket, OscType};
 
 /// Monotonic 2.0 s is wall-clock 1_700_000_000.5 s since 1970.
@@ -23,7 +23,7 @@ fn known_pose() -> Pose {
         device_time_us: 1_500_000,
         host_monotonic_ns: 2_000_000_000,
         flags: PoseFlags::FILTERED,
-        element: 0,
+        element: ElementId::GLOBAL,
         // Joint 0 pitched 90, joint 1 untouched, joint 2 yawed -90, joint 3 rolled 60.
         joints_deg: [[90.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, -90.0, 0.0], [0.0, 0.0, 60.0]],
         hand: HandWire { t: 1.5, wrist_deg: [0.0; 3], thumb_deg: [0.0; 3] },
@@ -114,7 +114,7 @@ fn device_lost_frames_carry_the_flag_in_frond_status() {
 #[test]
 fn secondary_elements_get_their_own_message() {
     let mut pose = known_pose();
-    pose.element = 2;
+    pose.element = ElementId::new(2);
     let mut out = Datagrams::new();
     FrondEncoder::new(OFFSET).encode(&pose, &mut out).unwrap();
     let msg = message(
@@ -318,14 +318,14 @@ fn the_names_bundle_names_the_rig_and_every_element() {
         }],
         elements: vec![
             ElementInfo {
-                id: 0,
+                id: ElementId::GLOBAL,
                 name: "flower".into(),
                 kind: ElementKind::Hand,
                 source: "hand".into(),
                 rig: "flower".into(),
             },
             ElementInfo {
-                id: 1,
+                id: ElementId::FIRST_LAYER,
                 name: "leaf#1".into(),
                 kind: ElementKind::Layer,
                 source: "layer".into(),

@@ -57,7 +57,8 @@ use std::time::Duration;
 pub use control::{ControlClient, ControlClientError};
 pub use error::{ProtocolError, SdkError};
 pub use frond_protocol::{
-    ElementInfo, ElementKind, ElementTable, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags, RigInfo,
+    ElementId, ElementInfo, ElementKind, ElementTable, HandWire, Hello, PROTOCOL_VERSION, Pose, PoseFlags,
+    RigInfo,
 };
 pub use source::{Source, SourceError, ZenohAddr};
 

@@ -393,7 +393,7 @@ fn pose_loop(source: frond_sdk::Source, shared: Arc<Mutex<Shared>>) {
             DaemonEvent::State(state) => s.daemon = state,
             DaemonEvent::Rig(_) => {}
             DaemonEvent::Pose(p) => {
-                if p.element == 0 {
+                if p.element.is_global() {
                     s.root = Some((p.joints_deg[0], Instant::now()));
                 }
             }

@@ -225,7 +225,7 @@ fn on_daemon(shared: &Mutex<Shared>, fixed_rig: bool, event: DaemonEvent<'_>) {
         }
         DaemonEvent::Rig(_) => {}
         DaemonEvent::Pose(p) => {
-            if p.element == 0 {
+            if p.element.is_global() {
                 shared.lock().expect("lock").pose = Some((p.joints_deg, Instant::now()));
             }
         }

@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use frond_e2e::{Daemon, wait_for};
-use frond_protocol::ElementKind;
+use frond_protocol::{ElementId, ElementKind};
 use frond_webdriver::{browser, poll, start_session};
 use serde_json::{Value, json};
 
@@ -108,7 +108,7 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     assert_eq!(row[1].as_str().unwrap(), frames.to_string(), "{row}");
     assert_eq!(row[3], "complete", "{row}");
     d.script("document.querySelector('#take-list tr[data-take=\"console_take\"] .take-play').click();");
-    let main: Vec<_> = scan.frames.iter().filter(|f| f.element == 0).map(|f| f.pose).collect();
+    let main: Vec<_> = scan.frames.iter().filter(|f| f.element.is_global()).map(|f| f.pose).collect();
     for _ in 0..3 {
         let snap = poll("the take playing", Duration::from_secs(10), || {
             let v = d.script("return window.frondConsole.snapshot(0);");
@@ -142,7 +142,7 @@ fn the_page_shows_the_live_plant_and_records_a_take() {
     let held = scan
         .frames
         .iter()
-        .filter(|f| f.element == 0 && f.flags & frond_protocol::PoseFlags::HELD.0 != 0)
+        .filter(|f| f.element.is_global() && f.flags & frond_protocol::PoseFlags::HELD.0 != 0)
         .count();
     assert_eq!(body.lines().count(), main.len() - held, "one line per pose, held ones left out");
     d.script("document.getElementById('player-live').click();");
@@ -219,7 +219,7 @@ fn a_field_started_from_the_page_stands_its_plants_where_the_field_puts_them() {
     d.script("document.querySelector('#take-list tr[data-take=\"sway\"] .take-field').click();");
     // The daemon plays the field: 16 field-plant elements announced.
     let ids = poll("the field's plants in the element table", Duration::from_secs(10), || {
-        let ids: Vec<u16> = daemon
+        let ids: Vec<ElementId> = daemon
             .status()
             .elements
             .iter()

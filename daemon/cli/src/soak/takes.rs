@@ -57,7 +57,7 @@ pub(super) fn read_take(t: &mut TakeFigures, seen: &[(u64, u64)], part: Part) {
             let mut runs = Vec::new();
             let mut increasing = true;
             let mut last: Option<u64> = None;
-            for f in scan.frames.iter().filter(|f| f.element == 0) {
+            for f in scan.frames.iter().filter(|f| f.element.is_global()) {
                 increasing &= last.is_none_or(|l| f.seq > l);
                 last = Some(f.seq);
                 push_run(&mut runs, f.seq);

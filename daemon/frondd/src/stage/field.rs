@@ -11,7 +11,7 @@ use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipePara
 use frond_motion::field::{Field, FieldPlayer};
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
-use frond_protocol::{StageInput, StageKey};
+use frond_protocol::{ElementId, StageInput, StageKey};
 
 use super::error::{BuildError, StageError};
 use super::live::{BuildContext, BuiltStage, FrameSink, LiveStage, StageInfo, StageReport, TickContext};
@@ -112,7 +112,7 @@ pub fn describe_controls(c: &FieldControls) -> String {
 pub struct FieldStage {
     player: FieldPlayer,
     out: Vec<Joints>,
-    ids: [u16; MAX_FIELD_PLANTS],
+    ids: [ElementId; MAX_FIELD_PLANTS],
     publish: usize,
     swipe: SwipeDetector,
     base_speed_m_s: f64,
@@ -127,7 +127,7 @@ impl FieldStage {
     pub fn new(
         looped: LoopedTake,
         field: Field,
-        ids: &[u16],
+        ids: &[ElementId],
         seed: u64,
         t0_ns: u64,
         report: Arc<FieldReport>,
@@ -146,7 +146,7 @@ impl FieldStage {
         let player = FieldPlayer::try_new(field, clip, &transitions, seed, controls)?;
         report.controls.store(controls);
         let publish = ids.len().min(n).min(MAX_FIELD_PLANTS);
-        let mut id_table = [0u16; MAX_FIELD_PLANTS];
+        let mut id_table = [ElementId::GLOBAL; MAX_FIELD_PLANTS];
         id_table[..publish].copy_from_slice(&ids[..publish]);
         Ok(FieldStage {
             player,
@@ -181,7 +181,7 @@ fn control_key(k: StageKey) -> ControlKey {
 }
 
 impl LiveStage for FieldStage {
-    fn on_hand(&mut self, hand: &HandSample, _pose: &mut PoseFrame, _element: &mut u16) {
+    fn on_hand(&mut self, hand: &HandSample, _pose: &mut PoseFrame, _element: &mut ElementId) {
         if let Some(swipe) = self.swipe.push(hand) {
             let mut c = self.player.controls();
             c.swipe(&swipe, self.base_speed_m_s);

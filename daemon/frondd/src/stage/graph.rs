@@ -20,7 +20,7 @@ use frond_motion::layers::{GLOBAL_LAYER, Take};
 use frond_motion::sample::JOINTS;
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
-use frond_protocol::{ControlErrorKind, GraphGoal, StageInput};
+use frond_protocol::{ControlErrorKind, ElementId, GraphGoal, StageInput};
 
 use super::budget::{self, TickWork};
 use super::error::BuildError;
@@ -159,7 +159,7 @@ pub struct GraphStage {
     walkers: Vec<(usize, Walker)>,
     /// Per plant: the walk's previous and next frame, interpolated between.
     frames: Vec<(Joints, Joints)>,
-    ids: Vec<u16>,
+    ids: Vec<ElementId>,
     frame_ns: u64,
     t0_ns: u64,
     next_publish_ns: u64,
@@ -179,7 +179,7 @@ impl GraphStage {
     /// time `t0_ns`; with the report `frond status` reads. Allocates (off the realtime thread).
     pub fn new(
         sources: Vec<GraphSource>,
-        ids: &[u16],
+        ids: &[ElementId],
         seed: u64,
         fps: f64,
         t0_ns: u64,
@@ -286,7 +286,7 @@ pub fn bend_direction_deg(root_deg: [f32; 3]) -> Option<f64> {
 }
 
 impl LiveStage for GraphStage {
-    fn on_hand(&mut self, _hand: &HandSample, pose: &mut PoseFrame, _element: &mut u16) {
+    fn on_hand(&mut self, _hand: &HandSample, pose: &mut PoseFrame, _element: &mut ElementId) {
         if self.goal == GraphGoal::Hand {
             let dir = bend_direction_deg(pose.joints_deg[0]);
             if dir.is_some() != self.hand_dir_deg.is_some()
@@ -512,7 +512,7 @@ mod tests {
 
     struct Sink(Vec<Joints>);
     impl FrameSink for Sink {
-        fn emit(&mut self, _element: u16, joints_deg: Joints) {
+        fn emit(&mut self, _element: ElementId, joints_deg: Joints) {
             self.0.push(joints_deg);
         }
     }
@@ -526,7 +526,8 @@ mod tests {
         let mut reference = Walker::new(&graph, 0, 4, 30.0);
         let walk: Vec<Joints> =
             (0..40).map(|_| reference.next_frame(&graph, &sway).pose.joints_deg).collect();
-        let (mut stage, _) = GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[40], 4, 30.0, 0);
+        let (mut stage, _) =
+            GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[ElementId::new(40)], 4, 30.0, 0);
         let hand = HandSample::default();
         let mut sink = Sink(Vec::new());
         // Publishing at 60 Hz on 1 ms ticks: a publication at time t shows the walk between
@@ -590,7 +591,8 @@ mod tests {
         let sway = frond_motion::graph::sample_sway(600);
         let path = control_positions_m(ControlPoint::Top, &Skeleton::even(1.0), 1.0, &sway);
         let graph = build_graph(&sway, &path, &GraphParams::new(ControlPoint::Top)).unwrap();
-        let (stage, report) = GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[40], 4, 30.0, 0);
+        let (stage, report) =
+            GraphStage::new(vec![GraphSource::new("sway", graph, sway)], &[ElementId::new(40)], 4, 30.0, 0);
         let mut stage = stage.with_budget(4, 100);
         let mut sink = Sink(Vec::new());
         let at = |ns: u64| TickContext { now_ns: ns, device_time_us: 0, hand: HandSample::default() };
@@ -665,7 +667,7 @@ mod tests {
             g3_range_deg: 60.0,
             tick_rate_hz: 1000,
             now_ns: 0,
-            free_ids: &[33],
+            free_ids: &[ElementId::FIRST_STAGE],
             name: "walk",
         };
         let e = load_source("stretched", "stretched", &ctx).err().unwrap().message;

@@ -1,6 +1,7 @@
 //! Guided procedural motion on the live mapping (seed 000, Eq. 8): joints 1..3 follow the root
 //! with delays set by the thumb's bend.
 
+use frond_protocol::ElementId;
 use std::sync::Arc;
 
 use frond_motion::guided::{GuidedLive, GuidedParams};
@@ -23,7 +24,7 @@ impl GuidedStage {
 }
 
 impl LiveStage for GuidedStage {
-    fn on_hand(&mut self, hand: &HandSample, pose: &mut PoseFrame, _element: &mut u16) {
+    fn on_hand(&mut self, hand: &HandSample, pose: &mut PoseFrame, _element: &mut ElementId) {
         *pose = self.guided.apply(pose, hand);
     }
 }

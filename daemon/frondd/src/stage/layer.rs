@@ -5,39 +5,39 @@ use std::sync::Arc;
 
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::control::StageKind;
-use frond_protocol::{ElementInfo, ElementKind};
+use frond_protocol::{ElementId, ElementInfo, ElementKind};
 
 use super::error::StageError;
 use super::live::{BuiltStage, FixedReport, LiveStage, StageInfo, no_input};
 
 /// Relabels the hand's frames as element `element`.
 pub struct LayerStage {
-    element: u16,
+    element: ElementId,
 }
 
 impl LayerStage {
     /// The hand becomes element `element`.
-    pub fn new(element: u16) -> Self {
+    pub fn new(element: ElementId) -> Self {
         LayerStage { element }
     }
 }
 
 impl LiveStage for LayerStage {
-    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, element: &mut u16) {
+    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, element: &mut ElementId) {
         *element = self.element;
     }
 
-    fn hand_element(&self) -> Option<u16> {
+    fn hand_element(&self) -> Option<ElementId> {
         Some(self.element)
     }
 }
 
 /// The element id of `rig`'s secondary element `layer` (`k + 1` for `rig.elements[k]`), or an
 /// error naming the rig's elements.
-pub fn layer_id(rig: &Rig, layer: &str) -> Result<u16, StageError> {
+pub fn layer_id(rig: &Rig, layer: &str) -> Result<ElementId, StageError> {
     let names: Vec<&str> = rig.elements.iter().map(|e| e.name.as_str()).collect();
     match names.iter().position(|n| *n == layer) {
-        Some(i) => Ok((i + 1) as u16),
+        Some(i) => Ok(ElementId::new((i + 1) as u16)),
         None => Err(StageError::NoSuchLayer {
             rig: rig.name.clone(),
             layer: layer.to_string(),

@@ -11,7 +11,7 @@ use std::sync::atomic::AtomicBool;
 use frond_motion::clip::Joints;
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::control::StageKind;
-use frond_protocol::{ControlErrorKind, ElementInfo, RigInfo, StageInput};
+use frond_protocol::{ControlErrorKind, ElementId, ElementInfo, RigInfo, StageInput};
 
 use super::budget;
 use super::error::BuildError;
@@ -30,7 +30,7 @@ pub struct TickContext {
 /// Where a stage puts the frames it publishes.
 pub trait FrameSink {
     /// Publishes `joints_deg` as element `element` (flagged `playback`).
-    fn emit(&mut self, element: u16, joints_deg: Joints);
+    fn emit(&mut self, element: ElementId, joints_deg: Joints);
 }
 
 /// Anything that produces poses in the realtime loop. Every method runs on the loop thread and
@@ -38,10 +38,10 @@ pub trait FrameSink {
 pub trait LiveStage: Send {
     /// Called for every hand report after mapping, in slot order: may change the hand's pose and
     /// the element it is published and recorded as.
-    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, _element: &mut u16) {}
+    fn on_hand(&mut self, _hand: &HandSample, _pose: &mut PoseFrame, _element: &mut ElementId) {}
     /// The element the hand is published as while this stage runs, if it changes it (a layer):
     /// also what the loop stamps on held frames.
-    fn hand_element(&self) -> Option<u16> {
+    fn hand_element(&self) -> Option<ElementId> {
         None
     }
     /// Called once per tick, before the device is read: publishes the stage's own elements.
@@ -103,7 +103,7 @@ pub struct StageInfo {
 
 impl StageInfo {
     /// Every element id it publishes or puts the hand on.
-    pub fn element_ids(&self) -> impl Iterator<Item = u16> + '_ {
+    pub fn element_ids(&self) -> impl Iterator<Item = ElementId> + '_ {
         self.elements.iter().chain(&self.hand_element).map(|e| e.id)
     }
 }
@@ -114,7 +114,7 @@ pub fn rig_info(rig: &Rig) -> RigInfo {
 }
 
 /// The first `count` element ids no running stage uses, or a refusal saying how many are free.
-pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [u16], BuildError> {
+pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [ElementId], BuildError> {
     ctx.free_ids.get(..count).ok_or_else(|| {
         BuildError::invalid(format!("no room for {count} more elements ({} free)", ctx.free_ids.len()))
     })
@@ -122,7 +122,7 @@ pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [u16]
 
 /// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants (a field's,
 /// a graph walk's), one per id.
-pub fn plant_elements(ids: &[u16], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
+pub fn plant_elements(ids: &[ElementId], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
     ids.iter()
         .enumerate()
         .map(|(i, &id)| ElementInfo {
@@ -153,7 +153,7 @@ pub struct BuildContext<'a> {
     /// Host time now (the stage's start).
     pub now_ns: u64,
     /// Element ids no running stage uses (other than the one being replaced), lowest first.
-    pub free_ids: &'a [u16],
+    pub free_ids: &'a [ElementId],
     /// The stage's name.
     pub name: &'a str,
 }

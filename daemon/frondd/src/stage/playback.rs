@@ -9,7 +9,7 @@ use frond_motion::layers::Take;
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, Transitions, find_transitions};
 use frond_motion::take::resample_plan;
 use frond_protocol::control::StageKind;
-use frond_protocol::{ElementInfo, ElementKind};
+use frond_protocol::{ElementId, ElementInfo, ElementKind};
 
 use super::error::{BuildError, StageError};
 use super::live::{
@@ -39,7 +39,7 @@ pub struct LoopedTake {
 /// [`MAX_LOOP_FRAMES`] is refused before it is resampled.
 pub fn looped_clip(take_bytes: &[u8]) -> Result<LoopedTake, StageError> {
     let (take, damage) = Take::from_bytes_noting_damage(take_bytes)?;
-    let poses: Vec<_> = take.layer(0, false).iter().map(|f| f.pose).collect();
+    let poses: Vec<_> = take.layer(ElementId::GLOBAL, false).iter().map(|f| f.pose).collect();
     let plan = resample_plan(&poses, LOOP_FPS);
     plan.check(LOOP_FPS, MAX_LOOP_FRAMES).map_err(StageError::TooLongToLoop)?;
     let clip = Clip::from_poses(&poses, LOOP_FPS);
@@ -68,13 +68,13 @@ pub fn note_damage(take: &str, damage: &Option<String>) -> String {
 pub struct PlaybackStage {
     playback: Playback,
     t0_ns: u64,
-    element: u16,
+    element: ElementId,
 }
 
 impl PlaybackStage {
     /// Loops a take made ready to loop ([`looped_clip`]) from host time `t0_ns`, published as
     /// `element`.
-    pub fn new(looped: LoopedTake, seed: u64, t0_ns: u64, element: u16) -> Self {
+    pub fn new(looped: LoopedTake, seed: u64, t0_ns: u64, element: ElementId) -> Self {
         let playback = Playback::new(looped.clip, &looped.transitions, seed, PlaybackParams::default(), 0);
         PlaybackStage { playback, t0_ns, element }
     }
@@ -96,14 +96,14 @@ pub fn build(take: &str, seed: u64, ctx: &BuildContext) -> Result<BuiltStage, Bu
     let bytes = super::live::read_take(ctx.takes_dir, take)?;
     let looped = looped_clip(&bytes).map_err(|e| BuildError::invalid(format!("take {take:?}: {e}")))?;
     let damage = note_damage(take, &looped.damage);
-    let stage = PlaybackStage::new(looped, seed, ctx.now_ns, 0);
+    let stage = PlaybackStage::new(looped, seed, ctx.now_ns, ElementId::GLOBAL);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
             kind: StageKind::Playback,
             report: Arc::new(FixedReport(format!("looping take {take} as the global element{damage}"))),
             elements: vec![ElementInfo {
-                id: 0,
+                id: ElementId::GLOBAL,
                 name: take.to_string(),
                 kind: ElementKind::Playback,
                 source: ctx.name.to_string(),

@@ -3,14 +3,11 @@
 //! the daemon state's lock, never by the loop.
 
 use frond_motion::Rig;
-use frond_motion::rig::MAX_RIG_ELEMENTS;
-use frond_protocol::{ElementInfo, ElementKind, ElementTable, StageStatus};
+use frond_protocol::{ElementId, ElementInfo, ElementKind, ElementTable, StageStatus};
 
 use super::error::{MAX_STAGE_NAME, MAX_STAGES, StageError};
 use super::live::StageInfo;
 
-/// Element ids handed to stages come from `FIRST_STAGE_ELEMENT..`, above the rig's layers.
-pub const FIRST_STAGE_ELEMENT: u16 = MAX_RIG_ELEMENTS as u16 + 1;
 /// Free element ids offered to a stage being built, at most.
 const OFFERED_IDS: usize = 256;
 
@@ -26,8 +23,8 @@ pub struct HandElement {
 impl HandElement {
     /// Hand `source` driving `rig`'s element `id` (0: the global element, named after the rig;
     /// else the secondary element `rig.elements[id - 1]`).
-    pub fn new(source: &str, rig: &Rig, id: u16) -> Self {
-        let (name, kind) = match id.checked_sub(1).and_then(|k| rig.elements.get(usize::from(k))) {
+    pub fn new(source: &str, rig: &Rig, id: ElementId) -> Self {
+        let (name, kind) = match id.layer_index().and_then(|k| rig.elements.get(k)) {
             Some(layer) => (layer.name.clone(), ElementKind::Layer),
             None => (rig.name.clone(), ElementKind::Hand),
         };
@@ -97,7 +94,7 @@ impl StageRegistry {
     }
 
     /// The element ids the stages in slots other than `slot` use, with the stage's name.
-    fn ids_besides(&self, slot: usize) -> impl Iterator<Item = (u16, &str)> + '_ {
+    fn ids_besides(&self, slot: usize) -> impl Iterator<Item = (ElementId, &str)> + '_ {
         self.slots
             .iter()
             .enumerate()
@@ -106,16 +103,17 @@ impl StageRegistry {
             .flat_map(|r| r.info.element_ids().map(move |id| (id, r.name.as_str())))
     }
 
-    /// Element ids no stage uses except the one in `slot` (which is being replaced), lowest first.
-    pub fn free_ids(&self, slot: usize) -> Vec<u16> {
-        let used: Vec<u16> = self.ids_besides(slot).map(|(id, _)| id).collect();
-        (FIRST_STAGE_ELEMENT..=u16::MAX).filter(|id| !used.contains(id)).take(OFFERED_IDS).collect()
+    /// Element ids no stage uses except the one in `slot` (which is being replaced), lowest first,
+    /// from [`ElementId::FIRST_STAGE`] (above the rig's layers).
+    pub fn free_ids(&self, slot: usize) -> Vec<ElementId> {
+        let used: Vec<ElementId> = self.ids_besides(slot).map(|(id, _)| id).collect();
+        ElementId::stage_ids().filter(|id| !used.contains(id)).take(OFFERED_IDS).collect()
     }
 
     /// An element id `info` would use that a stage in another slot than `slot` already uses
     /// (ids are unique in the table), with that stage's name.
-    pub fn collision(&self, slot: usize, info: &StageInfo) -> Option<(u16, String)> {
-        let mine: Vec<u16> = info.element_ids().collect();
+    pub fn collision(&self, slot: usize, info: &StageInfo) -> Option<(ElementId, String)> {
+        let mine: Vec<ElementId> = info.element_ids().collect();
         self.ids_besides(slot).find(|(id, _)| mine.contains(id)).map(|(id, name)| (id, name.to_string()))
     }
 
@@ -187,9 +185,14 @@ mod tests {
     use crate::stage::{FixedReport, no_input};
     use frond_protocol::control::StageKind;
 
+    /// Stage id `k` from the first one.
+    fn stage_id(k: u16) -> ElementId {
+        ElementId::new(ElementId::FIRST_STAGE.get() + k)
+    }
+
     fn built(kind: StageKind, ids: &[u16], hand: Option<u16>) -> StageInfo {
         let info = |id: u16, kind: ElementKind| ElementInfo {
-            id,
+            id: ElementId::new(id),
             name: format!("e{id}"),
             kind,
             source: "s".into(),
@@ -240,41 +243,44 @@ mod tests {
         let mut r = StageRegistry::default();
         r.replace(
             0,
-            Some(Running::new(
-                "f",
-                built(StageKind::Field, &[FIRST_STAGE_ELEMENT, FIRST_STAGE_ELEMENT + 1], None),
-            )),
+            Some(Running::new("f", built(StageKind::Field, &[stage_id(0).get(), stage_id(1).get()], None))),
         );
-        assert_eq!(r.free_ids(1)[..2], [FIRST_STAGE_ELEMENT + 2, FIRST_STAGE_ELEMENT + 3]);
-        assert_eq!(r.free_ids(0)[0], FIRST_STAGE_ELEMENT, "replacing slot 0 frees its ids");
+        assert_eq!(r.free_ids(1)[..2], [stage_id(2), stage_id(3)]);
+        assert_eq!(r.free_ids(0)[0], ElementId::FIRST_STAGE, "replacing slot 0 frees its ids");
     }
 
     #[test]
     fn a_stage_may_not_publish_an_id_another_stage_publishes() {
         let mut r = StageRegistry::default();
         r.replace(0, Some(Running::new("a", built(StageKind::Playback, &[0], None))));
-        assert_eq!(r.collision(1, &built(StageKind::Playback, &[0], None)), Some((0, "a".to_string())));
+        assert_eq!(
+            r.collision(1, &built(StageKind::Playback, &[0], None)),
+            Some((ElementId::GLOBAL, "a".to_string()))
+        );
         assert_eq!(r.collision(0, &built(StageKind::Playback, &[0], None)), None, "replacing itself is fine");
         assert_eq!(r.collision(1, &built(StageKind::Field, &[40], None)), None);
-        assert_eq!(r.collision(1, &built(StageKind::Layer, &[], Some(0))), Some((0, "a".to_string())));
+        assert_eq!(
+            r.collision(1, &built(StageKind::Layer, &[], Some(0))),
+            Some((ElementId::GLOBAL, "a".to_string()))
+        );
     }
 
     #[test]
     fn the_table_names_the_hand_layers_and_stage_elements() {
         let rig = grass();
         let mut r = StageRegistry::default();
-        let hands = [HandElement::new("hand", &rig, 0)];
+        let hands = [HandElement::new("hand", &rig, ElementId::GLOBAL)];
         let t = r.next_table(&rig, &hands, 0);
         assert_eq!(t.version, 1);
         assert_eq!(t.elements.len(), 1);
-        assert_eq!((t.elements[0].id, t.elements[0].kind), (0, ElementKind::Hand));
-        assert_eq!(t.joint_names(0).unwrap().len(), 4);
+        assert_eq!((t.elements[0].id, t.elements[0].kind), (ElementId::GLOBAL, ElementKind::Hand));
+        assert_eq!(t.joint_names(ElementId::GLOBAL).unwrap().len(), 4);
         // A layer moves the hand to its id; a field adds its plants.
         r.replace(0, Some(Running::new("layer", built(StageKind::Layer, &[], Some(1)))));
         r.replace(1, Some(Running::new("field", built(StageKind::Field, &[40, 41], None))));
         let t = r.next_table(&rig, &hands, 0);
         assert_eq!(t.version, 2);
-        let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id, e.kind)).collect();
+        let ids: Vec<(u16, ElementKind)> = t.elements.iter().map(|e| (e.id.get(), e.kind)).collect();
         assert_eq!(
             ids,
             [(1, ElementKind::Layer), (40, ElementKind::FieldPlant), (41, ElementKind::FieldPlant)]
@@ -286,19 +292,25 @@ mod tests {
     fn two_hands_are_two_elements_and_a_layer_relabels_only_the_primary() {
         let flower = Rig::from_toml_str(include_str!("../../../../rig-files/plants/flower.toml")).unwrap();
         let mut r = StageRegistry::default();
-        let hands = [HandElement::new("left", &flower, 0), HandElement::new("right", &flower, 1)];
+        let hands = [
+            HandElement::new("left", &flower, ElementId::GLOBAL),
+            HandElement::new("right", &flower, ElementId::new(1)),
+        ];
         let t = r.next_table(&flower, &hands, 0);
         let got: Vec<(u16, &str, ElementKind, &str)> =
-            t.elements.iter().map(|e| (e.id, e.name.as_str(), e.kind, e.source.as_str())).collect();
+            t.elements.iter().map(|e| (e.id.get(), e.name.as_str(), e.kind, e.source.as_str())).collect();
         assert_eq!(got, [(0, "flower", ElementKind::Hand, "left"), (1, "leaf", ElementKind::Layer, "right")]);
         assert_eq!(t.rigs.len(), 1, "one rig, named once");
         // A stage relabelling the primary hand onto a field-plant-free id 2 leaves the right hand.
         r.replace(0, Some(Running::new("layer", built(StageKind::Layer, &[], Some(2)))));
         let t = r.next_table(&flower, &hands, 0);
-        let ids: Vec<u16> = t.elements.iter().map(|e| e.id).collect();
+        let ids: Vec<u16> = t.elements.iter().map(|e| e.id.get()).collect();
         assert_eq!(ids, [1, 2]);
         // A hand on a rig of its own brings that rig into the table.
-        let hands = [HandElement::new("left", &flower, 0), HandElement::new("right", &grass(), 1)];
+        let hands = [
+            HandElement::new("left", &flower, ElementId::GLOBAL),
+            HandElement::new("right", &grass(), ElementId::new(1)),
+        ];
         let t = r.next_table(&flower, &hands, 0);
         let rigs: Vec<&str> = t.rigs.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(rigs, ["flower", "grass"]);

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use frond_motion::sim::{PlantSim, WindSpec};
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::control::StageKind;
-use frond_protocol::{ElementInfo, ElementKind};
+use frond_protocol::{ElementId, ElementInfo, ElementKind};
 
 use super::budget::{self, TickWork};
 use super::error::BuildError;
@@ -139,7 +139,7 @@ pub fn hand_wind(base: WindSpec, root_deg: [f32; 3]) -> WindSpec {
 }
 
 impl LiveStage for SimStage {
-    fn on_hand(&mut self, _hand: &HandSample, pose: &mut PoseFrame, _element: &mut u16) {
+    fn on_hand(&mut self, _hand: &HandSample, pose: &mut PoseFrame, _element: &mut ElementId) {
         let w = hand_wind(self.base, pose.joints_deg[0]);
         self.set_wind(w);
     }
@@ -168,7 +168,7 @@ impl LiveStage for SimStage {
             self.pose = self.plant.pose();
             self.report.t_s.store(self.plant.time_s().to_bits(), Relaxed);
         }
-        out.emit(0, self.pose.joints_deg);
+        out.emit(ElementId::GLOBAL, self.pose.joints_deg);
     }
 
     fn every_tick(&self) -> bool {
@@ -197,7 +197,7 @@ pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<B
             kind: StageKind::Sim,
             report,
             elements: vec![ElementInfo {
-                id: 0,
+                id: ElementId::GLOBAL,
                 name: format!("sim-{}", rig.name),
                 kind: ElementKind::Playback,
                 source: ctx.name.to_string(),
@@ -255,7 +255,7 @@ mod tests {
             g3_range_deg: 60.0,
             tick_rate_hz,
             now_ns: 0,
-            free_ids: &[33, 34],
+            free_ids: &[ElementId::new(33), ElementId::new(34)],
             name: "sim",
         };
         let spec = frond_protocol::StageSpec::Sim {
@@ -291,7 +291,7 @@ mod tests {
 
     struct Count(usize);
     impl FrameSink for Count {
-        fn emit(&mut self, _element: u16, _joints_deg: frond_motion::clip::Joints) {
+        fn emit(&mut self, _element: ElementId, _joints_deg: frond_motion::clip::Joints) {
             self.0 += 1;
         }
     }

@@ -8,6 +8,7 @@ use std::process::{Command, Output};
 use frond_formats::layers::TakeBytes;
 use frond_motion::layers::Take;
 use frond_motion::{JOINTS, PoseFrame, TakeFrame, TakeHeader};
+use frond_protocol::ElementId;
 
 /// The binary under test.
 pub fn bin() -> PathBuf {
@@ -56,7 +57,7 @@ pub fn frames(element: u16, t0: f64, seconds: f64, rate_hz: f64, phase: f64) -> 
             TakeFrame {
                 seq: k as u64,
                 device_time_us: (t * 1e6) as u64,
-                element,
+                element: ElementId::new(element),
                 pose: PoseFrame { t, joints_deg: sway(t - t0, phase) },
                 ..TakeFrame::default()
             }

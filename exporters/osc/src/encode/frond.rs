@@ -1,7 +1,7 @@
 //! The `frond` OSC namespace (documented in the [parent module](super)).
 
 use frond_protocol::convention::joint_quat;
-use frond_protocol::{ElementTable, Pose};
+use frond_protocol::{ElementId, ElementTable, Pose};
 use rosc::{OscMessage, OscPacket, OscType};
 
 use super::{ClockOffset, Datagrams, EncodeError, IMMEDIATELY, Timetags, set_f32, template, timetag};
@@ -16,7 +16,7 @@ pub struct FrondEncoder {
     quats: [OscPacket; 4],
     status: OscPacket,
     /// Templates of `/frond/element/<e>/pose`, made when element `e` is first seen.
-    elements: Vec<(u16, OscPacket)>,
+    elements: Vec<(ElementId, OscPacket)>,
 }
 
 /// Arguments of `/frond/pose`: int seq, double t, 12 floats.
@@ -91,7 +91,7 @@ impl FrondEncoder {
         let mut args = vec![s(rig)];
         args.extend(joints(joint_names));
         out.push(&OscPacket::Message(OscMessage { addr: "/frond/rig".into(), args }))?;
-        for e in table.elements.iter().filter(|e| e.id != 0) {
+        for e in table.elements.iter().filter(|e| !e.id.is_global()) {
             let mut args = vec![s(&e.name), s(e.kind.as_str()), s(&e.rig)];
             args.extend(joints(table.joint_names(e.id).unwrap_or(&[])));
             let addr = format!("/frond/element/{}/info", e.id);
@@ -107,7 +107,7 @@ impl FrondEncoder {
             Timetags::Publish => timetag(pose.host_monotonic_ns, self.offset),
             Timetags::Immediately => IMMEDIATELY,
         });
-        if pose.element != 0 {
+        if !pose.element.is_global() {
             let slot = match self.elements.iter().position(|(e, _)| *e == pose.element) {
                 Some(i) => i,
                 None => {

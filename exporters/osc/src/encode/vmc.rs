@@ -107,7 +107,7 @@ impl VmcEncoder {
             Timetags::Publish => timetag(pose.host_monotonic_ns, self.offset),
             Timetags::Immediately => IMMEDIATELY,
         });
-        if pose.element != 0 {
+        if !pose.element.is_global() {
             out.finish();
             return Ok(());
         }

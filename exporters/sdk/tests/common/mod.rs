@@ -2,6 +2,7 @@
 //! their sequence numbers.
 #![allow(dead_code)] // each test binary uses its own part
 
+use frond_protocol::ElementId;
 use frond_protocol::{HandWire, ServerMessage, encode_frame};
 use frond_sdk::{Hello, Pose, PoseFlags};
 
@@ -24,7 +25,7 @@ pub fn pose(seq: u64) -> Pose {
         device_time_us: seq * 1000,
         host_monotonic_ns: 5_000_000 + seq,
         flags: PoseFlags::FILTERED,
-        element: 0,
+        element: ElementId::GLOBAL,
         joints_deg: [[a, -a, 0.5], [1.0, 2.0, 3.0], [a * 0.25, 0.0, -1.5], [0.0, 0.0, a]],
         hand: HandWire { t: seq as f64 / 1000.0, wrist_deg: [a, 0.0, 1.0], thumb_deg: [2.0, 3.0, 4.0] },
     }
