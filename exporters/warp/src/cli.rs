@@ -10,7 +10,10 @@ use crate::params::Checker;
 
 mod validate;
 
-const ABOUT: &str = "Animate vegetation in a picture with the wind, driven by the hand (seed 001).
+const ABOUT: &str = "Animate vegetation in a picture with the wind, driven by the hand.
+
+The method is \"A Simple Method to Animate Vegetation in Images Using Simulation-guided
+Grid-based Warping\" (docs/methods.md names the four papers frond follows).
 
 A picture's vegetation layers (masks cut out of the picture, or RGBA images with alpha) sway over
 the background (given, or inpainted where masks fully cover the picture). Per frame:
@@ -27,13 +30,13 @@ Pixels outside every layer never change (unless --sway-margin lets layers grow).
 
 Live: `serve` subscribes to frondd (--socket-dir, env FROND_SOCKET_DIR): the root joint's bend
 sets the wind direction and strength (full at 15.075 degrees, the simulated plant's bend in a
-10 m/s wind), the sway rate the interval. Without a daemon it falls back to
-a procedural wind with the page's settings and says so, or with --wind-sim to seed 003's
-simulation wind (speed=S,dir=DEG,gust=G,seed=N[,until=S], as frond take simulate --wind; strength
-= speed / 10 m/s); render takes --wind-sim too.
-`serve --mode cage` (seed 004) shows the layer's cage tree: draw a sketch on the page with the
-pointer and the plant morphs towards it (Escape resets); with no sketch the live hand bends the
-plant through its skinned crown cage.
+10 m/s wind), the sway rate the interval. Without a daemon it falls back to a procedural wind
+with the page's settings and says so, or with --wind-sim to the simulation wind of
+\"Physically-based Driven Tree Animations\" (speed=S,dir=DEG,gust=G,seed=N[,until=S], as frond
+take simulate --wind; strength = speed / 10 m/s); render takes --wind-sim too.
+`serve --mode cage` (\"Sketch-based shape-preserving tree animations\") shows the layer's cage
+tree: draw a sketch on the page with the pointer and the plant morphs towards it (Escape resets);
+with no sketch the live hand bends the plant through its skinned crown cage.
 
 Examples:
   frond-warp make-samples rig-files/images
@@ -52,7 +55,7 @@ Examples:
 #[command(
     name = "frond-warp",
     version,
-    about = "Hand-driven vegetation-in-the-wind preview (seed 001)",
+    about = "Hand-driven vegetation-in-the-wind preview (grid-based warping)",
     long_about = ABOUT,
     // `--log-level` before or after the subcommand.
     mut_arg("log_level", |a| a.global(true))
@@ -83,10 +86,10 @@ pub enum Command {
     },
     /// Time the warp of one frame (single thread) and the full pipeline.
     Bench(BenchArgs),
-    /// Morph a layer towards a sketch, keeping its shape (seed 004, section 5).
+    /// Morph a layer towards a sketch, keeping its shape (the sketch-based paper, section 5).
     #[command(long_about = MORPH_ABOUT)]
     Morph(MorphArgs),
-    /// Multiscale cages of a vegetation layer (seed 004): build them, inspect their coordinates.
+    /// Multiscale cages of a vegetation layer (the sketch-based paper): build them, inspect their coordinates.
     #[command(subcommand)]
     Cage(CageCommand),
 }
@@ -101,7 +104,9 @@ pub enum CageCommand {
     Coords(CageCoordsArgs),
 }
 
-const CAGE_BUILD_ABOUT: &str = "Build the multiscale cage tree (seed 004, section 5.2) of a vegetation layer.
+const CAGE_BUILD_ABOUT: &str = "Build the multiscale cage tree of a vegetation layer.
+
+The cages are those of \"Sketch-based shape-preserving tree animations\", section 5.2.
 
 Each 4-connected part of the layer's matte (a greyscale mask, or an RGBA image's alpha) holding at
 least --min-part of the foliage is a crown (a root cage); a cage's foliage is split into --lobes
@@ -112,8 +117,9 @@ in exporters/warp/README.md) lists every cage with its parent, kind and vertices
 Example:
   frond-warp cage build --layer rig-files/images/shrub.png -o shrub-cage.json";
 
-const MORPH_ABOUT: &str =
-    "Morph a vegetation layer towards a sketch, keeping its shape (seed 004, section 5).
+const MORPH_ABOUT: &str = "Morph a vegetation layer towards a sketch, keeping its shape.
+
+The method is \"Sketch-based shape-preserving tree animations\", section 5.
 
 The layer's multiscale cage tree (--cage, or built from the layer as `cage build` does) carries the
 picture: the sketched crown moves to the sketch's outline (closed sketch) or has the oversketched
@@ -308,11 +314,11 @@ pub struct RenderArgs {
     /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
     #[arg(long, value_name = "DIR")]
     pub takes_dir: Option<PathBuf>,
-    /// Seed 003's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` (as `frond take
+    /// The tree-animation paper's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` (as `frond take
     /// simulate --wind`): the wind that blows the simulated plant blows the picture.
     #[arg(long, value_name = "SPEC", conflicts_with = "take")]
     pub wind_sim: Option<String>,
-    /// How the picture moves: `wave` (seed 001: wind, waves, grid warp) or `cage` (seed 004: the
+    /// How the picture moves: `wave` (wind, waves, grid warp) or `cage` (the
     /// first layer's crown cage skinned to the plant skeleton, bent by --take's poses).
     #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
     pub mode: RenderMode,
@@ -388,11 +394,11 @@ pub struct ServeArgs {
     /// Do not connect to the daemon (procedural wind only).
     #[arg(long)]
     pub no_daemon: bool,
-    /// Seed 003's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` instead of the
+    /// The tree-animation paper's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` instead of the
     /// procedural one while no hand drives the wind (time from the start of the page).
     #[arg(long, value_name = "SPEC")]
     pub wind_sim: Option<String>,
-    /// What the page shows: `wave` (seed 001: wind, waves, grid warp) or `cage` (seed 004: the
+    /// What the page shows: `wave` (wind, waves, grid warp) or `cage` (the
     /// layer's cage tree; sketch on the page with the pointer, or bend it with the live hand).
     #[arg(long, value_enum, default_value_t = RenderMode::Wave)]
     pub mode: RenderMode,
