@@ -3,7 +3,7 @@
 //! the parsed value and parsing it again gives the same value (the writers document this round
 //! trip).
 
-use frond_formats::rig_toml::CalibrationText;
+use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_formats::take::{MAGIC, RECORD_HEAD_LEN, encode_file_start, encode_record};
 use frond_formats::{
     JsonlError, TakeError, TakeRecord, parse_hand_line, parse_pose_line, scan_take, write_hand_line,

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use frond_device::{
     DeviceProfile, DeviceSample, HandSource, ReportParser, SourceCounters, SourceError, SourceKind,
 };
+use frond_formats::rig_toml::RigText;
 use frond_motion::{Calibration, FilterSpec, Mapper, Rig};
 use frond_vhid::glove::{GloveReport, STATUS_TRACKING_OK, encode_report};
 use frond_vhid::sway_sample;

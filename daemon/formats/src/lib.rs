@@ -12,7 +12,8 @@
 //! - [`bvh`] and [`usd`]: the exchange formats `frond take bvh` and `frond take usd` write;
 //! - [`gltf_mesh`]: a rig's glTF/GLB mesh;
 //! - [`graph_file`]: the motion graph file `NAME.graph.json`;
-//! - [`rig_toml`]: the `[sim]` table of a `--sim` file;
+//! - [`rig_toml`]: the text of rig files, calibration files and the `[sim]` table of a `--sim`
+//!   file;
 //! - [`field_json`]: `field.json` and the loop analysis `frond take loop --explain` prints.
 //!
 //! Parsers are pure (bytes in, values out) so they can be fuzzed (`fuzz/`); only [`rig_files`]

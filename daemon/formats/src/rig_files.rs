@@ -12,6 +12,8 @@ use thiserror::Error;
 
 use frond_motion::rig::{Rig, RigError};
 
+use crate::rig_toml::RigText;
+
 /// The rigs of `rig-files/plants/`, built into every binary: `(name, TOML text)`.
 pub const EMBEDDED_RIGS: [(&str, &str); 3] = [
     ("grass", include_str!("../../../rig-files/plants/grass.toml")),

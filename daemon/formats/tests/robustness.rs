@@ -1,7 +1,7 @@
 //! `Mapper::process` and the parsers never panic, and finite input never gives NaN or infinity.
 
 use frond_formats::jsonl::{parse_hand_line, parse_pose_line};
-use frond_formats::rig_toml::CalibrationText;
+use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, Rig};
 use proptest::prelude::*;
 

@@ -18,7 +18,7 @@ use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
 use crossbeam_channel::bounded;
-use frond_formats::rig_toml::CalibrationText;
+use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_motion::take::TakeHeader;
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{

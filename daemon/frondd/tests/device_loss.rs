@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
+use frond_formats::rig_toml::RigText;
 use frond_motion::{FilterSpec, HandSample, Mapper, Rig};
 use frond_protocol::PoseFlags;
 use frondd::engine::{Engine, LoopCommand};

@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
+use frond_formats::rig_toml::RigText;
 use frond_motion::{FilterSpec, HandSample, Mapper, Rig};
 use frond_protocol::{ElementId, ServerMessage, read_frame};
 use frondd::engine::Engine;

@@ -12,6 +12,7 @@ use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_device::{DeviceSample, HandSource, SourceCounters, SourceError, SourceKind};
 use frond_formats::field_json::FieldJson;
 use frond_formats::layers::TakeBytes;
+use frond_formats::rig_toml::RigText;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, Rig};
 use frond_protocol::ElementId;
 use frondd::engine::{Engine, LoopCommand};

@@ -429,34 +429,39 @@ pub fn procedural_model(rig: &Rig) -> Result<PlantModel, MeshError> {
 mod tests {
     use super::*;
 
-    fn rig(shape: &str, elements: &str) -> Rig {
-        Rig::from_toml_str(&format!(
-            "name = \"t\"\njoints = [{{ height_m = 0.0 }}, {{ height_m = 0.1 }}, {{ height_m = 0.2 }}, {{ height_m = 0.3 }}]\n{elements}\n[mesh]\nshape = \"{shape}\"\nwidth_m = 0.02\n"
-        ))
-        .unwrap()
-    }
+    use crate::rig::{ElementSpec, MeshShape, MeshSpec};
 
-    const LEAVES: &str = "[[elements]]\nname = \"leaf\"\nattach_joint = 1\ncount = 3\nlength_m = 0.08\n";
+    /// Joints at 0, 0.1, 0.2 and 0.3 m and a `shape` 2 cm wide of the default height, with
+    /// `leaves` three leaves 8 cm long on joint 1 or no elements.
+    fn rig(shape: MeshShape, leaves: bool) -> Rig {
+        let mesh = MeshSpec::Procedural { shape, width_m: 0.02, height_m: None };
+        let mut rig = Rig::for_tests("t", [0.0, 0.1, 0.2, 0.3], mesh);
+        if leaves {
+            let leaf = ElementSpec { name: "leaf".into(), attach_joint: 1, count: 3, length_m: 0.08, tau: 2 };
+            rig.elements.push(leaf);
+        }
+        rig
+    }
 
     #[test]
     fn every_shape_is_well_formed() {
-        for shape in ["blade", "flower", "shrub"] {
-            let m = procedural_model(&rig(shape, LEAVES)).unwrap();
-            m.stem.check().unwrap_or_else(|e| panic!("{shape}: {e}"));
-            assert!(m.stem.indices.len() >= 3 * 10, "{shape}");
+        for shape in [MeshShape::Blade, MeshShape::Flower, MeshShape::Shrub] {
+            let m = procedural_model(&rig(shape, true)).unwrap();
+            m.stem.check().unwrap_or_else(|e| panic!("{shape:?}: {e}"));
+            assert!(m.stem.indices.len() >= 3 * 10, "{shape:?}");
             for e in &m.elements {
                 e.mesh.check().unwrap();
             }
             // No triangle repeats a vertex (importers report such faces as invalid).
             for mesh in std::iter::once(&m.stem).chain(m.elements.iter().map(|e| &e.mesh)) {
                 for t in mesh.indices.chunks_exact(3) {
-                    assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2], "{shape}: degenerate {t:?}");
+                    assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2], "{shape:?}: degenerate {t:?}");
                 }
             }
             // Planted: something below ground, all of it weighted to joint 0.
             let below: Vec<_> =
                 m.stem.positions.iter().zip(&m.stem.weights).filter(|(p, _)| p[1] < 0.0).collect();
-            assert!(!below.is_empty(), "{shape}");
+            assert!(!below.is_empty(), "{shape:?}");
             assert!(below.iter().all(|(_, w)| **w == [1.0, 0.0, 0.0, 0.0]));
         }
     }
@@ -492,7 +497,7 @@ mod tests {
 
     #[test]
     fn blade_tapers_to_a_tip_at_the_default_height() {
-        let m = procedural_model(&rig("blade", "")).unwrap();
+        let m = procedural_model(&rig(MeshShape::Blade, false)).unwrap();
         // Default height: top joint + 3/4 of the top segment = 0.3 + 0.075.
         let max_y = m.stem.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
         assert!((max_y - 0.375).abs() < 1e-6, "{max_y}");
@@ -505,7 +510,7 @@ mod tests {
 
     #[test]
     fn flower_gets_one_leaf_per_element_instance_and_outward_stem_normals() {
-        let m = procedural_model(&rig("flower", LEAVES)).unwrap();
+        let m = procedural_model(&rig(MeshShape::Flower, true)).unwrap();
         assert_eq!(m.elements.len(), 3);
         assert_eq!(m.elements.iter().map(|e| e.instance).collect::<Vec<_>>(), [0, 1, 2]);
         // Stem tube vertices (radius 0.01 ring below the head) have outward normals.
@@ -517,7 +522,7 @@ mod tests {
 
     #[test]
     fn bending_the_root_tips_the_whole_plant() {
-        let m = procedural_model(&rig("flower", LEAVES)).unwrap();
+        let m = procedural_model(&rig(MeshShape::Flower, true)).unwrap();
         let rest = m.posed_positions(&[[0.0; 3]; 4], |_| [[0.0; 3]; 4]);
         let bent = m.posed_positions(&[[90.0, 0.0, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]], |_| [[0.0; 3]; 4]);
         assert_eq!(rest.len(), bent.len());
@@ -529,10 +534,7 @@ mod tests {
 
     #[test]
     fn file_meshes_are_not_procedural() {
-        let r = Rig::from_toml_str(
-            "name = \"g\"\njoints = [{ height_m = 0.0 }, { height_m = 0.1 }, { height_m = 0.2 }, { height_m = 0.3 }]\n[mesh]\nfile = \"g.glb\"\n",
-        )
-        .unwrap();
+        let r = Rig::for_tests("g", [0.0, 0.1, 0.2, 0.3], MeshSpec::File { path: "g.glb".into() });
         assert_eq!(
             procedural_model(&r).unwrap_err().to_string(),
             "rig `g` uses the mesh file `g.glb`; load it with the glTF reader"

@@ -5,8 +5,10 @@
 //! such as leaves and petals (section 5.3), each a simple short plant of its own; optionally the
 //! bone names a VMC receiver is sent for the four joints (`[vmc] bones`, used by `frond-osc`).
 //!
-//! Files are TOML (see `rig-files/plants/*.toml`). They are parsed into a raw form with unknown
-//! fields refused, then validated into [`Rig`], reporting every problem with its path.
+//! Rig files are TOML (see `rig-files/plants/*.toml`), read and written by
+//! `frond_formats::rig_toml::RigText`. The text is parsed into the raw form [`RawRig`] (its serde
+//! definition refuses unknown fields), which is validated here into [`Rig`], reporting every
+//! problem with its path; [`RawRig::from_rig`] is the raw form a rig is written as.
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -178,9 +180,14 @@ fn default_tau() -> i64 {
     DEFAULT_TAU as i64
 }
 
+/// A rig as written in a rig file, before validation: every key as the text gives it (integers
+/// as `i64`, so that a wrong one is reported rather than wrapped), unknown keys refused. Public
+/// for the reader in frond-formats (`rig_toml::RigText`); build a [`Rig`] with
+/// [`RawRig::validate`], and write one from [`RawRig::from_rig`].
+#[doc(hidden)]
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct RawRig {
+pub struct RawRig {
     name: String,
     #[serde(default)]
     description: String,
@@ -218,7 +225,7 @@ impl RawRig {
     /// Validates every field into a [`Rig`], collecting every problem with its path: the name,
     /// the ranges, the filter, the joints, the elements, the mesh, the guided parameters, the
     /// VMC bones and the simulation, in that order.
-    fn validate(self) -> Result<Rig, Problems> {
+    pub fn validate(self) -> Result<Rig, Problems> {
         let mut p = Problems::default();
         self.check_name(&mut p);
         let tau = check_tau(&mut p, "tau", self.tau);
@@ -428,26 +435,19 @@ impl RawRig {
             }
         }
     }
-}
 
-impl Rig {
-    /// Parses a rig file and validates it, reporting every problem with its path.
-    pub fn from_toml_str(text: &str) -> Result<Rig, RigError> {
-        let raw: RawRig =
-            toml::from_str(text).map_err(|e| RigError::Toml(e.to_string().trim_end().to_string()))?;
-        raw.validate().map_err(RigError::Invalid)
-    }
-
-    /// Writes the rig as TOML (no comments); [`Rig::from_toml_str`] reads it back identically.
-    pub fn to_toml_string(&self) -> String {
-        let raw = RawRig {
-            name: self.name.clone(),
-            description: self.description.clone(),
-            tau: self.tau as i64,
-            thumb_range_deg: Some(self.thumb_range_deg),
-            bend_range_deg: self.bend_range_deg,
-            filter: Some(self.filter.to_string()),
-            joints: self
+    /// The raw form that validates back to `rig` ([`RawRig::validate`] gives it again): every
+    /// key written, except what the rig does not have (`bend_range_deg`, `[guided]`, `[vmc]`)
+    /// and a `[sim]` table at the defaults for its geometry.
+    pub fn from_rig(rig: &Rig) -> RawRig {
+        RawRig {
+            name: rig.name.clone(),
+            description: rig.description.clone(),
+            tau: rig.tau as i64,
+            thumb_range_deg: Some(rig.thumb_range_deg),
+            bend_range_deg: rig.bend_range_deg,
+            filter: Some(rig.filter.to_string()),
+            joints: rig
                 .joints
                 .iter()
                 .map(|j| RawJoint {
@@ -458,7 +458,7 @@ impl Rig {
                     s_roll: j.s_roll,
                 })
                 .collect(),
-            elements: self
+            elements: rig
                 .elements
                 .iter()
                 .map(|e| RawElement {
@@ -469,15 +469,15 @@ impl Rig {
                     tau: e.tau as i64,
                 })
                 .collect(),
-            mesh: Some(RawMesh::from_spec(&self.mesh)),
-            guided: self.guided,
-            vmc: self.vmc_bones.as_ref().map(|b| RawVmc { bones: b.to_vec() }),
-            sim: RawSim::from_params(&self.sim, self.sim_node_heights_m()),
-        };
-        // Plain strings, integers and f32 values always serialize.
-        toml::to_string(&raw).unwrap_or_default()
+            mesh: Some(RawMesh::from_spec(&rig.mesh)),
+            guided: rig.guided,
+            vmc: rig.vmc_bones.as_ref().map(|b| RawVmc { bones: b.to_vec() }),
+            sim: RawSim::from_params(&rig.sim, rig.sim_node_heights_m()),
+        }
     }
+}
 
+impl Rig {
     /// The mapping parameters (seed 000, Eq. 2-4): per joint `[s_pitch, s_yaw, s_roll]`, `tau`,
     /// and the desired root bend range (section 5.4).
     pub fn mapping(&self) -> MappingParams {
@@ -504,6 +504,32 @@ impl Rig {
 }
 
 #[cfg(test)]
-mod guided_tests;
-#[cfg(test)]
-mod tests;
+impl Rig {
+    /// For the unit tests, which cannot read rig text (that is frond-formats): the rig that
+    /// `name = "{name}"`, four joints at `heights_m` and the `[mesh]` table of `mesh` read as,
+    /// every other key at its default. Checked to be what validation gives for that raw form.
+    pub(crate) fn for_tests(name: &str, heights_m: [f32; JOINTS], mesh: MeshSpec) -> Rig {
+        let rig = Rig {
+            name: name.to_string(),
+            description: String::new(),
+            joints: std::array::from_fn(|i| JointSpec {
+                name: format!("joint{i}"),
+                height_m: heights_m[i],
+                s_pitch: 1.0,
+                s_yaw: 1.0,
+                s_roll: 1.0,
+            }),
+            tau: DEFAULT_TAU,
+            thumb_range_deg: DEFAULT_THUMB_RANGE_DEG,
+            bend_range_deg: None,
+            filter: FilterSpec::None,
+            elements: Vec::new(),
+            sim: SimParams::defaults_for(node_heights_m(heights_m, &mesh)),
+            mesh,
+            guided: None,
+            vmc_bones: None,
+        };
+        assert_eq!(RawRig::from_rig(&rig).validate().as_ref(), Ok(&rig), "not a valid rig");
+        rig
+    }
+}

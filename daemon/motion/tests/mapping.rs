@@ -1,7 +1,7 @@
 //! Seed 000, Eq. 2-4, against values worked out by hand (in the comments), through `map_pose`
 //! and through `Mapper::process` with a calibration offset.
 
-use frond_formats::rig_toml::CalibrationText;
+use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_motion::{
     Calibration, CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams, Rig, map_pose,
 };

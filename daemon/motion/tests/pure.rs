@@ -1,12 +1,25 @@
-//! frond-motion is math only: no file system, no OS calls, no process or network I/O. Files and
-//! their formats are frond-formats; this test keeps them from creeping back by scanning every
-//! source file of the crate for the names that would do I/O.
+//! frond-motion is math only: no file system, no OS calls, no process or network I/O, no file
+//! formats. Files and their formats are frond-formats; this test keeps them from creeping back by
+//! scanning every source file of the crate for the names that would do I/O or read a format, and
+//! its manifest for the crates that would.
 
 use std::path::{Path, PathBuf};
 
 /// Text that means I/O: the file system (`std::fs`, `File::`), raw OS calls (`libc::`), and
 /// processes, sockets and streams (`std::process`, `std::net`, `std::io`).
 const FORBIDDEN: [&str; 6] = ["std::fs", "File::", "libc::", "std::process", "std::net", "std::io"];
+
+/// Crates of file formats, refused as a path (`toml::from_str`) that is not the tail of a longer
+/// name (`frond_formats::rig_toml::RigText` in a doc comment is fine): rig, calibration and
+/// `[sim]` text is `frond_formats::rig_toml`.
+const FORBIDDEN_CRATES: [&str; 1] = ["toml"];
+
+/// Whether `line` names `krate` as the first segment of a path (`toml::`).
+fn uses_crate(line: &str, krate: &str) -> bool {
+    let path = format!("{krate}::");
+    line.match_indices(&path)
+        .any(|(at, _)| !line[..at].chars().next_back().is_some_and(|c| c.is_alphanumeric() || c == '_'))
+}
 
 /// Every `.rs` file under `dir`, recursively.
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -33,6 +46,9 @@ fn motion_sources_do_no_io() {
             for word in FORBIDDEN.iter().filter(|w| line.contains(*w)) {
                 found.push(format!("{}:{}: {word}", file.display(), n + 1));
             }
+            for krate in FORBIDDEN_CRATES.iter().filter(|k| uses_crate(line, k)) {
+                found.push(format!("{}:{}: {krate}::", file.display(), n + 1));
+            }
         }
     }
     assert!(
@@ -48,12 +64,23 @@ fn motion_depends_on_no_io_crates() {
         .expect("motion's Cargo.toml");
     let deps = manifest.split("[dependencies]").nth(1).expect("a [dependencies] table");
     let deps = deps.split("\n[").next().unwrap_or(deps);
-    // serde_json: the JSON files (field.json, the loop analysis) are frond-formats' too.
-    for krate in ["libc", "tempfile", "gltf", "serde_json"] {
+    // serde_json: the JSON files (field.json, the loop analysis) are frond-formats' too; toml:
+    // the rig, calibration and `[sim]` text.
+    for krate in ["libc", "tempfile", "gltf", "serde_json", "toml"] {
         assert!(
             !deps.lines().any(|l| l.trim_start().starts_with(&format!("{krate}."))
                 || l.trim_start().starts_with(&format!("{krate} "))),
             "frond-motion must not depend on {krate}: file handling belongs to frond-formats"
         );
     }
+}
+
+/// The path check finds a crate's paths and only those.
+#[test]
+fn uses_crate_finds_paths_not_name_tails() {
+    assert!(uses_crate("let r: Raw = toml::from_str(text)?;", "toml"));
+    assert!(uses_crate("toml::to_string(&raw)", "toml"));
+    assert!(uses_crate("x(&toml::Value::Integer(1))", "toml"));
+    assert!(!uses_crate("/// `frond_formats::rig_toml::RigText`", "toml"));
+    assert!(!uses_crate("let toml = 1; // a toml file", "toml"));
 }

@@ -1,6 +1,7 @@
-//! The shipped rig and calibration files parse, validate and say what their comments say.
+//! The shipped rig and calibration files parse, validate and say what their comments say, and
+//! the plants they describe behave (meshes, the simulated plant's defaults).
 
-use frond_formats::rig_toml::CalibrationText;
+use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_motion::{Calibration, FilterSpec, Rig};
 
 const GRASS: &str = include_str!("../../../rig-files/plants/grass.toml");
@@ -79,4 +80,37 @@ fn shipped_rigs_have_well_formed_procedural_meshes() {
     let g = procedural_model(&Rig::from_toml_str(GRASS).unwrap()).unwrap();
     let top = g.stem.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
     assert!((top - 0.30).abs() < 1e-6, "grass is 30 cm tall, found {top}");
+}
+
+/// The simulated plant (seed 003, section 4.2) with the defaults of each shipped rig's geometry.
+#[test]
+fn sim_defaults_keep_stretch_below_half_a_percent_and_bend_plausibly() {
+    use frond_motion::sim::{PlantSim, WindSpec};
+    // Every shipped rig without a [sim] table, in a strong gusty wind with gravity: the linear
+    // springs keep every segment within 0.5 % of its rest length.
+    let wind: WindSpec = "speed=25,dir=200,gust=1,seed=3".parse().unwrap();
+    for (name, text) in [("grass", GRASS), ("flower", FLOWER), ("shrub", SHRUB)] {
+        let rig = Rig::from_toml_str(text).unwrap();
+        let mut p = rig.sim;
+        p.gravity_m_s2 = 9.81;
+        let mut sim = PlantSim::new(rig.sim_node_heights_m(), p, wind).unwrap();
+        let mut worst: f64 = 0.0;
+        for _ in 0..10_000 {
+            sim.step().unwrap();
+            worst = worst.max(sim.max_strain());
+        }
+        assert!(worst < 0.005, "{name}: stretch {worst}");
+        assert!(worst > 0.0, "{name}: the springs do stretch a little");
+        // A steady 5 m/s wind bends every joint by about 0.15 rad (the defaults' design, small
+        // angles); the accumulated bend shortens the lever arms, so a little less.
+        let mut sim = PlantSim::from_rig(&rig, WindSpec::steady(5.0, 0.0)).unwrap();
+        let steps = (20.0 / sim.params().timestep_s).round() as usize;
+        for _ in 0..steps {
+            sim.step().unwrap();
+        }
+        for (j, a) in sim.pose().joints_deg.iter().enumerate() {
+            let bend = -f64::from(a[1]).to_radians();
+            assert!((0.1..=0.16).contains(&bend), "{name} joint {j}: {bend} rad");
+        }
+    }
 }

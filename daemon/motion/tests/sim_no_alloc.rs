@@ -1,6 +1,7 @@
 //! The simulated plant's step and pose read-back allocate nothing (seed 003, section 4.2, as a
 //! realtime stage will use it): everything is preallocated when the plant is built.
 
+use frond_formats::rig_toml::RigText;
 use frond_motion::Rig;
 use frond_motion::sim::{PlantSim, WindSpec};
 

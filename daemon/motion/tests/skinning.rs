@@ -9,6 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
+use frond_formats::rig_toml::RigText;
 use frond_motion::Rig;
 use frond_motion::mesh::{PlantModel, procedural_model};
 use frond_motion::rig::MeshSpec;

@@ -9,6 +9,7 @@ mod common;
 use std::collections::HashMap;
 
 use common::*;
+use frond_formats::rig_toml::RigText;
 use glam::{Mat4, Quat, Vec3};
 
 /// The README's height rule over joint heights `h`.

@@ -203,6 +203,7 @@ fn unit(x: u64) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_formats::rig_toml::RigText;
 
     #[test]
     fn upright_root_is_calm_and_bends_map_to_directions() {

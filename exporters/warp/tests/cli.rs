@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 use common::{bin, run, s, stderr, write_take_with};
+use frond_formats::rig_toml::RigText;
 
 const W: u32 = 64;
 const H: u32 = 48;

@@ -507,6 +507,7 @@ fn load_source(take: &str, graph: &str, ctx: &BuildContext) -> Result<(GraphSour
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_formats::rig_toml::RigText;
     use frond_motion::graph::{ControlPoint, GraphParams, build_graph, control_positions_m};
     use frond_motion::skeleton::Skeleton;
 

@@ -183,6 +183,7 @@ mod tests {
 
     use super::*;
     use crate::stage::{FixedReport, no_input};
+    use frond_formats::rig_toml::RigText;
     use frond_protocol::control::StageKind;
 
     /// Stage id `k` from the first one.

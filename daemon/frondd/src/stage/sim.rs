@@ -8,6 +8,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
+use frond_formats::rig_toml::RigText;
 use frond_motion::sim::{PlantSim, WindSpec};
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::control::StageKind;

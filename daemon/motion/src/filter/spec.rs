@@ -303,18 +303,4 @@ mod tests {
             assert!(e.starts_with(want), "{text:?}: got {e:?}, want {want:?}");
         }
     }
-
-    #[test]
-    fn serde_uses_the_text_form() {
-        #[derive(Serialize, Deserialize, PartialEq, Debug)]
-        struct Doc {
-            filter: FilterSpec,
-        }
-        let d: Doc = toml::from_str("filter = \"one-euro:beta=0.01\"").unwrap();
-        assert_eq!(d.filter, FilterSpec::OneEuro { min_cutoff: 1.0, beta: 0.01, d_cutoff: 1.0 });
-        let text = toml::to_string(&d).unwrap();
-        assert_eq!(toml::from_str::<Doc>(&text).unwrap(), d);
-        let e = toml::from_str::<Doc>("filter = \"lowpass:cutoff_hz=-1\"").unwrap_err();
-        assert!(e.to_string().contains("cutoff_hz"), "{e}");
-    }
 }

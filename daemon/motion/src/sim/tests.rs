@@ -1,18 +1,12 @@
 //! The simulated plant checked against hand-computed physics (values worked out in the comments,
-//! independent of the code), and the `[sim]` table of rigs.
+//! independent of the code). The `[sim]` table of rig files is tested with their reader, in
+//! frond-formats (`tests/rig_toml/sim.rs`); the shipped rigs' defaults in `tests/rig_files.rs`.
 
 use glam::{DVec3, Vec3};
 
 use super::*;
-use crate::rig::{Rig, RigError};
+use crate::rig::{MeshShape, MeshSpec, Rig};
 use crate::skeleton::Skeleton;
-
-/// The shipped plant rigs, `(name, TOML text)` (the list `frond_formats::rig_files` builds in).
-const EMBEDDED_RIGS: [(&str, &str); 3] = [
-    ("grass", include_str!("../../../../rig-files/plants/grass.toml")),
-    ("flower", include_str!("../../../../rig-files/plants/flower.toml")),
-    ("shrub", include_str!("../../../../rig-files/plants/shrub.toml")),
-];
 
 const HEIGHTS: [f64; NODES] = [0.0, 0.1, 0.2, 0.3, 0.4];
 
@@ -211,34 +205,6 @@ fn sim_is_stable_at_large_steps_and_stiff_springs() {
 }
 
 #[test]
-fn sim_defaults_keep_stretch_below_half_a_percent_and_bend_plausibly() {
-    // Every shipped rig without a [sim] table, in a strong gusty wind with gravity: the linear
-    // springs keep every segment within 0.5 % of its rest length.
-    let wind: WindSpec = "speed=25,dir=200,gust=1,seed=3".parse().unwrap();
-    for (name, text) in EMBEDDED_RIGS {
-        let rig = Rig::from_toml_str(text).unwrap();
-        let mut p = rig.sim;
-        p.gravity_m_s2 = 9.81;
-        let mut sim = PlantSim::new(rig.sim_node_heights_m(), p, wind).unwrap();
-        let mut worst: f64 = 0.0;
-        for _ in 0..10_000 {
-            sim.step().unwrap();
-            worst = worst.max(sim.max_strain());
-        }
-        assert!(worst < 0.005, "{name}: stretch {worst}");
-        assert!(worst > 0.0, "{name}: the springs do stretch a little");
-        // A steady 5 m/s wind bends every joint by about 0.15 rad (the defaults' design, small
-        // angles); the accumulated bend shortens the lever arms, so a little less.
-        let mut sim = PlantSim::from_rig(&rig, WindSpec::steady(5.0, 0.0)).unwrap();
-        settle(&mut sim, 20.0);
-        for (j, a) in sim.pose().joints_deg.iter().enumerate() {
-            let bend = -f64::from(a[1]).to_radians();
-            assert!((0.1..=0.16).contains(&bend), "{name} joint {j}: {bend} rad");
-        }
-    }
-}
-
-#[test]
 fn sim_paper_form_has_no_first_order_restoring_torque_at_straight_rest() {
     // Bend only joint 3 (0.1 m below the top, rest straight) by theta with k = 0.1 N m/rad.
     // Bending form: E = k (1 - cos theta) ~ k theta^2 / 2: 5.0e-6 J at 0.01 rad, 4x at 0.02.
@@ -345,88 +311,11 @@ fn sim_refuses_bad_parameters_and_heights() {
     assert!(matches!(e, SimError::Heights(_)), "{e}");
 }
 
-const BASE: &str = "name = \"g\"\n[[joints]]\nheight_m = 0.0\n[[joints]]\nheight_m = 0.1\n[[joints]]\nheight_m = 0.2\n[[joints]]\nheight_m = 0.3\n[mesh]\nheight_m = 0.4\n";
-
-#[test]
-fn sim_table_of_a_rig_parses_defaults_validates_and_round_trips() {
-    // Absent: the defaults for the node heights 0, 0.1, 0.2, 0.3 and the mesh top 0.4.
-    let rig = Rig::from_toml_str(BASE).unwrap();
-    assert_eq!(rig.sim_node_heights_m(), [0.0, 0.1f32 as f64, 0.2f32 as f64, 0.3f32 as f64, 0.4f32 as f64]);
-    assert_eq!(rig.sim, SimParams::defaults_for(rig.sim_node_heights_m()));
-    assert!(!rig.to_toml_string().contains("[sim]"), "defaults are not written");
-    // Defaults by hand: s = 0.4 / 0.3; masses [8, 4, 2, 1] g * s^3, each heavier than all above.
-    let s: f64 = (0.4f32 as f64) / 0.3;
-    for (m, f) in rig.sim.mass_kg.iter().zip([8.0, 4.0, 2.0, 1.0]) {
-        assert!((m - f * 1e-3 * s.powi(3)).abs() < 1e-12, "{m}");
-    }
-    for n in 0..3 {
-        assert!(rig.sim.mass_kg[n] > rig.sim.mass_kg[n + 1..].iter().sum::<f64>());
-    }
-    // Top joint: drag 3e-3 s^2 at 0.1 m above it, 5 m/s, 0.15 rad: k_3 = 3e-3 s^2 * 5 * 0.1 / 0.15.
-    let k3 = 3e-3 * s * s * 5.0 * (0.4f32 as f64 - 0.3f32 as f64) / 0.15;
-    assert!((rig.sim.bend_stiffness_nm_per_rad[3] - k3).abs() < 1e-9 * k3);
-    assert_eq!(
-        (rig.sim.gravity_m_s2, rig.sim.timestep_s, rig.sim.angular),
-        (0.0, 0.001, AngularForm::Bending)
-    );
-
-    // Given: parsed, and written back in full.
-    let text = format!(
-        "{BASE}[sim]\nmass_kg = [0.4, 0.3, 0.2, 0.1]\nbend_stiffness_nm_per_rad = [1, 0.5, 0.25, 0.125]\n\
-         drag_ns_per_m = [0, 0.01, 0.02, 0.03]\ngravity_m_s2 = 9.81\ntimestep_s = 0.002\nangular = \"paper\"\n"
-    );
-    let rig = Rig::from_toml_str(&text).unwrap();
-    assert_eq!(rig.sim.mass_kg, [0.4, 0.3, 0.2, 0.1]);
-    assert_eq!(rig.sim.bend_stiffness_nm_per_rad, [1.0, 0.5, 0.25, 0.125]);
-    assert_eq!(rig.sim.drag_ns_per_m, [0.0, 0.01, 0.02, 0.03]);
-    assert_eq!(
-        (rig.sim.gravity_m_s2, rig.sim.timestep_s, rig.sim.angular),
-        (9.81, 0.002, AngularForm::Paper)
-    );
-    // Damping not given follows the given stiffness: joint 3 carries only the top (0.1 kg at
-    // 0.1 m): I = 1e-3 kg m^2, kd = 2 * 0.2 * sqrt(0.125 * 1e-3) = 4.4721e-3.
-    let want = 0.4 * (0.125f64 * 0.1 * (0.4f32 as f64 - 0.3f32 as f64).powi(2)).sqrt();
-    assert!((rig.sim.bend_damping_nms_per_rad[3] - want).abs() < 1e-12, "{:?}", rig.sim);
-    assert!((want - 4.4721e-3).abs() < 1e-6);
-    let written = rig.to_toml_string();
-    assert!(written.contains("[sim]"), "{written}");
-    assert_eq!(Rig::from_toml_str(&written).unwrap(), rig, "{written}");
-
-    // Every problem with its path.
-    let bad = format!(
-        "{BASE}[sim]\nmass_kg = [0.4, 0.3, 0, 0.1]\nbend_stiffness_nm_per_rad = [1, 2]\n\
-         drag_ns_per_m = [0, -1, 0, 1e9]\ntimestep_s = 0.5\ngravity_m_s2 = nan\nangular = \"stiff\"\n"
-    );
-    let Err(RigError::Invalid(p)) = Rig::from_toml_str(&bad) else { panic!("accepted") };
-    let got: Vec<String> = p.0.iter().map(|x| x.to_string()).collect();
-    assert_eq!(
-        got,
-        [
-            "sim.bend_stiffness_nm_per_rad: expected 4 values, found 2",
-            "sim.angular: unknown form `stiff` (expected bending or paper)",
-            "sim.mass_kg[2]: a mass (kg) must be between 0.000001 and 10000, found 0",
-            "sim.drag_ns_per_m[1]: a drag (N s/m) must be between 0 and 1000, found -1",
-            "sim.drag_ns_per_m[3]: a drag (N s/m) must be between 0 and 1000, found 1000000000",
-            "sim.gravity_m_s2: must be a finite number, found NaN",
-            "sim.timestep_s: the time step (s) must be between 0.00001 and 0.05, found 0.5",
-        ]
-    );
-    let e = Rig::from_toml_str(&format!("{BASE}[sim]\nmass = [1, 1, 1, 1]\n")).unwrap_err();
-    assert!(matches!(e, RigError::Toml(_)) && e.to_string().contains("unknown field `mass`"), "{e}");
-}
-
-#[test]
-fn sim_shipped_rigs_still_load_and_round_trip() {
-    for (name, text) in EMBEDDED_RIGS {
-        let rig = Rig::from_toml_str(text).unwrap();
-        assert_eq!(rig.sim.check(), Ok(()), "{name}");
-        assert_eq!(Rig::from_toml_str(&rig.to_toml_string()).unwrap(), rig, "{name}");
-    }
-}
-
 #[test]
 fn sim_simulate_gives_the_frames_asked_for_and_refuses_too_many() {
-    let rig = Rig::from_toml_str(BASE).unwrap();
+    // Joints at 0, 0.1, 0.2 and 0.3 m, the mesh's top at 0.4 m, no `[sim]` table.
+    let mesh = MeshSpec::Procedural { shape: MeshShape::Blade, width_m: 0.012, height_m: Some(0.4) };
+    let rig = Rig::for_tests("g", [0.0, 0.1, 0.2, 0.3], mesh);
     let wind: WindSpec = "speed=6,dir=0,gust=0.5,seed=1,until=0.5".parse().unwrap();
     let frames = simulate(&rig, &rig.sim, wind, 1.0, 30.0).unwrap();
     // t = 0, 1/30, ..., 30/30: 31 frames, the first at rest.

@@ -1,4 +1,8 @@
-use super::*;
+//! Rig files read and written by frond-formats: defaults, per-joint scales, unknown keys refused,
+//! every problem listed with its path, and a round trip through the text.
+
+use frond_formats::rig_toml::RigText;
+use frond_motion::{FilterSpec, MappingParams, Rig, RigError};
 
 const MINIMAL: &str = r#"
 name = "blade"
@@ -103,7 +107,7 @@ length_m = 0.05
 }
 
 /// Issue 14, point 11: well-formed but absurd sizes and scales are refused with the limits
-/// of `crate::plausible`; the limits themselves are accepted.
+/// of `frond_motion::plausible`; the limits themselves are accepted.
 #[test]
 fn implausible_scales_sizes_and_counts_are_refused() {
     let rig = |scale: &str, top_m: &str, count: &str, length_m: &str, range: &str| {

@@ -1,4 +1,8 @@
-use super::*;
+//! A rig file's `[vmc]` and `[guided]` tables, `bend_range_deg` and names: parsed, written back
+//! and validated with the messages a user sees.
+
+use frond_formats::rig_toml::RigText;
+use frond_motion::{GuidedSpec, Rig};
 
 const BASE: &str = "name = \"g\"\n[[joints]]\nheight_m = 0.0\n[[joints]]\nheight_m = 0.1\n[[joints]]\nheight_m = 0.2\n[[joints]]\nheight_m = 0.3\n";
 
