@@ -444,6 +444,104 @@ fn every_guide_page_and_exporter_readme_has_its_test() {
     assert!(missing.is_empty(), "add these pages to `pages!` in tests/e2e/docs.rs: {missing:?}");
 }
 
+/// The `frond` subcommands that write a take (or a take's graph file) named by their arguments.
+const TAKE_TOOLS: &[&str] = &["resample", "filter", "splice", "loop", "retime", "guided", "align", "walk"];
+
+/// The takes (and graph files, `NAME.graph.json`) a documented command creates in the takes
+/// directory: `frond take simulate NAME`, `take import FILE NAME`, `record start|layer NAME`,
+/// `take graph NAME` and the toolkit's `-o OUT` (default `NAME-<command>`); `record start NAME
+/// --stage` makes `NAME-<source>` for each source. A command that only
+/// prints (`--jsonl`, `loop --explain`) creates none.
+fn takes_created(cmd: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    // Each line of the command, without its comment, split at `;`, `&&` and pipes.
+    for line in cmd.lines() {
+        let line = line.split(" #").next().unwrap_or(line);
+        for part in line.split([';', '|', '&']) {
+            let words: Vec<&str> = part.split_whitespace().map(|w| w.trim_matches(['\'', '"'])).collect();
+            let Some(start) = words.iter().position(|w| *w == "frond") else { continue };
+            let words = &words[start + 1..];
+            let positional = |at: usize| words.get(at).filter(|w| !w.starts_with('-')).map(|w| w.to_string());
+            let option = |names: &[&str]| {
+                words
+                    .iter()
+                    .position(|w| names.contains(w))
+                    .and_then(|i| words.get(i + 1))
+                    .map(|w| w.to_string())
+            };
+            let prints = words.contains(&"--jsonl");
+            match (words.first().copied(), words.get(1).copied()) {
+                (Some("take"), Some("simulate")) => out.extend(positional(2)),
+                (Some("take"), Some("import")) if !prints => out.extend(positional(3)),
+                // With --stage, one take per source of the stage: NAME-<source>.
+                (Some("record"), Some("start")) if words.contains(&"--stage") => {
+                    out.extend(positional(2).map(|n| format!("{n}-<source>")))
+                }
+                (Some("record"), Some("start" | "layer")) => out.extend(positional(2)),
+                (Some("take"), Some("graph")) => out
+                    .extend(option(&["-o", "--output"]).or(positional(2).map(|n| format!("{n}.graph.json")))),
+                (Some("take"), Some(tool)) if TAKE_TOOLS.contains(&tool) => {
+                    if prints || (tool == "loop" && words.contains(&"--explain")) {
+                        continue;
+                    }
+                    out.extend(option(&["-o", "--output"]).or(positional(2).map(|n| format!("{n}-{tool}"))));
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// Each page names its own takes, so that a reader can follow the pages in any order in one
+/// takes directory: a take two pages create would stop the second with "exists; use --force".
+/// A static check (the pages' tests each run in a directory of their own): no take name is
+/// created by two pages, skipped blocks included.
+#[test]
+fn no_two_pages_create_the_same_take() {
+    let mut creators: std::collections::BTreeMap<String, BTreeSet<String>> = Default::default();
+    for page in PAGES {
+        let text = std::fs::read_to_string(repo_root().join(page)).unwrap_or_else(|e| panic!("{page}: {e}"));
+        let blocks = blocks(&text).unwrap_or_else(|e| panic!("{page}:{e}"));
+        for cmd in blocks.iter().flat_map(|b| &b.commands) {
+            for take in takes_created(&cmd.text) {
+                creators.entry(take).or_default().insert(format!("{page}:{}", cmd.line));
+            }
+        }
+    }
+    let shared: Vec<String> = creators
+        .iter()
+        .filter(|(_, at)| at.iter().map(|a| a.split(':').next()).collect::<BTreeSet<_>>().len() > 1)
+        .map(|(take, at)| format!("`{take}`: {}", at.iter().cloned().collect::<Vec<_>>().join(", ")))
+        .collect();
+    assert!(
+        shared.is_empty(),
+        "takes created by more than one page (give each page its own names):\n{}",
+        shared.join("\n")
+    );
+}
+
+#[test]
+fn takes_created_reads_the_commands_that_write_takes() {
+    let cases: &[(&str, &[&str])] = &[
+        ("frond take simulate gust --rig shrub --wind speed=3 --duration 4", &["gust"]),
+        ("frond take import poses.jsonl mapped", &["mapped"]),
+        ("frond take import poses.jsonl mapped --jsonl", &[]),
+        ("frond record start base", &["base"]),
+        ("frond record layer leafy --layer leaf --over base", &["leafy"]),
+        ("frond record start take1 --stage stage1 --connect tcp/10.0.0.2:7447", &["take1-<source>"]),
+        ("frond take graph meadow --control top", &["meadow.graph.json"]),
+        ("frond take walk a b --plants 6 --duration 60 -o mixed  # plant p walks take p mod 2", &["mixed"]),
+        ("frond take align sway fast --window 2", &["sway-align"]),
+        ("frond take loop sway --explain", &[]),
+        ("frond take export sway --bvh -o sway.bvh", &[]),
+        ("frond-gltf bake --take sway -o sway.glb && frond take resample sway --fps 60 -o s60", &["s60"]),
+    ];
+    for (cmd, want) in cases {
+        assert_eq!(takes_created(cmd), *want, "{cmd}");
+    }
+}
+
 /// Relative link targets of a Markdown text (`](target)`), without their `#anchor`.
 fn relative_links(text: &str) -> Vec<(usize, String)> {
     let mut out = Vec::new();
