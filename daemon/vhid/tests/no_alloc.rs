@@ -2,17 +2,18 @@
 //! source) allocates nothing in steady state. Allocations are counted per thread, so the FUSE
 //! server and report generator threads do not interfere.
 
+#[path = "it/common/mod.rs"]
 mod common;
 
 use std::time::Duration;
 
 use common::*;
-use frond_alloc_count::{CountingAlloc, count_allocations};
+use frond_alloc_count::{count_allocations, CountingAlloc};
 use frond_device::{
     DeviceProfile, DeviceSample, HandSource, HidSource, ReplaySource, ReportParser, SourceKind,
 };
-use frond_vhid::glove::{GloveReport, encode_report};
-use frond_vhid::{InProcessGlove, VirtualGloveConfig, mount_fuse};
+use frond_vhid::glove::{encode_report, GloveReport};
+use frond_vhid::{mount_fuse, InProcessGlove, VirtualGloveConfig};
 
 #[global_allocator]
 static GLOBAL: CountingAlloc = CountingAlloc;

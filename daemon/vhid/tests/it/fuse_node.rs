@@ -1,6 +1,6 @@
 //! The virtual glove's FUSE hidraw node, read through hidapi exactly like a physical glove.
 
-mod common;
+use crate::common;
 
 use std::io::Read;
 use std::os::unix::fs::OpenOptionsExt;
@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use common::*;
 use frond_device::jsonl::parse_hand_text;
 use frond_device::{DeviceProfile, HandSource, HidSource, SourceError, SourceKind};
-use frond_vhid::{FaultPlan, GloveSource, UnplugPlan, VirtualGloveConfig, mount_fuse};
+use frond_vhid::{mount_fuse, FaultPlan, GloveSource, UnplugPlan, VirtualGloveConfig};
 
 fn jsonl_config(path: &std::path::Path, start_delay_ms: u64) -> VirtualGloveConfig {
     VirtualGloveConfig {

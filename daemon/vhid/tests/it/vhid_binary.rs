@@ -1,6 +1,6 @@
 //! The `frond-vhid` binary: node path on stdout, clean exit and unmount, clear errors.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

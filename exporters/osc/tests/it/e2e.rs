@@ -8,7 +8,7 @@
 //! the venv. Missing either, a test prints why and passes as skipped, unless `CI=true` or
 //! `FROND_REQUIRE_PYTHON=1`, where it fails.
 
-mod support;
+use crate::support;
 
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Read};

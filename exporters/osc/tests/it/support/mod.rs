@@ -26,7 +26,7 @@ pub fn frondd() -> Option<PathBuf> {
     Some(dir.join("frondd")).filter(|p| p.exists())
 }
 
-#[path = "../../../../tests/support/python.rs"]
+#[path = "../../../../../tests/support/python.rs"]
 mod support_python;
 pub use support_python::{python_with, skip};
 

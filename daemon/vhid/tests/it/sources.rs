@@ -1,6 +1,6 @@
 //! Replay and in-process sources.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -10,7 +10,7 @@
 //! the venv (`install-python.sh`); missing one, a test skips, unless `CI=true` or
 //! `FROND_REQUIRE_PYTHON=1`, where it fails.
 
-mod support;
+use crate::support;
 
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Read};
