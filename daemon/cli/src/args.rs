@@ -14,7 +14,13 @@ pub use crate::global::Global;
 
 /// frond: operate the hand-to-plant puppet daemon.
 #[derive(Debug, Parser)]
-#[command(name = "frond", version, about, propagate_version = true)]
+#[command(
+    name = "frond",
+    version,
+    about,
+    propagate_version = true,
+    after_help = "The papers quoted by their titles (\"Interactive authoring\", ...) are named in docs/methods.md."
+)]
 pub struct Cli {
     /// Options shared by every command.
     #[command(flatten)]
@@ -117,20 +123,22 @@ pub enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
-    /// Field playback in the daemon (seed 000, section 6.2).
+    /// Field playback in the daemon ("Interactive authoring", section 6.2).
     #[command(subcommand)]
     Field(FieldCommand),
-    /// The simulated plant of seed 003 (section 4) in the daemon, blown by the hand.
+    /// The simulated plant ("Physically-based Driven Tree Animations", section 4) in the
+    /// daemon, blown by the hand.
     #[command(subcommand)]
     Sim(crate::graph_live::SimCommand),
-    /// Plants walking a motion graph in the daemon (seed 003, section 6), directed live.
+    /// Plants walking a motion graph in the daemon ("Physically-based Driven Tree Animations",
+    /// section 6), directed live.
     #[command(subcommand)]
     Graph(crate::graph_live::GraphCommand),
     /// Steer the playing field from the keyboard: arrows set the force direction, + and - its
-    /// strength, q quits (seed 000, section 6.3). A wrist swipe steers it too.
+    /// strength, q quits ("Interactive authoring", section 6.3). A wrist swipe steers it too.
     Control,
-    /// Guided procedural motion on the live mapping (seed 000, Eq. 8): `sigma=S1,S2,S3;sg=G1,G2,G3`
-    /// (seconds; gains), or `off`.
+    /// Guided procedural motion on the live mapping ("Interactive authoring", Eq. 8):
+    /// `sigma=S1,S2,S3;sg=G1,G2,G3` (seconds; gains), or `off`.
     Guided {
         /// Spec or `off`.
         spec: String,
@@ -222,7 +230,7 @@ pub enum RecordCommand {
     Start(crate::stage_record::RecordStart),
     /// Stop the current recording and print the take's path and frame count.
     Stop,
-    /// Record a secondary layer (seed 000, section 5.3): the hand animates the rig's element
+    /// Record a secondary layer ("Interactive authoring", section 5.3): the hand animates the rig's element
     /// LAYER (e.g. leaf) while GLOBAL, the whole plant's take, loops on the stream for reference.
     Layer {
         /// New take name.
@@ -286,8 +294,9 @@ pub enum TakeCommand {
         /// Take name (or a path to a .take file).
         name: String,
     },
-    /// The motion toolkit (seed 000): import, resample, filter, splice, loop, field, retime,
-    /// guided, align.
+    /// The motion toolkit ("Interactive authoring"; simulate, graph and walk: "Physically-based
+    /// Driven Tree Animations"): import, resample, filter, splice, loop, field, retime, guided,
+    /// align, simulate, graph, walk.
     #[command(flatten)]
     Tool(crate::take_tools::TakeTool),
 }

@@ -38,7 +38,7 @@ struct Args {
     /// Pose messages per second to each page (the display rate).
     #[arg(long, value_name = "HZ", default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..=240))]
     display_hz: u32,
-    /// Leave out the seed-001 warp preview panel (it only runs while a page shows it).
+    /// Leave out the image-warp preview panel (it only runs while a page shows it).
     #[arg(long)]
     no_warp: bool,
     #[command(flatten)]

@@ -89,7 +89,8 @@ pub enum Command {
     /// Morph a layer towards a sketch, keeping its shape (the sketch-based paper, section 5).
     #[command(long_about = MORPH_ABOUT)]
     Morph(MorphArgs),
-    /// Multiscale cages of a vegetation layer (the sketch-based paper): build them, inspect their coordinates.
+    /// Multiscale cages of a vegetation layer (the sketch-based paper): build them, inspect their
+    /// coordinates.
     #[command(subcommand)]
     Cage(CageCommand),
 }
@@ -125,7 +126,7 @@ The layer's multiscale cage tree (--cage, or built from the layer as `cage build
 picture: the sketched crown moves to the sketch's outline (closed sketch) or has the oversketched
 stretch replaced (open sketch), finer cages follow by mean value coordinates and Eq. 1, lobes
 stretch over parts of their parent they leave uncovered (off: --no-adapt) and lobes mostly outside
-a closed sketch fade out (off: --no-prune). The pixels move with the seed-001 remap. --report
+a closed sketch fade out (off: --no-prune). The pixels move with the grid-based warp's remap. --report
 writes the discrete Frechet distance of each frame's outline to the reference in-between.
 
 sketch.json: {\"version\":1,\"closed\":true|false,\"points\":[[x,y],...]} in image pixels.
@@ -359,9 +360,10 @@ pub struct CageArgs {
 /// How `render` moves the picture.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum RenderMode {
-    /// Seed 001: wind, waves and the grid warp.
+    /// Wind, waves and the grid warp ("Simulation-guided Grid-based Warping").
     Wave,
-    /// Seed 004: the crown cage skinned to the skeleton of --take.
+    /// The crown cage ("Sketch-based shape-preserving tree animations") skinned to the skeleton
+    /// of --take.
     Cage,
 }
 
@@ -461,7 +463,7 @@ pub struct BenchArgs {
     /// Also time every warp kernel this CPU runs (scalar, SSE2, AVX2).
     #[arg(long)]
     pub all_kernels: bool,
-    /// Morph frames timed for the cage mode (seed 004) at the warp's size; 0 skips it.
+    /// Morph frames timed for the cage mode at the warp's size; 0 skips it.
     #[arg(long, default_value_t = 10)]
     pub cage_frames: usize,
 }

@@ -13,20 +13,21 @@ pub enum TakeTool {
     /// Make a take from a JSONL file: hand samples (mapped with --rig, as `frond map`) or poses
     /// (as written by `frond take export --jsonl`).
     Import(ImportArgs),
-    /// The simulated plant of seed 003 (section 4): RIG's mass-spring plant (its `[sim]` table,
-    /// or --sim FILE's) blown by --wind from rest for --duration seconds, sampled at --fps, as
-    /// take NAME. --wind: `speed=S,dir=DEG,gust=G,seed=N[,until=S]` (m/s; 0 deg towards +X, 90
-    /// towards +Z; gust 0..1).
+    /// The simulated plant of "Physically-based Driven Tree Animations" (section 4): RIG's
+    /// mass-spring plant (its `[sim]` table, or --sim FILE's) blown by --wind from rest for
+    /// --duration seconds, sampled at --fps, as take NAME. --wind:
+    /// `speed=S,dir=DEG,gust=G,seed=N[,until=S]` (m/s; 0 deg towards +X, 90 towards +Z; gust
+    /// 0..1).
     Simulate(crate::take_sim::SimulateArgs),
-    /// A motion graph of seed 003 (section 5) for one control point of take NAME: the backbone,
-    /// transitions where the point passes within one step of itself going forwards (extended
-    /// by --extend samples each side), pruned to one closed, strongly connected graph. Writes
-    /// NAME.graph.json (or -o FILE).
+    /// A motion graph ("Physically-based Driven Tree Animations", section 5) for one control
+    /// point of take NAME: the backbone, transitions where the point passes within one step of
+    /// itself going forwards (extended by --extend samples each side), pruned to one closed,
+    /// strongly connected graph. Writes NAME.graph.json (or -o FILE).
     Graph(crate::take_graph::Graph),
-    /// A walk on a motion graph of take NAME (seed 003, section 6): random, towards a ground-
-    /// plane direction (--goal-dir DEG: 0 towards +X, 90 towards +Z), or to a pose (--goal-pose
-    /// frame=N or 12 comma-separated angles). --plants N walks N plants, each with seed + i,
-    /// into takes OUT, OUT-plant1, OUT-plant2, ...
+    /// A walk on a motion graph of take NAME ("Physically-based Driven Tree Animations", section
+    /// 6): random, towards a ground-plane direction (--goal-dir DEG: 0 towards +X, 90 towards
+    /// +Z), or to a pose (--goal-pose frame=N or 12 comma-separated angles). --plants N walks N
+    /// plants, each with seed + i, into takes OUT, OUT-plant1, OUT-plant2, ...
     Walk(crate::take_graph::Walk),
     /// Resample every layer to --fps (poses and hand samples, linear interpolation).
     Resample(ResampleArgs),
@@ -35,12 +36,14 @@ pub enum TakeTool {
     /// Re-author frames FROM..=TO of BASE with the take NEW, blending N frames at each boundary.
     /// FROM and TO are frame numbers at --fps or marker labels.
     Splice(SpliceArgs),
-    /// Endless animation by looping (seed 000, Eq. 5): transition frames, then seeded playback.
+    /// Endless animation by looping ("Interactive authoring", Eq. 5): transition frames, then
+    /// seeded playback.
     Loop(LoopArgs),
     /// Lay out a field of plants playing the take with propagation delays (Eq. 6-7) and write
     /// field.json.
     Field(FieldArgs),
-    /// Motion speed, scale, bend rotation and rigidity delays (seed 000, section 6.3).
+    /// Motion speed, scale, bend rotation and rigidity delays ("Interactive authoring", section
+    /// 6.3).
     Retime(RetimeArgs),
     /// Guided procedural motion (Eq. 8): upper joints follow the root with thumb-controlled delays.
     Guided(GuidedArgs),
