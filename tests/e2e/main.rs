@@ -33,6 +33,7 @@ mod systemd_boot;
 mod take_tools;
 mod tap_matches_map;
 mod timecode;
+mod triggers;
 mod untrusted_time;
 mod warp_cage;
 mod zenoh;

@@ -96,8 +96,59 @@ pub(crate) fn render(r: &StatusReport) -> String {
         let _ = writeln!(o, "realtime     {}", p(&r.realtime));
     }
     recording_and_subscribers(&mut o, r);
+    if let Some(t) = &r.triggers {
+        triggers(&mut o, t);
+    }
     stages_elements_and_events(&mut o, r);
     o
+}
+
+/// [`render`]'s capture triggers: where frond listens and leads, the last message, the counts.
+fn triggers(o: &mut String, t: &frond_protocol::TriggerStatus) {
+    use frond_protocol::printable as p;
+    let follows = match &t.listen {
+        Some(addr) if t.allow.is_empty() => format!("listening on {} (any host)", p(addr)),
+        Some(addr) => format!("listening on {} (from {})", p(addr), p(&t.allow.join(", "))),
+        None => "not following".to_string(),
+    };
+    let leads = t.lead.as_ref().map_or("not leading".to_string(), |to| format!("leading to {}", p(to)));
+    let _ = writeln!(o, "triggers     {follows}; {leads}");
+    if let Some(last) = &t.last {
+        let name = last.name.as_deref().map_or("(no name)".to_string(), |n| format!("\"{}\"", p(n)));
+        let packet = last.packet_id.map_or(String::new(), |id| format!(", packet {id}"));
+        let _ = writeln!(
+            o,
+            "  last       {} {name} from {}{packet}, {} ago",
+            p(&last.kind),
+            p(&last.from),
+            human_duration(last.age_s)
+        );
+    }
+    if let Some(name) = &t.scheduled {
+        let _ = writeln!(o, "  scheduled  {} (waiting for its delay)", p(name));
+    }
+    let _ = writeln!(
+        o,
+        "  counts     {} received, {} accepted ({} started, {} stopped), {} duplicates, {} out of order, \
+         {} foreign, {} malformed, {} oversized, {} stops without a take, {} starts refused",
+        t.received,
+        t.accepted,
+        t.started,
+        t.stopped,
+        t.duplicates,
+        t.out_of_order,
+        t.foreign,
+        t.malformed,
+        t.oversized,
+        t.stops_without_take,
+        t.start_refused
+    );
+    if t.lead.is_some() {
+        let _ = writeln!(o, "  lead       {} sent, {} failed", t.lead_sent, t.lead_failed);
+    }
+    if let Some(why) = &t.last_refused {
+        let _ = writeln!(o, "  refused    {}", p(why));
+    }
 }
 
 /// One hand source's line: kind, path, connection and counts.
@@ -285,6 +336,49 @@ mod tests {
             problems: vec![],
             recorder_error: None,
             lateness_histogram: Vec::new(),
+            triggers: None,
+        }
+    }
+
+    /// Issue 46: the trigger section says where frond listens and leads, the last message and
+    /// the counts, each value escaped as every other.
+    #[test]
+    fn the_trigger_section_shows_listening_leading_last_and_counts() {
+        let mut r = report();
+        assert!(!render(&r).contains("triggers"));
+        r.triggers = Some(frond_protocol::TriggerStatus {
+            listen: Some("0.0.0.0:30".into()),
+            allow: vec!["10.0.0.5".into()],
+            lead: Some("255.255.255.255:30".into()),
+            last: Some(frond_protocol::TriggerLast {
+                kind: "CaptureStart".into(),
+                name: Some("dance\u{1b}[2J".into()),
+                from: "10.0.0.5".into(),
+                packet_id: Some(33360),
+                age_s: 2.0,
+            }),
+            last_refused: Some("10.0.0.9: not in triggers.allow".into()),
+            received: 7,
+            accepted: 2,
+            started: 1,
+            stopped: 1,
+            duplicates: 1,
+            foreign: 2,
+            malformed: 1,
+            oversized: 1,
+            lead_sent: 4,
+            ..Default::default()
+        });
+        let t = render(&r);
+        for needle in [
+            "triggers     listening on 0.0.0.0:30 (from 10.0.0.5); leading to 255.255.255.255:30\n",
+            "  last       CaptureStart \"dance\\u{1b}[2J\" from 10.0.0.5, packet 33360, 2.0s ago\n",
+            "  counts     7 received, 2 accepted (1 started, 1 stopped), 1 duplicates, 0 out of order, 2 foreign, \
+             1 malformed, 1 oversized, 0 stops without a take, 0 starts refused\n",
+            "  lead       4 sent, 0 failed\n",
+            "  refused    10.0.0.9: not in triggers.allow\n",
+        ] {
+            assert!(t.contains(needle), "missing {needle:?} in:\n{t}");
         }
     }
 

@@ -68,6 +68,7 @@ fn status_report() -> StatusReport {
         problems: vec![],
         recorder_error: None,
         lateness_histogram: Vec::new(),
+        triggers: None,
     }
 }
 

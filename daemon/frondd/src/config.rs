@@ -1,6 +1,7 @@
 //! Daemon configuration: embedded defaults, an optional TOML file, then command-line overrides,
 //! validated into a typed [`Config`] that reports every problem with its key path.
 
+use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -45,6 +46,8 @@ pub struct RawConfig {
     realtime: RawRealtime,
     #[serde(default)]
     control: RawControl,
+    #[serde(default)]
+    triggers: RawTriggers,
     /// Several hand sources; absent = the one of `[source]`.
     hands: Option<Vec<RawHand>>,
 }
@@ -130,6 +133,16 @@ struct RawControl {
     allowed_gids: Option<Vec<i64>>,
 }
 
+/// The `[triggers]` table: a mocap stage's capture triggers (issue 46).
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTriggers {
+    listen: Option<String>,
+    allow: Option<Vec<String>>,
+    lead: Option<String>,
+    honour_delay: Option<bool>,
+}
+
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawSource {
@@ -197,6 +210,10 @@ impl RawConfig {
         pick(&mut self.realtime.cpu, other.realtime.cpu);
         pick(&mut self.control.allowed_uids, other.control.allowed_uids);
         pick(&mut self.control.allowed_gids, other.control.allowed_gids);
+        pick(&mut self.triggers.listen, other.triggers.listen);
+        pick(&mut self.triggers.allow, other.triggers.allow);
+        pick(&mut self.triggers.lead, other.triggers.lead);
+        pick(&mut self.triggers.honour_delay, other.triggers.honour_delay);
         pick(&mut self.hands, other.hands);
         self
     }
@@ -214,6 +231,12 @@ impl RawConfig {
                 path: o.device,
                 replay: o.replay,
                 ..Default::default()
+            },
+            triggers: RawTriggers {
+                listen: o.triggers,
+                allow: (!o.trigger_allow.is_empty()).then_some(o.trigger_allow),
+                lead: o.trigger_lead,
+                honour_delay: None,
             },
             ..Default::default()
         }
@@ -247,6 +270,12 @@ pub struct Overrides {
     pub device: Option<String>,
     /// `--replay`: `source.replay`.
     pub replay: Option<String>,
+    /// `--triggers`: `triggers.listen`.
+    pub triggers: Option<String>,
+    /// `--trigger-allow` (repeated): `triggers.allow`; empty leaves the file's list.
+    pub trigger_allow: Vec<String>,
+    /// `--trigger-lead`: `triggers.lead`.
+    pub trigger_lead: Option<String>,
 }
 
 /// Which hand source to use: the hand sources' own parsed form, each kind parsed by its backend
@@ -292,6 +321,66 @@ pub struct Config {
     pub allowed_uids: Vec<u32>,
     /// Groups allowed on the control socket (primary or supplementary group of the client).
     pub allowed_gids: Vec<u32>,
+    /// A mocap stage's capture triggers: follow, lead, or neither.
+    pub triggers: TriggersConfig,
+}
+
+/// The `[triggers]` table, validated: where frond hears a stage master's `CaptureStart` /
+/// `CaptureStop` and from whom, and where it sends its own (issue 46, `frond_triggers`).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TriggersConfig {
+    /// `triggers.listen`: the UDP address to follow on (`0.0.0.0:30` for Vicon's broadcasts);
+    /// `None`: frond does not follow.
+    pub listen: Option<SocketAddr>,
+    /// `triggers.allow`: the hosts followed; `None` follows any host.
+    pub allow: Option<Vec<IpAddr>>,
+    /// `triggers.lead`: where frond's own `record start` / `record stop` are sent
+    /// (`255.255.255.255:30`, or one host); `None`: frond does not lead.
+    pub lead: Option<SocketAddr>,
+    /// `triggers.honour_delay`: whether a start waits for its `Delay`.
+    pub honour_delay: bool,
+}
+
+impl TriggersConfig {
+    /// Whether frond follows or leads at all (and so runs the trigger thread).
+    pub fn enabled(&self) -> bool {
+        self.listen.is_some() || self.lead.is_some()
+    }
+
+    fn validate(errors: &mut Vec<String>, raw: &RawTriggers) -> TriggersConfig {
+        let address = |errors: &mut Vec<String>, key: &str, text: &Option<String>| {
+            let text = text.as_deref()?;
+            text.parse::<SocketAddr>()
+                .map_err(|_| {
+                    errors.push(format!("{key}: {text:?} is not an address IP:PORT (e.g. 0.0.0.0:30)"))
+                })
+                .ok()
+        };
+        let listen = address(errors, "triggers.listen", &raw.listen);
+        let lead = address(errors, "triggers.lead", &raw.lead);
+        if let Some(lead) = lead
+            && (lead.port() == 0 || lead.ip().is_unspecified())
+        {
+            errors.push(format!(
+                "triggers.lead: {lead} is not a destination (a host or broadcast address, a port)"
+            ));
+        }
+        let allow = raw.allow.as_ref().map(|hosts| {
+            if hosts.is_empty() {
+                errors.push("triggers.allow: lists no host (remove it to follow any host)".into());
+            }
+            let parsed = hosts.iter().enumerate().filter_map(|(i, h)| {
+                h.parse::<IpAddr>()
+                    .map_err(|_| errors.push(format!("triggers.allow[{i}]: {h:?} is not an IP address")))
+                    .ok()
+            });
+            parsed.collect::<Vec<_>>()
+        });
+        if allow.is_some() && listen.is_none() {
+            errors.push("triggers.allow: needs triggers.listen (frond follows no host without it)".into());
+        }
+        TriggersConfig { listen, allow, lead, honour_delay: raw.honour_delay.unwrap_or(true) }
+    }
 }
 
 /// Most hand sources (the engine's limit).
@@ -488,7 +577,7 @@ fn ids(errors: &mut Vec<String>, key: &str, v: Option<&[i64]>) -> Vec<u32> {
 impl Config {
     /// Validates a merged raw configuration, reporting every problem at once, in the order of
     /// the keys: the loop and rig, the hands, the filter, `[source]`, `[publisher]`,
-    /// `[recorder]`, `[realtime]`, `[control]`.
+    /// `[recorder]`, `[realtime]`, `[control]`, `[triggers]`.
     pub fn validate(raw: RawConfig) -> Result<Config, ConfigError> {
         let mut errors = Vec::new();
         let tick_rate_hz = range(&mut errors, "tick_rate_hz", raw.tick_rate_hz, 30, 8000) as u32;
@@ -522,6 +611,7 @@ impl Config {
             range(&mut errors, "realtime.priority", raw.realtime.priority.or(Some(0)), 0, 99) as u8;
         let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids.as_deref());
         let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids.as_deref());
+        let triggers = TriggersConfig::validate(&mut errors, &raw.triggers);
         if !errors.is_empty() {
             return Err(ConfigError { problems: errors });
         }
@@ -543,6 +633,7 @@ impl Config {
             rt_cpu: usize::try_from(rt_cpu).ok(),
             allowed_uids,
             allowed_gids,
+            triggers,
         })
     }
 
@@ -711,6 +802,53 @@ mod tests {
         // No `--hand`: the one hand of [source] stays.
         let c = Config::validate(RawConfig::default().with_hands(vec![])).unwrap();
         assert_eq!(c.hands.len(), 1);
+    }
+
+    #[test]
+    fn triggers_are_off_by_default_and_checked_with_their_paths() {
+        let c = Config::load(None, RawConfig::default()).unwrap();
+        assert_eq!(c.triggers, TriggersConfig { honour_delay: true, ..Default::default() });
+        assert!(!c.triggers.enabled());
+        let raw = RawConfig::parse(
+            "[triggers]\nlisten = \"0.0.0.0:30\"\nallow = [\"10.0.0.5\", \"::1\"]\n\
+             lead = \"255.255.255.255:30\"\nhonour_delay = false\n",
+            "t",
+        )
+        .unwrap();
+        let t = Config::validate(raw).unwrap().triggers;
+        assert_eq!(t.listen, Some("0.0.0.0:30".parse().unwrap()));
+        assert_eq!(t.allow, Some(vec!["10.0.0.5".parse().unwrap(), "::1".parse().unwrap()]));
+        assert_eq!(t.lead, Some("255.255.255.255:30".parse().unwrap()));
+        assert!(!t.honour_delay && t.enabled());
+        let raw = RawConfig::parse(
+            "[triggers]\nlisten = \"vicon:30\"\nallow = [\"10.0.0.5\", \"shogun\"]\nlead = \"0.0.0.0:0\"\n",
+            "t",
+        )
+        .unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            [
+                "triggers.listen: \"vicon:30\" is not an address IP:PORT (e.g. 0.0.0.0:30)",
+                "triggers.lead: 0.0.0.0:0 is not a destination (a host or broadcast address, a port)",
+                "triggers.allow[1]: \"shogun\" is not an IP address",
+                "triggers.allow: needs triggers.listen (frond follows no host without it)",
+            ]
+        );
+        let raw = RawConfig::parse("[triggers]\nlisten = \"0.0.0.0:30\"\nallow = []\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            ["triggers.allow: lists no host (remove it to follow any host)"]
+        );
+        let flags = Overrides {
+            triggers: Some("127.0.0.1:3030".into()),
+            trigger_allow: vec!["127.0.0.2".into()],
+            trigger_lead: Some("127.0.0.1:3031".into()),
+            ..Default::default()
+        };
+        let t = Config::load(None, RawConfig::from_overrides(flags)).unwrap().triggers;
+        assert_eq!(t.listen, Some("127.0.0.1:3030".parse().unwrap()));
+        assert_eq!(t.allow, Some(vec!["127.0.0.2".parse().unwrap()]));
+        assert_eq!(t.lead, Some("127.0.0.1:3031".parse().unwrap()));
     }
 
     #[test]

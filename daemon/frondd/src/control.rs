@@ -81,11 +81,20 @@ impl ControlContext {
             ControlRequest::SetFilter { spec } => self.set_filter(&spec),
             ControlRequest::RecordStart { name } => {
                 let _session = self.recording_session();
-                self.record_start(name)
+                let reply = self.record_start(name);
+                // frond's own take (not a trigger's: those call `record_start` directly) leads.
+                if let (ControlReply::Recording(r), Some(triggers)) = (&reply, &self.triggers) {
+                    triggers.lead_start(&r.name);
+                }
+                reply
             }
             ControlRequest::RecordStop => {
                 let _session = self.recording_session();
-                self.record_stop()
+                let reply = self.record_stop();
+                if let (ControlReply::Recording(r), Some(triggers)) = (&reply, &self.triggers) {
+                    triggers.lead_stop(&r.name);
+                }
+                reply
             }
             ControlRequest::Mark { label } => self.mark(label),
             ControlRequest::RecordLayer { name, layer, global_take, seed } => {
@@ -260,7 +269,8 @@ impl ControlContext {
         })
     }
 
-    fn record_stop(&self) -> ControlReply {
+    /// Stops the take recording (and ends the layer it records, if any).
+    pub(crate) fn record_stop(&self) -> ControlReply {
         let reply = self.record_stop_take();
         self.end_layer();
         reply
@@ -394,6 +404,7 @@ impl ControlContext {
             problems: state.problems.clone(),
             recorder_error: self.recorder_counters.fault(),
             lateness_histogram: s.lateness.log2_buckets_us(),
+            triggers: self.triggers.as_ref().map(|t| t.status(crate::clock::monotonic_ns())),
         }
     }
 }

@@ -145,6 +145,9 @@ pub struct ControlContext {
     /// the state lock several times: two clients' sessions cannot interleave (one's failed start
     /// undoing the other's layer, say).
     pub recording_session: Mutex<()>,
+    /// A mocap stage's capture triggers, when configured: status reads them, and frond's own
+    /// `record start` / `record stop` lead through them.
+    pub triggers: Option<Arc<crate::trigger_link::TriggerLink>>,
 }
 
 /// A refusal of a request: a typed [`ControlError`] reply, and a log line (rate-limited, cut).

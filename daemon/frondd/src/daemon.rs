@@ -190,6 +190,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
     let started = Instant::now();
     let setup = load_setup(&config)?;
+    let triggers = crate::trigger_thread::bind_triggers(&config.triggers)?;
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
     let hands = set_up_hands(&config, &setup.rig)?;
@@ -229,6 +230,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         test_hooks,
         elements_cell: elements,
         recording_session: Mutex::new(()),
+        triggers: triggers.as_ref().map(|t| t.link.clone()),
     });
     // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
     {
@@ -239,6 +241,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     }
     let serve_ends = ServeEnds { frames, publish_wake, slow, reopen, awaited: awaited_rx };
     let serving = serve(&config, &dirs.socket_dir, &ctx, serve_ends)?;
+    let trigger_thread = triggers.map(|t| t.start(&ctx)).transpose()?.flatten();
 
     let notifier = Notifier::from_env();
     notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
@@ -250,7 +253,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
 
     notifier.notify("STOPPING=1");
     info!("stopping");
-    shut_down(ctx, realtime, serving, (commands, rec_tx), opened)
+    shut_down(ctx, realtime, serving, trigger_thread, (commands, rec_tx), opened)
 }
 
 /// The rig, calibration and filter the configuration names.
@@ -485,9 +488,14 @@ fn shut_down(
     ctx: Arc<ControlContext>,
     realtime: Realtime,
     serving: Serving,
+    trigger_thread: Option<crate::trigger_thread::TriggerThread>,
     (commands, rec_tx): (Sender<LoopCommand>, Sender<RecorderMsg>),
     opened: Vec<OpenedSource>,
 ) -> Result<(), DaemonError> {
+    // No trigger may start a take after the last one is finished.
+    if let Some(thread) = trigger_thread {
+        thread.stop();
+    }
     if ctx.state.lock().unwrap_or_else(|e| e.into_inner()).recording.is_some() {
         match ctx.handle(frond_protocol::ControlRequest::RecordStop) {
             frond_protocol::ControlReply::Recording(r) => {

@@ -63,6 +63,18 @@ pub enum DaemonError {
     /// The rig, calibration and filter could not be put in force.
     #[error("{0}")]
     Setup(String),
+    /// The capture-trigger socket (`triggers.listen`, or the one `triggers.lead` sends from)
+    /// could not be bound.
+    #[error("triggers: cannot bind UDP {addr}: {source}{hint}")]
+    Triggers {
+        /// The address.
+        addr: std::net::SocketAddr,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+        /// What to do about it, if known (a port below 1024 needs privileges).
+        hint: &'static str,
+    },
     /// The realtime loop thread panicked.
     #[error("the realtime loop panicked")]
     LoopPanicked,

@@ -4,7 +4,7 @@
 //! Threads: `frond-rt` (the realtime loop, [`engine`] paced by [`realtime`], writing to the
 //! subscribers' direct [`lanes`]), `frond-accept` and `frond-publish` (the slow lane,
 //! [`publisher`]), `frond-control` ([`control`]), `frond-recorder`
-//! ([`recorder`]), and housekeeping (status rate, device events, reopening a lost device,
+//! ([`recorder`]), `frond-triggers` (a mocap stage's capture triggers, [`trigger_thread`]), and housekeeping (status rate, device events, reopening a lost device,
 //! dropping what the loop may not free). Data flows one way: device -> loop -> queues -> sockets.
 
 #![warn(missing_docs)]
@@ -30,3 +30,5 @@ pub use frond_recorder as recorder;
 pub mod source;
 pub mod stage;
 pub mod stats;
+pub mod trigger_link;
+pub mod trigger_thread;

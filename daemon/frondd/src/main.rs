@@ -59,6 +59,17 @@ struct Args {
     /// `--hand left=hid:/dev/hidraw3 --hand right=hid:/dev/hidraw4,element=leaf`.
     #[arg(long = "hand", value_name = "NAME=KIND[,key=value...]")]
     hands: Vec<String>,
+    /// Follow a mocap stage's capture triggers (CaptureStart / CaptureStop over UDP) heard on
+    /// this address, e.g. 0.0.0.0:30 (Vicon) or 0.0.0.0:1512 (Motive); `triggers.listen`.
+    #[arg(long, value_name = "IP:PORT")]
+    triggers: Option<String>,
+    /// Follow triggers only from this host (repeat for several; replaces `triggers.allow`).
+    #[arg(long = "trigger-allow", value_name = "IP")]
+    trigger_allow: Vec<String>,
+    /// Lead: send CaptureStart / CaptureStop to this address on frond's own record start / stop,
+    /// e.g. 255.255.255.255:30; `triggers.lead`.
+    #[arg(long, value_name = "IP:PORT")]
+    trigger_lead: Option<String>,
     /// Log level or filter (error, warn, info, debug, trace, or a tracing filter).
     #[arg(long, env = "FROND_LOG", default_value = "info")]
     log_level: String,
@@ -172,6 +183,9 @@ fn overrides(args: &Args) -> Result<RawConfig, Exit> {
         profile: args.profile.clone(),
         device: args.device.clone(),
         replay: args.replay.clone(),
+        triggers: args.triggers.clone(),
+        trigger_allow: args.trigger_allow.clone(),
+        trigger_lead: args.trigger_lead.clone(),
     });
     Ok(overrides.with_hands(hands))
 }

@@ -449,6 +449,78 @@ pub struct StatusReport {
     /// ... microseconds (doubling up to about 1 s), then one for everything later.
     #[serde(default)]
     pub lateness_histogram: Vec<HistogramBucket>,
+    /// The capture triggers of a mocap stage (issue 46): where frond listens and leads, the last
+    /// message and the counts; `None` when triggers are off (and from older daemons).
+    #[serde(default)]
+    pub triggers: Option<TriggerStatus>,
+}
+
+/// The capture triggers (`CaptureStart` / `CaptureStop` over UDP): where frond listens for a
+/// stage master's messages and where it sends its own, the last message heard, and the counts.
+/// Every field defaults, so a report from a daemon that counts less still reads.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TriggerStatus {
+    /// The address frond listens on (`0.0.0.0:30`), `None` when it does not follow.
+    pub listen: Option<String>,
+    /// The hosts followed (empty: any host).
+    pub allow: Vec<String>,
+    /// Where frond's own `record start` / `record stop` are sent (`255.255.255.255:30`), `None`
+    /// when it does not lead.
+    pub lead: Option<String>,
+    /// The last message followed or ignored by packet id or state (not refused, not foreign).
+    pub last: Option<TriggerLast>,
+    /// A take waiting for its `Delay`, by name.
+    pub scheduled: Option<String>,
+    /// The last packet refused or ignored for its sender, in words (`10.0.0.9: not in the
+    /// allow-list`).
+    pub last_refused: Option<String>,
+    /// Datagrams received.
+    pub received: u64,
+    /// Messages acted on: takes started, scheduled, stopped or cancelled.
+    pub accepted: u64,
+    /// Takes started by a trigger.
+    pub started: u64,
+    /// Takes stopped by a trigger.
+    pub stopped: u64,
+    /// Repeated packet ids, ignored.
+    pub duplicates: u64,
+    /// Packet ids older than the last one, ignored.
+    pub out_of_order: u64,
+    /// Datagrams from hosts outside the allow-list, ignored.
+    pub foreign: u64,
+    /// Datagrams that are not a trigger message, refused.
+    pub malformed: u64,
+    /// Datagrams longer than a trigger message may be, refused.
+    pub oversized: u64,
+    /// Stops for a take frond is not recording (nothing, or another take), answered with a count.
+    pub stops_without_take: u64,
+    /// Starts while a take was recording or waiting, ignored.
+    pub already_recording: u64,
+    /// Starts frond could not follow (a take of that name exists, the disk failed).
+    pub start_refused: u64,
+    /// frond's own messages heard back (a broadcast it sent), ignored.
+    pub own_echoes: u64,
+    /// Messages frond sent as the leader.
+    pub lead_sent: u64,
+    /// Messages frond could not send as the leader.
+    pub lead_failed: u64,
+}
+
+/// The last trigger message heard.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TriggerLast {
+    /// `CaptureStart` or `CaptureStop`.
+    pub kind: String,
+    /// The take name it carried, as sent.
+    pub name: Option<String>,
+    /// Its sender's address.
+    pub from: String,
+    /// Its packet id.
+    pub packet_id: Option<u64>,
+    /// Seconds since it arrived, when the report was made.
+    pub age_s: f64,
 }
 
 /// One bucket of a latency histogram.

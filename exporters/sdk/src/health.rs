@@ -1,7 +1,7 @@
 //! What is wrong with a stage, in words, with the fix: read from the daemon's
 //! [`StatusReport`], so `frond doctor` and the console say the same thing.
 
-use frond_protocol::{SourceKind, SourceStatus, StatusReport};
+use frond_protocol::{SourceKind, SourceStatus, StatusReport, TriggerStatus};
 
 /// Below this share of the nominal tick rate the loop is reported as slow.
 pub const SLOW_RATE_SHARE: f64 = 0.95;
@@ -87,6 +87,9 @@ pub fn problems(report: &StatusReport) -> Vec<Problem> {
                 .into(),
         });
     }
+    if let Some(t) = &report.triggers {
+        out.extend(trigger_problems(t));
+    }
     for s in report.subscribers.iter().filter(|s| s.dropped > 0) {
         out.push(Problem {
             what: format!("subscriber {} lost {} frames (it reads too slowly)", s.id, s.dropped),
@@ -96,9 +99,78 @@ pub fn problems(report: &StatusReport) -> Vec<Problem> {
     out
 }
 
+/// What the capture-trigger listener saw that the operator should know: packets from hosts
+/// outside its allow-list, packets that are not trigger messages, leader messages not sent.
+fn trigger_problems(t: &TriggerStatus) -> Vec<Problem> {
+    let mut out = Vec::new();
+    let at = t.listen.as_deref().unwrap_or("?");
+    let last = t.last_refused.as_deref().map_or(String::new(), |w| format!(" (last: {w})"));
+    if t.foreign > 0 {
+        out.push(Problem {
+            what: format!(
+                "the trigger listener on {at} ignored {} packets from hosts outside triggers.allow{last}",
+                t.foreign
+            ),
+            fix: "if that host is the stage master, add its address to triggers.allow in frondd.toml \
+                  (or --trigger-allow); otherwise stop it sending to this port"
+                .into(),
+        });
+    }
+    let refused = t.malformed + t.oversized;
+    if refused > 0 {
+        out.push(Problem {
+            what: format!(
+                "the trigger listener on {at} refused {refused} malformed or oversized packets \
+                 ({} malformed, {} oversized){last}",
+                t.malformed, t.oversized
+            ),
+            fix: "something sends to the trigger port in another format: point only the stage master's \
+                  CaptureStart/CaptureStop at it (docs/mocap-stage.md), or move triggers.listen to another port"
+                .into(),
+        });
+    }
+    if t.lead_failed > 0 {
+        out.push(Problem {
+            what: format!(
+                "{} capture triggers could not be sent to {}",
+                t.lead_failed,
+                t.lead.as_deref().unwrap_or("?")
+            ),
+            fix: "check triggers.lead (a broadcast address of this host's network, or the master's \
+                  address) and the route to it"
+                .into(),
+        });
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_trigger_listener_that_saw_foreign_or_malformed_packets_is_a_problem() {
+        let clean = TriggerStatus { listen: Some("0.0.0.0:30".into()), received: 4, ..Default::default() };
+        assert_eq!(trigger_problems(&clean), []);
+        let seen = TriggerStatus {
+            foreign: 2,
+            malformed: 1,
+            oversized: 1,
+            last_refused: Some("10.0.0.9: not in triggers.allow".into()),
+            ..clean
+        };
+        let problems = trigger_problems(&seen);
+        assert_eq!(problems.len(), 2, "{problems:?}");
+        assert_eq!(
+            problems[0].what,
+            "the trigger listener on 0.0.0.0:30 ignored 2 packets from hosts outside triggers.allow \
+             (last: 10.0.0.9: not in triggers.allow)"
+        );
+        assert!(
+            problems[1].what.contains("refused 2 malformed or oversized packets (1 malformed, 1 oversized)")
+        );
+        assert!(problems[0].fix.contains("triggers.allow"));
+    }
 
     #[test]
     fn every_source_kind_has_its_own_fix() {

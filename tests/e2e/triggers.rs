@@ -1,0 +1,260 @@
+//! Capture triggers of a mocap stage (issue 46): `frondd --triggers` follows a stage master's
+//! `CaptureStart` / `CaptureStop`, and `--trigger-lead` sends frond's own.
+//!
+//! The sender and the receiver here are written from the published format (Vicon's "UDP capture
+//! broadcast/trigger" page, quoted in `daemon/triggers/src/lib.rs`): one XML document per
+//! datagram, NUL-terminated, root `CaptureStart` or `CaptureStop`, each field an empty element
+//! with a `VALUE` attribute. They are built and read by hand with `format!` and string search,
+//! not with frond's own encoder or decoder, so the test checks frond against the format.
+//! Everything runs on loopback (a second sender address, 127.0.0.2, plays the foreign host).
+
+use std::net::UdpSocket;
+use std::time::{Duration, Instant};
+
+use frond_e2e::{Daemon, wait_for};
+use frond_protocol::{StatusReport, TriggerStatus};
+
+/// A free UDP port on 127.0.0.1.
+fn free_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// A `CaptureStart` as Vicon's page shows it (with the fields it lists), NUL-terminated.
+fn capture_start(name: &str, delay_ms: u32, packet_id: u64) -> Vec<u8> {
+    format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\"?><CaptureStart><Name VALUE=\"{name}\"/>\
+         <Notes VALUE=\"\"/><Description VALUE=\"\"/><DatabasePath VALUE=\"D:/Stage/Session 1\"/>\
+         <Delay VALUE=\"{delay_ms}\"/><PacketID VALUE=\"{packet_id}\"/></CaptureStart>\0"
+    )
+    .into_bytes()
+}
+
+/// A `CaptureStop` with `RESULT="SUCCESS"`, NUL-terminated.
+fn capture_stop(name: &str, packet_id: u64) -> Vec<u8> {
+    format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\"?><CaptureStop RESULT=\"SUCCESS\">\
+         <Name VALUE=\"{name}\"/><DatabasePath VALUE=\"D:/Stage/Session 1\"/><Delay VALUE=\"0\"/>\
+         <PacketID VALUE=\"{packet_id}\"/></CaptureStop>\0"
+    )
+    .into_bytes()
+}
+
+/// The daemon's trigger section (panics when it has none).
+fn triggers(daemon: &Daemon) -> TriggerStatus {
+    daemon.status().triggers.expect("a trigger section in status")
+}
+
+/// Waits until `cond` holds of the status, or panics with `what` and the last status.
+fn until(daemon: &Daemon, what: &str, cond: impl Fn(&StatusReport) -> bool) -> StatusReport {
+    let mut last = None;
+    let held = wait_for(Duration::from_secs(5), || {
+        let s = daemon.status();
+        let ok = cond(&s);
+        last = Some(s);
+        ok
+    });
+    let last = last.unwrap();
+    assert!(held, "{what}: {:#?}", last.triggers);
+    last
+}
+
+/// The number after `<field VALUE="` in `xml`, read by hand.
+fn value<'a>(xml: &'a str, field: &str) -> Option<&'a str> {
+    let open = format!("<{field} VALUE=\"");
+    let start = xml.find(&open)? + open.len();
+    Some(&xml[start..start + xml[start..].find('"')?])
+}
+
+#[test]
+fn triggers_start_and_stop_a_take_ignoring_duplicates_foreign_hosts_and_garbage() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let listen = format!("127.0.0.1:{port}");
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--source", "in-process", "--triggers", &listen, "--trigger-allow", "127.0.0.1"],
+    );
+    let t = triggers(&daemon);
+    assert_eq!(
+        (t.listen.as_deref(), t.allow.as_slice(), t.lead.as_deref()),
+        (Some(&*listen), &["127.0.0.1".to_string()][..], None)
+    );
+    let master = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let foreign = UdpSocket::bind("127.0.0.2:0").expect("a second loopback address");
+
+    // A foreign host's start, garbage and an oversized datagram change nothing but counts.
+    foreign.send_to(&capture_start("intruder", 0, 1), &listen).unwrap();
+    master.send_to(b"hello, stage\0", &listen).unwrap();
+    master.send_to(&vec![b'<'; 20_000], &listen).unwrap();
+    let s = until(&daemon, "refusals counted", |s| s.triggers.as_ref().is_some_and(|t| t.received == 3));
+    let t = s.triggers.unwrap();
+    assert_eq!((t.foreign, t.malformed, t.oversized, t.accepted), (1, 1, 1, 0), "{t:#?}");
+    assert!(s.recording.is_none(), "a refused packet started a take");
+    assert_eq!(t.last_refused.as_deref().map(|w| w.starts_with("127.0.0.1: ")), Some(true), "{t:#?}");
+
+    // The master's start: a take under the sanitised name.
+    master.send_to(&capture_start("Scene 12 / take 3", 0, 500), &listen).unwrap();
+    let s = until(&daemon, "the trigger's take records", |s| s.recording.is_some());
+    assert_eq!(s.recording.unwrap().name, "Scene_12_take_3");
+    // The same packet again (a resend), with another name: ignored.
+    master.send_to(&capture_start("other", 0, 500), &listen).unwrap();
+    let t =
+        until(&daemon, "the duplicate counted", |s| s.triggers.as_ref().is_some_and(|t| t.duplicates == 1))
+            .triggers
+            .unwrap();
+    let last = t.last.clone().expect("a last message");
+    assert_eq!(
+        (last.kind.as_str(), last.name.as_deref(), last.packet_id),
+        ("CaptureStart", Some("Scene 12 / take 3"), Some(500))
+    );
+    assert_eq!(last.from, "127.0.0.1");
+    std::thread::sleep(Duration::from_millis(200)); // a few frames in the take
+
+    master.send_to(&capture_stop("Scene 12 / take 3", 501), &listen).unwrap();
+    let s = until(&daemon, "the trigger's take stops", |s| s.recording.is_none());
+    let t = s.triggers.unwrap();
+    assert_eq!((t.started, t.stopped, t.accepted, t.duplicates, t.foreign), (1, 1, 2, 1, 1), "{t:#?}");
+    let take = std::fs::read(daemon.takes_dir.join("Scene_12_take_3.take")).expect("the take on disk");
+    let scan = frond_formats::take::scan_take(&take).unwrap();
+    assert!(scan.ended, "the take is not closed");
+    assert!(!scan.frames.is_empty(), "the take has no frames");
+
+    // A stop for a take frond is not recording: a count, nothing else.
+    master.send_to(&capture_stop("Scene 12 / take 3", 502), &listen).unwrap();
+    let t = until(&daemon, "the stray stop counted", |s| {
+        s.triggers.as_ref().is_some_and(|t| t.stops_without_take == 1)
+    })
+    .triggers
+    .unwrap();
+    assert_eq!(t.stopped, 1);
+
+    // status --json carries the section; doctor names the refused packets.
+    let json: serde_json::Value = serde_json::from_str(&daemon.frond_ok(&["status", "--json"])).unwrap();
+    assert_eq!(json["triggers"]["foreign"], 1, "{}", json["triggers"]);
+    assert_eq!(json["triggers"]["malformed"], 1);
+    assert_eq!(json["triggers"]["oversized"], 1);
+    let table = daemon.frond_ok(&["status"]);
+    assert!(
+        table.contains(&format!("triggers     listening on {listen} (from 127.0.0.1); not leading")),
+        "{table}"
+    );
+    let doctor = daemon.frond().arg("doctor").output().unwrap();
+    let said =
+        String::from_utf8_lossy(&doctor.stdout).into_owned() + &String::from_utf8_lossy(&doctor.stderr);
+    assert!(said.contains("ignored 1 packets from hosts outside triggers.allow"), "{said}");
+    assert!(said.contains("refused 2 malformed or oversized packets"), "{said}");
+}
+
+#[test]
+fn a_trigger_start_waits_for_its_delay() {
+    let dir = tempfile::tempdir().unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let master = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let delay = Duration::from_millis(600);
+    let sent = Instant::now();
+    master.send_to(&capture_start("late", delay.as_millis() as u32, 7), &listen).unwrap();
+    let t = until(&daemon, "the start scheduled", |s| s.triggers.as_ref().is_some_and(|t| t.accepted == 1));
+    if sent.elapsed() < delay {
+        assert!(t.recording.is_none(), "the take started before its delay");
+        assert_eq!(t.triggers.unwrap().scheduled.as_deref(), Some("late"));
+    }
+    until(&daemon, "the delayed take records", |s| s.recording.is_some());
+    assert!(
+        sent.elapsed() >= delay,
+        "the take started {:?} after the start, before its delay",
+        sent.elapsed()
+    );
+    master.send_to(&capture_stop("late", 8), &listen).unwrap();
+    until(&daemon, "the delayed take stops", |s| s.recording.is_none());
+    assert!(daemon.takes_dir.join("late.take").is_file());
+}
+
+#[test]
+fn record_start_and_stop_lead_the_stage_and_a_trigger_take_is_not_led() {
+    let dir = tempfile::tempdir().unwrap();
+    let receiver = UdpSocket::bind("127.0.0.1:0").unwrap();
+    receiver.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let lead = receiver.local_addr().unwrap().to_string();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--source", "in-process", "--triggers", &listen, "--trigger-lead", &lead],
+    );
+    let pid = daemon.proc.child.id().to_string();
+    let mut buf = [0u8; 2048];
+
+    daemon.frond_ok(&["record", "start", "shot-1"]);
+    let (n, from) = receiver.recv_from(&mut buf).expect("CaptureStart from frond");
+    assert_eq!(from.to_string(), listen, "sent from the listening socket");
+    let start = std::str::from_utf8(&buf[..n]).unwrap();
+    assert!(
+        start.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\"?><CaptureStart>"),
+        "{start:?}"
+    );
+    assert!(start.ends_with("</CaptureStart>\0"), "NUL-terminated: {start:?}");
+    assert!(!start.contains(['\n', '\r', '\t']), "no white space between tokens: {start:?}");
+    assert_eq!(value(start, "Name"), Some("shot-1"), "{start}");
+    assert_eq!(value(start, "Delay"), Some("0"), "{start}");
+    assert_eq!(value(start, "ProcessID"), Some(pid.as_str()), "{start}");
+    let start_id: u64 = value(start, "PacketID").expect("a PacketID").parse().unwrap();
+
+    daemon.frond_ok(&["record", "stop"]);
+    let (n, _) = receiver.recv_from(&mut buf).expect("CaptureStop from frond");
+    let stop = std::str::from_utf8(&buf[..n]).unwrap();
+    assert!(
+        stop.contains("<CaptureStop RESULT=\"SUCCESS\">") && stop.ends_with("</CaptureStop>\0"),
+        "{stop:?}"
+    );
+    assert_eq!(value(stop, "Name"), Some("shot-1"), "{stop}");
+    assert_eq!(value(stop, "PacketID"), Some((start_id + 1).to_string().as_str()), "{stop}");
+    let t = triggers(&daemon);
+    assert_eq!((t.lead_sent, t.lead_failed), (2, 0), "{t:#?}");
+
+    // A take the stage master starts is followed, not led back to it.
+    let master = UdpSocket::bind("127.0.0.1:0").unwrap();
+    master.send_to(&capture_start("theirs", 0, 40), &listen).unwrap();
+    until(&daemon, "the master's take records", |s| s.recording.is_some());
+    master.send_to(&capture_stop("theirs", 41), &listen).unwrap();
+    until(&daemon, "the master's take stops", |s| s.recording.is_none());
+    receiver.set_read_timeout(Some(Duration::from_millis(300))).unwrap();
+    assert!(
+        receiver.recv_from(&mut buf).is_err(),
+        "frond echoed the master's take: {:?}",
+        String::from_utf8_lossy(&buf)
+    );
+    assert_eq!(triggers(&daemon).lead_sent, 2);
+}
+
+#[test]
+fn frond_leading_to_its_own_port_ignores_its_echo() {
+    let dir = tempfile::tempdir().unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--source", "in-process", "--triggers", &listen, "--trigger-lead", &listen],
+    );
+    daemon.frond_ok(&["record", "start", "own"]);
+    let t = until(&daemon, "the echo heard", |s| s.triggers.as_ref().is_some_and(|t| t.own_echoes == 1))
+        .triggers
+        .unwrap();
+    assert_eq!((t.received, t.start_refused), (0, 0), "{t:#?}");
+    daemon.frond_ok(&["record", "stop"]);
+    let t =
+        until(&daemon, "the stop's echo heard", |s| s.triggers.as_ref().is_some_and(|t| t.own_echoes == 2))
+            .triggers
+            .unwrap();
+    assert_eq!((t.received, t.stops_without_take), (0, 0), "{t:#?}");
+}
+
+#[test]
+fn a_trigger_address_that_is_not_one_is_a_usage_error_naming_the_key() {
+    let out = std::process::Command::new(frond_e2e::bin("frondd"))
+        .args(["--source", "in-process", "--triggers", "vicon:30", "--trigger-allow", "shogun"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("triggers.listen: \"vicon:30\" is not an address IP:PORT"), "{err}");
+    assert!(err.contains("triggers.allow[0]: \"shogun\" is not an IP address"), "{err}");
+}
