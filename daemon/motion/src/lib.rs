@@ -2,7 +2,7 @@
 //! jitter filters, the hand-to-plant mapping of seed 000 (Eq. 2-4), and takes as data. Reading
 //! and writing files and their text (rig and calibration TOML, takes, JSONL, BVH, USD, glTF
 //! meshes, graph files) is `frond_formats`; the types here keep their serde definitions and
-//! validate what a reader gives them. A test (`tests/pure.rs`) keeps file access and format
+//! validate what a reader gives them. A test (`tests/it/pure.rs`) keeps file access and format
 //! crates out of this crate.
 //!
 //! The path from a raw hand sample to a pose is [`Mapper::process`]: calibrate

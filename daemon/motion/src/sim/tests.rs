@@ -1,6 +1,6 @@
 //! The simulated plant checked against hand-computed physics (values worked out in the comments,
 //! independent of the code). The `[sim]` table of rig files is tested with their reader, in
-//! frond-formats (`tests/rig_toml/sim.rs`); the shipped rigs' defaults in `tests/rig_files.rs`.
+//! frond-formats (`tests/it/rig_toml/sim.rs`); the shipped rigs' defaults in `tests/it/rig_files.rs`.
 
 use glam::{DVec3, Vec3};
 

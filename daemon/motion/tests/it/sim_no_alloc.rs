@@ -5,11 +5,11 @@ use frond_formats::rig_toml::RigText;
 use frond_motion::Rig;
 use frond_motion::sim::{PlantSim, WindSpec};
 
-mod common;
+use crate::common;
 
 #[test]
 fn sim_step_and_pose_do_not_allocate() {
-    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
+    let rig = Rig::from_toml_str(include_str!("../../../../rig-files/plants/grass.toml")).unwrap();
     let wind: WindSpec = "speed=12,dir=30,gust=1,seed=4,until=0.5".parse().unwrap();
     let mut sim = PlantSim::from_rig(&rig, wind).unwrap();
     let (bent, allocations) = common::allocations_in(|| {

@@ -8,7 +8,7 @@ use frond_motion::graph::{
 };
 use frond_motion::skeleton::Skeleton;
 
-mod common;
+use crate::common;
 
 #[test]
 fn walkers_do_not_allocate_per_frame() {

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{bin, run, s, stderr, write_take_with};
 use frond_formats::rig_toml::RigText;
 
@@ -241,8 +241,8 @@ fn a_simulated_take_blows_the_picture_as_its_wind_does() {
     // motion. (A root bend of 40 degrees was full strength: the take blew at 0.38 of it.)
     let t = tempfile::tempdir().unwrap();
     let (pic, mask) = inputs(t.path());
-    let rig =
-        frond_motion::rig::Rig::from_toml_str(include_str!("../../../rig-files/plants/grass.toml")).unwrap();
+    let rig = frond_motion::rig::Rig::from_toml_str(include_str!("../../../../rig-files/plants/grass.toml"))
+        .unwrap();
     let spec = "speed=10,dir=0,gust=0,seed=0";
     let poses = frond_motion::sim::simulate(&rig, &rig.sim, spec.parse().unwrap(), 8.0, 100.0).unwrap();
     let take = t.path().join("gale.take");

@@ -4,7 +4,7 @@
 //! (`install-python.sh`); skips with a message without it, fails under CI=true or
 //! FROND_REQUIRE_TOOLS=1.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

@@ -4,7 +4,7 @@
 //! and weights are posed by hand at a strongly bent pose (seed 000, Eq. 1, as a glTF viewer
 //! computes it).
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

@@ -7,7 +7,7 @@ use frond_motion::take::TakeFrame;
 use frond_motion::{CalibrationParams, FilterSpec, HandSample, Mapper, MappingParams};
 use frond_protocol::ElementId;
 
-mod common;
+use crate::common;
 
 #[test]
 fn per_tick_work_does_not_allocate() {

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{run, s, stderr, write_take_on, write_take_with};
 
 const W: usize = 160;

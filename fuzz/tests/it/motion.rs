@@ -16,9 +16,9 @@ use frond_motion::{
 use frond_protocol::ElementId;
 
 const RIGS: [&str; 3] = [
-    include_str!("../../rig-files/plants/grass.toml"),
-    include_str!("../../rig-files/plants/flower.toml"),
-    include_str!("../../rig-files/plants/shrub.toml"),
+    include_str!("../../../rig-files/plants/grass.toml"),
+    include_str!("../../../rig-files/plants/flower.toml"),
+    include_str!("../../../rig-files/plants/shrub.toml"),
 ];
 
 const RIG_TOKENS: &[&str] = &[
@@ -73,8 +73,8 @@ fn fuzz_rigs() {
 #[test]
 fn fuzz_calibrations() {
     let seeds = [
-        include_str!("../../rig-files/calibrations/default.toml"),
-        include_str!("../../rig-files/calibrations/example-user.toml"),
+        include_str!("../../../rig-files/calibrations/default.toml"),
+        include_str!("../../../rig-files/calibrations/example-user.toml"),
     ];
     for s in seeds {
         Calibration::from_toml_str(s).expect("seed calibrations are valid");

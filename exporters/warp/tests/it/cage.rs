@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
+use crate::common;
 use common::{run, s, stderr};
 
-#[path = "../../../tests/support/python.rs"]
+#[path = "../../../../tests/support/python.rs"]
 mod python;
 
 const W: usize = 160;

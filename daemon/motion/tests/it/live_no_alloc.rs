@@ -10,7 +10,7 @@ use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, find_transitions};
 use frond_motion::{HandSample, PoseFrame};
 
-mod common;
+use crate::common;
 
 #[test]
 fn live_building_blocks_do_not_allocate_per_tick() {

@@ -91,7 +91,7 @@ fn shipped_shrub_by_hand() {
     // Eq. 3: P1 = 0.4*(10,-5)*0.5 = (2, -1); P2 = 0.5*(10,-5)*0.5 = (2.5, -1.25);
     //        P3 = 0.6*(10,-5)*1 = (6, -3).
     // Eq. 4 (tau 1; equal s_roll so it is the seed's s_roll(0) * W_roll): roll(3) = 0.3*40 = 12.
-    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/shrub.toml")).unwrap();
+    let rig = Rig::from_toml_str(include_str!("../../../../rig-files/plants/shrub.toml")).unwrap();
     let cal = Calibration::neutral_for(&rig);
     let mut m = Mapper::new(rig.mapping(), cal.params(), FilterSpec::None);
     let (_, p) = m.process(&hand(1.0, [50.0, -25.0, 40.0], [30.0, 35.0, 60.0]));
@@ -188,7 +188,7 @@ fn two_performers_drive_the_shrub_to_the_same_extremes() {
     //   pitch max / yaw min: P0 = (12, -12); Eq. 3: P1 = 0.4 P0 = (4.8, -4.8),
     //   P2 = 0.5 P0 = (6, -6), P3 = 0.6 P0 = (7.2, -7.2); roll at neutral: 0.
     //   pitch min / yaw max: the negatives.
-    let rig = Rig::from_toml_str(include_str!("../../../rig-files/plants/shrub.toml")).unwrap();
+    let rig = Rig::from_toml_str(include_str!("../../../../rig-files/plants/shrub.toml")).unwrap();
     assert_eq!(rig.bend_range_deg, Some([12.0, 12.0]));
     let (alice, bob) = (Calibration::from_toml_str(ALICE).unwrap(), Calibration::from_toml_str(BOB).unwrap());
     let want = [[12.0, -12.0, 0.0], [4.8, -4.8, 0.0], [6.0, -6.0, 0.0], [7.2, -7.2, 0.0]];

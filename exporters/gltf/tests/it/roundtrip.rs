@@ -1,7 +1,7 @@
 //! Round trip: `frond-gltf bake`, then read back with the `gltf` crate (a second reader) and
 //! compare with expectations computed here from the take, the rig and the rotation convention.
 
-mod common;
+use crate::common;
 
 use common::*;
 use frond_protocol::convention::joint_quat;

@@ -234,11 +234,11 @@ fn fuzz_control_requests() {
         ControlRequest::Status,
         ControlRequest::SetRig {
             name: "grass".into(),
-            toml: include_str!("../../rig-files/plants/grass.toml").into(),
+            toml: include_str!("../../../rig-files/plants/grass.toml").into(),
         },
         ControlRequest::SetCalibration {
             id: "example".into(),
-            toml: include_str!("../../rig-files/calibrations/example-user.toml").into(),
+            toml: include_str!("../../../rig-files/calibrations/example-user.toml").into(),
         },
         ControlRequest::SetFilter { spec: "one-euro:min_cutoff=1,beta=0.007,d_cutoff=1".into() },
         ControlRequest::RecordStart { name: "take-01".into() },

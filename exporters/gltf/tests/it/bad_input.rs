@@ -1,7 +1,7 @@
 //! Bad input gives a clear error naming the problem, exit status 1, and no output file (nor a
 //! temporary file) left behind.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -8,9 +8,9 @@ use frond_motion::{Rig, RigError};
 
 /// The shipped plant rigs, `(name, TOML text)` (the list `frond_formats::rig_files` builds in).
 const EMBEDDED_RIGS: [(&str, &str); 3] = [
-    ("grass", include_str!("../../../../rig-files/plants/grass.toml")),
-    ("flower", include_str!("../../../../rig-files/plants/flower.toml")),
-    ("shrub", include_str!("../../../../rig-files/plants/shrub.toml")),
+    ("grass", include_str!("../../../../../rig-files/plants/grass.toml")),
+    ("flower", include_str!("../../../../../rig-files/plants/flower.toml")),
+    ("shrub", include_str!("../../../../../rig-files/plants/shrub.toml")),
 ];
 
 const BASE: &str = "name = \"g\"\n[[joints]]\nheight_m = 0.0\n[[joints]]\nheight_m = 0.1\n[[joints]]\nheight_m = 0.2\n[[joints]]\nheight_m = 0.3\n[mesh]\nheight_m = 0.4\n";

@@ -2,7 +2,7 @@
 //! when recording stops, with exactly the recorded frames; on Ctrl-C (SIGINT) the frames already
 //! sent are kept; with no daemon, a clear error.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::os::unix::net::UnixListener;

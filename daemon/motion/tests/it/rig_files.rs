@@ -4,11 +4,11 @@
 use frond_formats::rig_toml::{CalibrationText, RigText};
 use frond_motion::{Calibration, FilterSpec, Rig};
 
-const GRASS: &str = include_str!("../../../rig-files/plants/grass.toml");
-const FLOWER: &str = include_str!("../../../rig-files/plants/flower.toml");
-const SHRUB: &str = include_str!("../../../rig-files/plants/shrub.toml");
-const DEFAULT_CAL: &str = include_str!("../../../rig-files/calibrations/default.toml");
-const EXAMPLE_CAL: &str = include_str!("../../../rig-files/calibrations/example-user.toml");
+const GRASS: &str = include_str!("../../../../rig-files/plants/grass.toml");
+const FLOWER: &str = include_str!("../../../../rig-files/plants/flower.toml");
+const SHRUB: &str = include_str!("../../../../rig-files/plants/shrub.toml");
+const DEFAULT_CAL: &str = include_str!("../../../../rig-files/calibrations/default.toml");
+const EXAMPLE_CAL: &str = include_str!("../../../../rig-files/calibrations/example-user.toml");
 
 #[test]
 fn grass_is_a_single_blade_with_tau_2() {

@@ -2,7 +2,7 @@
 //! `install-node.sh`) with 0 errors and 0 warnings: each rig of `rig-files/plants/`, a layered
 //! take, a field, and the `.gltf` + `.bin` form.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
