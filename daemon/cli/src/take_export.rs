@@ -55,7 +55,7 @@ pub struct ExportArgs {
     /// Length of a field export, seconds.
     #[arg(long, value_name = "S", requires = "field")]
     pub duration: Option<f64>,
-    /// Resample to this many frames per second (e.g. 30, the seed's rate).
+    /// Resample to this many frames per second (e.g. 30, the rate the hand-gesture paper authors at).
     #[arg(long, value_name = "FPS")]
     pub fps: Option<f64>,
     /// Also print held frames (every recorded tick); ignored with --fps.
