@@ -420,6 +420,7 @@ pages! {
     guide_hand_sources => "docs/hand-sources.md",
     guide_live_modes => "docs/live-modes.md",
     guide_mapping => "docs/mapping.md",
+    guide_mocap_stage => "docs/mocap-stage.md",
     guide_methods => "docs/methods.md",
     guide_performance => "docs/performance.md",
     guide_protocol => "docs/protocol.md",
