@@ -258,3 +258,68 @@ fn a_trigger_address_that_is_not_one_is_a_usage_error_naming_the_key() {
     assert!(err.contains("triggers.listen: \"vicon:30\" is not an address IP:PORT"), "{err}");
     assert!(err.contains("triggers.allow[0]: \"shogun\" is not an IP address"), "{err}");
 }
+
+/// On a stage network (two hosts in network namespaces on one switch): the master broadcasts on
+/// Vicon's default port 30 to the subnet's broadcast address and frond, listening on
+/// `0.0.0.0:30`, follows; frond leads by broadcasting its own take to the same port, which the
+/// master hears. Needs root (namespaces, port 30); skipped without.
+#[test]
+fn triggers_are_broadcast_on_a_stage_network() {
+    use frond_e2e::netns::{self, Lan};
+    if let Some(why) = netns::unavailable() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let lan = Lan::new(2);
+    let (frond_host, master_host) = (&lan.hosts[0], &lan.hosts[1]);
+    let o = frond_host.addr.octets();
+    let broadcast = format!("{}.{}.{}.255:30", o[0], o[1], o[2]);
+    let dir = tempfile::tempdir().unwrap();
+    let allow = master_host.addr.to_string();
+    let daemon = Daemon::start_on(
+        frond_host,
+        dir.path(),
+        &[
+            "--source",
+            "in-process",
+            "--triggers",
+            "0.0.0.0:30",
+            "--trigger-allow",
+            &allow,
+            "--trigger-lead",
+            &broadcast,
+        ],
+    );
+    let to = broadcast.clone();
+    let master = master_host
+        .run_inside(move || {
+            let socket = UdpSocket::bind("0.0.0.0:30").unwrap();
+            socket.set_broadcast(true).unwrap();
+            socket.send_to(&capture_start("stage take", 0, 9000), &to).unwrap();
+            socket
+        })
+        .join()
+        .unwrap();
+    let s = until(&daemon, "the broadcast start followed", |s| s.recording.is_some());
+    assert_eq!(s.recording.unwrap().name, "stage_take");
+    master.send_to(&capture_stop("stage take", 9001), &broadcast).unwrap();
+    until(&daemon, "the broadcast stop followed", |s| s.recording.is_none());
+    assert_eq!(triggers(&daemon).last.unwrap().from, allow);
+
+    // frond leads: its broadcast reaches the master (and comes back to frond, ignored).
+    master.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    daemon.frond_ok(&["record", "start", "frond-take"]);
+    let mut buf = [0u8; 2048];
+    // The master hears its own broadcasts too: the first datagram from frond's host is frond's.
+    let n = loop {
+        let (n, from) = master.recv_from(&mut buf).expect("frond's broadcast CaptureStart");
+        if from.ip() == frond_host.addr {
+            break n;
+        }
+    };
+    let start = std::str::from_utf8(&buf[..n]).unwrap();
+    assert!(start.contains("<CaptureStart>") && value(start, "Name") == Some("frond-take"), "{start:?}");
+    daemon.frond_ok(&["record", "stop"]);
+    let t = triggers(&daemon);
+    assert_eq!((t.lead_sent, t.start_refused, t.started), (2, 0, 1), "{t:#?}");
+}
