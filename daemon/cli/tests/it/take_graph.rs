@@ -2,7 +2,7 @@
 //! binary, on a take `frond take simulate` wrote: the graph file as documented, walks that are
 //! deterministic, directed walks that lean towards their goal, and clear errors.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! exit status says whether something needs fixing. With no daemon at the socket directory the
 //! daemon check is a problem whose fix says how to start one.
 
-mod common;
+use crate::common;
 
 use common::frond;
 

@@ -3,7 +3,7 @@
 //! `bvh_blender.py` drives and checks against forward kinematics computed there. Without bpy the
 //! test says why and passes as skipped, unless `CI=true` or `FROND_REQUIRE_PYTHON=1`.
 
-mod common;
+use crate::common;
 
 use common::{frond, ok, performed, python_check, python_with, skip};
 

@@ -26,7 +26,7 @@ pub fn failed(out: &Output, code: i32, needle: &str) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
-#[path = "../../../../tests/support/python.rs"]
+#[path = "../../../../../tests/support/python.rs"]
 mod python;
 #[allow(unused_imports)] // each test binary uses its own part
 pub use python::{python_with, required, skip};
