@@ -95,7 +95,7 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
         recorded.push(samples);
     }
     let wrist_steps = [&recorded[1][..], &recorded[2][..], &recorded[3][..]];
-    let measured = compute(&a.user, &recorded[0], wrist_steps, &recorded[4]).map_err(|e| anyhow!(e))?;
+    let measured = compute(&a.user, &recorded[0], wrist_steps, &recorded[4])?;
     for w in &measured.warnings {
         frond_binmain::errln!("frond: warning: {w}");
     }

@@ -4,7 +4,7 @@
 //! plant (section 4) blown by the hand.
 
 use clap::Subcommand;
-use frond_motion::graph::PoseGoalSpec;
+use frond_motion::graph::{PoseGoalError, PoseGoalSpec};
 use frond_protocol::{
     ControlReply, ControlRequest, GraphGoal, GraphSource, MAX_GRAPH_SOURCES, StageInput, StageSpec,
 };
@@ -101,7 +101,7 @@ pub(crate) enum GoalError {
     Angle(String),
     /// `pose` with a value that is neither `frame=N` nor 12 angles: the parser's reason.
     #[error("goal pose {0}")]
-    Pose(String),
+    Pose(PoseGoalError),
     /// `off` or `hand` given a value.
     #[error("goal {kind} takes no value, got {value:?}")]
     NoValueTaken {
@@ -130,7 +130,7 @@ pub(crate) fn parse_goal(kind: &str, value: Option<&str>) -> Result<GraphGoal, G
         ("pose", Some(v)) => match v.parse::<PoseGoalSpec>() {
             Ok(PoseGoalSpec::Frame(frame)) => Ok(GraphGoal::Frame { frame }),
             Ok(PoseGoalSpec::Angles(joints_deg)) => Ok(GraphGoal::Pose { joints_deg }),
-            Err(e) => Err(GoalError::Pose(e.to_string())),
+            Err(e) => Err(GoalError::Pose(e)),
         },
         ("off" | "hand", Some(v)) => {
             Err(GoalError::NoValueTaken { kind: kind.to_string(), value: v.to_string() })

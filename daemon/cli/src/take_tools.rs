@@ -309,7 +309,8 @@ fn align_takes(g: &Global, a: AlignArgs) -> anyhow::Result<()> {
     // A secondary recorded with `frond record layer` holds only its layer: that is its motion.
     let sc = layer_clip(&st, st.main_layer().unwrap_or(GLOBAL_LAYER), out.fps, &secondary, Some(out.force))?;
     let transitions = find_transitions(&sc, &LoopParams::default()).ok();
-    let (aligned, steps) = align(&gc, &sc, transitions.as_ref(), window, seed).map_err(UsageError)?;
+    let (aligned, steps) =
+        align(&gc, &sc, transitions.as_ref(), window, seed).map_err(|e| UsageError(e.to_string()))?;
     if explain {
         frond_binmain::errln!("{}", serde_json::to_string(&steps)?);
     }

@@ -229,7 +229,7 @@ fn duration_text(seconds: f64) -> String {
 
 /// The repaired bytes of a take (`frond_formats::take_repair`), errors as `anyhow`.
 pub(crate) fn repaired_bytes(bytes: &[u8]) -> anyhow::Result<Option<(Vec<u8>, Repaired)>> {
-    frond_formats::take_repair::repaired_bytes(bytes).map_err(|e| anyhow!(e))
+    Ok(frond_formats::take_repair::repaired_bytes(bytes)?)
 }
 
 /// `repair`'s report: exactly what was dropped.

@@ -14,6 +14,6 @@ pub mod source;
 pub use profile::{ChannelId, DeviceProfile, ProfileError};
 pub use report::{CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters};
 pub use source::{
-    BACKENDS, Backend, HandSource, HidSource, LeapAddress, LeapSource, OscHandSource, ReplaySource,
-    SourceError, SourceKind, SourceSpec, SpecInput, kind_names, parse_spec,
+    BACKENDS, Backend, HandSource, HidSource, LeapAddress, LeapAddressError, LeapSource, OscHandSource,
+    ReplaySource, SourceError, SourceKind, SourceSpec, SpecError, SpecInput, kind_names, parse_spec,
 };

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use crate::take::{RecordAt, TakeRecord, encode_record};
+use crate::take::{RecordAt, TakeError, TakeRecord, encode_record};
 use crate::take::{scan_take, scan_take_salvaging};
 use frond_motion::take::Skipped;
 
@@ -28,22 +28,43 @@ pub struct Repaired {
     pub closed: bool,
 }
 
+/// Why a take cannot be repaired. The take's own [`TakeError`] is part of the text, not a
+/// `source`, so that a report printing the chain does not say it twice.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RepairError {
+    /// The file holds no bytes at all.
+    #[error("the take is empty (0 bytes): nothing was ever written, there is nothing to keep; delete it")]
+    Empty,
+    /// Even salvaging, the take cannot be read (its signature or header is bad).
+    #[error("{0}; this cannot be repaired")]
+    Unreadable(TakeError),
+    /// The readable part is shorter than the 8-byte signature.
+    #[error("the take is too short to hold even its 8-byte signature; nothing can be kept")]
+    TooShort,
+    /// A bug: the scan said the take ends with an End record that is not there.
+    #[error("internal error: the take's End record is not where the reader ended")]
+    EndMisplaced,
+    /// A bug: the repaired bytes do not read as a take.
+    #[error("internal error: the repaired take does not read back: {0}")]
+    NoReadBack(TakeError),
+    /// A bug: the repaired bytes read as a different take.
+    #[error("internal error: the repaired take does not read back identically")]
+    NotIdentical,
+}
+
 /// The repaired bytes: the readable records, byte for byte, without damaged stretches,
 /// non-finite frames and the torn tail, closed with an End record counting what is kept.
 /// `None` when there is nothing to repair.
-pub fn repaired_bytes(bytes: &[u8]) -> Result<Option<(Vec<u8>, Repaired)>, String> {
+pub fn repaired_bytes(bytes: &[u8]) -> Result<Option<(Vec<u8>, Repaired)>, RepairError> {
     if bytes.is_empty() {
-        return Err(
-            "the take is empty (0 bytes): nothing was ever written, there is nothing to keep; delete it"
-                .into(),
-        );
+        return Err(RepairError::Empty);
     }
-    let scan = scan_take_salvaging(bytes).map_err(|e| format!("{e}; this cannot be repaired"))?;
+    let scan = scan_take_salvaging(bytes).map_err(RepairError::Unreadable)?;
     if scan.torn_bytes == 0 && scan.ended && scan.skipped.is_empty() {
         return Ok(None);
     }
     if scan.valid_len < crate::take::MAGIC.len() as u64 {
-        return Err("the take is too short to hold even its 8-byte signature; nothing can be kept".into());
+        return Err(RepairError::TooShort);
     }
     // The readable part, without the old End record (its count no longer holds).
     let mut keep_until = scan.valid_len as usize;
@@ -53,7 +74,7 @@ pub fn repaired_bytes(bytes: &[u8]) -> Result<Option<(Vec<u8>, Repaired)>, Strin
             Ok(RecordAt::Record { record: TakeRecord::End { .. }, next }) if next == keep_until => {
                 keep_until = end_at
             }
-            _ => return Err("internal error: the take's End record is not where the reader ended".into()),
+            _ => return Err(RepairError::EndMisplaced),
         }
     }
     let mut out = Vec::with_capacity(keep_until);
@@ -66,10 +87,9 @@ pub fn repaired_bytes(bytes: &[u8]) -> Result<Option<(Vec<u8>, Repaired)>, Strin
     let frames = scan.frames.len() as u64;
     encode_record(&TakeRecord::End { frames }, &mut out);
     // The result must read back as a complete, sound take with the same frames.
-    let check =
-        scan_take(&out).map_err(|e| format!("internal error: the repaired take does not read back: {e}"))?;
+    let check = scan_take(&out).map_err(RepairError::NoReadBack)?;
     if !check.ended || check.torn_bytes != 0 || !check.skipped.is_empty() || check.frames != scan.frames {
-        return Err("internal error: the repaired take does not read back identically".into());
+        return Err(RepairError::NotIdentical);
     }
     let repaired = Repaired {
         dropped_bytes: scan.torn_bytes,

@@ -427,7 +427,7 @@ fn source_choice(
 ) -> SourceChoice {
     let input = frond_device::SpecInput { key, replay, replay_key };
     frond_device::parse_spec(kind, &input).unwrap_or_else(|e| {
-        errors.push(e);
+        errors.push(e.to_string());
         SourceChoice::Auto
     })
 }

@@ -177,7 +177,7 @@ impl ControlContext {
         };
         let running = state.stages.get(name).expect("slot_of found it");
         if let Err(why) = input.check() {
-            return refuse(ControlErrorKind::BadRequest, why);
+            return refuse(ControlErrorKind::BadRequest, why.to_string());
         }
         if !(running.info.accepts)(&input) {
             return refuse(

@@ -99,6 +99,17 @@ pub struct AlignStep {
     pub source_frame: f64,
 }
 
+/// Why [`align`] refuses its input.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LayerAlignError {
+    /// A window that is not a positive number of seconds (the window given).
+    #[error("--window must be > 0 seconds, got {0}")]
+    BadWindow(f64),
+    /// One of the takes has no frames.
+    #[error("both takes need frames")]
+    NoFrames,
+}
+
 /// Aligns `secondary` with `global` (same fps); the output has the global's length.
 pub fn align(
     global: &Clip,
@@ -106,12 +117,12 @@ pub fn align(
     transitions: Option<&Transitions>,
     window_s: f64,
     seed: u64,
-) -> Result<(Clip, Vec<AlignStep>), String> {
+) -> Result<(Clip, Vec<AlignStep>), LayerAlignError> {
     if !(window_s.is_finite() && window_s > 0.0) {
-        return Err(format!("--window must be > 0 seconds, got {window_s}"));
+        return Err(LayerAlignError::BadWindow(window_s));
     }
     if global.is_empty() || secondary.is_empty() {
-        return Err("both takes need frames".to_string());
+        return Err(LayerAlignError::NoFrames);
     }
     let fps = global.fps;
     let w = ((window_s * fps).round() as usize).max(2);

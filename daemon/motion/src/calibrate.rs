@@ -13,8 +13,8 @@
 //! - thumb: `G_R_i = max(thumb_i) - neutral_thumb_i` (the comfortable bending range of Eq. 3);
 //!   a range under 5 degrees is refused, since it would blow up `G_i / G_R_i`.
 
-use crate::Calibration;
 use crate::calibration::MAX_WRIST_DEG;
+use crate::{Calibration, Problems};
 
 /// Smallest acceptable comfortable range, degrees.
 pub const MIN_RANGE_DEG: f32 = 5.0;
@@ -48,15 +48,34 @@ pub struct Measured {
     pub warnings: Vec<String>,
 }
 
+/// Why the recorded steps give no calibration ([`compute`]).
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum CalibrateError {
+    /// A step recorded no sample.
+    #[error("every calibration step needs at least one sample")]
+    NoSamples,
+    /// Thumb joints whose comfortable range is too small: one sentence per joint, naming it and
+    /// its range.
+    #[error(
+        "{}; bend the thumb further during the thumb step, and check that the device reports \
+         the thumb (`frond tap`)",
+        .0.join("; ")
+    )]
+    ThumbRange(Vec<String>),
+    /// The measured calibration fails [`Calibration::validate`] (its problems).
+    #[error("the measured calibration is invalid: {0:?}")]
+    Invalid(Problems),
+}
+
 /// Turns the recorded steps into a calibration, or says why it cannot (in words).
 pub fn compute(
     user: &str,
     neutral: &[Raw],
     wrist_steps: [&[Raw]; 3],
     thumb: &[Raw],
-) -> Result<Measured, String> {
+) -> Result<Measured, CalibrateError> {
     if neutral.is_empty() || thumb.is_empty() || wrist_steps.iter().any(|s| s.is_empty()) {
-        return Err("every calibration step needs at least one sample".into());
+        return Err(CalibrateError::NoSamples);
     }
     let mut warnings = Vec::new();
     let mean = |get: &dyn Fn(&Raw) -> f32| -> f32 {
@@ -140,11 +159,7 @@ pub fn compute(
         }
     }
     if !problems.is_empty() {
-        return Err(format!(
-            "{}; bend the thumb further during the thumb step, and check that the device reports \
-             the thumb (`frond tap`)",
-            problems.join("; ")
-        ));
+        return Err(CalibrateError::ThumbRange(problems));
     }
     let calibration = Calibration {
         id: user.to_string(),
@@ -153,7 +168,7 @@ pub fn compute(
         thumb_range_deg,
         wrist_range_deg: wrist_ok.then_some(wrist_range),
     };
-    calibration.validate().map_err(|p| format!("the measured calibration is invalid: {p:?}"))?;
+    calibration.validate().map_err(CalibrateError::Invalid)?;
     Ok(Measured { calibration, warnings })
 }
 
@@ -194,7 +209,7 @@ mod tests {
         for s in &mut t {
             s.thumb_deg[1] = 9.0; // neutral g2 is 7: range 2 degrees
         }
-        let err = compute("bob", &n, [&p, &y, &r], &t).unwrap_err();
+        let err = compute("bob", &n, [&p, &y, &r], &t).unwrap_err().to_string();
         assert!(err.contains("thumb joint g2"), "{err}");
         assert!(err.contains("G_R2 = 2.0 degrees"), "{err}");
         assert!(!err.contains("g1"), "{err}");

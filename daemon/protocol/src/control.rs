@@ -234,7 +234,7 @@ pub enum StageInput {
 
 impl StageInput {
     /// Checks what a client may have sent, before it reaches the loop (a key is always valid).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), BadGraphGoal> {
         match self {
             StageInput::Key(_) => Ok(()),
             StageInput::GraphGoal(goal) => goal.check(),
@@ -283,18 +283,27 @@ pub enum GraphGoal {
 
 impl GraphGoal {
     /// Checks what a client may have sent: angles finite and within +-360 degrees.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), BadGraphGoal> {
         let ok = |a: f64| a.is_finite() && a.abs() <= 360.0;
         match self {
-            GraphGoal::Dir { deg } if !ok(*deg) => {
-                Err(format!("goal direction {deg} is not a finite angle within +-360 degrees"))
+            GraphGoal::Dir { deg } if !ok(*deg) => Err(BadGraphGoal::Direction(*deg)),
+            GraphGoal::Pose { joints_deg } if !joints_deg.iter().flatten().all(|&a| ok(a as f64)) => {
+                Err(BadGraphGoal::Pose(*joints_deg))
             }
-            GraphGoal::Pose { joints_deg } if !joints_deg.iter().flatten().all(|&a| ok(a as f64)) => Err(
-                format!("goal pose {joints_deg:?} has an angle that is not finite or beyond +-360 degrees"),
-            ),
             _ => Ok(()),
         }
     }
+}
+
+/// A [`GraphGoal`] a client sent that the daemon refuses (its text is the refusal's message).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BadGraphGoal {
+    /// A direction that is not finite or beyond +-360 degrees (the direction sent).
+    #[error("goal direction {0} is not a finite angle within +-360 degrees")]
+    Direction(f64),
+    /// A pose with an angle that is not finite or beyond +-360 degrees (the angles sent).
+    #[error("goal pose {0:?} has an angle that is not finite or beyond +-360 degrees")]
+    Pose([[f32; 3]; 4]),
 }
 
 /// The keys of the field controls (seed 000, section 6.3): arrows turn the propagation direction
@@ -667,12 +676,14 @@ mod tests {
     #[test]
     fn graph_goals_from_a_client_are_checked() {
         assert!(GraphGoal::Dir { deg: -90.0 }.check().is_ok());
-        assert!(GraphGoal::Dir { deg: f64::NAN }.check().unwrap_err().contains("not a finite angle"));
+        assert!(
+            GraphGoal::Dir { deg: f64::NAN }.check().unwrap_err().to_string().contains("not a finite angle")
+        );
         assert!(GraphGoal::Dir { deg: 400.0 }.check().is_err());
         let mut joints_deg = [[10.0f32; 3]; 4];
         assert!(GraphGoal::Pose { joints_deg }.check().is_ok());
         joints_deg[2][1] = f32::INFINITY;
-        assert!(GraphGoal::Pose { joints_deg }.check().unwrap_err().contains("not finite"));
+        assert!(GraphGoal::Pose { joints_deg }.check().unwrap_err().to_string().contains("not finite"));
         assert!(GraphGoal::Frame { frame: u32::MAX }.check().is_ok());
     }
 

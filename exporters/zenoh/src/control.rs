@@ -176,8 +176,23 @@ fn toml_problem(text: &str, e: &toml::de::Error) -> String {
     }
 }
 
+/// An `allow` entry that stands for no request a principal may be given.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+enum AllowEntryError {
+    /// A request that exists but is never allowed remotely (the name given).
+    #[error("{0:?} is a testing aid, never allowed remotely")]
+    TestingAid(String),
+    /// Neither `*`, a group nor a request (the name given); the text lists what is.
+    #[error(
+        "unknown request {0:?}; use \"*\", a group ({groups}) or a request ({requests})",
+        groups = GROUPS.iter().map(|(g, _)| *g).collect::<Vec<_>>().join(", "),
+        requests = remote_requests().collect::<Vec<_>>().join(", ")
+    )]
+    Unknown(String),
+}
+
 /// The request names one `allow` entry stands for.
-fn allow_entry(name: &str) -> Result<Vec<&'static str>, String> {
+fn allow_entry(name: &str) -> Result<Vec<&'static str>, AllowEntryError> {
     if name == "*" {
         return Ok(remote_requests().collect());
     }
@@ -188,14 +203,9 @@ fn allow_entry(name: &str) -> Result<Vec<&'static str>, String> {
         return Ok(vec![single]);
     }
     if NEVER_REMOTE.contains(&name) {
-        return Err(format!("{name:?} is a testing aid, never allowed remotely"));
+        return Err(AllowEntryError::TestingAid(name.to_string()));
     }
-    let groups: Vec<&str> = GROUPS.iter().map(|(g, _)| *g).collect();
-    Err(format!(
-        "unknown request {name:?}; use \"*\", a group ({}) or a request ({})",
-        groups.join(", "),
-        remote_requests().collect::<Vec<_>>().join(", ")
-    ))
+    Err(AllowEntryError::Unknown(name.to_string()))
 }
 
 /// One accepted request waiting for the daemon.

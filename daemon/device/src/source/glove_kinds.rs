@@ -2,7 +2,7 @@
 //! table lists every kind; the glove itself is the `frond-vhid` crate (built on this one), and
 //! the daemon opens it.
 
-use super::spec::{Backend, SourceSpec};
+use super::spec::{Backend, SourceSpec, SpecError};
 
 /// `auto`: a glove matching the device profile if one is plugged in, else the virtual glove.
 pub const AUTO: Backend = Backend { syntax: "auto", parse: |kind, _| named(kind, "auto", SourceSpec::Auto) };
@@ -13,7 +13,7 @@ pub const VIRTUAL: Backend =
 pub const IN_PROCESS: Backend =
     Backend { syntax: "in-process", parse: |kind, _| named(kind, "in-process", SourceSpec::InProcess) };
 
-fn named(kind: &str, name: &str, spec: SourceSpec) -> Option<Result<SourceSpec, String>> {
+fn named(kind: &str, name: &str, spec: SourceSpec) -> Option<Result<SourceSpec, SpecError>> {
     (kind == name).then_some(Ok(spec))
 }
 

@@ -23,17 +23,17 @@ use super::osc_wire::{MAX_BUNDLE_DEPTH, Reject, for_each_hand};
 use frond_protocol::SourceKind;
 
 use super::hand::{HandSource, SourceError};
-use super::spec::{Backend, SourceSpec, SpecInput};
+use super::spec::{Backend, SourceSpec, SpecError, SpecInput};
 use crate::report::{DeviceSample, SourceCounters};
 
 /// `osc://IP:PORT`: `/frond/hand` messages received on that UDP address.
 pub(crate) const BACKEND: Backend = Backend { syntax: "osc://IP:PORT", parse };
 
-fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>> {
+fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, SpecError>> {
     let addr = kind.strip_prefix("osc://")?;
     Some(match addr.parse::<SocketAddr>() {
         Ok(_) => Ok(SourceSpec::Osc(addr.to_string())),
-        Err(_) => Err(format!("{}: {kind:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001", input.key)),
+        Err(_) => Err(SpecError::BadOsc { key: input.key.to_string(), kind: kind.to_string() }),
     })
 }
 

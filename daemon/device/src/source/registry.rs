@@ -5,7 +5,7 @@
 //! entry, one line in [`BACKENDS`], and a [`SourceSpec`] variant (ARCHITECTURE.md, "Adding a
 //! hand source", walks through it).
 
-use super::spec::{Backend, SourceSpec, SpecInput};
+use super::spec::{Backend, SourceSpec, SpecError, SpecInput};
 use super::{glove_kinds, hid, leap, osc, replay};
 
 /// Every hand source a configuration can name, in the order help and errors list them.
@@ -27,11 +27,11 @@ pub fn kind_names() -> String {
 
 /// Parses a kind text with the first backend that takes it; a text no backend takes is
 /// refused with the list of kinds.
-pub fn parse_spec(kind: &str, input: &SpecInput<'_>) -> Result<SourceSpec, String> {
+pub fn parse_spec(kind: &str, input: &SpecInput<'_>) -> Result<SourceSpec, SpecError> {
     BACKENDS
         .iter()
         .find_map(|b| (b.parse)(kind, input))
-        .unwrap_or_else(|| Err(format!("{}: {kind:?} is not one of {}", input.key, kind_names())))
+        .unwrap_or_else(|| Err(SpecError::UnknownKind { key: input.key.to_string(), kind: kind.to_string() }))
 }
 
 #[cfg(test)]
@@ -66,21 +66,23 @@ mod tests {
 
     #[test]
     fn problems_name_their_key() {
+        let text = |kind: &str| parse_spec(kind, &input()).unwrap_err().to_string();
+        assert_eq!(text("replay"), "source.replay: required when source.kind = \"replay\"");
         assert_eq!(
-            parse_spec("replay", &input()),
-            Err("source.replay: required when source.kind = \"replay\"".into())
+            text("osc://nowhere"),
+            "source.kind: \"osc://nowhere\": expected osc://IP:PORT, e.g. osc://127.0.0.1:9001"
         );
         assert_eq!(
-            parse_spec("osc://nowhere", &input()),
-            Err("source.kind: \"osc://nowhere\": expected osc://IP:PORT, e.g. osc://127.0.0.1:9001".into())
+            text("usb"),
+            "source.kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
         );
         assert_eq!(
-            parse_spec("usb", &input()),
-            Err("source.kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
-                .into())
+            text("leap://nohost"),
+            "source.kind: \"leap://nohost\": expected leap://HOST:PORT, e.g. leap://127.0.0.1:6437"
         );
-        assert!(
-            parse_spec("leap://nohost", &input()).unwrap_err().starts_with("source.kind: \"leap://nohost\"")
+        assert_eq!(
+            text("leap://h:1?hand=both"),
+            "source.kind: \"leap://h:1?hand=both\": unknown option \"hand=both\" (expected hand=left or hand=right)"
         );
     }
 }

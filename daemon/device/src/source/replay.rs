@@ -22,17 +22,20 @@ use frond_motion::mapping::breaks_timeline;
 use frond_protocol::SourceKind;
 
 use super::hand::{HandSource, SourceError};
-use super::spec::{Backend, SourceSpec, SpecInput};
+use super::spec::{Backend, SourceSpec, SpecError, SpecInput};
 use crate::jsonl::{HandFileError, load_hand_recording};
 use crate::report::{DeviceSample, SourceCounters};
 
 /// `replay`: a JSONL hand recording, the file given under its own key.
 pub(crate) const BACKEND: Backend = Backend { syntax: "replay", parse };
 
-fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>> {
+fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, SpecError>> {
     (kind == "replay").then(|| match input.replay {
         Some(path) => Ok(SourceSpec::Replay(path.into())),
-        None => Err(format!("{}: required when {} = \"replay\"", input.replay_key, input.key)),
+        None => Err(SpecError::NoReplayFile {
+            replay_key: input.replay_key.to_string(),
+            key: input.key.to_string(),
+        }),
     })
 }
 

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use super::leap::address::LeapAddress;
+use super::leap::address::{LeapAddress, LeapAddressError};
 
 /// Which hand source to use: what one backend's parse entry made of a kind text
 /// (`frondd --source`, `[source] kind`, `[[hands]] kind`, `--hand NAME=KIND`).
@@ -71,6 +71,45 @@ pub struct Backend {
     /// The kind as help and errors write it: `hid`, `osc://IP:PORT`.
     pub syntax: &'static str,
     /// The parse entry: `None` when `kind` is not this backend's; otherwise the spec, or the
-    /// problem as one line naming [`SpecInput::key`] (or the replay key).
-    pub parse: fn(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>>,
+    /// problem, whose text is one line naming [`SpecInput::key`] (or the replay key).
+    pub parse: fn(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, SpecError>>,
+}
+
+/// A source kind a configuration gives that no backend takes, or takes but refuses. Each
+/// names the key it was given under and what was typed; the text is one line.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SpecError {
+    /// A kind no backend takes; the text lists the kinds ([`kind_names`](super::kind_names)).
+    #[error("{key}: {kind:?} is not one of {}", super::registry::kind_names())]
+    UnknownKind {
+        /// The key the kind was given under.
+        key: String,
+        /// The kind given.
+        kind: String,
+    },
+    /// `replay` without its file.
+    #[error("{replay_key}: required when {key} = \"replay\"")]
+    NoReplayFile {
+        /// The key the file belongs under.
+        replay_key: String,
+        /// The key the kind was given under.
+        key: String,
+    },
+    /// `osc://` followed by no `IP:PORT`.
+    #[error("{key}: {kind:?}: expected osc://IP:PORT, e.g. osc://127.0.0.1:9001")]
+    BadOsc {
+        /// The key the kind was given under.
+        key: String,
+        /// The kind given.
+        kind: String,
+    },
+    /// `leap://` followed by no valid address. The address's problem is part of the text (not a
+    /// `source`, so a report printing the chain does not say it twice).
+    #[error("{key}: {problem}")]
+    BadLeap {
+        /// The key the kind was given under.
+        key: String,
+        /// What is wrong with the address (it names the text given).
+        problem: LeapAddressError,
+    },
 }

@@ -262,33 +262,52 @@ pub enum PoseGoalSpec {
 pub const MAX_GOAL_ANGLE_DEG: f32 = 360.0;
 
 impl std::str::FromStr for PoseGoalSpec {
-    type Err = String;
+    type Err = PoseGoalError;
 
-    fn from_str(spec: &str) -> Result<Self, String> {
+    fn from_str(spec: &str) -> Result<Self, PoseGoalError> {
         if let Some(n) = spec.strip_prefix("frame=") {
             return n
                 .trim()
                 .parse()
                 .map(PoseGoalSpec::Frame)
-                .map_err(|_| format!("{spec:?}: frame=N needs a frame number from 0 to {}", u32::MAX));
+                .map_err(|_| PoseGoalError::BadFrame(spec.to_string()));
         }
         let values: Vec<f32> = spec
             .split(',')
             .take(3 * JOINTS + 1)
             .map(|v| v.trim().parse::<f32>())
             .collect::<Result<_, _>>()
-            .map_err(|_| format!("{spec:?}: expected frame=N or 12 comma-separated angles in degrees"))?;
+            .map_err(|_| PoseGoalError::NotNumbers(spec.to_string()))?;
         if values.len() != 3 * JOINTS
             || !values.iter().all(|v| v.is_finite() && v.abs() <= MAX_GOAL_ANGLE_DEG)
         {
-            return Err(format!(
-                "{spec:?}: expected 12 finite angles within +-{MAX_GOAL_ANGLE_DEG} degrees (pitch, yaw, roll of joints 0..3), found {}{} values",
-                values.len(),
-                if values.len() > 3 * JOINTS { " or more" } else { "" }
-            ));
+            return Err(PoseGoalError::BadAngles { spec: spec.to_string(), found: values.len() });
         }
         Ok(PoseGoalSpec::Angles(std::array::from_fn(|j| std::array::from_fn(|c| values[3 * j + c]))))
     }
+}
+
+/// A pose goal ([`PoseGoalSpec`]) that does not parse; each names what was typed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PoseGoalError {
+    /// `frame=N` whose `N` is not a frame number.
+    #[error("{0:?}: frame=N needs a frame number from 0 to {max}", max = u32::MAX)]
+    BadFrame(String),
+    /// Neither `frame=N` nor comma-separated numbers.
+    #[error("{0:?}: expected frame=N or 12 comma-separated angles in degrees")]
+    NotNumbers(String),
+    /// Numbers, but not 12 of them, or one not finite or beyond [`MAX_GOAL_ANGLE_DEG`].
+    #[error(
+        "{spec:?}: expected 12 finite angles within +-{max} degrees (pitch, yaw, roll of joints 0..3), found {found}{more} values",
+        max = MAX_GOAL_ANGLE_DEG,
+        more = if *found > 3 * JOINTS { " or more" } else { "" }
+    )]
+    BadAngles {
+        /// What was typed.
+        spec: String,
+        /// How many numbers were read (reading stops after 13).
+        found: usize,
+    },
 }
 
 /// The node whose take pose is nearest `goal` (Euclidean over the 12 angles,

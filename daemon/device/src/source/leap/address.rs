@@ -11,23 +11,45 @@ pub struct LeapAddress {
     pub hand: Chirality,
 }
 
-impl std::str::FromStr for LeapAddress {
-    type Err = String;
+/// A text that is no `leap://HOST:PORT[?hand=left|right]`; each names the text given.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LeapAddressError {
+    /// The text does not start with `leap://`.
+    #[error("{0:?}: expected leap://HOST:PORT")]
+    NotLeap(String),
+    /// A query other than `hand=left` or `hand=right`.
+    #[error("{address:?}: unknown option {option:?} (expected hand=left or hand=right)")]
+    UnknownOption {
+        /// The address given.
+        address: String,
+        /// The query after `?`.
+        option: String,
+    },
+    /// No host, or no port from 0 to 65535.
+    #[error("{0:?}: expected leap://HOST:PORT, e.g. leap://127.0.0.1:6437")]
+    BadHostPort(String),
+}
 
-    fn from_str(s: &str) -> Result<Self, String> {
-        let rest = s.strip_prefix("leap://").ok_or_else(|| format!("{s:?}: expected leap://HOST:PORT"))?;
+impl std::str::FromStr for LeapAddress {
+    type Err = LeapAddressError;
+
+    fn from_str(s: &str) -> Result<Self, LeapAddressError> {
+        let rest = s.strip_prefix("leap://").ok_or_else(|| LeapAddressError::NotLeap(s.to_string()))?;
         let (host_port, query) = rest.split_once('?').unwrap_or((rest, ""));
         let hand = match query {
             "" | "hand=right" => Chirality::Right,
             "hand=left" => Chirality::Left,
             other => {
-                return Err(format!("{s:?}: unknown option {other:?} (expected hand=left or hand=right)"));
+                return Err(LeapAddressError::UnknownOption {
+                    address: s.to_string(),
+                    option: other.to_string(),
+                });
             }
         };
         let port_ok =
             host_port.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok());
         if !port_ok {
-            return Err(format!("{s:?}: expected leap://HOST:PORT, e.g. leap://127.0.0.1:6437"));
+            return Err(LeapAddressError::BadHostPort(s.to_string()));
         }
         Ok(LeapAddress { host_port: host_port.to_string(), hand })
     }

@@ -54,6 +54,48 @@ fn warn_connection(service: &str, what: &str, why: &str) {
     }
 }
 
+/// Why a connection to the tracking service was not made (a log line's reason; the client
+/// retries).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum LeapConnectError {
+    /// The host name did not resolve.
+    #[error("cannot resolve {host_port}: {error}")]
+    Resolve {
+        /// `HOST:PORT` as configured.
+        host_port: String,
+        /// The resolver's error.
+        error: std::io::Error,
+    },
+    /// The host name resolved to no address.
+    #[error("{0} resolves to no address")]
+    NoAddress(String),
+    /// The TCP connection failed or could not be set up.
+    #[error("{0}")]
+    Tcp(std::io::Error),
+    /// The WebSocket handshake failed.
+    #[error("WebSocket handshake with {url}: {failed}")]
+    Handshake {
+        /// The WebSocket URL.
+        url: String,
+        /// Why it failed.
+        failed: HandshakeFailed,
+    },
+    /// Asking the service for frames failed.
+    #[error("{0}")]
+    Ask(Box<tungstenite::Error>),
+}
+
+/// Why [`handshake`] ended without a WebSocket.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum HandshakeFailed {
+    /// The service refused it, or the stream failed or timed out.
+    #[error("{0}")]
+    Refused(Box<tungstenite::Error>),
+    /// The source is being dropped.
+    #[error("the source is stopping")]
+    Stopping,
+}
+
 pub(super) struct Client {
     pub(super) host_port: String,
     pub(super) hand: Chirality,
@@ -97,23 +139,23 @@ impl Client {
         }
     }
 
-    fn address(&self) -> Result<SocketAddr, String> {
+    fn address(&self) -> Result<SocketAddr, LeapConnectError> {
         self.host_port
             .to_socket_addrs()
-            .map_err(|e| format!("cannot resolve {}: {e}", self.host_port))?
+            .map_err(|error| LeapConnectError::Resolve { host_port: self.host_port.clone(), error })?
             .next()
-            .ok_or_else(|| format!("{} resolves to no address", self.host_port))
+            .ok_or_else(|| LeapConnectError::NoAddress(self.host_port.clone()))
     }
 
     /// Connects and shakes hands with the service, then asks it for frames; the WebSocket and
     /// its URL (for logs).
-    fn connect(&self) -> Result<(tungstenite::WebSocket<ServiceStream>, String), String> {
+    fn connect(&self) -> Result<(tungstenite::WebSocket<ServiceStream>, String), LeapConnectError> {
         let addr = self.address()?;
-        let tcp = TcpStream::connect_timeout(&addr, Duration::from_secs(1)).map_err(|e| e.to_string())?;
+        let tcp = TcpStream::connect_timeout(&addr, Duration::from_secs(1)).map_err(LeapConnectError::Tcp)?;
         tcp.set_nodelay(true).ok();
         // Every read waits at most READ_POLL, so that a stop is seen; the handshake as a whole
         // at most HANDSHAKE_TIMEOUT.
-        tcp.set_read_timeout(Some(READ_POLL)).map_err(|e| e.to_string())?;
+        tcp.set_read_timeout(Some(READ_POLL)).map_err(LeapConnectError::Tcp)?;
         let stream = ServiceStream::new(tcp, Arc::clone(&self.stop), Instant::now() + HANDSHAKE_TIMEOUT);
         let url = format!("ws://{}/v6.json", self.host_port);
         let mut config = tungstenite::protocol::WebSocketConfig::default();
@@ -123,14 +165,14 @@ impl Client {
         config.write_buffer_size = 0;
         config.max_write_buffer_size = MAX_WRITE_BUFFER;
         let (mut ws, _) = handshake(url.as_str(), stream, config)
-            .map_err(|e| format!("WebSocket handshake with {url}: {e}"))?;
+            .map_err(|failed| LeapConnectError::Handshake { url: url.clone(), failed })?;
         ws.get_mut().deadline = None;
         for ask in [r#"{"background":true}"#, r#"{"focused":true}"#] {
             match ws.send(tungstenite::Message::text(ask)) {
                 Ok(()) => {}
                 // Queued: written with the next read's flush.
                 Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) => return Err(e.to_string()),
+                Err(e) => return Err(LeapConnectError::Ask(Box::new(e))),
             }
         }
         Ok((ws, url))
@@ -139,7 +181,7 @@ impl Client {
     /// One connection: handshake, then frames until the service goes or we are asked to stop.
     /// Ends with whether it got connected, and why not or why it ended.
     fn session(&self) -> Result<(), (bool, String)> {
-        let (mut ws, url) = self.connect().map_err(|e| (false, e))?;
+        let (mut ws, url) = self.connect().map_err(|e| (false, e.to_string()))?;
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let (mut warned_version, mut warned_pace) = (false, false);
         // When the service last sent a message frond could use (one it did not refuse).
@@ -279,15 +321,18 @@ fn handshake(
     url: &str,
     stream: ServiceStream,
     config: tungstenite::protocol::WebSocketConfig,
-) -> Result<(tungstenite::WebSocket<ServiceStream>, tungstenite::handshake::client::Response), String> {
+) -> Result<(tungstenite::WebSocket<ServiceStream>, tungstenite::handshake::client::Response), HandshakeFailed>
+{
     let stop = Arc::clone(&stream.stop);
     let mut attempt = tungstenite::client::client_with_config(url, stream, Some(config));
     loop {
         match attempt {
             Ok(done) => return Ok(done),
-            Err(tungstenite::HandshakeError::Failure(e)) => return Err(e.to_string()),
+            Err(tungstenite::HandshakeError::Failure(e)) => {
+                return Err(HandshakeFailed::Refused(Box::new(e)));
+            }
             Err(tungstenite::HandshakeError::Interrupted(_)) if stop.load(Ordering::Acquire) => {
-                return Err("the source is stopping".into());
+                return Err(HandshakeFailed::Stopping);
             }
             // A read waited READ_POLL: carry on (the stream's deadline ends it with TimedOut).
             Err(tungstenite::HandshakeError::Interrupted(mid)) => attempt = mid.handshake(),

@@ -37,18 +37,18 @@ mod stream;
 #[cfg(test)]
 mod tests;
 
-pub use address::LeapAddress;
+pub use address::{LeapAddress, LeapAddressError};
 pub use frames::MAX_MESSAGE_BYTES;
 pub use source::LeapSource;
 
-use super::spec::{Backend, SourceSpec, SpecInput};
+use super::spec::{Backend, SourceSpec, SpecError, SpecInput};
 
 /// `leap://HOST:PORT[?hand=left|right]`: a Leap Motion / Ultraleap tracking service.
 pub(crate) const BACKEND: Backend = Backend { syntax: "leap://HOST:PORT", parse };
 
-fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, String>> {
+fn parse(kind: &str, input: &SpecInput<'_>) -> Option<Result<SourceSpec, SpecError>> {
     kind.starts_with("leap://").then(|| match kind.parse::<LeapAddress>() {
         Ok(a) => Ok(SourceSpec::Leap(a)),
-        Err(e) => Err(format!("{}: {e}", input.key)),
+        Err(problem) => Err(SpecError::BadLeap { key: input.key.to_string(), problem }),
     })
 }
