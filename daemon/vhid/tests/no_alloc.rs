@@ -8,12 +8,12 @@ mod common;
 use std::time::Duration;
 
 use common::*;
-use frond_alloc_count::{count_allocations, CountingAlloc};
+use frond_alloc_count::{CountingAlloc, count_allocations};
 use frond_device::{
     DeviceProfile, DeviceSample, HandSource, HidSource, ReplaySource, ReportParser, SourceKind,
 };
-use frond_vhid::glove::{encode_report, GloveReport};
-use frond_vhid::{mount_fuse, InProcessGlove, VirtualGloveConfig};
+use frond_vhid::glove::{GloveReport, encode_report};
+use frond_vhid::{InProcessGlove, VirtualGloveConfig, mount_fuse};
 
 #[global_allocator]
 static GLOBAL: CountingAlloc = CountingAlloc;

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use common::*;
 use frond_device::jsonl::parse_hand_text;
 use frond_device::{DeviceProfile, HandSource, HidSource, SourceError, SourceKind};
-use frond_vhid::{mount_fuse, FaultPlan, GloveSource, UnplugPlan, VirtualGloveConfig};
+use frond_vhid::{FaultPlan, GloveSource, UnplugPlan, VirtualGloveConfig, mount_fuse};
 
 fn jsonl_config(path: &std::path::Path, start_delay_ms: u64) -> VirtualGloveConfig {
     VirtualGloveConfig {

@@ -3,7 +3,7 @@
 //! beside `ReportParser` until the glove's encoder moved to this crate.)
 
 use frond_device::{ChannelId, DeviceProfile, ReportError, ReportParser};
-use frond_vhid::glove::{encode_report, GloveReport};
+use frond_vhid::glove::{GloveReport, encode_report};
 
 fn glove() -> ReportParser {
     ReportParser::new(&DeviceProfile::frond_glove())

@@ -1,7 +1,7 @@
 //! Report parser properties: arbitrary bytes never panic; encode -> parse round-trips.
 
 use frond_device::{DeviceProfile, ReportError, ReportParser};
-use frond_vhid::glove::{encode_report, GloveReport, REPORT_LEN};
+use frond_vhid::glove::{GloveReport, REPORT_LEN, encode_report};
 use proptest::prelude::*;
 
 fn in_range_cdeg() -> impl Strategy<Value = i16> {
