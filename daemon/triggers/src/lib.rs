@@ -43,8 +43,8 @@
 //! allow-list, per-sender packet ids, delay, safe take names, counters), [`Leader`] (frond's
 //! own numbered messages), and [`TriggerSocket`], the only I/O, kept apart.
 //!
-//! A fuzz target for [`decode`] belongs in `fuzz/` beside the other parsers' (not yet added;
-//! the property test in `tests/wire.rs` runs arbitrary bytes through it meanwhile).
+//! [`decode`] is fuzzed in `fuzz/tests/it/triggers.rs` (never a panic, the documented bounds,
+//! and `decode(encode(m)) == m` for what it accepts); `tests/wire.rs` property-tests it too.
 
 #![warn(missing_docs)]
 

@@ -9,3 +9,4 @@ mod http;
 mod motion;
 mod osc;
 mod protocol;
+mod triggers;
