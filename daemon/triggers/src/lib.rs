@@ -44,7 +44,7 @@
 //! own numbered messages), and [`TriggerSocket`], the only I/O, kept apart.
 //!
 //! [`decode`] is fuzzed in `fuzz/tests/it/triggers.rs` (never a panic, the documented bounds,
-//! and `decode(encode(m)) == m` for what it accepts); `tests/wire.rs` property-tests it too.
+//! and `decode(encode(m)) == m` for what it accepts); `tests/it/wire.rs` property-tests it too.
 
 #![warn(missing_docs)]
 

@@ -1,0 +1,5 @@
+//! The crate's integration tests, one binary (one link instead of one per file: linking the
+//! test binaries was a large part of CI's build). Each module is what was one test file.
+
+mod follower;
+mod wire;
