@@ -12,6 +12,7 @@ mod hostile_files;
 mod hostile_takes;
 mod leap;
 mod live_modes;
+mod ltc;
 mod no_color;
 mod osc_input;
 mod plausible;

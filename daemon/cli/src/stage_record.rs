@@ -395,6 +395,7 @@ impl SourceJob {
                 clock_offset_ns: self.offset.offset_ns,
                 clock_uncertainty_ns: self.offset.rtt_ns / 2,
             }),
+            stage_clock: None,
         }
     }
 }

@@ -99,6 +99,9 @@ pub(crate) fn render(r: &StatusReport) -> String {
     if let Some(t) = &r.triggers {
         triggers(&mut o, t);
     }
+    if let Some(l) = &r.ltc {
+        ltc(&mut o, l);
+    }
     stages_elements_and_events(&mut o, r);
     o
 }
@@ -148,6 +151,25 @@ fn triggers(o: &mut String, t: &frond_protocol::TriggerStatus) {
     }
     if let Some(why) = &t.last_refused {
         let _ = writeln!(o, "  refused    {}", p(why));
+    }
+}
+
+/// [`render`]'s stage timecode: the LTC input, its state, the last label and the counts.
+fn ltc(o: &mut String, l: &frond_protocol::LtcStatus) {
+    use frond_protocol::printable as p;
+    let fps = l.fps.as_deref().map_or(String::new(), |f| format!(" at {} fps", p(f)));
+    let _ = writeln!(o, "ltc          {}{fps} from {} ({} Hz)", p(&l.state), p(&l.input), l.sample_rate_hz);
+    if let Some(tc) = &l.last_timecode {
+        let age = l.last_age_s.map_or(String::new(), |a| format!(", {} ago", human_duration(a)));
+        let _ = writeln!(o, "  last       {}{age}", p(tc));
+    }
+    let _ = writeln!(
+        o,
+        "  counts     {} frames, {} locks, {} losses, {} jumps",
+        l.frames, l.locks, l.losses, l.jumps
+    );
+    if let Some(e) = &l.last_error {
+        let _ = writeln!(o, "  error      {}", p(e));
     }
 }
 
@@ -337,6 +359,35 @@ mod tests {
             recorder_error: None,
             lateness_histogram: Vec::new(),
             triggers: None,
+            ltc: None,
+        }
+    }
+
+    /// Issue 46: the LTC section says the state, rate, input, last label and counts.
+    #[test]
+    fn the_ltc_section_shows_state_last_timecode_and_counts() {
+        let mut r = report();
+        assert!(!render(&r).contains("ltc "));
+        r.ltc = Some(frond_protocol::LtcStatus {
+            input: "/run/frond/ltc.fifo".into(),
+            state: "locked".into(),
+            fps: Some("25".into()),
+            last_timecode: Some("10:00:01:07".into()),
+            last_age_s: Some(0.02),
+            sample_rate_hz: 48_000,
+            frames: 32,
+            locks: 1,
+            losses: 0,
+            jumps: 2,
+            last_error: None,
+        });
+        let t = render(&r);
+        for needle in [
+            "ltc          locked at 25 fps from /run/frond/ltc.fifo (48000 Hz)\n",
+            "  last       10:00:01:07, 0.0s ago\n",
+            "  counts     32 frames, 1 locks, 0 losses, 2 jumps\n",
+        ] {
+            assert!(t.contains(needle), "missing {needle:?} in:\n{t}");
         }
     }
 

@@ -127,6 +127,7 @@ pub(crate) fn run(g: &Global, a: SimulateArgs) -> anyhow::Result<()> {
         joint_names: rig.joint_names(),
         clock: None,
         stage: None,
+        stage_clock: None,
     };
     let mut take = Take::new(header);
     take.set_layer(GLOBAL_LAYER, None, frames_from_clip(&clip, GLOBAL_LAYER, 0, None));

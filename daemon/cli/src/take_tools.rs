@@ -116,6 +116,7 @@ fn import(g: &Global, a: ImportArgs) -> anyhow::Result<()> {
             .map_or_else(|| (0..4).map(|i| format!("joint{i}")).collect(), |r| r.joint_names()),
         clock: None,
         stage: None,
+        stage_clock: None,
     };
     let mut take = Take::new(header);
     take.set_layer(GLOBAL_LAYER, None, frames);

@@ -48,6 +48,8 @@ pub struct RawConfig {
     control: RawControl,
     #[serde(default)]
     triggers: RawTriggers,
+    #[serde(default)]
+    ltc: RawLtc,
     /// Several hand sources; absent = the one of `[source]`.
     hands: Option<Vec<RawHand>>,
 }
@@ -143,6 +145,15 @@ struct RawTriggers {
     honour_delay: Option<bool>,
 }
 
+/// The `[ltc]` table: the stage's timecode from LTC audio (issue 46).
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLtc {
+    input: Option<String>,
+    sample_rate_hz: Option<i64>,
+    fps: Option<String>,
+}
+
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawSource {
@@ -214,6 +225,9 @@ impl RawConfig {
         pick(&mut self.triggers.allow, other.triggers.allow);
         pick(&mut self.triggers.lead, other.triggers.lead);
         pick(&mut self.triggers.honour_delay, other.triggers.honour_delay);
+        pick(&mut self.ltc.input, other.ltc.input);
+        pick(&mut self.ltc.sample_rate_hz, other.ltc.sample_rate_hz);
+        pick(&mut self.ltc.fps, other.ltc.fps);
         pick(&mut self.hands, other.hands);
         self
     }
@@ -238,6 +252,7 @@ impl RawConfig {
                 lead: o.trigger_lead,
                 honour_delay: None,
             },
+            ltc: RawLtc { input: o.ltc, ..Default::default() },
             ..Default::default()
         }
     }
@@ -276,6 +291,8 @@ pub struct Overrides {
     pub trigger_allow: Vec<String>,
     /// `--trigger-lead`: `triggers.lead`.
     pub trigger_lead: Option<String>,
+    /// `--ltc`: `ltc.input`.
+    pub ltc: Option<String>,
 }
 
 /// Which hand source to use: the hand sources' own parsed form, each kind parsed by its backend
@@ -323,6 +340,52 @@ pub struct Config {
     pub allowed_gids: Vec<u32>,
     /// A mocap stage's capture triggers: follow, lead, or neither.
     pub triggers: TriggersConfig,
+    /// The stage's timecode from LTC audio, if an input is given.
+    pub ltc: LtcConfig,
+}
+
+/// The `[ltc]` table, validated: where frond reads the stage's LTC from (issue 46,
+/// `frond_ltc`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LtcConfig {
+    /// `ltc.input`: a file or FIFO of raw mono s16le samples, or a WAV file; `None`: no LTC.
+    pub input: Option<PathBuf>,
+    /// `ltc.sample_rate_hz`: the raw samples' rate (a WAV file's header says its own).
+    pub sample_rate_hz: u32,
+    /// `ltc.fps`: the rate expected; LTC at another is not used. `None`: any rate.
+    pub fps: Option<frond_ltc::FrameRate>,
+}
+
+impl Default for LtcConfig {
+    fn default() -> Self {
+        LtcConfig { input: None, sample_rate_hz: 48_000, fps: None }
+    }
+}
+
+impl LtcConfig {
+    fn validate(errors: &mut Vec<String>, raw: &RawLtc) -> LtcConfig {
+        let (min, max) = (frond_ltc::MIN_SAMPLE_RATE_HZ, frond_ltc::MAX_SAMPLE_RATE_HZ);
+        let sample_rate_hz =
+            range(errors, "ltc.sample_rate_hz", raw.sample_rate_hz.or(Some(48_000)), min.into(), max.into());
+        let fps = raw.fps.as_deref().and_then(|text| {
+            let rate = frond_ltc::FrameRate::ALL.into_iter().find(|r| r.to_string() == text);
+            if rate.is_none() {
+                errors.push(format!("ltc.fps: {text:?} is not one of 24, 25, 29.97df, 30"));
+            }
+            rate
+        });
+        let input = raw.input.as_deref().and_then(|text| {
+            if text.trim().is_empty() {
+                errors.push("ltc.input: must name a file or FIFO".into());
+                return None;
+            }
+            Some(PathBuf::from(text))
+        });
+        if raw.input.is_none() && raw.fps.is_some() {
+            errors.push("ltc.fps: needs ltc.input (frond reads no LTC without it)".into());
+        }
+        LtcConfig { input, sample_rate_hz: sample_rate_hz as u32, fps }
+    }
 }
 
 /// The `[triggers]` table, validated: where frond hears a stage master's `CaptureStart` /
@@ -577,7 +640,7 @@ fn ids(errors: &mut Vec<String>, key: &str, v: Option<&[i64]>) -> Vec<u32> {
 impl Config {
     /// Validates a merged raw configuration, reporting every problem at once, in the order of
     /// the keys: the loop and rig, the hands, the filter, `[source]`, `[publisher]`,
-    /// `[recorder]`, `[realtime]`, `[control]`, `[triggers]`.
+    /// `[recorder]`, `[realtime]`, `[control]`, `[triggers]`, `[ltc]`.
     pub fn validate(raw: RawConfig) -> Result<Config, ConfigError> {
         let mut errors = Vec::new();
         let tick_rate_hz = range(&mut errors, "tick_rate_hz", raw.tick_rate_hz, 30, 8000) as u32;
@@ -612,6 +675,7 @@ impl Config {
         let allowed_uids = ids(&mut errors, "control.allowed_uids", raw.control.allowed_uids.as_deref());
         let allowed_gids = ids(&mut errors, "control.allowed_gids", raw.control.allowed_gids.as_deref());
         let triggers = TriggersConfig::validate(&mut errors, &raw.triggers);
+        let ltc = LtcConfig::validate(&mut errors, &raw.ltc);
         if !errors.is_empty() {
             return Err(ConfigError { problems: errors });
         }
@@ -634,6 +698,7 @@ impl Config {
             allowed_uids,
             allowed_gids,
             triggers,
+            ltc,
         })
     }
 
@@ -849,6 +914,38 @@ mod tests {
         assert_eq!(t.listen, Some("127.0.0.1:3030".parse().unwrap()));
         assert_eq!(t.allow, Some(vec!["127.0.0.2".parse().unwrap()]));
         assert_eq!(t.lead, Some("127.0.0.1:3031".parse().unwrap()));
+    }
+
+    #[test]
+    fn ltc_is_off_by_default_and_checked_with_its_keys() {
+        let c = Config::load(None, RawConfig::default()).unwrap();
+        assert_eq!(c.ltc, LtcConfig { input: None, sample_rate_hz: 48_000, fps: None });
+        let raw = RawConfig::parse(
+            "[ltc]\ninput = \"/run/frond/ltc.fifo\"\nsample_rate_hz = 44100\nfps = \"29.97df\"\n",
+            "t",
+        )
+        .unwrap();
+        let l = Config::validate(raw).unwrap().ltc;
+        assert_eq!(l.input.as_deref(), Some(Path::new("/run/frond/ltc.fifo")));
+        assert_eq!((l.sample_rate_hz, l.fps), (44_100, Some(frond_ltc::FrameRate::Fps2997Df)));
+        let raw =
+            RawConfig::parse("[ltc]\ninput = \" \"\nsample_rate_hz = 4000\nfps = \"29.97\"\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            [
+                "ltc.sample_rate_hz: 4000 is out of range 8000..=192000",
+                "ltc.fps: \"29.97\" is not one of 24, 25, 29.97df, 30",
+                "ltc.input: must name a file or FIFO",
+            ]
+        );
+        let raw = RawConfig::parse("[ltc]\nfps = \"25\"\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            ["ltc.fps: needs ltc.input (frond reads no LTC without it)"]
+        );
+        let flags = Overrides { ltc: Some("/tmp/ltc.raw".into()), ..Default::default() };
+        let l = Config::load(None, RawConfig::from_overrides(flags)).unwrap().ltc;
+        assert_eq!(l.input.as_deref(), Some(Path::new("/tmp/ltc.raw")));
     }
 
     #[test]

@@ -222,6 +222,14 @@ impl ControlContext {
                 format!("take {name:?} already exists at {}; choose another name", path.display()),
             );
         }
+        // Both clocks read back to back: frames' host times get wall times (timecode); with a
+        // locked LTC input, the stage's timecode at the same instant anchors the take.
+        let unix_ns = SystemTime::now()
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map(|d| d.as_nanos() as u64)
+            .unwrap_or(0);
+        let host_ns = crate::clock::monotonic_ns();
+        let stage_clock = self.ltc.as_ref().and_then(|l| l.anchor(host_ns));
         let header = TakeHeader {
             name: name.clone(),
             rig_name: state.rig.name.clone(),
@@ -234,16 +242,11 @@ impl ControlContext {
                 .unwrap_or(0),
             daemon_version: env!("CARGO_PKG_VERSION").to_string(),
             joint_names: state.rig.joints.iter().map(|j| j.name.clone()).collect(),
-            // Both clocks read back to back: frames' host times get wall times (timecode).
-            clock: Some(frond_motion::take::TakeClock {
-                unix_ns: SystemTime::now()
-                    .duration_since(SystemTime::UNIX_EPOCH)
-                    .map(|d| d.as_nanos() as u64)
-                    .unwrap_or(0),
-                host_ns: crate::clock::monotonic_ns(),
-            }),
+            clock: Some(frond_motion::take::TakeClock { unix_ns, host_ns }),
             stage: None,
+            stage_clock,
         };
+        let stage_label = header.stage_clock.as_ref().map(|a| a.label.clone());
         let elements: Vec<String> = state.rig.elements.iter().map(|e| e.name.clone()).collect();
         let (tx, rx) = bounded(1);
         let start = RecorderMsg::Start { path: path.clone(), header: Box::new(header), elements, reply: tx };
@@ -258,7 +261,7 @@ impl ControlContext {
         if let Err(reply) = self.send_loop(LoopCommand::SetRecording(true)) {
             return *reply;
         }
-        info!(take = %name, path = %path.display(), "recording started");
+        info!(take = %name, path = %path.display(), stage_timecode = ?stage_label, "recording started");
         state.recording = Some((name.clone(), path.clone()));
         ControlReply::Recording(RecordingStatus {
             name,
@@ -405,6 +408,7 @@ impl ControlContext {
             recorder_error: self.recorder_counters.fault(),
             lateness_histogram: s.lateness.log2_buckets_us(),
             triggers: self.triggers.as_ref().map(|t| t.status(crate::clock::monotonic_ns())),
+            ltc: self.ltc.as_ref().map(|l| l.status(crate::clock::monotonic_ns())),
         }
     }
 }

@@ -148,6 +148,9 @@ pub struct ControlContext {
     /// A mocap stage's capture triggers, when configured: status reads them, and frond's own
     /// `record start` / `record stop` lead through them.
     pub triggers: Option<Arc<crate::trigger_link::TriggerLink>>,
+    /// The stage's timecode from LTC, when an input is configured: status reads it, and a
+    /// take's start anchors the take to it.
+    pub ltc: Option<Arc<crate::ltc_link::LtcLink>>,
 }
 
 /// A refusal of a request: a typed [`ControlError`] reply, and a log line (rate-limited, cut).

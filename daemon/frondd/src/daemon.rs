@@ -191,6 +191,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let started = Instant::now();
     let setup = load_setup(&config)?;
     let triggers = crate::trigger_thread::bind_triggers(&config.triggers)?;
+    let ltc = crate::ltc_thread::open_ltc(&config.ltc)?;
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
     let hands = set_up_hands(&config, &setup.rig)?;
@@ -231,6 +232,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
         elements_cell: elements,
         recording_session: Mutex::new(()),
         triggers: triggers.as_ref().map(|t| t.link.clone()),
+        ltc: ltc.as_ref().map(|l| l.link.clone()),
     });
     // The one path for a rig, calibration and filter: here, on SIGHUP and on `frond rig set`.
     {
@@ -242,6 +244,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let serve_ends = ServeEnds { frames, publish_wake, slow, reopen, awaited: awaited_rx };
     let serving = serve(&config, &dirs.socket_dir, &ctx, serve_ends)?;
     let trigger_thread = triggers.map(|t| t.start(&ctx)).transpose()?.flatten();
+    let ltc_thread = ltc.map(crate::ltc_thread::BoundLtc::start).transpose()?;
 
     let notifier = Notifier::from_env();
     notifier.notify(&format!("READY=1\nSTATUS=publishing on {}", dirs.socket_dir.display()));
@@ -253,7 +256,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
 
     notifier.notify("STOPPING=1");
     info!("stopping");
-    shut_down(ctx, realtime, serving, trigger_thread, (commands, rec_tx), opened)
+    shut_down(ctx, realtime, serving, (trigger_thread, ltc_thread), (commands, rec_tx), opened)
 }
 
 /// The rig, calibration and filter the configuration names.
@@ -488,12 +491,18 @@ fn shut_down(
     ctx: Arc<ControlContext>,
     realtime: Realtime,
     serving: Serving,
-    trigger_thread: Option<crate::trigger_thread::TriggerThread>,
+    (trigger_thread, ltc_thread): (
+        Option<crate::trigger_thread::TriggerThread>,
+        Option<crate::ltc_thread::LtcThread>,
+    ),
     (commands, rec_tx): (Sender<LoopCommand>, Sender<RecorderMsg>),
     opened: Vec<OpenedSource>,
 ) -> Result<(), DaemonError> {
     // No trigger may start a take after the last one is finished.
     if let Some(thread) = trigger_thread {
+        thread.stop();
+    }
+    if let Some(thread) = ltc_thread {
         thread.stop();
     }
     if ctx.state.lock().unwrap_or_else(|e| e.into_inner()).recording.is_some() {
@@ -589,6 +598,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
         (config.tick_rate_hz != running.tick_rate_hz, "tick_rate_hz"),
         (config.hands != running.hands, "source / hands (sources, their rigs, calibrations and elements)"),
         (config.queue_frames != running.queue_frames, "publisher.queue_frames"),
+        (config.ltc != running.ltc, "ltc (input, sample_rate_hz, fps)"),
     ]
     .into_iter()
     .filter_map(|(changed, key)| changed.then_some(key))

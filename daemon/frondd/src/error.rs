@@ -75,6 +75,10 @@ pub enum DaemonError {
         /// What to do about it, if known (a port below 1024 needs privileges).
         hint: &'static str,
     },
+    /// The LTC input (`ltc.input`, `--ltc`) cannot be read: absent, not a file or FIFO, or a
+    /// WAV file frond does not read.
+    #[error(transparent)]
+    Ltc(#[from] crate::ltc_input::LtcInputError),
     /// The realtime loop thread panicked.
     #[error("the realtime loop panicked")]
     LoopPanicked,

@@ -4,7 +4,9 @@
 //! Threads: `frond-rt` (the realtime loop, [`engine`] paced by [`realtime`], writing to the
 //! subscribers' direct [`lanes`]), `frond-accept` and `frond-publish` (the slow lane,
 //! [`publisher`]), `frond-control` ([`control`]), `frond-recorder`
-//! ([`recorder`]), `frond-triggers` (a mocap stage's capture triggers, [`trigger_thread`]), and housekeeping (status rate, device events, reopening a lost device,
+//! ([`recorder`]), `frond-triggers` (a mocap stage's capture triggers, [`trigger_thread`]),
+//! `frond-ltc` (the stage's timecode from LTC audio, [`ltc_thread`]), and housekeeping (status
+//! rate, device events, reopening a lost device,
 //! dropping what the loop may not free). Data flows one way: device -> loop -> queues -> sockets.
 
 #![warn(missing_docs)]
@@ -22,6 +24,9 @@ pub mod error;
 pub mod handoff;
 pub mod lanes;
 pub mod log_limit;
+pub mod ltc_input;
+pub mod ltc_link;
+pub mod ltc_thread;
 pub mod notify;
 pub mod publisher;
 pub mod realtime;

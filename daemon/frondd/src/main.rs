@@ -70,6 +70,11 @@ struct Args {
     /// e.g. 255.255.255.255:30; `triggers.lead`.
     #[arg(long, value_name = "IP:PORT")]
     trigger_lead: Option<String>,
+    /// Read the stage's timecode (LTC) from this file or FIFO of raw mono s16le samples (at
+    /// `ltc.sample_rate_hz`, default 48000), or WAV file; `ltc.input`. E.g. a FIFO fed by
+    /// `arecord -f S16_LE -c1 -r48000 -t raw`.
+    #[arg(long, value_name = "PATH")]
+    ltc: Option<String>,
     /// Log level or filter (error, warn, info, debug, trace, or a tracing filter).
     #[arg(long, env = "FROND_LOG", default_value = "info")]
     log_level: String,
@@ -186,6 +191,7 @@ fn overrides(args: &Args) -> Result<RawConfig, Exit> {
         triggers: args.triggers.clone(),
         trigger_allow: args.trigger_allow.clone(),
         trigger_lead: args.trigger_lead.clone(),
+        ltc: args.ltc.clone(),
     });
     Ok(overrides.with_hands(hands))
 }
@@ -222,7 +228,8 @@ fn run_daemon(options: Options) -> Result<(), Exit> {
         let text = frond_binmain::error_text(&e);
         // Hands that clash (two on one element, an element the rig lacks) are a problem of the
         // configuration, as the config file's own problems are: exit 2.
-        if matches!(e, frondd::error::DaemonError::Hand { .. }) {
+        // So is an LTC input that is not one (absent, a directory, a WAV file frond does not read).
+        if matches!(e, frondd::error::DaemonError::Hand { .. } | frondd::error::DaemonError::Ltc(_)) {
             Exit::Usage(vec![text])
         } else {
             Exit::Failure(text)

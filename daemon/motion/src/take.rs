@@ -48,6 +48,53 @@ pub struct TakeHeader {
     /// recording share one timeline.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stage: Option<TakeStage>,
+    /// The stage's master clock (LTC, issue 46) when frondd was locked to it as recording began:
+    /// the take's timecode is then the stage's, not the host's time of day. Absent in takes
+    /// recorded without a locked LTC input, offline, or before frond wrote it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stage_clock: Option<StageAnchor>,
+}
+
+/// One stage timecode frame pinned to the host's monotonic clock (see
+/// [`TakeHeader::stage_clock`]): frame `frame_count` (label `label`) of the stage's day began at
+/// CLOCK_MONOTONIC `host_ns`. A frame stamped later (or earlier) is that many nanoseconds of
+/// the stage's clock away: interpolated from host time, never from a sample's device time.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StageAnchor {
+    /// CLOCK_MONOTONIC, nanoseconds, at which the frame began.
+    pub host_ns: u64,
+    /// Its label as the stage sent it (`10:00:00:00`, or `01:00:00;02` at drop-frame).
+    pub label: String,
+    /// Frames since the stage's midnight at its rate (drop-frame labels counted as such).
+    pub frame_count: u32,
+    /// Frame labels per second: 24, 25 or 30 (30 also for 29.97 drop-frame).
+    pub nominal_fps: u32,
+    /// 29.97 drop-frame: frames last 1001/30000 s and labels skip as SMPTE 12M says.
+    pub drop_frame: bool,
+}
+
+impl StageAnchor {
+    /// Nanoseconds since the stage's midnight at which its anchor frame began: the frame count
+    /// times the frame's length (1/nominal s, or 1001/30000 s at drop-frame).
+    fn label_ns(&self) -> u128 {
+        let count = u128::from(self.frame_count);
+        if self.drop_frame {
+            count * 1_001 * 1_000_000_000 / 30_000
+        } else {
+            count * 1_000_000_000 / u128::from(self.nominal_fps.max(1))
+        }
+    }
+
+    /// SMPTE timecode at `fps` of a frame stamped `host_ns` (monotonic): the stage's time of
+    /// day at that instant, counted forward (or back) from the anchor on the host's clock. At
+    /// the stage's own non-drop rate this is the stage's label, frame for frame.
+    pub fn timecode_of(&self, host_ns: u64, fps: f64) -> Option<crate::timecode::Timecode> {
+        let rate = crate::timecode::nominal_rate(fps).ok()?;
+        const DAY_NS: i128 = 86_400 * 1_000_000_000;
+        let delta = i128::from(host_ns) - i128::from(self.host_ns);
+        let of_day = (self.label_ns() as i128 + delta).rem_euclid(DAY_NS);
+        Some(crate::timecode::Timecode::from_unix_ns(of_day as u64, rate))
+    }
 }
 
 /// Where a stage take came from (issue 20), see [`TakeHeader::stage`].
@@ -80,16 +127,28 @@ impl TakeHeader {
             joint_names: Vec::new(),
             clock: None,
             stage: None,
+            stage_clock: None,
         }
     }
 
     /// SMPTE timecode, at `fps`, of the first kept main-skeleton frame of `frames` (the first
     /// frame of every export: held frames are skipped), when the take knows its recording clock.
+    /// The stage's clock ([`TakeHeader::stage_clock`]) wins over the host's time of day.
     pub fn start_timecode(&self, frames: &[TakeFrame], fps: f64) -> Option<crate::timecode::Timecode> {
-        let clock = self.clock?;
         let main = main_element(frames)?;
         let first = frames.iter().find(|f| f.element == main && f.flags & FLAG_HELD == 0)?;
-        clock.timecode_of(first.host_ns, fps)
+        self.timecode_of(first.host_ns, fps)
+    }
+
+    /// SMPTE timecode, at `fps`, of a frame stamped `host_ns` (monotonic): on the stage's clock
+    /// when the take has one, else the host's time of day (UTC) when it knows its recording
+    /// clock, else `None`.
+    pub fn timecode_of(&self, host_ns: u64, fps: f64) -> Option<crate::timecode::Timecode> {
+        match (&self.stage_clock, &self.clock) {
+            (Some(stage), _) => stage.timecode_of(host_ns, fps),
+            (None, Some(clock)) => clock.timecode_of(host_ns, fps),
+            (None, None) => None,
+        }
     }
 }
 
@@ -294,6 +353,45 @@ mod tests {
             pose: PoseFrame { t, ..PoseFrame::default() },
             ..TakeFrame::default()
         }
+    }
+
+    /// Issue 46: a take recorded while LTC was locked exports the stage's timecode, counted
+    /// from the anchor on the host's clock; without the anchor, the host's time of day as before.
+    #[test]
+    fn the_stage_clock_wins_over_the_host_time_of_day() {
+        // Host clock: monotonic 5 s is 13:45:10.5 UTC (frame 15 at 30 fps).
+        let clock = TakeClock { unix_ns: 1_764_683_110_500_000_000, host_ns: 5_000_000_000 };
+        let host_only = TakeHeader { clock: Some(clock), ..TakeHeader::offline("t", "grass", 1000) };
+        let frames = [TakeFrame { host_ns: 5_000_000_000, ..TakeFrame::default() }];
+        let tc = |h: &TakeHeader, fps| h.start_timecode(&frames, fps).map(|t| t.to_string());
+        assert_eq!(tc(&host_only, 30.0).as_deref(), Some("13:45:10:15"));
+        // Stage: 10:00:00:00 at 25 fps (frame 900,000 of the day) began at monotonic 4.99 s;
+        // 10 ms later is still that frame, 40 ms later the next.
+        let stage = StageAnchor {
+            host_ns: 4_990_000_000,
+            label: "10:00:00:00".into(),
+            frame_count: 900_000,
+            nominal_fps: 25,
+            drop_frame: false,
+        };
+        let both = TakeHeader { stage_clock: Some(stage.clone()), ..host_only.clone() };
+        assert_eq!(tc(&both, 25.0).as_deref(), Some("10:00:00:00"));
+        assert_eq!(both.timecode_of(5_030_000_000, 25.0).unwrap().to_string(), "10:00:00:01");
+        assert_eq!(both.timecode_of(4_989_999_999, 25.0).unwrap().to_string(), "09:59:59:24");
+        // At 50 fps the same instant is counted at 50: 10:00:00 and 10 ms is frame 0, 20 ms frame 1.
+        assert_eq!(both.timecode_of(5_010_000_000, 50.0).unwrap().to_string(), "10:00:00:01");
+        // Drop-frame: 00:01:00;02 is frame 1800, which began 1800 * 1001/30000 s after midnight
+        // (60.06 s): at 30 fps that is 00:01:00:01 (frame 1801.8 of the nominal count, floored).
+        let df = StageAnchor {
+            label: "00:01:00;02".into(),
+            frame_count: 1800,
+            nominal_fps: 30,
+            drop_frame: true,
+            ..stage
+        };
+        let h = TakeHeader { stage_clock: Some(df), ..TakeHeader::offline("t", "grass", 1000) };
+        assert_eq!(h.timecode_of(4_990_000_000, 30.0).unwrap().to_string(), "00:01:00:01");
+        assert_eq!(TakeHeader::offline("t", "grass", 1000).timecode_of(0, 30.0), None);
     }
 
     #[test]

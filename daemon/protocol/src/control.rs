@@ -462,6 +462,40 @@ pub struct StatusReport {
     /// message and the counts; `None` when triggers are off (and from older daemons).
     #[serde(default)]
     pub triggers: Option<TriggerStatus>,
+    /// The stage's timecode from LTC (issue 46): the input, lock state and counts; `None` when
+    /// no LTC input is configured (and from older daemons).
+    #[serde(default)]
+    pub ltc: Option<LtcStatus>,
+}
+
+/// The LTC (SMPTE 12M linear timecode) input frondd reads the stage's clock from. Every field
+/// defaults, so a report from a daemon that counts less still reads.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LtcStatus {
+    /// The input: a file or FIFO of raw samples, or a WAV file.
+    pub input: String,
+    /// `searching` (no lock yet), `locked`, `lost` (was locked; no frames now) or `ended` (a
+    /// file read to its end).
+    pub state: String,
+    /// The locked (or last locked) rate: `24`, `25`, `29.97df` or `30`.
+    pub fps: Option<String>,
+    /// The last frame's label (`10:00:00:00`).
+    pub last_timecode: Option<String>,
+    /// Seconds since the last frame was read, when the report was made.
+    pub last_age_s: Option<f64>,
+    /// The input's sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// Frames decoded.
+    pub frames: u64,
+    /// Locks gained.
+    pub locks: u64,
+    /// Locks lost.
+    pub losses: u64,
+    /// Labels that did not follow the one before while locked.
+    pub jumps: u64,
+    /// The last read error, in words (the input vanished, a FIFO's writer went away).
+    pub last_error: Option<String>,
 }
 
 /// The capture triggers (`CaptureStart` / `CaptureStop` over UDP): where frond listens for a

@@ -114,6 +114,7 @@ impl LiveCapture {
                 joint_names: hello.joint_names.clone(),
                 clock: None,
                 stage: None,
+                stage_clock: None,
             }),
             element_names: Vec::new(),
             frames: self.frames,

@@ -1,7 +1,7 @@
 //! What is wrong with a stage, in words, with the fix: read from the daemon's
 //! [`StatusReport`], so `frond doctor` and the console say the same thing.
 
-use frond_protocol::{SourceKind, SourceStatus, StatusReport, TriggerStatus};
+use frond_protocol::{LtcStatus, SourceKind, SourceStatus, StatusReport, TriggerStatus};
 
 /// Below this share of the nominal tick rate the loop is reported as slow.
 pub const SLOW_RATE_SHARE: f64 = 0.95;
@@ -90,6 +90,9 @@ pub fn problems(report: &StatusReport) -> Vec<Problem> {
     if let Some(t) = &report.triggers {
         out.extend(trigger_problems(t));
     }
+    if let Some(l) = &report.ltc {
+        out.extend(ltc_problem(l));
+    }
     for s in report.subscribers.iter().filter(|s| s.dropped > 0) {
         out.push(Problem {
             what: format!("subscriber {} lost {} frames (it reads too slowly)", s.id, s.dropped),
@@ -144,9 +147,48 @@ fn trigger_problems(t: &TriggerStatus) -> Vec<Problem> {
     out
 }
 
+/// An LTC input that is configured but not locked: takes get the host's time of day, not
+/// the stage's timecode.
+fn ltc_problem(l: &LtcStatus) -> Option<Problem> {
+    if l.state == "locked" {
+        return None;
+    }
+    let why = match l.state.as_str() {
+        "ended" => "its file was read to the end".to_string(),
+        "lost" => "it lost the signal".to_string(),
+        _ => "no timecode found in it yet".to_string(),
+    };
+    let error = l.last_error.as_deref().map_or(String::new(), |e| format!("; last error: {e}"));
+    Some(Problem {
+        what: format!(
+            "the stage timecode (LTC from {}) is not locked: {why}{error}; takes carry the host's time of day",
+            l.input
+        ),
+        fix: "check the LTC cable and level into the audio interface and that the capture feeds the input \
+              (ltc.input, ltc.sample_rate_hz, ltc.fps in frondd.toml; docs/mocap-stage.md)"
+            .into(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_ltc_input_that_is_not_locked_is_a_problem() {
+        let locked =
+            LtcStatus { input: "/run/frond/ltc.fifo".into(), state: "locked".into(), ..Default::default() };
+        assert_eq!(ltc_problem(&locked), None);
+        let searching = LtcStatus { state: "searching".into(), ..locked.clone() };
+        let p = ltc_problem(&searching).unwrap();
+        assert_eq!(
+            p.what,
+            "the stage timecode (LTC from /run/frond/ltc.fifo) is not locked: no timecode found in it yet; \
+             takes carry the host's time of day"
+        );
+        let lost = LtcStatus { state: "lost".into(), last_error: Some("gone".into()), ..locked };
+        assert!(ltc_problem(&lost).unwrap().what.contains("it lost the signal; last error: gone"));
+    }
 
     #[test]
     fn a_trigger_listener_that_saw_foreign_or_malformed_packets_is_a_problem() {

@@ -69,6 +69,7 @@ fn status_report() -> StatusReport {
         recorder_error: None,
         lateness_histogram: Vec::new(),
         triggers: None,
+        ltc: None,
     }
 }
 

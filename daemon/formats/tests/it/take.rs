@@ -71,6 +71,33 @@ fn round_trip() {
     assert_eq!(scan.poses().len(), 10);
 }
 
+/// Issue 46: the stage clock anchor is an optional header field: a take with it round-trips,
+/// and a header written before it existed (no `stage_clock` key) reads as it always did.
+#[test]
+fn the_stage_clock_anchor_round_trips_and_old_headers_read_without_it() {
+    use frond_motion::take::{StageAnchor, TakeClock};
+    let anchor = StageAnchor {
+        host_ns: 7_000_000_000,
+        label: "10:00:00:00".into(),
+        frame_count: 900_000,
+        nominal_fps: 25,
+        drop_frame: false,
+    };
+    let staged = TakeHeader { stage_clock: Some(anchor), ..header() };
+    let (bytes, _) = encode(&[TakeRecord::Header(staged.clone()), TakeRecord::End { frames: 0 }]);
+    assert_eq!(scan_take(&bytes).unwrap().header, Some(staged));
+    let old = r#"{"name":"sway-01","rig_name":"grass","calibration_id":"none","filter":"none",
+        "tick_rate_hz":1000,"created_unix_s":1700000000,"daemon_version":"frond 0.1.0",
+        "joint_names":[],"clock":{"unix_ns":1764683110500000000,"host_ns":5000000000}}"#;
+    let old: TakeHeader = serde_json::from_str(old).unwrap();
+    assert_eq!(old.stage_clock, None);
+    assert_eq!(old.clock, Some(TakeClock { unix_ns: 1_764_683_110_500_000_000, host_ns: 5_000_000_000 }));
+    assert_eq!(old.timecode_of(5_000_000_000, 30.0).unwrap().to_string(), "13:45:10:15");
+    let mut json = Vec::new();
+    serde_json::to_writer(&mut json, &header()).unwrap();
+    assert!(!String::from_utf8(json).unwrap().contains("stage_clock"), "absent, not null");
+}
+
 #[test]
 fn frame_encoding_does_not_allocate_with_capacity() {
     let mut out = Vec::with_capacity(4096);
