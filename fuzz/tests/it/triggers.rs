@@ -62,7 +62,10 @@ fn fuzz_capture_triggers() {
         match encode(&message, &mut out) {
             Ok(()) => {
                 let again = decode(&out).unwrap_or_else(|e| {
-                    panic!("frond's own encoding of {message:?} is refused: {e}\n{}", String::from_utf8_lossy(&out))
+                    panic!(
+                        "frond's own encoding of {message:?} is refused: {e}\n{}",
+                        String::from_utf8_lossy(&out)
+                    )
                 });
                 assert_eq!(again, message, "changed through encode: {}", String::from_utf8_lossy(&out));
                 "ok"
