@@ -59,6 +59,25 @@ impl LogLimit {
     }
 }
 
+impl LogLimit {
+    /// Runs `log` (which writes the line) if the budget allows it now, first saying in one
+    /// warning how many lines of `kind` the window that just ended held back, e.g.
+    /// "control refusals not logged (more than 10 in 10 s)" with `count=290`.
+    pub fn log(&self, kind: &str, log: impl FnOnce()) {
+        let verdict = self.check(Instant::now());
+        if verdict.held_back_before > 0 {
+            tracing::warn!(
+                count = verdict.held_back_before,
+                "{kind} not logged (more than {LINES_PER_WINDOW} in {} s)",
+                WINDOW.as_secs()
+            );
+        }
+        if verdict.log {
+            log();
+        }
+    }
+}
+
 impl Default for LogLimit {
     fn default() -> Self {
         Self::new()

@@ -158,13 +158,10 @@ pub(crate) fn refuse(kind: ControlErrorKind, message: impl Into<String>) -> Cont
     static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
     let message = message.into();
     // A client decides how often and with what text this runs: rate-limited and cut.
-    let verdict = REFUSALS.check(Instant::now());
-    if verdict.held_back_before > 0 {
-        warn!(count = verdict.held_back_before, "control refusals not logged (more than 10 in 10 s)");
-    }
-    if verdict.log {
-        warn!(?kind, message = %crate::log_limit::cut(&message), "control request refused");
-    }
+    REFUSALS.log(
+        "control refusals",
+        || warn!(?kind, message = %crate::log_limit::cut(&message), "control request refused"),
+    );
     ControlReply::Error(ControlError { kind, message })
 }
 

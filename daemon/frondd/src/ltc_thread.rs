@@ -13,7 +13,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use frond_ltc::{FrameRate, LtcDecoder, LtcEvent};
 use tracing::{info, warn};
@@ -108,17 +108,6 @@ impl BoundLtc {
     }
 }
 
-/// Logs `what` at most 10 times in 10 s per `limit` (the signal decides how often it happens).
-fn limited(limit: &LogLimit, what: impl FnOnce()) {
-    let verdict = limit.check(Instant::now());
-    if verdict.held_back_before > 0 {
-        warn!(count = verdict.held_back_before, "LTC log lines held back (more than 10 in 10 s)");
-    }
-    if verdict.log {
-        what();
-    }
-}
-
 /// The reader and its bookkeeping.
 struct LtcReader {
     input: LtcInput,
@@ -176,8 +165,8 @@ impl LtcReader {
             Err(e) => {
                 static ERRORS: LogLimit = LogLimit::new();
                 let text = e.to_string();
-                limited(
-                    &ERRORS,
+                ERRORS.log(
+                    "LTC log lines",
                     || warn!(input = %self.input.path().display(), error = %text, "reading LTC"),
                 );
                 self.link.update(|s| s.last_error = Some(text));
@@ -232,16 +221,16 @@ impl LtcReader {
                 LtcEvent::Locked { rate, .. } => self.on_locked(rate),
                 LtcEvent::Lost { last, .. } => {
                     static LOST: LogLimit = LogLimit::new();
-                    limited(
-                        &LOST,
+                    LOST.log(
+                        "LTC log lines",
                         || warn!(last = %last, "LTC lost (no frame in time, or one that cannot follow)"),
                     );
                     self.lose();
                 }
                 LtcEvent::Jump { expected, found, .. } => {
                     static JUMPS: LogLimit = LogLimit::new();
-                    limited(
-                        &JUMPS,
+                    JUMPS.log(
+                        "LTC log lines",
                         || warn!(%expected, %found, "LTC jumped (the master clock was re-jammed?)"),
                     );
                 }
@@ -258,7 +247,7 @@ impl LtcReader {
         if let Some(expected) = self.expected.filter(|&e| e != rate) {
             static WRONG: LogLimit = LogLimit::new();
             let text = format!("LTC at {rate} fps, but ltc.fps expects {expected}: not used");
-            limited(&WRONG, || warn!("{text}"));
+            WRONG.log("LTC log lines", || warn!("{text}"));
             self.link.update(|s| s.last_error = Some(text));
             return;
         }
@@ -282,7 +271,10 @@ impl LtcReader {
             return;
         }
         static STALLED: LogLimit = LogLimit::new();
-        limited(&STALLED, || warn!(input = %self.input.path().display(), "LTC input stopped: lock lost"));
+        STALLED.log(
+            "LTC log lines",
+            || warn!(input = %self.input.path().display(), "LTC input stopped: lock lost"),
+        );
         self.stalls += 1;
         self.lose();
         if let Ok(fresh) = LtcDecoder::new(self.input.sample_rate_hz()) {

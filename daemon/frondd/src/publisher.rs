@@ -165,13 +165,7 @@ pub fn spawn_acceptor(
 /// simply gone. Logged at most 10 times per 10 s (a client decides how often this runs).
 fn refuse_subscriber(mut stream: UnixStream, reason: &str) {
     static REFUSALS: crate::log_limit::LogLimit = crate::log_limit::LogLimit::new();
-    let verdict = REFUSALS.check(Instant::now());
-    if verdict.held_back_before > 0 {
-        warn!(count = verdict.held_back_before, "pose subscriber refusals not logged (more than 10 in 10 s)");
-    }
-    if verdict.log {
-        warn!(reason, "refusing a pose subscriber");
-    }
+    REFUSALS.log("pose subscriber refusals", || warn!(reason, "refusing a pose subscriber"));
     let mut frame = Vec::with_capacity(256);
     encode_frame(&ServerMessage::Refused(reason.to_string()), &mut frame);
     if stream.set_nonblocking(true).is_ok() {

@@ -13,7 +13,7 @@ use std::os::fd::AsFd;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use frond_protocol::ControlReply;
 use frond_triggers::{Decision, Follower, FollowerConfig, FollowerState, Ignored, StartTake, TriggerSocket};
@@ -166,17 +166,6 @@ struct Counts {
     stale_stops: u64,
 }
 
-/// Logs `what` at most 10 times in 10 s per `limit` (a sender decides how often it happens).
-fn limited(limit: &LogLimit, what: impl FnOnce()) {
-    let verdict = limit.check(Instant::now());
-    if verdict.held_back_before > 0 {
-        warn!(count = verdict.held_back_before, "capture-trigger log lines held back (more than 10 in 10 s)");
-    }
-    if verdict.log {
-        what();
-    }
-}
-
 impl TriggerFollower {
     /// Waits until a datagram arrives, a delayed start is due, or [`TRIGGER_POLL`] passes.
     fn wait(&self, socket: &TriggerSocket) {
@@ -198,7 +187,10 @@ impl TriggerFollower {
                 Ok(Some(r)) => r,
                 Ok(None) => return,
                 Err(e) => {
-                    limited(&ERRORS, || warn!(error = %e, "reading the capture-trigger socket"));
+                    ERRORS.log(
+                        "capture-trigger log lines",
+                        || warn!(error = %e, "reading the capture-trigger socket"),
+                    );
                     return;
                 }
             };
@@ -229,20 +221,26 @@ impl TriggerFollower {
             }
             Decision::Ignored(Ignored::Foreign) => {
                 self.link.update(|s| s.last_refused = Some(format!("{from}: not in triggers.allow")));
-                limited(
-                    &REFUSED,
+                REFUSED.log(
+                    "capture-trigger log lines",
                     || warn!(%from, "capture trigger from a host outside triggers.allow ignored"),
                 );
             }
             Decision::Ignored(why @ (Ignored::NotRecording | Ignored::OtherTake)) => {
-                limited(&IGNORED, || info!(%from, ?why, "capture stop for a take frond is not recording"));
+                IGNORED.log(
+                    "capture-trigger log lines",
+                    || info!(%from, ?why, "capture stop for a take frond is not recording"),
+                );
             }
             Decision::Ignored(why) => debug!(%from, ?why, "capture trigger ignored"),
             Decision::Refused(e) => {
                 let error = e.to_string();
                 let text = cut(&error);
                 self.link.update(|s| s.last_refused = Some(format!("{from}: {text}")));
-                limited(&REFUSED, || warn!(%from, error = %text, "capture trigger refused"));
+                REFUSED.log(
+                    "capture-trigger log lines",
+                    || warn!(%from, error = %text, "capture trigger refused"),
+                );
             }
         }
     }
@@ -264,8 +262,8 @@ impl TriggerFollower {
                 // Already recording (frond's own take), a take of that name, the disk: say so.
                 self.follower.take_ended();
                 self.counts.start_refused += 1;
-                limited(
-                    &REFUSED,
+                REFUSED.log(
+                    "capture-trigger log lines",
                     || warn!(take = %take.name, reply = ?other, "capture trigger's take not started"),
                 );
             }
@@ -279,8 +277,8 @@ impl TriggerFollower {
         let recording_it = self.ctx.lock().recording.as_ref().is_some_and(|(n, _)| n == name);
         if !recording_it {
             self.counts.stale_stops += 1;
-            limited(
-                &NOT_OURS,
+            NOT_OURS.log(
+                "capture-trigger log lines",
                 || info!(take = %name, "capture stop for a take frond is no longer recording"),
             );
             return;
