@@ -85,6 +85,16 @@ pub(super) enum LeapConnectError {
     Ask(Box<tungstenite::Error>),
 }
 
+/// How one connection to the service ended.
+enum SessionEnd {
+    /// frond asked the client to stop.
+    Stopped,
+    /// No connection was made (the service is not there, or refused the handshake).
+    Unreachable(LeapConnectError),
+    /// A connection was made and then lost; the reason has been logged.
+    Lost,
+}
+
 /// Why [`handshake`] ended without a WebSocket.
 #[derive(Debug, thiserror::Error)]
 pub(super) enum HandshakeFailed {
@@ -114,16 +124,17 @@ impl Client {
         while !self.stop.load(Ordering::Acquire) {
             let started = Instant::now();
             match self.session() {
-                Ok(()) => return, // asked to stop
-                Err((was_connected, why)) => {
-                    if was_connected {
-                        // A fresh outage (the session said it): retry soon, unless the
-                        // connection was short-lived (a service that drops every connection).
-                        said_down = false;
-                        if started.elapsed() >= STEADY {
-                            wait = RETRY.0;
-                        }
-                    } else if !said_down {
+                SessionEnd::Stopped => return,
+                SessionEnd::Lost => {
+                    // A fresh outage (the session said it): retry soon, unless the
+                    // connection was short-lived (a service that drops every connection).
+                    said_down = false;
+                    if started.elapsed() >= STEADY {
+                        wait = RETRY.0;
+                    }
+                }
+                SessionEnd::Unreachable(why) => {
+                    if !said_down {
                         // Said once per outage, not once per attempt.
                         tracing::warn!(service = %self.host_port, reason = %why, "Leap Motion service unreachable; retrying");
                         said_down = true;
@@ -179,9 +190,12 @@ impl Client {
     }
 
     /// One connection: handshake, then frames until the service goes or we are asked to stop.
-    /// Ends with whether it got connected, and why not or why it ended.
-    fn session(&self) -> Result<(), (bool, String)> {
-        let (mut ws, url) = self.connect().map_err(|e| (false, e.to_string()))?;
+    /// Says how it ended; a lost connection has already been logged with its reason.
+    fn session(&self) -> SessionEnd {
+        let (mut ws, url) = match self.connect() {
+            Ok(connected) => connected,
+            Err(e) => return SessionEnd::Unreachable(e),
+        };
         tracing::info!(service = %url, "connected to the Leap Motion service");
         let (mut warned_version, mut warned_pace) = (false, false);
         // When the service last sent a message frond could use (one it did not refuse).
@@ -189,7 +203,7 @@ impl Client {
         loop {
             if self.stop.load(Ordering::Acquire) {
                 let _ = ws.close(None);
-                return Ok(());
+                return SessionEnd::Stopped;
             }
             if ws.get_ref().throttled && !warned_pace {
                 let per_s = 1.0 / READ_WINDOW.as_secs_f64();
@@ -205,7 +219,7 @@ impl Client {
                 self.counters.peers_dropped.fetch_add(1, Ordering::Relaxed);
                 let why = format!("it read nothing frond wrote for {} s", PEER_WRITE_DEADLINE.as_secs());
                 warn_connection(&url, "dropped the Leap Motion service's connection; reconnecting", &why);
-                return Err((true, why));
+                return SessionEnd::Lost;
             }
             let spent_lately = ws.get_ref().spent_at.is_some_and(|t| t.elapsed() <= 2 * READ_WINDOW);
             if spent_lately && last_useful.elapsed() >= JUNK_DEADLINE {
@@ -215,7 +229,7 @@ impl Client {
                     JUNK_DEADLINE.as_secs()
                 );
                 warn_connection(&url, "dropped the Leap Motion service's connection; reconnecting", &why);
-                return Err((true, why));
+                return SessionEnd::Lost;
             }
             let msg = match ws.read() {
                 Ok(m) => m,
@@ -232,7 +246,7 @@ impl Client {
                     }
                     let why = e.to_string();
                     warn_connection(&url, "Leap Motion service connection ended; reconnecting", &why);
-                    return Err((true, why));
+                    return SessionEnd::Lost;
                 }
             };
             let text = match &msg {
@@ -240,7 +254,7 @@ impl Client {
                 tungstenite::Message::Close(_) => {
                     let why = "the service closed the connection";
                     warn_connection(&url, "the Leap Motion service closed the connection; reconnecting", why);
-                    return Err((true, why.into()));
+                    return SessionEnd::Lost;
                 }
                 tungstenite::Message::Binary(_) => {
                     // v6 is text only.
