@@ -87,13 +87,18 @@ impl StageAnchor {
 
     /// SMPTE timecode at `fps` of a frame stamped `host_ns` (monotonic): the stage's time of
     /// day at that instant, counted forward (or back) from the anchor on the host's clock. At
-    /// the stage's own non-drop rate this is the stage's label, frame for frame.
+    /// the stage's own rate this is the stage's label, frame for frame: a drop-frame stage
+    /// exported at 29.97 gets drop-frame labels (`HH:MM:SS;FF`), any other rate whole-frame
+    /// labels.
     pub fn timecode_of(&self, host_ns: u64, fps: f64) -> Option<crate::timecode::Timecode> {
         let rate = crate::timecode::nominal_rate(fps).ok()?;
         const DAY_NS: i128 = 86_400 * 1_000_000_000;
         let delta = i128::from(host_ns) - i128::from(self.host_ns);
-        let of_day = (self.label_ns() as i128 + delta).rem_euclid(DAY_NS);
-        Some(crate::timecode::Timecode::from_unix_ns(of_day as u64, rate))
+        let of_day = (self.label_ns() as i128 + delta).rem_euclid(DAY_NS) as u64;
+        if self.drop_frame && crate::timecode::is_ntsc_rate(fps) {
+            return Some(crate::timecode::Timecode::drop_frame_from_ns(of_day));
+        }
+        Some(crate::timecode::Timecode::from_unix_ns(of_day, rate))
     }
 }
 
@@ -391,6 +396,14 @@ mod tests {
         };
         let h = TakeHeader { stage_clock: Some(df), ..TakeHeader::offline("t", "grass", 1000) };
         assert_eq!(h.timecode_of(4_990_000_000, 30.0).unwrap().to_string(), "00:01:00:01");
+        // Exported at the stage's own 29.97, the labels are the stage's: the anchor frame, and
+        // 1001/30000 s later the next; a minute of frames (1798, as minute 1 drops two labels)
+        // later, 00:02:00;02.
+        let ntsc = 30_000.0 / 1_001.0;
+        assert_eq!(h.timecode_of(4_990_000_000, ntsc).unwrap().to_string(), "00:01:00;02");
+        assert_eq!(h.timecode_of(4_990_000_000 + 33_366_667, ntsc).unwrap().to_string(), "00:01:00;03");
+        let minute_ns = 1_798 * 1_001 * 1_000_000_000 / 30_000 + 1; // rounded up into the frame
+        assert_eq!(h.timecode_of(4_990_000_000 + minute_ns, 29.97).unwrap().to_string(), "00:02:00;02");
         assert_eq!(TakeHeader::offline("t", "grass", 1000).timecode_of(0, 30.0), None);
     }
 
