@@ -81,7 +81,7 @@ pub fn sim_step(o: &Options) -> Part {
     let per_s = step * 1000.0 / 1e9;
     Ok(Section::ok(
         "sim_step",
-        "simulated plant: one implicit Euler step (seed 003, section 4)",
+        "simulated plant: one implicit Euler step (Physically-based Driven Tree Animations, section 4)",
         vec![
             Measurement::new(
                 "sim_step_ns",
@@ -163,7 +163,7 @@ pub fn graph_build(o: &Options) -> Part {
     );
     Ok(Section::ok(
         "graph_build",
-        "motion graph build (seed 003, section 5) at 2k, 10k and 100k samples",
+        "motion graph build (Physically-based Driven Tree Animations, section 5) at 2k, 10k and 100k samples",
         measurements,
         Value::Object(details),
     ))
@@ -199,7 +199,7 @@ pub fn graph_walk(o: &Options) -> Part {
     let copy = median(&mut copy_ns);
     Ok(Section::ok(
         "graph_walk",
-        "motion graph walkers (seed 003, section 6): per plant, and 64 plants in a 1 kHz tick",
+        "motion graph walkers (Physically-based Driven Tree Animations, section 6): per plant, and 64 plants in a 1 kHz tick",
         vec![
             Measurement::new(
                 "walk_frame_per_plant_ns",
