@@ -47,18 +47,24 @@ pub fn components(o: &Options) -> Section {
         part("warp", "warp time per 1080p frame vs OpenCV cv2.remap, single thread", || warp(o)),
         part(
             "cage_warp",
-            "seed 004 morph frame at 1080p (cage tree, field, warp) vs the plain remap",
+            "shape-preserving cage morph frame (Sketch-based shape-preserving tree animations) at 1080p (cage tree, field, warp) vs the plain remap",
             || cage_warp(o),
         ),
-        part("sim_step", "simulated plant: one implicit Euler step (seed 003, section 4)", || {
-            crate::plant_motion::sim_step(o)
-        }),
-        part("graph_build", "motion graph build (seed 003, section 5) at 2k, 10k and 100k samples", || {
-            crate::plant_motion::graph_build(o)
-        }),
-        part("graph_walk", "motion graph walkers (seed 003, section 6)", || {
-            crate::plant_motion::graph_walk(o)
-        }),
+        part(
+            "sim_step",
+            "simulated plant: one implicit Euler step (Physically-based Driven Tree Animations, section 4)",
+            || crate::plant_motion::sim_step(o),
+        ),
+        part(
+            "graph_build",
+            "motion graph build (Physically-based Driven Tree Animations, section 5) at 2k, 10k and 100k samples",
+            || crate::plant_motion::graph_build(o),
+        ),
+        part(
+            "graph_walk",
+            "motion graph walkers (Physically-based Driven Tree Animations, section 6)",
+            || crate::plant_motion::graph_walk(o),
+        ),
         part("osc", "OSC latency: daemon stamp -> UDP receiver, vs a pose-socket subscriber", || osc(o)),
         part("console", "frond-console's CPU at 1 kHz with 2 pages, vs frond tap on the same stream", || {
             console(o)
@@ -354,7 +360,7 @@ fn warp(o: &Options) -> Part {
     ))
 }
 
-/// Seed 004: one morph frame of a 13-cage tree at 1080p against the plain seed-001 remap timed
+/// Seed 004: one morph frame of a 13-cage tree at 1080p against the plain grid-warp remap (Simulation-guided Grid-based Warping) timed
 /// in the same run, interleaved (`frond-warp bench --cage-frames N`).
 fn cage_warp(o: &Options) -> Part {
     let bin = find_bin(o, "frond-warp").map_err(|e| (Status::NotAvailable, e.to_string()))?;
@@ -369,7 +375,7 @@ fn cage_warp(o: &Options) -> Part {
         "cage_morph_1080p_frame_ms",
         "ms",
         get("frame_ms")?,
-        "the plain seed-001 remap of a 1080p frame, same run, interleaved",
+        "the plain grid-warp remap (Simulation-guided Grid-based Warping) of a 1080p frame, same run, interleaved",
         get("remap_ms")?,
     )
     .with_target("a 1080p cage morph frame within 2.5x the plain remap", Bound::MaxRatio, 2.5);
@@ -396,7 +402,7 @@ fn cage_warp(o: &Options) -> Part {
         "cage_preview_512_frame_ms",
         "ms",
         get512("frame_ms")?,
-        "the plain seed-001 remap of a 512x512 frame, same run, interleaved",
+        "the plain grid-warp remap (Simulation-guided Grid-based Warping) of a 512x512 frame, same run, interleaved",
         get512("remap_ms")?,
     )
     .with_target(
@@ -406,7 +412,7 @@ fn cage_warp(o: &Options) -> Part {
     );
     Ok(Section::ok(
         "cage_warp",
-        "seed 004 morph frame at 1080p and at the page's 512 px (cage tree, field, warp) vs the plain remap",
+        "shape-preserving cage morph frame (Sketch-based shape-preserving tree animations) at 1080p and at the page's 512 px (cage tree, field, warp) vs the plain remap",
         vec![m, preview],
         json!({"frond_warp": c, "frond_warp_512": c512}),
     ))
