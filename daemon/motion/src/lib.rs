@@ -30,6 +30,7 @@ pub mod field;
 pub mod filter;
 pub mod graph;
 pub mod guided;
+pub mod hand_landmarks;
 pub mod layers;
 pub mod looping;
 pub mod mapping;
