@@ -37,4 +37,5 @@ mod timecode;
 mod triggers;
 mod untrusted_time;
 mod warp_cage;
+mod webcam;
 mod zenoh;

@@ -184,6 +184,19 @@ fn source_line(s: &frond_protocol::SourceStatus) -> String {
         s.reports,
         s.rejected,
         s.device_seq_gaps
+    ) + &s.camera.map(camera_text).unwrap_or_default()
+}
+
+/// A camera source's frames: `; camera 29.9 fps, 41.2 ms frame to sample (model 13.5 ms), 12 of 900 frames without a hand`.
+fn camera_text(c: frond_protocol::CameraStatus) -> String {
+    let restarts = if c.helper_starts > 1 {
+        format!(", helper started {} times", c.helper_starts)
+    } else {
+        String::new()
+    };
+    format!(
+        "; camera {:.1} fps, {:.1} ms frame to sample (model {:.1} ms), {} of {} frames without a hand{restarts}",
+        c.fps, c.latency_ms, c.model_ms, c.empty_frames, c.frames
     )
 }
 
@@ -324,6 +337,7 @@ mod tests {
                 device_seq_gaps: 1,
                 rejected_by_reason: Default::default(),
                 peers_dropped: 0,
+                camera: None,
             },
             rig_name: "grass".into(),
             calibration_id: "alice".into(),
@@ -505,6 +519,7 @@ mod tests {
                 device_seq_gaps: 0,
                 rejected_by_reason: Default::default(),
                 peers_dropped: 0,
+                camera: None,
             },
             element: ElementId::new(element),
             element_name: element_name.into(),

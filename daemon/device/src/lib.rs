@@ -12,8 +12,11 @@ pub mod report;
 pub mod source;
 
 pub use profile::{ChannelId, DeviceProfile, ProfileError};
-pub use report::{CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters};
+pub use report::{
+    CameraCounters, CameraSnapshot, CountersSnapshot, DeviceSample, ReportError, ReportParser, SourceCounters,
+};
 pub use source::{
     BACKENDS, Backend, HandSource, HidSource, LeapAddress, LeapAddressError, LeapSource, OscHandSource,
-    ReplaySource, SourceError, SourceKind, SourceSpec, SpecError, SpecInput, kind_names, parse_spec,
+    ReplaySource, SourceError, SourceKind, SourceSpec, SpecError, SpecInput, WebcamAddress, WebcamSource,
+    kind_names, parse_spec,
 };

@@ -89,6 +89,72 @@ pub struct SourceCounters {
     /// Reports missing between consecutive accepted reports, from the sequence field (lost in
     /// transport or rejected above). A backwards jump is taken as a device restart, not a gap.
     pub seq_gaps: AtomicU64,
+    /// A camera source's frames, rate and latency (`webcam`; untouched by other sources).
+    pub camera: CameraCounters,
+}
+
+/// What a camera source's landmark helper does, for status and the bench: each of the camera's
+/// sources has its copy ([`SourceCounters::camera`]), written by the webcam backend's thread.
+#[derive(Debug, Default)]
+pub struct CameraCounters {
+    /// Frames the helper reported.
+    pub frames: AtomicU64,
+    /// Frames in which no hand was found.
+    pub empty_frames: AtomicU64,
+    /// The last frame's age when its line was read, capture to sample, microseconds.
+    pub latency_us: AtomicU64,
+    /// The model's time on the last frame, microseconds.
+    pub model_us: AtomicU64,
+    /// Times the helper was started.
+    pub starts: AtomicU64,
+    /// Frames a second over the last second, times 100.
+    pub fps_x100: AtomicU64,
+}
+
+/// A plain copy of [`CameraCounters`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CameraSnapshot {
+    /// Frames the helper reported.
+    pub frames: u64,
+    /// Frames in which no hand was found.
+    pub empty_frames: u64,
+    /// Capture to sample of the last frame, microseconds.
+    pub latency_us: u64,
+    /// The model's time on the last frame, microseconds.
+    pub model_us: u64,
+    /// Times the helper was started.
+    pub starts: u64,
+    /// Frames a second over the last second.
+    pub fps: f64,
+}
+
+impl CameraCounters {
+    /// The figures for `frond status`: `None` before the helper's first frame (and for sources
+    /// that are no camera).
+    pub fn status(&self) -> Option<frond_protocol::CameraStatus> {
+        let s = self.snapshot();
+        (s.starts > 0).then_some(frond_protocol::CameraStatus {
+            frames: s.frames,
+            empty_frames: s.empty_frames,
+            fps: s.fps,
+            latency_ms: s.latency_us as f64 / 1000.0,
+            model_ms: s.model_us as f64 / 1000.0,
+            helper_starts: s.starts,
+        })
+    }
+
+    /// A copy of the figures.
+    pub fn snapshot(&self) -> CameraSnapshot {
+        let r = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        CameraSnapshot {
+            frames: r(&self.frames),
+            empty_frames: r(&self.empty_frames),
+            latency_us: r(&self.latency_us),
+            model_us: r(&self.model_us),
+            starts: r(&self.starts),
+            fps: r(&self.fps_x100) as f64 / 100.0,
+        }
+    }
 }
 
 /// A plain copy of [`SourceCounters`].

@@ -86,7 +86,7 @@ pub struct RawHand {
 impl RawHand {
     /// Parses a `--hand` flag: `NAME=KIND[,key=value...]`, where KIND is a source kind
     /// (`auto`, `virtual`, `in-process`, `hid`, `hid:PATH`, `replay:PATH`, `osc://IP:PORT`,
-    /// `leap://HOST:PORT[?hand=left|right]`) and
+    /// `leap://HOST:PORT[?hand=left|right]`, `webcam[:DEVICE][?hand=left|right]`) and
     /// the keys are `element`, `rig`, `calibration`, `profile` and `path`.
     pub fn parse_flag(flag: &str) -> Result<RawHand, ConfigError> {
         Self::parse_flag_text(flag).map_err(|e| ConfigError::one(e.to_string()))
@@ -799,9 +799,9 @@ mod tests {
             errors,
             [
                 "hands[0].name: \"a b\": 1 to 32 letters, digits, '_' or '-'",
-                "hands[1].kind: required (auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT)",
+                "hands[1].kind: required (auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE])",
                 "hands[2].name: \"x\" is also the name of hands[1]",
-                "hands[2].kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT",
+                "hands[2].kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE]",
                 "hands[3].kind: hands[0] (\"a b\") reads the same device or address; give each hand its own `path` or address",
             ],
         );

@@ -361,6 +361,7 @@ impl ControlContext {
                             .map(|(reason, n)| (reason.to_string(), n))
                             .collect(),
                         peers_dropped: counters.peers_dropped,
+                        camera: h.counters.camera.status(),
                     },
                     element: h.element,
                     element_name: h.layer.clone().unwrap_or_else(|| rig.name.clone()),

@@ -41,7 +41,8 @@ struct Args {
     #[arg(long)]
     filter: Option<String>,
     /// Hand source: auto, virtual, in-process, hid, replay, osc://IP:PORT,
-    /// leap://HOST:PORT[?hand=left|right] (a Leap Motion / Ultraleap service).
+    /// leap://HOST:PORT[?hand=left|right] (a Leap Motion / Ultraleap service),
+    /// webcam[:DEVICE][?hand=left|right] (a camera through frond-hands).
     #[arg(long)]
     source: Option<String>,
     /// Device profile TOML (default: the embedded reference glove profile).
@@ -55,7 +56,7 @@ struct Args {
     replay: Option<String>,
     /// A hand source of several (repeat, at most 8; replaces the config's `[[hands]]` and
     /// `--source`): NAME=KIND[,element=LAYER][,rig=RIG][,calibration=FILE][,profile=FILE], KIND one
-    /// of auto, virtual, in-process, hid, hid:PATH, replay:PATH, osc://IP:PORT, leap://HOST:PORT. E.g.
+    /// of auto, virtual, in-process, hid, hid:PATH, replay:PATH, osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE]. E.g.
     /// `--hand left=hid:/dev/hidraw3 --hand right=hid:/dev/hidraw4,element=leaf`.
     #[arg(long = "hand", value_name = "NAME=KIND[,key=value...]")]
     hands: Vec<String>,

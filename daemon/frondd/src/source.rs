@@ -194,6 +194,10 @@ pub fn open_source(
             let src = frond_device::LeapSource::connect(address).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
+        SourceChoice::Webcam(address) => {
+            let src = frond_device::WebcamSource::open(address).map_err(source_error)?;
+            Ok(opened(Box::new(src), None))
+        }
         SourceChoice::InProcess => open_virtual(config, index, hand, socket_dir, false),
         SourceChoice::Virtual => open_virtual(config, index, hand, socket_dir, true),
         SourceChoice::Auto => {

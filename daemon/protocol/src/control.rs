@@ -653,6 +653,27 @@ pub struct SourceStatus {
     /// Connections to a hand service (Leap) dropped because it did not read what frond wrote.
     #[serde(default)]
     pub peers_dropped: u64,
+    /// A camera source's frames (`webcam`): rate, latency, the model's time; `None` for other
+    /// kinds (and from daemons that do not report it).
+    #[serde(default)]
+    pub camera: Option<CameraStatus>,
+}
+
+/// What a camera hand source does (`webcam`): its landmark helper's frames.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraStatus {
+    /// Frames the helper reported since the daemon started.
+    pub frames: u64,
+    /// Frames in which no hand was found.
+    pub empty_frames: u64,
+    /// Frames a second over the last second.
+    pub fps: f64,
+    /// The last frame's capture to its sample, milliseconds (the model's time included).
+    pub latency_ms: f64,
+    /// The hand model's time on the last frame, milliseconds.
+    pub model_ms: f64,
+    /// Times the helper was started (more than 1: it stopped and was started again).
+    pub helper_starts: u64,
 }
 
 /// Percentiles of a latency, microseconds.

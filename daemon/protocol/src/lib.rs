@@ -25,9 +25,9 @@ pub mod pose;
 pub mod source_kind;
 
 pub use control::{
-    ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource, HandStatus,
-    HistogramBucket, LatencySummary, LtcStatus, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus, StageInput,
-    StageKey, StageSpec, StageStatus, StatusReport, SubscriberStatus, TriggerLast, TriggerStatus,
+    CameraStatus, ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource,
+    HandStatus, HistogramBucket, LatencySummary, LtcStatus, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus,
+    StageInput, StageKey, StageSpec, StageStatus, StatusReport, SubscriberStatus, TriggerLast, TriggerStatus,
 };
 pub use element_id::ElementId;
 pub use errors::printable;

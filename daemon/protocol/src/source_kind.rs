@@ -25,17 +25,20 @@ pub enum SourceKind {
     Osc,
     /// A Leap Motion / Ultraleap tracking service's WebSocket (protocol v6).
     Leap,
+    /// A camera's hands, found by a hand landmark model (`frond-hands`).
+    Webcam,
 }
 
 impl SourceKind {
     /// Every kind, in the order `frond status` documents them.
-    pub const ALL: [SourceKind; 6] = [
+    pub const ALL: [SourceKind; 7] = [
         SourceKind::Hidraw,
         SourceKind::FuseHidraw,
         SourceKind::InProcess,
         SourceKind::Replay,
         SourceKind::Osc,
         SourceKind::Leap,
+        SourceKind::Webcam,
     ];
 
     /// Stable lower-case name (the wire form).
@@ -47,6 +50,7 @@ impl SourceKind {
             Self::Replay => "replay",
             Self::Osc => "osc",
             Self::Leap => "leap",
+            Self::Webcam => "webcam",
         }
     }
 

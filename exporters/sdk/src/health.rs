@@ -44,6 +44,11 @@ pub fn source_kind_fix(kind: SourceKind) -> &'static str {
             "the Leap / Ultraleap tracking service does not answer: start it (its WebSocket on \
              port 6437); the daemon reconnects by itself"
         }
+        SourceKind::Webcam => {
+            "no hand from the camera: hold a hand up, palm to the camera, in the light; if none \
+             is ever found, check that frond-hands is installed (daemon/device/webcam/install.sh) \
+             and that the camera is there (`v4l2-ctl --list-devices`)"
+        }
         SourceKind::Replay => "the replay ended or its file cannot be read: give another --replay file",
         SourceKind::InProcess => CHECK_THE_SOURCE,
     }

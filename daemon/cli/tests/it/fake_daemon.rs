@@ -46,6 +46,7 @@ fn status_report() -> StatusReport {
             device_seq_gaps: 0,
             rejected_by_reason: Default::default(),
             peers_dropped: 0,
+            camera: None,
         },
         rig_name: "grass".into(),
         calibration_id: "none".into(),

@@ -4,7 +4,8 @@
 //! [`SourceSpec`]) and its source type (which implements [`HandSource`]); [`registry::BACKENDS`]
 //! lists the parse entries, and its order is the order help and errors name the kinds in.
 //! The virtual glove's kinds (`auto`, `virtual`, `in-process`) parse here too ([`glove_kinds`]);
-//! the glove itself is the `frond-vhid` crate, which the daemon opens.
+//! the glove itself is the `frond-vhid` crate, which the daemon opens. [`webcam`] is a camera's
+//! hands through a landmark model (issue 47).
 
 pub mod glove_kinds;
 mod hand;
@@ -17,6 +18,7 @@ mod osc_wire;
 pub mod registry;
 mod replay;
 mod spec;
+pub mod webcam;
 
 pub use frond_protocol::SourceKind;
 pub use hand::{HandSource, SourceError};
@@ -26,3 +28,4 @@ pub use osc::{OSC_HAND_ADDRESS, OscHandSource, decode_hand_packet};
 pub use registry::{BACKENDS, kind_names, parse_spec};
 pub use replay::ReplaySource;
 pub use spec::{Backend, SourceSpec, SpecError, SpecInput};
+pub use webcam::{WebcamAddress, WebcamAddressError, WebcamSource};

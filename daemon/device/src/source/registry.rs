@@ -6,10 +6,10 @@
 //! hand source", walks through it).
 
 use super::spec::{Backend, SourceSpec, SpecError, SpecInput};
-use super::{glove_kinds, hid, leap, osc, replay};
+use super::{glove_kinds, hid, leap, osc, replay, webcam};
 
 /// Every hand source a configuration can name, in the order help and errors list them.
-pub const BACKENDS: [Backend; 7] = [
+pub const BACKENDS: [Backend; 8] = [
     glove_kinds::AUTO,
     glove_kinds::VIRTUAL,
     glove_kinds::IN_PROCESS,
@@ -17,10 +17,11 @@ pub const BACKENDS: [Backend; 7] = [
     replay::BACKEND,
     osc::BACKEND,
     leap::BACKEND,
+    webcam::BACKEND,
 ];
 
 /// The kinds as help and errors list them: `auto, virtual, in-process, hid, replay,
-/// osc://IP:PORT, leap://HOST:PORT`.
+/// osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE]`.
 pub fn kind_names() -> String {
     BACKENDS.iter().map(|b| b.syntax).collect::<Vec<_>>().join(", ")
 }
@@ -37,7 +38,7 @@ pub fn parse_spec(kind: &str, input: &SpecInput<'_>) -> Result<SourceSpec, SpecE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::LeapAddress;
+    use crate::source::{LeapAddress, WebcamAddress};
 
     fn input() -> SpecInput<'static> {
         SpecInput { key: "source.kind", replay: None, replay_key: "source.replay" }
@@ -45,7 +46,10 @@ mod tests {
 
     #[test]
     fn the_names_are_the_documented_list() {
-        assert_eq!(kind_names(), "auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT");
+        assert_eq!(
+            kind_names(),
+            "auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE]"
+        );
     }
 
     #[test]
@@ -62,6 +66,10 @@ mod tests {
         );
         let leap: LeapAddress = "leap://h:6437?hand=left".parse().unwrap();
         assert_eq!(parse_spec("leap://h:6437?hand=left", &input()), Ok(SourceSpec::Leap(leap)));
+        let webcam: WebcamAddress = "webcam:/dev/video2?hand=left".parse().unwrap();
+        assert_eq!(parse_spec("webcam:/dev/video2?hand=left", &input()), Ok(SourceSpec::Webcam(webcam)));
+        let default: WebcamAddress = "webcam".parse().unwrap();
+        assert_eq!(parse_spec("webcam", &input()), Ok(SourceSpec::Webcam(default)));
     }
 
     #[test]
@@ -74,12 +82,17 @@ mod tests {
         );
         assert_eq!(
             text("usb"),
-            "source.kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT"
+            "source.kind: \"usb\" is not one of auto, virtual, in-process, hid, replay, osc://IP:PORT, leap://HOST:PORT, webcam[:DEVICE]"
         );
         assert_eq!(
             text("leap://nohost"),
             "source.kind: \"leap://nohost\": expected leap://HOST:PORT, e.g. leap://127.0.0.1:6437"
         );
+        assert_eq!(
+            text("webcam:/dev/video0?hand=both"),
+            "source.kind: \"webcam:/dev/video0?hand=both\": unknown option \"hand=both\" (expected hand=left or hand=right)"
+        );
+        assert!(text("webcams").contains("is not one of"));
         assert_eq!(
             text("leap://h:1?hand=both"),
             "source.kind: \"leap://h:1?hand=both\": unknown option \"hand=both\" (expected hand=left or hand=right)"

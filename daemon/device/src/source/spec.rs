@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use super::leap::address::{LeapAddress, LeapAddressError};
+use super::webcam::address::{WebcamAddress, WebcamAddressError};
 
 /// Which hand source to use: what one backend's parse entry made of a kind text
 /// (`frondd --source`, `[source] kind`, `[[hands]] kind`, `--hand NAME=KIND`).
@@ -27,13 +28,16 @@ pub enum SourceSpec {
     Osc(String),
     /// A Leap Motion / Ultraleap tracking service (`leap://HOST:PORT[?hand=left|right]`).
     Leap(LeapAddress),
+    /// A camera's hands through the landmark helper (`webcam[:CAMERA_OR_FILE][?hand=left|right]`).
+    Webcam(WebcamAddress),
 }
 
 impl SourceSpec {
     /// Whether two sources would read the same service for the same hand: one OSC port (equal
     /// addresses, or one of them every interface: the second could not bind, or would take the
     /// first one's datagrams), or one Leap service (host and port, letters in either case) and
-    /// one chirality. Two chiralities of one Leap service are two hands, as a tracker sees them.
+    /// one chirality. Two chiralities of one Leap service are two hands, as a tracker sees them;
+    /// so are the two hands of one camera (`webcam`), which share its helper.
     /// (Two hands on one hidraw node are the daemon's check: it knows their `path`s.)
     pub fn same_service(&self, other: &SourceSpec) -> bool {
         match (self, other) {
@@ -49,6 +53,7 @@ impl SourceSpec {
             (SourceSpec::Leap(a), SourceSpec::Leap(b)) => {
                 a.hand == b.hand && a.host_port.eq_ignore_ascii_case(&b.host_port)
             }
+            (SourceSpec::Webcam(a), SourceSpec::Webcam(b)) => a.hand == b.hand && a.input == b.input,
             _ => false,
         }
     }
@@ -111,5 +116,13 @@ pub enum SpecError {
         key: String,
         /// What is wrong with the address (it names the text given).
         problem: LeapAddressError,
+    },
+    /// `webcam` followed by no valid camera or options.
+    #[error("{key}: {problem}")]
+    BadWebcam {
+        /// The key the kind was given under.
+        key: String,
+        /// What is wrong with the address (it names the text given).
+        problem: WebcamAddressError,
     },
 }

@@ -20,6 +20,7 @@ use serde::Deserialize;
 use serde::de::{Deserializer, Error as _, IgnoredAny, SeqAccess, Visitor};
 
 use frond_motion::HandSample;
+use frond_motion::hand_landmarks::{bend_deg, palm_angles_deg};
 
 /// Largest message accepted, bytes (a one-hand v6 frame of a real controller is about 4.7 KB,
 /// two hands about 10 KB; [`MAX_HANDS`] hands fit ten times over). The WebSocket client
@@ -237,25 +238,17 @@ fn usable(v: &[f64; 3]) -> bool {
     v.iter().all(|c| c.is_finite()) && v.iter().map(|c| c * c).sum::<f64>() > 1e-12
 }
 
-/// Wrist `[pitch, yaw, roll]`, degrees, from the palm direction and normal (LeapJS's definitions).
+/// Wrist `[pitch, yaw, roll]`, degrees, from the palm direction and normal (LeapJS's
+/// definitions, shared with the camera source: [`frond_motion::hand_landmarks::palm_angles_deg`]).
 pub fn wrist_deg(direction: [f64; 3], palm_normal: [f64; 3]) -> [f32; 3] {
-    let [dx, dy, dz] = direction;
-    let [nx, ny, _] = palm_normal;
-    [dy.atan2(-dz), dx.atan2(-dz), nx.atan2(-ny)].map(|a| a.to_degrees() as f32)
+    palm_angles_deg(direction, palm_normal)
 }
 
-/// The three bend angles of a finger, degrees: between its successive bones' directions.
+/// The three bend angles of a finger, degrees: between its successive bones' directions
+/// ([`frond_motion::hand_landmarks::bend_deg`]), each the negated third row of its basis.
 pub fn bends_deg(bases: &[[[f64; 3]; 3]; 4]) -> [f32; 3] {
-    let dir = |b: &[[f64; 3]; 3]| {
-        let v = b[2].map(|c| -c);
-        let n = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-        v.map(|c| c / n)
-    };
-    std::array::from_fn(|i| {
-        let (a, b) = (dir(&bases[i]), dir(&bases[i + 1]));
-        let dot: f64 = (0..3).map(|k| a[k] * b[k]).sum();
-        dot.clamp(-1.0, 1.0).acos().to_degrees() as f32
-    })
+    let dir = |b: &[[f64; 3]; 3]| b[2].map(|c| -c);
+    std::array::from_fn(|i| bend_deg(dir(&bases[i]), dir(&bases[i + 1])))
 }
 
 /// The hand sample of the chosen hand in `frame` (`t` its device time in seconds), or `None`
