@@ -42,13 +42,19 @@ pub mod stage_time;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
 #[cfg(feature = "zenoh")]
+mod zenoh_config;
+#[cfg(feature = "zenoh")]
 pub mod zenoh_control;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_many;
 #[cfg(feature = "zenoh")]
+pub mod zenoh_replay;
+#[cfg(feature = "zenoh")]
 pub mod zenoh_runtime_env;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_stage;
+#[cfg(feature = "zenoh")]
+mod zenoh_status;
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -125,6 +131,9 @@ pub struct Stats {
     /// may put on the key can send one): skipped, counted here and logged. Always 0 over the
     /// daemon's socket, where a bad frame ends the connection instead.
     pub rejected: u64,
+    /// Poses a reliable Zenoh subscription lost on the way and got back from the bridge's replay
+    /// ring ([`SubscriberOptions::reliable`]); they are in `frames`, not in `missing`.
+    pub recovered: u64,
 }
 
 /// How a [`Subscriber`] behaves. Build with [`SubscriberOptions::new`] and the setters.
@@ -136,6 +145,7 @@ pub struct SubscriberOptions {
     give_up_after: Option<Duration>,
     read_timeout: Option<Duration>,
     hello_timeout: Duration,
+    reliable: bool,
 }
 
 impl Default for SubscriberOptions {
@@ -147,6 +157,7 @@ impl Default for SubscriberOptions {
             give_up_after: Some(Duration::from_secs(30)),
             read_timeout: None,
             hello_timeout: Duration::from_secs(5),
+            reliable: false,
         }
     }
 }
@@ -189,6 +200,15 @@ impl SubscriberOptions {
     /// How long to wait for the daemon's hello after connecting (default 5 s).
     pub fn hello_timeout(mut self, timeout: Duration) -> Self {
         self.hello_timeout = timeout.max(Duration::from_millis(1));
+        self
+    }
+    /// Over Zenoh, fill every gap from the bridge's replay ring before passing the pose after it
+    /// on (default off): a recorder or an archive gets every frame while its link is up and it
+    /// keeps within the ring (10 s at 1 kHz by default), at the price of a late burst after a
+    /// loss; nobody else waits for it ([`zenoh_replay`]). No effect on the socket, where the
+    /// daemon's slow lane already keeps a subscriber's backlog.
+    pub fn reliable(mut self, on: bool) -> Self {
+        self.reliable = on;
         self
     }
     /// Connects to `poses.sock` in socket directory `dir` with these options.
@@ -371,14 +391,14 @@ impl Subscriber {
 
     /// Counters since creation.
     pub fn stats(&self) -> Stats {
-        let rejected = match &self.state {
+        let (rejected, recovered) = match &self.state {
             #[cfg(feature = "zenoh")]
             State::Connected(Wire::Zenoh(conn)) | State::Disconnected(Some(Wire::Zenoh(conn))) => {
-                conn.rejected()
+                (conn.rejected(), conn.recovered())
             }
-            _ => 0,
+            _ => (0, 0),
         };
-        Stats { rejected, ..self.stats }
+        Stats { rejected, recovered, ..self.stats }
     }
 
     /// Path of the pose socket (for a Zenoh source, `zenoh:<source key>`).

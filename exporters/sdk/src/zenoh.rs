@@ -11,14 +11,15 @@
 //! | `.../status` | the daemon's status report, a few times a second                  | put + queryable (latest) |
 //! | `.../alive`  | a liveliness token, held while the bridge is connected to its daemon | liveliness |
 //! | `.../bridge/<id>` | a bridge's claim on the name (start time and Zenoh id): one publishes | liveliness |
+//! | `.../replay` | the last poses published, for subscribers that lost some ([`crate::zenoh_replay`]) | queryable |
+//! | `.../peers`  | each subscriber's own counts, as it reported them (JSON)          | queryable |
 //!
 //! Every payload is one frame of the socket protocol, byte for byte what `poses.sock` carries:
 //! a `u32` little-endian length, the protocol version byte, a MessagePack body (a
 //! `ServerMessage` for poses, elements and hello; a `StatusReport` for status), so a reader in
 //! any language decodes it with a plain MessagePack library after skipping five bytes.
 
-use std::io::Read;
-use std::path::Path;
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -31,10 +32,14 @@ use frond_protocol::{Hello, Pose, ServerMessage, decode_frame};
 use crate::conn::ReadOutcome;
 use crate::error::{ProtocolError, SdkError};
 use crate::source::{KEY_ROOT, ZenohAddr, check_name};
+use crate::zenoh_replay::{self, QUERY_TIMEOUT, RECOVERY_TIME, REPORT_EVERY, ReplayRequest};
 use crate::{SubscriberOptions, check_hello};
 
 /// Zenoh's session, as the functions here take it (the SDK's Zenoh version).
 pub use ::zenoh::Session;
+
+pub use crate::zenoh_config::{MAX_CONFIG_FILE, ZenohSetupError, config, open_session};
+pub use crate::zenoh_status::{MAX_STAGE_SOURCES, query_status, query_statuses, query_statuses_in};
 
 /// Key expressions below a source's key.
 pub mod keys {
@@ -63,89 +68,9 @@ pub mod keys {
     }
 }
 
-/// Largest Zenoh configuration file read, bytes.
-pub const MAX_CONFIG_FILE: u64 = 256 * 1024;
 /// Poses buffered between Zenoh's receive thread and a subscriber that reads too slowly; past
 /// it the newest are dropped (and show as a gap).
 pub const FRAME_QUEUE: usize = 4096;
-
-/// Why a Zenoh session could not be set up.
-#[derive(Debug, thiserror::Error)]
-pub enum ZenohSetupError {
-    /// The configuration file could not be read or is not a small regular file.
-    #[error("Zenoh configuration {}: {why}", path.display())]
-    ConfigFile {
-        /// The file.
-        path: std::path::PathBuf,
-        /// What is wrong.
-        why: String,
-    },
-    /// Zenoh refused the configuration or could not open the session.
-    #[error("Zenoh: {0}")]
-    Zenoh(String),
-    /// `ZENOH_RUNTIME` holds a value Zenoh cannot use (see [`crate::zenoh_runtime_env`]).
-    #[error(transparent)]
-    RuntimeEnv(#[from] crate::zenoh_runtime_env::RuntimeEnvError),
-}
-
-/// Builds a Zenoh configuration: the file (if any, checked to be a regular file of at most
-/// [`MAX_CONFIG_FILE`] bytes), then `mode`, the endpoints to connect to and listen on, and
-/// `extra` key/JSON5-value pairs (e.g. `("timestamping/enabled", "true")`).
-pub fn config(
-    file: Option<&Path>,
-    mode: Option<&str>,
-    connect: &[String],
-    listen: &[String],
-    extra: &[(&str, &str)],
-) -> Result<::zenoh::Config, ZenohSetupError> {
-    let mut config = match file {
-        Some(path) => {
-            let bad = |why: String| ZenohSetupError::ConfigFile { path: path.to_owned(), why };
-            let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
-            let meta = file.metadata().map_err(|e| bad(e.to_string()))?;
-            if !meta.is_file() {
-                return Err(bad("not a regular file".into()));
-            }
-            if meta.len() > MAX_CONFIG_FILE {
-                return Err(bad(format!("{} bytes; at most {MAX_CONFIG_FILE}", meta.len())));
-            }
-            let mut text = String::new();
-            file.take(MAX_CONFIG_FILE).read_to_string(&mut text).map_err(|e| bad(e.to_string()))?;
-            ::zenoh::Config::from_json5(&text).map_err(|e| bad(e.to_string()))?
-        }
-        None => ::zenoh::Config::default(),
-    };
-    let set = |config: &mut ::zenoh::Config, key: &str, value: &str| {
-        config.insert_json5(key, value).map_err(|e| ZenohSetupError::Zenoh(format!("{key} = {value}: {e}")))
-    };
-    if let Some(mode) = mode {
-        set(&mut config, "mode", &json_string(mode))?;
-    }
-    if !connect.is_empty() {
-        set(&mut config, "connect/endpoints", &json_list(connect))?;
-    }
-    if !listen.is_empty() {
-        set(&mut config, "listen/endpoints", &json_list(listen))?;
-    }
-    for (key, value) in extra {
-        set(&mut config, key, value)?;
-    }
-    Ok(config)
-}
-
-fn json_string(s: &str) -> String {
-    serde_json::Value::String(s.to_owned()).to_string()
-}
-
-fn json_list(items: &[String]) -> String {
-    serde_json::Value::Array(items.iter().map(|s| serde_json::Value::String(s.clone())).collect()).to_string()
-}
-
-/// Opens a session with [`config`], after checking `ZENOH_RUNTIME` (on which Zenoh panics).
-pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSetupError> {
-    crate::zenoh_runtime_env::check()?;
-    ::zenoh::open(config).wait().map_err(|e| ZenohSetupError::Zenoh(e.to_string()))
-}
 
 /// What Zenoh's receive threads hand to the subscriber.
 struct Frame {
@@ -184,6 +109,28 @@ pub(crate) struct ZenohConn {
     rejected: u64,
     /// When a skipped sample was last logged.
     rejected_logged: Option<Instant>,
+    /// Fill gaps from the bridge's replay ring ([`crate::SubscriberOptions::reliable`]).
+    reliable: bool,
+    /// The pose due after the one last returned.
+    next: Option<u64>,
+    /// Frames to return before reading more: what a recovery brought back, then the pose that
+    /// revealed the gap.
+    backlog: VecDeque<(ServerMessage, Option<u64>)>,
+    /// Poses numbered in this range came back through the ring: their live copies, if they
+    /// arrive late, are skipped.
+    replayed: Option<std::ops::Range<u64>>,
+    /// This subscription's counts, reported to the bridge ([`zenoh_replay`]).
+    counts: PeerCounts,
+    /// When the counts were last reported.
+    reported_at: Instant,
+}
+
+/// What a subscription reports to its bridge about itself.
+#[derive(Debug, Default, Clone, Copy)]
+struct PeerCounts {
+    frames: u64,
+    missing: u64,
+    recovered: u64,
 }
 
 impl ZenohConn {
@@ -256,6 +203,12 @@ impl ZenohConn {
             closed: false,
             rejected: 0,
             rejected_logged: None,
+            reliable: opts.reliable,
+            next: None,
+            backlog: VecDeque::new(),
+            replayed: None,
+            counts: PeerCounts::default(),
+            reported_at: Instant::now(),
         };
         let hello = conn.rejoin(opts)?;
         Ok((conn, hello))
@@ -281,6 +234,11 @@ impl ZenohConn {
         self.overflow.load(Ordering::Relaxed)
     }
 
+    /// Poses that came back from the bridge's replay ring.
+    pub(crate) fn recovered(&self) -> u64 {
+        self.counts.recovered
+    }
+
     /// Reads the bridge's hello (again) and the first pose after it: the subscription starts
     /// at the first pose that reaches this subscriber after the hello, so a late joiner's
     /// first pose is not a gap.
@@ -296,6 +254,9 @@ impl ZenohConn {
         // Everything queued before the hello is stale.
         while self.alive.try_recv().is_ok() {}
         self.closed = false;
+        self.next = None;
+        self.backlog.clear();
+        self.replayed = None;
         self.floor = hello.next_seq;
         self.first = None;
         while self.first.is_none() {
@@ -354,11 +315,16 @@ impl ZenohConn {
     /// The next message, or why not.
     pub(crate) fn read_message(&mut self, timeout: Option<Duration>) -> ReadOutcome {
         if let Some((pose, stage_ns)) = self.first.take() {
-            self.stage_ns = stage_ns;
-            return ReadOutcome::Message(ServerMessage::Pose(pose));
+            return self.pass(ServerMessage::Pose(pose), stage_ns);
+        }
+        if let Some((msg, stage_ns)) = self.backlog.pop_front() {
+            return self.pass(msg, stage_ns);
         }
         if self.closed {
             return ReadOutcome::Closed;
+        }
+        if self.reported_at.elapsed() >= REPORT_EVERY {
+            self.report();
         }
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
@@ -379,6 +345,14 @@ impl ZenohConn {
                         Ok(frame) => frame,
                         Err(RecvTimeoutError::Disconnected) => return ReadOutcome::Closed,
                         Err(RecvTimeoutError::Timeout) => {
+                            // Nothing for a while: the last poses before a pause may be lost
+                            // with nothing after them to show it; a reliable subscription asks.
+                            if let Some(next) = self.next.filter(|_| self.reliable) {
+                                self.recover(next, next + zenoh_replay::MAX_REQUEST_POSES, QUERY_TIMEOUT);
+                                if let Some((msg, stage_ns)) = self.backlog.pop_front() {
+                                    return self.pass(msg, stage_ns);
+                                }
+                            }
                             if deadline.is_some_and(|d| Instant::now() >= d) {
                                 return ReadOutcome::Err(SdkError::Timeout {
                                     path: self.key.clone().into(),
@@ -392,16 +366,26 @@ impl ZenohConn {
             };
             match decode_payload(&frame.bytes) {
                 Ok(ServerMessage::Pose(pose)) if pose.seq < self.floor => continue,
-                Ok(msg @ ServerMessage::Pose(_)) => {
-                    self.stage_ns = frame.stage_ns;
-                    return ReadOutcome::Message(msg);
+                // The live copy of a pose the ring gave back already.
+                Ok(ServerMessage::Pose(pose))
+                    if self.replayed.as_ref().is_some_and(|r| r.contains(&pose.seq)) =>
+                {
+                    continue;
+                }
+                Ok(ServerMessage::Pose(pose)) => {
+                    if let Some(next) = self.next.filter(|n| self.reliable && pose.seq > *n) {
+                        self.recover(next, pose.seq, RECOVERY_TIME);
+                        self.backlog.push_back((ServerMessage::Pose(pose), frame.stage_ns));
+                        let (msg, stage_ns) = self.backlog.pop_front().expect("pushed above");
+                        return self.pass(msg, stage_ns);
+                    }
+                    return self.pass(ServerMessage::Pose(pose), frame.stage_ns);
                 }
                 Ok(ServerMessage::Elements(table)) => {
                     if frame.refresh && self.table.as_ref() == Some(&table) {
                         continue;
                     }
-                    self.table = Some(table.clone());
-                    return ReadOutcome::Message(ServerMessage::Elements(table));
+                    return self.pass(ServerMessage::Elements(table), None);
                 }
                 Ok(ServerMessage::Hello(hello)) => {
                     self.table = Some(hello.elements.clone());
@@ -424,6 +408,70 @@ impl ZenohConn {
                 }
             }
         }
+    }
+
+    /// Returns `msg`, counting a pose (and what is missing before it) and keeping a table.
+    fn pass(&mut self, msg: ServerMessage, stage_ns: Option<u64>) -> ReadOutcome {
+        match &msg {
+            ServerMessage::Pose(pose) => {
+                self.stage_ns = stage_ns;
+                if let Some(next) = self.next.filter(|n| pose.seq > *n) {
+                    self.counts.missing += pose.seq - next;
+                }
+                self.counts.frames += 1;
+                self.next = Some(pose.seq + 1);
+                if self.replayed.as_ref().is_some_and(|r| pose.seq >= r.end) {
+                    self.replayed = None;
+                }
+            }
+            ServerMessage::Elements(table) => self.table = Some(table.clone()),
+            _ => {}
+        }
+        ReadOutcome::Message(msg)
+    }
+
+    /// Asks the bridge's ring for poses `from..to` (trying for at most `time`) and queues what
+    /// comes back ([`zenoh_replay`]).
+    fn recover(&mut self, from: u64, to: u64, time: Duration) {
+        let key = keys::under(&self.key, zenoh_replay::REPLAY);
+        let (session, counts, peer) = (&self.session, self.counts, self.session.zid().to_string());
+        let (frames, got) = zenoh_replay::fill(from, to, self.table.as_ref(), time, |from, to| {
+            let request = ReplayRequest {
+                from,
+                to,
+                frames: counts.frames,
+                missing: counts.missing,
+                recovered: counts.recovered,
+                peer: peer.clone(),
+            };
+            zenoh_replay::ask(session, &key, &request)
+        });
+        if got > 0 {
+            let first = frames.iter().find_map(|(m, _)| match m {
+                ServerMessage::Pose(p) => Some(p.seq),
+                _ => None,
+            });
+            self.replayed = first.map(|first| first..first + got);
+            tracing::debug!(key = %self.key, from, to, got, "poses recovered from the bridge's ring");
+        }
+        self.counts.recovered += got;
+        self.backlog.extend(frames);
+    }
+
+    /// Tells the bridge this subscription's counts (a report-only replay request), without
+    /// waiting for anything.
+    fn report(&mut self) {
+        self.reported_at = Instant::now();
+        let next = self.next.unwrap_or(0);
+        let request = ReplayRequest {
+            from: next,
+            to: next,
+            frames: self.counts.frames,
+            missing: self.counts.missing,
+            recovered: self.counts.recovered,
+            peer: self.session.zid().to_string(),
+        };
+        zenoh_replay::report(&self.session, &keys::under(&self.key, zenoh_replay::REPLAY), &request);
     }
 }
 
@@ -533,74 +581,6 @@ pub(crate) fn no_bridge(session: &::zenoh::Session, source_key: String, waited: 
     SdkError::NoBridge { source_key, waited, present }
 }
 
-/// Asks the bridge of `addr` (one source) for its daemon's latest status report.
-pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protocol::StatusReport, SdkError> {
-    let mut found = query_statuses(addr, timeout)?;
-    if found.len() > 1 {
-        let matches = found.into_iter().map(|(k, _)| k).collect();
-        return Err(SdkError::AmbiguousSource { selector: addr.key.clone(), matches });
-    }
-    Ok(found.pop().expect("query_statuses returns at least one").1)
-}
-
-/// Asks every bridge `addr`'s key matches (`frond/stage1/*`: every source of stage1) for its
-/// daemon's latest status report; waits up to `timeout` for the first answer. The reports
-/// with their sources' keys (`frond/<stage>/<source>`), sorted by key, at least one.
-pub fn query_statuses(
-    addr: &ZenohAddr,
-    timeout: Duration,
-) -> Result<Vec<(String, frond_protocol::StatusReport)>, SdkError> {
-    let setup = |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
-    let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
-    let session = open_session(cfg).map_err(setup)?;
-    query_statuses_in(&session, addr, timeout)
-}
-
-/// [`query_statuses`] in a session that is already open (`addr`'s endpoints and configuration
-/// file are not used).
-pub fn query_statuses_in(
-    session: &::zenoh::Session,
-    addr: &ZenohAddr,
-    timeout: Duration,
-) -> Result<Vec<(String, frond_protocol::StatusReport)>, SdkError> {
-    let deadline = Instant::now() + timeout;
-    let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
-    loop {
-        let wait = deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(100));
-        let replies = session.get(keys::under(&addr.key, keys::STATUS)).timeout(wait).wait().map_err(zerr)?;
-        let mut found: Vec<(String, frond_protocol::StatusReport)> = Vec::new();
-        while let Ok(reply) = replies.recv() {
-            let Ok(sample) = reply.result() else { continue };
-            let key = sample.key_expr().as_str().to_owned();
-            let bytes = sample.payload().to_bytes();
-            let bad = |error: ProtocolError| SdkError::Protocol { path: key.clone().into(), error };
-            match decode_frame::<frond_protocol::ControlReply>(&bytes).map_err(|e| bad(e.into()))? {
-                Some((frond_protocol::ControlReply::Status(report), used)) if used == bytes.len() => {
-                    let source = key.trim_end_matches("/status").to_owned();
-                    if !found.iter().any(|(k, _)| *k == source) && found.len() < MAX_STAGE_SOURCES {
-                        found.push((source, *report));
-                    }
-                }
-                _ => {
-                    return Err(bad(ProtocolError::Frame(frond_protocol::DecodeError::Malformed(
-                        "a status sample that is not one status frame".into(),
-                    ))));
-                }
-            }
-        }
-        if !found.is_empty() {
-            found.sort_by(|a, b| a.0.cmp(&b.0));
-            return Ok(found);
-        }
-        if Instant::now() >= deadline {
-            return Err(no_bridge(session, addr.to_string(), timeout));
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-/// Most sources one stage listing returns; more tokens than this are not looked at.
-pub const MAX_STAGE_SOURCES: usize = 64;
 /// `frond/<stage>/<source>` of a token key `frond/<stage>/<source>/alive`, if the names are
 /// plain key chunks.
 pub(crate) fn source_key_of(token: &str) -> Option<String> {
@@ -633,28 +613,5 @@ mod tests {
         two.extend_from_slice(&bytes);
         assert!(matches!(decode_payload(&two), Err(ProtocolError::Frame(_))));
         assert!(decode_payload(&[]).is_err());
-    }
-
-    #[test]
-    fn configs_take_endpoints_and_refuse_odd_files() {
-        let c = config(
-            None,
-            Some("peer"),
-            &["tcp/127.0.0.1:7447".into()],
-            &[],
-            &[("timestamping/enabled", "true")],
-        );
-        assert!(c.is_ok());
-        let dir = tempfile::tempdir().unwrap();
-        let err = config(Some(dir.path()), None, &[], &[], &[]).unwrap_err().to_string();
-        assert!(err.contains("not a regular file"), "{err}");
-        let big = dir.path().join("big.json5");
-        std::fs::write(&big, vec![b' '; MAX_CONFIG_FILE as usize + 1]).unwrap();
-        assert!(config(Some(&big), None, &[], &[], &[]).unwrap_err().to_string().contains("at most"));
-        let bad = dir.path().join("bad.json5");
-        std::fs::write(&bad, "{ mode: 42 }").unwrap();
-        assert!(config(Some(&bad), None, &[], &[], &[]).is_err());
-        let err = config(None, None, &["not an endpoint".into()], &[], &[]).unwrap_err().to_string();
-        assert!(err.contains("connect/endpoints"), "{err}");
     }
 }

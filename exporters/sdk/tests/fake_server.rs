@@ -60,7 +60,7 @@ fn hello_then_poses_in_order() {
     assert_eq!(poses, vec![pose(10), pose(11), pose(12)]);
     assert_eq!(
         sub.stats(),
-        Stats { frames: 3, gaps: 0, missing: 0, reconnects: 0, disconnects: 1, rejected: 0 }
+        Stats { frames: 3, gaps: 0, missing: 0, reconnects: 0, disconnects: 1, rejected: 0, recovered: 0 }
     );
     assert!(matches!(sub.next_event(), Err(SdkError::Closed)));
     server.join().unwrap();
@@ -100,7 +100,7 @@ fn a_gap_is_reported_before_the_pose_that_reveals_it() {
     );
     assert_eq!(
         sub.stats(),
-        Stats { frames: 4, gaps: 2, missing: 4, reconnects: 0, disconnects: 1, rejected: 0 }
+        Stats { frames: 4, gaps: 2, missing: 4, reconnects: 0, disconnects: 1, rejected: 0, recovered: 0 }
     );
     server.join().unwrap();
 }
@@ -257,7 +257,7 @@ fn a_restarted_daemon_is_a_reconnect_not_a_gap() {
     }
     assert_eq!(
         sub.stats(),
-        Stats { frames: 8, gaps: 0, missing: 0, reconnects: 1, disconnects: 1, rejected: 0 }
+        Stats { frames: 8, gaps: 0, missing: 0, reconnects: 1, disconnects: 1, rejected: 0, recovered: 0 }
     );
     second.join().unwrap();
 }
