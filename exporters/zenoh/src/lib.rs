@@ -23,6 +23,11 @@
 //!   (JSON `{"unix_ns":..,"monotonic_ns":..}`), so a stage recorder measures how far this host's
 //!   clock is from its own.
 //!
+//! - `replay`: a queryable answering lost poses from the last [`BridgeConfig::replay_frames`]
+//!   published (module `replay`, the wire in [`frond_sdk::zenoh_replay`]): a reliable subscriber
+//!   (a stage recorder) fills its gaps from it; every SDK subscriber also reports its counts
+//!   there about once a second, which `peers` answers (JSON) and `--stats` prints.
+//!
 //! Every pose sample carries its **stage time** as its attachment (8 bytes, `u64` little-endian):
 //! the pose's `host_monotonic_ns` on this host's realtime clock, nanoseconds since 1970
 //! ([`frond_sdk::stage_time`]). Samples also carry Zenoh timestamps (the session's hybrid logical
@@ -32,7 +37,10 @@
 
 mod claim;
 pub mod control;
+mod replay;
 mod status;
+
+pub use replay::{DEFAULT_REPLAY_FRAMES, MAX_REPLAY_FRAMES};
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -42,8 +50,10 @@ use std::time::{Duration, Instant};
 use frond_protocol::{ElementTable, FrameBuf, Hello, ServerMessage};
 use frond_sdk::stage_time::{ClockReading, encode_attachment, realtime_ns};
 use frond_sdk::zenoh::{ZenohSetupError, keys};
+use frond_sdk::zenoh_replay::{self, PeerReport, ReplayRequest};
 use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
 use zenoh::Wait;
+use zenoh::bytes::ZBytes;
 use zenoh::qos::{CongestionControl, Priority};
 
 /// How often the daemon's status is published by default.
@@ -77,6 +87,8 @@ pub struct BridgeConfig {
     pub clock_offset_ns: i64,
     /// Remote control's allow-list; `None` (the default) declares no control queryable.
     pub control: Option<control::ControlPolicy>,
+    /// Poses the replay ring keeps for reliable subscribers (0: none).
+    pub replay_frames: usize,
 }
 
 /// What can stop the bridge.
@@ -123,6 +135,18 @@ pub struct BridgeStats {
     /// Remote control requests refused by the bridge (not signed, unknown principal, wrong key,
     /// stale, replayed, not allowed, malformed, busy).
     pub control_refused: AtomicU64,
+    /// Poses sent again from the replay ring to subscribers that lost them.
+    pub replayed: AtomicU64,
+    /// Each peer's own counts, as it reported them.
+    peers: replay::Peers,
+}
+
+impl BridgeStats {
+    /// Each subscriber's counts as it last reported them (frames, missing, recovered) and the
+    /// poses the ring sent it: the bridge's view of who loses what.
+    pub fn peers(&self) -> Vec<PeerReport> {
+        self.peers.reports()
+    }
 }
 
 impl std::fmt::Display for BridgeStats {
@@ -131,7 +155,7 @@ impl std::fmt::Display for BridgeStats {
         write!(
             f,
             "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={} \
-             withheld={} control_answered={} control_refused={}",
+             withheld={} control_answered={} control_refused={} replayed={} peers={}",
             g(&self.poses),
             g(&self.put_errors),
             g(&self.gaps),
@@ -141,7 +165,9 @@ impl std::fmt::Display for BridgeStats {
             g(&self.reconnects),
             g(&self.withheld),
             g(&self.control_answered),
-            g(&self.control_refused)
+            g(&self.control_refused),
+            g(&self.replayed),
+            replay::summary(&self.peers.reports())
         )
     }
 }
@@ -164,6 +190,8 @@ struct Shared {
     clock_offset_ns: i64,
     /// An elder bridge publishes under this name: publish and answer nothing ([`claim`]).
     standby: AtomicBool,
+    /// The last poses published, for the `replay` queryable.
+    ring: Mutex<replay::Ring>,
 }
 
 impl Shared {
@@ -183,6 +211,40 @@ impl Shared {
 
     fn latest(&self) -> std::sync::MutexGuard<'_, Latest> {
         self.latest.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn ring(&self) -> std::sync::MutexGuard<'_, replay::Ring> {
+        self.ring.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// A `replay` query: its poses answered from the ring (with the query's own congestion
+    /// control, so a full link drops them instead of blocking), its counts kept.
+    fn on_replay(&self, query: &zenoh::query::Query, reply_key: &str) {
+        if self.standing_by() {
+            return;
+        }
+        let Some(request) = query.payload().and_then(|p| ReplayRequest::decode(&p.to_bytes())) else {
+            return;
+        };
+        let mut replayed = 0;
+        if !request.report_only() {
+            let (replies, poses) = self.ring().answer(request.from, request.to);
+            replayed = poses;
+            for (payload, attachment) in replies {
+                if let Err(e) = query.reply(reply_key, payload).attachment(attachment).wait() {
+                    tracing::debug!(error = %e, "replay reply failed");
+                }
+            }
+            self.stats.replayed.fetch_add(poses, Ordering::Relaxed);
+        }
+        let more = self.stats.peers.heard(&request, replayed);
+        if more > 0 && self.stats.peers.log_due() {
+            tracing::warn!(
+                peer = %request.peer, missing = request.missing, recovered = request.recovered,
+                frames = request.frames,
+                "a subscriber lost poses on the way (its link or its reading could not keep up)"
+            );
+        }
     }
 }
 
@@ -246,6 +308,7 @@ impl Bridge {
             stats: Arc::default(),
             clock_offset_ns: config.clock_offset_ns,
             standby: AtomicBool::new(false),
+            ring: Mutex::new(replay::Ring::new(config.replay_frames)),
         });
         // The claim first, and the claims already on the network asked for before anything is
         // published, so that a bridge started under a taken name stands by from the start.
@@ -279,6 +342,34 @@ impl Bridge {
                 .map_err(declare_err(&k))?;
             queryables.push(q);
         }
+        let replay_key = keys::under(&key, zenoh_replay::REPLAY);
+        let replay = {
+            let (shared, reply_key) = (shared.clone(), replay_key.clone());
+            session
+                .declare_queryable(replay_key.clone())
+                .callback(move |query| shared.on_replay(&query, &reply_key))
+                .wait()
+                .map_err(declare_err(&replay_key))?
+        };
+        queryables.push(replay);
+        let peers_key = keys::under(&key, zenoh_replay::PEERS);
+        let peers = {
+            let (shared, reply_key) = (shared.clone(), peers_key.clone());
+            session
+                .declare_queryable(peers_key.clone())
+                .callback(move |query| {
+                    if shared.standing_by() {
+                        return;
+                    }
+                    let json = serde_json::to_vec(&shared.stats.peers.reports()).unwrap_or_default();
+                    if let Err(e) = query.reply(reply_key.clone(), json).wait() {
+                        tracing::debug!(error = %e, "reply failed");
+                    }
+                })
+                .wait()
+                .map_err(declare_err(&peers_key))?
+        };
+        queryables.push(peers);
         let remote_control = match config.control.clone() {
             None => None,
             Some(policy) => Some(
@@ -382,11 +473,14 @@ impl Bridge {
                         self.clock = self.shared.clock();
                         self.clock_read_at = Instant::now();
                     }
-                    let stage = encode_attachment(self.clock.stage_ns_of(pose.host_monotonic_ns));
-                    let bytes = self.frame.encode(&ServerMessage::Pose(pose)).to_vec();
-                    if self.poses.put(bytes).attachment(stage.to_vec()).wait().is_err() {
+                    let stage_ns = self.clock.stage_ns_of(pose.host_monotonic_ns);
+                    let seq = pose.seq;
+                    let bytes = ZBytes::from(self.frame.encode(&ServerMessage::Pose(pose)).to_vec());
+                    let attachment = encode_attachment(stage_ns).to_vec();
+                    if self.poses.put(bytes.clone()).attachment(attachment).wait().is_err() {
                         self.shared.stats.put_errors.fetch_add(1, Ordering::Relaxed);
                     }
+                    self.shared.ring().push_pose(seq, bytes, stage_ns);
                 }
                 Ok(Event::Gap { .. }) => {
                     self.shared.stats.gaps.fetch_add(1, Ordering::Relaxed);
@@ -455,10 +549,14 @@ impl Bridge {
         if self.standing_by {
             return;
         }
-        let bytes = self.frame.encode(msg).to_vec();
+        let bytes = ZBytes::from(self.frame.encode(msg).to_vec());
         let publisher = match which {
             Which::Hello => &self.hello,
-            Which::Elements => &self.elements,
+            Which::Elements => {
+                let next_seq = self.shared.next_seq.load(Ordering::Relaxed);
+                self.shared.ring().push_table(next_seq, bytes.clone());
+                &self.elements
+            }
         };
         self.shared.stats.announcements.fetch_add(1, Ordering::Relaxed);
         if let Err(e) = publisher.put(bytes).wait() {

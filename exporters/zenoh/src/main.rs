@@ -40,6 +40,10 @@ struct Args {
     /// Milliseconds between two status publications (50 to 10000).
     #[arg(long, value_name = "MS")]
     status_interval_ms: Option<u64>,
+    /// Poses kept for reliable subscribers to fetch what they lost (a stage recorder does);
+    /// 0 keeps none. Default 10000: 10 s at 1 kHz, about 3 MB.
+    #[arg(long, value_name = "N", default_value_t = frond_zenoh::DEFAULT_REPLAY_FRAMES)]
+    replay_frames: usize,
     /// The daemon's socket directory.
     #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
     socket_dir: Option<PathBuf>,
@@ -119,6 +123,13 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
             }
         },
     };
+    if args.replay_frames > frond_zenoh::MAX_REPLAY_FRAMES {
+        problems.push(format!(
+            "--replay-frames {}: at most {}",
+            args.replay_frames,
+            frond_zenoh::MAX_REPLAY_FRAMES
+        ));
+    }
     let control = match &args.control {
         None => None,
         Some(path) => match frond_zenoh::control::ControlPolicy::read(path) {
@@ -133,7 +144,8 @@ fn validate(args: &Args) -> anyhow::Result<BridgeConfig> {
         return Err(frond_binmain::invalid_arguments(&problems));
     }
     let socket_dir = args.socket_dir.clone().unwrap_or_else(frond_protocol::paths::default_socket_dir);
-    Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns, control })
+    let replay_frames = args.replay_frames;
+    Ok(BridgeConfig { socket_dir, addr, status_interval, clock_offset_ns, control, replay_frames })
 }
 
 fn run(args: &Args) -> anyhow::Result<()> {
