@@ -113,6 +113,8 @@ struct Finished {
     frames: u64,
     gaps: u64,
     missing: u64,
+    /// Poses lost on the way and fetched again from the bridge's replay ring.
+    recovered: u64,
     dropped: u64,
 }
 
@@ -242,11 +244,12 @@ fn finish(takes: BTreeMap<String, JoinHandle<anyhow::Result<Finished>>>) -> anyh
     for (source, handle) in takes {
         match handle.join() {
             Ok(Ok(f)) => frond_binmain::outln!(
-                "{}: {} frames, {} gaps ({} frames missing), {} dropped",
+                "{}: {} frames, {} gaps ({} frames missing), {} recovered, {} dropped",
                 f.path.display(),
                 f.frames,
                 f.gaps,
                 f.missing,
+                f.recovered,
                 f.dropped
             )?,
             Ok(Err(e)) => {
@@ -282,7 +285,9 @@ impl SourceJob {
         let opts = Subscriber::options()
             .give_up_after(None)
             .hello_timeout(SOURCE_TIMEOUT)
-            .read_timeout(Some(Duration::from_millis(200)));
+            .read_timeout(Some(Duration::from_millis(200)))
+            // A take must hold every frame: gaps are filled from the bridge's replay ring.
+            .reliable(true);
         let mut sub = Subscriber::open_in_session(self.session.clone(), &self.addr, opts)?;
         let status = frond_sdk::zenoh::query_statuses_in(&self.session, &self.addr, Duration::from_secs(2))
             .ok()
@@ -367,7 +372,14 @@ impl SourceJob {
         let _ = writer.join();
         result?;
         let stats = sub.stats();
-        Ok(Finished { path: self.path, frames, gaps: stats.gaps, missing: stats.missing, dropped })
+        Ok(Finished {
+            path: self.path,
+            frames,
+            gaps: stats.gaps,
+            missing: stats.missing,
+            recovered: stats.recovered,
+            dropped,
+        })
     }
 
     fn header(
