@@ -13,7 +13,7 @@ use frond_sdk::{Event, Pose, Source, Subscriber};
 /// A loopback port free now, below Linux's ephemeral range (32768 and up): a port the kernel
 /// handed out for `:0` is free only until it hands it out again, and the Zenoh sessions of the
 /// tests running beside this one open outgoing connections from that range all the time.
-fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     use std::sync::atomic::{AtomicU16, Ordering};
     static NEXT: AtomicU16 = AtomicU16::new(0);
     let spread = (std::process::id() % 1000) as u16 * 12;
