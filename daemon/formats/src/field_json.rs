@@ -31,6 +31,11 @@ impl FieldJson for Field {
             )));
         }
         f.check()?;
+        // A field.json without its plants (a large live field's, which must fit in a control
+        // request) is made again from its parameters, as subscribers make it.
+        if f.plants.is_empty() {
+            return frond_motion::field_wire::field_from_layout(&frond_motion::field_wire::layout_of(&f));
+        }
         Ok(f)
     }
 }

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering::Acquire};
 use std::time::{Duration, Instant};
 
 use frond_protocol::control::StageKind;
+use frond_protocol::field::{FieldMessage, FieldTable};
 use frond_protocol::{
     ControlErrorKind, ControlReply, ElementId, ElementTable, ServerMessage, StageInput, StageSpec,
     encode_frame,
@@ -328,6 +329,11 @@ impl ControlContext {
         let table = state.stages.next_table(&state.rig, &hands, primary);
         let mut frame = Vec::new();
         encode_frame(&ServerMessage::Elements(table.clone()), &mut frame);
+        // The running fields' definitions follow the table they belong to (protocol 3), also
+        // when none runs: that is how a subscriber learns a field stopped.
+        let fields: Vec<_> = state.stages.iter().filter_map(|r| r.info.report.field().cloned()).collect();
+        let fields = FieldTable { elements_version: table.version, fields };
+        encode_frame(&ServerMessage::Field(FieldMessage::Table(fields)), &mut frame);
         if frame.len() > ELEMENTS_FRAME_MAX {
             return Err(refuse(
                 ControlErrorKind::Invalid,

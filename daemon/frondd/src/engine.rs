@@ -18,6 +18,7 @@ use frond_device::{DeviceSample, HandSource};
 use frond_motion::clip::Joints;
 use frond_motion::take::TakeFrame;
 use frond_motion::{FilterSpec, HandSample, Mapper, PoseFrame};
+use frond_protocol::field::FieldFrame;
 use frond_protocol::{ElementId, HandWire, Pose, PoseFlags};
 
 use crate::clock::monotonic_ns;
@@ -104,8 +105,12 @@ struct Output {
     links: EngineLinks,
     seq: u64,
     recording: bool,
-    /// The element table in force, encoded (sent after a Hello that carries an older one).
+    /// The element table in force, encoded (sent after a Hello that carries an older one),
+    /// followed by the running fields' table.
     elements_frame: Vec<u8>,
+    /// Where the field table starts in `elements_frame` (its length when it holds none): a
+    /// Hello carries the element table but not the fields', which follows every Hello.
+    fields_at: usize,
     /// Its version.
     elements_version: u64,
 }
@@ -125,6 +130,26 @@ impl Output {
         }
         frame
     }
+
+    /// Numbers and stamps a field frame like a pose (its numbers are those of its announced
+    /// plants' poses, [`FieldFrame::poses`]) and sends it the same ways.
+    fn publish_field(&mut self, frame: &mut FieldFrame) {
+        frame.seq = self.seq;
+        frame.host_monotonic_ns = monotonic_ns();
+        self.seq += u64::from(frame.poses).max(1);
+        self.links.stats.next_seq.store(self.seq, Relaxed);
+        self.lanes.send_field(frame, &self.links.garbage);
+        if !self.links.publish.offer_field(*frame) {
+            self.links.stats.publish_drops.fetch_add(1, Relaxed);
+        }
+    }
+}
+
+/// Where the second frame of `frames` (one or more encoded frames) starts: the field table after
+/// the element table. `frames.len()` when it holds one frame.
+fn second_frame_at(frames: &[u8]) -> usize {
+    let Some(len) = frames.first_chunk::<4>() else { return frames.len() };
+    (u32::from_le_bytes(*len) as usize).saturating_add(4).min(frames.len())
 }
 
 /// Where the stages' own frames go: published, flagged `playback`.
@@ -148,6 +173,14 @@ impl FrameSink for StageSink<'_> {
             hand: HandWire { t: self.hand_t, ..HandWire::default() },
             ..Pose::default()
         });
+    }
+
+    fn emit_field(&mut self, frame: &mut FieldFrame) {
+        frame.device_time_us = self.device_time_us;
+        frame.hand_t = self.hand_t;
+        frame.flags = PoseFlags::PLAYBACK;
+        frame.flags.set(PoseFlags::RECORDING, self.out.recording);
+        self.out.publish_field(frame);
     }
 }
 
@@ -237,6 +270,7 @@ impl Engine {
                 seq: 0,
                 recording: false,
                 elements_frame: Vec::with_capacity(ELEMENTS_FRAME_MAX),
+                fields_at: 0,
                 elements_version: 0,
             },
             stages: (0..MAX_STAGES).map(|_| None).collect(),
@@ -467,9 +501,10 @@ impl Engine {
                 LoopCommand::Stage(cmd) => self.apply_stage(cmd),
                 LoopCommand::AddSubscriber(mut new) => {
                     let out = &mut self.out;
-                    // A table changed since the acceptor encoded the Hello follows it.
+                    // A table changed since the acceptor encoded the Hello follows it; the
+                    // running fields' table (which no Hello carries) always does.
                     let table: &[u8] = if new.hello.elements_version() == out.elements_version {
-                        &[]
+                        &out.elements_frame[out.fields_at..]
                     } else {
                         &out.elements_frame
                     };
@@ -516,6 +551,7 @@ impl Engine {
             let out = &mut self.out;
             out.lanes.send_table(frame, cmd.elements_version, out.seq, &out.links.garbage);
             std::mem::swap(&mut out.elements_frame, frame);
+            out.fields_at = second_frame_at(&out.elements_frame);
             out.elements_version = cmd.elements_version;
             // The slow lane sends it before this frame number too.
             out.links.elements.applied(cmd.elements_version, out.seq);

@@ -19,6 +19,7 @@ use std::time::Duration;
 use crossbeam_channel::{Receiver, Sender, TryRecvError, TrySendError, bounded};
 use frond_device::HandSource;
 use frond_motion::{CalibrationParams, FilterSpec, MappingParams};
+use frond_protocol::field::FieldFrame;
 use frond_protocol::{ElementId, PatchableHello, Pose};
 
 use crate::stage::StageCommand;
@@ -226,12 +227,30 @@ impl ElementsCell {
 /// that spinning was a tenth of the publisher's CPU in `perf` (issue 9). Here the publisher
 /// parks at once and the loop unparks it only when the flag says it sleeps: one `futex` wake,
 /// no allocation, no lock.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct PublisherWake {
     parked: AtomicBool,
     thread: OnceLock<thread::Thread>,
     /// Subscribers on the slow lane (or on their way to it).
     slow: AtomicUsize,
+    /// The field frames for the slow lane ([`PublishQueue::offer_field`]): a queue beside the
+    /// poses' that the publisher drains with them and merges by sequence number. It rides here,
+    /// with the wake-up both queues share, so that every end of the pose queue stays as it was.
+    fields: (Sender<FieldFrame>, Receiver<FieldFrame>),
+}
+
+/// Field frames queued for the publisher at most (a field publishes 60 a second).
+pub const FIELD_QUEUE_FRAMES: usize = 256;
+
+impl Default for PublisherWake {
+    fn default() -> Self {
+        PublisherWake {
+            parked: AtomicBool::new(false),
+            thread: OnceLock::new(),
+            slow: AtomicUsize::new(0),
+            fields: bounded(FIELD_QUEUE_FRAMES),
+        }
+    }
 }
 
 impl PublisherWake {
@@ -243,6 +262,11 @@ impl PublisherWake {
     /// One subscriber fewer on the slow lane.
     pub fn remove_slow(&self) {
         self.slow.fetch_sub(1, SeqCst);
+    }
+
+    /// The publisher's end of the field frames' queue (drained after the poses it waited for).
+    pub fn field_frames(&self) -> &Receiver<FieldFrame> {
+        &self.fields.1
     }
 
     /// Called by the loop after each frame it queued: wakes the publisher if it serves anyone.
@@ -316,6 +340,15 @@ impl PublishQueue {
                 self.wake.notify();
                 true
             }
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => false,
+        }
+    }
+
+    /// Offers a field frame; `false` when the publisher is behind by a whole field queue (frame
+    /// dropped). It wakes nobody: the pose that follows it in the same tick does.
+    pub fn offer_field(&self, frame: FieldFrame) -> bool {
+        match self.wake.fields.0.try_send(frame) {
+            Ok(()) => true,
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => false,
         }
     }

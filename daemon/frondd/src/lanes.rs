@@ -24,6 +24,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 
 use crossbeam_channel::Sender;
+use frond_protocol::field::{FieldFrame, FieldMessage};
 use frond_protocol::{Pose, ServerMessage, encode_frame};
 
 /// Re-exported where `frond bench` has always named it.
@@ -76,7 +77,7 @@ fn fill_tail(tail: &mut [u8], parts: &[&[u8]]) -> Option<usize> {
 /// What a frame sent to every lane is.
 #[derive(Clone, Copy)]
 enum Broadcast {
-    /// Pose number `seq`.
+    /// Frame number `seq` (a pose or a field frame).
     Pose { seq: u64 },
     /// An element table, before pose `next_seq`.
     Table { next_seq: u64 },
@@ -175,6 +176,19 @@ impl Lanes {
         encode_frame(&ServerMessage::Pose(*pose), &mut self.buf);
         let buf = std::mem::take(&mut self.buf);
         self.broadcast(&buf, Broadcast::Pose { seq: pose.seq }, garbage);
+        self.buf = buf;
+    }
+
+    /// Encodes a field frame once and sends it to every direct lane (a numbered frame, like a
+    /// pose: a lane that cannot take it moves to the slow lane, which is owed it).
+    pub fn send_field(&mut self, frame: &FieldFrame, garbage: &Sender<Garbage>) {
+        if self.live == 0 {
+            return;
+        }
+        self.buf.clear();
+        encode_frame(&ServerMessage::Field(FieldMessage::Frame(*frame)), &mut self.buf);
+        let buf = std::mem::take(&mut self.buf);
+        self.broadcast(&buf, Broadcast::Pose { seq: frame.seq }, garbage);
         self.buf = buf;
     }
 

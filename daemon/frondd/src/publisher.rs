@@ -18,6 +18,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender, TryRecvError};
+use frond_protocol::field::{FieldFrame, FieldMessage};
 use frond_protocol::{Hello, PatchableHello, Pose, ServerMessage, SubscriberStatus, encode_frame};
 use tracing::{debug, info, warn};
 
@@ -360,6 +361,10 @@ pub fn spawn_publisher(
 /// from one batch to the next).
 struct Batch {
     poses: Vec<Pose>,
+    /// Field frames numbered before the batch's last pose (merged with the poses by number).
+    fields: Vec<FieldFrame>,
+    /// Field frames numbered after it, kept for the next batch.
+    later_fields: Vec<FieldFrame>,
     /// The frames encoded one after the other.
     bytes: Vec<u8>,
     /// (sequence number, offset in `bytes`) of each frame.
@@ -370,6 +375,8 @@ impl Batch {
     fn new() -> Self {
         Batch {
             poses: Vec::with_capacity(MAX_BATCH),
+            fields: Vec::with_capacity(crate::handoff::FIELD_QUEUE_FRAMES),
+            later_fields: Vec::with_capacity(crate::handoff::FIELD_QUEUE_FRAMES),
             bytes: Vec::with_capacity(MAX_BATCH * BACKLOG_BYTES_PER_FRAME * 2),
             starts: Vec::with_capacity(MAX_BATCH),
         }
@@ -391,14 +398,47 @@ impl Batch {
                 self.poses.push(p);
             }
         }
+        self.take_fields(wake);
         Ok(())
     }
 
-    /// Encodes the frames taken.
+    /// Takes the field frames numbered before the last pose taken: the loop queued each of them
+    /// before that pose, so all of them are here now. Those numbered after it wait for the
+    /// batch that takes the poses before them.
+    fn take_fields(&mut self, wake: &PublisherWake) {
+        self.fields.clear();
+        while self.later_fields.len() < self.later_fields.capacity() {
+            let Ok(f) = wake.field_frames().try_recv() else { break };
+            self.later_fields.push(f);
+        }
+        let Some(last) = self.poses.last().map(|p| p.seq) else {
+            // Keep what waits for its poses, but never a full queue of it.
+            if self.later_fields.len() == self.later_fields.capacity() {
+                self.later_fields.clear();
+            }
+            return;
+        };
+        let mut k = 0;
+        while k < self.later_fields.len() {
+            if self.later_fields[k].seq < last {
+                self.fields.push(self.later_fields.swap_remove(k));
+            } else {
+                k += 1;
+            }
+        }
+        self.fields.sort_unstable_by_key(|f| f.seq);
+    }
+
+    /// Encodes the frames taken, poses and field frames in the order of their numbers.
     fn encode(&mut self) {
         self.bytes.clear();
         self.starts.clear();
+        let mut fields = self.fields.iter().peekable();
         for p in &self.poses {
+            while let Some(f) = fields.next_if(|f| f.seq < p.seq) {
+                self.starts.push((f.seq, self.bytes.len()));
+                encode_frame(&ServerMessage::Field(FieldMessage::Frame(*f)), &mut self.bytes);
+            }
             self.starts.push((p.seq, self.bytes.len()));
             encode_frame(&ServerMessage::Pose(*p), &mut self.bytes);
         }

@@ -243,7 +243,8 @@ fn every_live_stage_allocates_nothing_per_tick() {
     let report = Arc::new(FieldReport::new("g", 100));
     let field = Field::from_json(&field.to_json()).unwrap();
     let looped = frondd::stage::playback::looped_clip(&bytes).unwrap();
-    let live_field = FieldStage::new(looped, field, &ids, 5, t0, report.clone()).unwrap();
+    let live_field = FieldStage::new(looped, field, ids[0], ids.len(), 5, t0, report.clone()).unwrap();
+    let field_frames = ends.publish_wake.clone();
     // Four plants walking a motion graph of a Lissajous sway (seed 003, section 6).
     let sway = frond_motion::graph::sample_sway(1200);
     let control = frond_motion::graph::ControlPoint::Top;
@@ -327,14 +328,18 @@ fn every_live_stage_allocates_nothing_per_tick() {
         }
     });
     assert_eq!(allocations, 0, "allocations in live-stage ticks");
-    // The stages really ran: playback frames (element 0), field plants (40..56), leaf frames (1).
+    // The stages really ran: playback frames (element 0), the field's frames (field 40: one
+    // frame, not one pose per plant), leaf frames (1).
     let mut elements = std::collections::HashSet::new();
     while let Ok(p) = sub_rx.try_recv() {
         elements.insert(p.element.get());
     }
     assert!(elements.contains(&0) && elements.contains(&1), "{elements:?}");
-    assert!(elements.contains(&40) && elements.contains(&55), "{elements:?}");
-    assert!(!elements.contains(&56), "only the ids given are used");
+    assert!(!elements.contains(&40), "no pose per plant: {elements:?}");
+    let fields: Vec<_> = field_frames.field_frames().try_iter().collect();
+    assert!(fields.len() >= 100 && fields.iter().all(|f| f.field == ids[0]), "{} field frames", fields.len());
+    assert!(fields.windows(2).all(|w| w[1].seq >= w[0].seq + 16 && w[1].tau_s >= w[0].tau_s));
+    assert!(fields.iter().all(|f| f.poses == 16), "numbers kept for the 16 announced plants' poses");
     assert!((60..64).all(|id| elements.contains(&id)), "graph walkers: {elements:?}");
     let sim = frondd::stage::StageReport::describe(&*sim_report);
     assert!(

@@ -7,7 +7,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use frond_formats::rig_toml::RigText;
 use frond_motion::clip::Clip;
-use frond_motion::field::bench_field_1000;
+use frond_motion::field_player::bench_field_1000;
 use frond_motion::looping::{LoopParams, find_transitions};
 use frond_motion::{Calibration, FilterSpec, HandSample, Mapper, Rig};
 

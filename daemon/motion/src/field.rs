@@ -19,6 +19,9 @@
 //!                 "delay_s": 0.0, "start_frame": 412, "scale": 1.04 }, ... ] }
 //! ```
 //!
+//! `plants` may be left out (a field of thousands of plants, whose full file would not fit in a
+//! control request): readers make them from the parameters with [`make_field`].
+//!
 //! - `position_m` is `[x, z]` on the ground (y = 0), metres, glTF frame (Y up).
 //! - `direction_deg`: the force heading, the +X axis rotated about +Y: 0 = +X, 90 = -Z.
 //! - Plant `p` at time `t` seconds shows the take's (global layer's, resampled at `fps`) frame
@@ -31,11 +34,9 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::clip::{Clip, DelayLine, Joints};
-use crate::controls::{FieldControls, shape_pose};
-use crate::looping::{LoopPlayer, PlaybackParams, Transitions};
+use crate::clip::{Clip, Joints};
+use crate::controls::shape_pose;
 use crate::rng::SeededRng;
-use crate::sample::{JOINTS, PoseFrame};
 
 /// Current `field.json` version.
 pub const FIELD_VERSION: u32 = 1;
@@ -111,7 +112,10 @@ pub struct Field {
     pub density: f64,
     /// Seed of the layout.
     pub seed: u64,
-    /// The plants.
+    /// The plants. A `field.json` may leave them out: its readers make them from the
+    /// parameters above ([`crate::field_wire::field_from_layout`]), as a live field's
+    /// subscribers do.
+    #[serde(default)]
     pub plants: Vec<FieldPlant>,
 }
 
@@ -347,189 +351,9 @@ impl Field {
     }
 }
 
-/// Live (and benchmark) playback of a field: one endless loop stream of the take feeds a
-/// history ring, and each plant reads it at `tau + start_r / fps - K (gamma_B + delta_i)` where
-/// `tau` is the stream time (advanced by the motion speed `K`), `start_r` its row's start frame,
-/// `gamma_B` its propagation delay (Eq. 6-7) and `delta_i` the rigidity delay of joint `i`
-/// (section 6.3 (3)). Controls change live ([`FieldPlayer::set_controls`]); delays are then
-/// recomputed for the new direction and speed: `gamma_B = (B - A_row) . dir / V_M`, where `A_row`
-/// is the row's plant furthest upwind along the new direction (so with the layout direction this
-/// is Eq. 7's `||B - A||` for plants on the row's axis). Allocation-free after
-/// [`FieldPlayer::new`].
-#[derive(Debug, Clone)]
-pub struct FieldPlayer {
-    field: Field,
-    clip: Clip,
-    player: LoopPlayer,
-    line: DelayLine,
-    controls: FieldControls,
-    delays: Vec<f64>,
-    row_upwind: Vec<f64>,
-    /// Stream time, seconds.
-    tau: f64,
-    last_t: Option<f64>,
-    /// Stream frames produced.
-    produced: u64,
-    max_offset_s: f64,
-}
-
-/// Seconds of stream history a [`FieldPlayer`] keeps (the longest delay it can show).
-pub const FIELD_HISTORY_S: f64 = 60.0;
-
-impl FieldPlayer {
-    /// A player for `field` looping `clip` (the take at `field.fps`) over `transitions`, after
-    /// [`Field::check`]: a field out of its limits is refused before anything is allocated for
-    /// it. The one constructor for fields from outside.
-    pub fn try_new(
-        field: Field,
-        clip: Clip,
-        transitions: &Transitions,
-        seed: u64,
-        controls: FieldControls,
-    ) -> Result<Self, FieldError> {
-        field.check()?;
-        if !(clip.fps.is_finite() && clip.fps > 0.0 && clip.fps <= MAX_FIELD_FPS) {
-            return Err(out_of_range("the take's fps", clip.fps, format!("(0, {MAX_FIELD_FPS}]")));
-        }
-        Ok(Self::new(field, clip, transitions, seed, controls))
-    }
-
-    /// [`FieldPlayer::try_new`] for a field made in code ([`make_field`], the bench fixture).
-    ///
-    /// # Panics
-    /// If `field` breaks [`Field::check`]'s limits (a plant's row beyond `rows`); fields from
-    /// outside go through [`FieldPlayer::try_new`].
-    pub fn new(
-        field: Field,
-        clip: Clip,
-        transitions: &Transitions,
-        seed: u64,
-        controls: FieldControls,
-    ) -> Self {
-        let max_offset_s = field.plants.iter().map(|p| p.start_frame).max().unwrap_or(0) as f64 / clip.fps;
-        let cap = DelayLine::capacity_for(FIELD_HISTORY_S + max_offset_s + 1.0, clip.fps);
-        let player = LoopPlayer::new(clip.len(), transitions, seed, PlaybackParams::default(), 0);
-        let n = field.plants.len();
-        let rows = field.rows;
-        let mut fp = FieldPlayer {
-            field,
-            clip,
-            player,
-            line: DelayLine::new(cap),
-            controls,
-            delays: vec![0.0; n],
-            row_upwind: vec![0.0; rows],
-            tau: 0.0,
-            last_t: None,
-            produced: 0,
-            max_offset_s,
-        };
-        fp.set_controls(controls);
-        fp
-    }
-
-    /// The field.
-    pub fn field(&self) -> &Field {
-        &self.field
-    }
-
-    /// Frames of stream history this player keeps (sized once, in the constructor).
-    pub fn history_capacity(&self) -> usize {
-        self.line.capacity()
-    }
-
-    /// The controls in force.
-    pub fn controls(&self) -> FieldControls {
-        self.controls
-    }
-
-    /// Replaces the controls and recomputes every plant's delay (no allocation).
-    pub fn set_controls(&mut self, c: FieldControls) {
-        self.controls = c;
-        let dir = heading_vector(c.direction_deg);
-        let proj = |p: &FieldPlant| p.position_m[0] as f64 * dir[0] + p.position_m[1] as f64 * dir[1];
-        self.row_upwind.iter_mut().for_each(|x| *x = f64::INFINITY);
-        for p in &self.field.plants {
-            let r = &mut self.row_upwind[p.row];
-            *r = r.min(proj(p));
-        }
-        let v = c.speed_m_s.max(1e-6);
-        for (d, p) in self.delays.iter_mut().zip(&self.field.plants) {
-            *d = (proj(p) - self.row_upwind[p.row]) / v;
-        }
-    }
-
-    /// Fills `out[id]` with every plant's pose at wall time `t_s` (seconds, non-decreasing).
-    /// `out` must have one entry per plant.
-    pub fn frame(&mut self, t_s: f64, out: &mut [Joints]) {
-        let c = self.controls;
-        if let Some(last) = self.last_t
-            && t_s > last
-        {
-            self.tau += c.time_step * (t_s - last);
-        }
-        self.last_t = Some(self.last_t.map_or(t_s, |l| l.max(t_s)));
-        if self.clip.is_empty() {
-            out.iter_mut().for_each(|o| *o = [[0.0; 3]; JOINTS]);
-            return;
-        }
-        let fps = self.clip.fps;
-        let need = self.tau + self.max_offset_s + 1.0 / fps;
-        while (self.produced as f64) / fps <= need {
-            let j = self.player.next_step(&self.clip).joints(&self.clip);
-            self.line.push(PoseFrame { t: self.produced as f64 / fps, joints_deg: j });
-            self.produced += 1;
-        }
-        let rotate = c.direction_deg - self.field.authored_direction_deg;
-        for ((o, p), gamma) in out.iter_mut().zip(&self.field.plants).zip(&self.delays) {
-            let base = self.tau + p.start_frame as f64 / fps - c.time_step * gamma;
-            let mut j = [[0.0; 3]; JOINTS];
-            for (i, ji) in j.iter_mut().enumerate() {
-                let delta = if i == 0 { 0.0 } else { c.delays_s[i - 1] };
-                let at = base - c.time_step * delta;
-                *ji = self.line.at_time(at).map_or([0.0; 3], |x| x[i]);
-            }
-            *o = shape_pose(&j, c.scale, rotate);
-        }
-    }
-}
-
-/// A fixture for `frond bench`: a 1000-plant field (20 rows x 50 columns) over a 10 s synthetic
-/// sway at 30 FPS, and an output buffer. Time [`FieldPlayer::frame`] on it for the per-frame cost.
-pub fn bench_field_1000() -> (FieldPlayer, Vec<Joints>) {
-    let clip = Clip::from_joints(
-        (0..300).map(|k| {
-            let t = k as f32 / 30.0;
-            let s = (t * 2.1).sin() * 20.0 + (t * 5.3).sin() * 4.0;
-            [
-                [s, -s * 0.5, 0.0],
-                [s * 0.5, -s * 0.25, 0.0],
-                [s * 0.5, -s * 0.25, 3.0],
-                [s * 0.3, -s * 0.1, 3.0],
-            ]
-        }),
-        30.0,
-    );
-    let transitions = crate::looping::find_transitions(&clip, &crate::looping::LoopParams::default())
-        .unwrap_or(Transitions { pivot: 297, transitions: vec![297] });
-    let params = FieldParams {
-        rows: 20,
-        cols: 50,
-        cell_m: 0.2,
-        speed_m_s: 1.5,
-        direction_deg: 30.0,
-        density: 1.0,
-        seed: 1,
-    };
-    let field = make_field(&params, "bench", clip.len(), clip.fps).expect("fixed, valid bench parameters");
-    let out = vec![[[0.0; 3]; JOINTS]; field.plants.len()];
-    (FieldPlayer::new(field, clip, &transitions, 1, FieldControls::default()), out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::looping::{LoopParams, find_transitions, loop_clip};
 
     fn sway(n: usize) -> Clip {
         Clip::from_joints(
@@ -599,63 +423,6 @@ mod tests {
     }
 
     #[test]
-    fn one_plant_per_row_equals_the_looped_take() {
-        let clip = sway(120);
-        let t = find_transitions(&clip, &LoopParams::default()).unwrap();
-        let (looped, _) = loop_clip(&clip, &t, 11, PlaybackParams::default(), 0, 1200);
-        // Start frames within the first 900, so 200 frames of playback stay inside the take.
-        let f = make_field(&params(5, 1), "loop", 900, looped.fps).unwrap();
-        assert_eq!(f.plants.len(), 5);
-        for p in &f.plants {
-            assert_eq!((p.source, p.delay_s), (p.id, 0.0));
-            for k in 0..100 {
-                let t = k as f64 / 30.0;
-                let want = looped.frames[(p.start_frame + k).min(looped.len() - 1)].joints_deg;
-                assert_eq!(f.pose(p.id, &looped, t), want, "plant {} frame {k}", p.id);
-            }
-        }
-        // Live: the endless stream with the same seed is the same looped take.
-        let mut live = FieldPlayer::new(f.clone(), clip, &t, 11, FieldControls::default());
-        let mut out = vec![[[0.0; 3]; 4]; 5];
-        for k in 0..200 {
-            live.frame(k as f64 / 30.0, &mut out);
-            for p in &f.plants {
-                let want = looped.frames[p.start_frame + k].joints_deg;
-                for (x, y) in out[p.id].iter().flatten().zip(want.iter().flatten()) {
-                    assert!((x - y).abs() < 1e-4, "plant {} frame {k}", p.id);
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn live_field_delays_follow_eq7_and_controls() {
-        let clip = sway(200);
-        let t = find_transitions(&clip, &LoopParams::default()).unwrap();
-        let f = make_field(&params(1, 4), "t", 200, 30.0).unwrap();
-        let mut live = FieldPlayer::new(
-            f.clone(),
-            clip.clone(),
-            &t,
-            2,
-            FieldControls { speed_m_s: 2.0, ..Default::default() },
-        );
-        // Same layout direction: delay = x distance / V_M (projection along +X).
-        for (p, d) in f.plants.iter().zip(&live.delays) {
-            let want = (p.position_m[0] - f.plants[0].position_m[0]) as f64 / 2.0;
-            assert!((d - want).abs() < 1e-6);
-        }
-        // Reverse the force: the last plant is now upwind (delay 0), the first the most delayed.
-        live.set_controls(FieldControls { direction_deg: 180.0, speed_m_s: 2.0, ..Default::default() });
-        assert!(live.delays[3].abs() < 1e-9);
-        assert!(live.delays[0] > live.delays[1]);
-        let mut out = vec![[[0.0; 3]; 4]; 4];
-        live.frame(0.0, &mut out);
-        live.frame(10.0, &mut out);
-        assert!(out.iter().flatten().flatten().all(|x| x.is_finite()));
-    }
-
-    #[test]
     fn fields_are_reproducible_and_parameters_checked() {
         let f = make_field(&FieldParams { density: 0.5, ..params(3, 6) }, "t", 50, 30.0).unwrap();
         assert!(f.plants.len() < 18);
@@ -668,14 +435,5 @@ mod tests {
         ] {
             assert!(make_field(&p, "t", 10, 30.0).unwrap_err().to_string().contains(msg), "{msg}");
         }
-    }
-
-    #[test]
-    fn bench_fixture_has_1000_plants() {
-        let (mut player, mut out) = bench_field_1000();
-        assert_eq!(out.len(), 1000);
-        player.frame(0.0, &mut out);
-        player.frame(1.0 / 30.0, &mut out);
-        assert!(out.iter().flatten().flatten().any(|x| *x != 0.0));
     }
 }

@@ -18,7 +18,9 @@ use thiserror::Error;
 /// Version byte written in every frame. Version 2 announces elements
 /// ([`crate::ServerMessage::Elements`]) and drives live stages with one family of control
 /// requests (`StageStart`, `StageStop`, `StageInput`); version 1 had a request per live mode.
-pub const PROTOCOL_VERSION: u8 = 2;
+/// Version 3 publishes a field as its definition and frames of its driving stream
+/// ([`crate::ServerMessage::Field`], [`crate::field`]) instead of one pose per plant.
+pub const PROTOCOL_VERSION: u8 = 3;
 /// Bytes before the body: the `u32` length and the version byte.
 pub const HEADER_LEN: usize = 5;
 /// Largest accepted `len` field. Anything bigger is refused before reading it.

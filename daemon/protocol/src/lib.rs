@@ -19,6 +19,7 @@ pub mod control;
 pub mod convention;
 pub mod element_id;
 pub mod errors;
+pub mod field;
 pub mod frame;
 pub mod paths;
 pub mod pose;

@@ -5,6 +5,9 @@ use serde::{Deserialize, Serialize};
 use crate::ElementId;
 
 /// Everything the daemon sends on `poses.sock`.
+// A field frame is the largest variant; the realtime loop encodes messages by value, so none is
+// boxed (that would allocate per frame).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ServerMessage {
     /// First message on every connection.
@@ -18,6 +21,9 @@ pub enum ServerMessage {
     /// Sent instead of a [`Hello`] when the daemon cannot take the connection (its subscriber
     /// limit is reached), saying why; the daemon closes the connection after it.
     Refused(String),
+    /// A field's definition or one of its frames (protocol 3, [`crate::field`]): what the
+    /// plants of a running field follow from, instead of one pose per plant.
+    Field(crate::field::FieldMessage),
 }
 
 /// Every element the daemon publishes, with what it is. Element ids are assigned by the daemon

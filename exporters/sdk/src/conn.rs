@@ -24,6 +24,8 @@ pub(crate) struct Conn {
     timeout: Option<Duration>,
 }
 
+// A message is as large as a field frame (protocol 3); one outcome lives at a time, on the stack.
+#[allow(clippy::large_enum_variant)]
 pub(crate) enum ReadOutcome {
     Message(ServerMessage),
     /// Clean close, or the peer vanished mid-frame.
@@ -48,7 +50,9 @@ impl Conn {
             ReadOutcome::Message(ServerMessage::Refused(reason)) => {
                 return Err(SdkError::Refused { path: path.to_owned(), reason });
             }
-            ReadOutcome::Message(ServerMessage::Pose(_) | ServerMessage::Elements(_)) => {
+            ReadOutcome::Message(
+                ServerMessage::Pose(_) | ServerMessage::Elements(_) | ServerMessage::Field(_),
+            ) => {
                 return Err(SdkError::Protocol {
                     path: path.to_owned(),
                     error: ProtocolError::ExpectedHello,

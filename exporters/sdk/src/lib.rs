@@ -34,6 +34,7 @@ pub mod control;
 #[cfg(feature = "zenoh")]
 pub mod control_auth;
 mod error;
+pub mod field;
 pub mod health;
 mod reconnect;
 pub mod source;
@@ -287,6 +288,8 @@ pub struct Subscriber {
     iter_done: bool,
     /// A reconnection under way across calls (a read timeout came first).
     retry: Option<reconnect::Retry>,
+    /// The running fields (protocol 3).
+    fields: field::LiveFields,
 }
 
 impl std::fmt::Debug for Subscriber {
@@ -363,6 +366,7 @@ impl Subscriber {
             stats: Stats::default(),
             iter_done: false,
             retry: None,
+            fields: field::LiveFields::default(),
         }
     }
 
@@ -439,8 +443,18 @@ impl Subscriber {
     /// same applies. Once finished, returns
     /// [`SdkError::Closed`].
     pub fn next_event(&mut self) -> Result<Event, SdkError> {
+        // A field message with nothing to report (a field's table, a frame before its plants
+        // can be evaluated) is taken and the next message read.
+        loop {
+            if let Some(ev) = self.read_event()? {
+                return Ok(ev);
+            }
+        }
+    }
+
+    fn read_event(&mut self) -> Result<Option<Event>, SdkError> {
         if let Some(ev) = self.pending.pop_front() {
-            return Ok(ev);
+            return Ok(Some(ev));
         }
         match self.state {
             State::Finished => return Err(SdkError::Closed),
@@ -448,7 +462,7 @@ impl Subscriber {
                 self.state = State::Finished;
                 return Err(SdkError::Closed);
             }
-            State::Disconnected(_) => return self.reconnect(),
+            State::Disconnected(_) => return self.reconnect().map(Some),
             State::Connected(_) => {}
         }
         let State::Connected(wire) = &mut self.state else { unreachable!("checked above") };
@@ -457,7 +471,8 @@ impl Subscriber {
             #[cfg(feature = "zenoh")]
             Wire::Zenoh(conn) => conn.read_message(self.opts.read_timeout),
         };
-        match outcome {
+        let event = match outcome {
+            ReadOutcome::Message(ServerMessage::Field(msg)) => return self.on_field(msg),
             ReadOutcome::Message(ServerMessage::Pose(pose)) => self.on_pose(pose),
             ReadOutcome::Message(ServerMessage::Elements(table)) => {
                 self.elements = table.clone();
@@ -502,7 +517,8 @@ impl Subscriber {
             }
             ReadOutcome::Err(SdkError::Protocol { error, .. }) => Err(self.fail(error)),
             ReadOutcome::Err(other) => Err(other),
-        }
+        };
+        event.map(Some)
     }
 
     fn on_pose(&mut self, pose: Pose) -> Result<Event, SdkError> {
@@ -547,6 +563,7 @@ impl Subscriber {
         };
         self.state = State::Disconnected(kept);
         self.stats.disconnects += 1;
+        self.fields.clear();
     }
 
     /// Drops the connection after a protocol error; a fatal one (or any, without reconnection)

@@ -477,3 +477,7 @@ fn giving_up_counts_from_the_disconnection_across_timeouts() {
     assert!(timeouts >= 2, "control came back meanwhile: {timeouts} timeouts");
     assert!(matches!(sub.next_event(), Err(SdkError::Closed)));
 }
+
+/// Fields (protocol 3): the SDK's evaluation against the daemon's and the paper's.
+#[path = "fields/agreement.rs"]
+mod field_agreement;

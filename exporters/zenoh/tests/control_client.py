@@ -22,7 +22,7 @@ import time
 import msgpack
 import zenoh
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 
 
 def frame(message) -> bytes:

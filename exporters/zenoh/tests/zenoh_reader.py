@@ -30,7 +30,7 @@ import time
 import msgpack
 import zenoh
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 
 
 def decode(payload: bytes, variant: str) -> dict:

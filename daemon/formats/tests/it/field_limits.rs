@@ -7,7 +7,8 @@
 use frond_formats::field_json::FieldJson;
 use frond_motion::clip::Clip;
 use frond_motion::controls::FieldControls;
-use frond_motion::field::{Field, FieldError, FieldParams, FieldPlayer, make_field};
+use frond_motion::field::{Field, FieldError, FieldParams, make_field};
+use frond_motion::field_player::FieldPlayer;
 use frond_motion::looping::Transitions;
 use proptest::prelude::*;
 

@@ -1,16 +1,27 @@
 //! A field playing on the pose stream (seed 000, section 6.2): plants of one looped take, each
-//! delayed by its position along the propagation direction, published at [`FIELD_PUBLISH_HZ`]
-//! as announced `field-plant` elements; steered live by keys and wrist swipes (section 6.3).
+//! delayed by its position along the propagation direction; steered live by keys and wrist
+//! swipes (section 6.3).
+//!
+//! The loop evaluates no plant. It publishes what defines the field (protocol 3,
+//! [`frond_protocol::field`]): the definition once, with the element table ([`FieldReport`]
+//! carries it to the control side), and at [`FIELD_PUBLISH_HZ`] one [`FieldFrame`] with the
+//! stream time, the controls and frames of the driving stream, whose size does not depend on the
+//! number of plants. Subscribers evaluate the plants with `frond_motion::field_eval`; the SDK
+//! delivers the first plants (announced as `field-plant` elements, at most
+//! [`MAX_ANNOUNCED_PLANTS`]) as poses, as version 2 published them.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use frond_formats::field_json::FieldJson;
-use frond_motion::clip::Joints;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
-use frond_motion::field::{Field, FieldPlayer};
+use frond_motion::field::Field;
+use frond_motion::field_eval::FieldState;
+use frond_motion::field_player::FieldPlayer;
+use frond_motion::field_wire::{FrameFiller, field_is_generated, layout_of};
 use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
+use frond_protocol::field::{FieldDefinition, FieldFrame, MAX_ANNOUNCED_PLANTS};
 use frond_protocol::{ElementId, StageInput, StageKey};
 
 use super::error::{BuildError, StageError};
@@ -18,8 +29,12 @@ use super::live::{BuildContext, BuiltStage, FrameSink, LiveStage, StageInfo, Sta
 use super::playback::{LoopedTake, looped_clip, note_damage};
 use crate::clock::NS_PER_S;
 
-/// Most field plants published per field frame.
-pub const MAX_FIELD_PLANTS: usize = 64;
+/// Most field plants announced as `field-plant` elements (whose poses the SDK delivers).
+pub const MAX_FIELD_PLANTS: usize = MAX_ANNOUNCED_PLANTS;
+/// Most plants of a live field. The loop's work does not depend on it (it evaluates no plant);
+/// it bounds the daemon's memory for the layout (about 70 bytes a plant) and what every
+/// subscriber makes of the definition.
+pub const MAX_LIVE_FIELD_PLANTS: usize = 100_000;
 /// Field frames per second on the stream (the field itself is a 30 FPS animation).
 pub const FIELD_PUBLISH_HZ: u32 = 60;
 
@@ -66,7 +81,7 @@ impl FieldControlsCell {
     }
 }
 
-/// What `frond status` says of a field.
+/// What `frond status` says of a field, and its definition for the element table.
 pub struct FieldReport {
     /// The controls in force.
     pub controls: FieldControlsCell,
@@ -74,6 +89,8 @@ pub struct FieldReport {
     plants: usize,
     /// What a damaged take lost, in words (empty for a sound take).
     damage: String,
+    /// What subscribers evaluate the plants from.
+    definition: Option<FieldDefinition>,
 }
 
 impl FieldReport {
@@ -84,6 +101,7 @@ impl FieldReport {
             take: take.to_string(),
             plants,
             damage: String::new(),
+            definition: None,
         }
     }
 
@@ -91,12 +109,21 @@ impl FieldReport {
     pub fn damaged(take: &str, plants: usize, damage: &Option<String>) -> Self {
         FieldReport { damage: note_damage(take, damage), ..Self::new(take, plants) }
     }
+
+    /// The same, publishing `definition` with the element table.
+    pub fn with_definition(self, definition: FieldDefinition) -> Self {
+        FieldReport { definition: Some(definition), ..self }
+    }
 }
 
 impl StageReport for FieldReport {
     fn describe(&self) -> String {
         let controls = self.controls.load().map(|c| describe_controls(&c)).unwrap_or_default();
         format!("field of {}{}: {} plants; {controls}", self.take, self.damage, self.plants)
+    }
+
+    fn field(&self) -> Option<&FieldDefinition> {
+        self.definition.as_ref()
     }
 }
 
@@ -111,9 +138,8 @@ pub fn describe_controls(c: &FieldControls) -> String {
 /// The field player in the loop.
 pub struct FieldStage {
     player: FieldPlayer,
-    out: Vec<Joints>,
-    ids: [ElementId; MAX_FIELD_PLANTS],
-    publish: usize,
+    filler: FrameFiller,
+    frame: FieldFrame,
     swipe: SwipeDetector,
     base_speed_m_s: f64,
     t0_ns: u64,
@@ -122,41 +148,35 @@ pub struct FieldStage {
 }
 
 impl FieldStage {
-    /// `field` of a take made ready to loop ([`looped_clip`]), its first plants published as
-    /// the element ids `ids` (one per published plant).
+    /// `field` of a take made ready to loop ([`looped_clip`]), its frames published as field
+    /// `id` ([`FieldDefinition::id`]) with `announced` plants announced as elements (at most
+    /// [`MAX_FIELD_PLANTS`]: their poses' sequence numbers are each frame's).
     pub fn new(
         looped: LoopedTake,
         field: Field,
-        ids: &[ElementId],
+        id: ElementId,
+        announced: usize,
         seed: u64,
         t0_ns: u64,
         report: Arc<FieldReport>,
     ) -> Result<Self, StageError> {
         let LoopedTake { clip, transitions, .. } = looped;
-        let n = field.plants.len();
-        if n == 0 {
+        if field.plants.is_empty() {
             return Err(StageError::EmptyField);
         }
-        let base_speed_m_s = field.speed_m_s.max(0.05);
-        let controls = FieldControls {
-            direction_deg: field.authored_direction_deg,
-            speed_m_s: base_speed_m_s,
-            ..FieldControls::default()
-        };
+        let controls = initial_controls(&field);
         let player = FieldPlayer::try_new(field, clip, &transitions, seed, controls)?;
         report.controls.store(controls);
-        let publish = ids.len().min(n).min(MAX_FIELD_PLANTS);
-        let mut id_table = [ElementId::GLOBAL; MAX_FIELD_PLANTS];
-        id_table[..publish].copy_from_slice(&ids[..publish]);
         Ok(FieldStage {
             player,
-            // Only the published plants are computed: a field of thousands costs a tick no more
-            // than its first `publish` (its budget, `budget::FIELD_PLANT_NS` each).
-            out: vec![[[0.0; 3]; 4]; publish],
-            ids: id_table,
-            publish,
+            filler: FrameFiller::default(),
+            frame: FieldFrame {
+                field: id,
+                poses: announced.min(MAX_FIELD_PLANTS) as u8,
+                ..FieldFrame::default()
+            },
             swipe: SwipeDetector::new(SwipeParams::default()),
-            base_speed_m_s,
+            base_speed_m_s: controls.speed_m_s,
             t0_ns,
             next_ns: t0_ns,
             report,
@@ -166,6 +186,15 @@ impl FieldStage {
     fn set_controls(&mut self, c: FieldControls) {
         self.player.set_controls(c);
         self.report.controls.store(c);
+    }
+}
+
+/// The controls a field starts with: its layout's heading as authored, its propagation speed.
+pub fn initial_controls(field: &Field) -> FieldControls {
+    FieldControls {
+        direction_deg: field.authored_direction_deg,
+        speed_m_s: field.speed_m_s.max(0.05),
+        ..FieldControls::default()
     }
 }
 
@@ -196,10 +225,9 @@ impl LiveStage for FieldStage {
         let period = NS_PER_S / u64::from(FIELD_PUBLISH_HZ);
         self.next_ns = (self.next_ns + period).max(ctx.now_ns);
         let t = ctx.now_ns.saturating_sub(self.t0_ns) as f64 / NS_PER_S as f64;
-        self.player.frame(t, &mut self.out);
-        for (id, joints) in self.ids[..self.publish].iter().zip(&self.out) {
-            out.emit(*id, *joints);
-        }
+        self.player.advance(t);
+        self.filler.fill(self.player.state(), &mut self.frame);
+        out.emit_field(&mut self.frame);
     }
 
     fn every_tick(&self) -> bool {
@@ -218,7 +246,9 @@ fn takes_keys(input: &StageInput) -> bool {
     matches!(input, StageInput::Key(_))
 }
 
-/// Builds a field of the looped take `take`, publishing its first `plants` plants.
+/// Builds a field of the looped take `take` (its layout from `field_json`, at most
+/// [`MAX_LIVE_FIELD_PLANTS`] plants, made by its own parameters), announcing its first `plants`
+/// plants as `field-plant` elements.
 pub fn build(
     take: &str,
     field_json: &str,
@@ -228,18 +258,45 @@ pub fn build(
 ) -> Result<BuiltStage, BuildError> {
     if !(1..=MAX_FIELD_PLANTS as u16).contains(&plants) {
         return Err(BuildError::invalid(format!(
-            "a field publishes 1..={MAX_FIELD_PLANTS} plants, not {plants}"
+            "a field announces 1..={MAX_FIELD_PLANTS} plants as elements, not {plants}"
         )));
     }
     let bytes = super::live::read_take(ctx.takes_dir, take)?;
     let field = Field::from_json(field_json)
         .map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
     let count = field.plants.len();
+    if count == 0 || count > MAX_LIVE_FIELD_PLANTS {
+        return Err(BuildError::invalid(format!(
+            "field of take {take:?}: a live field has 1..={MAX_LIVE_FIELD_PLANTS} plants, this one {count}"
+        )));
+    }
+    // Subscribers make the plants from the layout's parameters: a layout they would not make
+    // alike (a hand-edited field.json) cannot be published as one.
+    if !field_is_generated(&field) {
+        return Err(BuildError::invalid(format!(
+            "field of take {take:?}: its plants are not what its rows, cols, cell_m, speed_m_s, direction_deg, \
+             density and seed make (edited by hand?); make it again with `frond take field`"
+        )));
+    }
     let ids = super::live::element_ids(ctx, usize::from(plants).min(count))?;
     let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
     let looped = looped_clip(&bytes).map_err(invalid)?;
-    let report = Arc::new(FieldReport::damaged(take, count, &looped.damage));
-    let stage = FieldStage::new(looped, field, ids, seed, ctx.now_ns, report.clone()).map_err(invalid)?;
+    let fps = looped.clip.fps;
+    let definition = FieldDefinition {
+        id: ids[0],
+        source: ctx.name.to_string(),
+        rig: ctx.rig.name.clone(),
+        layout: layout_of(&field),
+        plants: count as u32,
+        stream_fps: fps,
+        history_frames: FieldState::history_frames_for(&field, fps) as u32,
+        publish_hz: FIELD_PUBLISH_HZ,
+        plant_elements: ids.to_vec(),
+    };
+    definition.check().map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
+    let report = Arc::new(FieldReport::damaged(take, count, &looped.damage).with_definition(definition));
+    let stage = FieldStage::new(looped, field, ids[0], ids.len(), seed, ctx.now_ns, report.clone())
+        .map_err(invalid)?;
     let elements = super::live::plant_elements(ids, "plant", ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
@@ -251,13 +308,97 @@ pub fn build(
             accepts: takes_keys,
             rig: super::live::rig_info(ctx.rig),
             work: super::budget::TickWork {
-                asked_by: format!("a field publishing {} plants", ids.len()),
-                unit: "plant frames",
-                units: ids.len() as u64,
-                unit_ns: super::budget::FIELD_PLANT_NS,
+                asked_by: format!("a field of {count} plants"),
+                unit: "field frames",
+                units: 1,
+                unit_ns: super::budget::SMALL_NS,
                 extra_ns: 0,
-                fix: "publish fewer plants".into(),
+                fix: "run fewer stages".into(),
             },
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use frond_motion::clip::{Clip, Joints};
+    use frond_motion::field::{FieldParams, make_field};
+    use frond_motion::field_eval::FieldState;
+    use frond_motion::field_wire::apply_frame;
+    use frond_motion::looping::{LoopParams, find_transitions};
+
+    use super::*;
+
+    /// Keeps the field frames a stage emits; a stage's poses would be a failure here.
+    #[derive(Default)]
+    struct Frames(Vec<FieldFrame>);
+
+    impl FrameSink for Frames {
+        fn emit(&mut self, element: ElementId, _joints_deg: Joints) {
+            panic!("a field publishes no pose per plant (got one for element {element})");
+        }
+        fn emit_field(&mut self, frame: &mut FieldFrame) {
+            self.0.push(*frame);
+        }
+    }
+
+    #[test]
+    fn the_stage_publishes_frames_a_subscriber_evaluates_as_the_stage_does() {
+        let clip = Clip::from_joints(
+            (0..90).map(|k| {
+                let s = (k as f32 * 0.2).sin() * 15.0;
+                [[s, -s, 0.0], [s, 0.5 * s, 1.0], [0.0, s, 0.0], [2.0, s, -s]]
+            }),
+            30.0,
+        );
+        let transitions = find_transitions(&clip, &LoopParams::default()).unwrap();
+        let p = FieldParams {
+            rows: 6,
+            cols: 7,
+            cell_m: 0.3,
+            speed_m_s: 1.0,
+            direction_deg: 0.0,
+            density: 1.0,
+            seed: 2,
+        };
+        let field = make_field(&p, "t", 90, 30.0).unwrap();
+        let report = Arc::new(FieldReport::new("t", field.plants.len()));
+        let looped = LoopedTake { clip, transitions, damage: None };
+        let id = ElementId::new(40);
+        let mut stage = FieldStage::new(looped, field.clone(), id, 3, 4, 0, report.clone()).unwrap();
+        let history = FieldState::history_frames_for(&field, 30.0);
+        let mut sub = FieldState::new(field, 30.0, FieldControls::default(), history);
+        let mut sink = Frames::default();
+        // 1 kHz ticks for 3 s, a key after 1 s: 60 field frames a second, whatever the plants.
+        for ms in 0..3000u64 {
+            if ms == 1000 {
+                stage.input(StageInput::Key(StageKey::Left));
+            }
+            let ctx = TickContext {
+                now_ns: ms * 1_000_000,
+                device_time_us: ms * 1000,
+                hand: HandSample::default(),
+            };
+            stage.tick(&ctx, &mut sink);
+        }
+        assert!((179..=181).contains(&sink.0.len()), "{} field frames in 3 s", sink.0.len());
+        assert!(sink.0.iter().all(|f| f.field == id && f.poses == 3));
+        assert_eq!(sink.0.last().unwrap().controls.direction_deg, 180.0, "the key reached the frames");
+        for f in &sink.0 {
+            assert!(apply_frame(&mut sub, f));
+        }
+        // The subscriber, fed only the frames, evaluates every plant as the stage's own player.
+        let mut own = stage.player.state().clone();
+        own.refresh_delays();
+        let mut want = vec![[[0.0f32; 3]; 4]; sub.field().plants.len()];
+        own.plants(&mut want);
+        assert_eq!(own.tau_s(), sub.tau_s());
+        assert!(sub.history().is_complete());
+        for (i, w) in want.iter().enumerate() {
+            let got = sub.plant(i).expect("every frame it needs arrived");
+            for (g, w) in got.iter().flatten().zip(w.iter().flatten()) {
+                assert!((g - w).abs() < 1e-4, "plant {i}: {got:?} vs {w:?}");
+            }
+        }
+    }
 }

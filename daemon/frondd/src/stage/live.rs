@@ -31,6 +31,9 @@ pub struct TickContext {
 pub trait FrameSink {
     /// Publishes `joints_deg` as element `element` (flagged `playback`).
     fn emit(&mut self, element: ElementId, joints_deg: Joints);
+    /// Publishes a field frame (protocol 3): the sink numbers and stamps it. A sink that only
+    /// counts poses (a test's) ignores it.
+    fn emit_field(&mut self, _frame: &mut frond_protocol::field::FieldFrame) {}
 }
 
 /// Anything that produces poses in the realtime loop. Every method runs on the loop thread and
@@ -62,6 +65,11 @@ pub trait StageReport: Send + Sync {
     /// Work dropped to stay within its budget since it started ([`budget`]): 0 while it keeps up.
     fn dropped_work(&self) -> u64 {
         0
+    }
+    /// The definition of the field the stage plays, if it plays one: the control side publishes
+    /// it with the element table (protocol 3, [`frond_protocol::field`]).
+    fn field(&self) -> Option<&frond_protocol::field::FieldDefinition> {
+        None
     }
 }
 

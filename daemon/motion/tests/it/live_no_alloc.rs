@@ -5,7 +5,7 @@
 
 use frond_motion::clip::{Clip, DelayLine};
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
-use frond_motion::field::bench_field_1000;
+use frond_motion::field_player::bench_field_1000;
 use frond_motion::guided::{GuidedLive, GuidedParams};
 use frond_motion::looping::{LoopParams, Playback, PlaybackParams, find_transitions};
 use frond_motion::{HandSample, PoseFrame};

@@ -1,0 +1,242 @@
+//! Fields of plants (protocol 3; seed 000, Eq. 6-7 and section 6.3): the daemon publishes what
+//! defines a running field (its definition, with the element table) and frames of its driving
+//! stream; this module keeps each field and evaluates any of its plants with
+//! `frond_motion::field_eval`, the same code the daemon's own field runs.
+//!
+//! ```no_run
+//! use frond_sdk::{Event, Subscriber};
+//!
+//! let mut sub = Subscriber::connect(frond_protocol::paths::socket_dir(None))?;
+//! loop {
+//!     if let Event::Pose(_) = sub.next_event()? {
+//!         for field in sub.fields().iter() {
+//!             // Plant 1234 now, as the daemon's own field evaluates it.
+//!             if let Some(joints) = field.plant_pose(1234, field.tau_s()) {
+//!                 println!("{joints:?}");
+//!             }
+//!         }
+//!     }
+//! }
+//! # Ok::<(), frond_sdk::SdkError>(())
+//! ```
+//!
+//! Subscribers that want poses need nothing of this: the plants the daemon announces as
+//! `field-plant` elements (its `--plants`, at most 64) arrive as [`Event::Pose`]s, evaluated here
+//! at each field frame, as protocol 2 delivered them: numbered with the frame's numbers (the
+//! daemon keeps one for each, [`FieldFrame::poses`]), with its times, flagged `playback` (and
+//! `recording` when the frame was). A plant not evaluable yet leaves its number out, a gap for
+//! whoever passes the poses on.
+//! A subscriber that joins a running field evaluates a plant once the stream frames it reads
+//! have arrived: each field frame brings the newest ones and a few older ones, so the whole
+//! history is there within `history_frames / 8` field frames; until then
+//! [`LiveField::plant_pose`] says `None` for plants that read further back.
+
+use frond_motion::clip::Joints;
+use frond_motion::field::{Field, FieldError};
+use frond_motion::field_eval::FieldState;
+use frond_motion::field_wire::{apply_frame, field_from_definition};
+use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable, MAX_WIRE_FIELDS};
+use frond_protocol::{ElementId, HandWire, Pose};
+
+use crate::{Event, ProtocolError, SdkError, Subscriber};
+
+/// One running field as a subscriber keeps it.
+#[derive(Debug, Clone)]
+pub struct LiveField {
+    definition: FieldDefinition,
+    elements_version: u64,
+    state: FieldState,
+    /// The last field frame applied (its host time and stream time).
+    last: Option<FieldFrame>,
+}
+
+impl LiveField {
+    /// A field from its definition (the plants made from its layout; limits checked first).
+    pub fn new(definition: FieldDefinition, elements_version: u64) -> Result<Self, FieldError> {
+        let state = field_from_definition(&definition)?;
+        Ok(LiveField { definition, elements_version, state, last: None })
+    }
+
+    /// Its definition as the daemon sent it.
+    pub fn definition(&self) -> &FieldDefinition {
+        &self.definition
+    }
+
+    /// The field's plants: positions on the ground, rows, start frames, sizes.
+    pub fn layout(&self) -> &Field {
+        self.state.field()
+    }
+
+    /// Number of plants.
+    pub fn plants(&self) -> usize {
+        self.state.field().plants.len()
+    }
+
+    /// The evaluation state (history, controls, delays), for callers that evaluate many plants.
+    pub fn state(&self) -> &FieldState {
+        &self.state
+    }
+
+    /// The last field frame applied, if any.
+    pub fn last_frame(&self) -> Option<&FieldFrame> {
+        self.last.as_ref()
+    }
+
+    /// The stream time of the last field frame, seconds.
+    pub fn tau_s(&self) -> f64 {
+        self.state.tau_s()
+    }
+
+    /// The stream time at host `CLOCK_MONOTONIC` time `host_ns` (see [`crate::clock`]): the last
+    /// frame's, advanced by the motion speed for the time since it was published (for drawing
+    /// between frames).
+    pub fn tau_at(&self, host_ns: u64) -> f64 {
+        let Some(f) = &self.last else { return self.state.tau_s() };
+        let dt_s = (host_ns as f64 - f.host_monotonic_ns as f64) / 1e9;
+        self.state.tau_s() + self.state.controls().time_step * dt_s
+    }
+
+    /// Plant `plant`'s pose at stream time `tau_s` (seed 000, Eq. 6-7 with the rigidity delays,
+    /// scale and bend direction of the controls in force): `[pitch, yaw, roll]` per joint,
+    /// degrees, root first. `None` for an unknown plant or while the stream frames it reads
+    /// have not all arrived.
+    pub fn plant_pose(&self, plant: usize, tau_s: f64) -> Option<Joints> {
+        self.state.plant_at(plant, tau_s)
+    }
+
+    /// Whether every stream frame of the history window has arrived.
+    pub fn history_complete(&self) -> bool {
+        self.state.history().is_complete()
+    }
+
+    /// The element table version this definition came with.
+    pub fn elements_version(&self) -> u64 {
+        self.elements_version
+    }
+}
+
+/// The running fields of a subscription.
+#[derive(Debug, Clone, Default)]
+pub struct LiveFields {
+    fields: Vec<LiveField>,
+}
+
+impl LiveFields {
+    /// The field with this id.
+    pub fn get(&self, id: ElementId) -> Option<&LiveField> {
+        self.fields.iter().find(|f| f.definition.id == id)
+    }
+
+    /// The field a stage plays, by the stage's name.
+    pub fn by_source(&self, source: &str) -> Option<&LiveField> {
+        self.fields.iter().find(|f| f.definition.source == source)
+    }
+
+    /// Every running field.
+    pub fn iter(&self) -> impl Iterator<Item = &LiveField> + '_ {
+        self.fields.iter()
+    }
+
+    /// Whether no field runs.
+    pub fn is_empty(&self) -> bool {
+        self.fields.is_empty()
+    }
+
+    /// Forgets every field (the connection ended).
+    pub fn clear(&mut self) {
+        self.fields.clear();
+    }
+
+    /// Takes a new table: fields whose definition did not change keep their history, new ones
+    /// are made, the others dropped. A definition out of its limits (or whose layout makes
+    /// another plant count) is left out; the ids left out and why are returned. At most
+    /// [`MAX_WIRE_FIELDS`] fields are taken.
+    pub fn on_table(&mut self, table: FieldTable) -> Vec<(ElementId, FieldError)> {
+        let mut refused = Vec::new();
+        let mut next = Vec::with_capacity(table.fields.len().min(MAX_WIRE_FIELDS));
+        for d in table.fields.into_iter().take(MAX_WIRE_FIELDS) {
+            match self.fields.iter().position(|f| f.definition == d) {
+                Some(i) => {
+                    let mut f = self.fields.swap_remove(i);
+                    f.elements_version = table.elements_version;
+                    next.push(f);
+                }
+                None => {
+                    let id = d.id;
+                    match LiveField::new(d, table.elements_version) {
+                        Ok(f) => next.push(f),
+                        Err(e) => refused.push((id, e)),
+                    }
+                }
+            }
+        }
+        self.fields = next;
+        refused
+    }
+
+    /// Applies a field frame to its field; the field, if known and the frame was taken.
+    pub fn on_frame(&mut self, frame: &FieldFrame) -> Option<&LiveField> {
+        let f = self.fields.iter_mut().find(|f| f.definition.id == frame.field)?;
+        if !apply_frame(&mut f.state, frame) {
+            return None;
+        }
+        f.last = Some(*frame);
+        Some(f)
+    }
+}
+
+impl Subscriber {
+    /// The running fields (protocol 3): evaluate any plant with [`LiveField::plant_pose`].
+    pub fn fields(&self) -> &LiveFields {
+        &self.fields
+    }
+
+    /// A field message: a table is taken (no event), a frame is numbered like a pose (a gap
+    /// is reported) and gives the announced plants' poses. `Ok(None)` when there is nothing to
+    /// report.
+    pub(crate) fn on_field(&mut self, msg: FieldMessage) -> Result<Option<Event>, SdkError> {
+        let frame = match msg {
+            FieldMessage::Table(table) => {
+                for (field, error) in self.fields.on_table(table) {
+                    tracing::warn!(
+                        path = %self.path.display(), %field, %error,
+                        "leaving out a field whose definition this SDK cannot evaluate"
+                    );
+                }
+                return Ok(None);
+            }
+            FieldMessage::Frame(frame) => frame,
+        };
+        let expected = self.expected_seq;
+        if frame.seq < expected {
+            return Err(self.fail(ProtocolError::SeqWentBackwards { expected, got: frame.seq }));
+        }
+        self.expected_seq = frame.seq.saturating_add(u64::from(frame.poses).max(1));
+        let gap = frame.seq > expected;
+        if gap {
+            self.stats.gaps += 1;
+            self.stats.missing += frame.seq - expected;
+        }
+        if let Some(field) = self.fields.on_frame(&frame) {
+            let tau = field.tau_s();
+            let announced = field.definition.plant_elements.iter().take(usize::from(frame.poses));
+            for (plant, &element) in announced.enumerate() {
+                let Some(joints_deg) = field.plant_pose(plant, tau) else { continue };
+                self.stats.frames += 1;
+                self.pending.push_back(Event::Pose(Pose {
+                    seq: frame.seq + plant as u64,
+                    device_time_us: frame.device_time_us,
+                    host_monotonic_ns: frame.host_monotonic_ns,
+                    flags: frame.flags,
+                    element,
+                    joints_deg,
+                    hand: HandWire { t: frame.hand_t, ..HandWire::default() },
+                }));
+            }
+        }
+        if gap {
+            return Ok(Some(Event::Gap { expected, got: frame.seq }));
+        }
+        Ok(self.pending.pop_front())
+    }
+}
