@@ -1,4 +1,4 @@
-//! Stage timecode from LTC (issue 46): `frondd --ltc FIFO` reads a master clock's linear
+//! Stage timecode from LTC (issue 46): `frondd --ltc FIFO|alsa:DEVICE` reads a master clock's linear
 //! timecode, locks to it, and a take recorded while it plays carries the stage's timecode in its
 //! exports; an input that is not audio frond reads is refused at start-up.
 //!
@@ -8,8 +8,11 @@
 //! second units 16-19, second tens 24-26, minute units 32-35, minute tens 40-42, hour units
 //! 48-51, hour tens 56-57), the sync word 0011 1111 1111 1101 in bits 64-79, and biphase mark
 //! code: the level flips at the start of every bit and in the middle of every 1. At 48 kHz and
-//! 25 fps a bit is exactly 24 samples. A thread writes it into a FIFO in real time, 10 ms at a
-//! time, each chunk just after it "played" on the test's clock (CLOCK_MONOTONIC, as frond's).
+//! 25 fps a bit is exactly 24 samples; at 29.97 drop-frame 20.02 (the drop-frame flag at bit 10,
+//! the labels skipping as SMPTE 12M says). A thread writes it into a FIFO in real time, 10 ms
+//! at a time, each chunk just after it "played" on the test's clock (CLOCK_MONOTONIC, as
+//! frond's): read by frondd directly (`--ltc FIFO`, 25 fps) or as the capture of an ALSA device
+//! (`--ltc alsa:NAME`, 29.97 drop-frame), whose takes then export drop-frame labels.
 
 use std::io::Write;
 use std::os::unix::ffi::OsStrExt;
@@ -22,79 +25,134 @@ use std::time::{Duration, Instant};
 use frond_e2e::{Daemon, bin, wait_for};
 
 const RATE_HZ: usize = 48_000;
-const FPS: usize = 25;
-const SAMPLES_PER_BIT: usize = RATE_HZ / FPS / 80;
-/// 10:00:00:00 at 25 fps, in frames since midnight.
-const START_FRAME: usize = 10 * 3600 * FPS;
 
-/// The 80 bits of the frame `count` frames after midnight at 25 fps, in transmission order.
-fn frame_bits(count: usize) -> [bool; 80] {
-    let (f, s) = (count % FPS, count / FPS);
-    let (sec, min, hour) = (s % 60, s / 60 % 60, s / 3600 % 24);
-    let mut bits = [false; 80];
-    let mut bcd = |at: usize, width: usize, value: usize| {
-        for i in 0..width {
-            bits[at + i] = (value >> i) & 1 == 1;
-        }
-    };
-    bcd(0, 4, f % 10);
-    bcd(8, 2, f / 10);
-    bcd(16, 4, sec % 10);
-    bcd(24, 3, sec / 10);
-    bcd(32, 4, min % 10);
-    bcd(40, 3, min / 10);
-    bcd(48, 4, hour % 10);
-    bcd(56, 2, hour / 10);
-    for (i, c) in "0011111111111101".chars().enumerate() {
-        bits[64 + i] = c == '1';
-    }
-    // At 25 fps bit 59 makes the number of ones even (the polarity-correction bit).
-    bits[59] = bits.iter().filter(|&&b| b).count() % 2 == 1;
-    bits
+/// An LTC frame rate as the test's encoder makes it.
+#[derive(Debug, Clone, Copy)]
+struct Ltc {
+    /// Labels per second.
+    nominal: usize,
+    /// 29.97 drop-frame (frames of 1001/30000 s; labels :00 and :01 skipped in every minute
+    /// not a multiple of ten).
+    drop_frame: bool,
 }
 
-/// Biphase-mark samples of frame `count`, continuing from `level` (which it updates).
-fn frame_samples(count: usize, level: &mut i16, out: &mut Vec<i16>) {
-    for bit in frame_bits(count) {
-        *level = -*level;
-        for i in 0..SAMPLES_PER_BIT {
-            if bit && i == SAMPLES_PER_BIT / 2 {
-                *level = -*level;
+const PAL: Ltc = Ltc { nominal: 25, drop_frame: false };
+const NTSC_DF: Ltc = Ltc { nominal: 30, drop_frame: true };
+
+impl Ltc {
+    /// Seconds a frame lasts.
+    fn frame_s(self) -> f64 {
+        if self.drop_frame { 1001.0 / 30_000.0 } else { 1.0 / self.nominal as f64 }
+    }
+
+    /// The label (h, m, s, f) of frame `count` since midnight; at drop-frame the labels
+    /// skipped are added back: 17,982 frames per ten minutes, 1,798 in a minute after its
+    /// first (SMPTE 12M).
+    fn label_parts(self, count: usize) -> (usize, usize, usize, usize) {
+        let labels = if self.drop_frame {
+            let (tens, rest) = (count / 17_982, count % 17_982);
+            count + 18 * tens + if rest >= 2 { 2 * ((rest - 2) / 1_798) } else { 0 }
+        } else {
+            count
+        };
+        let s = labels / self.nominal;
+        (s / 3600 % 24, s / 60 % 60, s % 60, labels % self.nominal)
+    }
+
+    /// The label of frame `count`, `;` before a drop-frame label's frames.
+    fn label(self, count: usize) -> String {
+        let (h, m, s, f) = self.label_parts(count);
+        let sep = if self.drop_frame { ';' } else { ':' };
+        format!("{h:02}:{m:02}:{s:02}{sep}{f:02}")
+    }
+
+    /// Frames since midnight of a label `HH:MM:SS:FF` (or `;FF`).
+    fn frames_of(self, tc: &str) -> usize {
+        let p: Vec<usize> = tc.split([':', ';']).map(|x| x.parse().unwrap()).collect();
+        let minutes = p[0] * 60 + p[1];
+        let labels = (minutes * 60 + p[2]) * self.nominal + p[3];
+        if self.drop_frame { labels - 2 * (minutes - minutes / 10) } else { labels }
+    }
+
+    /// 10:00:00:00 (10:00:00;00), in frames since midnight.
+    fn start_frame(self) -> usize {
+        (10.0 * 3600.0 / self.frame_s()).round() as usize
+    }
+
+    /// The 80 bits of frame `count` since midnight, in transmission order.
+    fn frame_bits(self, count: usize) -> [bool; 80] {
+        let (hour, min, sec, f) = self.label_parts(count);
+        let mut bits = [false; 80];
+        let mut bcd = |at: usize, width: usize, value: usize| {
+            for i in 0..width {
+                bits[at + i] = (value >> i) & 1 == 1;
             }
-            out.push(*level);
+        };
+        bcd(0, 4, f % 10);
+        bcd(8, 2, f / 10);
+        bcd(16, 4, sec % 10);
+        bcd(24, 3, sec / 10);
+        bcd(32, 4, min % 10);
+        bcd(40, 3, min / 10);
+        bcd(48, 4, hour % 10);
+        bcd(56, 2, hour / 10);
+        bits[10] = self.drop_frame;
+        for (i, c) in "0011111111111101".chars().enumerate() {
+            bits[64 + i] = c == '1';
         }
+        // The polarity-correction bit makes the number of ones even: bit 59 at 25 fps, bit 27
+        // at 24 and 30 (29.97).
+        let parity = if self.nominal == 25 { 59 } else { 27 };
+        bits[parity] = bits.iter().filter(|&&b| b).count() % 2 == 1;
+        bits
     }
 }
 
-/// The label of frame `count` since midnight at 25 fps.
-fn label(count: usize) -> String {
-    let s = count / FPS;
-    format!("{:02}:{:02}:{:02}:{:02}", s / 3600 % 24, s / 60 % 60, s % 60, count % FPS)
+/// Biphase-mark samples, bit after bit: a bit of a frame of `frame_s` seconds lasts
+/// `RATE_HZ * frame_s / 80` samples (20.02 at 29.97), so bit `n` of the stream starts at
+/// sample `floor(n * that)`.
+struct Encoder {
+    ltc: Ltc,
+    level: i16,
+    bit_no: u64,
 }
 
-/// Frames since midnight of a label `HH:MM:SS:FF` at 25 fps.
-fn frames_of(tc: &str) -> usize {
-    let p: Vec<usize> = tc.split([':', ';']).map(|x| x.parse().unwrap()).collect();
-    ((p[0] * 60 + p[1]) * 60 + p[2]) * FPS + p[3]
+impl Encoder {
+    fn frame(&mut self, count: usize, out: &mut Vec<i16>) {
+        let per_bit = RATE_HZ as f64 * self.ltc.frame_s() / 80.0;
+        for bit in self.ltc.frame_bits(count) {
+            let start = (self.bit_no as f64 * per_bit) as u64;
+            let len = ((self.bit_no + 1) as f64 * per_bit) as u64 - start;
+            self.bit_no += 1;
+            self.level = -self.level;
+            for i in 0..len {
+                if bit && i == len / 2 {
+                    self.level = -self.level;
+                }
+                out.push(self.level);
+            }
+        }
+    }
 }
 
 /// Writes LTC from 10:00:00:00 into `fifo` in real time until `stop`; returns when the first
 /// sample played (sample `s` plays at that instant plus `s` / 48000 s).
-fn play(fifo: &Path, stop: Arc<AtomicBool>) -> (std::thread::JoinHandle<()>, Instant) {
+fn play(ltc: Ltc, fifo: &Path, stop: Arc<AtomicBool>) -> (std::thread::JoinHandle<()>, Instant) {
     let (tx, rx) = std::sync::mpsc::channel();
     let fifo = fifo.to_path_buf();
     let handle = std::thread::spawn(move || {
         let mut out = std::fs::OpenOptions::new().write(true).open(&fifo).expect("open the FIFO to write");
         let t0 = Instant::now();
         tx.send(t0).unwrap();
-        let (mut level, mut frame, mut pending) = (12_000i16, START_FRAME, Vec::new());
+        let mut encoder = Encoder { ltc, level: 12_000, bit_no: 0 };
+        let (mut frame, mut pending) = (ltc.start_frame(), Vec::new());
         let chunk = RATE_HZ / 100;
         for c in 0.. {
             if stop.load(Ordering::Relaxed) {
                 return;
             }
             while pending.len() < chunk {
-                frame_samples(frame, &mut level, &mut pending);
+                encoder.frame(frame, &mut pending);
                 frame += 1;
             }
             // Samples [c * chunk, (c + 1) * chunk) have played once this instant has passed.
@@ -139,53 +197,110 @@ fn a_take_recorded_while_ltc_plays_carries_the_stage_timecode() {
     assert_eq!(first["state"], "searching", "{first}");
     assert_eq!(first["input"], fifo.to_str().unwrap());
     let stop = Arc::new(AtomicBool::new(false));
-    let (writer, t0) = play(&fifo, stop.clone());
+    let (writer, t0) = play(PAL, &fifo, stop.clone());
+    locks_and_stamps_a_take(&daemon, PAL, t0);
+    writer_leaves(&daemon, stop, writer);
+}
+
+/// LTC read from an ALSA capture device: a PCM of ALSA's `file` plugin, defined in the
+/// `.asoundrc` of the daemon's `HOME` as an operator defines their devices, whose captured
+/// samples come from a FIFO the test plays into in real time (the plugin reads it as the
+/// device's input; no sound card here). libasound is the real one.
+#[test]
+fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage_timecode() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("ltc.fifo");
+    mkfifo(&fifo);
+    let asoundrc = format!(
+        "pcm.frondltc {{\n    type file\n    slave.pcm \"null\"\n    file \"/dev/null\"\n    infile \"{}\"\n    format \"raw\"\n}}\n",
+        fifo.display()
+    );
+    std::fs::write(dir.path().join(".asoundrc"), asoundrc).unwrap();
+    // The plugin opens the FIFO when the daemon opens the device at start-up: the writer
+    // waits for it there.
+    let stop = Arc::new(AtomicBool::new(false));
+    let player = {
+        let (fifo, stop) = (fifo.clone(), stop.clone());
+        std::thread::spawn(move || play(NTSC_DF, &fifo, stop))
+    };
+    let mut frondd = Command::new(bin("frondd"));
+    frondd.env("HOME", dir.path());
+    let daemon = Daemon::start_command(
+        frondd,
+        dir.path(),
+        &["--source", "in-process", "--ltc", "alsa:frondltc"],
+        Stdio::inherit(),
+    );
+    let (writer, t0) = player.join().unwrap();
+    assert_eq!(ltc_json(&daemon)["input"], "alsa:frondltc");
+    locks_and_stamps_a_take(&daemon, NTSC_DF, t0);
+    writer_leaves(&daemon, stop, writer);
+}
+
+/// Waits for the lock at `ltc`'s rate, records a second and checks the take's timecode, exported
+/// at the stage's rate, is what played (from `t0`, when the first sample played), frame for
+/// frame in the stage's labels.
+fn locks_and_stamps_a_take(daemon: &Daemon, ltc: Ltc, t0: Instant) {
+    let (fps_word, export_fps) = if ltc.drop_frame { ("29.97df", "29.97") } else { ("25", "25") };
     let mut last = serde_json::Value::Null;
     let locked = wait_for(Duration::from_secs(5), || {
-        last = ltc_json(&daemon);
+        last = ltc_json(daemon);
         last["state"] == "locked"
     });
     assert!(locked, "no lock: {last}");
-    assert_eq!(last["fps"], "25", "{last}");
+    assert_eq!(last["fps"], fps_word, "{last}");
     let text = daemon.frond_ok(&["status"]);
-    assert!(text.contains("ltc          locked at 25 fps from "), "{text}");
-    assert!(!doctor(&daemon).contains("stage timecode"), "a locked input is no problem");
+    assert!(text.contains(&format!("ltc          locked at {fps_word} fps from ")), "{text}");
+    assert!(!doctor(daemon).contains("stage timecode"), "a locked input is no problem");
 
     // What the test's clock says was playing just before and just after the take started.
-    let playing = |at: Instant| START_FRAME + (at.duration_since(t0).as_secs_f64() * FPS as f64) as usize;
+    let playing =
+        |at: Instant| ltc.start_frame() + (at.duration_since(t0).as_secs_f64() / ltc.frame_s()) as usize;
     let before = Instant::now();
     daemon.frond_ok(&["record", "start", "staged"]);
     let after = Instant::now();
     std::thread::sleep(Duration::from_millis(1000));
     daemon.frond_ok(&["record", "stop"]);
-    let lines = daemon.frond_ok(&["take", "export", "staged", "--fps", "25", "--timecode"]);
+    let lines = daemon.frond_ok(&["take", "export", "staged", "--fps", export_fps, "--timecode"]);
     let tcs: Vec<String> = lines
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["tc"].as_str().unwrap().to_string())
         .collect();
-    let got = frames_of(&tcs[0]);
+    let got = ltc.frames_of(&tcs[0]);
     let (lo, hi) = (playing(before), playing(after));
     assert!(
         got + 1 >= lo && got <= hi + 1,
         "the take starts at {} ({got}); the LTC playing then was {} to {} ({lo}..={hi})",
         tcs[0],
-        label(lo),
-        label(hi)
+        ltc.label(lo),
+        ltc.label(hi)
+    );
+    assert!(
+        tcs.iter().all(|tc| *tc == ltc.label(ltc.frames_of(tc))),
+        "labels as the stage writes them: {tcs:?}"
     );
     assert!(tcs[0].starts_with("10:00:0"), "{tcs:?}");
-    assert!(tcs.windows(2).all(|w| frames_of(&w[1]) == frames_of(&w[0]) + 1), "{tcs:?}");
-    assert!((20..=50).contains(&tcs.len()), "about a second at 25 fps: {}", tcs.len());
+    assert!(tcs.windows(2).all(|w| ltc.frames_of(&w[1]) == ltc.frames_of(&w[0]) + 1), "{tcs:?}");
+    let per_s = 1.0 / ltc.frame_s();
+    assert!(
+        (0.8 * per_s..=2.0 * per_s).contains(&(tcs.len() as f64)),
+        "about a second of frames: {}",
+        tcs.len()
+    );
+}
 
-    // The writer goes away: the lock is lost (and says so), and doctor warns.
+/// The writer goes away: the lock is lost (and says so), and doctor warns.
+fn writer_leaves(daemon: &Daemon, stop: Arc<AtomicBool>, writer: std::thread::JoinHandle<()>) {
+    let mut last = serde_json::Value::Null;
     stop.store(true, Ordering::Relaxed);
     writer.join().unwrap();
     let lost = wait_for(Duration::from_secs(5), || {
-        last = ltc_json(&daemon);
+        last = ltc_json(daemon);
         last["state"] == "lost"
     });
     assert!(lost, "the lock outlived its signal: {last}");
     assert!(last["losses"].as_u64().unwrap() >= 1 && last["frames"].as_u64().unwrap() > 25, "{last}");
-    let said = doctor(&daemon);
+    let said = doctor(daemon);
     assert!(said.contains("is not locked: it lost the signal"), "{said}");
 }
 
@@ -244,6 +359,10 @@ fn inputs_that_are_not_ltc_audio_are_refused_naming_the_path() {
     assert!(err.contains("2 channel(s) of 16 bits; LTC is read from mono 16-bit PCM"), "{err}");
     let err = refused(dir.path(), &["--ltc", dir.path().join("absent.raw").to_str().unwrap()]);
     assert!(err.contains("absent.raw: No such file or directory"), "{err}");
+    let err = refused(dir.path(), &["--ltc", "alsa:frond_no_such_pcm"]);
+    assert!(err.contains("ltc input: cannot open ALSA capture device \"frond_no_such_pcm\": "), "{err}");
+    let err = refused(dir.path(), &["--ltc", "alsa:hw 0"]);
+    assert!(err.contains("ltc.input: the ALSA device name has \" \" in it"), "{err}");
     let config = dir.path().join("frondd.toml");
     std::fs::write(&config, "[ltc]\ninput = \"/dev/null\"\nfps = \"31\"\nsample_rate_hz = 1\n").unwrap();
     let err = refused(dir.path(), &["--config", config.to_str().unwrap()]);

@@ -149,7 +149,8 @@ impl Daemon {
         Self::start_command(host.command(bin("frondd")), root, args, Stdio::inherit())
     }
 
-    fn start_command(mut cmd: Command, root: &Path, args: &[&str], stderr: Stdio) -> Daemon {
+    /// [`Daemon::start`] with `cmd` as the `frondd` command (its environment set, say).
+    pub fn start_command(mut cmd: Command, root: &Path, args: &[&str], stderr: Stdio) -> Daemon {
         let socket_dir = root.join("run");
         let takes_dir = root.join("takes");
         let child = cmd

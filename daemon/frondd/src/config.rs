@@ -348,8 +348,9 @@ pub struct Config {
 /// `frond_ltc`).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LtcConfig {
-    /// `ltc.input`: a file or FIFO of raw mono s16le samples, or a WAV file; `None`: no LTC.
-    pub input: Option<PathBuf>,
+    /// `ltc.input`: a file or FIFO of raw mono s16le samples, a WAV file, or an ALSA capture
+    /// device (`alsa:DEVICE`); `None`: no LTC.
+    pub input: Option<crate::ltc_input::LtcSource>,
     /// `ltc.sample_rate_hz`: the raw samples' rate (a WAV file's header says its own).
     pub sample_rate_hz: u32,
     /// `ltc.fps`: the rate expected; LTC at another is not used. `None`: any rate.
@@ -374,12 +375,12 @@ impl LtcConfig {
             }
             rate
         });
-        let input = raw.input.as_deref().and_then(|text| {
-            if text.trim().is_empty() {
-                errors.push("ltc.input: must name a file or FIFO".into());
-                return None;
+        let input = raw.input.as_deref().and_then(|text| match crate::ltc_input::LtcSource::parse(text) {
+            Ok(source) => Some(source),
+            Err(why) => {
+                errors.push(format!("ltc.input: {why}"));
+                None
             }
-            Some(PathBuf::from(text))
         });
         if raw.input.is_none() && raw.fps.is_some() {
             errors.push("ltc.fps: needs ltc.input (frond reads no LTC without it)".into());
@@ -718,6 +719,7 @@ impl Config {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ltc_input::LtcSource;
 
     #[test]
     fn embedded_default_is_valid() {
@@ -926,7 +928,7 @@ mod tests {
         )
         .unwrap();
         let l = Config::validate(raw).unwrap().ltc;
-        assert_eq!(l.input.as_deref(), Some(Path::new("/run/frond/ltc.fifo")));
+        assert_eq!(l.input, Some(LtcSource::Path("/run/frond/ltc.fifo".into())));
         assert_eq!((l.sample_rate_hz, l.fps), (44_100, Some(frond_ltc::FrameRate::Fps2997Df)));
         let raw =
             RawConfig::parse("[ltc]\ninput = \" \"\nsample_rate_hz = 4000\nfps = \"29.97\"\n", "t").unwrap();
@@ -935,7 +937,7 @@ mod tests {
             [
                 "ltc.sample_rate_hz: 4000 is out of range 8000..=192000",
                 "ltc.fps: \"29.97\" is not one of 24, 25, 29.97df, 30",
-                "ltc.input: must name a file or FIFO",
+                "ltc.input: must name a file, a FIFO or alsa:DEVICE",
             ]
         );
         let raw = RawConfig::parse("[ltc]\nfps = \"25\"\n", "t").unwrap();
@@ -945,7 +947,15 @@ mod tests {
         );
         let flags = Overrides { ltc: Some("/tmp/ltc.raw".into()), ..Default::default() };
         let l = Config::load(None, RawConfig::from_overrides(flags)).unwrap().ltc;
-        assert_eq!(l.input.as_deref(), Some(Path::new("/tmp/ltc.raw")));
+        assert_eq!(l.input, Some(LtcSource::Path("/tmp/ltc.raw".into())));
+        let flags = Overrides { ltc: Some("alsa:plughw:CARD=USB,DEV=0".into()), ..Default::default() };
+        let l = Config::load(None, RawConfig::from_overrides(flags)).unwrap().ltc;
+        assert_eq!(l.input, Some(LtcSource::Alsa("plughw:CARD=USB,DEV=0".into())));
+        let raw = RawConfig::parse("[ltc]\ninput = \"alsa:\"\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            ["ltc.input: alsa: needs a device name, e.g. alsa:default or alsa:plughw:1,0"]
+        );
     }
 
     #[test]

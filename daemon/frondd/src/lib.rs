@@ -24,6 +24,7 @@ pub mod error;
 pub mod handoff;
 pub mod lanes;
 pub mod log_limit;
+pub mod ltc_alsa;
 pub mod ltc_input;
 pub mod ltc_link;
 pub mod ltc_thread;

@@ -5,7 +5,8 @@
 //! A FIFO is opened non-blocking (opening never waits for a writer, so the daemon starts and
 //! stops whether or not the capture runs) and reopened when its writer goes away, so a
 //! restarted `arecord` is read again. A regular file is a recording played as the stage's
-//! clock: the thread paces its reads in real time. ALSA capture is not read here.
+//! clock: the thread paces its reads in real time. An ALSA capture device (`alsa:DEVICE`) is
+//! read by `ltc_alsa`; [`LtcSource`] says which.
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
@@ -18,6 +19,41 @@ use frond_ltc::{MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ};
 
 /// Most bytes of WAV chunks read before the `data` chunk (a header is a few dozen).
 const MAX_WAV_HEADER_BYTES: u64 = 64 * 1024;
+
+/// Where the configuration says LTC comes from (`ltc.input`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LtcSource {
+    /// A file or FIFO of raw s16le mono samples, or a WAV file.
+    Path(PathBuf),
+    /// An ALSA capture device (`alsa:DEVICE`).
+    Alsa(String),
+}
+
+impl LtcSource {
+    /// Reads `ltc.input`: `alsa:DEVICE` names an ALSA capture device (a file whose name starts
+    /// so is given as `./alsa:...`), anything else a path.
+    pub fn parse(text: &str) -> Result<LtcSource, String> {
+        if text.trim().is_empty() {
+            return Err("must name a file, a FIFO or alsa:DEVICE".into());
+        }
+        match text.strip_prefix("alsa:") {
+            Some(device) => {
+                crate::ltc_alsa::check_device_name(device).map_err(|e| e.to_string())?;
+                Ok(LtcSource::Alsa(device.to_string()))
+            }
+            None => Ok(LtcSource::Path(PathBuf::from(text))),
+        }
+    }
+}
+
+impl std::fmt::Display for LtcSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LtcSource::Path(path) => write!(f, "{}", path.display()),
+            LtcSource::Alsa(device) => write!(f, "alsa:{device}"),
+        }
+    }
+}
 
 /// Why an LTC input was refused.
 #[derive(Debug, thiserror::Error)]
@@ -39,6 +75,9 @@ pub enum LtcInputError {
         /// What is wrong with it.
         why: String,
     },
+    /// An ALSA capture device could not be opened as asked.
+    #[error("ltc input: {0}")]
+    Alsa(#[from] crate::ltc_alsa::AlsaError),
 }
 
 /// What kind of input it is.

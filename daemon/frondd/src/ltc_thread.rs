@@ -2,10 +2,11 @@
 //! realtime thread.
 //!
 //! It owns the input (`ltc_input`: a FIFO a capture streams into, or a file played as the
-//! stage's clock), reads it in chunks of [`CHUNK_MS`] (a FIFO as the samples come, waiting at
-//! most [`LTC_POLL`]; a file paced in real time), feeds [`LtcDecoder`], and maps each frame's
-//! end to CLOCK_MONOTONIC: the time its chunk was read, less the samples after the frame's end
-//! (read, or still waiting in the FIFO) at the sample rate. The stage clock and the state
+//! stage's clock; `ltc_alsa`: an ALSA capture device), reads it in chunks of [`CHUNK_MS`] (a
+//! FIFO or a device as the samples come, waiting at most [`LTC_POLL`]; a file paced in real
+//! time), feeds [`LtcDecoder`], and maps each frame's end to CLOCK_MONOTONIC: the time its
+//! chunk was read, less the samples after the frame's end (read, or still waiting in the FIFO
+//! or the device's buffer) at the sample rate. The stage clock and the state
 //! (searching, locked, lost, ended) go to [`LtcLink`], which status and a take's start read.
 //! It never touches the realtime loop, logs loss and jumps at most 10 times in 10 s, and ends
 //! within [`LTC_POLL`] of `stop`.
@@ -22,7 +23,8 @@ use crate::clock::monotonic_ns;
 use crate::config::LtcConfig;
 use crate::error::DaemonError;
 use crate::log_limit::LogLimit;
-use crate::ltc_input::{InputKind, LtcInput, Read16};
+use crate::ltc_alsa::AlsaCapture;
+use crate::ltc_input::{InputKind, LtcInput, LtcInputError, LtcSource, Read16};
 use crate::ltc_link::{LtcLink, LtcState, MAX_EXTRAPOLATION_NS};
 
 /// Longest wait for input: how soon the thread sees `stop`.
@@ -35,8 +37,65 @@ pub const CHUNK_MS: u32 = 10;
 pub struct BoundLtc {
     /// Shared with the control context.
     pub link: Arc<LtcLink>,
-    input: LtcInput,
+    input: Input,
     expected: Option<FrameRate>,
+    /// The input as configured, for logs.
+    name: String,
+}
+
+/// An open input of either kind.
+enum Input {
+    /// A file or FIFO.
+    Fd(LtcInput),
+    /// An ALSA capture device, read at `rate_hz`.
+    Alsa { capture: AlsaCapture, rate_hz: u32 },
+}
+
+impl Input {
+    fn open(source: &LtcSource, sample_rate_hz: u32) -> Result<Input, LtcInputError> {
+        Ok(match source {
+            LtcSource::Path(path) => Input::Fd(LtcInput::open(path, sample_rate_hz)?),
+            LtcSource::Alsa(device) => {
+                Input::Alsa { capture: AlsaCapture::open(device, sample_rate_hz)?, rate_hz: sample_rate_hz }
+            }
+        })
+    }
+
+    /// What it is, for the log.
+    fn kind(&self) -> &'static str {
+        match self {
+            Input::Fd(input) if input.kind() == InputKind::Fifo => "FIFO",
+            Input::Fd(_) => "file",
+            Input::Alsa { .. } => "ALSA capture device",
+        }
+    }
+
+    fn sample_rate_hz(&self) -> u32 {
+        match self {
+            Input::Fd(input) => input.sample_rate_hz(),
+            Input::Alsa { rate_hz, .. } => *rate_hz,
+        }
+    }
+
+    /// Reads into `out` (a device's read waits for its samples; a closed device sleeps up
+    /// to [`LTC_POLL`] before it is tried again).
+    fn read(&mut self, out: &mut [i16]) -> Result<Read16, String> {
+        match self {
+            Input::Fd(input) => input.read(out).map_err(|e| e.to_string()),
+            Input::Alsa { capture, .. } => match capture.read(out, LTC_POLL) {
+                Ok(0) => Ok(Read16::Nothing),
+                Ok(n) => Ok(Read16::Samples(n)),
+                Err(e) => Err(e.to_string()),
+            },
+        }
+    }
+
+    fn queued_samples(&self) -> u64 {
+        match self {
+            Input::Fd(input) => input.queued_samples(),
+            Input::Alsa { capture, .. } => capture.queued_samples(),
+        }
+    }
 }
 
 /// A running LTC thread.
@@ -57,17 +116,17 @@ impl LtcThread {
 
 /// Opens what `config` names: `None` without `ltc.input`.
 pub fn open_ltc(config: &LtcConfig) -> Result<Option<BoundLtc>, DaemonError> {
-    let Some(path) = &config.input else { return Ok(None) };
-    let input = LtcInput::open(path, config.sample_rate_hz)?;
-    let link = Arc::new(LtcLink::new(&path.display().to_string(), input.sample_rate_hz()));
+    let Some(source) = &config.input else { return Ok(None) };
+    let input = Input::open(source, config.sample_rate_hz)?;
+    let link = Arc::new(LtcLink::new(&source.to_string(), input.sample_rate_hz()));
     info!(
-        input = %path.display(),
-        kind = ?input.kind(),
+        input = %source,
+        kind = input.kind(),
         sample_rate_hz = input.sample_rate_hz(),
         expected_fps = ?config.fps.map(|r| r.to_string()),
         "reading the stage's timecode (LTC)"
     );
-    Ok(Some(BoundLtc { link, input, expected: config.fps }))
+    Ok(Some(BoundLtc { link, input, expected: config.fps, name: source.to_string() }))
 }
 
 impl BoundLtc {
@@ -75,14 +134,13 @@ impl BoundLtc {
     pub fn start(self) -> Result<LtcThread, DaemonError> {
         let stop = Arc::new(AtomicBool::new(false));
         let rate = self.input.sample_rate_hz();
+        let name = self.name;
         let decoder = LtcDecoder::new(rate).map_err(|e| {
-            DaemonError::Ltc(crate::ltc_input::LtcInputError::Format {
-                path: self.input.path().to_path_buf(),
-                why: e.to_string(),
-            })
+            DaemonError::Ltc(LtcInputError::Format { path: name.clone().into(), why: e.to_string() })
         })?;
         let chunk = (rate * CHUNK_MS / 1000) as usize;
         let mut reader = LtcReader {
+            name,
             input: self.input,
             decoder,
             link: self.link,
@@ -110,7 +168,9 @@ impl BoundLtc {
 
 /// The reader and its bookkeeping.
 struct LtcReader {
-    input: LtcInput,
+    /// The input as configured, for logs.
+    name: String,
+    input: Input,
     decoder: LtcDecoder,
     link: Arc<LtcLink>,
     expected: Option<FrameRate>,
@@ -140,18 +200,22 @@ impl LtcReader {
             thread::sleep(LTC_POLL);
             return;
         }
-        match self.input.kind() {
-            InputKind::Fifo => self.input.wait(LTC_POLL),
-            InputKind::File => {
+        match &self.input {
+            Input::Fd(input) if input.kind() == InputKind::Fifo => input.wait(LTC_POLL),
+            Input::Fd(_) => {
                 if !self.file_due() {
                     return;
                 }
             }
+            // The read waits for the device.
+            Input::Alsa { .. } => {}
         }
         match self.input.read(&mut self.buf) {
             Ok(Read16::Samples(n)) => {
                 let now = monotonic_ns();
-                if self.input.kind() == InputKind::File && self.file_start_ns.is_none() {
+                if matches!(&self.input, Input::Fd(i) if i.kind() == InputKind::File)
+                    && self.file_start_ns.is_none()
+                {
                     // The first chunk's last sample plays now: sample `s` at start + s / rate.
                     let rate = u64::from(self.input.sample_rate_hz());
                     self.file_start_ns = Some(now.saturating_sub(n as u64 * 1_000_000_000 / rate));
@@ -162,13 +226,9 @@ impl LtcReader {
             }
             Ok(Read16::Nothing) => {}
             Ok(Read16::End) => self.end(),
-            Err(e) => {
+            Err(text) => {
                 static ERRORS: LogLimit = LogLimit::new();
-                let text = e.to_string();
-                ERRORS.log(
-                    "LTC log lines",
-                    || warn!(input = %self.input.path().display(), error = %text, "reading LTC"),
-                );
+                ERRORS.log("LTC log lines", || warn!(input = %self.name, error = %text, "reading LTC"));
                 self.link.update(|s| s.last_error = Some(text));
                 thread::sleep(LTC_POLL);
             }
@@ -192,7 +252,7 @@ impl LtcReader {
 
     /// A file's end: said once, and the clock is no longer used.
     fn end(&mut self) {
-        info!(input = %self.input.path().display(), "LTC input ended (end of file)");
+        info!(input = %self.name, "LTC input ended (end of file)");
         self.ended = true;
         self.locked = None;
         self.link.set_state(LtcState::Ended);
@@ -271,10 +331,7 @@ impl LtcReader {
             return;
         }
         static STALLED: LogLimit = LogLimit::new();
-        STALLED.log(
-            "LTC log lines",
-            || warn!(input = %self.input.path().display(), "LTC input stopped: lock lost"),
-        );
+        STALLED.log("LTC log lines", || warn!(input = %self.name, "LTC input stopped: lock lost"));
         self.stalls += 1;
         self.lose();
         if let Ok(fresh) = LtcDecoder::new(self.input.sample_rate_hz()) {

@@ -71,10 +71,10 @@ struct Args {
     /// e.g. 255.255.255.255:30; `triggers.lead`.
     #[arg(long, value_name = "IP:PORT")]
     trigger_lead: Option<String>,
-    /// Read the stage's timecode (LTC) from this file or FIFO of raw mono s16le samples (at
-    /// `ltc.sample_rate_hz`, default 48000), or WAV file; `ltc.input`. E.g. a FIFO fed by
-    /// `arecord -f S16_LE -c1 -r48000 -t raw`.
-    #[arg(long, value_name = "PATH")]
+    /// Read the stage's timecode (LTC) from an ALSA capture device (alsa:DEVICE, e.g.
+    /// alsa:plughw:CARD=USB,DEV=0), or a file or FIFO of raw mono s16le samples, or a WAV
+    /// file; at `ltc.sample_rate_hz` (default 48000) unless a WAV header says; `ltc.input`.
+    #[arg(long, value_name = "alsa:DEVICE|PATH")]
     ltc: Option<String>,
     /// Log level or filter (error, warn, info, debug, trace, or a tracing filter).
     #[arg(long, env = "FROND_LOG", default_value = "info")]
