@@ -200,11 +200,23 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
     assert_eq!(sub.stats().reconnects, 0);
     assert_eq!(sub.elements().rigs[0].name, "shrub");
     assert_eq!(sub.elements().joint_names(ElementId::GLOBAL).unwrap()[0], "base");
+    // What a reload cannot change live is said: here a [triggers] table added, beside the rig.
+    std::fs::write(&config, "rig = \"grass\"\n[triggers]\nlisten = \"127.0.0.1:39031\"\n").unwrap();
+    signal(&daemon, libc::SIGHUP);
+    assert!(wait_for(Duration::from_secs(5), || daemon.status().rig_name == "grass"));
+    let said = |what: &str| std::fs::read_to_string(&log).unwrap().contains(what);
+    assert!(
+        wait_for(Duration::from_secs(5), || said("take effect only after a restart")),
+        "{}",
+        std::fs::read_to_string(&log).unwrap()
+    );
+    assert!(said("triggers (listen, allow, lead, honour_delay)") && !said("ltc (input"));
+    assert!(daemon.status().triggers.is_none(), "the running daemon does not listen until restarted");
     // A broken config is refused and the running one kept.
     std::fs::write(&config, "rig = \"no-such-rig\"\n").unwrap();
     signal(&daemon, libc::SIGHUP);
     std::thread::sleep(Duration::from_millis(500));
-    assert_eq!(daemon.status().rig_name, "shrub");
+    assert_eq!(daemon.status().rig_name, "grass");
 }
 
 #[test]

@@ -599,6 +599,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
         (config.hands != running.hands, "source / hands (sources, their rigs, calibrations and elements)"),
         (config.queue_frames != running.queue_frames, "publisher.queue_frames"),
         (config.ltc != running.ltc, "ltc (input, sample_rate_hz, fps)"),
+        (config.triggers != running.triggers, "triggers (listen, allow, lead, honour_delay)"),
     ]
     .into_iter()
     .filter_map(|(changed, key)| changed.then_some(key))
