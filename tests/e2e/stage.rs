@@ -174,7 +174,12 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
     let dir = tempfile::tempdir().unwrap();
     let config = dir.path().join("frondd.toml");
     std::fs::write(&config, "rig = \"grass\"\n").unwrap();
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--config", config.to_str().unwrap()]);
+    let log = dir.path().join("frondd.log");
+    let daemon = Daemon::start_with_stderr(
+        dir.path(),
+        &["--source", "in-process", "--config", config.to_str().unwrap()],
+        std::fs::File::create(&log).unwrap().into(),
+    );
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
     assert_eq!(daemon.status().rig_name, "grass");
     std::fs::write(&config, "rig = \"shrub\"\n").unwrap();
