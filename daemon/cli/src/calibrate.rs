@@ -101,7 +101,7 @@ pub(crate) fn run(g: &Global, a: &CalibrateArgs) -> anyhow::Result<()> {
     }
     let cal = measured.calibration;
     let text = format!(
-        "# frond calibration for {:?}, written by `frond calibrate` (seed 000, section 5.4)\n{}",
+        "# frond calibration for {:?}, written by `frond calibrate` (section 5.4 of \"Interactive authoring of bending and twisting motions of short plants using hand gestures\")\n{}",
         a.user,
         cal.to_toml_string()
     );

@@ -165,9 +165,10 @@ fn count(ranges: &[[u32; 2]]) -> u64 {
 /// What `frond take walk` was asked.
 #[derive(Debug, clap::Args)]
 pub struct Walk {
-    /// Take names, each with its graph (seed 003, section 6.1 instancing: plant `p` walks take
-    /// `p mod count`'s graph, so several takes, or one take's graphs for several control points
-    /// built into files of their own, make one grove).
+    /// Take names, each with its graph (instancing as in "Physically-based Driven Tree
+    /// Animations", section 6.1: plant `p` walks take `p mod count`'s graph, so several takes,
+    /// or one take's graphs for several control points built into files of their own, make one
+    /// grove).
     #[arg(required = true, num_args = 1..)]
     pub names: Vec<String>,
     /// Graph file (from frond take graph), one per take in the same order

@@ -95,7 +95,7 @@ struct Session {
     /// The latest raw sample and whether it was fresh.
     live: Option<(Raw, bool)>,
     /// The calibration's TOML text and warnings, or why it failed.
-    result: Option<Result<(String, Vec<String>), CalibrationFailed>>,
+    result: Option<Result<(String, Vec<String>), frond_motion::calibrate::CalibrateError>>,
     /// Why polling the daemon failed, if it did.
     error: Option<String>,
     /// The session's poller: it stops when this is set or another session has replaced it.
@@ -282,19 +282,13 @@ impl Calibrations {
     }
 }
 
-/// Why the recorded steps gave no calibration: `frond_motion::calibrate::compute`'s words.
-#[derive(Debug, Clone, thiserror::Error)]
-#[error("{0}")]
-struct CalibrationFailed(String);
-
 /// The calibration of a session whose every step is recorded: its TOML (as `frond calibrate`
 /// writes it) and warnings.
-fn finish(s: &Session) -> Result<(String, Vec<String>), CalibrationFailed> {
+fn finish(s: &Session) -> Result<(String, Vec<String>), frond_motion::calibrate::CalibrateError> {
     let r = &s.recorded;
-    let m = compute(&s.user, &r[0], [&r[1], &r[2], &r[3]], &r[4])
-        .map_err(|e| CalibrationFailed(e.to_string()))?;
+    let m = compute(&s.user, &r[0], [&r[1], &r[2], &r[3]], &r[4])?;
     let text = format!(
-        "# frond calibration for {:?}, measured by frond-console's guided calibration (seed 000, section 5.4)\n{}",
+        "# frond calibration for {:?}, measured by frond-console's guided calibration (section 5.4 of \"Interactive authoring of bending and twisting motions of short plants using hand gestures\")\n{}",
         s.user,
         m.calibration.to_toml_string()
     );
