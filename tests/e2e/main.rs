@@ -13,6 +13,7 @@ mod hostile_takes;
 mod leap;
 mod live_modes;
 mod ltc;
+mod meadow;
 mod no_color;
 mod osc_input;
 mod plausible;

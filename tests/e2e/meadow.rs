@@ -1,0 +1,121 @@
+//! A live field of ten thousand plants (protocol 3; seed 000, section 6.2-6.3) through the real
+//! daemon and `frond`: what the daemon publishes per field frame does not grow with the field,
+//! the SDK evaluates every plant, the announced plants still arrive as poses, and a key
+//! changes the controls the frames carry.
+
+use std::io::Read;
+use std::os::unix::net::UnixStream;
+use std::time::{Duration, Instant};
+
+use frond_e2e::Daemon;
+use frond_motion::field::{FieldParams, make_field};
+use frond_protocol::field::FieldMessage;
+use frond_protocol::{ElementKind, ServerMessage, decode_frame};
+use frond_sdk::{Event, Subscriber};
+
+/// A field.json of `rows x cols` plants over take `take` without its plants (readers make them
+/// from the parameters, so it fits in a control request whatever its size).
+fn compact_field(daemon: &Daemon, take: &str, rows: usize, cols: usize) -> std::path::PathBuf {
+    let p =
+        FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 3 };
+    let field = make_field(&p, take, 60, 30.0).unwrap();
+    let mut json: serde_json::Value = serde_json::to_value(&field).unwrap();
+    json.as_object_mut().unwrap().remove("plants");
+    let path = daemon.takes_dir.with_file_name(format!("field-{rows}x{cols}.json"));
+    std::fs::write(&path, json.to_string()).unwrap();
+    path
+}
+
+/// The largest field frame (encoded bytes) and how many arrived in `window` on a raw socket.
+fn field_frames(daemon: &Daemon, window: Duration) -> (usize, usize) {
+    let mut s = UnixStream::connect(daemon.socket_dir.join("poses.sock")).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    let (mut buf, mut chunk) = (Vec::new(), [0u8; 65536]);
+    let (mut largest, mut count) = (0, 0);
+    let start = Instant::now();
+    while start.elapsed() < window {
+        if let Ok(n) = s.read(&mut chunk) {
+            buf.extend_from_slice(&chunk[..n]);
+        }
+        while let Ok(Some((msg, used))) = decode_frame::<ServerMessage>(&buf) {
+            if let ServerMessage::Field(FieldMessage::Frame(_)) = msg {
+                largest = largest.max(used);
+                count += 1;
+            }
+            buf.drain(..used);
+        }
+    }
+    (largest, count)
+}
+
+#[test]
+fn ten_thousand_plants_live_cost_what_twelve_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    daemon.frond_ok(&["record", "start", "sway"]);
+    std::thread::sleep(Duration::from_secs(2));
+    daemon.frond_ok(&["record", "stop"]);
+
+    let small = compact_field(&daemon, "sway", 3, 4);
+    daemon.frond_ok(&[
+        "field",
+        "start",
+        "--take",
+        "sway",
+        "--field",
+        small.to_str().unwrap(),
+        "--plants",
+        "4",
+    ]);
+    let (small_bytes, small_count) = field_frames(&daemon, Duration::from_millis(800));
+    let meadow = compact_field(&daemon, "sway", 100, 100);
+    daemon.frond_ok(&[
+        "field",
+        "start",
+        "--take",
+        "sway",
+        "--field",
+        meadow.to_str().unwrap(),
+        "--plants",
+        "4",
+    ]);
+    let (big_bytes, big_count) = field_frames(&daemon, Duration::from_millis(800));
+    // 60 field frames a second either way, each the same size within a few bytes (the numbers
+    // in it), under 2 KiB: nothing per plant.
+    assert!(small_count >= 30 && big_count >= 30, "{small_count} and {big_count} field frames in 0.8 s");
+    assert!(big_bytes < 2048 && big_bytes <= small_bytes + 64, "{big_bytes} bytes vs {small_bytes}");
+
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let announced: Vec<_> = sub.elements().of_kind(ElementKind::FieldPlant).map(|e| e.id).collect();
+    assert_eq!(announced.len(), 4, "{:?}", sub.elements());
+    let (mut plant_poses, mut evaluated, mut events) = (0, 0, 0u64);
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while Instant::now() < deadline && (plant_poses < 40 || evaluated < 10_000) {
+        let Event::Pose(p) = sub.next_event().unwrap() else { continue };
+        if announced.contains(&p.element) {
+            plant_poses += 1;
+        }
+        events += 1;
+        // Every plant, now and then: once the history has arrived, all of them.
+        let Some(field) = sub.fields().by_source("field").filter(|_| events % 500 == 0) else { continue };
+        assert_eq!(field.plants(), 10_000);
+        let tau = field.tau_s();
+        let finite = |j: [[f32; 3]; 4]| j.iter().flatten().all(|x| x.is_finite());
+        evaluated = (0..10_000).filter(|&i| field.plant_pose(i, tau).is_some_and(finite)).count();
+    }
+    assert!(plant_poses >= 40, "{plant_poses} poses of announced plants");
+    assert_eq!(evaluated, 10_000, "plants the SDK evaluates");
+
+    // A key changes the controls the field frames carry.
+    daemon.frond_ok(&["field", "key", "left"]);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        sub.next_event().unwrap();
+        let c = sub.fields().by_source("field").map(|f| f.state().controls().direction_deg);
+        if c == Some(180.0) {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the key did not reach the field frames: {c:?}");
+    }
+    daemon.frond_ok(&["field", "stop"]);
+}
