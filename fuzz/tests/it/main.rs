@@ -10,3 +10,4 @@ mod motion;
 mod osc;
 mod protocol;
 mod triggers;
+mod webcam;
