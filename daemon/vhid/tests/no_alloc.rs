@@ -138,3 +138,22 @@ fn osc_reads_and_decodes_allocate_nothing() {
     assert_eq!(count_reads(&mut src, 300), 0);
     assert_eq!(src.counters().snapshot().reports, 301);
 }
+
+/// The webcam source's reads (issue 47): the real landmark helper (frond-hands, installed by
+/// `daemon/device/tests/install-webcam.sh`) finds a hand in a photograph and its samples are
+/// read from the source's queue without allocating.
+#[test]
+fn webcam_reads_allocate_nothing() {
+    let venv = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/python/.venv-hands");
+    let helper = venv.join("bin/frond-hands");
+    assert!(helper.exists(), "no {} (run daemon/device/tests/install-webcam.sh)", helper.display());
+    // SAFETY: nextest runs each test in a process of its own; nothing else reads the
+    // environment while it is set, before the source starts its thread.
+    unsafe { std::env::set_var("FROND_HANDS", &helper) };
+    let photo = venv.join("fingerpose/package/assets/nocurl.jpg");
+    let address = format!("webcam:{}?hand=left", photo.display()).parse().unwrap();
+    let mut src = frond_device::WebcamSource::open(&address).unwrap();
+    assert_eq!(src.kind(), SourceKind::Webcam);
+    count_reads(&mut src, 1);
+    assert_eq!(count_reads(&mut src, 10), 0, "webcam reads allocated");
+}
