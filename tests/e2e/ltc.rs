@@ -28,7 +28,7 @@ const RATE_HZ: usize = 48_000;
 
 /// An LTC frame rate as the test's encoder makes it.
 #[derive(Debug, Clone, Copy)]
-struct Ltc {
+pub(crate) struct Ltc {
     /// Labels per second.
     nominal: usize,
     /// 29.97 drop-frame (frames of 1001/30000 s; labels :00 and :01 skipped in every minute
@@ -36,7 +36,7 @@ struct Ltc {
     drop_frame: bool,
 }
 
-const PAL: Ltc = Ltc { nominal: 25, drop_frame: false };
+pub(crate) const PAL: Ltc = Ltc { nominal: 25, drop_frame: false };
 const NTSC_DF: Ltc = Ltc { nominal: 30, drop_frame: true };
 
 impl Ltc {
@@ -137,7 +137,7 @@ impl Encoder {
 
 /// Writes LTC from 10:00:00:00 into `fifo` in real time until `stop`; returns when the first
 /// sample played (sample `s` plays at that instant plus `s` / 48000 s).
-fn play(ltc: Ltc, fifo: &Path, stop: Arc<AtomicBool>) -> (std::thread::JoinHandle<()>, Instant) {
+pub(crate) fn play(ltc: Ltc, fifo: &Path, stop: Arc<AtomicBool>) -> (std::thread::JoinHandle<()>, Instant) {
     let (tx, rx) = std::sync::mpsc::channel();
     let fifo = fifo.to_path_buf();
     let handle = std::thread::spawn(move || {
@@ -168,7 +168,7 @@ fn play(ltc: Ltc, fifo: &Path, stop: Arc<AtomicBool>) -> (std::thread::JoinHandl
     (handle, t0)
 }
 
-fn mkfifo(path: &Path) {
+pub(crate) fn mkfifo(path: &Path) {
     let c = std::ffi::CString::new(path.as_os_str().as_bytes()).unwrap();
     // SAFETY: `c` is a valid NUL-terminated path for the duration of the call.
     assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", path.display());

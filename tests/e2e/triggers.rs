@@ -20,7 +20,7 @@ fn free_port() -> u16 {
 }
 
 /// A `CaptureStart` as Vicon's page shows it (with the fields it lists), NUL-terminated.
-fn capture_start(name: &str, delay_ms: u32, packet_id: u64) -> Vec<u8> {
+pub(crate) fn capture_start(name: &str, delay_ms: u32, packet_id: u64) -> Vec<u8> {
     format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\"?><CaptureStart><Name VALUE=\"{name}\"/>\
          <Notes VALUE=\"\"/><Description VALUE=\"\"/><DatabasePath VALUE=\"D:/Stage/Session 1\"/>\

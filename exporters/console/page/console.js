@@ -225,6 +225,31 @@ function drawHistogram(buckets, id = 'latency-hist') {
   g.fillStyle = '#8b949e';
   for (const [i, b] of buckets.entries()) if (i % 4 === 0 && b.le_us) g.fillText(fmtUs(b.le_us), i * w, c.height - 1);
 }
+// The mocap stage (issue 46): capture triggers followed or led, and the stage's timecode (LTC),
+// in the words of `frond status`. Names come from the stage network: set as text, never HTML.
+function showStageSync(d) {
+  const lines = [];
+  const t = d.triggers;
+  if (t) {
+    const parts = [];
+    if (t.listen) parts.push(`following capture triggers on ${t.listen}${t.allow.length ? ` from ${t.allow.join(', ')}` : ' from any host'}`);
+    if (t.lead) parts.push(`leading to ${t.lead}`);
+    if (t.scheduled) parts.push(`take ${t.scheduled} waits for its delay`);
+    if (t.last) parts.push(`last ${t.last.kind}${t.last.name ? ` ${t.last.name}` : ''} from ${t.last.from}, ${t.last.age_s.toFixed(0)} s ago`);
+    const refused = t.foreign + t.malformed + t.oversized;
+    if (refused) parts.push(`${refused} refused (${t.foreign} foreign, ${t.malformed} malformed, ${t.oversized} oversized)`);
+    lines.push(`triggers: ${parts.join('; ')}`);
+  }
+  const l = d.ltc;
+  if (l) {
+    const last = l.last_timecode ? `, last ${l.last_timecode}` : '';
+    lines.push(`timecode (LTC): ${l.state}${l.fps ? ` at ${l.fps} fps` : ''} from ${l.input}${last}`);
+  }
+  const el = $('stage-sync');
+  el.replaceChildren(...lines.map((text) => { const div = document.createElement('div'); div.textContent = text; return div; }));
+  el.hidden = !lines.length;
+  el.className = l && l.state !== 'locked' ? 'bad' : '';
+}
 async function pollStatus() {
   try {
     const s = await (await fetch('/api/status')).json();
@@ -262,6 +287,7 @@ async function pollStatus() {
       const r = d.recording;
       $('recording').textContent = r && r.active ? `RECORDING ${r.name}: ${r.frames} frames${r.dropped ? `, ${r.dropped} dropped` : ''}` : 'not recording';
       $('recording').className = r && r.active ? 'bad' : '';
+      showStageSync(d);
       $('rate').textContent = `${d.achieved_rate_hz.toFixed(0)} Hz`;
       $('stages').textContent = [`rig ${d.rig_name}`, `filter ${d.filter}`, `calibration ${d.calibration_id}`, ...(d.modes || [])].join(' · ');
       if (document.activeElement !== $('rig-select') && rigShown) $('rig-select').value = rigShown;

@@ -298,3 +298,52 @@ fn a_torn_take_is_listed_torn_and_repaired_from_the_page() {
     let said = d.script("return document.getElementById('control-result').textContent;");
     assert!(said.as_str().unwrap().contains("torn bytes at the end"), "{said}");
 }
+
+/// Issue 46: the page shows the mocap stage as `frond status` does: the capture triggers it
+/// follows (and the last one, by name and sender) and the stage's timecode from LTC.
+#[test]
+fn the_page_shows_the_stage_triggers_and_timecode() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let Some((chromium, driver)) = browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("ltc.fifo");
+    crate::ltc::mkfifo(&fifo);
+    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let listen = format!("127.0.0.1:{port}");
+    let daemon = Daemon::start(
+        dir.path(),
+        &["--source", "in-process", "--triggers", &listen, "--ltc", fifo.to_str().unwrap()],
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let (writer, _) = crate::ltc::play(crate::ltc::PAL, &fifo, stop.clone());
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sender.send_to(&crate::triggers::capture_start("Scene 4 <b>take</b>", 0, 1), &listen).unwrap();
+    assert!(wait_for(Duration::from_secs(10), || daemon.status().recording.is_some_and(|r| r.active)));
+    let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1200,760", &url);
+    let lines = poll("the stage's triggers and timecode", Duration::from_secs(15), || {
+        let v = d.script(
+            "const el = document.getElementById('stage-sync');
+             return el.hidden ? null : [...el.children].map(c => c.textContent);",
+        );
+        let locked = v[1].as_str().is_some_and(|l| l.contains("locked at 25 fps"));
+        locked.then_some(v)
+    });
+    let triggers = lines[0].as_str().unwrap();
+    assert!(
+        triggers.starts_with(&format!("triggers: following capture triggers on {listen} from any host")),
+        "{lines}"
+    );
+    // The take's name as the master sent it, shown as text (the markup is not the page's).
+    assert!(triggers.contains("last CaptureStart Scene 4 <b>take</b> from 127.0.0.1"), "{lines}");
+    let html = d.script("return document.getElementById('stage-sync').innerHTML;");
+    assert!(html.as_str().unwrap().contains("&lt;b&gt;take"), "{html}");
+    let ltc = lines[1].as_str().unwrap();
+    assert!(
+        ltc.starts_with(&format!("timecode (LTC): locked at 25 fps from {}, last 10:00:0", fifo.display())),
+        "{lines}"
+    );
+    stop.store(true, Ordering::Relaxed);
+    writer.join().unwrap();
+}
