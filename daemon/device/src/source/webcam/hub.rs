@@ -59,7 +59,12 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 impl Hub {
     /// The hub of `address`'s camera, started if it is not running, with `subscriber` added.
-    pub(super) fn join(address: &WebcamAddress, subscriber: Subscriber) -> std::io::Result<Arc<Hub>> {
+    /// `helper` is the command the hub starts if it starts one.
+    pub(super) fn join(
+        address: &WebcamAddress,
+        subscriber: Subscriber,
+        helper: std::ffi::OsString,
+    ) -> std::io::Result<Arc<Hub>> {
         let mut hubs = lock(&HUBS);
         hubs.retain(|(_, h)| h.strong_count() > 0);
         if let Some(hub) = hubs.iter().find(|(i, _)| *i == address.input).and_then(|(_, h)| h.upgrade()) {
@@ -76,6 +81,7 @@ impl Hub {
         let stop = Arc::new(AtomicBool::new(false));
         let reader = Reader {
             address: address.clone(),
+            helper,
             subscribers: Arc::clone(&subscribers),
             child: Arc::clone(&child),
             stop: Arc::clone(&stop),
@@ -118,6 +124,7 @@ impl Drop for Hub {
 /// The hub's thread.
 struct Reader {
     address: WebcamAddress,
+    helper: std::ffi::OsString,
     subscribers: Arc<Mutex<Vec<Subscriber>>>,
     child: Arc<Mutex<Option<Child>>>,
     stop: Arc<AtomicBool>,
@@ -159,7 +166,7 @@ impl Reader {
 
     /// Starts the helper, reads it until its pipe ends; the reason it ended.
     fn session(&self) -> Result<(), String> {
-        let mut cmd = Command::new(helper_command());
+        let mut cmd = Command::new(&self.helper);
         let source = if self.address.is_camera() { "--camera" } else { "--file" };
         let fps = FPS.to_string();
         cmd.args([source, self.address.input.as_str(), "--fps", fps.as_str()])
@@ -175,7 +182,7 @@ impl Reader {
             });
         }
         let mut child = cmd.spawn().map_err(|e| {
-            format!("cannot start {:?} (install it: daemon/device/webcam/install.sh): {e}", helper_command())
+            format!("cannot start {:?} (install it: daemon/device/webcam/install.sh): {e}", self.helper)
         })?;
         let stdout = child.stdout.take();
         let stderr = child.stderr.take();

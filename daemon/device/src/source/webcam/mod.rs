@@ -22,6 +22,8 @@ pub mod address;
 mod hub;
 pub mod lines;
 mod source;
+#[cfg(test)]
+mod tests;
 
 pub use address::{WebcamAddress, WebcamAddressError};
 pub use source::WebcamSource;

@@ -28,8 +28,17 @@ pub struct WebcamSource {
 }
 
 impl WebcamSource {
-    /// Joins (or starts) the helper of `address`'s camera, for its hand.
+    /// Joins (or starts) the helper of `address`'s camera, for its hand: `$FROND_HANDS`, or
+    /// `frond-hands` on `PATH`.
     pub fn open(address: &WebcamAddress) -> Result<WebcamSource, SourceError> {
+        Self::open_with_helper(address, super::hub::helper_command())
+    }
+
+    /// [`WebcamSource::open`] with the helper's command given.
+    pub fn open_with_helper(
+        address: &WebcamAddress,
+        helper: impl Into<std::ffi::OsString>,
+    ) -> Result<WebcamSource, SourceError> {
         let what = format!("webcam:{}", address.input);
         let open = |reason: String| SourceError::Open { what: what.clone(), reason };
         let bell = Arc::new(Doorbell::new().map_err(|e| open(format!("eventfd: {e}")))?);
@@ -43,7 +52,7 @@ impl WebcamSource {
             counters: Arc::clone(&counters),
             overflow: Arc::clone(&overflow),
         };
-        let hub = Hub::join(address, subscriber)
+        let hub = Hub::join(address, subscriber, helper.into())
             .map_err(|e| open(format!("cannot start the webcam thread: {e}")))?;
         let kind = if address.is_camera() { "camera" } else { "video file" };
         Ok(WebcamSource {
