@@ -21,6 +21,9 @@ use frond_sdk::{Event, Pose, Source, Subscriber};
 
 use crate::stage_net::{PORT, Tapped, collect, lan, lines, seq_of, tap};
 
+/// How long the stage recorder is stopped, seconds.
+const STOPPED_SECONDS: u64 = 4;
+
 /// The healthy phase's length, seconds.
 fn healthy_seconds() -> u64 {
     std::env::var("FROND_E2E_STAGE_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5).clamp(2, 600)
@@ -87,7 +90,7 @@ fn aligned(takes_dir: &std::path::Path, names: [&str; 2]) -> [TakeLines; 2] {
 /// Issue 43's stage test: a daemon at 1 kHz and its bridge on one host, four `frond tap`
 /// subscribers on three others and a stage recorder (`frond record start --stage`) beside one of
 /// them. Healthy links: no subscriber misses a frame. The recorder is then stopped (SIGSTOP) for
-/// 2 s, as a recorder too busy to read would be, and one tap's link is cut for 3 s: that tap
+/// 4 s, as a recorder too busy to read would be, and one tap's link is cut for 3 s: that tap
 /// reports its loss (and the bridge counts it for that peer), the other three lose nothing, and
 /// the recorder's take is frame for frame the take the daemon recorded on its own host.
 #[test]
@@ -137,12 +140,13 @@ fn four_subscribers_and_a_remote_recorder_lose_nothing_and_a_cut_link_is_reporte
     );
     std::thread::sleep(Duration::from_secs(healthy_seconds()));
 
-    // A recorder that stops reading for 2 s: its link backs up and the bridge drops its poses.
+    // A recorder that stops reading for 4 s: its link backs up past what the TCP buffers hold
+    // (1-2 s of poses here), and the bridge drops poses for it.
     let pid = recorder.child.id().to_string();
     let signal =
         |sig: &str| assert!(Command::new("kill").args([sig, pid.as_str()]).status().unwrap().success());
     signal("-STOP");
-    std::thread::sleep(Duration::from_secs(2));
+    std::thread::sleep(Duration::from_secs(STOPPED_SECONDS));
     signal("-CONT");
     std::thread::sleep(Duration::from_secs(1));
 
@@ -213,7 +217,7 @@ fn four_subscribers_and_a_remote_recorder_lose_nothing_and_a_cut_link_is_reporte
     for (seq, frame) in &remote {
         assert_eq!(Some(frame), local_span.get(seq), "frame {seq} differs between the takes");
     }
-    let seconds = healthy_seconds() + 2 + 1 + 3;
+    let seconds = healthy_seconds() + STOPPED_SECONDS + 1 + 3;
     eprintln!("takes: {} frames in common, seq {first}..={last}", remote.len());
     assert!(remote.len() as u64 > seconds * 500, "the remote take holds {} frames", remote.len());
 }
