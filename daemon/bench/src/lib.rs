@@ -6,7 +6,8 @@
 //! [`components::components`] (6), [`osc_latency::osc_latency`] (7: the OSC source against a
 //! do-nothing relay, `frond-relay`, see [`relay`]) and [`hidraw_latency::hidraw_latency`] (8: a
 //! hidraw node's reports through frondd against the same relay reading the node) and
-//! [`zenoh::zenoh`] (9: poses over Zenoh between network namespaces against plain UDP). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! [`zenoh::zenoh`] (9: poses over Zenoh between network namespaces against plain UDP) and
+//! [`field_wire::field_wire`] (10: a live field at 1 to 100,000 plants against per-plant poses). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
@@ -14,6 +15,7 @@
 pub mod alloc;
 pub mod components;
 pub mod error;
+pub mod field_wire;
 pub mod hidraw_latency;
 pub mod latency;
 pub mod loops;
@@ -24,6 +26,7 @@ pub mod relay;
 pub mod report;
 pub mod resources;
 pub mod rig;
+mod stage_sync;
 pub mod tick;
 pub mod timing;
 pub mod zenoh;
@@ -35,7 +38,7 @@ pub use error::BenchError;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
-pub const SECTIONS: [&str; 9] = [
+pub const SECTIONS: [&str; 10] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -45,6 +48,7 @@ pub const SECTIONS: [&str; 9] = [
     "osc_latency",
     "hidraw_latency",
     "zenoh",
+    "field_wire",
 ];
 
 /// What to run.
@@ -76,6 +80,7 @@ fn title(name: &str) -> &'static str {
         "osc_latency" => "OSC hand sample -> subscriber receipt vs a do-nothing relay",
         "hidraw_latency" => "hidraw report -> subscriber receipt vs a do-nothing relay",
         "zenoh" => zenoh::TITLE,
+        "field_wire" => field_wire::TITLE,
         _ => "motion toolkit and exporters",
     }
 }
@@ -107,6 +112,7 @@ pub fn run(options: &Options) -> Report {
             "osc_latency" => osc_latency::osc_latency(options),
             "hidraw_latency" => hidraw_latency::hidraw_latency(options),
             "zenoh" => zenoh::zenoh(options),
+            "field_wire" => field_wire::field_wire(options),
             _ => Ok(components::components(options)),
         };
         let mut section =

@@ -10,7 +10,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const SECTIONS: [&str; 9] = [
+const SECTIONS: [&str; 10] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -20,6 +20,7 @@ const SECTIONS: [&str; 9] = [
     "osc_latency",
     "hidraw_latency",
     "zenoh",
+    "field_wire",
 ];
 const PARTS: [&str; 10] = [
     "field_playback",
@@ -153,7 +154,7 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
     assert!(at.windows(2).all(|w| w[0] < w[1]), "sections in issue order: {at:?}");
 
     // In-process sections always run; the cross-process ones need the binaries and /dev/fuse.
-    let mut must_be_ok = vec!["loop_timing", "tick_cost", "max_rate", "components"];
+    let mut must_be_ok = vec!["loop_timing", "tick_cost", "max_rate", "components", "field_wire"];
     if bins_present() {
         must_be_ok.push("daemon_resources");
         must_be_ok.push("osc_latency");
