@@ -29,6 +29,7 @@ pub mod rig;
 mod stage_sync;
 pub mod tick;
 pub mod timing;
+pub mod webcam;
 pub mod zenoh;
 
 use std::path::PathBuf;

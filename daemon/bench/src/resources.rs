@@ -27,7 +27,7 @@ use std::thread;
 use std::time::Duration;
 
 use frondd::clock::{NS_PER_S, monotonic_ns, sleep_until_ns};
-use serde_json::json;
+use serde_json::{Value, json};
 
 use crate::Options;
 use crate::error::BenchError;
@@ -137,20 +137,22 @@ fn osc_cpu_against_relay(o: &Options, warm: Duration, window: Duration) -> Resul
 }
 
 /// What one run of `frondd` cost.
-struct DaemonRun {
-    cpu: f64,
+pub(crate) struct DaemonRun {
+    /// Its CPU, fraction of one core.
+    pub(crate) cpu: f64,
     floor: f64,
     bare: f64,
     rss: u64,
     hwm: u64,
     frames_per_s: f64,
     window_s: f64,
-    status: Option<frond_protocol::StatusReport>,
+    /// Its status at the end of the window.
+    pub(crate) status: Option<frond_protocol::StatusReport>,
 }
 
 /// Runs `frondd` with `args` at 1 kHz with 4 subscribers; measures it, the fan-out floor and a
 /// bare loop over the same window.
-fn measure_daemon(
+pub(crate) fn measure_daemon(
     o: &Options,
     args: &[&str],
     warm: Duration,
@@ -186,7 +188,7 @@ fn measure_daemon(
     })
 }
 
-fn run_json(r: &DaemonRun) -> serde_json::Value {
+pub(crate) fn run_json(r: &DaemonRun) -> serde_json::Value {
     json!({
         "window_s": r.window_s,
         "cpu_fraction": r.cpu,
@@ -238,7 +240,14 @@ pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
     let idle_rss = status_kb(sleeper.pid(), "VmRSS")?;
     drop(sleeper);
 
-    Ok(resources_section(&replay, fuse.as_ref(), (osc_frondd, osc_relay), idle_rss, window))
+    let mut section = resources_section(&replay, fuse.as_ref(), (osc_frondd, osc_relay), idle_rss, window);
+    // Issue 46: the loop with a mocap stage's triggers and LTC running, against without.
+    let (rows, details) = crate::stage_sync::measure(o, dir.path(), warm, window)?;
+    section.measurements.extend(rows);
+    if let Value::Object(map) = &mut section.details {
+        map.insert("stage_sync".into(), details);
+    }
+    Ok(section)
 }
 
 /// Section 5's rows and details from its runs: `replay` (frondd replaying a 1 kHz recording),

@@ -8,7 +8,7 @@
 //! code by the intervals between transitions, not by levels.
 //! [`FrameRate`] and [`SmpteTime`] hold the drop-frame arithmetic (label <-> frame count);
 //! [`StageClock`] gives the stage timecode at any host monotonic instant, interpolated from the
-//! last frame.
+//! last frame. [`encode`] goes the other way, labels to the signal, for tests and benchmarks.
 //!
 //! No I/O and no allocation after [`LtcDecoder::new`]: the caller feeds samples from a
 //! capture device, a file or a pipe on a helper thread (never the realtime loop) and maps
@@ -23,6 +23,7 @@
 mod biphase;
 mod clock;
 mod decoder;
+pub mod encode;
 mod frame;
 mod timecode;
 

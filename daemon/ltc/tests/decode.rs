@@ -4,7 +4,8 @@
 
 mod common;
 
-use common::{add_noise, edges, edges_at_speed, labels, render};
+use common::add_noise;
+use frond_ltc::encode::{edges, edges_at_speed, labels, render};
 use frond_ltc::{FrameRate, LtcDecoder, LtcEvent, SmpteTime};
 
 struct Decoded {

@@ -1,10 +1,8 @@
 //! Counting-allocator test: once made, the decoder allocates nothing per sample or per frame,
 //! through lock, frames, a jump and a loss.
 
-mod common;
-
-use common::{edges, labels, render};
 use frond_alloc_count::{CountingAlloc, count_allocations};
+use frond_ltc::encode::{edges, labels, render};
 use frond_ltc::{FrameRate, LtcDecoder, LtcEvent};
 
 #[global_allocator]
