@@ -46,6 +46,10 @@ pub const SOURCES: [usize; 3] = [1, 4, 8];
 /// The issue's goals: Zenoh's p50 within 2x and p99 within 3x of plain UDP's.
 const P50_LIMIT: f64 = 2.0;
 const P99_LIMIT: f64 = 3.0;
+/// Issue 43's goals against the floor (the shared leg plus Zenoh's bare hop): p50 within 1.5x,
+/// p99 within 2x.
+const FLOOR_P50_LIMIT: f64 = 1.5;
+const FLOOR_P99_LIMIT: f64 = 2.0;
 /// First TCP port of the bridges (source `i` listens on `BRIDGE_PORT + i`).
 const BRIDGE_PORT: u16 = 7447;
 /// First UDP port of the baseline's receivers.
@@ -399,6 +403,35 @@ fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
     out
 }
 
+/// Issue 43's latency floor, one source and one subscriber: what the SDK's pose latency would be
+/// if frond added nothing to Zenoh. The leg both paths share (daemon -> the reader on host 0) is
+/// the UDP path's latency less its bare datagram hop; Zenoh's part is its bare put -> callback
+/// hop; all measured in this run, per percentile (an estimate: percentiles of a sum are not the
+/// sums of percentiles, but each part is a steady stream of the same poses).
+fn floor_rows(z: &Phase, u: &Phase, bare_u: &Phase, bare_z: &Phase) -> Vec<Measurement> {
+    [(0.5, "p50", FLOOR_P50_LIMIT), (0.99, "p99", FLOOR_P99_LIMIT)]
+        .into_iter()
+        .map(|(q, name, limit)| {
+            let floor = (u.percentile(q) - bare_u.percentile(q)).max(0.0) + bare_z.percentile(q);
+            Measurement::new(
+                format!("zenoh_vs_floor_{name}"),
+                "us",
+                z.percentile(q),
+                format!(
+                    "the floor, {name}: the UDP path less its bare datagram hop (the leg both paths \
+                     share) plus the bare Zenoh put -> callback hop, same run"
+                ),
+                floor.max(1.0),
+            )
+            .with_target(
+                format!("SDK pose latency {name} <= {limit}x Zenoh's own floor, 1 source, 1 subscriber"),
+                Bound::MaxRatio,
+                limit,
+            )
+        })
+        .collect()
+}
+
 /// Section 9.
 pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
     if let Some(why) = frond_netns::unavailable() {
@@ -444,9 +477,25 @@ pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
                     ));
                 }
             }
+            measurements.extend(floor_rows(&z, &u, &bare_u, &bare_z));
             d["zenoh_callback"] = callback.json();
             d["bare_hop"] =
                 json!({ "zenoh": bare_z.json(), "zenoh_lowlatency": bare_ll.json(), "udp": bare_u.json() });
+        }
+        if n == 16 {
+            // Fan-out (issue 43): the same 16 subscribers reading in Zenoh's callback, without
+            // the SDK's hand-off to a reading thread in each of the 16 processes.
+            let callback = stage.zenoh(1, n, "zenoh-raw")?;
+            for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
+                measurements.push(Measurement::new(
+                    format!("zenoh_callback_latency_{name}_16_subscribers"),
+                    "us",
+                    callback.percentile(q),
+                    format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
+                    u.percentile(q),
+                ));
+            }
+            d["zenoh_callback"] = callback.json();
         }
         details.insert(format!("{n}_subscribers"), d);
     }
