@@ -315,7 +315,10 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     let by_key: HashMap<(u16, u32), &Pose> =
         poses.iter().map(|p| ((p.element.get(), p.seq as u32), p)).collect();
     let frames = read_jsonl(&out);
-    assert_eq!(frames.len(), 200);
+    // The script stops at 200 lines or just past them: it writes one per plant a batch moved,
+    // and a subscriber that joined a running field gets some plants before others while the
+    // stream frames they read arrive (protocol 3), so a batch may move fewer than 4.
+    assert!((200..204).contains(&frames.len()), "{} plant frames", frames.len());
     let mut armatures = std::collections::BTreeMap::new();
     let mut moving = 0;
     for f in &frames {
