@@ -39,7 +39,7 @@ pub use error::BenchError;
 use report::{Machine, Report, SCHEMA, Section, Status};
 
 /// Section keys, in report order.
-pub const SECTIONS: [&str; 10] = [
+pub const SECTIONS: [&str; 11] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -50,6 +50,7 @@ pub const SECTIONS: [&str; 10] = [
     "hidraw_latency",
     "zenoh",
     "field_wire",
+    "webcam",
 ];
 
 /// What to run.
@@ -82,6 +83,7 @@ fn title(name: &str) -> &'static str {
         "hidraw_latency" => "hidraw report -> subscriber receipt vs a do-nothing relay",
         "zenoh" => zenoh::TITLE,
         "field_wire" => field_wire::TITLE,
+        "webcam" => webcam::TITLE,
         _ => "motion toolkit and exporters",
     }
 }
@@ -114,6 +116,7 @@ pub fn run(options: &Options) -> Report {
             "hidraw_latency" => hidraw_latency::hidraw_latency(options),
             "zenoh" => zenoh::zenoh(options),
             "field_wire" => field_wire::field_wire(options),
+            "webcam" => webcam::webcam(options),
             _ => Ok(components::components(options)),
         };
         let mut section =

@@ -96,6 +96,15 @@ pub struct Daemon {
 impl Daemon {
     /// Starts `frondd` with `args` and waits until its control socket answers.
     pub fn start(o: &Options, args: &[&str]) -> Result<Daemon, BenchError> {
+        Self::start_with_env(o, args, &[])
+    }
+
+    /// [`Daemon::start`] with environment variables set for `frondd` (`FROND_HANDS`).
+    pub fn start_with_env(
+        o: &Options,
+        args: &[&str],
+        env: &[(&str, &std::ffi::OsStr)],
+    ) -> Result<Daemon, BenchError> {
         let dir = tempfile::Builder::new().prefix("frond-bench-").tempdir()?;
         let socket_dir = dir.path().join("run");
         let child = Command::new(find_bin(o, "frondd")?)
@@ -105,6 +114,7 @@ impl Daemon {
             .arg(dir.path().join("takes"))
             .args(["--log-level", "warn"])
             .args(args)
+            .envs(env.iter().copied())
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())
             .spawn()

@@ -40,7 +40,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub json: bool,
     /// Run only this section (repeatable): loop_timing, glove_latency, tick_cost, max_rate,
-    /// daemon_resources, components, osc_latency, hidraw_latency, zenoh, field_wire.
+    /// daemon_resources, components, osc_latency, hidraw_latency, zenoh, field_wire, webcam.
     #[arg(long, value_name = "NAME")]
     pub section: Vec<String>,
 }

@@ -10,7 +10,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const SECTIONS: [&str; 10] = [
+const SECTIONS: [&str; 11] = [
     "loop_timing",
     "glove_latency",
     "tick_cost",
@@ -21,6 +21,7 @@ const SECTIONS: [&str; 10] = [
     "hidraw_latency",
     "zenoh",
     "field_wire",
+    "webcam",
 ];
 const PARTS: [&str; 10] = [
     "field_playback",
