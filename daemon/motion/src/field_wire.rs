@@ -121,8 +121,9 @@ pub fn apply_frame(state: &mut FieldState, f: &FieldFrame) -> bool {
 }
 
 /// Fills the daemon's field frames: the newest [`FIELD_FRAME_NEW`] stream frames and
-/// [`FIELD_FRAME_TRICKLE`] older ones, a cursor walking the history from its oldest frame, so a
-/// subscriber that joins (or missed frames) holds the whole window again after `capacity /
+/// [`FIELD_FRAME_TRICKLE`] older ones, a cursor walking the history back from the newest to the
+/// oldest frame and round again, so a subscriber that joins (or missed frames) holds the recent
+/// frames most plants read within a few frames and the whole window after `capacity /
 /// FIELD_FRAME_TRICKLE` frames. `Copy`, allocation-free.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct FrameFiller {
@@ -144,17 +145,21 @@ impl FrameFiller {
                 out.entries.push(StreamFrame { index: k, joints_deg: *j });
             }
         }
+        // Backwards from just below the newest: most rows read the recent part of the window
+        // (the part beyond their start offsets is there for long delays), so a subscriber that
+        // joins can evaluate most plants long before the whole window has arrived.
         for _ in 0..FIELD_FRAME_TRICKLE {
-            if self.cursor < h.oldest() || self.cursor >= newest_from {
-                self.cursor = h.oldest();
-            }
-            if self.cursor >= newest_from {
+            if newest_from <= h.oldest() {
                 break;
+            }
+            if self.cursor < h.oldest() || self.cursor >= newest_from {
+                self.cursor = newest_from - 1;
             }
             if let Some(j) = h.get(self.cursor) {
                 out.entries.push(StreamFrame { index: self.cursor, joints_deg: *j });
             }
-            self.cursor += 1;
+            // Past the oldest, start again below the newest (next time round).
+            self.cursor = if self.cursor == h.oldest() { newest_from } else { self.cursor - 1 };
         }
     }
 }
@@ -220,7 +225,12 @@ mod tests {
         };
         let mut sub = field_from_definition(&def).unwrap();
         let (mut filler, mut frame) = (FrameFiller::default(), FieldFrame::default());
-        let mut frames = 0;
+        // The first frame brings the newest 4 and the 8 just below them: the recent frames come
+        // first.
+        filler.fill(&daemon, &mut frame);
+        assert!(apply_frame(&mut sub, &frame));
+        assert!((88..100).all(|k| sub.history().get(k).is_some()) && sub.history().get(87).is_none());
+        let mut frames = 1;
         while !sub.history().is_complete() || sub.history().produced() < 100 {
             filler.fill(&daemon, &mut frame);
             assert!(apply_frame(&mut sub, &frame));
