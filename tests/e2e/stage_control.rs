@@ -178,7 +178,7 @@ fn remote_control_answers_the_allow_list_and_refuses_counts_and_logs_the_rest_on
     let python_ran = crate::python::python_with("zenoh, msgpack").is_some();
     let (answered, refusals) = if python_ran { (6, 6) } else { (5, 5) };
     assert!(stats.contains(&format!("control_answered={answered} ")), "{stats}");
-    assert!(stats.ends_with(&format!("control_refused={refusals}")), "{stats}");
+    assert!(stats.contains(&format!("control_refused={refusals} ")), "{stats}");
     let logged: Vec<&String> =
         stderr.iter().filter(|l| l.contains("remote control request refused")).collect();
     let expected = if python_ran { 4 } else { 3 };

@@ -365,7 +365,8 @@ fn a_python_reader_on_another_host_agrees_with_tap_beside_a_peer_that_never_read
     let out = out.lock().unwrap();
     assert!(out.stderr.iter().any(|l| l.starts_with("ok:")), "the Python reader failed: {:?}", out.stderr);
     let hello = out.stderr.iter().find(|l| l.starts_with("hello:")).expect("a hello line");
-    assert!(hello.contains("rate=1000") && hello.contains("protocol=2"), "{hello}");
+    let protocol = format!("protocol={}", frond_protocol::PROTOCOL_VERSION);
+    assert!(hello.contains("rate=1000") && hello.contains(&protocol), "{hello}");
     assert_eq!(
         hello.split("joints=").nth(1).unwrap().split(' ').next().unwrap().split(',').count(),
         4,
