@@ -351,11 +351,13 @@ impl Field {
     }
 }
 
+/// What the field's tests and the field player's share: a swaying clip and a layout.
 #[cfg(test)]
-mod tests {
+pub(crate) mod fixtures {
     use super::*;
 
-    fn sway(n: usize) -> Clip {
+    /// `n` frames at 30 FPS of a plant swaying +-20 degrees.
+    pub(crate) fn sway(n: usize) -> Clip {
         Clip::from_joints(
             (0..n).map(|k| {
                 let s = (k as f32 * 0.3).sin() * 20.0;
@@ -365,9 +367,16 @@ mod tests {
         )
     }
 
-    fn params(rows: usize, cols: usize) -> FieldParams {
+    /// A full `rows` x `cols` grid of 0.5 m cells, `V_M` 2 m/s towards +X.
+    pub(crate) fn params(rows: usize, cols: usize) -> FieldParams {
         FieldParams { rows, cols, cell_m: 0.5, speed_m_s: 2.0, direction_deg: 0.0, density: 1.0, seed: 3 }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fixtures::{params, sway};
+    use super::*;
 
     #[test]
     fn eq6_7_by_hand() {

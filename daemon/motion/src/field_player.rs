@@ -163,21 +163,8 @@ pub fn bench_field_1000() -> (FieldPlayer, Vec<Joints>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::fixtures::{params, sway};
     use crate::looping::{LoopParams, find_transitions, loop_clip};
-
-    fn sway(n: usize) -> Clip {
-        Clip::from_joints(
-            (0..n).map(|k| {
-                let s = (k as f32 * 0.3).sin() * 20.0;
-                [[s, -s, 1.0], [s, 0.0, 0.0], [0.0, s, 0.0], [1.0, 2.0, 3.0]]
-            }),
-            30.0,
-        )
-    }
-
-    fn params(rows: usize, cols: usize) -> FieldParams {
-        FieldParams { rows, cols, cell_m: 0.5, speed_m_s: 2.0, direction_deg: 0.0, density: 1.0, seed: 3 }
-    }
 
     #[test]
     fn one_plant_per_row_equals_the_looped_take() {
