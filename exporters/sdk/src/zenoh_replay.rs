@@ -274,7 +274,7 @@ pub fn query_peers(
     use ::zenoh::Wait;
     let zerr = |reason: String| crate::SdkError::Zenoh { source_key: key.to_owned(), reason };
     let replies = session
-        .get(crate::zenoh::keys::under(key, PEERS))
+        .get(crate::zenoh_keys::keys::under(key, PEERS))
         .timeout(timeout)
         .wait()
         .map_err(|e| zerr(e.to_string()))?;

@@ -8,7 +8,8 @@ use frond_protocol::decode_frame;
 
 use crate::error::{ProtocolError, SdkError};
 use crate::source::ZenohAddr;
-use crate::zenoh::{ZenohSetupError, config, keys, no_bridge, open_session};
+use crate::zenoh_config::{ZenohSetupError, config, open_session};
+use crate::zenoh_keys::{keys, no_bridge};
 
 /// Asks the bridge of `addr` (one source) for its daemon's latest status report.
 pub fn query_status(addr: &ZenohAddr, timeout: Duration) -> Result<frond_protocol::StatusReport, SdkError> {
