@@ -9,7 +9,7 @@ use frond_motion::controls::FieldControls;
 use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::field_player::FieldPlayer;
 use frond_motion::field_wire::{FrameFiller, layout_of};
-use frond_motion::looping::{LoopParams, Transitions, find_transitions};
+use frond_motion::looping::Transitions;
 use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable};
 use frond_protocol::{ElementId, Pose, PoseFlags, ServerMessage, encode_frame};
 use frond_sdk::field::LiveFields;
@@ -29,22 +29,7 @@ const SIZES: [(usize, usize); 4] = [(1, 1), (8, 8), (100, 100), (250, 400)];
 const FIELD: ElementId = ElementId::new(40);
 
 fn sway() -> (Clip, Transitions) {
-    let clip = Clip::from_joints(
-        (0..300).map(|k| {
-            let t = k as f32 / 30.0;
-            let s = (t * 2.1).sin() * 20.0 + (t * 5.3).sin() * 4.0;
-            [
-                [s, -s * 0.5, 0.0],
-                [s * 0.5, -s * 0.25, 0.0],
-                [s * 0.5, -s * 0.25, 3.0],
-                [s * 0.3, -s * 0.1, 3.0],
-            ]
-        }),
-        30.0,
-    );
-    let t = find_transitions(&clip, &LoopParams::default())
-        .unwrap_or(Transitions { pivot: 297, transitions: vec![297] });
-    (clip, t)
+    frond_motion::field_player::bench_sway()
 }
 
 fn field(rows: usize, cols: usize) -> Result<Field, BenchError> {

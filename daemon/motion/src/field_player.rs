@@ -128,9 +128,9 @@ impl FieldPlayer {
     }
 }
 
-/// A fixture for `frond bench`: a 1000-plant field (20 rows x 50 columns) over a 10 s synthetic
-/// sway at 30 FPS, and an output buffer. Time [`FieldPlayer::frame`] on it for the per-frame cost.
-pub fn bench_field_1000() -> (FieldPlayer, Vec<Joints>) {
+/// A fixture for `frond bench`: a 10 s synthetic sway at 30 FPS (two sines on the root, the
+/// upper joints following) and its loop transitions.
+pub fn bench_sway() -> (Clip, Transitions) {
     let clip = Clip::from_joints(
         (0..300).map(|k| {
             let t = k as f32 / 30.0;
@@ -146,6 +146,13 @@ pub fn bench_field_1000() -> (FieldPlayer, Vec<Joints>) {
     );
     let transitions = crate::looping::find_transitions(&clip, &crate::looping::LoopParams::default())
         .unwrap_or(Transitions { pivot: 297, transitions: vec![297] });
+    (clip, transitions)
+}
+
+/// A fixture for `frond bench`: a 1000-plant field (20 rows x 50 columns) over [`bench_sway`],
+/// and an output buffer. Time [`FieldPlayer::frame`] on it for the per-frame cost.
+pub fn bench_field_1000() -> (FieldPlayer, Vec<Joints>) {
+    let (clip, transitions) = bench_sway();
     let params = FieldParams {
         rows: 20,
         cols: 50,
