@@ -237,6 +237,49 @@ fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage
     writer_leaves(&daemon, stop, writer);
 }
 
+/// An ALSA input whose reads block anyway (ALSA's `file` plugin reading a pipe whose writer
+/// holds it open and sends nothing) does not keep the daemon from stopping.
+#[test]
+fn a_stalled_alsa_input_does_not_keep_the_daemon_from_stopping() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("ltc.fifo");
+    mkfifo(&fifo);
+    let asoundrc = format!(
+        "pcm.frondltc {{\n    type file\n    slave.pcm \"null\"\n    file \"/dev/null\"\n    infile \"{}\"\n    format \"raw\"\n}}\n",
+        fifo.display()
+    );
+    std::fs::write(dir.path().join(".asoundrc"), asoundrc).unwrap();
+    // The writer opens the pipe (the plugin's open waits for it) and then says nothing.
+    let (done, wait_done) = std::sync::mpsc::channel::<()>();
+    let holder = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || {
+            let pipe = std::fs::OpenOptions::new().write(true).open(&fifo).unwrap();
+            let _ = wait_done.recv_timeout(Duration::from_secs(20));
+            drop(pipe);
+        })
+    };
+    let log = dir.path().join("frondd.log");
+    let mut frondd = Command::new(bin("frondd"));
+    frondd.env("HOME", dir.path());
+    let mut daemon = Daemon::start_command(
+        frondd,
+        dir.path(),
+        &["--source", "in-process", "--ltc", "alsa:frondltc"],
+        std::fs::File::create(&log).unwrap().into(),
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    let pid = daemon.proc.child.id() as libc::pid_t;
+    // SAFETY: plain kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+    let stopped = wait_for(Duration::from_secs(5), || daemon.proc.child.try_wait().unwrap().is_some());
+    assert!(stopped, "frondd still running 5 s after SIGTERM with its LTC input stalled");
+    let said = std::fs::read_to_string(&log).unwrap();
+    assert!(said.contains("did not stop within 1 s (its input's read blocks); leaving it"), "{said}");
+    done.send(()).unwrap();
+    holder.join().unwrap();
+}
+
 /// Waits for the lock at `ltc`'s rate, records a second and checks the take's timecode, exported
 /// at the stage's rate, is what played (from `t0`, when the first sample played), frame for
 /// frame in the stage's labels.

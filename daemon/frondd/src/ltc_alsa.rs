@@ -35,6 +35,8 @@ const LATENCY_US: c_uint = 200_000;
 const SND_PCM_STREAM_CAPTURE: c_int = 1;
 const SND_PCM_FORMAT_S16_LE: c_int = 2;
 const SND_PCM_ACCESS_RW_INTERLEAVED: c_int = 3;
+// pcm.h's SND_PCM_NONBLOCK open mode.
+const SND_PCM_NONBLOCK: c_int = 1;
 
 /// Why an ALSA capture could not be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -111,6 +113,7 @@ struct Api {
     set_params: unsafe extern "C" fn(*mut SndPcm, c_int, c_int, c_uint, c_uint, c_int, c_uint) -> c_int,
     readi: unsafe extern "C" fn(*mut SndPcm, *mut c_void, c_ulong) -> c_long,
     recover: unsafe extern "C" fn(*mut SndPcm, c_int, c_int) -> c_int,
+    wait: unsafe extern "C" fn(*mut SndPcm, c_int) -> c_int,
     avail_update: unsafe extern "C" fn(*mut SndPcm) -> c_long,
     get_params: unsafe extern "C" fn(*mut SndPcm, *mut c_ulong, *mut c_ulong) -> c_int,
     close: unsafe extern "C" fn(*mut SndPcm) -> c_int,
@@ -135,6 +138,7 @@ impl Api {
                 set_params: *library.get(b"snd_pcm_set_params\0").map_err(no_library)?,
                 readi: *library.get(b"snd_pcm_readi\0").map_err(no_library)?,
                 recover: *library.get(b"snd_pcm_recover\0").map_err(no_library)?,
+                wait: *library.get(b"snd_pcm_wait\0").map_err(no_library)?,
                 avail_update: *library.get(b"snd_pcm_avail_update\0").map_err(no_library)?,
                 get_params: *library.get(b"snd_pcm_get_params\0").map_err(no_library)?,
                 close: *library.get(b"snd_pcm_close\0").map_err(no_library)?,
@@ -212,8 +216,9 @@ impl AlsaCapture {
             .map_err(|_| AlsaError::BadName("the ALSA device name has a NUL in it".into()))?;
         let mut pcm: *mut SndPcm = std::ptr::null_mut();
         // SAFETY: `pcm` is a valid out-pointer and `name` a NUL-terminated string alive for
-        // the call; mode 0 is a blocking open.
-        let rc = unsafe { (self.api.open)(&mut pcm, name.as_ptr(), SND_PCM_STREAM_CAPTURE, 0) };
+        // the call. Non-blocking: a read waits only in `snd_pcm_wait`, at most `idle`.
+        let rc =
+            unsafe { (self.api.open)(&mut pcm, name.as_ptr(), SND_PCM_STREAM_CAPTURE, SND_PCM_NONBLOCK) };
         if rc < 0 || pcm.is_null() {
             return Err(AlsaError::Open { device: self.device.clone(), why: self.api.error_text(rc) });
         }
@@ -254,9 +259,9 @@ impl AlsaCapture {
         self.overruns
     }
 
-    /// Reads up to `out.len()` (at most [`CHUNK_FRAMES_MAX`]) samples, waiting for them:
-    /// `Ok(0)` when nothing could be read this time (an overrun recovered, or the device closed
-    /// and not yet reopened, in which case it sleeps up to `idle` first).
+    /// Reads up to `out.len()` (at most [`CHUNK_FRAMES_MAX`]) samples, waiting at most `idle`
+    /// for the device: `Ok(0)` when nothing could be read this time (none came, an overrun was
+    /// recovered, or the device is closed and not yet reopened, in which case it sleeps `idle`).
     pub fn read(&mut self, out: &mut [i16], idle: Duration) -> Result<usize, AlsaError> {
         if self.pcm.is_null() {
             if self.last_try.is_some_and(|t| t.elapsed() < REOPEN_EVERY) {
@@ -267,13 +272,26 @@ impl AlsaCapture {
             (self.pcm, self.buffer_frames) = self.open_pcm()?;
             self.last_try = None;
         }
-        let frames = out.len().min(CHUNK_FRAMES_MAX);
-        // SAFETY: the handle is open; `out` has room for `frames` mono s16 frames.
-        let got = unsafe { (self.api.readi)(self.pcm, out.as_mut_ptr().cast(), frames as c_ulong) };
-        if got >= 0 {
-            return Ok((got as usize).min(frames));
-        }
+        let idle_ms = c_int::try_from(idle.as_millis()).unwrap_or(c_int::MAX);
+        // SAFETY: the handle is open.
+        let ready = unsafe { (self.api.wait)(self.pcm, idle_ms) };
+        let got = match ready {
+            0 => return Ok(0),
+            r if r < 0 => c_long::from(r),
+            _ => {
+                let frames = out.len().min(CHUNK_FRAMES_MAX);
+                // SAFETY: the handle is open; `out` has room for `frames` mono s16 frames.
+                let got = unsafe { (self.api.readi)(self.pcm, out.as_mut_ptr().cast(), frames as c_ulong) };
+                if got >= 0 {
+                    return Ok((got as usize).min(frames));
+                }
+                got
+            }
+        };
         let code = c_int::try_from(got).unwrap_or(-libc::EIO);
+        if code == -libc::EAGAIN {
+            return Ok(0);
+        }
         // SAFETY: the handle is open; silent = 1 (no message on stderr).
         let rc = unsafe { (self.api.recover)(self.pcm, code, 1) };
         if rc >= 0 {

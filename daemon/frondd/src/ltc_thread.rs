@@ -30,6 +30,9 @@ use crate::ltc_link::{LtcLink, LtcState, MAX_EXTRAPOLATION_NS};
 /// Longest wait for input: how soon the thread sees `stop`.
 pub const LTC_POLL: Duration = Duration::from_millis(100);
 
+/// Longest wait for the thread at shutdown.
+pub const STOP_WAIT: Duration = Duration::from_secs(1);
+
 /// Samples read at most at a time, in milliseconds of audio (a quarter of a frame at 25 fps).
 pub const CHUNK_MS: u32 = 10;
 
@@ -105,9 +108,19 @@ pub struct LtcThread {
 }
 
 impl LtcThread {
-    /// Ends the thread (within [`LTC_POLL`]) and waits for it.
+    /// Ends the thread (within [`LTC_POLL`]) and waits for it, at most [`STOP_WAIT`]: an input
+    /// whose read blocks anyway (an ALSA plugin reading a stalled pipe) must not keep the
+    /// daemon from stopping, so such a thread is left to end with the process, and said.
     pub fn stop(self) {
         self.stop.store(true, Relaxed);
+        let deadline = std::time::Instant::now() + STOP_WAIT;
+        while !self.handle.is_finished() && std::time::Instant::now() < deadline {
+            thread::sleep(Duration::from_millis(10));
+        }
+        if !self.handle.is_finished() {
+            warn!(thread = "frond-ltc", "did not stop within 1 s (its input's read blocks); leaving it");
+            return;
+        }
         if self.handle.join().is_err() {
             tracing::error!(thread = "frond-ltc", "thread panicked");
         }
