@@ -14,6 +14,7 @@
 
 pub mod alloc;
 pub mod components;
+mod daemon_run;
 pub mod error;
 pub mod field_wire;
 pub mod hidraw_latency;

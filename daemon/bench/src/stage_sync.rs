@@ -20,10 +20,10 @@ use frond_ltc::FrameRate;
 use serde_json::{Value, json};
 
 use crate::Options;
+use crate::daemon_run::{DaemonRun, measure_daemon, run_json};
 use crate::error::BenchError;
 use crate::osc_latency::{free_port, loopback};
 use crate::report::{Bound, Measurement};
-use crate::resources::{DaemonRun, measure_daemon, run_json};
 
 /// LTC sample rate of the file, Hz.
 const RATE_HZ: u32 = 48_000;
