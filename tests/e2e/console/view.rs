@@ -306,6 +306,9 @@ fn the_page_shows_the_stage_triggers_and_timecode() {
     use std::sync::Arc;
     use std::sync::atomic::{AtomicBool, Ordering};
     let Some((chromium, driver)) = browser() else { return };
+    // Where the time goes, should a run be slow (one CI run took 84 s where 3 s is usual).
+    let t0 = std::time::Instant::now();
+    let step = |what: &str| eprintln!("[{:.1} s] {what}", t0.elapsed().as_secs_f64());
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("ltc.fifo");
     crate::ltc::mkfifo(&fifo);
@@ -315,13 +318,17 @@ fn the_page_shows_the_stage_triggers_and_timecode() {
         dir.path(),
         &["--source", "in-process", "--triggers", &listen, "--ltc", fifo.to_str().unwrap()],
     );
+    step("daemon started");
     let stop = Arc::new(AtomicBool::new(false));
     let (writer, _) = crate::ltc::play(crate::ltc::PAL, &fifo, stop.clone());
     let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     sender.send_to(&crate::triggers::capture_start("Scene 4 <b>take</b>", 0, 1), &listen).unwrap();
     assert!(wait_for(Duration::from_secs(10), || daemon.status().recording.is_some_and(|r| r.active)));
+    step("recording started by the trigger");
     let (_console, url, _) = start_console(&daemon, &["--listen", "127.0.0.1:0"]);
+    step("console started");
     let d = start_session(&chromium, &driver, &dir.path().join("profile"), "1200,760", &url);
+    step("browser session started");
     let lines = poll("the stage's triggers and timecode", Duration::from_secs(15), || {
         let v = d.script(
             "const el = document.getElementById('stage-sync');
@@ -344,6 +351,8 @@ fn the_page_shows_the_stage_triggers_and_timecode() {
         ltc.starts_with(&format!("timecode (LTC): locked at 25 fps from {}, last 10:00:0", fifo.display())),
         "{lines}"
     );
+    step("page checked");
     stop.store(true, Ordering::Relaxed);
     writer.join().unwrap();
+    step("LTC writer ended");
 }
