@@ -9,9 +9,10 @@
 //! start-up with ALSA's words and a hint to use `plughw:`).
 //!
 //! The handle is used by the `frond-ltc` thread only (opened at start-up so a bad device fails
-//! the start, then moved there). A blocking read of [`CHUNK_FRAMES_MAX`] frames at most returns
-//! within a chunk's time on a running device; an overrun (the thread fell behind) is recovered
-//! and counted; a device that goes away is reopened at most once per [`REOPEN_EVERY`].
+//! the start, then moved there). It is opened non-blocking: each read waits for the device at
+//! most the thread's poll (`snd_pcm_wait`), then takes what is there, at most
+//! [`CHUNK_FRAMES_MAX`] frames; an overrun (the thread fell behind) is recovered and counted; a
+//! device that goes away is reopened at most once per [`REOPEN_EVERY`].
 
 use std::ffi::{CStr, CString, c_char, c_int, c_long, c_uint, c_ulong, c_void};
 use std::time::{Duration, Instant};

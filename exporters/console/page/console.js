@@ -376,7 +376,7 @@ async function listTakes() {
     const link = (label, href) => { const a = document.createElement('a'); a.textContent = label; a.href = href; a.download = ''; td.append(a); };
     btn('Play', 'play in the view', () => play(t.name));
     btn('Loop', 'loop on the daemon (every subscriber sees it)', () => post('/api/playback', { take: t.name }));
-    btn('Field', 'play a 4 x 4 field of it on the daemon (seed 000, section 6.2)', () => post('/api/field/start', { take: t.name }));
+    btn('Field', 'play a 4 x 4 field of it on the daemon (section 6.2 of Interactive authoring of bending and twisting motions of short plants using hand gestures)', () => post('/api/field/start', { take: t.name }));
     if (t.state === 'torn' || t.state === 'damaged' || t.state === 'open') {
       btn('Repair', 'keep the readable records and close the take, as frond take repair', async () => {
         const j = await post('/api/takes/repair', { take: t.name });
