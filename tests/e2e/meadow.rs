@@ -119,3 +119,38 @@ fn ten_thousand_plants_live_cost_what_twelve_do() {
     }
     daemon.frond_ok(&["field", "stop"]);
 }
+
+/// A meadow from the command line: `frond take field` of 10,000 plants is too large for `frond
+/// field start`, which says to write it with `--compact`; the compact file starts the field.
+#[test]
+fn a_meadow_too_large_to_start_says_compact_and_the_compact_file_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
+    daemon.frond_ok(&["record", "start", "sway"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    daemon.frond_ok(&["record", "stop"]);
+    let field = |extra: &[&str], out: &str| {
+        let mut args = vec!["take", "field", "sway", "--rows", "100", "--cols", "100", "--cell", "0.2"];
+        args.extend(["--speed", "1.5", "-o", out]);
+        args.extend(extra);
+        daemon.frond_ok(&args)
+    };
+    let big = dir.path().join("meadow.json");
+    let small = dir.path().join("meadow-compact.json");
+    field(&[], big.to_str().unwrap());
+    let said = field(&["--compact"], small.to_str().unwrap());
+    assert!(said.contains("(10000 plants, left out"), "{said}");
+    let start = |file: &std::path::Path| {
+        daemon
+            .frond()
+            .args(["field", "start", "--take", "sway", "--field", file.to_str().unwrap()])
+            .output()
+            .unwrap()
+    };
+    let out = start(&big);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("frond take field --compact"), "{err}");
+    let out = start(&small);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(daemon.status().modes.iter().any(|m| m.contains("field")), "{:?}", daemon.status().modes);
+}

@@ -88,8 +88,15 @@ pub(crate) fn field_start(
     }
     // The daemon takes it in one control request: no larger than that.
     let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
-    let field_json = frond_formats::rig_files::read_small_text(field, max)
-        .map_err(|e| anyhow::anyhow!("cannot read field file {}: {}", field.display(), e.reason()))?;
+    let field_json = frond_formats::rig_files::read_small_text(field, max).map_err(|e| {
+        let too_big = std::fs::metadata(field).is_ok_and(|m| m.len() > max);
+        let hint = if too_big {
+            " (write it with `frond take field --compact`, which leaves the plants out: the daemon makes them from the parameters)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("cannot read field file {}: {}{hint}", field.display(), e.reason())
+    })?;
     let mut c = Control::from_global(g)?;
     let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
     c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;

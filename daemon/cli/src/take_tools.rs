@@ -13,7 +13,7 @@ use frond_motion::align::align;
 use frond_motion::clip::{Clip, frame_count};
 use frond_motion::controls::{Retime, retime};
 use frond_motion::edit::{post_filter, splice};
-use frond_motion::field::{FieldParams, make_field};
+use frond_motion::field::{Field, FieldParams, make_field};
 use frond_motion::guided::{GuidedParams, guided};
 use frond_motion::layers::{GLOBAL_LAYER, Take, frames_from_clip};
 use frond_motion::looping::{LoopParams, PlaybackParams, find_transitions, loop_clip};
@@ -241,15 +241,21 @@ fn loop_take(g: &Global, a: LoopArgs) -> anyhow::Result<()> {
 
 /// `frond take field`: a field of plants playing the take (Eq. 6-7), written as field.json.
 fn field(g: &Global, a: FieldArgs) -> anyhow::Result<()> {
-    let FieldArgs { name, rows, cols, cell, speed, direction, density, seed, fps, output } = a;
+    let FieldArgs { name, rows, cols, cell, speed, direction, density, seed, fps, compact, output } = a;
     check_fps(fps)?;
     let src = read_take(g, &name)?;
     let clip = global_clip(&src, fps, &name, None)?;
     let params =
         FieldParams { rows, cols, cell_m: cell, speed_m_s: speed, direction_deg: direction, density, seed };
     let field = make_field(&params, &name, clip.len(), fps).map_err(|e| UsageError(e.to_string()))?;
+    let count = field.plants.len();
+    let (field, how) = if compact {
+        (Field { plants: Vec::new(), ..field }, ", left out: readers make them from the parameters")
+    } else {
+        (field, "")
+    };
     write_atomically_bytes(&output, field.to_json().as_bytes())?;
-    frond_binmain::outln!("wrote {} ({} plants)", output.display(), field.plants.len())?;
+    frond_binmain::outln!("wrote {} ({count} plants{how})", output.display())?;
     Ok(())
 }
 

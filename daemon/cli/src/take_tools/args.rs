@@ -184,6 +184,11 @@ pub struct FieldArgs {
     /// Frame rate the take is sampled at.
     #[arg(long, default_value_t = 30.0, value_name = "FPS")]
     pub fps: f64,
+    /// Leave the plants out of the file: every reader makes them again from the parameters
+    /// (as a live field's subscribers do), so a field of thousands of plants stays small enough
+    /// for `frond field start`, whose request may be at most 256 KiB.
+    #[arg(long)]
+    pub compact: bool,
     /// Output file.
     #[arg(short = 'o', long = "output", value_name = "FILE")]
     pub output: PathBuf,

@@ -304,3 +304,39 @@ fn commands_without_a_daemon_say_how_to_start_it() {
     let out = run(frond().arg("status").env("FROND_SOCKET_DIR", &dir), "");
     assert!(text(&out.stderr).contains(&path_str(&dir.join("control.sock"))), "{}", text(&out.stderr));
 }
+
+/// `frond take field --compact` leaves the plants out, and the file reads back (as the daemon,
+/// `take export --field` and frond-gltf read it) with the same plants as the full file.
+#[test]
+fn a_compact_field_file_reads_back_with_the_plants_of_the_full_one() {
+    use frond_formats::field_json::FieldJson;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::common::performed(d);
+    let field = |extra: &[&str], out: &str| {
+        let o = crate::common::frond(d)
+            .args(["take", "field", "wave", "--rows", "30", "--cols", "40", "--cell", "0.2"])
+            .args(["--speed", "1.5", "--direction", "30", "--seed", "7", "-o", out])
+            .args(extra)
+            .output()
+            .unwrap();
+        crate::common::ok(&o)
+    };
+    let said = field(&[], "full.json");
+    assert!(said.contains("(1200 plants)"), "{said}");
+    let said = field(&["--compact"], "compact.json");
+    assert!(said.contains("(1200 plants, left out: readers make them from the parameters)"), "{said}");
+    let (full, compact) = (
+        std::fs::read_to_string(d.join("full.json")).unwrap(),
+        std::fs::read_to_string(d.join("compact.json")).unwrap(),
+    );
+    let raw: serde_json::Value = serde_json::from_str(&compact).unwrap();
+    assert_eq!(raw["plants"].as_array().map_or(0, Vec::len), 0, "no plants written");
+    assert!(compact.len() * 50 < full.len(), "{} bytes against {}", compact.len(), full.len());
+    let (full, compact) = (
+        frond_motion::field::Field::from_json(&full).unwrap(),
+        frond_motion::field::Field::from_json(&compact).unwrap(),
+    );
+    assert_eq!(compact.plants.len(), 1200);
+    assert_eq!(compact, full, "the plants made from the parameters are the ones written out");
+}
