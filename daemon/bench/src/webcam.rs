@@ -133,13 +133,6 @@ pub fn webcam(o: &Options) -> Result<Section, BenchError> {
         Measurement::new("frame_to_subscriber_p50", "us", total.p50_us, alone_name, alone.to_line.p50_us),
         Measurement::new("frame_to_subscriber_p99", "us", total.p99_us, alone_name, alone.to_line.p99_us),
         Measurement::new(
-            "frond_own_p50",
-            "us",
-            total.p50_us - alone.to_line.p50_us,
-            "frond-hands alone: capture -> line, median",
-            alone.to_line.p50_us,
-        ),
-        Measurement::new(
             "model_p50",
             "us",
             alone.model.p50_us,
@@ -155,6 +148,9 @@ pub fn webcam(o: &Options) -> Result<Section, BenchError> {
         ),
     ];
     let details = json!({
+        // frond's own share, estimated as the difference of two runs' medians: not a row, since
+        // under load the two runs differ by more than it (a CI run saw -2.9 ms).
+        "frond_own_p50_us_estimate": total.p50_us - alone.to_line.p50_us,
         "frondd_frame_to_subscriber": total,
         "helper_capture_to_line": alone.to_line,
         "helper_model": alone.model,
