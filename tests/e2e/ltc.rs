@@ -202,12 +202,10 @@ fn a_take_recorded_while_ltc_plays_carries_the_stage_timecode() {
     writer_leaves(&daemon, stop, writer);
 }
 
-/// LTC read from an ALSA capture device: a PCM of ALSA's `file` plugin, defined in the
-/// `.asoundrc` of the daemon's `HOME` as an operator defines their devices, whose captured
-/// samples come from a FIFO the test plays into in real time (the plugin reads it as the
-/// device's input; no sound card here). libasound is the real one.
-#[test]
-fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage_timecode() {
+/// A private directory with a FIFO and, in its `.asoundrc`, the ALSA PCM `frondltc`: ALSA's
+/// `file` plugin whose captured samples are what is written into the FIFO (the daemon's `HOME`
+/// is that directory, so its libasound reads the file as an operator's own devices are read).
+fn alsa_pcm_over_a_fifo() -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("ltc.fifo");
     mkfifo(&fifo);
@@ -216,6 +214,23 @@ fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage
         fifo.display()
     );
     std::fs::write(dir.path().join(".asoundrc"), asoundrc).unwrap();
+    (dir, fifo)
+}
+
+/// `frondd --ltc alsa:frondltc` with `HOME` at `dir` (see [`alsa_pcm_over_a_fifo`]).
+fn start_on_alsa_pcm(dir: &Path, stderr: Stdio) -> Daemon {
+    let mut frondd = Command::new(bin("frondd"));
+    frondd.env("HOME", dir);
+    Daemon::start_command(frondd, dir, &["--source", "in-process", "--ltc", "alsa:frondltc"], stderr)
+}
+
+/// LTC read from an ALSA capture device: a PCM of ALSA's `file` plugin, defined in the
+/// `.asoundrc` of the daemon's `HOME` as an operator defines their devices, whose captured
+/// samples come from a FIFO the test plays into in real time (the plugin reads it as the
+/// device's input; no sound card here). libasound is the real one.
+#[test]
+fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage_timecode() {
+    let (dir, fifo) = alsa_pcm_over_a_fifo();
     // The plugin opens the FIFO when the daemon opens the device at start-up: the writer
     // waits for it there.
     let stop = Arc::new(AtomicBool::new(false));
@@ -223,14 +238,7 @@ fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage
         let (fifo, stop) = (fifo.clone(), stop.clone());
         std::thread::spawn(move || play(NTSC_DF, &fifo, stop))
     };
-    let mut frondd = Command::new(bin("frondd"));
-    frondd.env("HOME", dir.path());
-    let daemon = Daemon::start_command(
-        frondd,
-        dir.path(),
-        &["--source", "in-process", "--ltc", "alsa:frondltc"],
-        Stdio::inherit(),
-    );
+    let daemon = start_on_alsa_pcm(dir.path(), Stdio::inherit());
     let (writer, t0) = player.join().unwrap();
     assert_eq!(ltc_json(&daemon)["input"], "alsa:frondltc");
     locks_and_stamps_a_take(&daemon, NTSC_DF, t0);
@@ -241,14 +249,7 @@ fn a_take_recorded_while_ltc_plays_into_an_alsa_capture_device_carries_the_stage
 /// holds it open and sends nothing) does not keep the daemon from stopping.
 #[test]
 fn a_stalled_alsa_input_does_not_keep_the_daemon_from_stopping() {
-    let dir = tempfile::tempdir().unwrap();
-    let fifo = dir.path().join("ltc.fifo");
-    mkfifo(&fifo);
-    let asoundrc = format!(
-        "pcm.frondltc {{\n    type file\n    slave.pcm \"null\"\n    file \"/dev/null\"\n    infile \"{}\"\n    format \"raw\"\n}}\n",
-        fifo.display()
-    );
-    std::fs::write(dir.path().join(".asoundrc"), asoundrc).unwrap();
+    let (dir, fifo) = alsa_pcm_over_a_fifo();
     // The writer opens the pipe (the plugin's open waits for it) and then says nothing.
     let (done, wait_done) = std::sync::mpsc::channel::<()>();
     let holder = {
@@ -260,14 +261,7 @@ fn a_stalled_alsa_input_does_not_keep_the_daemon_from_stopping() {
         })
     };
     let log = dir.path().join("frondd.log");
-    let mut frondd = Command::new(bin("frondd"));
-    frondd.env("HOME", dir.path());
-    let mut daemon = Daemon::start_command(
-        frondd,
-        dir.path(),
-        &["--source", "in-process", "--ltc", "alsa:frondltc"],
-        std::fs::File::create(&log).unwrap().into(),
-    );
+    let mut daemon = start_on_alsa_pcm(dir.path(), std::fs::File::create(&log).unwrap().into());
     std::thread::sleep(Duration::from_millis(300));
     let pid = daemon.proc.child.id() as libc::pid_t;
     // SAFETY: plain kill(2) on our own child's pid.
