@@ -250,9 +250,9 @@ impl AlsaCapture {
         Ok((pcm, if rc < 0 { 0 } else { buffer }))
     }
 
-    /// The device's name as configured.
-    pub fn device(&self) -> &str {
-        &self.device
+    /// The sample rate it was opened at, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
     }
 
     /// Overruns recovered so far.
