@@ -56,12 +56,13 @@ fn trigger_flood(to: SocketAddr, stop: Arc<AtomicBool>) -> thread::JoinHandle<Re
         let mut sent = 0u64;
         let start = Instant::now();
         while !stop.load(Relaxed) {
-            let stop_msg = leader.stop("bench_no_such_take", None).map(<[u8]>::to_vec);
-            let datagram = match (sent % 2, stop_msg) {
-                (0, Ok(bytes)) => bytes,
-                _ => b"<?xml version=\"1.0\"?><NotATrigger/>\0".to_vec(),
+            const NOT_A_TRIGGER: &[u8] = b"<?xml version=\"1.0\"?><NotATrigger/>\0";
+            let datagram = if sent.is_multiple_of(2) {
+                leader.stop("bench_no_such_take", None).unwrap_or(NOT_A_TRIGGER)
+            } else {
+                NOT_A_TRIGGER
             };
-            socket.send_to(&datagram, to)?;
+            socket.send_to(datagram, to)?;
             sent += 1;
             let due = start + Duration::from_millis(10 * sent);
             thread::sleep(due.saturating_duration_since(Instant::now()));
