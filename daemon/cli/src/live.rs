@@ -89,7 +89,7 @@ pub(crate) fn field_start(
     // The daemon takes it in one control request: no larger than that.
     let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
     let field_json = frond_formats::rig_files::read_small_text(field, max).map_err(|e| {
-        let too_big = std::fs::metadata(field).is_ok_and(|m| m.len() > max);
+        let too_big = matches!(e, frond_formats::rig_files::FileError::TooLarge { .. });
         let hint = if too_big {
             " (write it with `frond take field --compact`, which leaves the plants out: the daemon makes them from the parameters)"
         } else {
