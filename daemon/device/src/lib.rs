@@ -5,6 +5,7 @@
 #![warn(missing_docs)]
 
 pub mod doorbell;
+pub mod join;
 pub mod jsonl;
 pub mod log_limit;
 pub mod profile;

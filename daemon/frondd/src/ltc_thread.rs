@@ -50,17 +50,15 @@ pub struct BoundLtc {
 enum Input {
     /// A file or FIFO.
     Fd(LtcInput),
-    /// An ALSA capture device, read at `rate_hz`.
-    Alsa { capture: AlsaCapture, rate_hz: u32 },
+    /// An ALSA capture device.
+    Alsa(AlsaCapture),
 }
 
 impl Input {
     fn open(source: &LtcSource, sample_rate_hz: u32) -> Result<Input, LtcInputError> {
         Ok(match source {
             LtcSource::Path(path) => Input::Fd(LtcInput::open(path, sample_rate_hz)?),
-            LtcSource::Alsa(device) => {
-                Input::Alsa { capture: AlsaCapture::open(device, sample_rate_hz)?, rate_hz: sample_rate_hz }
-            }
+            LtcSource::Alsa(device) => Input::Alsa(AlsaCapture::open(device, sample_rate_hz)?),
         })
     }
 
@@ -69,14 +67,14 @@ impl Input {
         match self {
             Input::Fd(input) if input.kind() == InputKind::Fifo => "FIFO",
             Input::Fd(_) => "file",
-            Input::Alsa { .. } => "ALSA capture device",
+            Input::Alsa(_) => "ALSA capture device",
         }
     }
 
     fn sample_rate_hz(&self) -> u32 {
         match self {
             Input::Fd(input) => input.sample_rate_hz(),
-            Input::Alsa { rate_hz, .. } => *rate_hz,
+            Input::Alsa(capture) => capture.rate_hz(),
         }
     }
 
@@ -85,7 +83,7 @@ impl Input {
     fn read(&mut self, out: &mut [i16]) -> Result<Read16, String> {
         match self {
             Input::Fd(input) => input.read(out).map_err(|e| e.to_string()),
-            Input::Alsa { capture, .. } => match capture.read(out, LTC_POLL) {
+            Input::Alsa(capture) => match capture.read(out, LTC_POLL) {
                 Ok(0) => Ok(Read16::Nothing),
                 Ok(n) => Ok(Read16::Samples(n)),
                 Err(e) => Err(e.to_string()),
@@ -96,7 +94,7 @@ impl Input {
     fn queued_samples(&self) -> u64 {
         match self {
             Input::Fd(input) => input.queued_samples(),
-            Input::Alsa { capture, .. } => capture.queued_samples(),
+            Input::Alsa(capture) => capture.queued_samples(),
         }
     }
 }
@@ -113,16 +111,12 @@ impl LtcThread {
     /// daemon from stopping, so such a thread is left to end with the process, and said.
     pub fn stop(self) {
         self.stop.store(true, Relaxed);
-        let deadline = std::time::Instant::now() + STOP_WAIT;
-        while !self.handle.is_finished() && std::time::Instant::now() < deadline {
-            thread::sleep(Duration::from_millis(10));
-        }
-        if !self.handle.is_finished() {
-            warn!(thread = "frond-ltc", "did not stop within 1 s (its input's read blocks); leaving it");
-            return;
-        }
-        if self.handle.join().is_err() {
-            tracing::error!(thread = "frond-ltc", "thread panicked");
+        match frond_device::join::join_within(self.handle, STOP_WAIT) {
+            None => {
+                warn!(thread = "frond-ltc", "did not stop within 1 s (its input's read blocks); leaving it")
+            }
+            Some(Err(_)) => tracing::error!(thread = "frond-ltc", "thread panicked"),
+            Some(Ok(())) => {}
         }
     }
 }
@@ -221,7 +215,7 @@ impl LtcReader {
                 }
             }
             // The read waits for the device.
-            Input::Alsa { .. } => {}
+            Input::Alsa(_) => {}
         }
         match self.input.read(&mut self.buf) {
             Ok(Read16::Samples(n)) => {

@@ -5,7 +5,7 @@ use std::os::fd::RawFd;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crossbeam_channel::Receiver;
 use frond_protocol::SourceKind;
@@ -119,13 +119,7 @@ impl Drop for LeapSource {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Release);
         let Some(t) = self.thread.take() else { return };
-        let deadline = Instant::now() + STOP_WAIT;
-        while !t.is_finished() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        if t.is_finished() {
-            let _ = t.join();
-        } else {
+        if crate::join::join_within(t, STOP_WAIT).is_none() {
             tracing::warn!(source = %self.describe, "the Leap Motion client thread did not stop within {} ms; leaving it", STOP_WAIT.as_millis());
         }
     }

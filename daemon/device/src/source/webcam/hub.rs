@@ -107,16 +107,10 @@ impl Drop for Hub {
         if let Some(child) = lock(&self.child).as_mut() {
             let _ = child.kill();
         }
-        if let Some(t) = self.thread.take() {
-            let deadline = Instant::now() + Duration::from_millis(500);
-            while !t.is_finished() && Instant::now() < deadline {
-                std::thread::sleep(Duration::from_millis(5));
-            }
-            if t.is_finished() {
-                let _ = t.join();
-            } else {
-                tracing::warn!(camera = %self.input, "the webcam thread did not stop within 500 ms; leaving it");
-            }
+        if let Some(t) = self.thread.take()
+            && crate::join::join_within(t, Duration::from_millis(500)).is_none()
+        {
+            tracing::warn!(camera = %self.input, "the webcam thread did not stop within 500 ms; leaving it");
         }
     }
 }
