@@ -115,7 +115,7 @@ pub fn daemon_resources(o: &Options) -> Result<Section, BenchError> {
 
     let mut section = resources_section(&replay, fuse.as_ref(), (osc_frondd, osc_relay), idle_rss, window);
     // Issue 46: the loop with a mocap stage's triggers and LTC running, against without.
-    let (rows, details) = crate::stage_sync::measure(o, dir.path(), warm, window)?;
+    let (rows, details) = crate::stage_sync::measure(o, dir.path(), &hand, &replay, warm, window)?;
     section.measurements.extend(rows);
     if let Value::Object(map) = &mut section.details {
         map.insert("stage_sync".into(), details);
