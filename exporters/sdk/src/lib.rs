@@ -548,7 +548,7 @@ impl Subscriber {
             self.stats.missing += pose.seq - expected;
             // Over Zenoh, an element table published during the loss may be lost with it.
             #[cfg(feature = "zenoh")]
-            if let State::Connected(Wire::Zenoh(conn)) = &self.state {
+            if let State::Connected(Wire::Zenoh(conn)) = &mut self.state {
                 conn.refresh_elements();
             }
             self.pending.push_back(Event::Pose(pose));

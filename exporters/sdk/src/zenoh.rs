@@ -21,7 +21,7 @@
 
 use std::collections::VecDeque;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use ::zenoh::Wait;
@@ -67,6 +67,8 @@ pub(crate) struct ZenohConn {
     frames: Receiver<Frame>,
     /// Where answers to [`ZenohConn::refresh_elements`] join the frames.
     refresh_tx: Sender<Frame>,
+    /// The element-table question asked after a gap, until answered.
+    refresh: Refresh,
     /// The element table last passed on (from the hello or an `elements` sample).
     table: Option<frond_protocol::ElementTable>,
     alive: Receiver<bool>,
@@ -169,6 +171,7 @@ impl ZenohConn {
             _alive_sub: alive_sub,
             frames,
             refresh_tx,
+            refresh: Refresh::default(),
             table: None,
             alive,
             overflow,
@@ -259,16 +262,42 @@ impl ZenohConn {
     /// frames and is passed on only if it differs from the table last passed on. Called after a
     /// gap: `elements` samples are dropped like poses when the path is congested, and a table
     /// that changed during the loss would otherwise stay unknown until the next rejoin.
-    pub(crate) fn refresh_elements(&self) {
+    ///
+    /// A gap often ends as a link comes back, when the first question can be lost or find no
+    /// bridge yet: it is asked again every [`REFRESH_RETRY`] until one answer arrives, at most
+    /// [`REFRESH_TRIES`] times in all ([`ZenohConn::retry_refresh`], from the reads).
+    pub(crate) fn refresh_elements(&mut self) {
+        self.refresh.tries_left = REFRESH_TRIES;
+        self.ask_elements();
+    }
+
+    /// Asks again if the last question about the element table has gone unanswered for
+    /// [`REFRESH_RETRY`] and tries are left. Cheap when nothing is asked: one comparison.
+    fn retry_refresh(&mut self) {
+        if self.refresh.tries_left > 0
+            && !self.refresh.answered.load(Ordering::Relaxed)
+            && self.refresh.asked_at.is_some_and(|t| t.elapsed() >= REFRESH_RETRY)
+        {
+            self.ask_elements();
+        }
+    }
+
+    fn ask_elements(&mut self) {
+        self.refresh.tries_left = self.refresh.tries_left.saturating_sub(1);
+        self.refresh.asked_at = Some(Instant::now());
+        // A fresh flag per question: a late answer to an earlier one must not mark this one.
+        let answered = Arc::new(AtomicBool::new(false));
+        self.refresh.answered = answered.clone();
         let tx = self.refresh_tx.clone();
         let overflow = self.overflow.clone();
-        // A query that cannot be sent now is asked again at the next gap.
+        // A query that cannot be sent now counts as unanswered and is asked again.
         let _ = self
             .session
             .get(keys::under(&self.key, keys::ELEMENTS))
-            .timeout(Duration::from_secs(2))
+            .timeout(REFRESH_RETRY)
             .callback(move |reply| {
                 if let Ok(sample) = reply.result() {
+                    answered.store(true, Ordering::Relaxed);
                     let frame = Frame {
                         bytes: sample.payload().to_bytes().into_owned(),
                         stage_ns: None,
@@ -301,6 +330,7 @@ impl ZenohConn {
         if self.reported_at.elapsed() >= REPORT_EVERY {
             self.report();
         }
+        self.retry_refresh();
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             // Frames that arrived before the token went away come first.
@@ -320,6 +350,7 @@ impl ZenohConn {
                         Ok(frame) => frame,
                         Err(RecvTimeoutError::Disconnected) => return ReadOutcome::Closed,
                         Err(RecvTimeoutError::Timeout) => {
+                            self.retry_refresh();
                             // Nothing for a while: the last poses before a pause may be lost
                             // with nothing after them to show it; a reliable subscription asks.
                             if let Some(next) = self.next.filter(|_| self.reliable) {
@@ -448,6 +479,24 @@ impl ZenohConn {
         };
         zenoh_replay::report(&self.session, &keys::under(&self.key, zenoh_replay::REPLAY), &request);
     }
+}
+
+/// How long a question about the element table waits for its answer before it is asked again.
+const REFRESH_RETRY: Duration = Duration::from_secs(1);
+
+/// How many times a gap asks for the element table at most, before it gives up until the next
+/// gap: a bridge that does not answer in as many seconds is gone, and its token going says so.
+const REFRESH_TRIES: u8 = 8;
+
+/// The element-table question of [`ZenohConn::refresh_elements`].
+#[derive(Default)]
+struct Refresh {
+    /// Set by Zenoh's thread when the question last asked gets an answer.
+    answered: Arc<AtomicBool>,
+    /// When it was asked; `None` before the first.
+    asked_at: Option<Instant>,
+    /// Questions left to ask while unanswered.
+    tries_left: u8,
 }
 
 /// Least time between two warnings about samples that are not one frame.
