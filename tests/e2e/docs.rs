@@ -39,6 +39,8 @@ struct Marks {
     daemon: bool,
     background: bool,
     repo_root: bool,
+    /// What `daemon (ARGS)` adds to the daemon's command line.
+    daemon_args: Vec<String>,
 }
 
 /// One documented command: where it is and what it says.
@@ -74,10 +76,17 @@ fn parse_marks(line: &str) -> Result<Option<Marks>, String> {
     for word in body.split(',').map(str::trim) {
         match word {
             "daemon" => marks.daemon = true,
+            w if w.starts_with("daemon (") && w.ends_with(')') => {
+                marks.daemon = true;
+                marks.daemon_args =
+                    w["daemon (".len()..w.len() - 1].split_whitespace().map(String::from).collect();
+            }
             "background" => marks.background = true,
             "repo-root" => marks.repo_root = true,
             other => {
-                return Err(format!("unknown doc-test mark `{other}` (skip, daemon, background, repo-root)"));
+                return Err(format!(
+                    "unknown doc-test mark `{other}` (skip, daemon, daemon (ARGS), background, repo-root)"
+                ));
             }
         }
     }
@@ -348,7 +357,11 @@ fn run_page(page: &str) -> Vec<String> {
             eprintln!("doc-test: SKIP {page}:{} `{first}`: {reason}", block.line);
             continue;
         }
-        let _daemon = block.marks.daemon.then(|| Daemon::start(&scratch.root, &["--source", "in-process"]));
+        let args: Vec<&str> = ["--source", "in-process"]
+            .into_iter()
+            .chain(block.marks.daemon_args.iter().map(String::as_str))
+            .collect();
+        let _daemon = block.marks.daemon.then(|| Daemon::start(&scratch.root, &args));
         for cmd in &block.commands {
             let started = Instant::now();
             let result = run_command(&scratch, block, cmd);
@@ -613,4 +626,8 @@ fn the_marker_parser_reads_what_the_guide_documents() {
     assert!(blocks("```sh\ncat <<EOF\nx\n```\n").is_err(), "an unterminated heredoc");
     assert!(blocks("<!-- doc-test: skip -->\n```sh\nx\n```\n").is_err(), "a skip without a reason");
     assert!(blocks("<!-- doc-test: deamon -->\n```sh\nx\n```\n").is_err(), "a misspelt mark");
+    let d =
+        blocks("<!-- doc-test: daemon (--triggers 127.0.0.1:1512) -->\n```sh\nfrond status\n```\n").unwrap();
+    assert!(d[0].marks.daemon && !d[0].marks.background);
+    assert_eq!(d[0].marks.daemon_args, ["--triggers", "127.0.0.1:1512"]);
 }

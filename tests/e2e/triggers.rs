@@ -171,6 +171,83 @@ fn a_trigger_start_waits_for_its_delay() {
 }
 
 #[test]
+fn following_pauses_and_resumes_from_the_command_line_and_a_paused_start_is_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let master = UdpSocket::bind("127.0.0.1:0").unwrap();
+    assert!(!triggers(&daemon).paused, "frondd starts following");
+
+    // A take the stage started goes on being followed to its stop after a pause.
+    master.send_to(&capture_start("before", 0, 10), &listen).unwrap();
+    until(&daemon, "the take starts", |s| s.recording.is_some());
+    assert_eq!(
+        daemon.frond_ok(&["triggers", "pause"]).trim(),
+        format!(
+            "capture triggers paused: starts heard on {listen} are counted, not followed \
+             (`frond triggers follow` resumes)"
+        )
+    );
+    assert!(triggers(&daemon).paused);
+    master.send_to(&capture_stop("before", 11), &listen).unwrap();
+    until(&daemon, "the stop still ends the stage's take", |s| s.recording.is_none());
+
+    // Paused: a start (and a delayed one) is heard, counted, and records nothing.
+    master.send_to(&capture_start("missed", 0, 12), &listen).unwrap();
+    master.send_to(&capture_start("missed-too", 300, 13), &listen).unwrap();
+    let s = until(&daemon, "two paused starts counted", |s| {
+        s.triggers.as_ref().is_some_and(|t| t.paused_starts == 2)
+    });
+    assert!(s.recording.is_none(), "a paused start recorded");
+    assert!(!daemon.takes_dir.join("missed.take").exists());
+    std::thread::sleep(Duration::from_millis(500)); // past the delayed start's time
+    assert!(daemon.status().recording.is_none(), "the delayed start recorded while paused");
+    assert!(!daemon.takes_dir.join("missed-too.take").exists());
+    let table = daemon.frond_ok(&["status"]);
+    assert!(
+        table.contains(
+            "  PAUSED     starts are not followed (2 heard while paused); `frond triggers follow` resumes"
+        ),
+        "{table}"
+    );
+    let doctor = daemon.frond().arg("doctor").output().unwrap();
+    let said =
+        String::from_utf8_lossy(&doctor.stdout).into_owned() + &String::from_utf8_lossy(&doctor.stderr);
+    assert!(
+        said.contains(&format!(
+            "capture triggers are paused: 2 takes the stage started on {listen} were not recorded"
+        )),
+        "{said}"
+    );
+
+    // Following again: the next start records.
+    assert_eq!(
+        daemon.frond_ok(&["triggers", "follow"]).trim(),
+        format!("following capture triggers on {listen}")
+    );
+    master.send_to(&capture_start("after", 0, 14), &listen).unwrap();
+    let s = until(&daemon, "the next take starts", |s| s.recording.is_some());
+    assert_eq!(s.recording.unwrap().name, "after");
+    let t = s.triggers.unwrap();
+    assert_eq!((t.paused, t.paused_starts, t.started), (false, 2, 2), "{t:#?}");
+}
+
+#[test]
+fn triggers_cannot_be_followed_when_frondd_listens_for_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let out = daemon.frond().args(["triggers", "follow"]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("frondd listens for no capture triggers: start it with --triggers ADDR:PORT"),
+        "{err}"
+    );
+    let out = daemon.frond().args(["triggers", "on"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "a mode that is none is a usage error");
+}
+
+#[test]
 fn record_start_and_stop_lead_the_stage_and_a_trigger_take_is_not_led() {
     let dir = tempfile::tempdir().unwrap();
     let receiver = UdpSocket::bind("127.0.0.1:0").unwrap();

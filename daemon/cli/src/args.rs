@@ -109,6 +109,14 @@ pub enum Command {
     /// Start or stop recording a take.
     #[command(subcommand)]
     Record(RecordCommand),
+    /// Follow the mocap stage's capture triggers, or pause following (frondd must listen for
+    /// them: --triggers or [triggers] listen). Paused, a CaptureStart is counted and ignored; a
+    /// CaptureStop still ends a take a trigger started.
+    Triggers {
+        /// follow or pause.
+        #[arg(value_enum)]
+        mode: TriggerMode,
+    },
     /// List, export and repair recorded takes.
     #[command(subcommand)]
     Take(TakeCommand),
@@ -219,6 +227,15 @@ pub enum RigCommand {
         /// Rig: an embedded name (grass, flower, shrub) or a rig file (TOML).
         file: PathBuf,
     },
+}
+
+/// `frond triggers MODE`
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TriggerMode {
+    /// A CaptureStart starts a take, a CaptureStop stops it.
+    Follow,
+    /// Starts are heard and counted, not followed.
+    Pause,
 }
 
 /// `frond record ...`

@@ -169,6 +169,23 @@ pub(crate) fn set_filter(g: &Global, spec: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `frond triggers follow|pause`: asks, then says what frondd now does with the stage's starts.
+pub(crate) fn set_triggers(g: &Global, mode: crate::args::TriggerMode) -> anyhow::Result<()> {
+    let follow = mode == crate::args::TriggerMode::Follow;
+    let mut c = Control::from_global(g)?;
+    c.expect_ok(&ControlRequest::SetTriggers { follow })?;
+    let listen = c.status()?.triggers.and_then(|t| t.listen).unwrap_or_default();
+    if follow {
+        frond_binmain::outln!("following capture triggers on {}", frond_protocol::printable(&listen))?;
+    } else {
+        frond_binmain::outln!(
+            "capture triggers paused: starts heard on {} are counted, not followed (`frond triggers follow` resumes)",
+            frond_protocol::printable(&listen)
+        )?;
+    }
+    Ok(())
+}
+
 pub(crate) fn mark(g: &Global, label: &str) -> anyhow::Result<()> {
     if label.len() > MAX_LABEL_BYTES {
         return usage(format!("marker label is {} bytes; the limit is {MAX_LABEL_BYTES}", label.len()));

@@ -116,6 +116,13 @@ fn triggers(o: &mut String, t: &frond_protocol::TriggerStatus) {
     };
     let leads = t.lead.as_ref().map_or("not leading".to_string(), |to| format!("leading to {}", p(to)));
     let _ = writeln!(o, "triggers     {follows}; {leads}");
+    if t.paused {
+        let _ = writeln!(
+            o,
+            "  PAUSED     starts are not followed ({} heard while paused); `frond triggers follow` resumes",
+            t.paused_starts
+        );
+    }
     if let Some(last) = &t.last {
         let name = last.name.as_deref().map_or("(no name)".to_string(), |n| format!("\"{}\"", p(n)));
         let packet = last.packet_id.map_or(String::new(), |id| format!(", packet {id}"));

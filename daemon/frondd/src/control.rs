@@ -104,6 +104,7 @@ impl ControlContext {
             ControlRequest::StageStart { name, spec } => self.stage_start(name, spec),
             ControlRequest::StageStop { name } => self.stage_stop(&name),
             ControlRequest::StageInput { name, input } => self.stage_input(&name, input),
+            ControlRequest::SetTriggers { follow } => self.set_triggers(follow),
             ControlRequest::FreezeLoop { ms } => {
                 if !self.test_hooks {
                     return refuse(
@@ -197,6 +198,23 @@ impl ControlContext {
                 ControlReply::Ok
             }
             Err(reply) => reply,
+        }
+    }
+
+    /// Follows a mocap stage's capture triggers again, or pauses following (issue 46: on and
+    /// off from the CLI and the console, not only at start-up). Refused when frondd listens for
+    /// none: there is nothing to follow, and binding a port is a start-up decision.
+    fn set_triggers(&self, follow: bool) -> ControlReply {
+        match &self.triggers {
+            Some(link) if link.listens() => {
+                link.set_following(follow);
+                ControlReply::Ok
+            }
+            _ => refuse(
+                ControlErrorKind::WrongState,
+                "frondd listens for no capture triggers: start it with --triggers ADDR:PORT (or \
+                 listen in its [triggers] table) to follow a stage",
+            ),
         }
     }
 

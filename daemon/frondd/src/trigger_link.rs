@@ -12,6 +12,7 @@
 use std::collections::VecDeque;
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::time::{Instant, SystemTime};
 
 use frond_protocol::{TriggerLast, TriggerStatus};
@@ -28,6 +29,8 @@ const OWN_MESSAGES_KEPT: usize = 8;
 pub struct TriggerLink {
     book: Mutex<Book>,
     lead: Option<Mutex<Lead>>,
+    /// Following is paused: the trigger thread hears starts and does not follow them.
+    paused: AtomicBool,
 }
 
 /// What status reads, kept by the trigger thread and the leader.
@@ -68,7 +71,29 @@ impl TriggerLink {
         TriggerLink {
             book: Mutex::new(Book { status, last_at_ns: None, sent: VecDeque::new(), led_take: None }),
             lead,
+            paused: AtomicBool::new(false),
         }
+    }
+
+    /// Whether frond listens for triggers (and so can follow or pause).
+    pub fn listens(&self) -> bool {
+        self.book().status.listen.is_some()
+    }
+
+    /// Pauses following (`false`) or resumes it (`true`): what `frond triggers pause|follow`
+    /// and the console's switch ask. Returns whether anything changed.
+    pub fn set_following(&self, follow: bool) -> bool {
+        let changed = self.paused.swap(!follow, Relaxed) == follow;
+        self.book().status.paused = !follow;
+        if changed {
+            info!(follow, "capture triggers {}", if follow { "followed again" } else { "paused" });
+        }
+        changed
+    }
+
+    /// Whether following is paused.
+    pub fn paused(&self) -> bool {
+        self.paused.load(Relaxed)
     }
 
     fn book(&self) -> std::sync::MutexGuard<'_, Book> {

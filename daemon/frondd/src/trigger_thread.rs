@@ -164,6 +164,8 @@ struct Counts {
     start_refused: u64,
     /// Stops for a take frond had stopped already.
     stale_stops: u64,
+    /// Starts heard while following was paused.
+    paused_starts: u64,
 }
 
 impl TriggerFollower {
@@ -245,9 +247,20 @@ impl TriggerFollower {
         }
     }
 
-    /// Starts `take` as `frond record start NAME` would.
+    /// Starts `take` as `frond record start NAME` would, unless following is paused (then the
+    /// start, immediate or delayed, is counted and dropped: the follower waits for the next).
     fn start(&mut self, take: StartTake) {
         static REFUSED: LogLimit = LogLimit::new();
+        static PAUSED: LogLimit = LogLimit::new();
+        if self.link.paused() {
+            self.follower.take_ended();
+            self.counts.paused_starts += 1;
+            PAUSED.log(
+                "capture-trigger log lines",
+                || info!(take = %take.name, from = %take.sender, "capture start not followed: following is paused"),
+            );
+            return;
+        }
         let reply = {
             let _session = self.ctx.recording_session();
             self.ctx.record_start(take.name.clone())
@@ -336,6 +349,7 @@ impl TriggerFollower {
             s.oversized = c.oversized;
             s.already_recording = c.already_recording;
             s.scheduled = scheduled;
+            s.paused_starts = own.paused_starts;
         });
     }
 }

@@ -91,6 +91,13 @@ pub enum ControlRequest {
     /// request is answered `Internal` and gives its connection slot back. Refused unless the
     /// daemon was started with `--test-hooks`.
     PanicForTest,
+    /// Follow a mocap stage's capture triggers (`follow`: a `CaptureStart` starts a take), or
+    /// pause (starts are heard, counted and ignored; a `CaptureStop` still ends a take a trigger
+    /// started). Refused when frondd listens for no triggers. Answered with [`ControlReply::Ok`].
+    SetTriggers {
+        /// Follow (true) or pause (false).
+        follow: bool,
+    },
 }
 
 impl ControlRequest {
@@ -112,6 +119,7 @@ impl ControlRequest {
             ControlRequest::StageInput { .. } => "stage-input",
             ControlRequest::FreezeLoop { .. } => "freeze-loop",
             ControlRequest::PanicForTest => "panic-for-test",
+            ControlRequest::SetTriggers { .. } => "set-triggers",
         }
     }
 }
@@ -548,6 +556,11 @@ pub struct TriggerStatus {
     pub lead_sent: u64,
     /// Messages frond could not send as the leader.
     pub lead_failed: u64,
+    /// Following is paused (`frond triggers pause`, the console): starts are counted in
+    /// `paused_starts` and not followed.
+    pub paused: bool,
+    /// Starts heard while paused, not followed.
+    pub paused_starts: u64,
 }
 
 /// The last trigger message heard.
@@ -660,7 +673,7 @@ pub struct SourceStatus {
 }
 
 /// What a camera hand source does (`webcam`): its landmark helper's frames.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CameraStatus {
     /// Frames the helper reported since the daemon started.
     pub frames: u64,
@@ -674,6 +687,11 @@ pub struct CameraStatus {
     pub model_ms: f64,
     /// Times the helper was started (more than 1: it stopped and was started again).
     pub helper_starts: u64,
+    /// The camera's preview picture (the frame with the hand drawn, a few times a second): a
+    /// file name in the daemon's socket directory ([`crate::paths::is_camera_preview_name`]),
+    /// `None` when the daemon keeps none (and from daemons that do not).
+    #[serde(default)]
+    pub preview: Option<String>,
 }
 
 /// Percentiles of a latency, microseconds.

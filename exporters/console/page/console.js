@@ -232,7 +232,10 @@ function showStageSync(d) {
   const t = d.triggers;
   if (t) {
     const parts = [];
-    if (t.listen) parts.push(`following capture triggers on ${t.listen}${t.allow.length ? ` from ${t.allow.join(', ')}` : ' from any host'}`);
+    const from = t.allow.length ? ` from ${t.allow.join(', ')}` : ' from any host';
+    if (t.listen) parts.push(t.paused
+      ? `PAUSED: capture triggers on ${t.listen}${from} are heard, not followed (${t.paused_starts} starts missed)`
+      : `following capture triggers on ${t.listen}${from}`);
     if (t.lead) parts.push(`leading to ${t.lead}`);
     if (t.scheduled) parts.push(`take ${t.scheduled} waits for its delay`);
     if (t.last) parts.push(`last ${t.last.kind}${t.last.name ? ` ${t.last.name}` : ''} from ${t.last.from}, ${t.last.age_s.toFixed(0)} s ago`);
@@ -245,11 +248,18 @@ function showStageSync(d) {
     const last = l.last_timecode ? `, last ${l.last_timecode}` : '';
     lines.push(`timecode (LTC): ${l.state}${l.fps ? ` at ${l.fps} fps` : ''} from ${l.input}${last}`);
   }
+  const toggle = $('triggers-toggle');
+  toggle.hidden = !(t && t.listen);
+  if (t && t.listen) {
+    toggle.textContent = t.paused ? 'follow triggers' : 'pause triggers';
+    toggle.dataset.mode = t.paused ? 'follow' : 'pause';
+  }
   const el = $('stage-sync');
   el.replaceChildren(...lines.map((text) => { const div = document.createElement('div'); div.textContent = text; return div; }));
   el.hidden = !lines.length;
-  el.className = l && l.state !== 'locked' ? 'bad' : '';
+  el.className = (l && l.state !== 'locked') || (t && t.paused) ? 'bad' : '';
 }
+$('triggers-toggle').addEventListener('click', (e) => post('/api/triggers', { mode: e.target.dataset.mode }).then(pollStatus));
 async function pollStatus() {
   try {
     const s = await (await fetch('/api/status')).json();

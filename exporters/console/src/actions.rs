@@ -15,6 +15,7 @@
 //! | `/api/field/key` | `{"key"}`: left, right, up, down, stronger, weaker | `frond field key KEY` |
 //! | `/api/field/stop` | | stops the field |
 //! | `/api/guided` | `{"spec"}`, or `"off"` | `frond guided SPEC` |
+//! | `/api/triggers` | `{"mode"}`: follow or pause | `frond triggers MODE` |
 //!
 //! A rig is taken by embedded name only: a browser does not name files on the daemon's machine.
 
@@ -24,7 +25,7 @@ use frond_protocol::{ControlRequest, StageInput, StageKey, StageSpec, paths};
 use serde_json::Value;
 
 /// Every action path, for the router.
-pub const PATHS: [&str; 11] = [
+pub const PATHS: [&str; 12] = [
     "/api/record/start",
     "/api/record/stop",
     "/api/mark",
@@ -36,6 +37,7 @@ pub const PATHS: [&str; 11] = [
     "/api/field/key",
     "/api/field/stop",
     "/api/guided",
+    "/api/triggers",
 ];
 
 /// Longest marker label, bytes (the daemon's limit).
@@ -92,6 +94,9 @@ pub enum ActionError {
     /// A field key that is none of the stage's.
     #[error(transparent)]
     FieldKey(#[from] frond_protocol::control::UnknownStageKey),
+    /// A trigger mode that is neither `follow` nor `pause` (not quoted back: the page sent it).
+    #[error("/api/triggers needs {{\"mode\": \"follow\"}} or {{\"mode\": \"pause\"}}")]
+    TriggerMode,
     /// No action has this path.
     #[error("no action {0}")]
     NoAction(String),
@@ -160,6 +165,11 @@ pub fn request(path: &str, body: &Value) -> Result<ControlRequest, ActionError> 
                 ControlRequest::StageStart { name: None, spec: StageSpec::Guided { spec: spec.to_string() } }
             }
         },
+        "/api/triggers" => match text("mode")?.as_str() {
+            "follow" => ControlRequest::SetTriggers { follow: true },
+            "pause" => ControlRequest::SetTriggers { follow: false },
+            _ => return Err(ActionError::TriggerMode),
+        },
         other => return Err(ActionError::NoAction(other.to_string())),
     })
 }
@@ -178,6 +188,14 @@ mod tests {
         assert_eq!(
             request("/api/field/key", &json!({"key": "left"})),
             Ok(ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(StageKey::Left) })
+        );
+        assert_eq!(
+            request("/api/triggers", &json!({"mode": "pause"})),
+            Ok(ControlRequest::SetTriggers { follow: false })
+        );
+        assert_eq!(
+            request("/api/triggers", &json!({"mode": "follow"})),
+            Ok(ControlRequest::SetTriggers { follow: true })
         );
         assert_eq!(
             request("/api/guided", &json!({"spec": "off"})),
@@ -206,6 +224,8 @@ mod tests {
             ("/api/filter", json!({"spec": "median"}), "filter \"median\""),
             ("/api/calibration", json!({"toml": "not = [toml"}), "calibration"),
             ("/api/field/key", json!({"key": "sideways"}), "unknown field key"),
+            ("/api/triggers", json!({"mode": "<b>on</b>"}), "needs {\"mode\": \"follow\"} or"),
+            ("/api/triggers", json!({}), "needs {\"mode\""),
             ("/api/nothing", json!({}), "no action"),
         ] {
             let e = request(path, &body).unwrap_err().to_string();

@@ -108,7 +108,8 @@ pub fn problems(report: &StatusReport) -> Vec<Problem> {
 }
 
 /// What the capture-trigger listener saw that the operator should know: packets from hosts
-/// outside its allow-list, packets that are not trigger messages, leader messages not sent.
+/// outside its allow-list, packets that are not trigger messages, takes not followed while
+/// paused, leader messages not sent.
 fn trigger_problems(t: &TriggerStatus) -> Vec<Problem> {
     let mut out = Vec::new();
     let at = t.listen.as_deref().unwrap_or("?");
@@ -134,6 +135,16 @@ fn trigger_problems(t: &TriggerStatus) -> Vec<Problem> {
             ),
             fix: "something sends to the trigger port in another format: point only the stage master's \
                   CaptureStart/CaptureStop at it (docs/mocap-stage.md), or move triggers.listen to another port"
+                .into(),
+        });
+    }
+    if t.paused && t.paused_starts > 0 {
+        out.push(Problem {
+            what: format!(
+                "capture triggers are paused: {} takes the stage started on {at} were not recorded",
+                t.paused_starts
+            ),
+            fix: "run `frond triggers follow` (or turn following on in the console) before the next take"
                 .into(),
         });
     }
@@ -217,6 +228,22 @@ mod tests {
             problems[1].what.contains("refused 2 malformed or oversized packets (1 malformed, 1 oversized)")
         );
         assert!(problems[0].fix.contains("triggers.allow"));
+    }
+
+    #[test]
+    fn a_pause_is_a_problem_only_once_it_missed_a_take() {
+        let paused = TriggerStatus { listen: Some("0.0.0.0:30".into()), paused: true, ..Default::default() };
+        assert_eq!(trigger_problems(&paused), [], "paused by choice, nothing missed yet");
+        let missed = TriggerStatus { paused_starts: 3, ..paused.clone() };
+        let problems = trigger_problems(&missed);
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert_eq!(
+            problems[0].what,
+            "capture triggers are paused: 3 takes the stage started on 0.0.0.0:30 were not recorded"
+        );
+        assert!(problems[0].fix.contains("frond triggers follow"));
+        // Following again, the starts missed earlier are history, not a problem now.
+        assert_eq!(trigger_problems(&TriggerStatus { paused: false, ..missed }), []);
     }
 
     #[test]

@@ -41,7 +41,7 @@ const NEVER_REMOTE: &[&str] = &["freeze-loop", "panic-for-test"];
 /// Names an allow-list may use beyond single requests.
 const GROUPS: &[(&str, &[&str])] = &[
     ("read", &["status", "raw-sample"]),
-    ("record", &["record-start", "record-stop", "mark", "record-layer"]),
+    ("record", &["record-start", "record-stop", "mark", "record-layer", "set-triggers"]),
     ("setup", &["set-rig", "set-calibration", "set-filter"]),
     ("stage", &["stage-start", "stage-stop", "stage-input"]),
 ];

@@ -352,6 +352,29 @@ fn the_page_shows_the_stage_triggers_and_timecode() {
         "{lines}"
     );
     step("page checked");
+    // The switch pauses following, and says so; a start then records nothing; it follows again.
+    let toggle = |want: &str| {
+        let label = d.script(
+            "const b = document.getElementById('triggers-toggle'); return b.hidden ? null : b.textContent;",
+        );
+        assert_eq!(label.as_str(), Some(want), "the trigger switch");
+        d.script("document.getElementById('triggers-toggle').click();");
+    };
+    toggle("pause triggers");
+    assert!(wait_for(Duration::from_secs(5), || daemon.status().triggers.is_some_and(|t| t.paused)));
+    let paused = poll("the page shows the pause", Duration::from_secs(10), || {
+        let v = d.script("return document.getElementById('stage-sync').children[0].textContent;");
+        v.as_str().is_some_and(|l| l.starts_with("triggers: PAUSED")).then_some(v)
+    });
+    assert!(
+        paused.as_str().unwrap().starts_with(&format!(
+            "triggers: PAUSED: capture triggers on {listen} from any host are heard, not followed (0 starts missed)"
+        )),
+        "{paused}"
+    );
+    toggle("follow triggers");
+    assert!(wait_for(Duration::from_secs(5), || daemon.status().triggers.is_some_and(|t| !t.paused)));
+    step("trigger switch checked");
     stop.store(true, Ordering::Relaxed);
     writer.join().unwrap();
     step("LTC writer ended");
