@@ -191,11 +191,11 @@ fn source_line(s: &frond_protocol::SourceStatus) -> String {
         s.reports,
         s.rejected,
         s.device_seq_gaps
-    ) + &s.camera.map(camera_text).unwrap_or_default()
+    ) + &s.camera.as_ref().map(camera_text).unwrap_or_default()
 }
 
 /// A camera source's frames: `; camera 29.9 fps, 41.2 ms frame to sample (model 13.5 ms), 12 of 900 frames without a hand`.
-fn camera_text(c: frond_protocol::CameraStatus) -> String {
+fn camera_text(c: &frond_protocol::CameraStatus) -> String {
     let restarts = if c.helper_starts > 1 {
         format!(", helper started {} times", c.helper_starts)
     } else {

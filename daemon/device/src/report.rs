@@ -109,6 +109,8 @@ pub struct CameraCounters {
     pub starts: AtomicU64,
     /// Frames a second over the last second, times 100.
     pub fps_x100: AtomicU64,
+    /// The camera's preview picture's file name in the socket directory, once the hub names one.
+    pub preview: std::sync::OnceLock<String>,
 }
 
 /// A plain copy of [`CameraCounters`].
@@ -140,6 +142,7 @@ impl CameraCounters {
             latency_ms: s.latency_us as f64 / 1000.0,
             model_ms: s.model_us as f64 / 1000.0,
             helper_starts: s.starts,
+            preview: self.preview.get().cloned(),
         })
     }
 

@@ -15,6 +15,12 @@ per frame on stdout, the pipe frondd reads:
 time on it. The first line is {"v":1,"hello":"frond-hands",...}; a fatal problem is one line
 {"v":1,"error":"..."} and exit status 1. Logs go to stderr.
 
+With --preview PATH it also keeps a small picture of what it sees for the console's camera
+panel: the frame as the model saw it (selfie view), scaled to --preview-width, the hands' bones
+drawn in green (BGR 0,255,0) and their 21 landmarks in magenta (BGR 255,0,255), a JPEG written
+--preview-hz times a second atomically (a temporary file beside it, then a rename) with mode
+0640: frondd puts it in its socket directory, which only its own user and group may enter.
+
 Apache-2.0 models and runtime (mediapipe); this script is frond's.
 """
 
@@ -26,6 +32,11 @@ import time
 
 PROTOCOL = 1
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".webp")
+# MediaPipe Hands' 21 landmarks joined as bones: the palm and each finger from its base.
+BONES = ((0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10), (10, 11),
+         (11, 12), (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (0, 17), (17, 18), (18, 19), (19, 20))
+BONE_BGR = (0, 255, 0)
+JOINT_BGR = (255, 0, 255)
 
 
 def say(obj):
@@ -52,7 +63,14 @@ def parse_args(argv):
     p.add_argument("--frames", type=int, default=0, help="stop after this many frames (0: never)")
     p.add_argument("--static", action="store_true",
                    help="find the hands anew in every frame (no tracking): the same image gives the same landmarks")
+    p.add_argument("--preview", help="keep a JPEG of the frame with the hands drawn here (atomically, mode 0640)")
+    p.add_argument("--preview-hz", type=float, default=5.0, help="preview pictures a second (0.5 to 30)")
+    p.add_argument("--preview-width", type=int, default=320, help="preview width in pixels (64 to 1280)")
     a = p.parse_args(argv)
+    if not (0.5 <= a.preview_hz <= 30.0):
+        p.error("--preview-hz must be 0.5 to 30")
+    if not (64 <= a.preview_width <= 1280):
+        p.error("--preview-width must be 64 to 1280")
     if not (1.0 <= a.fps <= 120.0):
         p.error("--fps must be 1 to 120")
     if not (32 <= a.width <= 4096 and 32 <= a.height <= 4096):
@@ -114,6 +132,50 @@ def flat(landmarks):
     return out
 
 
+class Preview:
+    """The --preview picture: at most `hz` a second, written whole or not at all."""
+
+    def __init__(self, cv2, path, hz, width):
+        self.cv2, self.path, self.period, self.width = cv2, path, 1.0 / hz, width
+        self.next = 0.0
+        self.failed = False
+
+    def offer(self, rgb, hands):
+        now = time.monotonic()
+        if now < self.next:
+            return
+        self.next = now + self.period
+        cv2 = self.cv2
+        h, w = rgb.shape[:2]
+        size = (self.width, max(1, round(h * self.width / w)))
+        bgr = cv2.cvtColor(cv2.resize(rgb, size, interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2BGR)
+        for image in hands:
+            pts = [(round(lm.x * size[0]), round(lm.y * size[1])) for lm in image.landmark]
+            for a, b in BONES:
+                cv2.line(bgr, pts[a], pts[b], BONE_BGR, 2, cv2.LINE_AA)
+            for pt in pts:
+                cv2.circle(bgr, pt, 3, JOINT_BGR, -1, cv2.LINE_AA)
+        ok, jpeg = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 80])
+        if ok:
+            self.write(jpeg.tobytes())
+
+    def write(self, data):
+        tmp = f"{self.path}.{os.getpid()}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o640)
+            try:
+                os.fchmod(fd, 0o640)
+                os.write(fd, data)
+            finally:
+                os.close(fd)
+            os.replace(tmp, self.path)
+            self.failed = False
+        except OSError as e:
+            if not self.failed:
+                print(f"frond-hands: cannot write the preview {self.path}: {e}", file=sys.stderr)
+            self.failed = True
+
+
 def main(argv):
     args = parse_args(argv)
     try:
@@ -131,6 +193,7 @@ def main(argv):
     )
     say({"v": PROTOCOL, "hello": "frond-hands", "model": f"mediapipe {mp.__version__} hands",
          "complexity": args.complexity, "source": args.file or args.camera})
+    preview = Preview(cv2, args.preview, args.preview_hz, args.preview_width) if args.preview else None
     seq = 0
     while args.frames == 0 or seq < args.frames:
         frame = frames.read()
@@ -146,6 +209,8 @@ def main(argv):
                 c = side.classification[0]
                 found.append({"side": c.label.lower(), "score": round(c.score, 4),
                               "world": flat(world), "image": flat(image)})
+        if preview:
+            preview.offer(rgb, result.multi_hand_landmarks or [])
         h, w = rgb.shape[:2]
         say({"v": PROTOCOL, "seq": seq, "t_us": t_us, "model_us": model_us, "w": w, "h": h, "hands": found})
         seq += 1

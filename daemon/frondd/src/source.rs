@@ -195,7 +195,7 @@ pub fn open_source(
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::Webcam(address) => {
-            let src = frond_device::WebcamSource::open(address).map_err(source_error)?;
+            let src = frond_device::WebcamSource::open(address, Some(socket_dir)).map_err(source_error)?;
             Ok(opened(Box::new(src), None))
         }
         SourceChoice::InProcess => open_virtual(config, index, hand, socket_dir, false),

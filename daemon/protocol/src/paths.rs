@@ -60,6 +60,21 @@ pub fn takes_dir(explicit: Option<PathBuf>) -> PathBuf {
     explicit.unwrap_or_else(default_takes_dir)
 }
 
+/// The file name of camera `n`'s preview picture in the socket directory (`webcam-N.jpg`): the
+/// landmark helper keeps it, the console serves it to its page.
+pub fn camera_preview_name(n: u32) -> String {
+    format!("webcam-{n}.jpg")
+}
+
+/// Whether `name` is a name [`camera_preview_name`] gives (`webcam-` and 1 to 10 digits, then
+/// `.jpg`): the one check before a name from a status report or a request is joined to the
+/// socket directory, so it can never name another file there or leave it.
+pub fn is_camera_preview_name(name: &str) -> bool {
+    name.strip_prefix("webcam-")
+        .and_then(|r| r.strip_suffix(".jpg"))
+        .is_some_and(|n| (1..=10).contains(&n.len()) && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
 /// Why a take name is refused ([`validate_take_name`]).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum TakeNameError {
@@ -123,6 +138,25 @@ mod tests {
         assert!(matches!(take_file("..", dir), Err(TakeNameError::LeadingDot(_))));
         assert!(matches!(take_file("a b", dir), Err(TakeNameError::Character { .. })));
         assert!(matches!(take_file("", dir), Err(TakeNameError::Length(0))));
+    }
+
+    #[test]
+    fn camera_preview_names_are_only_their_own() {
+        assert_eq!(camera_preview_name(3), "webcam-3.jpg");
+        assert!(is_camera_preview_name(&camera_preview_name(u32::MAX)));
+        for bad in [
+            "webcam-.jpg",
+            "webcam-1.png",
+            "webcam-../x.jpg",
+            "x/webcam-1.jpg",
+            "webcam-1.jpg/",
+            "webcam-12345678901.jpg",
+            "webcam-+1.jpg",
+            "control.sock",
+            "",
+        ] {
+            assert!(!is_camera_preview_name(bad), "{bad:?}");
+        }
     }
 
     #[test]

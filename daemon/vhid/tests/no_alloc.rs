@@ -152,7 +152,7 @@ fn webcam_reads_allocate_nothing() {
     unsafe { std::env::set_var("FROND_HANDS", &helper) };
     let photo = venv.join("fingerpose/package/assets/nocurl.jpg");
     let address = format!("webcam:{}?hand=left", photo.display()).parse().unwrap();
-    let mut src = frond_device::WebcamSource::open(&address).unwrap();
+    let mut src = frond_device::WebcamSource::open(&address, None).unwrap();
     assert_eq!(src.kind(), SourceKind::Webcam);
     count_reads(&mut src, 1);
     assert_eq!(count_reads(&mut src, 10), 0, "webcam reads allocated");

@@ -5,8 +5,9 @@
 
 use std::io::Read;
 use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStderr, Command, Stdio};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -41,6 +42,8 @@ pub(super) struct Subscriber {
 /// One camera's helper and its reading thread, shared by the sources of that camera.
 pub(super) struct Hub {
     input: String,
+    /// Where the helper keeps the camera's preview picture, if anywhere.
+    preview: Option<PathBuf>,
     subscribers: Arc<Mutex<Vec<Subscriber>>>,
     child: Arc<Mutex<Option<Child>>>,
     stop: Arc<AtomicBool>,
@@ -49,6 +52,8 @@ pub(super) struct Hub {
 
 /// The hubs alive, by camera.
 static HUBS: Mutex<Vec<(String, Weak<Hub>)>> = Mutex::new(Vec::new());
+/// Cameras given a preview picture so far in this process: the next one's number.
+static PREVIEWS: AtomicU32 = AtomicU32::new(1);
 
 /// Helper lines logged (its errors, its stderr): at most 10 in 10 s for all cameras.
 static HELPER_LINES: LogLimit = LogLimit::new();
@@ -59,11 +64,14 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 impl Hub {
     /// The hub of `address`'s camera, started if it is not running, with `subscriber` added.
-    /// `helper` is the command the hub starts if it starts one.
+    /// `helper` is the command the hub starts if it starts one; with `preview_dir` (the
+    /// daemon's socket directory: its own user and group only) the helper keeps the camera's
+    /// preview picture there, as `webcam-N.jpg`, which the subscriber's status names.
     pub(super) fn join(
         address: &WebcamAddress,
         subscriber: Subscriber,
         helper: std::ffi::OsString,
+        preview_dir: Option<&Path>,
     ) -> std::io::Result<Arc<Hub>> {
         let mut hubs = lock(&HUBS);
         hubs.retain(|(_, h)| h.strong_count() > 0);
@@ -72,23 +80,39 @@ impl Hub {
             // The helper is already running: this source's status says so from the start.
             let starts = subscribers.iter().map(|s| s.counters.camera.starts.load(Ordering::Relaxed)).max();
             subscriber.counters.camera.starts.store(starts.unwrap_or(0), Ordering::Relaxed);
+            if let Some(name) = hub.preview.as_deref().and_then(Path::file_name) {
+                let _ = subscriber.counters.camera.preview.set(name.to_string_lossy().into_owned());
+            }
             subscribers.push(subscriber);
             drop(subscribers);
             return Ok(hub);
         }
+        let preview = preview_dir.map(|dir| {
+            let name = frond_protocol::paths::camera_preview_name(PREVIEWS.fetch_add(1, Ordering::Relaxed));
+            let path = dir.join(&name);
+            let _ = subscriber.counters.camera.preview.set(name);
+            path
+        });
         let subscribers = Arc::new(Mutex::new(vec![subscriber]));
         let child = Arc::new(Mutex::new(None));
         let stop = Arc::new(AtomicBool::new(false));
         let reader = Reader {
             address: address.clone(),
             helper,
+            preview: preview.clone(),
             subscribers: Arc::clone(&subscribers),
             child: Arc::clone(&child),
             stop: Arc::clone(&stop),
         };
         let thread = std::thread::Builder::new().name("frond-webcam".into()).spawn(move || reader.run())?;
-        let hub =
-            Arc::new(Hub { input: address.input.clone(), subscribers, child, stop, thread: Some(thread) });
+        let hub = Arc::new(Hub {
+            input: address.input.clone(),
+            preview,
+            subscribers,
+            child,
+            stop,
+            thread: Some(thread),
+        });
         hubs.push((address.input.clone(), Arc::downgrade(&hub)));
         Ok(hub)
     }
@@ -112,6 +136,10 @@ impl Drop for Hub {
         {
             tracing::warn!(camera = %self.input, "the webcam thread did not stop within 500 ms; leaving it");
         }
+        // No picture of a camera nobody reads any more.
+        if let Some(path) = &self.preview {
+            let _ = std::fs::remove_file(path);
+        }
     }
 }
 
@@ -119,6 +147,7 @@ impl Drop for Hub {
 struct Reader {
     address: WebcamAddress,
     helper: std::ffi::OsString,
+    preview: Option<PathBuf>,
     subscribers: Arc<Mutex<Vec<Subscriber>>>,
     child: Arc<Mutex<Option<Child>>>,
     stop: Arc<AtomicBool>,
@@ -164,6 +193,7 @@ impl Reader {
         let source = if self.address.is_camera() { "--camera" } else { "--file" };
         let fps = FPS.to_string();
         cmd.args([source, self.address.input.as_str(), "--fps", fps.as_str()])
+            .args(self.preview.iter().flat_map(|p| [std::ffi::OsStr::new("--preview"), p.as_os_str()]))
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());

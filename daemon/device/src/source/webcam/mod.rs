@@ -17,6 +17,12 @@
 //! `device_lost`, as for any stalled device.
 //!
 //! The helper is found as `$FROND_HANDS` (a path to the executable) or `frond-hands` on `PATH`.
+//!
+//! Given a directory (frondd gives its socket directory, which only its user and group may
+//! enter), the helper also keeps the camera's preview picture there: `webcam-N.jpg`, the frame
+//! with the hand's bones and landmarks drawn, replaced atomically a few times a second, mode
+//! 0640. Each of the camera's sources names it in its status
+//! ([`frond_protocol::CameraStatus::preview`]); the console's camera panel shows it.
 
 pub mod address;
 mod hub;

@@ -2,6 +2,7 @@
 //! runs the landmark helper) and reads the samples the hub queues; it never blocks or allocates.
 
 use std::os::fd::RawFd;
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -29,15 +30,17 @@ pub struct WebcamSource {
 
 impl WebcamSource {
     /// Joins (or starts) the helper of `address`'s camera, for its hand: `$FROND_HANDS`, or
-    /// `frond-hands` on `PATH`.
-    pub fn open(address: &WebcamAddress) -> Result<WebcamSource, SourceError> {
-        Self::open_with_helper(address, super::hub::helper_command())
+    /// `frond-hands` on `PATH`. With `preview_dir` (the daemon's socket directory) the helper
+    /// keeps the camera's preview picture there, named in the source's status.
+    pub fn open(address: &WebcamAddress, preview_dir: Option<&Path>) -> Result<WebcamSource, SourceError> {
+        Self::open_with_helper(address, super::hub::helper_command(), preview_dir)
     }
 
     /// [`WebcamSource::open`] with the helper's command given.
     pub fn open_with_helper(
         address: &WebcamAddress,
         helper: impl Into<std::ffi::OsString>,
+        preview_dir: Option<&Path>,
     ) -> Result<WebcamSource, SourceError> {
         let what = format!("webcam:{}", address.input);
         let open = |reason: String| SourceError::Open { what: what.clone(), reason };
@@ -52,7 +55,7 @@ impl WebcamSource {
             counters: Arc::clone(&counters),
             overflow: Arc::clone(&overflow),
         };
-        let hub = Hub::join(address, subscriber, helper.into())
+        let hub = Hub::join(address, subscriber, helper.into(), preview_dir)
             .map_err(|e| open(format!("cannot start the webcam thread: {e}")))?;
         let kind = if address.is_camera() { "camera" } else { "video file" };
         Ok(WebcamSource {

@@ -46,7 +46,7 @@ fn a_hostile_helper_gives_only_its_good_frames_and_is_started_again() {
     let chmod = std::process::Command::new("chmod").arg("+x").arg(&script).status().unwrap();
     assert!(chmod.success());
     let address = format!("webcam:{}?hand=left", dir.join("clip.mp4").display()).parse().unwrap();
-    let mut src = WebcamSource::open_with_helper(&address, &script).unwrap();
+    let mut src = WebcamSource::open_with_helper(&address, &script, None).unwrap();
     let mut buf = [DeviceSample::default(); 16];
     let mut samples = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(10);
