@@ -13,18 +13,18 @@ use frond_e2e::{Daemon, repo_root, wait_for};
 use frond_protocol::PoseFlags;
 use serde_json::Value;
 
-fn hands_venv() -> PathBuf {
+pub(crate) fn hands_venv() -> PathBuf {
     repo_root().join("tests/python/.venv-hands")
 }
 
 /// The installed helper, or a panic saying how to install it.
-fn helper() -> PathBuf {
+pub(crate) fn helper() -> PathBuf {
     let helper = hands_venv().join("bin/frond-hands");
     assert!(helper.exists(), "no {} (run daemon/device/tests/install-webcam.sh)", helper.display());
     helper
 }
 
-fn photo() -> PathBuf {
+pub(crate) fn photo() -> PathBuf {
     hands_venv().join("fingerpose/package/assets/nocurl.jpg")
 }
 
@@ -44,7 +44,7 @@ fn empty_scene(dir: &Path) -> PathBuf {
 
 /// Runs the helper on `file` for `frames` frames without a network (a network namespace of its
 /// own: a model it tried to download would not come), every frame found anew; its lines.
-fn run_offline(file: &Path, frames: u32) -> Vec<Value> {
+pub(crate) fn run_offline(file: &Path, frames: u32) -> Vec<Value> {
     let out = Command::new("unshare")
         .args(["--net", "--"])
         .arg(helper())
@@ -62,7 +62,7 @@ fn run_offline(file: &Path, frames: u32) -> Vec<Value> {
 /// pitch `atan2(d.z, -d.y)`, yaw `atan2(d.x, -d.y)` of the palm's direction `d` (wrist to
 /// middle knuckle), roll `atan2(n.x, -n.z)` of the palm's normal `n` (out of the palm), the
 /// thumb's bends the angles between the successive segments wrist, CMC, MCP, IP, tip.
-fn expected_sample(world: &[f64], left: bool) -> [f64; 6] {
+pub(crate) fn expected_sample(world: &[f64], left: bool) -> [f64; 6] {
     let p = |i: usize| [world[3 * i], world[3 * i + 1], world[3 * i + 2]];
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let norm = |a: [f64; 3]| {
@@ -90,6 +90,23 @@ fn expected_sample(world: &[f64], left: bool) -> [f64; 6] {
     ]
 }
 
+/// The first hand's 63 world landmarks in a helper's frame line.
+pub(crate) fn world_of(frame: &Value) -> Vec<f64> {
+    frame["hands"][0]["world"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+}
+
+/// Has frondd start the helper (`$FROND_HANDS`) through a launcher in `dir` that finds the
+/// hands anew each frame (`--static`), so the daemon's landmarks are [`run_offline`]'s.
+pub(crate) fn use_static_helper(dir: &Path) {
+    let launcher = dir.join("frond-hands");
+    std::fs::write(&launcher, format!("#!/bin/sh\nexec {:?} --static \"$@\"\n", helper().to_str().unwrap()))
+        .unwrap();
+    std::process::Command::new("chmod").arg("+x").arg(&launcher).status().unwrap();
+    // SAFETY: nextest runs each test in a process of its own, and no thread of this one reads
+    // the environment while it is set, before the daemon is started.
+    unsafe { std::env::set_var("FROND_HANDS", &launcher) };
+}
+
 #[test]
 fn the_model_finds_a_real_hand_offline_and_none_in_an_empty_scene() {
     let lines = run_offline(&photo(), 3);
@@ -115,21 +132,12 @@ fn the_model_finds_a_real_hand_offline_and_none_in_an_empty_scene() {
 #[test]
 fn a_hand_in_front_of_the_camera_drives_the_daemon_and_an_empty_scene_is_no_hand() {
     let found = run_offline(&photo(), 1);
-    let world: Vec<f64> =
-        found[1]["hands"][0]["world"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-    let want = expected_sample(&world, true);
+    let want = expected_sample(&world_of(&found[1]), true);
     // The index finger points up, palm to the camera: an upright wrist.
     assert!(want[0].abs() < 60.0 && want[1].abs() < 45.0, "{want:?}");
 
-    // frondd starts the helper itself: through a launcher that finds the hands anew each frame.
     let dir = tempfile::tempdir().unwrap();
-    let launcher = dir.path().join("frond-hands");
-    std::fs::write(&launcher, format!("#!/bin/sh\nexec {:?} --static \"$@\"\n", helper().to_str().unwrap()))
-        .unwrap();
-    std::process::Command::new("chmod").arg("+x").arg(&launcher).status().unwrap();
-    // SAFETY: nextest runs each test in a process of its own, and no thread of this one reads
-    // the environment while it is set, before the daemon is started.
-    unsafe { std::env::set_var("FROND_HANDS", &launcher) };
+    use_static_helper(dir.path());
     let source = format!("webcam:{}?hand=left", photo().to_str().unwrap());
     let daemon = Daemon::start(dir.path(), &["--source", &source, "--rig", "flower", "--filter", "none"]);
     assert!(

@@ -275,22 +275,21 @@ fn serve_page(listener: std::net::TcpListener, page: String) {
     });
 }
 
-#[test]
-fn another_sites_page_in_a_real_browser_changes_nothing() {
-    let Some((chromium, driver)) = frond_webdriver::browser() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
-    let (_console, addr, host) = loopback_console(&daemon);
-    let port: u16 = addr.rsplit(':').next().unwrap().parse().unwrap();
+/// A browser on `page`, another site's (served at `evil.test`, which resolves to this machine
+/// as a rebinding DNS server would make it), once the page has set `window.done`.
+pub(super) fn attack(
+    chromium: &Path,
+    driver: &Path,
+    profile: &Path,
+    page: String,
+) -> frond_webdriver::Driver {
     let evil = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let evil_port = evil.local_addr().unwrap().port();
-    serve_page(evil, attacker_page(&addr, port));
-    let rig_before = daemon.status().rig_name;
-    // evil.test resolves to this machine, as a rebinding DNS server would make it.
+    serve_page(evil, page);
     let d = frond_webdriver::start_session_with(
-        &chromium,
-        &driver,
-        &dir.path().join("profile"),
+        chromium,
+        driver,
+        profile,
         "800,600",
         &format!("http://evil.test:{evil_port}/"),
         &["--host-resolver-rules=MAP evil.test 127.0.0.1"],
@@ -298,6 +297,18 @@ fn another_sites_page_in_a_real_browser_changes_nothing() {
     frond_webdriver::poll("the attacker's page to try everything", Duration::from_secs(60), || {
         (d.script("return window.done === true") == serde_json::json!(true)).then_some(())
     });
+    d
+}
+
+#[test]
+fn another_sites_page_in_a_real_browser_changes_nothing() {
+    let Some((chromium, driver)) = frond_webdriver::browser() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let (_console, addr, host) = loopback_console(&daemon);
+    let port: u16 = addr.rsplit(':').next().unwrap().parse().unwrap();
+    let rig_before = daemon.status().rig_name;
+    let d = attack(&chromium, &driver, &dir.path().join("profile"), attacker_page(&addr, port));
     let results = d.script("return window.results");
     eprintln!("attacker's page: {results}");
     assert_eq!(results["websocket"], "refused", "{results}");

@@ -5,6 +5,7 @@
 
 mod access;
 mod calibration;
+mod camera;
 mod hostile;
 mod kinematics;
 mod view;

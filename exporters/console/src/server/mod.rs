@@ -9,6 +9,7 @@
 //! - `GET /rig.glb` the daemon's rig baked by frond-gltf at rest, `GET /api/scene` its node map;
 //! - `GET /api/hello` the stream's hello and element table, `GET /api/status` the daemon's status
 //!   (as `frond status --json` has it) with the console's own counters;
+//! - `GET /api/camera`, `/api/camera/webcam-N.jpg`, `/camera.js` the camera panel (`camera`);
 //! - `GET /api/takes` the takes (as `frond take list --json`), `GET /api/takes/NAME/play` a take's
 //!   main skeleton at 60 FPS for the view, `/api/takes/NAME.glb` and `.jsonl` as downloads;
 //! - `POST /api/...`: control actions ([`crate::actions`]: recording, markers, playback, rig,
@@ -39,6 +40,7 @@ use frond_protocol::{ControlReply, ControlRequest, StageSpec};
 use frond_sdk::Hello;
 use serde_json::{Value, json};
 
+mod camera;
 mod sockets;
 
 use frond_web::access::{Access, Grant, Refusal};
@@ -249,6 +251,7 @@ impl Console {
                     .with("Connection", HeaderValue::from_static("Upgrade, close"))
             }
             p if p.starts_with("/api/takes/") => self.heavy(|| self.take_file(&p["/api/takes/".len()..])),
+            p if camera::serves(p) => self.camera(req),
             p => match VENDOR.iter().find(|(path, _)| *path == p) {
                 Some((_, body)) => Response::new(200, "text/javascript; charset=utf-8", *body)
                     .with("Cache-Control", HeaderValue::from_static("max-age=3600")),
@@ -481,6 +484,7 @@ const CALIBRATE_PATHS: [&str; 4] =
 /// is answered 426, and a `HEAD` with that answer's head).
 fn methods(path: &str) -> Option<&'static str> {
     match path {
+        p if camera::serves(p) => Some(GET_HEAD),
         "/api/field/start" | "/api/takes/repair" => Some(POST),
         p if CALIBRATE_PATHS.contains(&p) || actions::PATHS.contains(&p) => Some(POST),
         "/" | "/console.js" | "/console.css" | "/api/hello" | "/api/status" | "/api/scene" | "/rig.glb"
