@@ -39,4 +39,5 @@ mod triggers;
 mod untrusted_time;
 mod warp_cage;
 mod webcam;
+mod webcam_calibrate;
 mod zenoh;
