@@ -104,6 +104,17 @@ fn a_zenoh_subscriber_reads_the_sockets_poses_and_follows_a_daemon_restart() {
     let report: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
     assert_eq!(report["rig_name"].as_str(), Some(again.status().rig_name.as_str()), "{report}");
     assert!(report["ticks"].as_u64().is_some_and(|t| t > 0), "{report}");
+    // With the bridge's subscribers as it counts them (issue 43): `remote` above has reported
+    // the poses it passed on since the reconnection (at least the 50 read), and missed none.
+    let peers = report["zenoh_peers"].as_array().unwrap_or_else(|| panic!("no zenoh_peers: {report}"));
+    assert!(
+        peers.iter().any(|p| p["frames"].as_u64().is_some_and(|f| f >= 50) && p["missing"] == 0),
+        "{peers:?}"
+    );
+    let table = Command::new(bin("frond")).args(["status", "--from", &source.to_string()]).output().unwrap();
+    let table = String::from_utf8_lossy(&table.stdout);
+    assert!(table.contains(&format!("zenoh peers  {} reporting\n", peers.len())), "{table}");
+    assert!(table.contains(" missing, 0 recovered (0 replayed), "), "{table}");
 
     // A source nobody publishes is a clear error, not a hang.
     let missing: Source = format!("zenoh:frond/{stage}/nobody?connect=tcp/127.0.0.1:{port}").parse().unwrap();

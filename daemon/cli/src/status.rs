@@ -11,46 +11,89 @@ use crate::global::Global;
 const STATUS_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 pub(crate) fn run(g: &Global, json: bool, from: Option<&frond_sdk::Source>) -> anyhow::Result<()> {
-    if let Some(frond_sdk::Source::Zenoh(addr)) = from
-        && !addr.is_concrete()
-    {
-        return run_stage(addr, json);
+    match from {
+        Some(frond_sdk::Source::Zenoh(addr)) => run_zenoh(addr, json),
+        Some(frond_sdk::Source::Socket(dir)) => print(&Control::connect(dir)?.status()?, json),
+        None => print(&Control::from_global(g)?.status()?, json),
     }
-    let report = match from {
-        Some(frond_sdk::Source::Zenoh(addr)) => frond_sdk::zenoh::query_status(addr, STATUS_WAIT)?,
-        Some(frond_sdk::Source::Socket(dir)) => Control::connect(dir)?.status()?,
-        None => Control::from_global(g)?.status()?,
-    };
+}
+
+fn print(report: &frond_protocol::StatusReport, json: bool) -> anyhow::Result<()> {
     if json {
-        frond_binmain::outln!("{}", serde_json::to_string_pretty(&report)?)?;
+        frond_binmain::outln!("{}", serde_json::to_string_pretty(report)?)?;
     } else {
-        frond_binmain::out!("{}", render(&report))?;
+        frond_binmain::out!("{}", render(report))?;
     }
     Ok(())
 }
 
-/// `frond status --from 'zenoh:frond/<stage>/*'`: every source the selector matches. JSON: an
-/// object from each source (`<stage>/<source>`) to its report; readable: each report under a
-/// `== <stage>/<source>` heading.
-fn run_stage(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
-    let reports = frond_sdk::zenoh::query_statuses(addr, STATUS_WAIT)?;
+/// `frond status --from zenoh:...`: the status of every source the key matches (one for a
+/// concrete key, each under a `== <stage>/<source>` heading for a selector such as
+/// `frond/<stage>/*`), each followed by its bridge's Zenoh subscribers as the bridge counts them
+/// (issue 43: what each peer got, missed and recovered). JSON: for a concrete key, the report
+/// with a `zenoh_peers` list; for a selector, an object from each source to that.
+fn run_zenoh(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
+    use frond_sdk::zenoh::{config, open_session, query_statuses_in};
+    let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[])?;
+    let session = open_session(cfg)?;
+    let reports = query_statuses_in(&session, addr, STATUS_WAIT)?;
+    if addr.is_concrete() && reports.len() > 1 {
+        let matches = reports.into_iter().map(|(k, _)| k).collect();
+        return Err(frond_sdk::SdkError::AmbiguousSource { selector: addr.key.clone(), matches }.into());
+    }
     let short = frond_sdk::zenoh_many::short;
-    if json {
-        let map: serde_json::Map<String, serde_json::Value> = reports
-            .iter()
-            .map(|(k, r)| Ok((short(k).to_owned(), serde_json::to_value(r)?)))
-            .collect::<Result<_, serde_json::Error>>()?;
-        frond_binmain::outln!("{}", serde_json::to_string_pretty(&map)?)?;
-    } else {
-        for (i, (key, report)) in reports.iter().enumerate() {
+    let mut map = serde_json::Map::new();
+    for (i, (key, report)) in reports.iter().enumerate() {
+        // A bridge too old to answer, or gone since: its report without a list.
+        let peers = frond_sdk::zenoh_replay::query_peers(&session, key, PEERS_WAIT).ok();
+        if json {
+            let mut value = serde_json::to_value(report)?;
+            value["zenoh_peers"] = serde_json::to_value(&peers)?;
+            map.insert(short(key).to_owned(), value);
+            continue;
+        }
+        if !addr.is_concrete() {
             if i > 0 {
                 frond_binmain::outln!()?;
             }
             frond_binmain::outln!("== {}", frond_protocol::printable(short(key)))?;
-            frond_binmain::out!("{}", render(report))?;
         }
+        frond_binmain::out!("{}", render(report))?;
+        frond_binmain::out!("{}", render_peers(peers.as_deref()))?;
+    }
+    if json {
+        let value = if addr.is_concrete() {
+            map.into_iter().next().map(|(_, one)| one).unwrap_or_default()
+        } else {
+            serde_json::Value::Object(map)
+        };
+        frond_binmain::outln!("{}", serde_json::to_string_pretty(&value)?)?;
     }
     Ok(())
+}
+
+/// How long `frond status --from zenoh:...` waits for a bridge's list of its subscribers.
+const PEERS_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// The bridge's subscribers, one line each (names and counts as the bridge reports them;
+/// names come from the network, so they are shown printable).
+fn render_peers(peers: Option<&[frond_sdk::zenoh_replay::PeerReport]>) -> String {
+    use std::fmt::Write as _;
+    let Some(peers) = peers else { return "zenoh peers  (the bridge did not say)\n".into() };
+    let mut o = format!("zenoh peers  {} reporting\n", peers.len());
+    for p in peers {
+        let _ = writeln!(
+            o,
+            "  {:<34} {} frames, {} missing, {} recovered ({} replayed), {} ago",
+            frond_protocol::printable(&p.peer),
+            p.frames,
+            p.missing,
+            p.recovered,
+            p.replayed,
+            human_duration(p.seen_ms_ago as f64 / 1000.0)
+        );
+    }
+    o
 }
 
 /// `1h 02m 03s`, `2m 05s`, `4.2s`.
