@@ -213,9 +213,11 @@ fn ltc(o: &mut String, l: &frond_protocol::LtcStatus) {
         let age = l.last_age_s.map_or(String::new(), |a| format!(", {} ago", human_duration(a)));
         let _ = writeln!(o, "  last       {}{age}", p(tc));
     }
+    // Overruns only happen on a capture device: shown when there were any.
+    let overruns = if l.overruns > 0 { format!(", {} ALSA overruns", l.overruns) } else { String::new() };
     let _ = writeln!(
         o,
-        "  counts     {} frames, {} locks, {} losses, {} jumps",
+        "  counts     {} frames, {} locks, {} losses, {} jumps{overruns}",
         l.frames, l.locks, l.losses, l.jumps
     );
     if let Some(e) = &l.last_error {
@@ -444,6 +446,7 @@ mod tests {
             losses: 0,
             jumps: 2,
             last_error: None,
+            overruns: 0,
         });
         let t = render(&r);
         for needle in [
@@ -453,6 +456,9 @@ mod tests {
         ] {
             assert!(t.contains(needle), "missing {needle:?} in:\n{t}");
         }
+        // A capture device that fell behind says how often.
+        r.ltc.as_mut().unwrap().overruns = 3;
+        assert!(render(&r).contains("  counts     32 frames, 1 locks, 0 losses, 2 jumps, 3 ALSA overruns\n"));
     }
 
     /// Issue 46: the trigger section says where frond listens and leads, the last message and

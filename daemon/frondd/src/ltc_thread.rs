@@ -354,11 +354,16 @@ impl LtcReader {
     fn publish_counts(&self) {
         let c = add(self.carried, self.decoder.counters());
         let stalls = self.stalls;
+        let overruns = match &self.input {
+            Input::Alsa(capture) => capture.overruns(),
+            _ => 0,
+        };
         self.link.update(|s| {
             s.frames = c.frames;
             s.locks = c.locks;
             s.losses = c.losses + stalls;
             s.jumps = c.jumps;
+            s.overruns = overruns;
         });
     }
 }

@@ -504,6 +504,9 @@ pub struct LtcStatus {
     pub jumps: u64,
     /// The last read error, in words (the input vanished, a FIFO's writer went away).
     pub last_error: Option<String>,
+    /// Overruns of an ALSA capture device (the reading thread fell behind and samples were
+    /// lost), recovered; 0 for a file or FIFO.
+    pub overruns: u64,
 }
 
 /// The capture triggers (`CaptureStart` / `CaptureStop` over UDP): where frond listens for a

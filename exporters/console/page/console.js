@@ -246,7 +246,8 @@ function showStageSync(d) {
   const l = d.ltc;
   if (l) {
     const last = l.last_timecode ? `, last ${l.last_timecode}` : '';
-    lines.push(`timecode (LTC): ${l.state}${l.fps ? ` at ${l.fps} fps` : ''} from ${l.input}${last}`);
+    const overruns = l.overruns ? `, ${l.overruns} ALSA overruns` : '';
+    lines.push(`timecode (LTC): ${l.state}${l.fps ? ` at ${l.fps} fps` : ''} from ${l.input}${last}${overruns}`);
   }
   const toggle = $('triggers-toggle');
   toggle.hidden = !(t && t.listen);
