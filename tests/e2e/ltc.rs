@@ -38,6 +38,8 @@ pub(crate) struct Ltc {
 
 pub(crate) const PAL: Ltc = Ltc { nominal: 25, drop_frame: false };
 const NTSC_DF: Ltc = Ltc { nominal: 30, drop_frame: true };
+const FILM: Ltc = Ltc { nominal: 24, drop_frame: false };
+const NTSC_30: Ltc = Ltc { nominal: 30, drop_frame: false };
 
 impl Ltc {
     /// Seconds a frame lasts.
@@ -202,6 +204,22 @@ fn a_take_recorded_while_ltc_plays_carries_the_stage_timecode() {
     writer_leaves(&daemon, stop, writer);
 }
 
+/// The other two rates a stage runs at (25 and 29.97 drop-frame are above): each its own daemon.
+#[test]
+fn takes_carry_the_stage_timecode_at_24_and_30_fps() {
+    for ltc in [FILM, NTSC_30] {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("ltc.fifo");
+        mkfifo(&fifo);
+        let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--ltc", fifo.to_str().unwrap()]);
+        let stop = Arc::new(AtomicBool::new(false));
+        let (writer, t0) = play(ltc, &fifo, stop.clone());
+        locks_and_stamps_a_take(&daemon, ltc, t0);
+        stop.store(true, Ordering::Relaxed);
+        writer.join().unwrap();
+    }
+}
+
 /// A private directory with a FIFO and, in its `.asoundrc`, the ALSA PCM `frondltc`: ALSA's
 /// `file` plugin whose captured samples are what is written into the FIFO (the daemon's `HOME`
 /// is that directory, so its libasound reads the file as an operator's own devices are read).
@@ -278,7 +296,12 @@ fn a_stalled_alsa_input_does_not_keep_the_daemon_from_stopping() {
 /// at the stage's rate, is what played (from `t0`, when the first sample played), frame for
 /// frame in the stage's labels.
 fn locks_and_stamps_a_take(daemon: &Daemon, ltc: Ltc, t0: Instant) {
-    let (fps_word, export_fps) = if ltc.drop_frame { ("29.97df", "29.97") } else { ("25", "25") };
+    let (fps_word, export_fps) = match (ltc.nominal, ltc.drop_frame) {
+        (30, true) => ("29.97df", "29.97"),
+        (24, _) => ("24", "24"),
+        (25, _) => ("25", "25"),
+        _ => ("30", "30"),
+    };
     let mut last = serde_json::Value::Null;
     let locked = wait_for(Duration::from_secs(5), || {
         last = ltc_json(daemon);
