@@ -14,14 +14,17 @@ use serde_json::Value;
 use super::{request, start_console};
 use crate::webcam::{expected_sample, photo, run_offline, use_static_helper, world_of};
 
-/// A daemon on the photograph (left hand, no filter, the static helper) with its picture kept,
-/// and a console on loopback: the daemon, the console, its `ADDR`, the picture's file name and
-/// the model's first frame of the photograph.
+/// A daemon on the photograph (its two hands: `left`, the primary, and `right`, which the
+/// photograph does not show; no filter; the static helper) with its picture kept, and a console
+/// on loopback: the daemon, the console, its `ADDR`, the picture's file name and the model's
+/// first frame of the photograph.
 fn camera_console(dir: &std::path::Path) -> (Daemon, Proc, String, String, Value) {
     let mut lines = run_offline(&photo(), 1);
     use_static_helper(dir);
-    let source = format!("webcam:{}?hand=left", photo().to_str().unwrap());
-    let daemon = Daemon::start(dir, &["--source", &source, "--rig", "flower", "--filter", "none"]);
+    let left = format!("left=webcam:{}?hand=left", photo().to_str().unwrap());
+    let right = format!("right=webcam:{}?hand=right,element=leaf", photo().to_str().unwrap());
+    let daemon =
+        Daemon::start(dir, &["--hand", &left, "--hand", &right, "--rig", "flower", "--filter", "none"]);
     assert!(
         wait_for(Duration::from_secs(30), || daemon.status().source.reports >= 3),
         "{:?}",
@@ -105,13 +108,29 @@ fn the_camera_panel_shows_the_hand_the_model_found_and_the_angles_the_daemon_der
     assert_eq!(raw["fresh"], true, "{raw}");
     let text = d.script("return window.frondCamera.text();");
     let text: Vec<&str> = text.as_array().unwrap().iter().map(|t| t.as_str().unwrap()).collect();
-    assert_eq!(text[0], format!("hand: video file {}, left hand — hand in view", photo().display()));
+    assert_eq!(text[0], format!("left: video file {}, left hand — hand in view", photo().display()));
     assert!(text[1].contains(" fps, ") && text[1].contains("ms frame to sample (model "), "{text:?}");
     for (k, shown) in text[2..].iter().enumerate() {
         let v: f64 = shown.trim_end_matches('°').parse().unwrap_or(f64::NAN);
         assert!((v - want[k]).abs() <= 0.051, "angle {k}: {shown} vs {}", want[k]);
     }
     super::save_screenshot(&d, "camera.png");
+    // A camera's long path wraps: nothing in the side panel reaches past its edge.
+    let wide = d.script(
+        "const a = document.querySelector('aside'), right = a.getBoundingClientRect().left + a.clientWidth;
+         return [...a.querySelectorAll('*')].filter(e => e.getBoundingClientRect().right > right + 1).map(e => e.tagName + '#' + e.id);",
+    );
+    assert_eq!(wide, serde_json::json!([]), "elements wider than the side panel");
+    // The other hand of the camera, picked: not in the photograph, and no angles (the daemon
+    // gives the primary hand's only), said so.
+    d.script(
+        "[...document.querySelectorAll('#camera-pick button')].find(b => b.textContent === 'right').click();",
+    );
+    let text = d.script("return window.frondCamera.text();");
+    assert_eq!(text[0], format!("right: video file {}, right hand — NO HAND in view", photo().display()));
+    assert!(text.as_array().unwrap()[2..].iter().all(|t| t == "–"), "{text}");
+    let note = d.script("return document.getElementById('camera-angles-note').textContent;");
+    assert_eq!(note, "the angles are shown for the primary hand (left) only");
 }
 
 #[test]
