@@ -2,7 +2,8 @@
 //! good frame, then an oversized line, garbage, frames with a capture time in the future or too
 //! old, NaN, a hand of no shape, an empty frame, another good frame, and dies with an error.
 //! Only the good frames become samples; everything else is counted by reason; the helper is
-//! started again.
+//! started again. And the camera's preview picture: where the helper is told to keep it, named
+//! in status, gone with the camera's last source.
 
 use std::time::{Duration, Instant};
 
@@ -66,4 +67,59 @@ fn a_hostile_helper_gives_only_its_good_frames_and_is_started_again() {
     assert_eq!((camera.starts, camera.frames, camera.empty_frames), (2, 8, 2), "{camera:?}");
     drop(src);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A helper that writes down its arguments and keeps a picture where `--preview` says.
+const PREVIEW_SCRIPT: &str = r#"#!/usr/bin/env python3
+import json, os, sys, time
+args = sys.argv[1:]
+with open(os.path.join(os.path.dirname(sys.argv[0]), "args.json"), "w") as f:
+    json.dump(args, f)
+with open(args[args.index("--preview") + 1], "wb") as f:
+    f.write(b"\xff\xd8\xff")
+print(json.dumps({"v": 1, "hello": "frond-hands", "model": "a test script"}), flush=True)
+time.sleep(30)
+"#;
+
+#[test]
+fn the_helper_keeps_the_cameras_picture_where_status_names_it_until_the_camera_is_dropped() {
+    let base = std::env::temp_dir().join(format!("frond-webcam-preview-{}", std::process::id()));
+    std::fs::create_dir_all(&base).unwrap();
+    let dir = &base;
+    let script = dir.join("frond-hands");
+    std::fs::write(&script, PREVIEW_SCRIPT).unwrap();
+    let chmod = std::process::Command::new("chmod").arg("+x").arg(&script).status().unwrap();
+    assert!(chmod.success());
+    let socket_dir = dir.join("run");
+    std::fs::create_dir(&socket_dir).unwrap();
+    let clip = dir.join("clip.mp4");
+    let left = format!("webcam:{}?hand=left", clip.display()).parse().unwrap();
+    let right = format!("webcam:{}?hand=right", clip.display()).parse().unwrap();
+    let a = WebcamSource::open_with_helper(&left, &script, Some(&socket_dir)).unwrap();
+    let b = WebcamSource::open_with_helper(&right, &script, Some(&socket_dir)).unwrap();
+    let args = dir.join("args.json");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !args.exists() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let args: Vec<String> = serde_json::from_str(&std::fs::read_to_string(&args).unwrap()).unwrap();
+    // Both hands of the camera name its one picture, the one its helper was told to keep.
+    let name = a.counters().camera.status().and_then(|s| s.preview).expect("status names the picture");
+    assert!(frond_protocol::paths::is_camera_preview_name(&name), "{name}");
+    assert_eq!(b.counters().camera.status().and_then(|s| s.preview).as_deref(), Some(name.as_str()));
+    let picture = socket_dir.join(&name);
+    let at = args.iter().position(|a| a == "--preview").expect("--preview given");
+    assert_eq!(std::path::Path::new(&args[at + 1]), picture, "{args:?}");
+    assert!(picture.is_file());
+    // Without a directory the helper is asked for no picture, and status names none.
+    let other = format!("webcam:{}", dir.join("other.mp4").display()).parse().unwrap();
+    let c = WebcamSource::open_with_helper(&other, "/nonexistent/frond-hands", None).unwrap();
+    assert_eq!(c.counters().camera.preview.get(), None);
+    // The picture goes with the camera's last source.
+    drop(a);
+    assert!(picture.is_file(), "the right hand still reads the camera");
+    drop(b);
+    assert!(!picture.exists(), "no picture of a camera nobody reads");
+    drop(c);
+    let _ = std::fs::remove_dir_all(&base);
 }
