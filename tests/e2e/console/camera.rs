@@ -114,7 +114,6 @@ fn the_camera_panel_shows_the_hand_the_model_found_and_the_angles_the_daemon_der
         let v: f64 = shown.trim_end_matches('°').parse().unwrap_or(f64::NAN);
         assert!((v - want[k]).abs() <= 0.051, "angle {k}: {shown} vs {}", want[k]);
     }
-    super::save_screenshot(&d, "camera.png");
     // A camera's long path wraps: nothing in the side panel reaches past its edge.
     let wide = d.script(
         "const a = document.querySelector('aside'), right = a.getBoundingClientRect().left + a.clientWidth;
