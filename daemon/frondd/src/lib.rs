@@ -14,6 +14,7 @@
 pub mod access;
 pub mod clock;
 pub mod config;
+mod config_stage;
 pub mod control;
 mod control_conn;
 mod control_stage;
