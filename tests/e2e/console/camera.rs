@@ -93,8 +93,14 @@ fn the_camera_panel_shows_the_hand_the_model_found_and_the_angles_the_daemon_der
     for (c, p) in colours[27..].iter().zip(&points[27..]) {
         assert!(!magenta(c) && !green(c), "{p:?}: {c}");
     }
-    // The angles: the daemon's raw sample, as the second implementation computes them.
-    let raw = d.script("return window.frondCamera.state.raw;");
+    // The angles: the daemon's raw sample, as the second implementation computes them, while
+    // the hand is in view (a busy machine may stall the helper past the daemon's 250 ms).
+    let (raw, text) = poll("the hand in view with its angles", Duration::from_secs(15), || {
+        let raw = d.script("return window.frondCamera.state.raw;");
+        let text = d.script("return window.frondCamera.text();");
+        let in_view = text[0].as_str().is_some_and(|t| t.ends_with("— hand in view"));
+        (in_view && raw["fresh"] == true).then_some((raw, text))
+    });
     let got: Vec<f64> = raw["wrist_deg"]
         .as_array()
         .unwrap()
@@ -105,8 +111,6 @@ fn the_camera_panel_shows_the_hand_the_model_found_and_the_angles_the_daemon_der
     for (g, w) in got.iter().zip(want) {
         assert!((g - w).abs() < 0.01, "page {got:?} != expected {want:?}");
     }
-    assert_eq!(raw["fresh"], true, "{raw}");
-    let text = d.script("return window.frondCamera.text();");
     let text: Vec<&str> = text.as_array().unwrap().iter().map(|t| t.as_str().unwrap()).collect();
     assert_eq!(text[0], format!("left: video file {}, left hand — hand in view", photo().display()));
     assert!(text[1].contains(" fps, ") && text[1].contains("ms frame to sample (model "), "{text:?}");
