@@ -7,6 +7,7 @@
 
 const $ = (id) => document.getElementById(id);
 const PERIOD_MS = 250;
+const IDLE_MS = 2000;
 // `shown`: the hand whose camera the panel shows; `last`: the last /api/camera answer.
 const state = { cameras: [], raw: null, pictures: 0, picture: null, error: null, shown: null, last: null };
 
@@ -89,7 +90,8 @@ async function poll() {
   } catch (e) {
     state.error = String(e.message || e);
   }
-  setTimeout(poll, PERIOD_MS);
+  // Without a camera, a slow look now and then: one may come with a daemon started anew.
+  setTimeout(poll, state.cameras.length ? PERIOD_MS : IDLE_MS);
 }
 poll();
 
