@@ -215,7 +215,7 @@ fn sighup_reloads_the_rig_without_dropping_subscribers() {
         "{}",
         std::fs::read_to_string(&log).unwrap()
     );
-    assert!(said("triggers (listen, allow, lead, honour_delay)") && !said("ltc (input"));
+    assert!(said("triggers (listen, allow, lead, honour_delay, timecode_fps)") && !said("ltc (input"));
     assert!(daemon.status().triggers.is_none(), "the running daemon does not listen until restarted");
     // A broken config is refused and the running one kept.
     std::fs::write(&config, "rig = \"no-such-rig\"\n").unwrap();

@@ -226,10 +226,85 @@ fn following_pauses_and_resumes_from_the_command_line_and_a_paused_start_is_coun
         format!("following capture triggers on {listen}")
     );
     master.send_to(&capture_start("after", 0, 14), &listen).unwrap();
-    let s = until(&daemon, "the next take starts", |s| s.recording.is_some());
+    // (The thread copies its counts to status just after the take starts: wait for both.)
+    let s = until(&daemon, "the next take starts", |s| {
+        s.recording.is_some() && s.triggers.as_ref().is_some_and(|t| t.started == 2)
+    });
     assert_eq!(s.recording.unwrap().name, "after");
     let t = s.triggers.unwrap();
     assert_eq!((t.paused, t.paused_starts, t.started), (false, 2, 2), "{t:#?}");
+}
+
+/// A `CaptureStart` as Motive and Rokoko send it, with the master's `TimeCode`, NUL-terminated.
+fn capture_start_at(name: &str, timecode: &str, packet_id: u64) -> Vec<u8> {
+    format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\"?><CaptureStart><Name VALUE=\"{name}\"/>\
+         <TimeCode VALUE=\"{timecode}\"/><PacketID VALUE=\"{packet_id}\"/><ProcessID VALUE=\"4242\"/></CaptureStart>\0"
+    )
+    .into_bytes()
+}
+
+/// Records a take the master starts with `timecode` for about half a second; its header.
+fn master_take(
+    daemon: &Daemon,
+    listen: &str,
+    name: &str,
+    timecode: &str,
+    id: u64,
+) -> frond_motion::take::TakeHeader {
+    let master = UdpSocket::bind("127.0.0.1:0").unwrap();
+    master.send_to(&capture_start_at(name, timecode, id), listen).unwrap();
+    until(daemon, "the master's take starts", |s| s.recording.is_some());
+    std::thread::sleep(Duration::from_millis(500));
+    master.send_to(&capture_stop(name, id + 1), listen).unwrap();
+    until(daemon, "the master's take stops", |s| s.recording.is_none());
+    let take = std::fs::read(daemon.takes_dir.join(format!("{name}.take"))).unwrap();
+    frond_formats::take::scan_take(&take).unwrap().header.expect("a header")
+}
+
+#[test]
+fn a_masters_timecode_stamps_the_take_when_no_ltc_is_locked() {
+    let dir = tempfile::tempdir().unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let config = dir.path().join("stage.toml");
+    std::fs::write(&config, format!("[triggers]\nlisten = \"{listen}\"\ntimecode_fps = \"25\"\n")).unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--config", config.to_str().unwrap()]);
+
+    // At 25 fps, as timecode_fps says: the take's first frame is the master's label (or the
+    // next, should the first frame come a frame late), and the labels count on from it.
+    let header = master_take(&daemon, &listen, "motive1", "10:00:00:00", 1);
+    let anchor = header.stage_clock.clone().expect("the master's TimeCode anchors the take");
+    assert_eq!((anchor.label.as_str(), anchor.frame_count, anchor.nominal_fps), ("10:00:00:00", 900_000, 25));
+    let lines = daemon.frond_ok(&["take", "export", "motive1", "--fps", "25", "--timecode"]);
+    let tcs: Vec<String> = lines
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["tc"].as_str().unwrap().to_string())
+        .collect();
+    assert!(["10:00:00:00", "10:00:00:01"].contains(&tcs[0].as_str()), "{tcs:?}");
+    assert!(tcs.iter().all(|t| t.starts_with("10:00:00:")), "half a second of frames: {tcs:?}");
+
+    // A drop-frame label is 29.97 drop-frame whatever timecode_fps says.
+    let header = master_take(&daemon, &listen, "motive2", "01:00:00;02", 10);
+    let anchor = header.stage_clock.expect("a drop-frame label anchors the take");
+    // 01:00:00;02: 3,600 s of 30 labels and 2, less the 2 labels dropped in each of the 54
+    // minutes of that hour not divisible by 10: 108,002 - 108 = 107,894 frames since midnight.
+    assert_eq!(
+        (anchor.nominal_fps, anchor.drop_frame, anchor.frame_count),
+        (30, true, 107_894),
+        "{anchor:?}"
+    );
+    // "00:00:00:00" means "not used" (Rokoko): no stage clock, the host's time of day.
+    let header = master_take(&daemon, &listen, "rokoko", "00:00:00:00", 20);
+    assert_eq!(header.stage_clock, None);
+}
+
+#[test]
+fn without_a_rate_a_masters_whole_frame_timecode_is_not_guessed() {
+    let dir = tempfile::tempdir().unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let header = master_take(&daemon, &listen, "unknown_rate", "10:00:00:00", 1);
+    assert_eq!(header.stage_clock, None, "24, 25 or 30 fps: frond does not guess");
 }
 
 #[test]

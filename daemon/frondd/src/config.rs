@@ -208,6 +208,7 @@ impl RawConfig {
         pick(&mut self.triggers.allow, other.triggers.allow);
         pick(&mut self.triggers.lead, other.triggers.lead);
         pick(&mut self.triggers.honour_delay, other.triggers.honour_delay);
+        pick(&mut self.triggers.timecode_fps, other.triggers.timecode_fps);
         pick(&mut self.ltc.input, other.ltc.input);
         pick(&mut self.ltc.sample_rate_hz, other.ltc.sample_rate_hz);
         pick(&mut self.ltc.fps, other.ltc.fps);
@@ -233,7 +234,7 @@ impl RawConfig {
                 listen: o.triggers,
                 allow: (!o.trigger_allow.is_empty()).then_some(o.trigger_allow),
                 lead: o.trigger_lead,
-                honour_delay: None,
+                ..Default::default()
             },
             ltc: RawLtc { input: o.ltc, ..Default::default() },
             ..Default::default()
@@ -767,6 +768,23 @@ mod tests {
         assert_eq!(t.allow, Some(vec!["10.0.0.5".parse().unwrap(), "::1".parse().unwrap()]));
         assert_eq!(t.lead, Some("255.255.255.255:30".parse().unwrap()));
         assert!(!t.honour_delay && t.enabled());
+        assert_eq!(t.timecode_fps, None);
+        let raw =
+            RawConfig::parse("[triggers]\nlisten = \"0.0.0.0:1512\"\ntimecode_fps = \"24\"\n", "t").unwrap();
+        assert_eq!(Config::validate(raw).unwrap().triggers.timecode_fps, Some(frond_ltc::FrameRate::Fps24));
+        let raw = RawConfig::parse("[triggers]\ntimecode_fps = \"23.976\"\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            [
+                "triggers.timecode_fps: \"23.976\" is not one of 24, 25, 29.97df, 30",
+                // Its parse failed, so only the bad value is named, not the missing listen.
+            ]
+        );
+        let raw = RawConfig::parse("[triggers]\ntimecode_fps = \"25\"\n", "t").unwrap();
+        assert_eq!(
+            Config::validate(raw).unwrap_err().problems,
+            ["triggers.timecode_fps: needs triggers.listen (frond follows no host without it)"]
+        );
         let raw = RawConfig::parse(
             "[triggers]\nlisten = \"vicon:30\"\nallow = [\"10.0.0.5\", \"shogun\"]\nlead = \"0.0.0.0:0\"\n",
             "t",

@@ -17,6 +17,7 @@ pub(crate) struct RawTriggers {
     pub(crate) allow: Option<Vec<String>>,
     pub(crate) lead: Option<String>,
     pub(crate) honour_delay: Option<bool>,
+    pub(crate) timecode_fps: Option<String>,
 }
 
 /// The `[ltc]` table: the stage's timecode from LTC audio (issue 46).
@@ -52,13 +53,7 @@ impl LtcConfig {
         let (min, max) = (frond_ltc::MIN_SAMPLE_RATE_HZ, frond_ltc::MAX_SAMPLE_RATE_HZ);
         let sample_rate_hz =
             range(errors, "ltc.sample_rate_hz", raw.sample_rate_hz.or(Some(48_000)), min.into(), max.into());
-        let fps = raw.fps.as_deref().and_then(|text| {
-            let rate = frond_ltc::FrameRate::ALL.into_iter().find(|r| r.to_string() == text);
-            if rate.is_none() {
-                errors.push(format!("ltc.fps: {text:?} is not one of 24, 25, 29.97df, 30"));
-            }
-            rate
-        });
+        let fps = frame_rate(errors, "ltc.fps", raw.fps.as_deref());
         let input = raw.input.as_deref().and_then(|text| match crate::ltc_input::LtcSource::parse(text) {
             Ok(source) => Some(source),
             Err(why) => {
@@ -87,6 +82,10 @@ pub struct TriggersConfig {
     pub lead: Option<SocketAddr>,
     /// `triggers.honour_delay`: whether a start waits for its `Delay`.
     pub honour_delay: bool,
+    /// `triggers.timecode_fps`: the rate of the `TimeCode` a master's `CaptureStart` carries
+    /// (Motive's, Rokoko's), which anchors the take's stage timecode when no LTC is locked; a
+    /// drop-frame label (`;`) is 29.97 drop-frame whatever this says. `None`: `ltc.fps`, if set.
+    pub timecode_fps: Option<frond_ltc::FrameRate>,
 }
 
 impl TriggersConfig {
@@ -127,6 +126,22 @@ impl TriggersConfig {
         if allow.is_some() && listen.is_none() {
             errors.push("triggers.allow: needs triggers.listen (frond follows no host without it)".into());
         }
-        TriggersConfig { listen, allow, lead, honour_delay: raw.honour_delay.unwrap_or(true) }
+        let timecode_fps = frame_rate(errors, "triggers.timecode_fps", raw.timecode_fps.as_deref());
+        if timecode_fps.is_some() && listen.is_none() {
+            errors.push(
+                "triggers.timecode_fps: needs triggers.listen (frond follows no host without it)".into(),
+            );
+        }
+        TriggersConfig { listen, allow, lead, honour_delay: raw.honour_delay.unwrap_or(true), timecode_fps }
     }
+}
+
+/// A frame rate key's value (`24`, `25`, `29.97df`, `30`), or its problem, named by `key`.
+fn frame_rate(errors: &mut Vec<String>, key: &str, text: Option<&str>) -> Option<frond_ltc::FrameRate> {
+    let text = text?;
+    let rate = frond_ltc::FrameRate::ALL.into_iter().find(|r| r.to_string() == text);
+    if rate.is_none() {
+        errors.push(format!("{key}: {text:?} is not one of 24, 25, 29.97df, 30"));
+    }
+    rate
 }

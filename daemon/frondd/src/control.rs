@@ -19,7 +19,7 @@ use std::time::{Duration, Instant, SystemTime};
 
 use crossbeam_channel::bounded;
 use frond_formats::rig_toml::{CalibrationText, RigText};
-use frond_motion::take::TakeHeader;
+use frond_motion::take::{StageAnchor, TakeHeader};
 use frond_motion::{Calibration, FilterSpec, Rig};
 use frond_protocol::{
     ControlErrorKind, ControlReply, ControlRequest, HandStatus, RecordingStatus, SourceStatus, StatusReport,
@@ -220,6 +220,13 @@ impl ControlContext {
 
     /// Starts a take (the hand's frames are recorded as the element they are published as).
     pub(crate) fn record_start(&self, name: String) -> ControlReply {
+        self.record_start_anchored(name, None)
+    }
+
+    /// [`Self::record_start`], with `fallback` as the take's stage clock when no LTC is locked
+    /// (a trigger's `TimeCode`, issue 46): a locked LTC input is the stage's clock itself and
+    /// wins; the master's label, read once as the message arrived, stands in for it.
+    pub(crate) fn record_start_anchored(&self, name: String, fallback: Option<StageAnchor>) -> ControlReply {
         if let Err(e) = validate_take_name(&name) {
             return refuse(ControlErrorKind::BadName, e.to_string());
         }
@@ -247,7 +254,7 @@ impl ControlContext {
             .map(|d| d.as_nanos() as u64)
             .unwrap_or(0);
         let host_ns = crate::clock::monotonic_ns();
-        let stage_clock = self.ltc.as_ref().and_then(|l| l.anchor(host_ns));
+        let stage_clock = self.ltc.as_ref().and_then(|l| l.anchor(host_ns)).or(fallback);
         let header = TakeHeader {
             name: name.clone(),
             rig_name: state.rig.name.clone(),

@@ -190,7 +190,7 @@ pub fn run(config: Config, options: RunOptions) -> Result<(), DaemonError> {
     let RunOptions { dirs, stop, reload, loader, test_hooks } = options;
     let started = Instant::now();
     let setup = load_setup(&config)?;
-    let triggers = crate::trigger_thread::bind_triggers(&config.triggers)?;
+    let triggers = crate::trigger_thread::bind_triggers(&config.triggers, config.ltc.fps)?;
     let ltc = crate::ltc_thread::open_ltc(&config.ltc)?;
     prepare_socket_dir(&dirs.socket_dir)?;
     let memory = lock_memory(config.lock_memory);
@@ -599,7 +599,7 @@ fn reload_config(ctx: &ControlContext, loader: &ConfigLoader, running: &Config) 
         (config.hands != running.hands, "source / hands (sources, their rigs, calibrations and elements)"),
         (config.queue_frames != running.queue_frames, "publisher.queue_frames"),
         (config.ltc != running.ltc, "ltc (input, sample_rate_hz, fps)"),
-        (config.triggers != running.triggers, "triggers (listen, allow, lead, honour_delay)"),
+        (config.triggers != running.triggers, "triggers (listen, allow, lead, honour_delay, timecode_fps)"),
     ]
     .into_iter()
     .filter_map(|(changed, key)| changed.then_some(key))

@@ -127,6 +127,16 @@ impl LtcLink {
     }
 }
 
+/// The anchor of a stage master's own label `time` (a capture trigger's `TimeCode`) at `rate`,
+/// taken to begin at monotonic `at_ns`; `None` when `rate` has no such label (a frame past the
+/// rate's last, a label drop-frame skips, a drop-frame label at a whole-frame rate).
+pub fn master_anchor(time: frond_ltc::SmpteTime, rate: FrameRate, at_ns: u64) -> Option<StageAnchor> {
+    if time.drop_frame != rate.is_drop_frame() || rate.check(time).is_err() {
+        return None;
+    }
+    Some(anchor_of(frond_ltc::StageTime { time, rate, subframe: 0.0 }, at_ns))
+}
+
 /// The anchor of stage time `at`, read at monotonic `now_ns`: its frame began `subframe`
 /// frames earlier.
 fn anchor_of(at: frond_ltc::StageTime, now_ns: u64) -> StageAnchor {
@@ -144,6 +154,34 @@ fn anchor_of(at: frond_ltc::StageTime, now_ns: u64) -> StageAnchor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_masters_label_anchors_at_its_rate_and_an_impossible_one_does_not() {
+        let tc = |h, m, s, f, drop_frame| frond_ltc::SmpteTime {
+            hours: h,
+            minutes: m,
+            seconds: s,
+            frames: f,
+            drop_frame,
+        };
+        let a = master_anchor(tc(10, 0, 0, 0, false), FrameRate::Fps25, 7_000).unwrap();
+        // 10 h at 25 fps is frame 900,000 of the day, and it began at the message.
+        assert_eq!(
+            (a.host_ns, a.label.as_str(), a.frame_count, a.nominal_fps, a.drop_frame),
+            (7_000, "10:00:00:00", 900_000, 25, false)
+        );
+        // 00:01:00;02 is the first label of minute 1 at 29.97 drop-frame: frame 1,800.
+        let df = master_anchor(tc(0, 1, 0, 2, true), FrameRate::Fps2997Df, 0).unwrap();
+        assert_eq!((df.frame_count, df.nominal_fps, df.drop_frame), (1_800, 30, true));
+        assert_eq!(master_anchor(tc(0, 0, 0, 25, false), FrameRate::Fps25, 0), None, "frame 25 at 25 fps");
+        assert_eq!(master_anchor(tc(0, 1, 0, 0, true), FrameRate::Fps2997Df, 0), None, "a dropped label");
+        assert_eq!(master_anchor(tc(0, 1, 0, 5, true), FrameRate::Fps30, 0), None, "drop-frame at 30");
+        assert_eq!(
+            master_anchor(tc(0, 1, 0, 5, false), FrameRate::Fps2997Df, 0),
+            None,
+            "whole-frame at 29.97df"
+        );
+    }
     use frond_ltc::{LtcFrame, SmpteTime};
 
     #[test]

@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::thread;
 use std::time::Duration;
 
+use frond_ltc::FrameRate;
 use frond_protocol::ControlReply;
 use frond_triggers::{Decision, Follower, FollowerConfig, FollowerState, Ignored, StartTake, TriggerSocket};
 use tracing::{debug, info, warn};
@@ -43,6 +44,8 @@ pub struct BoundTriggers {
     socket: Option<TriggerSocket>,
     /// How it follows.
     follower: FollowerConfig,
+    /// The rate of a master's `TimeCode` (`triggers.timecode_fps`, else `ltc.fps`).
+    timecode_fps: Option<FrameRate>,
 }
 
 /// A running trigger thread.
@@ -74,8 +77,12 @@ fn bind(addr: std::net::SocketAddr) -> Result<TriggerSocket, DaemonError> {
     })
 }
 
-/// Binds what `config` asks for: `None` when triggers are off.
-pub fn bind_triggers(config: &TriggersConfig) -> Result<Option<BoundTriggers>, DaemonError> {
+/// Binds what `config` asks for: `None` when triggers are off. `ltc_fps` (`ltc.fps`) is the
+/// rate of a master's `TimeCode` when `triggers.timecode_fps` does not say.
+pub fn bind_triggers(
+    config: &TriggersConfig,
+    ltc_fps: Option<FrameRate>,
+) -> Result<Option<BoundTriggers>, DaemonError> {
     if !config.enabled() {
         return Ok(None);
     }
@@ -108,7 +115,7 @@ pub fn bind_triggers(config: &TriggersConfig) -> Result<Option<BoundTriggers>, D
         info!(%to, "leading capture triggers");
     }
     let follower = FollowerConfig { allow, honour_delay: config.honour_delay };
-    Ok(Some(BoundTriggers { link, socket, follower }))
+    Ok(Some(BoundTriggers { link, socket, follower, timecode_fps: config.timecode_fps.or(ltc_fps) }))
 }
 
 impl BoundTriggers {
@@ -116,7 +123,8 @@ impl BoundTriggers {
     pub fn start(self, ctx: &Arc<ControlContext>) -> Result<Option<TriggerThread>, DaemonError> {
         let Some(socket) = self.socket else { return Ok(None) };
         let stop = Arc::new(AtomicBool::new(false));
-        let handle = spawn_triggers(socket, self.follower, ctx.clone(), self.link, stop.clone())?;
+        let handle =
+            spawn_triggers(socket, self.follower, self.timecode_fps, ctx.clone(), self.link, stop.clone())?;
         Ok(Some(TriggerThread { stop, handle }))
     }
 }
@@ -125,13 +133,19 @@ impl BoundTriggers {
 fn spawn_triggers(
     socket: TriggerSocket,
     config: FollowerConfig,
+    timecode_fps: Option<FrameRate>,
     ctx: Arc<ControlContext>,
     link: Arc<TriggerLink>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<thread::JoinHandle<()>> {
     thread::Builder::new().name("frond-triggers".into()).spawn(move || {
-        let mut follower =
-            TriggerFollower { follower: Follower::new(config), ctx, link, counts: Counts::default() };
+        let mut follower = TriggerFollower {
+            follower: Follower::new(config),
+            timecode_fps,
+            ctx,
+            link,
+            counts: Counts::default(),
+        };
         let mut socket = socket;
         while !stop.load(Relaxed) {
             follower.wait(&socket);
@@ -146,6 +160,8 @@ fn spawn_triggers(
 /// The follower and what it acts on.
 struct TriggerFollower {
     follower: Follower,
+    /// The rate a master's `TimeCode` is read at.
+    timecode_fps: Option<FrameRate>,
     ctx: Arc<ControlContext>,
     link: Arc<TriggerLink>,
     counts: Counts,
@@ -261,9 +277,10 @@ impl TriggerFollower {
             );
             return;
         }
+        let anchor = self.master_anchor(&take);
         let reply = {
             let _session = self.ctx.recording_session();
-            self.ctx.record_start(take.name.clone())
+            self.ctx.record_start_anchored(take.name.clone(), anchor)
         };
         match reply {
             ControlReply::Recording(_) => {
@@ -281,6 +298,29 @@ impl TriggerFollower {
                 );
             }
         }
+    }
+
+    /// The stage clock a start's `TimeCode` gives, taken to label the instant the take starts
+    /// (the message's arrival plus its delay): used when no LTC is locked. `None` without a
+    /// `TimeCode` (or `00:00:00:00`, "not used"), or when its rate is unknown (a whole-frame
+    /// label with neither `triggers.timecode_fps` nor `ltc.fps`) or it is no label at that
+    /// rate: said in the log, at most 10 times in 10 s.
+    fn master_anchor(&self, take: &StartTake) -> Option<frond_motion::take::StageAnchor> {
+        static UNUSED: LogLimit = LogLimit::new();
+        let time = take.timecode?;
+        let rate = if time.drop_frame { Some(FrameRate::Fps2997Df) } else { self.timecode_fps };
+        let anchor = rate.and_then(|rate| crate::ltc_link::master_anchor(time, rate, take.start_at_ns));
+        if anchor.is_none() {
+            let why = match rate {
+                None => "its rate is unknown: set triggers.timecode_fps".to_string(),
+                Some(rate) => format!("it is no label at {rate} fps"),
+            };
+            UNUSED.log(
+                "capture-trigger log lines",
+                || info!(take = %take.name, timecode = %time, %why, "the capture start's TimeCode is not used"),
+            );
+        }
+        anchor
     }
 
     /// Stops take `name` as `frond record stop` would, if it is the one recording.
