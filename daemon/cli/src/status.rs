@@ -239,15 +239,21 @@ fn source_line(s: &frond_protocol::SourceStatus) -> String {
     ) + &s.camera.as_ref().map(camera_text).unwrap_or_default()
 }
 
-/// A camera source's frames: `; camera 29.9 fps, 41.2 ms frame to sample (model 13.5 ms), 12 of 900 frames without a hand`.
+/// A camera source's frames: `; camera 29.9 fps, 41.2 ms frame to sample (model 13.5 ms), 12 of 900 frames without a hand`,
+/// and the picture it keeps for the console (`, picture webcam-1.jpg in the socket directory`).
 fn camera_text(c: &frond_protocol::CameraStatus) -> String {
     let restarts = if c.helper_starts > 1 {
         format!(", helper started {} times", c.helper_starts)
     } else {
         String::new()
     };
+    // Only a name that is a picture's (it comes from the daemon, and is printed).
+    let picture = match c.preview.as_deref().filter(|n| frond_protocol::paths::is_camera_preview_name(n)) {
+        Some(name) => format!(", picture {name} in the socket directory"),
+        None => String::new(),
+    };
     format!(
-        "; camera {:.1} fps, {:.1} ms frame to sample (model {:.1} ms), {} of {} frames without a hand{restarts}",
+        "; camera {:.1} fps, {:.1} ms frame to sample (model {:.1} ms), {} of {} frames without a hand{restarts}{picture}",
         c.fps, c.latency_ms, c.model_ms, c.empty_frames, c.frames
     )
 }
@@ -375,6 +381,27 @@ mod tests {
     use frond_protocol::{LatencySummary, RecordingStatus, SourceStatus, SubscriberStatus};
 
     use super::*;
+
+    #[test]
+    fn a_cameras_line_names_its_rate_latency_and_picture() {
+        let mut c = frond_protocol::CameraStatus {
+            frames: 900,
+            empty_frames: 12,
+            fps: 29.94,
+            latency_ms: 41.24,
+            model_ms: 13.5,
+            helper_starts: 2,
+            preview: Some("webcam-1.jpg".into()),
+        };
+        assert_eq!(
+            camera_text(&c),
+            "; camera 29.9 fps, 41.2 ms frame to sample (model 13.5 ms), 12 of 900 frames without a hand, \
+             helper started 2 times, picture webcam-1.jpg in the socket directory"
+        );
+        // A name that is no picture's is not printed.
+        c.preview = Some("../x\x1b[2J".into());
+        assert!(!camera_text(&c).contains("picture"));
+    }
 
     fn report() -> StatusReport {
         StatusReport {
