@@ -31,6 +31,8 @@
 //! history is there within `history_frames / 8` field frames; until then
 //! [`LiveField::plant_pose`] says `None` for plants that read further back.
 
+use std::collections::VecDeque;
+
 use frond_motion::clip::Joints;
 use frond_motion::field::{Field, FieldError};
 use frond_motion::field_eval::FieldState;
@@ -115,13 +117,27 @@ impl LiveField {
     }
 }
 
+/// Most field frames a subscriber keeps for [`Subscriber::take_field_frames`] (4 s at 60 Hz).
+pub const MAX_KEPT_FIELD_FRAMES: usize = 256;
+
 /// The running fields of a subscription.
 #[derive(Debug, Clone, Default)]
 pub struct LiveFields {
     fields: Vec<LiveField>,
+    /// The frames taken since [`Subscriber::take_field_frames`] last emptied it, oldest first,
+    /// at most `keep` (the oldest dropped first, counted in `kept_dropped`).
+    kept: VecDeque<FieldFrame>,
+    keep: usize,
+    kept_dropped: u64,
 }
 
 impl LiveFields {
+    /// No fields yet; the last `keep` frames taken are kept (at most
+    /// [`MAX_KEPT_FIELD_FRAMES`]).
+    pub fn keeping(keep: usize) -> Self {
+        LiveFields { keep: keep.min(MAX_KEPT_FIELD_FRAMES), ..Self::default() }
+    }
+
     /// The field with this id.
     pub fn get(&self, id: ElementId) -> Option<&LiveField> {
         self.fields.iter().find(|f| f.definition.id == id)
@@ -181,7 +197,14 @@ impl LiveFields {
             return None;
         }
         f.last = Some(*frame);
-        Some(f)
+        if self.keep > 0 {
+            if self.kept.len() == self.keep {
+                self.kept.pop_front();
+                self.kept_dropped += 1;
+            }
+            self.kept.push_back(*frame);
+        }
+        self.fields.iter().find(|f| f.definition.id == frame.field)
     }
 }
 
@@ -189,6 +212,14 @@ impl Subscriber {
     /// The running fields (protocol 3): evaluate any plant with [`LiveField::plant_pose`].
     pub fn fields(&self) -> &LiveFields {
         &self.fields
+    }
+
+    /// Moves the field frames taken since the last call into `out` (appended, oldest first)
+    /// and returns how many were dropped unread since (beyond
+    /// [`crate::SubscriberOptions::keep_field_frames`]). Nothing is kept without that option.
+    pub fn take_field_frames(&mut self, out: &mut Vec<FieldFrame>) -> u64 {
+        out.extend(self.fields.kept.drain(..));
+        std::mem::take(&mut self.fields.kept_dropped)
     }
 
     /// A field message: a table is taken (no event), a frame is numbered like a pose (a gap

@@ -149,6 +149,7 @@ pub struct SubscriberOptions {
     read_timeout: Option<Duration>,
     hello_timeout: Duration,
     reliable: bool,
+    keep_field_frames: usize,
 }
 
 impl Default for SubscriberOptions {
@@ -161,6 +162,7 @@ impl Default for SubscriberOptions {
             read_timeout: None,
             hello_timeout: Duration::from_secs(5),
             reliable: false,
+            keep_field_frames: 0,
         }
     }
 }
@@ -212,6 +214,14 @@ impl SubscriberOptions {
     /// daemon's slow lane already keeps a subscriber's backlog.
     pub fn reliable(mut self, on: bool) -> Self {
         self.reliable = on;
+        self
+    }
+    /// Keep the last `frames` field frames taken (default 0, none; at most
+    /// [`field::MAX_KEPT_FIELD_FRAMES`]) for [`Subscriber::take_field_frames`]: a program that
+    /// passes a field on as the daemon publishes it (the console hands its frames to the page,
+    /// which evaluates the plants itself) gets every frame, in order.
+    pub fn keep_field_frames(mut self, frames: usize) -> Self {
+        self.keep_field_frames = frames.min(field::MAX_KEPT_FIELD_FRAMES);
         self
     }
     /// Connects to `poses.sock` in socket directory `dir` with these options.
@@ -350,6 +360,7 @@ impl Subscriber {
     }
 
     fn from_wire(source: &Source, wire: Wire, hello: Hello, opts: SubscriberOptions) -> Subscriber {
+        let fields = field::LiveFields::keeping(opts.keep_field_frames);
         let path = match (&wire, source) {
             #[cfg(feature = "zenoh")]
             (Wire::Zenoh(conn), _) => PathBuf::from(format!("{}{}", source::ZENOH_SCHEME, conn.key())),
@@ -368,7 +379,7 @@ impl Subscriber {
             stats: Stats::default(),
             iter_done: false,
             retry: None,
-            fields: field::LiveFields::default(),
+            fields,
         }
     }
 
