@@ -15,7 +15,7 @@ use frond_sdk::{Event, Subscriber};
 
 /// A field.json of `rows x cols` plants over take `take` without its plants (readers make them
 /// from the parameters, so it fits in a control request whatever its size).
-fn compact_field(daemon: &Daemon, take: &str, rows: usize, cols: usize) -> std::path::PathBuf {
+pub(crate) fn compact_field(daemon: &Daemon, take: &str, rows: usize, cols: usize) -> std::path::PathBuf {
     let p =
         FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 3 };
     let field = make_field(&p, take, 60, 30.0).unwrap();
@@ -24,6 +24,16 @@ fn compact_field(daemon: &Daemon, take: &str, rows: usize, cols: usize) -> std::
     let path = daemon.takes_dir.with_file_name(format!("field-{rows}x{cols}.json"));
     std::fs::write(&path, json.to_string()).unwrap();
     path
+}
+
+/// A daemon on the in-process glove with the grass rig and a take `sway` of it, `record`
+/// long.
+pub(crate) fn daemon_with_sway(dir: &std::path::Path, record: Duration) -> Daemon {
+    let daemon = Daemon::start(dir, &["--source", "in-process", "--rig", "grass"]);
+    daemon.frond_ok(&["record", "start", "sway"]);
+    std::thread::sleep(record);
+    daemon.frond_ok(&["record", "stop"]);
+    daemon
 }
 
 /// The largest field frame (encoded bytes) and how many arrived in `window` on a raw socket.
@@ -51,10 +61,7 @@ fn field_frames(daemon: &Daemon, window: Duration) -> (usize, usize) {
 #[test]
 fn ten_thousand_plants_live_cost_what_twelve_do() {
     let dir = tempfile::tempdir().unwrap();
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--rig", "grass"]);
-    daemon.frond_ok(&["record", "start", "sway"]);
-    std::thread::sleep(Duration::from_secs(2));
-    daemon.frond_ok(&["record", "stop"]);
+    let daemon = daemon_with_sway(dir.path(), Duration::from_secs(2));
 
     let small = compact_field(&daemon, "sway", 3, 4);
     daemon.frond_ok(&[

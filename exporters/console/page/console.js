@@ -4,6 +4,7 @@ import * as THREE from 'three';
 import { GLTFLoader } from '/vendor/three/GLTFLoader.js';
 import { OrbitControls } from '/vendor/three/OrbitControls.js';
 import { clone as cloneSkinned } from '/vendor/three/SkeletonUtils.js';
+import { Meadow } from '/meadow.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -50,6 +51,8 @@ let grid = new THREE.GridHelper(4, 40, 0x556070, 0x2a3038);
 scene.add(grid);
 const controls = renderer ? new OrbitControls(camera, canvas) : null;
 if (controls) { controls.target.set(0, 0.4, 0); controls.update(); }
+// A running field's plants, every one evaluated and drawn in the page (meadow.js).
+const meadow = renderer ? new Meadow({ scene, camera, renderer, controls }) : null;
 
 let plant = null;           // gltf.scene
 let mainBones = [];         // the rig's 4 joints
@@ -80,6 +83,7 @@ async function loadRig() {
   layerBones = {};
   for (const e of map.elements) layerBones[e.name] = e.instances.map((inst) => inst.map(byName));
   state.map = map;
+  meadow?.setRig(map, plant);
   state.applied = {};
   for (const f of Object.values(fieldPlants)) f.root.removeFromParent();
   fieldPlants = {};
@@ -123,7 +127,7 @@ async function syncFieldNow() {
     root.scale.setScalar(scale);
     scene.add(root);
     const bones = state.map.joints.map((n) => root.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n)));
-    fieldPlants[e.id] = { root, bones, index: i, position, scale };
+    fieldPlants[e.id] = { root, bones, index: i, position, scale, source: e.source };
   }
   // The hand's own plant stays where it is; the field stands around it.
 }
@@ -165,7 +169,13 @@ function apply(p) {
 
 function frame() {
   if (player) showTakeFrame();
-  if (renderer) { resize(); renderer.render(scene, camera); }
+  if (renderer) {
+    resize();
+    // A field the meadow draws needs no clone of its announced plants.
+    for (const f of Object.values(fieldPlants)) f.root.visible = !meadow?.drawsSource(f.source);
+    meadow?.update();
+    renderer.render(scene, camera);
+  }
   requestAnimationFrame(frame);
 }
 requestAnimationFrame(frame);
@@ -189,6 +199,8 @@ function connect() {
       } else if (state.map) {
         syncField();
       }
+    } else if (m.type === 'fields' || m.type === 'field-frames') {
+      meadow?.onMessage(m);
     } else if (m.type === 'poses') {
       for (const p of m.poses) {
         state.received[p.e] = p;

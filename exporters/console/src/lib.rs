@@ -8,6 +8,8 @@
 //! - [`actions`]: the page's control actions, as the requests `frond` sends;
 //! - [`calibrate`]: the guided calibration, `frond calibrate`'s steps from the page;
 //! - `daemon_link`: the one control connection that status reads and actions share;
+//! - [`meadow`]: a running field's definition and frames passed on to the page, which
+//!   evaluates and draws every plant;
 //! - [`relay`]: the subscription, keeping each element's latest pose;
 //! - [`scene`]: the rig's GLB and node map for the 3D view;
 //! - [`server`]: the endpoints and the pose WebSocket at the display rate;
@@ -20,6 +22,7 @@ pub use frond_web::{access, http};
 pub mod actions;
 pub mod calibrate;
 mod daemon_link;
+pub mod meadow;
 pub mod relay;
 pub mod scene;
 pub mod server;

@@ -44,6 +44,8 @@ pub struct LiveState {
     pub glove: LatencyRing,
     /// Fresh poses whose device time was not within a second of the host's clock.
     pub glove_foreign: u64,
+    /// The running fields and their latest frames, passed on to the page.
+    pub fields: crate::meadow::FieldRelay,
 }
 
 /// Poses whose delivery latency is kept for the health panel.
@@ -199,7 +201,8 @@ impl Live {
             let opts = Subscriber::options()
                 .give_up_after(None)
                 .read_timeout(Some(Duration::from_millis(500)))
-                .max_retry_interval(Duration::from_millis(500));
+                .max_retry_interval(Duration::from_millis(500))
+                .keep_field_frames(crate::meadow::FIELD_FRAME_RING);
             let mut sub = match opts.connect(socket_dir) {
                 Ok(s) => s,
                 Err(e) => {
@@ -210,8 +213,13 @@ impl Live {
             };
             let mut hello = sub.hello().clone();
             self.set_hello(hello.clone());
+            let (mut fields, mut update) = (Vec::new(), crate::meadow::FieldUpdate::default());
             loop {
-                match sub.next_event() {
+                let event = sub.next_event();
+                if crate::meadow::collect(&mut sub, &mut fields, &mut update) {
+                    self.lock().fields.apply(&mut update);
+                }
+                match event {
                     Ok(Event::Pose(p)) => self.store(p),
                     Ok(Event::Gap { expected, got }) => {
                         let mut s = self.lock();

@@ -8,6 +8,7 @@ mod calibration;
 mod camera;
 mod hostile;
 mod kinematics;
+mod meadow;
 mod view;
 
 use std::io::{BufRead, BufReader, Read, Write};

@@ -22,7 +22,11 @@
 //!   frames at 30 Hz and `{"type":"warp","state":{...}}` twice a second;
 //! - `GET /ws` the pose WebSocket: JSON text messages, `{"type":"hello",...}` when the rig, the
 //!   element table or the connection changes, and `{"type":"poses","poses":[...]}` at most at the
-//!   display rate with each element's latest pose that the page does not have yet.
+//!   display rate with each element's latest pose that the page does not have yet; a running
+//!   field's table (`{"type":"fields",...}`) when it changes and every field frame once
+//!   (`{"type":"field-frames","frames":[...]}`), which the page evaluates ([`crate::meadow`]);
+//! - `GET /meadow.js`, `/field.js` the field's drawing and evaluation, `GET /api/fields/ID/layout`
+//!   a running field's plants as bytes ([`crate::meadow::layout_bytes`]).
 //!
 //! The actions take `POST` alone, the rest `GET` and `HEAD` (the head of GET's answer); another
 //! method is answered 405 with `Allow` naming the path's methods, a path not served 404.
@@ -224,6 +228,10 @@ impl Console {
             "/" => Response::new(200, "text/html; charset=utf-8", INDEX_HTML),
             "/console.js" => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
             "/console.css" => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
+            "/meadow.js" | "/field.js" => crate::meadow::page_file(&req.path),
+            p if p.starts_with("/api/fields/") => {
+                crate::meadow::layout_response(p, |id| self.live.lock().fields.layout(id))
+            }
             "/api/hello" => Response::json(200, &self.hello_json()),
             "/api/status" => self.status(),
             "/api/scene" => match self.scene() {
@@ -490,7 +498,8 @@ fn methods(path: &str) -> Option<&'static str> {
         "/" | "/console.js" | "/console.css" | "/api/hello" | "/api/status" | "/api/scene" | "/rig.glb"
         | "/api/rigs" | "/api/calibrate" | "/api/field" | "/api/takes" => Some(GET_HEAD),
         "/ws" | "/ws/warp" => Some(GET_HEAD),
-        p if p.starts_with("/api/takes/") => Some(GET_HEAD),
+        "/meadow.js" | "/field.js" => Some(GET_HEAD),
+        p if p.starts_with("/api/takes/") || p.starts_with("/api/fields/") => Some(GET_HEAD),
         p if VENDOR.iter().any(|(v, _)| *v == p) => Some(GET_HEAD),
         _ => None,
     }

@@ -17,6 +17,8 @@ use super::{Console, MAX_QUEUED_BYTES, MAX_SOCKETS};
 use crate::warp_panel::{self, WarpPanel};
 use frond_web::http::{self, Request, Response};
 
+mod fields;
+
 /// Largest message (and frame) a page may send on its socket; a larger one closes it.
 pub const MAX_PAGE_MESSAGE_BYTES: usize = 4096;
 
@@ -91,6 +93,7 @@ impl Console {
         let period = Duration::from_secs_f64(1.0 / f64::from(self.config.display_hz));
         let (mut sent, mut poses) = (Vec::new(), Vec::new());
         let mut version = u64::MAX;
+        let mut field_cursor = fields::FieldCursor::default();
         let mut next = Instant::now();
         loop {
             // Close frames and pings from the page (pongs are queued by tungstenite).
@@ -119,7 +122,7 @@ impl Console {
                     Sent::Gone => return,
                 }
             }
-            if !self.flush(ws) {
+            if !self.send_fields(ws, &mut field_cursor) || !self.flush(ws) {
                 return;
             }
             crate::pace(&mut next, period);
