@@ -170,8 +170,7 @@ pub(crate) fn set_filter(g: &Global, spec: &str) -> anyhow::Result<()> {
 }
 
 /// `frond triggers follow|pause`: asks, then says what frondd now does with the stage's starts.
-pub(crate) fn set_triggers(g: &Global, mode: crate::args::TriggerMode) -> anyhow::Result<()> {
-    let follow = mode == crate::args::TriggerMode::Follow;
+pub(crate) fn set_triggers(g: &Global, follow: bool) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     c.expect_ok(&ControlRequest::SetTriggers { follow })?;
     let listen = c.status()?.triggers.and_then(|t| t.listen).unwrap_or_default();

@@ -114,7 +114,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Rig(args::RigCommand::Set { file }) => control::set_rig(g, &file),
         Command::Filter { spec } => control::set_filter(g, &spec),
         Command::Mark { label } => control::mark(g, &label),
-        Command::Triggers { mode } => control::set_triggers(g, mode),
+        Command::Triggers { mode } => control::set_triggers(g, mode == args::TriggerMode::Follow),
         Command::Record(args::RecordCommand::Start(a)) => match &a.stage {
             None => control::record_start(g, &a.name),
             Some(stage) => stage_record::start(g, stage, &a),

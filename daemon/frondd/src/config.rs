@@ -7,7 +7,7 @@ use std::time::Duration;
 use serde::Deserialize;
 
 pub use crate::config_stage::{LtcConfig, TriggersConfig};
-use crate::config_stage::{RawLtc, RawTriggers};
+use crate::config_stage::{RawLtc, RawTriggers, range};
 
 /// Largest configuration file read, bytes.
 pub const MAX_CONFIG_FILE_BYTES: u64 = 1 << 20;
@@ -441,15 +441,6 @@ fn validate_hands(errors: &mut Vec<String>, raw: Vec<RawHand>) -> Vec<HandConfig
         hands.push(hand);
     }
     hands
-}
-
-pub(crate) fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
-    let v = v.unwrap_or(lo);
-    if v < lo || v > hi {
-        errors.push(format!("{key}: {v} is out of range {lo}..={hi}"));
-        return lo;
-    }
-    v
 }
 
 /// The one hand of `[source]`, named [`SINGLE_HAND`], when no `[[hands]]` lists several.

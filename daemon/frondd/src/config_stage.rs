@@ -7,8 +7,6 @@ use std::net::{IpAddr, SocketAddr};
 
 use serde::Deserialize;
 
-use crate::config::range;
-
 /// The `[triggers]` table: a mocap stage's capture triggers (issue 46).
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,4 +142,15 @@ fn frame_rate(errors: &mut Vec<String>, key: &str, text: Option<&str>) -> Option
         errors.push(format!("{key}: {text:?} is not one of 24, 25, 29.97df, 30"));
     }
     rate
+}
+
+/// `v` (or `lo` when absent) if within `lo..=hi`; otherwise `lo`, with the problem named by
+/// `key`. Shared by every table's validation (`config` uses it too).
+pub(crate) fn range(errors: &mut Vec<String>, key: &str, v: Option<i64>, lo: i64, hi: i64) -> i64 {
+    let v = v.unwrap_or(lo);
+    if v < lo || v > hi {
+        errors.push(format!("{key}: {v} is out of range {lo}..={hi}"));
+        return lo;
+    }
+    v
 }
