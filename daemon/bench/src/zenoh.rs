@@ -295,6 +295,62 @@ impl Stage<'_> {
     }
 }
 
+/// Where the routed fan-out's router listens (on the performer's host, as a stage server would
+/// run it beside the bridge).
+const ROUTER_PORT: u16 = 7500;
+
+impl Stage<'_> {
+    /// Zenoh through a router: a router (`frond-bench-peer zenoh-router`) on host 0, the
+    /// source's `frond-zenoh` and `per_source` SDK subscribers its clients (client mode, the
+    /// router their only endpoint), so the bridge sends each pose once and the router fans it
+    /// out: what a larger stage runs (docs/zenoh.md, "A router for a larger stage").
+    fn zenoh_routed(&mut self, per_source: usize) -> Result<Phase, BenchError> {
+        self.ensure_daemons(1)?;
+        let router_at = self.performer().endpoint(ROUTER_PORT);
+        let mut router = Peer::spawn(
+            self.o,
+            self.performer(),
+            "frond-bench-peer",
+            &["zenoh-router".into(), router_at.clone()],
+        )?;
+        router.wait_ready()?;
+        let client = self.scratch.path().join("client.json5");
+        let text = format!("{{ mode: \"client\", connect: {{ endpoints: [\"{router_at}\"] }} }}\n");
+        std::fs::write(&client, text).map_err(BenchError::at(&client))?;
+        let zenoh_bin = find_bin(self.o, "frond-zenoh")?;
+        let child = self
+            .performer()
+            .command(&zenoh_bin)
+            .args(["--stage", "bench", "--source", "src0", "--zenoh-config"])
+            .arg(&client)
+            .arg("--socket-dir")
+            .arg(&self.daemons[0].socket_dir)
+            .args(["--log-level", "error"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(BenchError::start("frond-zenoh"))?;
+        let bridge = Proc { child };
+        let address = format!("zenoh:frond/bench/src0?config={}", client.display());
+        let mut subs = Vec::new();
+        for i in 0..per_source {
+            subs.push(Peer::spawn(
+                self.o,
+                self.listener(i),
+                "frond-bench-peer",
+                &["zenoh-sub".into(), address.clone()],
+            )?);
+        }
+        for p in subs.iter_mut() {
+            p.wait_ready()?;
+        }
+        // The fan-out's CPU is the bridge's and the router's together.
+        let pids = [bridge.pid(), router.proc.pid()];
+        measure(&mut subs, &pids, self.window)
+    }
+}
+
 /// The transports the bare hop is measured on.
 #[derive(Clone, Copy, PartialEq)]
 enum Bare {
@@ -346,6 +402,62 @@ impl Stage<'_> {
         subs[0].wait_ready()?;
         measure(&mut subs, &[sender.proc.pid()], self.window)
     }
+}
+
+/// The routed fan-out's rows: its latency against plain UDP to as many readers (the issue's
+/// fan-out target, p99 within 3x), what it lost, and its CPU (bridge and router) against the
+/// peer-to-peer bridge's in the same run.
+fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measurement> {
+    let mut rows = Vec::new();
+    for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
+        let row = Measurement::new(
+            format!("zenoh_routed_latency_{name}_16_subscribers"),
+            "us",
+            routed.percentile(q),
+            format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
+            u.percentile(q),
+        );
+        rows.push(if name == "p99" {
+            row.with_target(
+                "through a Zenoh router, p99 within 3x of plain UDP to 16 readers",
+                Bound::MaxRatio,
+                3.0,
+            )
+        } else {
+            row
+        });
+    }
+    // As `rows` counts a loss: against the frames sent, judged when plain UDP lost nothing.
+    let missing = Measurement::new(
+        "zenoh_routed_missing_16_subscribers",
+        "frames",
+        routed.missing as f64,
+        format!(
+            "frames sent through the router, {what} (plain UDP lost {} of {}; peer to peer {} of {})",
+            u.missing,
+            u.frames + u.missing,
+            peer.missing,
+            peer.frames + peer.missing
+        ),
+        (routed.frames + routed.missing).max(1) as f64,
+    );
+    rows.push(if u.missing == 0 {
+        missing.with_target(
+            format!("no pose lost through a Zenoh router on a healthy link, {what}"),
+            Bound::MaxMeasured,
+            0.0,
+        )
+    } else {
+        missing
+    });
+    rows.push(Measurement::new(
+        "zenoh_routed_cpu_16_subscribers",
+        "fraction_of_core",
+        routed.cpu,
+        "the peer-to-peer bridge's CPU with 16 subscribers in the same run",
+        peer.cpu,
+    ));
+    rows
 }
 
 /// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the issue's targets, the
@@ -496,6 +608,10 @@ pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
                 ));
             }
             d["zenoh_callback"] = callback.json();
+            // And through a router (issue 43: pick the fan-out by measurement).
+            let routed = stage.zenoh_routed(n)?;
+            measurements.extend(routed_rows(&routed, &u, &z, &what));
+            d["zenoh_routed"] = routed.json();
         }
         details.insert(format!("{n}_subscribers"), d);
     }

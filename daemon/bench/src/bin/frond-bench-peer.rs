@@ -20,6 +20,10 @@
 //!   to every `ADDR`. Read by `zenoh-raw` and `udp-sub`, they measure the hop between two
 //!   namespaces alone, the floor under both paths.
 //!
+//! - `frond-bench-peer zenoh-router ENDPOINT`: a Zenoh router listening on `ENDPOINT`
+//!   (`tcp/ADDR:PORT`, no multicast scouting), the runtime `zenohd` wraps, for the routed
+//!   fan-out: bridge and subscribers its clients. It prints `ready` once it listens.
+//!
 //! Each prints `ready` once poses flow. A subscriber then obeys its standard input: `record`
 //! starts recording each pose's latency (receipt time minus the daemon's `host_monotonic_ns`; one
 //! `CLOCK_MONOTONIC` serves every namespace of a machine, so the difference is a real latency),
@@ -299,6 +303,20 @@ fn zenoh_pub(address: &str) -> Result<(), String> {
     })
 }
 
+/// A Zenoh router on `endpoint` until standard input closes.
+fn zenoh_router(endpoint: &str) -> Result<(), String> {
+    use frond_sdk::zenoh::{config, open_session};
+    let cfg =
+        config(None, Some("router"), &[], &[endpoint.to_owned()], &[("scouting/multicast/enabled", "false")])
+            .map_err(|e| e.to_string())?;
+    let _session = open_session(cfg).map_err(|e| format!("router on {endpoint}: {e}"))?;
+    exit_on_stdin_eof();
+    say("ready");
+    loop {
+        std::thread::park();
+    }
+}
+
 fn udp_pub(to: &[String]) -> Result<(), String> {
     let fanout = UdpFanout::new(to)?;
     every_period(|bytes| fanout.send(bytes))
@@ -322,6 +340,8 @@ enum Peer {
     },
     /// Puts a stamped pose on ADDRESS's `poses` key every millisecond.
     ZenohPub { address: String },
+    /// A Zenoh router listening on ENDPOINT (tcp/ADDR:PORT).
+    ZenohRouter { endpoint: String },
     /// Sends a stamped pose in one UDP datagram to every ADDR every millisecond.
     UdpPub {
         #[arg(required = true, value_name = "ADDR")]
@@ -341,6 +361,7 @@ fn main() -> ExitCode {
         Peer::UdpForward { socket_dir, to } => udp_forward(socket_dir, to),
         Peer::ZenohPub { address } => zenoh_pub(address),
         Peer::UdpPub { to } => udp_pub(to),
+        Peer::ZenohRouter { endpoint } => zenoh_router(endpoint),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -105,6 +105,20 @@ fn check_zenoh_section(section: &Value) {
         assert!(bare[path]["samples"].as_u64().unwrap() > 100, "{path}: {}", bare[path]);
     }
     assert!(bare["udp"]["samples"].as_u64().unwrap() > 100, "{}", bare["udp"]);
+    // The routed fan-out (issue 43): its rows are its details, against the same run's UDP phase
+    // to 16 readers and the peer-to-peer bridge.
+    let d = &section["details"]["16_subscribers"];
+    for q in ["p50", "p99"] {
+        let m = row(&format!("zenoh_routed_latency_{q}_16_subscribers"));
+        assert_eq!(m["measured"], d["zenoh_routed"][format!("{q}_us")], "routed {q}");
+        assert_eq!(m["baseline"], d["udp"][format!("{q}_us")], "routed {q}'s baseline");
+    }
+    let cpu = row("zenoh_routed_cpu_16_subscribers");
+    assert_eq!(cpu["measured"], d["zenoh_routed"]["bridge_cpu_fraction_of_core"]);
+    assert_eq!(cpu["baseline"], d["zenoh"]["bridge_cpu_fraction_of_core"]);
+    let missing = row("zenoh_routed_missing_16_subscribers");
+    assert_eq!(missing["measured"].as_f64(), d["zenoh_routed"]["missing"].as_f64());
+    assert!(d["zenoh_routed"]["samples"].as_u64().unwrap() > 100, "{}", d["zenoh_routed"]);
 }
 
 fn check_measurement(path: &str, m: &Value) {
