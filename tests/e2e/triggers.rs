@@ -39,6 +39,13 @@ fn capture_stop(name: &str, packet_id: u64) -> Vec<u8> {
     .into_bytes()
 }
 
+/// A daemon on the in-process glove following triggers on a free loopback port, and the port's
+/// address.
+fn following(dir: &std::path::Path) -> (Daemon, String) {
+    let listen = format!("127.0.0.1:{}", free_port());
+    (Daemon::start(dir, &["--source", "in-process", "--triggers", &listen]), listen)
+}
+
 /// The daemon's trigger section (panics when it has none).
 fn triggers(daemon: &Daemon) -> TriggerStatus {
     daemon.status().triggers.expect("a trigger section in status")
@@ -148,8 +155,7 @@ fn triggers_start_and_stop_a_take_ignoring_duplicates_foreign_hosts_and_garbage(
 #[test]
 fn a_trigger_start_waits_for_its_delay() {
     let dir = tempfile::tempdir().unwrap();
-    let listen = format!("127.0.0.1:{}", free_port());
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let (daemon, listen) = following(dir.path());
     let master = UdpSocket::bind("127.0.0.1:0").unwrap();
     let delay = Duration::from_millis(600);
     let sent = Instant::now();
@@ -173,8 +179,7 @@ fn a_trigger_start_waits_for_its_delay() {
 #[test]
 fn following_pauses_and_resumes_from_the_command_line_and_a_paused_start_is_counted() {
     let dir = tempfile::tempdir().unwrap();
-    let listen = format!("127.0.0.1:{}", free_port());
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let (daemon, listen) = following(dir.path());
     let master = UdpSocket::bind("127.0.0.1:0").unwrap();
     assert!(!triggers(&daemon).paused, "frondd starts following");
 
@@ -301,8 +306,7 @@ fn a_masters_timecode_stamps_the_take_when_no_ltc_is_locked() {
 #[test]
 fn without_a_rate_a_masters_whole_frame_timecode_is_not_guessed() {
     let dir = tempfile::tempdir().unwrap();
-    let listen = format!("127.0.0.1:{}", free_port());
-    let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--triggers", &listen]);
+    let (daemon, listen) = following(dir.path());
     let header = master_take(&daemon, &listen, "unknown_rate", "10:00:00:00", 1);
     assert_eq!(header.stage_clock, None, "24, 25 or 30 fps: frond does not guess");
 }

@@ -220,6 +220,32 @@ impl Stage<'_> {
         Ok(())
     }
 
+    /// `frond-zenoh` on host 0 for source `s` (`src{s}`, daemon `s`), with `endpoints` (its
+    /// `--listen` or `--zenoh-config`).
+    fn start_bridge(
+        &self,
+        zenoh_bin: &std::path::Path,
+        s: usize,
+        endpoints: &[&std::ffi::OsStr],
+    ) -> Result<Proc, BenchError> {
+        let child = self
+            .performer()
+            .command(zenoh_bin)
+            .args(["--stage", "bench", "--source", &format!("src{s}")])
+            .args(endpoints)
+            .arg("--socket-dir")
+            .arg(&self.daemons[s].socket_dir)
+            .args(["--log-level", "error"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            // Its counters at exit would crowd the report; a bridge that fails shows as
+            // subscribers that never see a pose.
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(BenchError::start("frond-zenoh"))?;
+        Ok(Proc { child })
+    }
+
     /// Plain UDP: one forwarder per source on host 0, `per_source` receivers for each.
     fn udp(&mut self, sources: usize, per_source: usize) -> Result<Phase, BenchError> {
         self.ensure_daemons(sources)?;
@@ -261,21 +287,7 @@ impl Stage<'_> {
         let mut subs = Vec::new();
         for s in 0..sources {
             let listen = self.performer().endpoint(BRIDGE_PORT + s as u16);
-            let child = self
-                .performer()
-                .command(&zenoh_bin)
-                .args(["--stage", "bench", "--source", &format!("src{s}"), "--listen", &listen])
-                .arg("--socket-dir")
-                .arg(&self.daemons[s].socket_dir)
-                .args(["--log-level", "error"])
-                .stdin(Stdio::null())
-                .stdout(Stdio::null())
-                // Its counters at exit would crowd the report; a bridge that fails shows as
-                // subscribers that never see a pose.
-                .stderr(Stdio::null())
-                .spawn()
-                .map_err(BenchError::start("frond-zenoh"))?;
-            bridges.push(Proc { child });
+            bridges.push(self.start_bridge(&zenoh_bin, s, &["--listen".as_ref(), listen.as_ref()])?);
             for k in 0..per_source {
                 let i = s * per_source + k;
                 let address = format!("zenoh:frond/bench/src{s}?connect={listen}");
@@ -318,20 +330,7 @@ impl Stage<'_> {
         let text = format!("{{ mode: \"client\", connect: {{ endpoints: [\"{router_at}\"] }} }}\n");
         std::fs::write(&client, text).map_err(BenchError::at(&client))?;
         let zenoh_bin = find_bin(self.o, "frond-zenoh")?;
-        let child = self
-            .performer()
-            .command(&zenoh_bin)
-            .args(["--stage", "bench", "--source", "src0", "--zenoh-config"])
-            .arg(&client)
-            .arg("--socket-dir")
-            .arg(&self.daemons[0].socket_dir)
-            .args(["--log-level", "error"])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(BenchError::start("frond-zenoh"))?;
-        let bridge = Proc { child };
+        let bridge = self.start_bridge(&zenoh_bin, 0, &["--zenoh-config".as_ref(), client.as_os_str()])?;
         let address = format!("zenoh:frond/bench/src0?config={}", client.display());
         let mut subs = Vec::new();
         for i in 0..per_source {
