@@ -129,7 +129,14 @@ pub struct LiveFields {
     kept: VecDeque<FieldFrame>,
     keep: usize,
     kept_dropped: u64,
+    /// Field definitions left out (this SDK cannot evaluate them), and when that was last
+    /// logged: a peer that sends one table after another must not flood the log.
+    refused: u64,
+    refused_logged: Option<std::time::Instant>,
 }
+
+/// Least time between two warnings about field definitions left out.
+const REFUSED_LOG_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
 
 impl LiveFields {
     /// No fields yet; the last `keep` frames taken are kept (at most
@@ -229,10 +236,16 @@ impl Subscriber {
         let frame = match msg {
             FieldMessage::Table(table) => {
                 for (field, error) in self.fields.on_table(table) {
-                    tracing::warn!(
-                        path = %self.path.display(), %field, %error,
-                        "leaving out a field whose definition this SDK cannot evaluate"
-                    );
+                    let f = &mut self.fields;
+                    f.refused += 1;
+                    if f.refused_logged.is_none_or(|t| t.elapsed() >= REFUSED_LOG_EVERY) {
+                        f.refused_logged = Some(std::time::Instant::now());
+                        tracing::warn!(
+                            path = %self.path.display(), %field, %error, refused = f.refused,
+                            "leaving out a field whose definition this SDK cannot evaluate \
+                             (logged at most every 10 s)"
+                        );
+                    }
                 }
                 return Ok(None);
             }
