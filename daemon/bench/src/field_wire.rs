@@ -2,7 +2,8 @@
 //! 100,000 plants, protocol 3 (the field stage's work: advance the driving stream, fill one
 //! field frame, encode it) against protocol 2's per-plant publishing measured in the same run
 //! (evaluate every plant, encode one pose each), and the subscriber's evaluation per plant
-//! (`frond_sdk::field`, the same `frond_motion::field_eval` the daemon's field runs).
+//! (`frond_sdk::field`, the same `frond_motion::field_eval` the daemon's field runs); its part
+//! `page` ([`crate::field_page`]) the console page drawing a live field.
 
 use frond_motion::clip::{Clip, Joints};
 use frond_motion::controls::FieldControls;
@@ -113,6 +114,7 @@ pub fn field_wire(o: &Options) -> Result<Section, BenchError> {
     let mut rows = Vec::new();
     let mut first_ns = None;
     let mut big: Option<(Field, FieldPlayer)> = None;
+    let mut sdk_plant_ns = None;
     for (r, c) in SIZES {
         let SizeRun { new_ns, new_bytes: new_b, old_ns, old_bytes: old_b, field: f, player } =
             measure(r, c, o.quick)?;
@@ -182,6 +184,7 @@ pub fn field_wire(o: &Options) -> Result<Section, BenchError> {
         }) / n as f64;
         let mut out = vec![[[0.0; 3]; 4]; f.plants.len()];
         let daemon_ns = per_tick_ns(5, |_| player.frame(400.0 / PUBLISH_HZ, &mut out)) / n as f64;
+        sdk_plant_ns = Some(sdk_ns);
         ms.push(Measurement::new(
             "sdk_plant_ns",
             "ns",
@@ -190,5 +193,9 @@ pub fn field_wire(o: &Options) -> Result<Section, BenchError> {
             daemon_ns,
         ));
     }
-    Ok(Section::ok("field_wire", TITLE, ms, json!({ "sizes": rows, "publish_hz": PUBLISH_HZ })))
+    let mut section =
+        Section::ok("field_wire", TITLE, ms, json!({ "sizes": rows, "publish_hz": PUBLISH_HZ }));
+    // The console page drawing a field, against the same scene standing still.
+    section.parts.push(crate::field_page::field_page(o, sdk_plant_ns));
+    Ok(section)
 }

@@ -7,7 +7,8 @@
 //! do-nothing relay, `frond-relay`, see [`relay`]) and [`hidraw_latency::hidraw_latency`] (8: a
 //! hidraw node's reports through frondd against the same relay reading the node) and
 //! [`zenoh::zenoh`] (9: poses over Zenoh between network namespaces against plain UDP) and
-//! [`field_wire::field_wire`] (10: a live field at 1 to 100,000 plants against per-plant poses). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! [`field_wire::field_wire`] (10: a live field at 1 to 100,000 plants against per-plant poses, and
+//! [`field_page`], the console page drawing it). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
@@ -16,6 +17,7 @@ pub mod alloc;
 pub mod components;
 mod daemon_run;
 pub mod error;
+pub mod field_page;
 pub mod field_wire;
 pub mod hidraw_latency;
 pub mod latency;

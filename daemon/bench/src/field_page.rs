@@ -1,0 +1,210 @@
+//! Section 10's part `page`: the console page drawing a live field (issue 48). A daemon on the
+//! in-process glove plays a field of 1,000, 10,000 and (not in quick mode) 100,000 plants,
+//! `frond-console` passes it on, and headless Chromium with software WebGL (SwiftShader) draws
+//! it at 1280x720. Each frame's time (evaluate every plant, upload, draw, wait for the pixels)
+//! is measured against the same instanced scene with the plants standing still (draw only),
+//! frames of the two alternating in the same run; the page's evaluation per plant against the
+//! SDK's measured in this section.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use frond_motion::field::{FieldParams, make_field};
+use frond_protocol::{ControlReply, ControlRequest, StageSpec};
+use frond_webdriver::Driver;
+use serde_json::{Value, json};
+
+use crate::Options;
+use crate::error::BenchError;
+use crate::procs::{Daemon, Proc, find_bin};
+use crate::report::{Bound, Measurement, Section, Status};
+
+/// The part's title.
+pub const TITLE: &str =
+    "the console page drawing a live field at 1280x720 (software WebGL): animating vs standing still";
+/// The plant counts and their grids; quick mode leaves out the last.
+const SIZES: [(usize, usize); 3] = [(25, 40), (100, 100), (250, 400)];
+/// The take the fields play, recorded from the glove first.
+const TAKE: &str = "sway";
+
+/// The part (see the module docs); `sdk_plant_ns` is the SDK's evaluation per plant measured
+/// in this section, the page's baseline.
+pub fn field_page(o: &Options, sdk_plant_ns: Option<f64>) -> Section {
+    let started = Instant::now();
+    let mut section = match measure(o, sdk_plant_ns) {
+        Ok(s) => s,
+        Err(Missing(why)) => Section::unavailable("page", TITLE, Status::NotAvailable, why),
+        Err(Failed(e)) => Section::unavailable("page", TITLE, Status::Error, e.to_string()),
+    };
+    section.seconds = started.elapsed().as_secs_f64();
+    section
+}
+
+/// Why the part has no figures.
+enum PartError {
+    /// Chromium or chromedriver is not installed.
+    Missing(String),
+    /// The measurement failed.
+    Failed(BenchError),
+}
+use PartError::{Failed, Missing};
+
+impl From<BenchError> for PartError {
+    fn from(e: BenchError) -> Self {
+        Failed(e)
+    }
+}
+
+fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError> {
+    let chromium = frond_webdriver::find(&["chromium", "chromium-browser", "/usr/bin/chromium"]);
+    let driver = frond_webdriver::find(&["chromedriver", "/usr/bin/chromedriver"]);
+    let (Some(chromium), Some(driver)) = (chromium, driver) else {
+        return Err(Missing(
+            "chromium and chromedriver are not installed (exporters/warp/tests/install-browser.sh)".into(),
+        ));
+    };
+    let daemon = Daemon::start(o, &["--source", "in-process", "--rig", "grass"])?;
+    expect_ok(&daemon, &ControlRequest::RecordStart { name: TAKE.into() })?;
+    std::thread::sleep(Duration::from_millis(1200));
+    expect_ok(&daemon, &ControlRequest::RecordStop)?;
+    let scratch = tempfile::Builder::new().prefix("frond-bench-page-").tempdir().map_err(BenchError::from)?;
+    let (_console, url) = start_console(o, &daemon.socket_dir, scratch.path())?;
+    let profile = scratch.path().join("profile");
+    let d = std::panic::catch_unwind(|| {
+        frond_webdriver::start_session(&chromium, &driver, &profile, "1280,720", &url)
+    })
+    .map_err(|_| Failed(BenchError::NoData("headless Chromium did not start".into())))?;
+    let frames = if o.quick { 3 } else { 8 };
+    let sizes = if o.quick { &SIZES[..2] } else { &SIZES[..] };
+    let (mut ms, mut rows) = (Vec::new(), Vec::new());
+    for &(r, c) in sizes {
+        let n = r * c;
+        start_field(&daemon, r, c)?;
+        let evaluated = wait_for_field(&d, n, if o.quick { 20 } else { 90 })?;
+        let got = d.script(&format!("return ({BENCH_JS})({frames});"));
+        let (anim, still) = (median_of(&got["animating"])?, median_of(&got["still"])?);
+        let eval_ns = got["evaluate_ms"].as_f64().unwrap_or(f64::NAN) * 1e6 / n as f64;
+        let m = Measurement::new(
+            format!("page_frame_ms_{n}"),
+            "ms",
+            anim,
+            format!("the same scene standing still, {n} plants"),
+            still,
+        );
+        ms.push(if n == 10_000 {
+            m.with_target("animating 10,000 plants costs at most 1.5x drawing them", Bound::MaxRatio, 1.5)
+        } else {
+            m
+        });
+        if let (10_000, Some(sdk)) = (n, sdk_plant_ns) {
+            ms.push(Measurement::new("page_plant_ns", "ns", eval_ns, "the SDK's evaluation per plant", sdk));
+        }
+        rows.push(json!({
+            "plants": n, "evaluated": evaluated, "animating_ms": got["animating"], "still_ms": got["still"],
+            "fps_animating": 1000.0 / anim, "fps_still": 1000.0 / still, "page_plant_ns": eval_ns,
+            "near_plants": got["near"], "draw_calls": got["calls"], "canvas": got["canvas"],
+        }));
+    }
+    let details = json!({ "sizes": rows, "frames_each": frames, "take": TAKE, "rig": "grass" });
+    Ok(Section::ok("page", TITLE, ms, details))
+}
+
+/// The page's side: `frames` frames animating and `frames` standing still, alternating, at
+/// 1280x720 (after one of each to warm up); the evaluation alone; the draw calls.
+const BENCH_JS: &str = "(frames) => {
+  const m = globalThis.frondMeadow, r = m.renderer, c = r.domElement;
+  const [w, h, aspect] = [c.width, c.height, m.camera.aspect];
+  r.setSize(1280, 720, false); m.camera.aspect = 1280 / 720; m.camera.updateProjectionMatrix();
+  m.timeFrames(1, true); m.timeFrames(1, false);
+  const animating = [], still = [];
+  for (let k = 0; k < frames; k++) { animating.push(...m.timeFrames(1, true)); still.push(...m.timeFrames(1, false)); }
+  const f = [...m.fields.values()][0];
+  const t0 = performance.now();
+  for (let k = 0; k < 3; k++) f.evaluate(f.tauNow(performance.now()));
+  const evaluate_ms = (performance.now() - t0) / 3;
+  const calls = m.drawCalls();
+  const canvas = [c.width, c.height];
+  r.setSize(w, h, false); m.camera.aspect = aspect; m.camera.updateProjectionMatrix();
+  return { animating, still, evaluate_ms, near: f.nearCount, calls: calls.meadow, canvas };
+}";
+
+fn median_of(v: &Value) -> Result<f64, BenchError> {
+    let mut xs: Vec<f64> = v.as_array().into_iter().flatten().filter_map(Value::as_f64).collect();
+    if xs.is_empty() {
+        return Err(BenchError::NoData(format!("the page timed no frames: {v}")));
+    }
+    Ok(crate::tick::median(&mut xs))
+}
+
+fn expect_ok(daemon: &Daemon, req: &ControlRequest) -> Result<(), BenchError> {
+    match daemon.control(req)? {
+        ControlReply::Ok | ControlReply::Recording(_) => Ok(()),
+        other => Err(BenchError::UnexpectedReply(format!("{other:?}"))),
+    }
+}
+
+/// Has the daemon play a `rows x cols` field of the take (its field.json without the plants,
+/// which every reader makes from the parameters), replacing the one before.
+fn start_field(daemon: &Daemon, rows: usize, cols: usize) -> Result<(), BenchError> {
+    let p =
+        FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 3 };
+    let field = make_field(&p, TAKE, 30, 30.0)?;
+    let mut v = serde_json::to_value(&field).map_err(|e| BenchError::NoData(e.to_string()))?;
+    if let Some(o) = v.as_object_mut() {
+        o.remove("plants");
+    }
+    let spec = StageSpec::Field { take: TAKE.into(), field_json: v.to_string(), plants: 1, seed: 1 };
+    expect_ok(daemon, &ControlRequest::StageStart { name: None, spec })
+}
+
+/// Waits until the page evaluates the field of `n` plants (every plant once its history has
+/// come, most of them before); how many it evaluated.
+fn wait_for_field(d: &Driver, n: usize, seconds: u64) -> Result<u64, BenchError> {
+    let deadline = Instant::now() + Duration::from_secs(seconds);
+    let mut best;
+    loop {
+        let v = d.script(&format!(
+            "const m = globalThis.frondMeadow; if (!m) return 0; \
+             for (const f of m.fields.values()) if (f.n === {n}) return f.evaluated || 0; return 0;"
+        ));
+        best = v.as_u64().unwrap_or(0);
+        if best == n as u64 {
+            return Ok(best);
+        }
+        if Instant::now() > deadline {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    if best * 10 >= n as u64 * 9 {
+        return Ok(best); // nearly all: the frame's cost is measured all the same
+    }
+    Err(BenchError::NoData(format!("the page evaluated {best} of {n} plants in {seconds} s")))
+}
+
+/// Starts `frond-console` on the daemon; it and its URL.
+fn start_console(o: &Options, socket_dir: &Path, scratch: &Path) -> Result<(Proc, String), BenchError> {
+    let mut child = Command::new(find_bin(o, "frond-console")?)
+        .arg("--socket-dir")
+        .arg(socket_dir)
+        .arg("--takes-dir")
+        .arg(PathBuf::from(scratch))
+        .args(["--listen", "127.0.0.1:0", "--no-warp", "--log-level", "warn"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .map_err(BenchError::start("frond-console"))?;
+    let out = child.stdout.take().ok_or(BenchError::NoPipe("frond-console has no stdout"))?;
+    let proc = Proc { child };
+    let mut line = String::new();
+    BufReader::new(out)
+        .read_line(&mut line)
+        .map_err(|source| BenchError::Read { what: "frond-console's address", source })?;
+    let url = line
+        .strip_prefix("frond-console: ")
+        .and_then(|r| r.split_whitespace().next())
+        .ok_or_else(|| BenchError::NoData(format!("frond-console said {line:?}")))?;
+    Ok((proc, url.to_string()))
+}
