@@ -4,7 +4,9 @@
 //! it at 1280x720. Each frame's time (evaluate every plant, upload, draw, wait for the pixels)
 //! is measured against the same instanced scene with the plants standing still (draw only),
 //! frames of the two alternating in the same run; the page's evaluation per plant against the
-//! SDK's measured in this section.
+//! SDK's measured in this section; and, with the page running on its own, each field frame's
+//! publish by the daemon to the first frame the page drew with it, p50 and p99, against the
+//! same at 1,000 plants.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -77,6 +79,8 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
     })
     .map_err(|_| Failed(BenchError::NoData("headless Chromium did not start".into())))?;
     let frames = if o.quick { 3 } else { 8 };
+    let latency_ms = if o.quick { 1200 } else { 5000 };
+    let mut first_latency: Option<(f64, f64)> = None;
     let sizes = if o.quick { &SIZES[..2] } else { &SIZES[..] };
     let (mut ms, mut rows) = (Vec::new(), Vec::new());
     for &(r, c) in sizes {
@@ -101,7 +105,18 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
         if let (10_000, Some(sdk)) = (n, sdk_plant_ns) {
             ms.push(Measurement::new("page_plant_ns", "ns", eval_ns, "the SDK's evaluation per plant", sdk));
         }
+        let lat = latencies(&d, latency_ms)?;
+        let (p50, p99) = (percentile(&lat, 0.5), percentile(&lat, 0.99));
+        match first_latency {
+            None => first_latency = Some((p50, p99)),
+            Some((b50, b99)) => {
+                let base = "the same at 1,000 plants";
+                ms.push(Measurement::new(format!("page_latency_p50_ms_{n}"), "ms", p50, base, b50));
+                ms.push(Measurement::new(format!("page_latency_p99_ms_{n}"), "ms", p99, base, b99));
+            }
+        }
         rows.push(json!({
+            "latency_ms": { "p50": p50, "p99": p99, "samples": lat.len() },
             "plants": n, "evaluated": evaluated, "animating_ms": got["animating"], "still_ms": got["still"],
             "fps_animating": 1000.0 / anim, "fps_still": 1000.0 / still, "page_plant_ns": eval_ns,
             "near_plants": got["near"], "draw_calls": got["calls"], "canvas": got["canvas"],
@@ -129,6 +144,36 @@ const BENCH_JS: &str = "(frames) => {
   r.setSize(w, h, false); m.camera.aspect = aspect; m.camera.updateProjectionMatrix();
   return { animating, still, evaluate_ms, near: f.nearCount, calls: calls.meadow, canvas };
 }";
+
+/// For `ms` milliseconds of the page running on its own: each field frame's daemon publish to
+/// the first frame the page drew with it (its pixels read back), milliseconds, sorted. The page
+/// stamps wall-clock time; the daemon's stamp is `CLOCK_MONOTONIC`, moved to the wall clock
+/// by the two clocks' offset read here (one machine).
+fn latencies(d: &Driver, ms: u64) -> Result<Vec<f64>, BenchError> {
+    let got = d.async_script(&format!(
+        "const done = arguments[arguments.length - 1], m = globalThis.frondMeadow; m.latency = []; \
+         setTimeout(() => {{ const l = m.latency; m.latency = null; done(l); }}, {ms});"
+    ));
+    let wall_ns =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |t| t.as_nanos()) as f64;
+    let offset_ns = wall_ns - frondd::clock::monotonic_ns() as f64;
+    let mut out: Vec<f64> = got
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|p| Some(p[1].as_f64()? - (p[0].as_f64()? + offset_ns) / 1e6))
+        .collect();
+    if out.len() < 3 {
+        return Err(BenchError::NoData(format!("the page drew {} field frames in {ms} ms", out.len())));
+    }
+    out.sort_by(f64::total_cmp);
+    Ok(out)
+}
+
+/// The `q` quantile of sorted `v` (nearest rank).
+fn percentile(v: &[f64], q: f64) -> f64 {
+    v[((v.len() as f64 - 1.0) * q).round() as usize]
+}
 
 fn median_of(v: &Value) -> Result<f64, BenchError> {
     let mut xs: Vec<f64> = v.as_array().into_iter().flatten().filter_map(Value::as_f64).collect();

@@ -175,6 +175,7 @@ function frame() {
     for (const f of Object.values(fieldPlants)) f.root.visible = !meadow?.drawsSource(f.source);
     meadow?.update();
     renderer.render(scene, camera);
+    meadow?.rendered();
   }
   requestAnimationFrame(frame);
 }

@@ -395,7 +395,7 @@ export class Meadow {
         }
         continue;
       }
-      if (f.eval.applyFrame(fr)) { f.frameSeq = fr.seq; f.frameAt = now; }
+      if (f.eval.applyFrame(fr)) { f.frameSeq = fr.seq; f.frameAt = now; f.frameHostNs = fr.host_monotonic_ns; f.frameShown = false; }
     }
   }
 
@@ -421,6 +421,23 @@ export class Meadow {
     for (const f of this.fields.values()) {
       f.partition(eye, now);
       if (this.animate) f.evaluate(f.tauNow(now));
+    }
+  }
+
+  // After each render of the view: while `latency` is an array (the benchmark sets it), the
+  // first render that shows a field frame waits for its pixels and records [the frame's daemon
+  // publish time (CLOCK_MONOTONIC ns), the wall-clock ms it was drawn].
+  rendered() {
+    if (!Array.isArray(this.latency)) return;
+    let gl = null;
+    for (const f of this.fields.values()) {
+      if (f.frameShown !== false) continue;
+      if (!gl) {
+        gl = this.renderer.getContext();
+        gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
+      }
+      f.frameShown = true;
+      if (this.latency.length < 100000) this.latency.push([f.frameHostNs, performance.timeOrigin + performance.now()]);
     }
   }
 
