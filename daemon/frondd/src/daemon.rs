@@ -520,7 +520,7 @@ fn shut_down(
     let engine = realtime.rt.join().map_err(|_| DaemonError::LoopPanicked)?;
     // The threads that take no peer's pace (each ends within its poll of `stop`), then the
     // sockets go: nobody new can connect, whatever the rest of the shutdown meets.
-    for (name, handle) in [("accept", acceptor), ("control", control), ("reopen", reopener)] {
+    for (name, handle) in [("accept", acceptor), ("control", control)] {
         if handle.join().is_err() {
             error!(thread = name, "thread panicked");
         }
@@ -534,6 +534,11 @@ fn shut_down(
     // bounded time, never on its peer: `frond_device::LeapSource`) and the publisher's queue,
     // so that the publisher (its writes have a timeout) ends.
     drop(engine);
+    // The reopener waits on the engine's channel of lost sources, which the drop just closed:
+    // joined before it, it would sit out its whole STOP_POLL (half a second of every stop).
+    if reopener.join().is_err() {
+        error!(thread = "reopen", "thread panicked");
+    }
     if publisher.join().is_err() {
         error!(thread = "publish", "thread panicked");
     }
