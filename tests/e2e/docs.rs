@@ -258,13 +258,22 @@ fn drain(child: &mut Child) -> String {
 /// whether SIGTERM was enough.
 fn stop_group(child: &mut Child) -> bool {
     let pgid = child.id() as i32;
+    // The shell's children outlive it by a moment; orphaned, they would wait as zombies for
+    // init to reap them (over a second on some machines). As the subreaper, this process
+    // inherits them and reaps them itself, below.
+    // SAFETY: prctl(2) with an integer argument, on this (the test's own) process.
+    unsafe { libc::prctl(libc::PR_SET_CHILD_SUBREAPER, 1) };
     // SAFETY: kill(2) on the process group of our own child, which `process_group(0)` made.
     unsafe { libc::kill(-pgid, libc::SIGTERM) };
     // Until the whole group is gone, not only the shell: a daemon still shutting down would
     // answer the next block's checks, then remove its sockets.
     let group_gone = || {
-        // SAFETY: signal 0 only asks whether the group exists.
-        unsafe { libc::kill(-pgid, 0) != 0 }
+        // SAFETY: waitpid(2) on the group's members that are (now) our children, not blocking;
+        // then signal 0, which only asks whether the group exists.
+        unsafe {
+            while libc::waitpid(-pgid, std::ptr::null_mut(), libc::WNOHANG) > 0 {}
+            libc::kill(-pgid, 0) != 0
+        }
     };
     let deadline = Instant::now() + Duration::from_secs(5);
     while Instant::now() < deadline {
