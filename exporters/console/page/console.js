@@ -177,15 +177,24 @@ function frame() {
     renderer.render(scene, camera);
     meadow?.rendered();
   }
+  if (flow.ws?.readyState === WebSocket.OPEN && flow.taken !== flow.acked) {
+    flow.acked = flow.taken;
+    flow.ws.send(`{"ack":${flow.taken}}`);
+  }
   requestAnimationFrame(frame);
 }
 requestAnimationFrame(frame);
 
 // ---- the pose stream ----
 let rigShown = null;
+// Messages taken on the socket, said to the console once a frame: it sends a page that is
+// behind the latest when it is ready rather than a queue (a large meadow drawn in software).
+const flow = { ws: null, taken: 0, acked: 0 };
 function connect() {
   const ws = new WebSocket(`ws://${location.host}/ws`);
+  Object.assign(flow, { ws, taken: 0, acked: 0 });
   ws.onmessage = (ev) => {
+    flow.taken++;
     const m = JSON.parse(ev.data);
     state.messages++;
     if (m.type === 'hello') {

@@ -276,13 +276,15 @@ class DrawnField {
     return c ? this.eval.tau + c.time_step * Math.max(0, now - this.frameAt) / 1000 : this.eval.tau;
   }
 
-  // Every plant at stream time `tau` into the texture (a plant not evaluable yet stands at rest).
+  // Every plant at stream time `tau` into the texture. A plant whose stream frames have not
+  // all come (a page that joined, or lost frames) keeps its last pose, at first the rest pose.
   evaluate(tau) {
-    const out = this.angles, f = this.eval;
+    const out = this.angles, f = this.eval, tmp = this.tmp || (this.tmp = new Float32Array(12));
     let done = 0;
     for (let i = 0; i < this.n; i++) {
-      if (f.plantPose(i, tau, out, 16 * i)) done++;
-      else out.fill(0, 16 * i, 16 * i + 12);
+      if (!f.plantPose(i, tau, tmp, 0)) continue;
+      out.set(tmp, 16 * i);
+      done++;
     }
     this.texture.needsUpdate = true;
     this.evaluated = done;

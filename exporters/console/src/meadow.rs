@@ -26,8 +26,9 @@ pub const FIELD_FRAME_RING: usize = 256;
 /// Field frames a page that has just connected gets from the ring (a second at 60 Hz: the
 /// newest stream frames at once, the rest of the history from the trickle).
 pub const FIELD_FRAMES_ON_CONNECT: u64 = 64;
-/// Field frames in one message to a page.
-pub const FIELD_FRAMES_PER_MESSAGE: usize = 32;
+/// Field frames in one message to a page at most (a page that was busy gets all it missed in
+/// one, about 200 KB at most).
+pub const FIELD_FRAMES_PER_MESSAGE: usize = 128;
 
 /// Bytes per plant of a layout: `[x, z]` f32, row u32, start frame u32, scale f32.
 pub const LAYOUT_BYTES_PER_PLANT: usize = 20;
@@ -88,14 +89,15 @@ impl FieldRelay {
         json!({ "type": "fields", "version": self.version, "fields": fields })
     }
 
-    /// Appends to `out` the frames numbered from `*cursor` on (at most `max`) and moves the
-    /// cursor past them; a cursor of `u64::MAX` (a page just connected) starts
-    /// [`FIELD_FRAMES_ON_CONNECT`] before the newest. Frames the ring no longer holds are skipped.
+    /// Appends to `out` the frames numbered from `*cursor` on and moves the cursor past them; a
+    /// cursor of `u64::MAX` (a page just connected) starts [`FIELD_FRAMES_ON_CONNECT`] before
+    /// the newest. A page more than `max` frames behind gets the newest `max` (it draws now,
+    /// not what it missed: the daemon's trickle brings the stream frames it skipped again).
     pub fn frames_since(&self, cursor: &mut u64, max: usize, out: &mut Vec<FieldFrame>) {
         if *cursor == u64::MAX {
             *cursor = self.next.saturating_sub(FIELD_FRAMES_ON_CONNECT);
         }
-        let from = *cursor;
+        let from = (*cursor).max(self.next.saturating_sub(max as u64));
         for (n, f) in self.frames.iter().filter(|(n, _)| *n >= from).take(max) {
             out.push(*f);
             *cursor = n + 1;
@@ -230,16 +232,19 @@ mod tests {
         for s in 100..110 {
             r.push(frame(s));
         }
-        r.frames_since(&mut cursor, 4, &mut out);
         r.frames_since(&mut cursor, 1000, &mut out);
         assert_eq!(out.iter().map(|f| f.seq).collect::<Vec<_>>(), (100..110).collect::<Vec<_>>());
-        // A page that fell behind the ring goes on from the oldest frame it still holds.
+        // A page further behind than a message holds goes on from the newest that fit in one.
         let mut behind = 5;
         for s in 110..110 + FIELD_FRAME_RING as u64 {
             r.push(frame(s));
         }
         out.clear();
-        r.frames_since(&mut behind, 1, &mut out);
-        assert_eq!(out[0].seq, 110, "the oldest the ring holds");
+        r.frames_since(&mut behind, 4, &mut out);
+        let newest = 110 + FIELD_FRAME_RING as u64;
+        assert_eq!(out.iter().map(|f| f.seq).collect::<Vec<_>>(), (newest - 4..newest).collect::<Vec<_>>());
+        out.clear();
+        r.frames_since(&mut behind, 4, &mut out);
+        assert!(out.is_empty(), "and then nothing it had");
     }
 }

@@ -422,9 +422,12 @@ impl Console {
             name: None,
             spec: StageSpec::Field { take: take.to_string(), field_json: field.to_json(), plants, seed: 1 },
         };
+        // Kept before the daemon is asked: its new element table can reach the page (which then
+        // asks for the layout) before its answer reaches this thread.
+        let before = self.field.lock().unwrap_or_else(|e| e.into_inner()).replace(layout);
         let answer = self.act(&request);
-        if answer.status == 200 {
-            *self.field.lock().unwrap_or_else(|e| e.into_inner()) = Some(layout);
+        if answer.status != 200 {
+            *self.field.lock().unwrap_or_else(|e| e.into_inner()) = before;
         }
         answer
     }

@@ -94,15 +94,25 @@ impl Console {
         let (mut sent, mut poses) = (Vec::new(), Vec::new());
         let mut version = u64::MAX;
         let mut field_cursor = fields::FieldCursor::default();
+        let mut flow = fields::PageFlow::default();
         let mut next = Instant::now();
         loop {
-            // Close frames and pings from the page (pongs are queued by tungstenite).
-            if !self.drain_reads(ws) {
+            // Close frames and pings from the page (pongs are queued by tungstenite), and what
+            // it says it has taken.
+            if !self.drain_reads(ws, Some(&mut flow)) {
                 return;
+            }
+            // A page slower than the stream gets the latest when it is ready, not a queue.
+            if flow.behind() {
+                if !self.flush(ws) {
+                    return;
+                }
+                crate::pace(&mut next, period);
+                continue;
             }
             let now_version = self.live.changed_since(&mut sent, &mut poses);
             if now_version != version {
-                match self.send(ws, self.hello_json().to_string()) {
+                match flow.count(self.send(ws, self.hello_json().to_string())) {
                     Sent::Queued => version = now_version,
                     Sent::Dropped => {} // sent again next time
                     Sent::Gone => return,
@@ -112,7 +122,7 @@ impl Console {
                 let n = poses.len() as u64;
                 let msg =
                     json!({ "type": "poses", "poses": poses.iter().map(pose_value).collect::<Vec<_>>() });
-                match self.send(ws, msg.to_string()) {
+                match flow.count(self.send(ws, msg.to_string())) {
                     Sent::Queued => {
                         self.counters.poses_sent.fetch_add(n, Ordering::Relaxed);
                     }
@@ -122,7 +132,7 @@ impl Console {
                     Sent::Gone => return,
                 }
             }
-            if !self.send_fields(ws, &mut field_cursor) || !self.flush(ws) {
+            if !self.send_fields(ws, &mut field_cursor, &mut flow) || !self.flush(ws) {
                 return;
             }
             crate::pace(&mut next, period);
@@ -135,7 +145,7 @@ impl Console {
         let period = Duration::from_secs_f32(1.0 / warp_panel::WARP_FPS / 2.0);
         let (mut sent, mut last_state) = (0u64, Instant::now() - Duration::from_secs(1));
         loop {
-            if !self.drain_reads(ws) {
+            if !self.drain_reads(ws, None) {
                 return;
             }
             let (number, jpeg, state) = panel.latest();
@@ -158,11 +168,17 @@ impl Console {
         }
     }
 
-    /// Reads what the page sent (close frames, pings); false when it is gone.
-    fn drain_reads(&self, ws: &mut WebSocket<TcpStream>) -> bool {
+    /// Reads what the page sent (close frames, pings, what it has taken when `flow` is
+    /// kept); false when it is gone.
+    fn drain_reads(&self, ws: &mut WebSocket<TcpStream>, mut flow: Option<&mut fields::PageFlow>) -> bool {
         loop {
             match ws.read() {
                 Ok(Message::Close(_)) => return false,
+                Ok(Message::Text(text)) => {
+                    if let Some(f) = flow.as_deref_mut() {
+                        f.on_text(&text);
+                    }
+                }
                 Ok(_) => {}
                 Err(tungstenite::Error::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => return true,
                 Err(_) => return false,
