@@ -105,7 +105,9 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
         if let (10_000, Some(sdk)) = (n, sdk_plant_ns) {
             ms.push(Measurement::new("page_plant_ns", "ns", eval_ns, "the SDK's evaluation per plant", sdk));
         }
-        let lat = latencies(&d, latency_ms)?;
+        // Long enough for the page to draw 3 frames on its own first, and 10 while measured.
+        let settle_ms = (3.0 * still).max(800.0) as u64;
+        let lat = latencies(&d, settle_ms, (10.0 * still).max(latency_ms as f64) as u64)?;
         let (p50, p99) = (percentile(&lat, 0.5), percentile(&lat, 0.99));
         match first_latency {
             None => first_latency = Some((p50, p99)),
@@ -145,14 +147,16 @@ const BENCH_JS: &str = "(frames) => {
   return { animating, still, evaluate_ms, near: f.nearCount, calls: calls.meadow, canvas };
 }";
 
-/// For `ms` milliseconds of the page running on its own: each field frame's daemon publish to
+/// For `ms` milliseconds of the page running on its own (after `settle_ms` for it to take what
+/// came while the bench held it in a script): each field frame's daemon publish to
 /// the first frame the page drew with it (its pixels read back), milliseconds, sorted. The page
 /// stamps wall-clock time; the daemon's stamp is `CLOCK_MONOTONIC`, moved to the wall clock
 /// by the two clocks' offset read here (one machine).
-fn latencies(d: &Driver, ms: u64) -> Result<Vec<f64>, BenchError> {
+fn latencies(d: &Driver, settle_ms: u64, ms: u64) -> Result<Vec<f64>, BenchError> {
     let got = d.async_script(&format!(
-        "const done = arguments[arguments.length - 1], m = globalThis.frondMeadow; m.latency = []; \
-         setTimeout(() => {{ const l = m.latency; m.latency = null; done(l); }}, {ms});"
+        "const done = arguments[arguments.length - 1], m = globalThis.frondMeadow; \
+         setTimeout(() => {{ m.latency = []; \
+           setTimeout(() => {{ const l = m.latency; m.latency = null; done(l); }}, {ms}); }}, {settle_ms});"
     ));
     let wall_ns =
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |t| t.as_nanos()) as f64;
