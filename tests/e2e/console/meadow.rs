@@ -127,4 +127,5 @@ fn the_console_draws_ten_thousand_plants_instanced_as_the_daemon_evaluates_them(
     // And it shows: the meadow covers a good part of the view.
     let cover = d.script("return globalThis.frondMeadow.coverage();").as_f64().unwrap();
     assert!(cover > 0.05, "the meadow covers {cover} of the view");
+    super::save_screenshot(&d, "meadow.png");
 }
