@@ -79,7 +79,7 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
     })
     .map_err(|_| Failed(BenchError::NoData("headless Chromium did not start".into())))?;
     let frames = if o.quick { 3 } else { 8 };
-    let latency_ms = if o.quick { 1200 } else { 5000 };
+    let latency_ms = if o.quick { 1000 } else { 5000 };
     let mut first_latency: Option<(f64, f64)> = None;
     let sizes = if o.quick { &SIZES[..2] } else { &SIZES[..] };
     let (mut ms, mut rows) = (Vec::new(), Vec::new());
@@ -105,9 +105,11 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
         if let (10_000, Some(sdk)) = (n, sdk_plant_ns) {
             ms.push(Measurement::new("page_plant_ns", "ns", eval_ns, "the SDK's evaluation per plant", sdk));
         }
-        // Long enough for the page to draw 3 frames on its own first, and 10 while measured.
-        let settle_ms = (3.0 * still).max(800.0) as u64;
-        let lat = latencies(&d, settle_ms, (10.0 * still).max(latency_ms as f64) as u64)?;
+        // Long enough for the page to draw 3 frames on its own first (2 in quick mode), and 10
+        // while measured (5).
+        let (settle, watch) = if o.quick { (2.0, 5.0) } else { (3.0, 10.0) };
+        let settle_ms = (settle * still).max(500.0) as u64;
+        let lat = latencies(&d, settle_ms, (watch * still).max(latency_ms as f64) as u64)?;
         let (p50, p99) = (percentile(&lat, 0.5), percentile(&lat, 0.99));
         match first_latency {
             None => first_latency = Some((p50, p99)),
