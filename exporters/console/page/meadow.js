@@ -10,6 +10,7 @@
 // the level's slot texture, so near and far plants are chosen again without touching the mesh.
 // Plants far from the camera use a ribbon of 10 vertices skinned to the same 4 joints.
 import * as THREE from 'three';
+import { clone as cloneSkinned } from '/vendor/three/SkeletonUtils.js';
 
 const PER_ROW = 1024;          // plants per texture row (4 RGBA texels each), slots per slot row
 const MAX_BATCH_VERTICES = 4096; // vertices of one instance (a batch of plants)
@@ -327,6 +328,8 @@ export class Meadow {
   setRig(map, root) {
     try {
       this.rig = rigOf(map, root);
+      this.rigRoot = root;
+      this.rigJoints = map.joints;
     } catch (e) {
       this.rig = null;
       this.note(`the meadow cannot draw rig ${map.rig}: ${e.message}`);
@@ -454,6 +457,69 @@ export class Meadow {
     const angles = new Array(12 * f.n);
     for (let i = 0; i < f.n; i++) for (let k = 0; k < 12; k++) angles[12 * i + k] = f.angles[16 * i + k];
     return { seq: f.frameSeq, tau: f.eval.tau, done, plants: f.n, angles };
+  }
+
+  // Plant `i` of field `id` alone in a close view, drawn by the meadow's shader (its rig mesh)
+  // and by three.js's own skinning (a SkinnedMesh clone of the rig, its joints set to the same
+  // angles in the protocol's convention, R = R_yaw(Z) R_pitch(X) R_roll(Y)), each into a
+  // 256 x 256 target: the pixels each covers and both cover.
+  silhouettes(id, i) {
+    const f = this.fields.get(id);
+    if (!f || !this.rigRoot || !(i >= 0 && i < f.n)) return null;
+    const r = this.renderer, size = 256;
+    const x = f.positions[2 * i], z = f.positions[2 * i + 1], s = f.scales[i], top = this.rig.top * s;
+    const cam = new THREE.PerspectiveCamera(40, 1, top * 0.05, top * 20);
+    cam.position.set(x + top * 1.2, top * 0.7, z + top * 2.2);
+    cam.lookAt(x, top * 0.5, z);
+    const scene = new THREE.Scene();
+    scene.background = new THREE.Color(0x000000);
+    scene.add(new THREE.AmbientLight(0xffffff, 3));
+    const target = new THREE.WebGLRenderTarget(size, size);
+    const draw = () => {
+      const px = new Uint8Array(size * size * 4);
+      r.setRenderTarget(target);
+      r.render(scene, cam);
+      r.readRenderTargetPixels(target, 0, 0, size, size, px);
+      r.setRenderTarget(null);
+      const mask = new Uint8Array(size * size);
+      for (let k = 0; k < mask.length; k++) mask[k] = Math.max(px[4 * k], px[4 * k + 1], px[4 * k + 2]) > 8 ? 1 : 0;
+      return mask;
+    };
+    // The meadow's: plant i in the near level's first slot, alone.
+    const levels = f.near, parents = levels.map((l) => l.mesh.parent);
+    for (const l of levels) {
+      l.slots[0] = i;
+      l.slotTexture.needsUpdate = true;
+      l.uniforms.meadowCount.value = 1;
+      l.mesh.geometry.instanceCount = 1;
+      scene.add(l.mesh);
+    }
+    const a = draw();
+    levels.forEach((l, k) => parents[k].add(l.mesh));
+    f.partitionedAt = -Infinity;
+    f.partitionCamera.set(Infinity, 0, 0); // chosen again at the next frame
+    // three.js's: the rig cloned, placed and posed.
+    const plant = cloneSkinned(this.rigRoot);
+    plant.position.set(x, 0, z);
+    plant.scale.setScalar(s);
+    const d = Math.PI / 180, qa = new THREE.Quaternion(), qb = new THREE.Quaternion();
+    const X = new THREE.Vector3(1, 0, 0), Y = new THREE.Vector3(0, 1, 0), Z = new THREE.Vector3(0, 0, 1);
+    this.rigJoints.forEach((n, j) => {
+      const b = plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n));
+      const [p, y, rl] = f.angles.subarray(16 * i + 3 * j, 16 * i + 3 * j + 3);
+      b.quaternion.setFromAxisAngle(Z, y * d).multiply(qa.setFromAxisAngle(X, p * d)).multiply(qb.setFromAxisAngle(Y, rl * d));
+    });
+    scene.add(plant);
+    const b = draw();
+    // And at rest, to show that the pose is what makes them agree.
+    this.rigJoints.forEach((n) => plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n)).quaternion.identity());
+    const c = draw();
+    target.dispose();
+    let both = 0, meadow = 0, skinned = 0, rest = 0, bothRest = 0;
+    for (let k = 0; k < a.length; k++) {
+      meadow += a[k]; skinned += b[k]; both += a[k] & b[k]; rest += c[k]; bothRest += a[k] & c[k];
+    }
+    return { meadow, skinned, both, rest, both_rest: bothRest, angles: Array.from(f.angles.subarray(16 * i, 16 * i + 12)) };
   }
 
   // Draw calls of one render of the whole scene, and of the scene without the meadow.

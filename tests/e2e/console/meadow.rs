@@ -128,4 +128,18 @@ fn the_console_draws_ten_thousand_plants_instanced_as_the_daemon_evaluates_them(
     let cover = d.script("return globalThis.frondMeadow.coverage();").as_f64().unwrap();
     assert!(cover > 0.05, "the meadow covers {cover} of the view");
     super::save_screenshot(&d, "meadow.png");
+    // The shader skins as three.js does: a plant drawn by the meadow covers the pixels the rig's
+    // SkinnedMesh posed with the same angles covers (each alone, close up), and not those of
+    // the rig at rest.
+    for i in [0, 5_050, 9_999] {
+        let v = d.script(&format!("return globalThis.frondMeadow.silhouettes({id}, {i});"));
+        let (meadow, skinned, both) =
+            (v["meadow"].as_f64().unwrap(), v["skinned"].as_f64().unwrap(), v["both"].as_f64().unwrap());
+        let overlap = both / (meadow + skinned - both);
+        let (rest, both_rest) = (v["rest"].as_f64().unwrap(), v["both_rest"].as_f64().unwrap());
+        let rest_overlap = both_rest / (meadow + rest - both_rest);
+        eprintln!("plant {i}: overlap {overlap:.3} posed, {rest_overlap:.3} at rest ({v})");
+        assert!(skinned > 200.0 && overlap > 0.9, "plant {i}: {v}");
+        assert!(rest_overlap < overlap - 0.1, "plant {i}: at rest {rest_overlap}, posed {overlap}: {v}");
+    }
 }
