@@ -5,7 +5,8 @@
 //! rate.
 //!
 //! Endpoints (all behind [`crate::access`]):
-//! - `GET /` the page; `/console.js`, `/console.css`; three.js under `/vendor/`;
+//! - `GET /` the page; `/console.js` (with `/calibrate.js`, its guided calibration), `/console.css`;
+//!   three.js under `/vendor/`;
 //! - `GET /rig.glb` the daemon's rig baked by frond-gltf at rest, `GET /api/scene` its node map;
 //! - `GET /api/hello` the stream's hello and element table, `GET /api/status` the daemon's status
 //!   (as `frond status --json` has it) with the console's own counters;
@@ -151,6 +152,7 @@ pub struct Console {
 
 const INDEX_HTML: &str = include_str!("../../page/index.html");
 const CONSOLE_JS: &str = include_str!("../../page/console.js");
+const CALIBRATE_JS: &str = include_str!("../../page/calibrate.js");
 const CONSOLE_CSS: &str = include_str!("../../page/console.css");
 
 /// The vendored three.js files: (URL path, body).
@@ -227,6 +229,7 @@ impl Console {
             // The server sets the token cookie when the token matched.
             "/" => Response::new(200, "text/html; charset=utf-8", INDEX_HTML),
             "/console.js" => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
+            "/calibrate.js" => Response::new(200, "text/javascript; charset=utf-8", CALIBRATE_JS),
             "/console.css" => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
             "/meadow.js" | "/field.js" => crate::meadow::page_file(&req.path),
             p if p.starts_with("/api/fields/") => {
@@ -498,8 +501,10 @@ fn methods(path: &str) -> Option<&'static str> {
         p if camera::serves(p) => Some(GET_HEAD),
         "/api/field/start" | "/api/takes/repair" => Some(POST),
         p if CALIBRATE_PATHS.contains(&p) || actions::PATHS.contains(&p) => Some(POST),
-        "/" | "/console.js" | "/console.css" | "/api/hello" | "/api/status" | "/api/scene" | "/rig.glb"
-        | "/api/rigs" | "/api/calibrate" | "/api/field" | "/api/takes" => Some(GET_HEAD),
+        "/" | "/console.js" | "/calibrate.js" | "/console.css" | "/api/hello" | "/api/status"
+        | "/api/scene" | "/rig.glb" | "/api/rigs" | "/api/calibrate" | "/api/field" | "/api/takes" => {
+            Some(GET_HEAD)
+        }
         "/ws" | "/ws/warp" => Some(GET_HEAD),
         "/meadow.js" | "/field.js" => Some(GET_HEAD),
         p if p.starts_with("/api/takes/") || p.starts_with("/api/fields/") => Some(GET_HEAD),
