@@ -43,9 +43,11 @@ pub const TITLE: &str = "pose latency daemon -> subscriber in another network na
 pub const SUBSCRIBERS: [usize; 3] = [1, 4, 16];
 /// Source counts (one subscriber each).
 pub const SOURCES: [usize; 3] = [1, 4, 8];
-/// The issue's goals: Zenoh's p50 within 2x and p99 within 3x of plain UDP's.
-const P50_LIMIT: f64 = 2.0;
-const P99_LIMIT: f64 = 3.0;
+/// Issue 43's fan-out goal: at 16 subscribers, Zenoh's p99 within 3x of plain UDP's to as many
+/// readers. (Issue 20's goals against plain UDP at every setting, p50 within 2x and p99 within
+/// 3x, were below Zenoh's own hop on this machine; issue 43 restates them against the floor,
+/// [`FLOOR_P50_LIMIT`] and [`FLOOR_P99_LIMIT`]: the other settings' rows carry no target.)
+const FANOUT_P99_LIMIT: f64 = 3.0;
 /// Issue 43's goals against the floor (the shared leg plus Zenoh's bare hop): p50 within 1.5x,
 /// p99 within 2x.
 const FLOOR_P50_LIMIT: f64 = 1.5;
@@ -418,9 +420,9 @@ fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measu
         );
         rows.push(if name == "p99" {
             row.with_target(
-                "through a Zenoh router, p99 within 3x of plain UDP to 16 readers",
+                "fan-out through a Zenoh router, p99 within 3x of plain UDP to 16 readers",
                 Bound::MaxRatio,
-                3.0,
+                FANOUT_P99_LIMIT,
             )
         } else {
             row
@@ -463,22 +465,23 @@ fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measu
 /// frames lost (none, when UDP lost none), and the bridges' CPU against the forwarders'.
 fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
     let mut out = Vec::new();
-    for (q, limit) in [(0.5, P50_LIMIT), (0.99, P99_LIMIT)] {
-        let name = if q == 0.5 { "p50" } else { "p99" };
-        out.push(
-            Measurement::new(
-                format!("zenoh_latency_{name}_{tag}"),
-                "us",
-                z.percentile(q),
-                format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
-                u.percentile(q),
-            )
-            .with_target(
-                format!("Zenoh pose latency {name} <= {limit}x plain UDP's, {what}"),
-                Bound::MaxRatio,
-                limit,
-            ),
+    for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
+        let row = Measurement::new(
+            format!("zenoh_latency_{name}_{tag}"),
+            "us",
+            z.percentile(q),
+            format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
+            u.percentile(q),
         );
+        out.push(if name == "p99" && tag == "16_subscribers" {
+            row.with_target(
+                format!("fan-out: Zenoh pose latency p99 <= {FANOUT_P99_LIMIT}x plain UDP's, {what}"),
+                Bound::MaxRatio,
+                FANOUT_P99_LIMIT,
+            )
+        } else {
+            row
+        });
     }
     // Nothing may be lost on a healthy link (issue 43), judged only when the same namespaces
     // carried every UDP datagram in the same run: otherwise the machine itself lost frames.

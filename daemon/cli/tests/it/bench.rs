@@ -84,7 +84,12 @@ fn check_zenoh_section(section: &Value) {
             let m = row(&format!("zenoh_latency_{q}_{tag}"));
             assert_eq!(m["measured"], d["zenoh"][format!("{q}_us")], "zenoh {tag} {q}");
             assert_eq!(m["baseline"], d["udp"][format!("{q}_us")], "udp {tag} {q}");
-            assert!(m["target"]["limit"].as_f64().unwrap() >= 2.0, "{tag} {q}: the issue's goal");
+            // Issue 43's fan-out goal at 16 subscribers; the rest are held against the floor.
+            if (tag, q) == ("16_subscribers", "p99") {
+                assert_eq!(m["target"]["limit"].as_f64(), Some(3.0), "the fan-out goal");
+            } else {
+                assert!(m.get("target").is_none_or(Value::is_null), "{tag} {q}: {m}");
+            }
         }
         let cpu = row(&format!("bridge_cpu_{tag}"));
         assert_eq!(cpu["measured"], d["zenoh"]["bridge_cpu_fraction_of_core"]);
