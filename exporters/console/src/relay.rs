@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 
 use frond_sdk::{ElementId, Event, Hello, Pose, Subscriber};
 
-/// Most elements whose latest pose is kept (a field of plants is at most a few hundred).
+/// Most elements whose latest pose is kept: the rig's, the live stages', and a field's announced
+/// plants (at most [`frond_protocol::field::MAX_ANNOUNCED_PLANTS`] each; the rest of a field is
+/// drawn from its definition, not kept as poses).
 pub const MAX_ELEMENTS: usize = 1024;
 
 /// What the subscription knows, shared with the page connections.
