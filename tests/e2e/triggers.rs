@@ -256,7 +256,7 @@ fn master_take(
     name: &str,
     timecode: &str,
     id: u64,
-) -> frond_motion::take::TakeHeader {
+) -> frond_motion::take::TakeScan {
     let master = UdpSocket::bind("127.0.0.1:0").unwrap();
     master.send_to(&capture_start_at(name, timecode, id), listen).unwrap();
     until(daemon, "the master's take starts", |s| s.recording.is_some());
@@ -264,7 +264,7 @@ fn master_take(
     master.send_to(&capture_stop(name, id + 1), listen).unwrap();
     until(daemon, "the master's take stops", |s| s.recording.is_none());
     let take = std::fs::read(daemon.takes_dir.join(format!("{name}.take"))).unwrap();
-    frond_formats::take::scan_take(&take).unwrap().header.expect("a header")
+    frond_formats::take::scan_take(&take).unwrap()
 }
 
 #[test]
@@ -277,20 +277,35 @@ fn a_masters_timecode_stamps_the_take_when_no_ltc_is_locked() {
 
     // At 25 fps, as timecode_fps says: the take's first frame is the master's label (or the
     // next, should the first frame come a frame late), and the labels count on from it.
-    let header = master_take(&daemon, &listen, "motive1", "10:00:00:00", 1);
-    let anchor = header.stage_clock.clone().expect("the master's TimeCode anchors the take");
+    let scan = master_take(&daemon, &listen, "motive1", "10:00:00:00", 1);
+    let anchor = scan
+        .header
+        .as_ref()
+        .and_then(|h| h.stage_clock.clone())
+        .expect("the master's TimeCode anchors the take");
     assert_eq!((anchor.label.as_str(), anchor.frame_count, anchor.nominal_fps), ("10:00:00:00", 900_000, 25));
     let lines = daemon.frond_ok(&["take", "export", "motive1", "--fps", "25", "--timecode"]);
     let tcs: Vec<String> = lines
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["tc"].as_str().unwrap().to_string())
         .collect();
-    assert!(["10:00:00:00", "10:00:00:01"].contains(&tcs[0].as_str()), "{tcs:?}");
-    assert!(tcs.iter().all(|t| t.starts_with("10:00:00:")), "half a second of frames: {tcs:?}");
+    // The first frame was recorded this long after the label's instant (the take's start, a
+    // busy machine's moment later): that many 40 ms frames after 10:00:00:00, give or take one.
+    let after_ms = scan.frames[0].host_ns.saturating_sub(anchor.host_ns) / 1_000_000;
+    let frame = |tc: &str| tc.rsplit(':').next().unwrap().parse::<u64>().unwrap();
+    assert!(tcs[0].starts_with("10:00:0"), "{tcs:?}");
+    let first = frame(&tcs[0]) + 25 * tcs[0][6..8].parse::<u64>().unwrap();
+    assert!(
+        first.abs_diff(after_ms / 40) <= 1,
+        "first frame {after_ms} ms after the label, exported as {}",
+        tcs[0]
+    );
+    let counts: Vec<u64> = tcs.iter().map(|t| frame(t) + 25 * t[6..8].parse::<u64>().unwrap()).collect();
+    assert!(counts.windows(2).all(|w| w[1] == w[0] + 1), "labels count on frame by frame: {tcs:?}");
 
     // A drop-frame label is 29.97 drop-frame whatever timecode_fps says.
-    let header = master_take(&daemon, &listen, "motive2", "01:00:00;02", 10);
-    let anchor = header.stage_clock.expect("a drop-frame label anchors the take");
+    let scan = master_take(&daemon, &listen, "motive2", "01:00:00;02", 10);
+    let anchor = scan.header.and_then(|h| h.stage_clock).expect("a drop-frame label anchors the take");
     // 01:00:00;02: 3,600 s of 30 labels and 2, less the 2 labels dropped in each of the 54
     // minutes of that hour not divisible by 10: 108,002 - 108 = 107,894 frames since midnight.
     assert_eq!(
@@ -299,16 +314,16 @@ fn a_masters_timecode_stamps_the_take_when_no_ltc_is_locked() {
         "{anchor:?}"
     );
     // "00:00:00:00" means "not used" (Rokoko): no stage clock, the host's time of day.
-    let header = master_take(&daemon, &listen, "rokoko", "00:00:00:00", 20);
-    assert_eq!(header.stage_clock, None);
+    let scan = master_take(&daemon, &listen, "rokoko", "00:00:00:00", 20);
+    assert_eq!(scan.header.unwrap().stage_clock, None);
 }
 
 #[test]
 fn without_a_rate_a_masters_whole_frame_timecode_is_not_guessed() {
     let dir = tempfile::tempdir().unwrap();
     let (daemon, listen) = following(dir.path());
-    let header = master_take(&daemon, &listen, "unknown_rate", "10:00:00:00", 1);
-    assert_eq!(header.stage_clock, None, "24, 25 or 30 fps: frond does not guess");
+    let scan = master_take(&daemon, &listen, "unknown_rate", "10:00:00:00", 1);
+    assert_eq!(scan.header.unwrap().stage_clock, None, "24, 25 or 30 fps: frond does not guess");
 }
 
 #[test]
