@@ -405,34 +405,53 @@ impl Stage<'_> {
     }
 }
 
+/// `z`'s p50 and p99 against `u`'s, named `{prefix}_{p50,p99}_{tag}`; the p99 holds the
+/// fan-out limit ([`FANOUT_P99_LIMIT`]) when `p99_target` says it does, in those words.
+fn latency_rows(
+    prefix: &str,
+    tag: &str,
+    what: &str,
+    z: &Phase,
+    u: &Phase,
+    p99_target: Option<String>,
+) -> Vec<Measurement> {
+    [(0.5, "p50"), (0.99, "p99")]
+        .into_iter()
+        .map(|(q, name)| {
+            let row = Measurement::new(
+                format!("{prefix}_{name}_{tag}"),
+                "us",
+                z.percentile(q),
+                format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
+                u.percentile(q),
+            );
+            match (&p99_target, name) {
+                (Some(text), "p99") => row.with_target(text.clone(), Bound::MaxRatio, FANOUT_P99_LIMIT),
+                _ => row,
+            }
+        })
+        .collect()
+}
+
+/// The frames `z` lost, `name`d, against the frames it was sent (a count, never 0 once anything
+/// ran, so the ratio is the share lost; `sent` names that baseline). Nothing may be lost on a
+/// healthy link (issue 43): the row holds `target` only when plain UDP (`u`) lost nothing in
+/// the same run; otherwise the machine itself lost frames.
+fn missing_row(name: String, z: &Phase, u: &Phase, sent: String, target: String) -> Measurement {
+    let row = Measurement::new(name, "frames", z.missing as f64, sent, (z.frames + z.missing).max(1) as f64);
+    if u.missing == 0 { row.with_target(target, Bound::MaxMeasured, 0.0) } else { row }
+}
+
 /// The routed fan-out's rows: its latency against plain UDP to as many readers (the issue's
 /// fan-out target, p99 within 3x), what it lost, and its CPU (bridge and router) against the
 /// peer-to-peer bridge's in the same run.
 fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measurement> {
-    let mut rows = Vec::new();
-    for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
-        let row = Measurement::new(
-            format!("zenoh_routed_latency_{name}_16_subscribers"),
-            "us",
-            routed.percentile(q),
-            format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
-            u.percentile(q),
-        );
-        rows.push(if name == "p99" {
-            row.with_target(
-                "fan-out through a Zenoh router, p99 within 3x of plain UDP to 16 readers",
-                Bound::MaxRatio,
-                FANOUT_P99_LIMIT,
-            )
-        } else {
-            row
-        });
-    }
-    // As `rows` counts a loss: against the frames sent, judged when plain UDP lost nothing.
-    let missing = Measurement::new(
-        "zenoh_routed_missing_16_subscribers",
-        "frames",
-        routed.missing as f64,
+    let target = "fan-out through a Zenoh router, p99 within 3x of plain UDP to 16 readers".to_string();
+    let mut rows = latency_rows("zenoh_routed_latency", "16_subscribers", what, routed, u, Some(target));
+    rows.push(missing_row(
+        "zenoh_routed_missing_16_subscribers".into(),
+        routed,
+        u,
         format!(
             "frames sent through the router, {what} (plain UDP lost {} of {}; peer to peer {} of {})",
             u.missing,
@@ -440,17 +459,8 @@ fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measu
             peer.missing,
             peer.frames + peer.missing
         ),
-        (routed.frames + routed.missing).max(1) as f64,
-    );
-    rows.push(if u.missing == 0 {
-        missing.with_target(
-            format!("no pose lost through a Zenoh router on a healthy link, {what}"),
-            Bound::MaxMeasured,
-            0.0,
-        )
-    } else {
-        missing
-    });
+        format!("no pose lost through a Zenoh router on a healthy link, {what}"),
+    ));
     rows.push(Measurement::new(
         "zenoh_routed_cpu_16_subscribers",
         "fraction_of_core",
@@ -461,52 +471,24 @@ fn routed_rows(routed: &Phase, u: &Phase, peer: &Phase, what: &str) -> Vec<Measu
     rows
 }
 
-/// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 with the issue's targets, the
-/// frames lost (none, when UDP lost none), and the bridges' CPU against the forwarders'.
+/// Rows comparing a Zenoh phase with its UDP baseline: p50 and p99 (the p99 at 16 subscribers
+/// with the fan-out target), the frames lost (none, when UDP lost none), and the bridges' CPU
+/// against the forwarders'.
 fn rows(tag: &str, what: &str, z: &Phase, u: &Phase) -> Vec<Measurement> {
-    let mut out = Vec::new();
-    for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
-        let row = Measurement::new(
-            format!("zenoh_latency_{name}_{tag}"),
-            "us",
-            z.percentile(q),
-            format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
-            u.percentile(q),
-        );
-        out.push(if name == "p99" && tag == "16_subscribers" {
-            row.with_target(
-                format!("fan-out: Zenoh pose latency p99 <= {FANOUT_P99_LIMIT}x plain UDP's, {what}"),
-                Bound::MaxRatio,
-                FANOUT_P99_LIMIT,
-            )
-        } else {
-            row
-        });
-    }
-    // Nothing may be lost on a healthy link (issue 43), judged only when the same namespaces
-    // carried every UDP datagram in the same run: otherwise the machine itself lost frames.
-    // Against the frames the Zenoh path was sent (a count, never 0 once anything ran), so the
-    // ratio is the share lost; what plain UDP lost in the same run is in the baseline's name.
-    let missing = Measurement::new(
+    let fan_out = (tag == "16_subscribers")
+        .then(|| format!("fan-out: Zenoh pose latency p99 <= {FANOUT_P99_LIMIT}x plain UDP's, {what}"));
+    let mut out = latency_rows("zenoh_latency", tag, what, z, u, fan_out);
+    out.push(missing_row(
         format!("zenoh_missing_{tag}"),
-        "frames",
-        z.missing as f64,
+        z,
+        u,
         format!(
             "frames sent through Zenoh, {what} (plain UDP between the same namespaces lost {} of {})",
             u.missing,
             u.frames + u.missing
         ),
-        (z.frames + z.missing).max(1) as f64,
-    );
-    out.push(if u.missing == 0 {
-        missing.with_target(
-            format!("no pose lost through Zenoh on a healthy link, {what} (of {})", z.frames + z.missing),
-            Bound::MaxMeasured,
-            0.0,
-        )
-    } else {
-        missing
-    });
+        format!("no pose lost through Zenoh on a healthy link, {what} (of {})", z.frames + z.missing),
+    ));
     out.push(Measurement::new(
         format!("bridge_cpu_{tag}"),
         "fraction_of_core",
@@ -600,15 +582,14 @@ pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
             // Fan-out (issue 43): the same 16 subscribers reading in Zenoh's callback, without
             // the SDK's hand-off to a reading thread in each of the 16 processes.
             let callback = stage.zenoh(1, n, "zenoh-raw")?;
-            for (q, name) in [(0.5, "p50"), (0.99, "p99")] {
-                measurements.push(Measurement::new(
-                    format!("zenoh_callback_latency_{name}_16_subscribers"),
-                    "us",
-                    callback.percentile(q),
-                    format!("plain UDP datagrams between the same namespaces, {what}, {name}"),
-                    u.percentile(q),
-                ));
-            }
+            measurements.extend(latency_rows(
+                "zenoh_callback_latency",
+                "16_subscribers",
+                &what,
+                &callback,
+                &u,
+                None,
+            ));
             d["zenoh_callback"] = callback.json();
             // And through a router (issue 43: pick the fan-out by measurement).
             let routed = stage.zenoh_routed(n)?;
