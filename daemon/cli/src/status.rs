@@ -33,14 +33,9 @@ fn print(report: &frond_protocol::StatusReport, json: bool) -> anyhow::Result<()
 /// (issue 43: what each peer got, missed and recovered). JSON: for a concrete key, the report
 /// with a `zenoh_peers` list; for a selector, an object from each source to that.
 fn run_zenoh(addr: &frond_sdk::ZenohAddr, json: bool) -> anyhow::Result<()> {
-    use frond_sdk::zenoh::{config, open_session, query_statuses_in};
-    let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[])?;
-    let session = open_session(cfg)?;
-    let reports = query_statuses_in(&session, addr, STATUS_WAIT)?;
-    if addr.is_concrete() && reports.len() > 1 {
-        let matches = reports.into_iter().map(|(k, _)| k).collect();
-        return Err(frond_sdk::SdkError::AmbiguousSource { selector: addr.key.clone(), matches }.into());
-    }
+    let session = frond_sdk::zenoh::open_addr_session(addr)?;
+    // A concrete key is one source's: only a selector can match several.
+    let reports = frond_sdk::zenoh::query_statuses_in(&session, addr, STATUS_WAIT)?;
     let short = frond_sdk::zenoh_many::short;
     let mut map = serde_json::Map::new();
     for (i, (key, report)) in reports.iter().enumerate() {

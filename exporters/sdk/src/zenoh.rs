@@ -38,7 +38,7 @@ use crate::{SubscriberOptions, check_hello};
 /// Zenoh's session, as the functions here take it (the SDK's Zenoh version).
 pub use ::zenoh::Session;
 
-pub use crate::zenoh_config::{MAX_CONFIG_FILE, ZenohSetupError, config, open_session};
+pub use crate::zenoh_config::{MAX_CONFIG_FILE, ZenohSetupError, config, open_addr_session, open_session};
 pub use crate::zenoh_keys::{keys, short};
 pub(crate) use crate::zenoh_keys::{no_bridge, source_key_of};
 pub use crate::zenoh_status::{MAX_STAGE_SOURCES, query_status, query_statuses, query_statuses_in};
@@ -115,8 +115,7 @@ impl ZenohConn {
     pub(crate) fn open(addr: &ZenohAddr, opts: &SubscriberOptions) -> Result<(ZenohConn, Hello), SdkError> {
         let setup =
             |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
-        let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
-        let session = open_session(cfg).map_err(setup)?;
+        let session = open_addr_session(addr).map_err(setup)?;
         Self::open_in(session, addr, opts)
     }
 

@@ -82,6 +82,13 @@ fn json_list(items: &[String]) -> String {
     serde_json::Value::Array(items.iter().map(|s| serde_json::Value::String(s.clone())).collect()).to_string()
 }
 
+/// Opens a session with what a `zenoh:` address says after its `?`: its configuration file and
+/// its `connect` and `listen` endpoints ([`config`], [`open_session`]). Every subscription,
+/// status query and remote control of one address opens its session so.
+pub fn open_addr_session(addr: &crate::ZenohAddr) -> Result<::zenoh::Session, ZenohSetupError> {
+    open_session(config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[])?)
+}
+
 /// Opens a session with [`config`], after checking `ZENOH_RUNTIME` (on which Zenoh panics).
 pub fn open_session(config: ::zenoh::Config) -> Result<::zenoh::Session, ZenohSetupError> {
     crate::zenoh_runtime_env::check()?;

@@ -12,7 +12,7 @@ use crate::control::{ControlClientError, REPLY_TIMEOUT};
 use crate::control_auth::{ControlKey, Envelope, new_nonce};
 use crate::source::ZenohAddr;
 use crate::stage_time::realtime_ns;
-use crate::zenoh::{config, keys, open_session};
+use crate::zenoh::{keys, open_addr_session};
 
 /// A Zenoh session that sends signed control requests to one source.
 pub struct RemoteControl {
@@ -38,9 +38,7 @@ impl RemoteControl {
             return Err(remote("remote control names one source; the address holds a wildcard".into()));
         }
         crate::control_auth::check_principal(principal).map_err(|e| remote(e.to_string()))?;
-        let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[])
-            .map_err(|e| remote(e.to_string()))?;
-        let session = open_session(cfg).map_err(|e| remote(e.to_string()))?;
+        let session = open_addr_session(addr).map_err(|e| remote(e.to_string()))?;
         Ok(RemoteControl {
             session,
             source_key: addr.key.clone(),

@@ -23,7 +23,7 @@ use frond_protocol::Hello;
 use crate::error::SdkError;
 use crate::source::ZenohAddr;
 pub use crate::zenoh::short;
-use crate::zenoh::{FRAME_QUEUE, config, keys, open_session, source_key_of};
+use crate::zenoh::{FRAME_QUEUE, keys, open_addr_session, source_key_of};
 use crate::{Event, Subscriber, SubscriberOptions};
 
 /// Most sources one [`StageSubscriber`] follows; tokens of further sources are counted in
@@ -96,8 +96,7 @@ impl StageSubscriber {
             source_key: addr.to_string(),
             reason: e.to_string(),
         };
-        let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
-        let session = open_session(cfg).map_err(setup)?;
+        let session = open_addr_session(addr).map_err(setup)?;
         let (tx, events) = bounded(FRAME_QUEUE);
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),

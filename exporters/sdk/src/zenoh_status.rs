@@ -8,7 +8,7 @@ use frond_protocol::decode_frame;
 
 use crate::error::{ProtocolError, SdkError};
 use crate::source::ZenohAddr;
-use crate::zenoh_config::{ZenohSetupError, config, open_session};
+use crate::zenoh_config::{ZenohSetupError, open_addr_session};
 use crate::zenoh_keys::{keys, no_bridge};
 
 /// Asks the bridge of `addr` (one source) for its daemon's latest status report.
@@ -29,8 +29,7 @@ pub fn query_statuses(
     timeout: Duration,
 ) -> Result<Vec<(String, frond_protocol::StatusReport)>, SdkError> {
     let setup = |e: ZenohSetupError| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() };
-    let cfg = config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(setup)?;
-    let session = open_session(cfg).map_err(setup)?;
+    let session = open_addr_session(addr).map_err(setup)?;
     query_statuses_in(&session, addr, timeout)
 }
 

@@ -164,13 +164,10 @@ fn zenoh_sub(address: &str) -> Result<(), String> {
 
 /// A `zenoh:` address parsed, and a session opened as it says (endpoints, configuration file).
 fn zenoh_session(address: &str) -> Result<(frond_sdk::ZenohAddr, frond_sdk::zenoh::Session), String> {
-    use frond_sdk::zenoh::{config, open_session};
     let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
         return Err(format!("{address}: not a zenoh: address"));
     };
-    let cfg =
-        config(addr.config.as_deref(), None, &addr.connect, &addr.listen, &[]).map_err(|e| e.to_string())?;
-    let session = open_session(cfg).map_err(|e| e.to_string())?;
+    let session = frond_sdk::zenoh::open_addr_session(&addr).map_err(|e| e.to_string())?;
     Ok((addr, session))
 }
 
