@@ -63,30 +63,15 @@ fn ten_thousand_plants_live_cost_what_twelve_do() {
     let dir = tempfile::tempdir().unwrap();
     let daemon = daemon_with_sway(dir.path(), Duration::from_secs(2));
 
-    let small = compact_field(&daemon, "sway", 3, 4);
-    daemon.frond_ok(&[
-        "field",
-        "start",
-        "--take",
-        "sway",
-        "--field",
-        small.to_str().unwrap(),
-        "--plants",
-        "4",
-    ]);
-    let (small_bytes, small_count) = field_frames(&daemon, Duration::from_millis(800));
-    let meadow = compact_field(&daemon, "sway", 100, 100);
-    daemon.frond_ok(&[
-        "field",
-        "start",
-        "--take",
-        "sway",
-        "--field",
-        meadow.to_str().unwrap(),
-        "--plants",
-        "4",
-    ]);
-    let (big_bytes, big_count) = field_frames(&daemon, Duration::from_millis(800));
+    // A field of rows x cols plants started (4 announced), and its field frames over 0.8 s.
+    let frames_of = |rows: usize, cols: usize| {
+        let field = compact_field(&daemon, "sway", rows, cols);
+        let field = field.to_str().unwrap();
+        daemon.frond_ok(&["field", "start", "--take", "sway", "--field", field, "--plants", "4"]);
+        field_frames(&daemon, Duration::from_millis(800))
+    };
+    let (small_bytes, small_count) = frames_of(3, 4);
+    let (big_bytes, big_count) = frames_of(100, 100);
     // 60 field frames a second either way, each the same size within a few bytes (the numbers
     // in it), under 2 KiB: nothing per plant.
     assert!(small_count >= 30 && big_count >= 30, "{small_count} and {big_count} field frames in 0.8 s");
