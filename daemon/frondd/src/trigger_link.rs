@@ -86,7 +86,11 @@ impl TriggerLink {
         let changed = self.paused.swap(!follow, Relaxed) == follow;
         self.book().status.paused = !follow;
         if changed {
-            info!(follow, "capture triggers {}", if follow { "followed again" } else { "paused" });
+            // A client toggling in a loop must not fill the log.
+            static TOGGLED: LogLimit = LogLimit::new();
+            TOGGLED.log("capture-trigger log lines", || {
+                info!(follow, "capture triggers {}", if follow { "followed again" } else { "paused" })
+            });
         }
         changed
     }
