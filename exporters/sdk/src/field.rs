@@ -20,6 +20,11 @@
 //! # Ok::<(), frond_sdk::SdkError>(())
 //! ```
 //!
+//! The same holds for a `zenoh:` source: a `frond-zenoh` bridge passes each field on as the
+//! daemon publishes it (the definitions on `fields`, the frames among the poses; see
+//! [`crate::zenoh`]), so a program reads a field the same way from either, and what crosses
+//! the network does not grow with the field either.
+//!
 //! Subscribers that want poses need nothing of this: the plants the daemon announces as
 //! `field-plant` elements (its `--plants`, at most 64) arrive as [`Event::Pose`]s, evaluated here
 //! at each field frame, as protocol 2 delivered them: numbered with the frame's numbers (the
@@ -40,7 +45,7 @@ use frond_motion::field_wire::{apply_frame, field_from_definition};
 use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable, MAX_WIRE_FIELDS};
 use frond_protocol::{ElementId, HandWire, Pose};
 
-use crate::{Event, ProtocolError, SdkError, Subscriber};
+use crate::{Event, SdkError, Subscriber};
 
 /// One running field as a subscriber keeps it.
 #[derive(Debug, Clone)]
@@ -234,6 +239,10 @@ impl Subscriber {
     /// report.
     pub(crate) fn on_field(&mut self, msg: FieldMessage) -> Result<Option<Event>, SdkError> {
         let frame = match msg {
+            FieldMessage::Table(table) if self.relay => {
+                self.relayed = Some(FieldMessage::Table(table));
+                return Ok(None);
+            }
             FieldMessage::Table(table) => {
                 for (field, error) in self.fields.on_table(table) {
                     let f = &mut self.fields;
@@ -253,13 +262,16 @@ impl Subscriber {
         };
         let expected = self.expected_seq;
         if frame.seq < expected {
-            return Err(self.fail(ProtocolError::SeqWentBackwards { expected, got: frame.seq }));
+            return self.seq_went_back(expected, frame.seq).map(Some);
         }
         self.expected_seq = frame.seq.saturating_add(u64::from(frame.poses).max(1));
         let gap = frame.seq > expected;
         if gap {
-            self.stats.gaps += 1;
-            self.stats.missing += frame.seq - expected;
+            self.count_gap(frame.seq - expected);
+        }
+        if self.relay {
+            self.relayed = Some(FieldMessage::Frame(frame));
+            return Ok(gap.then_some(Event::Gap { expected, got: frame.seq }));
         }
         if let Some(field) = self.fields.on_frame(&frame) {
             let tau = field.tau_s();

@@ -117,6 +117,20 @@ pub enum Event {
     Disconnected,
 }
 
+/// What [`Subscriber::next_relayed`] returns: an event, or a field message as the daemon sent
+/// it, for a program that passes the stream on rather than reads it (the Zenoh bridge).
+#[derive(Debug, Clone, PartialEq)]
+// A field frame is large beside an event, but it is read once and passed on at once.
+#[allow(clippy::large_enum_variant)]
+pub enum Relayed {
+    /// One event, as [`Subscriber::next_event`] reports it (never an announced plant's pose:
+    /// whoever reads the relayed field frames evaluates those).
+    Event(Event),
+    /// A field's table or one of its frames, numbered in the stream (a frame after lost ones
+    /// comes after its [`Event::Gap`]).
+    Field(frond_protocol::field::FieldMessage),
+}
+
 /// Counters since the subscriber was created.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Stats {
@@ -302,6 +316,10 @@ pub struct Subscriber {
     retry: Option<reconnect::Retry>,
     /// The running fields (protocol 3).
     fields: field::LiveFields,
+    /// Field messages are passed on by [`Subscriber::next_relayed`], not evaluated.
+    relay: bool,
+    /// The field message [`Subscriber::next_relayed`] returns next.
+    relayed: Option<frond_protocol::field::FieldMessage>,
 }
 
 impl std::fmt::Debug for Subscriber {
@@ -380,6 +398,8 @@ impl Subscriber {
             iter_done: false,
             retry: None,
             fields,
+            relay: false,
+            relayed: None,
         }
     }
 
@@ -465,6 +485,24 @@ impl Subscriber {
         }
     }
 
+    /// For a program that passes the stream on (the Zenoh bridge): the next event, or the next
+    /// field message as the daemon sent it, in the stream's order. Field frames are numbered as
+    /// [`Subscriber::next_event`] numbers them (gaps and sequence checks alike), but neither
+    /// applied to [`Subscriber::fields`] nor evaluated into the announced plants' poses: the
+    /// reader of the relayed stream does both. Once called, a subscription relays for good; do
+    /// not mix it with [`Subscriber::next_event`].
+    pub fn next_relayed(&mut self) -> Result<Relayed, SdkError> {
+        self.relay = true;
+        loop {
+            if let Some(msg) = self.relayed.take() {
+                return Ok(Relayed::Field(msg));
+            }
+            if let Some(ev) = self.read_event()? {
+                return Ok(Relayed::Event(ev));
+            }
+        }
+    }
+
     fn read_event(&mut self) -> Result<Option<Event>, SdkError> {
         if let Some(ev) = self.pending.pop_front() {
             return Ok(Some(ev));
@@ -537,35 +575,45 @@ impl Subscriber {
     fn on_pose(&mut self, pose: Pose) -> Result<Event, SdkError> {
         let expected = self.expected_seq;
         if pose.seq < expected {
-            // Over Zenoh, numbers that start again are another daemon's stream under the key
-            // (one bridge gave way to another under the same name, and the new one's poses
-            // arrived before the old one's token was seen to go), not a broken daemon: the
-            // subscription rejoins, as when a bridge goes away and comes back.
-            #[cfg(feature = "zenoh")]
-            if matches!(self.state, State::Connected(Wire::Zenoh(_))) && self.opts.reconnect {
-                tracing::info!(
-                    path = %self.path.display(), expected, got = pose.seq,
-                    "the source's sequence numbers started again: another stream; rejoining"
-                );
-                self.drop_connection();
-                return Ok(Event::Disconnected);
-            }
-            return Err(self.fail(ProtocolError::SeqWentBackwards { expected, got: pose.seq }));
+            return self.seq_went_back(expected, pose.seq);
         }
         self.expected_seq = pose.seq + 1;
         self.stats.frames += 1;
         if pose.seq > expected {
-            self.stats.gaps += 1;
-            self.stats.missing += pose.seq - expected;
-            // Over Zenoh, an element table published during the loss may be lost with it.
-            #[cfg(feature = "zenoh")]
-            if let State::Connected(Wire::Zenoh(conn)) = &mut self.state {
-                conn.refresh_elements();
-            }
+            self.count_gap(pose.seq - expected);
             self.pending.push_back(Event::Pose(pose));
             return Ok(Event::Gap { expected, got: pose.seq });
         }
         Ok(Event::Pose(pose))
+    }
+
+    /// A frame numbered `got`, below the `expected` one.
+    fn seq_went_back(&mut self, expected: u64, got: u64) -> Result<Event, SdkError> {
+        // Over Zenoh, numbers that start again are another daemon's stream under the key (one
+        // bridge gave way to another under the same name, and the new one's frames arrived
+        // before the old one's token was seen to go), not a broken daemon: the subscription
+        // rejoins, as when a bridge goes away and comes back.
+        #[cfg(feature = "zenoh")]
+        if matches!(self.state, State::Connected(Wire::Zenoh(_))) && self.opts.reconnect {
+            tracing::info!(
+                path = %self.path.display(), expected, got,
+                "the source's sequence numbers started again: another stream; rejoining"
+            );
+            self.drop_connection();
+            return Ok(Event::Disconnected);
+        }
+        Err(self.fail(ProtocolError::SeqWentBackwards { expected, got }))
+    }
+
+    /// Counts `missing` frames lost before the one just read.
+    fn count_gap(&mut self, missing: u64) {
+        self.stats.gaps += 1;
+        self.stats.missing += missing;
+        // Over Zenoh, an element or field table published during the loss may be lost with it.
+        #[cfg(feature = "zenoh")]
+        if let State::Connected(Wire::Zenoh(conn)) = &mut self.state {
+            conn.refresh_elements();
+        }
     }
 
     fn drop_connection(&mut self) {

@@ -5,8 +5,9 @@
 //!
 //! | key          | what                                                              | how            |
 //! |--------------|-------------------------------------------------------------------|----------------|
-//! | `.../poses`  | every pose the daemon publishes                                   | put, drop when congested |
+//! | `.../poses`  | every pose the daemon publishes, and every field frame (protocol 3) | put, drop when congested |
 //! | `.../elements` | the element table, when it changes                              | put + queryable (latest) |
+//! | `.../fields` | the running fields' definitions, after each element table       | put + queryable (latest) |
 //! | `.../hello`  | the daemon's hello (rig, joints, elements, `next_seq`)            | put on change + queryable (latest) |
 //! | `.../status` | the daemon's status report, a few times a second                  | put + queryable (latest) |
 //! | `.../alive`  | a liveliness token, held while the bridge is connected to its daemon | liveliness |
@@ -16,23 +17,31 @@
 //!
 //! Every payload is one frame of the socket protocol, byte for byte what `poses.sock` carries:
 //! a `u32` little-endian length, the protocol version byte, a MessagePack body (a
-//! `ServerMessage` for poses, elements and hello; a `StatusReport` for status), so a reader in
-//! any language decodes it with a plain MessagePack library after skipping five bytes.
+//! `ServerMessage` for poses, field frames, elements, fields and hello; a `StatusReport` for
+//! status), so a reader in any language decodes it with a plain MessagePack library after
+//! skipping five bytes.
+//!
+//! A field (protocol 3, [`crate::field`]) crosses as it leaves the daemon: its definition on
+//! `fields` (a late joiner asks the queryable for it, and again after a gap, as for the element
+//! table) and its frames among the poses, numbered in the same sequence, so that gaps, the
+//! replay ring and the order of tables and frames work for them as for poses. A subscriber over
+//! Zenoh evaluates every plant itself, as over the socket: [`crate::Subscriber::fields`].
 
 use std::collections::VecDeque;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use ::zenoh::Wait;
 use ::zenoh::sample::SampleKind;
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TryRecvError, bounded};
-use frond_protocol::{Hello, Pose, ServerMessage, decode_frame};
+use frond_protocol::field::{FieldMessage, FieldTable};
+use frond_protocol::{HEADER_LEN, Hello, MAX_FRAME_LEN, ServerMessage, decode_frame};
 
 use crate::conn::ReadOutcome;
 use crate::error::{ProtocolError, SdkError};
 use crate::source::ZenohAddr;
-use crate::zenoh_replay::{self, QUERY_TIMEOUT, RECOVERY_TIME, REPORT_EVERY, ReplayRequest};
+use crate::zenoh_replay::{self, QUERY_TIMEOUT, RECOVERY_TIME, REPORT_EVERY, ReplayRequest, numbered};
 use crate::{SubscriberOptions, check_hello};
 
 /// Zenoh's session, as the functions here take it (the SDK's Zenoh version).
@@ -71,13 +80,21 @@ pub(crate) struct ZenohConn {
     refresh: Refresh,
     /// The element table last passed on (from the hello or an `elements` sample).
     table: Option<frond_protocol::ElementTable>,
+    /// The field table last passed on.
+    field_table: Option<FieldTable>,
+    /// The field table found while joining, passed on before the first frame.
+    first_table: Option<FieldTable>,
     alive: Receiver<bool>,
     /// Poses dropped because the queue was full.
     overflow: Arc<AtomicU64>,
+    /// Samples larger than any frame, refused before they were copied.
+    oversized: Arc<AtomicU64>,
+    /// `oversized` when it was last looked at (to log new ones).
+    oversized_seen: u64,
     /// Poses numbered below this predate the hello and are skipped.
     floor: u64,
-    /// The first pose after the hello, read while opening, with its stage time.
-    first: Option<(Pose, Option<u64>)>,
+    /// The first pose or field frame after the hello, read while opening, with its stage time.
+    first: Option<(ServerMessage, Option<u64>)>,
     /// The stage time of the pose last returned.
     stage_ns: Option<u64>,
     /// The bridge's token is gone: the source is disconnected until it comes back.
@@ -130,16 +147,23 @@ impl ZenohConn {
         let (frame_tx, frames) = bounded(FRAME_QUEUE);
         let (alive_tx, alive) = bounded(64);
         let overflow = Arc::new(AtomicU64::new(0));
+        let oversized = Arc::new(AtomicU64::new(0));
         let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: key.clone(), reason: e.to_string() };
         let refresh_tx = frame_tx.clone();
         let frames_sub = {
-            let overflow = overflow.clone();
+            let (overflow, oversized) = (overflow.clone(), oversized.clone());
             let tx: Sender<Frame> = frame_tx;
             session
                 .declare_subscriber(keys::under(&key, "*"))
                 .callback(move |sample| {
                     let leaf = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
-                    if !matches!(leaf, keys::POSES | keys::ELEMENTS | keys::HELLO) {
+                    if !matches!(leaf, keys::POSES | keys::ELEMENTS | keys::FIELDS | keys::HELLO) {
+                        return;
+                    }
+                    // Anyone who may put on the key can send anything: what no frame can be is
+                    // refused before it is copied.
+                    if sample.payload().len() > MAX_FRAME_LEN + HEADER_LEN {
+                        oversized.fetch_add(1, Ordering::Relaxed);
                         return;
                     }
                     let stage_ns =
@@ -172,8 +196,12 @@ impl ZenohConn {
             refresh_tx,
             refresh: Refresh::default(),
             table: None,
+            field_table: None,
+            first_table: None,
             alive,
             overflow,
+            oversized,
+            oversized_seen: 0,
             floor: 0,
             first: None,
             stage_ns: None,
@@ -201,9 +229,9 @@ impl ZenohConn {
         self.stage_ns
     }
 
-    /// Samples skipped because they were not one frame.
+    /// Samples skipped because they were not one frame (or larger than any frame).
     pub(crate) fn rejected(&self) -> u64 {
-        self.rejected
+        self.rejected + self.oversized.load(Ordering::Relaxed)
     }
 
     /// Poses Zenoh delivered that the queue had no room for.
@@ -236,31 +264,37 @@ impl ZenohConn {
         self.replayed = None;
         self.floor = hello.next_seq;
         self.first = None;
+        // The running fields, asked like the hello: their table was put when they started.
+        let mut fields = query_fields(&self.session, &self.key, deadline, &self.oversized);
         while self.first.is_none() {
             let left = deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(200));
             match self.frames.recv_timeout(left) {
-                Ok(frame) => match decode_frame::<ServerMessage>(&frame.bytes) {
-                    Ok(Some((ServerMessage::Pose(pose), _))) if pose.seq >= self.floor => {
-                        self.first = Some((pose, frame.stage_ns))
+                Ok(frame) => match decode_payload(&frame.bytes) {
+                    Ok(msg) if numbered(&msg).is_some_and(|(seq, _)| seq >= self.floor) => {
+                        self.first = Some((msg, frame.stage_ns))
                     }
-                    Ok(Some((ServerMessage::Elements(table), _))) => hello.elements = table,
+                    Ok(ServerMessage::Elements(table)) => hello.elements = table,
+                    Ok(ServerMessage::Field(FieldMessage::Table(table))) => fields = newer(fields, table),
                     _ => {}
                 },
                 Err(_) => break,
             }
         }
-        if let Some((first, _)) = &self.first {
-            hello.next_seq = first.seq;
-            self.floor = first.seq;
+        if let Some((seq, _)) = self.first.as_ref().and_then(|(msg, _)| numbered(msg)) {
+            hello.next_seq = seq;
+            self.floor = seq;
         }
         self.table = Some(hello.elements.clone());
+        self.field_table = None;
+        self.first_table = fields;
         Ok(hello)
     }
 
-    /// Asks the bridge for its element table again, without waiting: the answer joins the
-    /// frames and is passed on only if it differs from the table last passed on. Called after a
-    /// gap: `elements` samples are dropped like poses when the path is congested, and a table
-    /// that changed during the loss would otherwise stay unknown until the next rejoin.
+    /// Asks the bridge for its element and field tables again, without waiting: the answers
+    /// join the frames and are passed on only if they differ from the tables last passed on.
+    /// Called after a gap: `elements` and `fields` samples are dropped like poses when the path
+    /// is congested, and a table that changed during the loss would otherwise stay unknown
+    /// until the next rejoin.
     ///
     /// A gap often ends as a link comes back, when the first question can be lost or find no
     /// bridge yet: it is asked again every [`REFRESH_RETRY`] until one answer arrives, at most
@@ -274,7 +308,7 @@ impl ZenohConn {
     /// [`REFRESH_RETRY`] and tries are left. Cheap when nothing is asked: one comparison.
     fn retry_refresh(&mut self) {
         if self.refresh.tries_left > 0
-            && !self.refresh.answered.load(Ordering::Relaxed)
+            && self.refresh.answered.load(Ordering::Relaxed) != ANSWERED
             && self.refresh.asked_at.is_some_and(|t| t.elapsed() >= REFRESH_RETRY)
         {
             self.ask_elements();
@@ -285,18 +319,23 @@ impl ZenohConn {
         self.refresh.tries_left = self.refresh.tries_left.saturating_sub(1);
         self.refresh.asked_at = Some(Instant::now());
         // A fresh flag per question: a late answer to an earlier one must not mark this one.
-        let answered = Arc::new(AtomicBool::new(false));
+        let answered = Arc::new(AtomicU8::new(0));
         self.refresh.answered = answered.clone();
-        let tx = self.refresh_tx.clone();
-        let overflow = self.overflow.clone();
-        // A query that cannot be sent now counts as unanswered and is asked again.
-        let _ = self
-            .session
-            .get(keys::under(&self.key, keys::ELEMENTS))
-            .timeout(REFRESH_RETRY)
-            .callback(move |reply| {
-                if let Ok(sample) = reply.result() {
-                    answered.store(true, Ordering::Relaxed);
+        for (leaf, bit) in [(keys::ELEMENTS, 1), (keys::FIELDS, 2)] {
+            let (tx, answered) = (self.refresh_tx.clone(), answered.clone());
+            let (overflow, oversized) = (self.overflow.clone(), self.oversized.clone());
+            // A query that cannot be sent now counts as unanswered and is asked again.
+            let _ = self
+                .session
+                .get(keys::under(&self.key, leaf))
+                .timeout(REFRESH_RETRY)
+                .callback(move |reply| {
+                    let Ok(sample) = reply.result() else { return };
+                    answered.fetch_or(bit, Ordering::Relaxed);
+                    if sample.payload().len() > MAX_FRAME_LEN + HEADER_LEN {
+                        oversized.fetch_add(1, Ordering::Relaxed);
+                        return;
+                    }
                     let frame = Frame {
                         bytes: sample.payload().to_bytes().into_owned(),
                         stage_ns: None,
@@ -305,9 +344,9 @@ impl ZenohConn {
                     if tx.try_send(frame).is_err() {
                         overflow.fetch_add(1, Ordering::Relaxed);
                     }
-                }
-            })
-            .wait();
+                })
+                .wait();
+        }
     }
 
     /// No bridge answered a rejoin (a reconnection: nothing is listed, to keep its pace).
@@ -317,8 +356,11 @@ impl ZenohConn {
 
     /// The next message, or why not.
     pub(crate) fn read_message(&mut self, timeout: Option<Duration>) -> ReadOutcome {
-        if let Some((pose, stage_ns)) = self.first.take() {
-            return self.pass(ServerMessage::Pose(pose), stage_ns);
+        if let Some(table) = self.first_table.take() {
+            return self.pass(ServerMessage::Field(FieldMessage::Table(table)), None);
+        }
+        if let Some((msg, stage_ns)) = self.first.take() {
+            return self.pass(msg, stage_ns);
         }
         if let Some((msg, stage_ns)) = self.backlog.pop_front() {
             return self.pass(msg, stage_ns);
@@ -369,28 +411,39 @@ impl ZenohConn {
                     }
                 }
             };
-            match decode_payload(&frame.bytes) {
-                Ok(ServerMessage::Pose(pose)) if pose.seq < self.floor => continue,
-                // The live copy of a pose the ring gave back already.
-                Ok(ServerMessage::Pose(pose))
-                    if self.replayed.as_ref().is_some_and(|r| r.contains(&pose.seq)) =>
-                {
+            self.note_oversized();
+            let decoded = decode_payload(&frame.bytes);
+            // A pose or a field frame: numbered in the stream.
+            if let Some((seq, _)) = decoded.as_ref().ok().and_then(numbered) {
+                let msg = decoded.expect("numbered above");
+                // Before the hello, or the live copy of one the ring gave back already.
+                if seq < self.floor || self.replayed.as_ref().is_some_and(|r| r.contains(&seq)) {
                     continue;
                 }
-                Ok(ServerMessage::Pose(pose)) => {
-                    if let Some(next) = self.next.filter(|n| self.reliable && pose.seq > *n) {
-                        self.recover(next, pose.seq, RECOVERY_TIME);
-                        self.backlog.push_back((ServerMessage::Pose(pose), frame.stage_ns));
-                        let (msg, stage_ns) = self.backlog.pop_front().expect("pushed above");
-                        return self.pass(msg, stage_ns);
-                    }
-                    return self.pass(ServerMessage::Pose(pose), frame.stage_ns);
+                if let Some(next) = self.next.filter(|n| self.reliable && seq > *n) {
+                    self.recover(next, seq, RECOVERY_TIME);
+                    self.backlog.push_back((msg, frame.stage_ns));
+                    let (msg, stage_ns) = self.backlog.pop_front().expect("pushed above");
+                    return self.pass(msg, stage_ns);
                 }
+                return self.pass(msg, frame.stage_ns);
+            }
+            match decoded {
                 Ok(ServerMessage::Elements(table)) => {
                     if frame.refresh && self.table.as_ref() == Some(&table) {
                         continue;
                     }
                     return self.pass(ServerMessage::Elements(table), None);
+                }
+                Ok(ServerMessage::Field(FieldMessage::Table(table))) => {
+                    // An answer to a question after a gap: only news, never an older table.
+                    let known = self.field_table.as_ref();
+                    if frame.refresh
+                        && known.is_some_and(|t| *t == table || t.elements_version > table.elements_version)
+                    {
+                        continue;
+                    }
+                    return self.pass(ServerMessage::Field(FieldMessage::Table(table)), None);
                 }
                 Ok(ServerMessage::Hello(hello)) => {
                     self.table = Some(hello.elements.clone());
@@ -415,24 +468,43 @@ impl ZenohConn {
         }
     }
 
-    /// Returns `msg`, counting a pose (and what is missing before it) and keeping a table.
+    /// Returns `msg`, counting a pose or field frame (and what is missing before it) and
+    /// keeping a table.
     fn pass(&mut self, msg: ServerMessage, stage_ns: Option<u64>) -> ReadOutcome {
-        match &msg {
-            ServerMessage::Pose(pose) => {
-                self.stage_ns = stage_ns;
-                if let Some(next) = self.next.filter(|n| pose.seq > *n) {
-                    self.counts.missing += pose.seq - next;
-                }
-                self.counts.frames += 1;
-                self.next = Some(pose.seq + 1);
-                if self.replayed.as_ref().is_some_and(|r| pose.seq >= r.end) {
-                    self.replayed = None;
-                }
+        if let Some((seq, span)) = numbered(&msg) {
+            self.stage_ns = stage_ns;
+            if let Some(next) = self.next.filter(|n| seq > *n) {
+                self.counts.missing += seq - next;
             }
+            self.counts.frames += span;
+            self.next = Some(seq.saturating_add(span));
+            if self.replayed.as_ref().is_some_and(|r| seq >= r.end) {
+                self.replayed = None;
+            }
+        }
+        match &msg {
             ServerMessage::Elements(table) => self.table = Some(table.clone()),
+            ServerMessage::Field(FieldMessage::Table(table)) => self.field_table = Some(table.clone()),
             _ => {}
         }
         ReadOutcome::Message(msg)
+    }
+
+    /// Logs samples refused for their size since the last look (at most every
+    /// [`REJECT_LOG_EVERY`], with the others refused).
+    fn note_oversized(&mut self) {
+        let now = self.oversized.load(Ordering::Relaxed);
+        if now == self.oversized_seen {
+            return;
+        }
+        self.oversized_seen = now;
+        if self.rejected_logged.is_none_or(|t| t.elapsed() >= REJECT_LOG_EVERY) {
+            self.rejected_logged = Some(Instant::now());
+            tracing::warn!(
+                key = %self.key, oversized = now, limit = MAX_FRAME_LEN,
+                "skipping Zenoh samples larger than any frame of frond's protocol"
+            );
+        }
     }
 
     /// Asks the bridge's ring for poses `from..to` (trying for at most `time`) and queues what
@@ -452,10 +524,7 @@ impl ZenohConn {
             zenoh_replay::ask(session, &key, &request)
         });
         if got > 0 {
-            let first = frames.iter().find_map(|(m, _)| match m {
-                ServerMessage::Pose(p) => Some(p.seq),
-                _ => None,
-            });
+            let first = frames.iter().find_map(|(m, _)| numbered(m).map(|(seq, _)| seq));
             self.replayed = first.map(|first| first..first + got);
             tracing::debug!(key = %self.key, from, to, got, "poses recovered from the bridge's ring");
         }
@@ -487,11 +556,15 @@ const REFRESH_RETRY: Duration = Duration::from_secs(1);
 /// gap: a bridge that does not answer in as many seconds is gone, and its token going says so.
 const REFRESH_TRIES: u8 = 8;
 
-/// The element-table question of [`ZenohConn::refresh_elements`].
+/// [`Refresh::answered`] once both tables came back.
+const ANSWERED: u8 = 3;
+
+/// The table question of [`ZenohConn::refresh_elements`].
 #[derive(Default)]
 struct Refresh {
-    /// Set by Zenoh's thread when the question last asked gets an answer.
-    answered: Arc<AtomicBool>,
+    /// Set by Zenoh's thread as the question last asked gets its answers: bit 0 the element
+    /// table, bit 1 the field table.
+    answered: Arc<AtomicU8>,
     /// When it was asked; `None` before the first.
     asked_at: Option<Instant>,
     /// Questions left to ask while unanswered.
@@ -562,6 +635,42 @@ fn query_hello(
     }
 }
 
+/// The newer of two field tables (by their element table's version; `b` when equal).
+fn newer(a: Option<FieldTable>, b: FieldTable) -> Option<FieldTable> {
+    match a {
+        Some(a) if a.elements_version > b.elements_version => Some(a),
+        _ => Some(b),
+    }
+}
+
+/// Asks `<key>/fields` (one concrete source key): the newest field table answered, or `None`
+/// when no bridge answered in time (an older bridge, a lost reply: the next table put brings
+/// it) or an answer is not one (counted in `oversized` when larger than any frame). Waits at most 2 s, and not past `deadline`.
+fn query_fields(
+    session: &::zenoh::Session,
+    key: &str,
+    deadline: Instant,
+    oversized: &AtomicU64,
+) -> Option<FieldTable> {
+    let timeout = deadline
+        .saturating_duration_since(Instant::now())
+        .clamp(Duration::from_millis(100), Duration::from_secs(2));
+    let replies = session.get(keys::under(key, keys::FIELDS)).timeout(timeout).wait().ok()?;
+    let mut found = None;
+    while let Ok(reply) = replies.recv() {
+        let Ok(sample) = reply.result() else { continue };
+        if sample.payload().len() > MAX_FRAME_LEN + HEADER_LEN {
+            oversized.fetch_add(1, Ordering::Relaxed);
+            continue;
+        }
+        match decode_payload(&sample.payload().to_bytes()) {
+            Ok(ServerMessage::Field(FieldMessage::Table(table))) => found = newer(found, table),
+            _ => tracing::debug!(key, "an answer on fields that is not a field table; skipped"),
+        }
+    }
+    found
+}
+
 /// Finds the one source `addr` names (its key may hold wildcards), waiting up to `timeout` for
 /// a bridge to answer.
 fn resolve(session: &::zenoh::Session, addr: &ZenohAddr, timeout: Duration) -> Result<String, SdkError> {
@@ -580,6 +689,7 @@ fn resolve(session: &::zenoh::Session, addr: &ZenohAddr, timeout: Duration) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_protocol::Pose;
 
     #[test]
     fn a_payload_is_exactly_one_frame() {

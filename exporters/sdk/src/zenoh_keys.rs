@@ -14,6 +14,8 @@ pub mod keys {
     pub const POSES: &str = "poses";
     /// The element table.
     pub const ELEMENTS: &str = "elements";
+    /// The running fields' definitions (protocol 3; their frames travel with the poses).
+    pub const FIELDS: &str = "fields";
     /// The daemon's hello.
     pub const HELLO: &str = "hello";
     /// The daemon's status report.

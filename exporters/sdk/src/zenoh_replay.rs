@@ -29,7 +29,8 @@
 
 use std::time::{Duration, Instant};
 
-use frond_protocol::{ElementTable, Pose, ServerMessage, decode_frame};
+use frond_protocol::field::FieldMessage;
+use frond_protocol::{ElementTable, ServerMessage, decode_frame};
 
 /// Longest peer name in a request, bytes.
 pub const MAX_PEER_NAME: usize = 64;
@@ -139,6 +140,17 @@ pub fn decode_reply(payload: &[u8], attachment: Option<&[u8]>) -> ReplyChunk {
     chunk
 }
 
+/// The sequence numbers a message takes in the stream, `(first, count)`: one for a pose, a field
+/// frame's own and its announced plants' ([`frond_protocol::field::FieldFrame::poses`], at
+/// least one); `None` for anything else (tables, hellos).
+pub(crate) fn numbered(msg: &ServerMessage) -> Option<(u64, u64)> {
+    match msg {
+        ServerMessage::Pose(p) => Some((p.seq, 1)),
+        ServerMessage::Field(FieldMessage::Frame(f)) => Some((f.seq, u64::from(f.poses).max(1))),
+        _ => None,
+    }
+}
+
 /// How long a subscriber tries to fill one gap before it passes it on as a gap.
 pub const RECOVERY_TIME: Duration = Duration::from_secs(1);
 /// How long one replay query waits for its answers.
@@ -147,8 +159,9 @@ pub const QUERY_TIMEOUT: Duration = Duration::from_millis(300);
 /// Fills `from..to` by asking `ask` (one replay query: the request, answered by its replies)
 /// until every pose came back, the ring says they are gone, or `time` runs out (at least one
 /// query is asked).
-/// Returns the frames to pass on in order (poses of the range, and element tables published
-/// between them that differ from `table`), and how many poses of the range came back.
+/// Returns the frames to pass on in order (poses and field frames of the range, element tables
+/// published between them that differ from `table`, and field tables that differ from the one
+/// before them), and how many sequence numbers of the range came back.
 pub(crate) fn fill(
     from: u64,
     to: u64,
@@ -159,6 +172,7 @@ pub(crate) fn fill(
     let deadline = Instant::now() + time;
     let mut out = Vec::new();
     let mut last_table = table.cloned();
+    let mut last_fields = None;
     let mut cursor = from;
     let mut got = 0;
     let mut first = true;
@@ -175,19 +189,25 @@ pub(crate) fn fill(
         'chunks: for chunk in chunks {
             oldest = oldest.max(chunk.oldest);
             for (msg, stage) in chunk.frames {
-                match msg {
-                    ServerMessage::Pose(pose) if pose.seq == cursor && cursor < to => {
-                        out.push((ServerMessage::Pose(pose), stage));
-                        cursor += 1;
-                        got += 1;
+                match (numbered(&msg), msg) {
+                    (Some((seq, span)), msg) if seq == cursor && cursor < to => {
+                        out.push((msg, stage));
+                        cursor = cursor.saturating_add(span);
+                        got += span;
                     }
-                    ServerMessage::Pose(Pose { seq, .. }) if seq < cursor => {}
+                    (Some((seq, _)), _) if seq < cursor => {}
                     // A reply was dropped on the way (replies are dropped like poses when the
                     // link is full): ask again from the cursor.
-                    ServerMessage::Pose(_) => break 'chunks,
-                    ServerMessage::Elements(t) if last_table.as_ref() != Some(&t) => {
+                    (Some(_), _) => break 'chunks,
+                    (None, ServerMessage::Elements(t)) if last_table.as_ref() != Some(&t) => {
                         last_table = Some(t.clone());
                         out.push((ServerMessage::Elements(t), None));
+                    }
+                    (None, ServerMessage::Field(FieldMessage::Table(t)))
+                        if last_fields.as_ref() != Some(&t) =>
+                    {
+                        last_fields = Some(t.clone());
+                        out.push((ServerMessage::Field(FieldMessage::Table(t)), None));
                     }
                     _ => {}
                 }
@@ -291,6 +311,8 @@ pub fn query_peers(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frond_protocol::Pose;
+    use frond_protocol::field::{FieldFrame, FieldTable};
 
     fn pose(seq: u64) -> ServerMessage {
         ServerMessage::Pose(Pose { seq, ..Pose::default() })
@@ -371,6 +393,34 @@ mod tests {
             None
         });
         assert!(out.is_empty() && t.elapsed() >= RECOVERY_TIME);
+    }
+
+    #[test]
+    fn fill_counts_a_field_frame_with_its_announced_plants_numbers() {
+        // Pose 10, a field frame 11 whose 3 announced plants take 11..14, a field table, pose 14.
+        let frame = |seq, poses| {
+            ServerMessage::Field(FieldMessage::Frame(FieldFrame { seq, poses, ..Default::default() }))
+        };
+        let table = FieldTable { elements_version: 4, fields: vec![] };
+        let published = vec![
+            (pose(10), None),
+            (frame(11, 3), None),
+            (ServerMessage::Field(FieldMessage::Table(table.clone())), None),
+            (pose(14), None),
+            (frame(15, 0), None),
+        ];
+        let mut asked = Vec::new();
+        let (out, got) = fill(10, 16, None, RECOVERY_TIME, |from, to| {
+            asked.push((from, to));
+            Some(vec![ReplyChunk { frames: published.clone(), oldest: Some(0) }])
+        });
+        assert_eq!(asked, [(10, 16)], "one answer fills the range");
+        assert_eq!(got, 6);
+        assert_eq!(
+            out.iter().map(|(m, _)| numbered(m)).collect::<Vec<_>>(),
+            [Some((10, 1)), Some((11, 3)), None, Some((14, 1)), Some((15, 1))]
+        );
+        assert!(matches!(&out[2].0, ServerMessage::Field(FieldMessage::Table(t)) if *t == table));
     }
 
     #[test]

@@ -77,3 +77,118 @@ fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on
     assert_eq!(stats.rejected, 3, "{stats:?}");
     assert_eq!((stats.disconnects, stats.reconnects), (0, 0), "{stats:?}");
 }
+
+/// A field (protocol 3) from a bridge that lies: its `fields` queryable and key carry a sample
+/// larger than any frame, a table whose field claims a million plants on a grid of twelve cells
+/// and one of more fields than a daemon runs; then a true table, and field frames numbered
+/// among the poses. The lies are refused before anything is made of them (counted, logged at
+/// most every 10 s), the stream goes on, and the true field is taken, numbered without a gap.
+#[test]
+fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
+    use frond_motion::field::{FieldParams, make_field};
+    use frond_motion::field_wire::layout_of;
+    use frond_protocol::ServerMessage;
+    use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable};
+    use frond_protocol::{ElementId, MAX_FRAME_LEN};
+
+    let key = format!("frond/liar{}/glove", std::process::id());
+    let (bridge, endpoint) = common::hand_made_bridge();
+    let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
+    let _hello = bridge
+        .declare_queryable(format!("{key}/hello"))
+        .callback(|query| {
+            let _ = query.reply(query.key_expr().clone(), hello_frame(0)).wait();
+        })
+        .wait()
+        .unwrap();
+    let oversized = vec![0x5a_u8; MAX_FRAME_LEN + 4096];
+    // A late joiner's question is answered by the oversized sample only.
+    let _fields = {
+        let oversized = oversized.clone();
+        bridge
+            .declare_queryable(format!("{key}/fields"))
+            .callback(move |query| {
+                let _ = query.reply(query.key_expr().clone(), oversized.clone()).wait();
+            })
+            .wait()
+            .unwrap()
+    };
+    let params = FieldParams {
+        rows: 3,
+        cols: 4,
+        cell_m: 0.2,
+        speed_m_s: 1.5,
+        direction_deg: 0.0,
+        density: 1.0,
+        seed: 2,
+    };
+    let field = make_field(&params, "sway", 60, 30.0).unwrap();
+    let definition = FieldDefinition {
+        id: ElementId::new(40),
+        source: "field".into(),
+        rig: "grass".into(),
+        layout: layout_of(&field),
+        plants: 12,
+        stream_fps: 30.0,
+        history_frames: 64,
+        publish_hz: 60,
+        plant_elements: vec![],
+    };
+    let table = |fields: Vec<FieldDefinition>| {
+        common::frame(&ServerMessage::Field(FieldMessage::Table(FieldTable { elements_version: 0, fields })))
+    };
+    let million = FieldDefinition { plants: 1_000_000, ..definition.clone() };
+    let lies = [oversized, table(vec![million]), table(vec![definition.clone(); 9 * 8])];
+    let truth = table(vec![definition.clone()]);
+
+    // Poses every 2 ms; once the subscriber is in, the lies, the true table, and from then on a
+    // field frame after every pose, taking 3 numbers (as a field with 2 announced plants does).
+    let (stop, go) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicBool::new(false)));
+    let putter = {
+        let (session, key, stop, go) = (bridge.clone(), key.clone(), stop.clone(), go.clone());
+        std::thread::spawn(move || {
+            let poses = session.declare_publisher(format!("{key}/poses")).wait().unwrap();
+            let fields = session.declare_publisher(format!("{key}/fields")).wait().unwrap();
+            let (mut seq, mut told) = (0, false);
+            while !stop.load(Ordering::Relaxed) {
+                poses.put(pose_frame(seq)).wait().unwrap();
+                seq += 1;
+                if go.load(Ordering::Relaxed) && !told {
+                    for lie in &lies {
+                        fields.put(lie.clone()).wait().unwrap();
+                    }
+                    fields.put(truth.clone()).wait().unwrap();
+                    told = true;
+                } else if told {
+                    let f = FieldFrame { seq, poses: 3, field: ElementId::new(40), ..FieldFrame::default() };
+                    poses.put(common::frame(&ServerMessage::Field(FieldMessage::Frame(f)))).wait().unwrap();
+                    seq += 3;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        })
+    };
+
+    let source: Source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
+    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(&source).unwrap();
+    assert!(sub.fields().is_empty(), "nothing was made of the oversized answer");
+    go.store(true, Ordering::Relaxed);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut after = 0;
+    while after < 200 {
+        assert!(Instant::now() < deadline, "the stream stopped after the lies ({after} poses)");
+        match sub.next_event() {
+            Ok(Event::Pose(_)) if !sub.fields().is_empty() => after += 1,
+            Ok(Event::Pose(_) | Event::Gap { .. }) => {}
+            other => panic!("a lie must not reach the caller or end the stream: {other:?}"),
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    putter.join().unwrap();
+    let fields: Vec<_> = sub.fields().iter().map(|f| (f.definition().clone(), f.plants())).collect();
+    assert_eq!(fields, [(definition, 12)], "the true field, and only it");
+    let stats = sub.stats();
+    assert_eq!(stats.rejected, 2, "the oversized answer and sample: {stats:?}");
+    // The field frames' numbers (each its own and 2 more) follow on from the poses': no gap.
+    assert_eq!((stats.gaps, stats.disconnects), (0, 0), "{stats:?}");
+}
