@@ -8,8 +8,13 @@
 //! - `poses`: every pose, one socket-protocol frame a sample, congestion control *drop*, so a slow
 //!   or far peer loses samples instead of backing the bridge up; not express ([`EXPRESS`]): while
 //!   Zenoh's transmit task is behind, poses wait together in one batch instead of one batch each;
-//! - `elements` and `hello`: put when they change, and answered to late joiners by queryables
-//!   with the latest value (the hello's `next_seq` is the next pose the bridge will publish);
+//! - `poses` also carries every field frame (protocol 3: a running field's driving stream, a
+//!   few hundred bytes at any plant count), numbered among the poses, as `poses.sock` does;
+//! - `elements`, `fields` (the running fields' definitions, protocol 3) and `hello`: put when
+//!   they change, and answered to late joiners by queryables with the latest value (the
+//!   hello's `next_seq` is the next pose the bridge will publish). A remote subscriber
+//!   evaluates every plant of a field itself, as a local one does: the bridge passes the
+//!   field on as the daemon publishes it, never one pose stream per plant;
 //! - `status`: the daemon's status report (a `ControlReply::Status` frame) every
 //!   [`BridgeConfig::status_interval`], and answered by a queryable;
 //! - `alive`: a liveliness token, held while the bridge is connected to its daemon. Subscribers
@@ -47,11 +52,12 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use frond_protocol::field::{FieldMessage, FieldTable};
 use frond_protocol::{ElementTable, FrameBuf, Hello, ServerMessage};
 use frond_sdk::stage_time::{ClockReading, encode_attachment, realtime_ns};
 use frond_sdk::zenoh::{ZenohSetupError, keys};
 use frond_sdk::zenoh_replay::{self, PeerReport, ReplayRequest};
-use frond_sdk::{Event, SdkError, Subscriber, ZenohAddr};
+use frond_sdk::{Event, Relayed, SdkError, Subscriber, ZenohAddr};
 use zenoh::Wait;
 use zenoh::bytes::ZBytes;
 use zenoh::qos::{CongestionControl, Priority};
@@ -115,11 +121,13 @@ pub enum BridgeError {
 pub struct BridgeStats {
     /// Poses received from the daemon.
     pub poses: AtomicU64,
+    /// Field frames received from the daemon (protocol 3), published among the poses.
+    pub field_frames: AtomicU64,
     /// Poses Zenoh refused to take (the session is closing).
     pub put_errors: AtomicU64,
     /// Gaps in the daemon's stream (the bridge itself read too slowly).
     pub gaps: AtomicU64,
-    /// Element tables and hellos published.
+    /// Element tables, field tables and hellos published.
     pub announcements: AtomicU64,
     /// Status reports published.
     pub statuses: AtomicU64,
@@ -154,9 +162,10 @@ impl std::fmt::Display for BridgeStats {
         let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
         write!(
             f,
-            "poses={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={} \
+            "poses={} field_frames={} put_errors={} gaps={} announcements={} statuses={} queries={} reconnects={} \
              withheld={} control_answered={} control_refused={} replayed={} peers={}",
             g(&self.poses),
+            g(&self.field_frames),
             g(&self.put_errors),
             g(&self.gaps),
             g(&self.announcements),
@@ -179,6 +188,8 @@ struct Latest {
     hello: Option<Hello>,
     /// The last status frame.
     status: Option<Vec<u8>>,
+    /// The daemon's last field table since its hello (`None`: none yet, so no field runs).
+    fields: Option<FieldTable>,
 }
 
 struct Shared {
@@ -254,6 +265,7 @@ pub struct Bridge {
     session: zenoh::Session,
     poses: zenoh::pubsub::Publisher<'static>,
     elements: zenoh::pubsub::Publisher<'static>,
+    fields: zenoh::pubsub::Publisher<'static>,
     hello: zenoh::pubsub::Publisher<'static>,
     _queryables: Vec<zenoh::query::Queryable<()>>,
     _control: Option<control::RemoteControl>,
@@ -298,9 +310,11 @@ impl Bridge {
                 .wait()
                 .map_err(declare_err(&k))
         };
-        // One priority for everything a subscriber reads in order (poses, tables, hellos).
+        // One priority for everything a subscriber reads in order (poses and field frames,
+        // tables, hellos).
         let poses = publisher(keys::POSES, Priority::RealTime)?;
         let elements = publisher(keys::ELEMENTS, Priority::RealTime)?;
+        let fields = publisher(keys::FIELDS, Priority::RealTime)?;
         let hello = publisher(keys::HELLO, Priority::RealTime)?;
         let shared = Arc::new(Shared {
             latest: Mutex::new(Latest::default()),
@@ -316,7 +330,7 @@ impl Bridge {
         let claim = claim::Claim::declare(&session, &key, shared.clone(), connects)
             .map_err(declare_err(&keys::under(&key, keys::BRIDGE)))?;
         let mut queryables = Vec::new();
-        for leaf in [keys::HELLO, keys::ELEMENTS, keys::STATUS, keys::CLOCK] {
+        for leaf in [keys::HELLO, keys::ELEMENTS, keys::FIELDS, keys::STATUS, keys::CLOCK] {
             let k = keys::under(&key, leaf);
             let shared = shared.clone();
             let reply_key = k.clone();
@@ -382,6 +396,7 @@ impl Bridge {
             session,
             poses,
             elements,
+            fields,
             hello,
             _queryables: queryables,
             _control: remote_control,
@@ -461,40 +476,34 @@ impl Bridge {
     fn pump(&mut self, sub: &mut Subscriber, stop: &AtomicBool) -> Result<(), BridgeError> {
         while !stop.load(Ordering::Relaxed) {
             self.follow_claim();
-            match sub.next_event() {
-                Ok(Event::Pose(pose)) => {
+            match sub.next_relayed() {
+                Ok(Relayed::Event(Event::Pose(pose))) => {
                     self.shared.stats.poses.fetch_add(1, Ordering::Relaxed);
-                    self.shared.next_seq.store(pose.seq + 1, Ordering::Relaxed);
-                    if self.standing_by {
-                        self.shared.stats.withheld.fetch_add(1, Ordering::Relaxed);
-                        continue;
-                    }
-                    if self.clock_read_at.elapsed() >= CLOCK_REFRESH {
-                        self.clock = self.shared.clock();
-                        self.clock_read_at = Instant::now();
-                    }
-                    let stage_ns = self.clock.stage_ns_of(pose.host_monotonic_ns);
-                    let seq = pose.seq;
-                    let bytes = ZBytes::from(self.frame.encode(&ServerMessage::Pose(pose)).to_vec());
-                    let attachment = encode_attachment(stage_ns).to_vec();
-                    if self.poses.put(bytes.clone()).attachment(attachment).wait().is_err() {
-                        self.shared.stats.put_errors.fetch_add(1, Ordering::Relaxed);
-                    }
-                    self.shared.ring().push_pose(seq, bytes, stage_ns);
+                    let (seq, host_ns) = (pose.seq, pose.host_monotonic_ns);
+                    self.publish_numbered(seq, 1, host_ns, &ServerMessage::Pose(pose));
                 }
-                Ok(Event::Gap { .. }) => {
+                Ok(Relayed::Field(FieldMessage::Frame(frame))) => {
+                    self.shared.stats.field_frames.fetch_add(1, Ordering::Relaxed);
+                    let (seq, span) = (frame.seq, u64::from(frame.poses).max(1));
+                    let msg = ServerMessage::Field(FieldMessage::Frame(frame));
+                    self.publish_numbered(seq, span, frame.host_monotonic_ns, &msg);
+                }
+                Ok(Relayed::Field(FieldMessage::Table(table))) => self.on_fields(table),
+                Ok(Relayed::Event(Event::Gap { .. })) => {
                     self.shared.stats.gaps.fetch_add(1, Ordering::Relaxed);
                 }
-                Ok(Event::Elements(table)) => self.on_elements(table),
-                Ok(Event::RigChanged(hello)) => self.announce_hello(hello),
-                Ok(Event::Reconnected(hello)) => {
+                Ok(Relayed::Event(Event::Elements(table))) => self.on_elements(table),
+                Ok(Relayed::Event(Event::RigChanged(hello))) => self.announce_hello(hello),
+                Ok(Relayed::Event(Event::Reconnected(hello))) => {
                     self.shared.stats.reconnects.fetch_add(1, Ordering::Relaxed);
                     tracing::info!(rig = %hello.rig_name, "the daemon is back");
                     self.on_hello(hello);
                 }
-                Ok(Event::Disconnected) => {
+                Ok(Relayed::Event(Event::Disconnected)) => {
                     tracing::warn!("the daemon went away; subscribers see this source as disconnected");
-                    self.shared.latest().hello = None;
+                    let mut latest = self.shared.latest();
+                    (latest.hello, latest.fields) = (None, None);
+                    drop(latest);
                     self.set_alive(false);
                 }
                 Err(SdkError::Timeout { .. }) => {}
@@ -503,6 +512,28 @@ impl Bridge {
             }
         }
         Ok(())
+    }
+
+    /// Publishes a pose or a field frame (`span` sequence numbers from `seq`: a field frame's
+    /// own and its announced plants', which subscribers evaluate) on `poses`, stamped with its
+    /// stage time, and keeps it in the replay ring.
+    fn publish_numbered(&mut self, seq: u64, span: u64, host_monotonic_ns: u64, msg: &ServerMessage) {
+        self.shared.next_seq.store(seq.saturating_add(span), Ordering::Relaxed);
+        if self.standing_by {
+            self.shared.stats.withheld.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if self.clock_read_at.elapsed() >= CLOCK_REFRESH {
+            self.clock = self.shared.clock();
+            self.clock_read_at = Instant::now();
+        }
+        let stage_ns = self.clock.stage_ns_of(host_monotonic_ns);
+        let bytes = ZBytes::from(self.frame.encode(msg).to_vec());
+        let attachment = encode_attachment(stage_ns).to_vec();
+        if self.poses.put(bytes.clone()).attachment(attachment).wait().is_err() {
+            self.shared.stats.put_errors.fetch_add(1, Ordering::Relaxed);
+        }
+        self.shared.ring().push_pose(seq, bytes, stage_ns);
     }
 
     /// Acts on a turn of the claims (see [`claim`]): standing by, the `alive` token goes, so
@@ -528,7 +559,10 @@ impl Bridge {
     /// A (new) daemon connection: its hello is the latest, and the token says the source is up.
     fn on_hello(&mut self, hello: Hello) {
         self.shared.next_seq.store(hello.next_seq, Ordering::Relaxed);
-        self.shared.latest().hello = Some(hello.clone());
+        // A new connection: the daemon sends its field table after the hello if a field runs.
+        let mut latest = self.shared.latest();
+        (latest.hello, latest.fields) = (Some(hello.clone()), None);
+        drop(latest);
         self.publish(Which::Hello, &ServerMessage::Hello(hello));
         self.set_alive(true);
     }
@@ -545,6 +579,13 @@ impl Bridge {
         self.publish(Which::Elements, &ServerMessage::Elements(table));
     }
 
+    /// The daemon's running fields (after each element table): the latest, put on `fields` and
+    /// kept in the replay ring between the poses it precedes.
+    fn on_fields(&mut self, table: FieldTable) {
+        self.shared.latest().fields = Some(table.clone());
+        self.publish(Which::Fields, &ServerMessage::Field(FieldMessage::Table(table)));
+    }
+
     fn publish(&mut self, which: Which, msg: &ServerMessage) {
         if self.standing_by {
             return;
@@ -552,10 +593,10 @@ impl Bridge {
         let bytes = ZBytes::from(self.frame.encode(msg).to_vec());
         let publisher = match which {
             Which::Hello => &self.hello,
-            Which::Elements => {
+            Which::Elements | Which::Fields => {
                 let next_seq = self.shared.next_seq.load(Ordering::Relaxed);
                 self.shared.ring().push_table(next_seq, bytes.clone());
-                &self.elements
+                if matches!(which, Which::Fields) { &self.fields } else { &self.elements }
             }
         };
         self.shared.stats.announcements.fetch_add(1, Ordering::Relaxed);
@@ -589,6 +630,7 @@ impl Bridge {
 enum Which {
     Hello,
     Elements,
+    Fields,
 }
 
 /// The frame a queryable answers with, if it has one.
@@ -602,6 +644,16 @@ fn answer(latest: &Latest, next_seq: u64, leaf: &str) -> Option<Vec<u8>> {
         keys::ELEMENTS => {
             let table = latest.hello.as_ref()?.elements.clone();
             frond_protocol::encode_frame(&ServerMessage::Elements(table), &mut out);
+        }
+        // No table since the hello: no field runs (the daemon follows its hello with one if
+        // any does), which an empty table of the hello's element table says.
+        keys::FIELDS => {
+            let hello = latest.hello.as_ref()?;
+            let table = latest.fields.clone().unwrap_or_else(|| FieldTable {
+                elements_version: hello.elements.version,
+                fields: Vec::new(),
+            });
+            frond_protocol::encode_frame(&ServerMessage::Field(FieldMessage::Table(table)), &mut out);
         }
         keys::STATUS => return latest.status.clone(),
         _ => return None,
@@ -618,6 +670,7 @@ mod tests {
         let mut latest = Latest::default();
         assert!(answer(&latest, 0, keys::HELLO).is_none());
         assert!(answer(&latest, 0, keys::ELEMENTS).is_none());
+        assert!(answer(&latest, 0, keys::FIELDS).is_none());
         assert!(answer(&latest, 0, keys::STATUS).is_none());
         latest.hello = Some(Hello {
             protocol_version: frond_protocol::PROTOCOL_VERSION,
@@ -636,5 +689,18 @@ mod tests {
             other => panic!("{other:?}"),
         }
         assert!(answer(&latest, 42, "poses").is_none());
+        // Fields: an empty table of the hello's elements until the daemon sends one, then it.
+        let fields = |latest: &Latest| {
+            let bytes = answer(latest, 42, keys::FIELDS).unwrap();
+            match frond_protocol::decode_frame::<ServerMessage>(&bytes).unwrap().unwrap().0 {
+                ServerMessage::Field(FieldMessage::Table(t)) => t,
+                other => panic!("{other:?}"),
+            }
+        };
+        latest.hello.as_mut().unwrap().elements.version = 7;
+        assert_eq!(fields(&latest), FieldTable { elements_version: 7, fields: vec![] });
+        let table = FieldTable { elements_version: 8, fields: vec![] };
+        latest.fields = Some(table.clone());
+        assert_eq!(fields(&latest), table);
     }
 }
