@@ -11,7 +11,10 @@
 //!   socket-protocol frame a datagram (the baseline);
 //! - `frond-bench-peer udp-forward SOCKET_DIR ADDR [ADDR ...]`: reads the daemon's pose stream
 //!   with `frond_sdk` as `frond-zenoh` does, and sends each pose, re-encoded as `frond-zenoh`
-//!   re-encodes it, in one UDP datagram to every `ADDR` (the baseline's bridge).
+//!   re-encodes it, in one UDP datagram to every `ADDR` (the baseline's bridge);
+//! - `frond-bench-peer zenoh-forward SOCKET_DIR ADDRESS`: the same reader, putting each pose on
+//!   `ADDRESS`'s `poses` key as `zenoh-pub` does (bare Zenoh, nothing of `frond-zenoh`). Read by
+//!   `zenoh-raw`, it is issue 43's latency floor measured whole.
 //!
 //! - `frond-bench-peer zenoh-pub ADDRESS` / `udp-pub ADDR [ADDR ...]`: the bare transport, no
 //!   daemon and no bridge: every millisecond (absolute deadlines) one pose stamped with the time
@@ -244,6 +247,26 @@ impl UdpFanout {
 
 fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
     let fanout = UdpFanout::new(to)?;
+    forward(socket_dir, |bytes| fanout.send(bytes))
+}
+
+/// The floor's forwarder: reads the daemon's pose stream as [`udp_forward`] does and puts each
+/// pose on ADDRESS's `poses` key as [`zenoh_pub`] puts it, with nothing of `frond-zenoh` on the
+/// way (no element tables, no replay ring, no per-peer accounting). Read by `zenoh-raw` in
+/// Zenoh's callback, it is issue 43's floor measured whole: the leg both paths share (daemon ->
+/// a reader on host 0) plus a bare Zenoh put -> callback hop.
+fn zenoh_forward(socket_dir: &str, address: &str) -> Result<(), String> {
+    use zenoh::Wait;
+    let (addr, session) = zenoh_session(address)?;
+    let publisher = bare_publisher(&session, &addr)?;
+    forward(socket_dir, |bytes| {
+        let _ = publisher.put(bytes.to_vec()).wait();
+    })
+}
+
+/// Reads the daemon's pose stream in `socket_dir` with `frond_sdk` and hands `send` each pose,
+/// re-encoded as `frond-zenoh` re-encodes it; prints `ready` after the first.
+fn forward(socket_dir: &str, mut send: impl FnMut(&[u8])) -> Result<(), String> {
     let mut sub = Subscriber::connect(socket_dir).map_err(|e| format!("{socket_dir}: {e}"))?;
     let mut frame = FrameBuf::default();
     let mut ready = false;
@@ -251,8 +274,7 @@ fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
     loop {
         if let Event::Pose(p) = sub.next_event().map_err(|e| e.to_string())? {
             // As frond-zenoh: one owned buffer per pose, re-encoded from the decoded pose.
-            let bytes = frame.encode(&ServerMessage::Pose(p)).to_vec();
-            fanout.send(&bytes);
+            send(frame.encode(&ServerMessage::Pose(p)));
             if !ready {
                 ready = true;
                 say("ready");
@@ -283,21 +305,31 @@ fn every_period(mut send: impl FnMut(&[u8])) -> Result<(), String> {
 }
 
 fn zenoh_pub(address: &str) -> Result<(), String> {
+    use zenoh::Wait;
+    let (addr, session) = zenoh_session(address)?;
+    let publisher = bare_publisher(&session, &addr)?;
+    every_period(|bytes| {
+        // As frond-zenoh: an owned buffer per put; a put that fails is a lost pose.
+        let _ = publisher.put(bytes.to_vec()).wait();
+    })
+}
+
+/// A publisher on `addr`'s `poses` key declared as `frond-zenoh` declares its own: not express,
+/// drop when congested, real-time priority.
+fn bare_publisher<'a>(
+    session: &'a frond_sdk::zenoh::Session,
+    addr: &frond_sdk::ZenohAddr,
+) -> Result<zenoh::pubsub::Publisher<'a>, String> {
     use frond_sdk::zenoh::keys;
     use zenoh::Wait;
     use zenoh::qos::{CongestionControl, Priority};
-    let (addr, session) = zenoh_session(address)?;
-    let publisher = session
+    session
         .declare_publisher(keys::under(&addr.key, keys::POSES))
         .congestion_control(CongestionControl::Drop)
         .priority(Priority::RealTime)
         .express(false) // as frond-zenoh: frond_zenoh::EXPRESS
         .wait()
-        .map_err(|e| e.to_string())?;
-    every_period(|bytes| {
-        // As frond-zenoh: an owned buffer per put; a put that fails is a lost pose.
-        let _ = publisher.put(bytes.to_vec()).wait();
-    })
+        .map_err(|e| e.to_string())
 }
 
 /// A Zenoh router on `endpoint` until standard input closes.
@@ -335,6 +367,8 @@ enum Peer {
         #[arg(required = true, value_name = "ADDR")]
         to: Vec<String>,
     },
+    /// Reads the daemon's pose stream and puts each pose on ADDRESS's `poses` key, bare.
+    ZenohForward { socket_dir: String, address: String },
     /// Puts a stamped pose on ADDRESS's `poses` key every millisecond.
     ZenohPub { address: String },
     /// A Zenoh router listening on ENDPOINT (tcp/ADDR:PORT).
@@ -356,6 +390,7 @@ fn main() -> ExitCode {
         Peer::ZenohRaw { address } => zenoh_raw(address),
         Peer::UdpSub { bind } => udp_sub(bind),
         Peer::UdpForward { socket_dir, to } => udp_forward(socket_dir, to),
+        Peer::ZenohForward { socket_dir, address } => zenoh_forward(socket_dir, address),
         Peer::ZenohPub { address } => zenoh_pub(address),
         Peer::UdpPub { to } => udp_pub(to),
         Peer::ZenohRouter { endpoint } => zenoh_router(endpoint),
