@@ -148,6 +148,24 @@ pub enum StageSpec {
         /// Seed of the loop's random jumps.
         seed: u64,
     },
+    /// A [`StageSpec::Field`] whose plants are the rig of `rig_toml` (a rig file's text), not the
+    /// active rig: a meadow of several rigs is one such field per rig, each under its own stage
+    /// name. The field definition and its `field-plant` elements name that rig, and the element
+    /// table lists it. A variant of its own rather than an optional key of `Field`, so that a
+    /// daemon from before it refuses the request (an unknown variant) instead of playing the
+    /// active rig without a word.
+    FieldOfRig {
+        /// Take name in the takes directory.
+        take: String,
+        /// field.json contents.
+        field_json: String,
+        /// How many plants to publish (1..=64).
+        plants: u16,
+        /// Seed of the loop's random jumps.
+        seed: u64,
+        /// The plants' rig: a rig file's text (at most [`MAX_STAGE_RIG_BYTES`]).
+        rig_toml: String,
+    },
     /// Walk motion graphs (seed 003, section 6): `plants` plants (1..=64), plant `i` walking
     /// `sources[i mod len]` (instancing, section 6.1: each take with its own graph and control
     /// point), each an announced `field-plant` element published at 60 Hz, each with seed
@@ -182,7 +200,7 @@ impl StageSpec {
     pub fn kind(&self) -> StageKind {
         match self {
             StageSpec::Playback { .. } => StageKind::Playback,
-            StageSpec::Field { .. } => StageKind::Field,
+            StageSpec::Field { .. } | StageSpec::FieldOfRig { .. } => StageKind::Field,
             StageSpec::Guided { .. } => StageKind::Guided,
             StageSpec::Graph { .. } => StageKind::Graph,
             StageSpec::Sim { .. } => StageKind::Sim,
@@ -201,7 +219,7 @@ pub enum StageKind {
     Playback,
     /// Layer recording: the hand published as a rig's secondary element (`frond record layer`).
     Layer,
-    /// A field of plants ([`StageSpec::Field`]).
+    /// A field of plants ([`StageSpec::Field`], [`StageSpec::FieldOfRig`]).
     Field,
     /// Guided motion on the live mapping ([`StageSpec::Guided`], or a rig's `[guided]` table).
     Guided,
@@ -249,6 +267,10 @@ impl StageInput {
         }
     }
 }
+
+/// Largest rig file text a stage start may carry, bytes (a rig file's own limit, 1 MiB, is more
+/// than a control request holds; rig files are a few KiB).
+pub const MAX_STAGE_RIG_BYTES: usize = 64 << 10;
 
 /// Most takes one live graph walk draws on (each graph is held in memory).
 pub const MAX_GRAPH_SOURCES: usize = 8;

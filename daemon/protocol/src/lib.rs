@@ -27,8 +27,9 @@ pub mod source_kind;
 
 pub use control::{
     CameraStatus, ControlError, ControlErrorKind, ControlReply, ControlRequest, GraphGoal, GraphSource,
-    HandStatus, HistogramBucket, LatencySummary, LtcStatus, MAX_GRAPH_SOURCES, RecordingStatus, SourceStatus,
-    StageInput, StageKey, StageSpec, StageStatus, StatusReport, SubscriberStatus, TriggerLast, TriggerStatus,
+    HandStatus, HistogramBucket, LatencySummary, LtcStatus, MAX_GRAPH_SOURCES, MAX_STAGE_RIG_BYTES,
+    RecordingStatus, SourceStatus, StageInput, StageKey, StageSpec, StageStatus, StatusReport,
+    SubscriberStatus, TriggerLast, TriggerStatus,
 };
 pub use element_id::ElementId;
 pub use errors::printable;

@@ -14,12 +14,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use frond_formats::field_json::FieldJson;
+use frond_formats::rig_toml::RigText;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::Field;
 use frond_motion::field_eval::FieldState;
 use frond_motion::field_player::FieldPlayer;
 use frond_motion::field_wire::{FrameFiller, field_is_generated, layout_of};
-use frond_motion::{HandSample, PoseFrame};
+use frond_motion::{HandSample, JOINTS, PoseFrame, Rig};
+use frond_protocol::MAX_STAGE_RIG_BYTES;
 use frond_protocol::control::StageKind;
 use frond_protocol::field::{FieldDefinition, FieldFrame, MAX_ANNOUNCED_PLANTS};
 use frond_protocol::{ElementId, StageInput, StageKey};
@@ -89,6 +91,8 @@ pub struct FieldReport {
     plants: usize,
     /// What a damaged take lost, in words (empty for a sound take).
     damage: String,
+    /// The plants' rig when it is not the active rig.
+    rig: Option<String>,
     /// What subscribers evaluate the plants from.
     definition: Option<FieldDefinition>,
 }
@@ -101,6 +105,7 @@ impl FieldReport {
             take: take.to_string(),
             plants,
             damage: String::new(),
+            rig: None,
             definition: None,
         }
     }
@@ -108,6 +113,11 @@ impl FieldReport {
     /// The same, for a damaged take: `damage` says what the reader skipped.
     pub fn damaged(take: &str, plants: usize, damage: &Option<String>) -> Self {
         FieldReport { damage: note_damage(take, damage), ..Self::new(take, plants) }
+    }
+
+    /// The same, of plants of rig `rig` when it is not the active rig (status names it).
+    pub fn of_rig(self, rig: Option<String>) -> Self {
+        FieldReport { rig, ..self }
     }
 
     /// The same, publishing `definition` with the element table.
@@ -119,7 +129,8 @@ impl FieldReport {
 impl StageReport for FieldReport {
     fn describe(&self) -> String {
         let controls = self.controls.load().map(|c| describe_controls(&c)).unwrap_or_default();
-        format!("field of {}{}: {} plants; {controls}", self.take, self.damage, self.plants)
+        let rig = self.rig.as_ref().map(|r| format!(" (rig {r})")).unwrap_or_default();
+        format!("field of {}{}: {} plants{rig}; {controls}", self.take, self.damage, self.plants)
     }
 
     fn field(&self) -> Option<&FieldDefinition> {
@@ -246,14 +257,44 @@ fn takes_keys(input: &StageInput) -> bool {
     matches!(input, StageInput::Key(_))
 }
 
+/// The rig of `rig_toml` (a rig file's text, at most [`MAX_STAGE_RIG_BYTES`]) as a field's
+/// plants ([`StageSpec::FieldOfRig`](frond_protocol::StageSpec::FieldOfRig)): valid, named
+/// plainly, and, when it has the active rig's name, the active rig itself (the element table
+/// and every subscriber know rigs by name).
+pub fn field_rig(text: &str, ctx: &BuildContext) -> Result<Rig, BuildError> {
+    if text.len() > MAX_STAGE_RIG_BYTES {
+        return Err(BuildError::invalid(format!(
+            "the field's rig is {} bytes of text; a rig file is at most {MAX_STAGE_RIG_BYTES}",
+            text.len()
+        )));
+    }
+    let rig = Rig::from_toml_str(text).map_err(|e| BuildError::invalid(format!("the field's {e}")))?;
+    if !super::registry::is_plain_name(&rig.name) {
+        return Err(BuildError::invalid(format!(
+            "the field's rig is named {:?}: a field's rig needs a name of 1 to 32 letters, digits, '-' or '_' \
+             (subscribers draw it by name)",
+            rig.name.chars().take(40).collect::<String>()
+        )));
+    }
+    if rig.name == ctx.rig.name && rig.joint_names() != ctx.rig.joint_names() {
+        return Err(BuildError::invalid(format!(
+            "the field's rig {:?} differs from the active rig of that name: rename it (subscribers know rigs \
+             by name)",
+            rig.name
+        )));
+    }
+    Ok(rig)
+}
+
 /// Builds a field of the looped take `take` (its layout from `field_json`, at most
-/// [`MAX_LIVE_FIELD_PLANTS`] plants, made by its own parameters), announcing its first `plants`
-/// plants as `field-plant` elements.
+/// [`MAX_LIVE_FIELD_PLANTS`] plants, made by its own parameters) whose plants are `rig`
+/// ([`field_rig`]), announcing its first `plants` plants as `field-plant` elements.
 pub fn build(
     take: &str,
     field_json: &str,
     plants: u16,
     seed: u64,
+    rig: &Rig,
     ctx: &BuildContext,
 ) -> Result<BuiltStage, BuildError> {
     if !(1..=MAX_FIELD_PLANTS as u16).contains(&plants) {
@@ -281,11 +322,22 @@ pub fn build(
     let ids = super::live::element_ids(ctx, usize::from(plants).min(count))?;
     let invalid = |e: StageError| BuildError::invalid(format!("field of take {take:?}: {e}"));
     let looped = looped_clip(&bytes).map_err(invalid)?;
+    // Every rig has JOINTS joints, the take's frames too: a header listing another number is
+    // not a take of any rig this field can play (one made offline may list none).
+    let joints = looped.joint_names.len();
+    if joints != 0 && joints != JOINTS {
+        return Err(BuildError::invalid(format!(
+            "take {take:?} names {joints} joints ({}); rig {:?} has {JOINTS} ({})",
+            looped.joint_names.join(", "),
+            rig.name,
+            rig.joint_names().join(", ")
+        )));
+    }
     let fps = looped.clip.fps;
     let definition = FieldDefinition {
         id: ids[0],
         source: ctx.name.to_string(),
-        rig: ctx.rig.name.clone(),
+        rig: rig.name.clone(),
         layout: layout_of(&field),
         plants: count as u32,
         stream_fps: fps,
@@ -294,10 +346,17 @@ pub fn build(
         plant_elements: ids.to_vec(),
     };
     definition.check().map_err(|e| BuildError::invalid(format!("field of take {take:?}: {e}")))?;
-    let report = Arc::new(FieldReport::damaged(take, count, &looped.damage).with_definition(definition));
+    let report = Arc::new(
+        FieldReport::damaged(take, count, &looped.damage)
+            .of_rig((rig.name != ctx.rig.name).then(|| rig.name.clone()))
+            .with_definition(definition),
+    );
     let stage = FieldStage::new(looped, field, ids[0], ids.len(), seed, ctx.now_ns, report.clone())
         .map_err(invalid)?;
-    let elements = super::live::plant_elements(ids, "plant", ctx);
+    let mut elements = super::live::plant_elements(ids, "plant", ctx);
+    for e in &mut elements {
+        e.rig = rig.name.clone();
+    }
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {
@@ -306,7 +365,7 @@ pub fn build(
             elements,
             hand_element: None,
             accepts: takes_keys,
-            rig: super::live::rig_info(ctx.rig),
+            rig: super::live::rig_info(rig),
             work: super::budget::TickWork {
                 asked_by: format!("a field of {count} plants"),
                 unit: "field frames",
@@ -363,7 +422,7 @@ mod tests {
         };
         let field = make_field(&p, "t", 90, 30.0).unwrap();
         let report = Arc::new(FieldReport::new("t", field.plants.len()));
-        let looped = LoopedTake { clip, transitions, damage: None };
+        let looped = LoopedTake { clip, transitions, damage: None, joint_names: Vec::new() };
         let id = ElementId::new(40);
         let mut stage = FieldStage::new(looped, field.clone(), id, 3, 4, 0, report.clone()).unwrap();
         let history = FieldState::history_frames_for(&field, 30.0);
@@ -400,5 +459,139 @@ mod tests {
                 assert!((g - w).abs() < 1e-4, "plant {i}: {got:?} vs {w:?}");
             }
         }
+    }
+
+    const GRASS: &str = include_str!("../../../../rig-files/plants/grass.toml");
+    const FLOWER: &str = include_str!("../../../../rig-files/plants/flower.toml");
+
+    /// A take `name` in `dir` of 3 s of swaying at 30 FPS, its header listing `joints`.
+    fn write_take(dir: &std::path::Path, name: &str, joints: &[&str]) {
+        use frond_formats::layers::TakeBytes;
+        use frond_motion::layers::Take;
+        use frond_motion::take::{TakeFrame, TakeHeader};
+        let header = TakeHeader {
+            name: name.into(),
+            rig_name: "grass".into(),
+            calibration_id: "none".into(),
+            filter: "none".into(),
+            tick_rate_hz: 30,
+            created_unix_s: 0,
+            daemon_version: "test".into(),
+            joint_names: joints.iter().map(|j| j.to_string()).collect(),
+            clock: None,
+            stage: None,
+            stage_clock: None,
+        };
+        let mut take = Take::new(header);
+        for k in 0..90u64 {
+            let s = (k as f32 * 0.2).sin() * 15.0;
+            take.frames.push(TakeFrame {
+                seq: k,
+                device_time_us: k * 33_333,
+                host_ns: k * 33_333_333,
+                flags: 0,
+                element: ElementId::GLOBAL,
+                pose: PoseFrame {
+                    t: k as f64 / 30.0,
+                    joints_deg: [[s, -s, 0.0], [s, 0.5 * s, 1.0], [0.0, s, 0.0], [2.0, s, -s]],
+                },
+                hand: HandSample::default(),
+            });
+        }
+        std::fs::write(dir.join(format!("{name}.take")), take.to_bytes()).unwrap();
+    }
+
+    fn field_json() -> String {
+        let p = FieldParams {
+            rows: 3,
+            cols: 4,
+            cell_m: 0.3,
+            speed_m_s: 1.0,
+            direction_deg: 0.0,
+            density: 1.0,
+            seed: 2,
+        };
+        make_field(&p, "t", 90, 30.0).unwrap().to_json()
+    }
+
+    /// Builds `spec` with the grass as the active rig and takes from `dir`.
+    fn build_in(dir: &std::path::Path, spec: &frond_protocol::StageSpec) -> Result<BuiltStage, BuildError> {
+        let rig = Rig::from_toml_str(GRASS).unwrap();
+        let ids: Vec<ElementId> = (33..40).map(ElementId::new).collect();
+        let ctx = BuildContext {
+            takes_dir: dir,
+            rig: &rig,
+            g3_range_deg: 60.0,
+            tick_rate_hz: 1000,
+            now_ns: 0,
+            free_ids: &ids,
+            name: "flowers",
+        };
+        super::super::build(spec, &ctx)
+    }
+
+    fn of_rig(take: &str, rig_toml: &str) -> frond_protocol::StageSpec {
+        frond_protocol::StageSpec::FieldOfRig {
+            take: take.into(),
+            field_json: field_json(),
+            plants: 2,
+            seed: 1,
+            rig_toml: rig_toml.into(),
+        }
+    }
+
+    #[test]
+    fn a_field_of_another_rig_names_that_rig_everywhere_a_subscriber_looks() {
+        let dir = tempfile::tempdir().unwrap();
+        write_take(dir.path(), "t", &["root", "lower", "middle", "top"]);
+        let built = build_in(dir.path(), &of_rig("t", FLOWER)).unwrap();
+        let def = built.info.report.field().unwrap();
+        assert_eq!((def.rig.as_str(), def.source.as_str(), def.plants), ("flower", "flowers", 12));
+        assert_eq!(built.info.rig.name, "flower", "the element table lists the flower");
+        assert_eq!(built.info.rig.joint_names.len(), 4);
+        assert!(built.info.elements.iter().all(|e| e.rig == "flower"), "{:?}", built.info.elements);
+        assert!(built.info.report.describe().contains("(rig flower)"), "{}", built.info.report.describe());
+        // Without a rig: the active one, as before.
+        let spec = frond_protocol::StageSpec::Field {
+            take: "t".into(),
+            field_json: field_json(),
+            plants: 2,
+            seed: 1,
+        };
+        let built = build_in(dir.path(), &spec).unwrap();
+        assert_eq!(built.info.report.field().unwrap().rig, "grass");
+        assert!(built.info.elements.iter().all(|e| e.rig == "grass"));
+    }
+
+    #[test]
+    fn a_rig_a_field_cannot_play_is_refused_saying_why() {
+        let dir = tempfile::tempdir().unwrap();
+        write_take(dir.path(), "t", &["root", "lower", "middle", "top"]);
+        write_take(dir.path(), "three", &["root", "middle", "top"]);
+        let unnamed = FLOWER.replacen("name = \"flower\"", "name = \"a flower\"", 1);
+        assert!(unnamed.contains("name = \"a flower\""));
+        let renamed_grass = FLOWER.replacen("name = \"flower\"", "name = \"grass\"", 1);
+        assert!(renamed_grass.contains("name = \"grass\""));
+        let huge = format!("{FLOWER}\n# {}\n", "x".repeat(MAX_STAGE_RIG_BYTES));
+        for (take, rig, want) in [
+            ("three", FLOWER, "take \"three\" names 3 joints (root, middle, top); rig \"flower\" has 4"),
+            ("t", "name = [", "the field's rig: TOML parse error"),
+            (
+                "t",
+                unnamed.as_str(),
+                "the field's rig is named \"a flower\": a field's rig needs a name of 1 to 32",
+            ),
+            ("t", renamed_grass.as_str(), "differs from the active rig of that name"),
+            ("t", huge.as_str(), "bytes of text; a rig file is at most 65536"),
+        ] {
+            let e = build_in(dir.path(), &of_rig(take, rig)).err().unwrap_or_else(|| panic!("{want}: built"));
+            assert_eq!(e.kind, frond_protocol::ControlErrorKind::Invalid, "{want}");
+            assert!(e.message.contains(want), "{want}: {}", e.message);
+        }
+        // The active rig's own text is the active rig: played. A take made offline names no
+        // joints: played on any rig.
+        assert!(build_in(dir.path(), &of_rig("t", GRASS)).is_ok());
+        write_take(dir.path(), "offline", &[]);
+        assert!(build_in(dir.path(), &of_rig("offline", FLOWER)).is_ok());
     }
 }

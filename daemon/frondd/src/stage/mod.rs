@@ -48,7 +48,11 @@ fn build_any(spec: &StageSpec, ctx: &BuildContext) -> Result<BuiltStage, BuildEr
     match spec {
         StageSpec::Playback { take, seed } => playback::build(take, *seed, ctx),
         StageSpec::Field { take, field_json, plants, seed } => {
-            field::build(take, field_json, *plants, *seed, ctx)
+            field::build(take, field_json, *plants, *seed, ctx.rig, ctx)
+        }
+        StageSpec::FieldOfRig { take, field_json, plants, seed, rig_toml } => {
+            let rig = field::field_rig(rig_toml, ctx)?;
+            field::build(take, field_json, *plants, *seed, &rig, ctx)
         }
         StageSpec::Guided { spec } => guided::build(spec, ctx),
         StageSpec::Graph { sources, plants, seed } => graph::build(sources, *plants, *seed, ctx),

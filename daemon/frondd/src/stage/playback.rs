@@ -32,6 +32,8 @@ pub struct LoopedTake {
     pub transitions: Transitions,
     /// What the reader skipped in a damaged take, in words; `None` when it is sound.
     pub damage: Option<String>,
+    /// The joint names its header lists (the rig it was recorded with), root first.
+    pub joint_names: Vec<String>,
 }
 
 /// The global layer of `take_bytes` as a 30 FPS clip with its loop transitions (seed 000, Eq. 5).
@@ -50,7 +52,7 @@ pub fn looped_clip(take_bytes: &[u8]) -> Result<LoopedTake, StageError> {
     let mut params = LoopParams::default();
     params.window = params.window.min((clip.len() - 2) / 4);
     let transitions = find_transitions(&clip, &params)?;
-    Ok(LoopedTake { clip, transitions, damage })
+    Ok(LoopedTake { clip, transitions, damage, joint_names: take.header.joint_names.clone() })
 }
 
 /// The words a stage's report adds for a damaged take, logged once when the stage is built.
