@@ -281,13 +281,28 @@ pub enum FieldCommand {
         /// Seed of the loop's random jumps.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// The plants' rig: an embedded rig's name or a rig file [default: the active rig].
+        #[arg(long, value_name = "NAME|FILE")]
+        rig: Option<PathBuf>,
+        /// The field's stage name [default: field]: fields under different names play side by
+        /// side (a meadow of grass and flowers is a field of each rig), steered as one.
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
     },
-    /// Stop field playback.
-    Stop,
-    /// One control: left, right, up, down, stronger (+), weaker (-).
+    /// Stop field playback: every field, or the one named.
+    Stop {
+        /// The field's stage name [default: every field].
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
+    },
+    /// One control: left, right, up, down, stronger (+), weaker (-), to every field or the one
+    /// named.
     Key {
         /// Key name.
         key: String,
+        /// The field's stage name [default: every field].
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
     },
 }
 

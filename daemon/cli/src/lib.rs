@@ -124,11 +124,12 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             live::record_layer(g, &name, &layer, over, seed)
         }
         Command::Play { take, stop, seed } => live::play(g, take, stop, seed),
-        Command::Field(args::FieldCommand::Start { take, field, plants, seed }) => {
-            live::field_start(g, &take, &field, plants, seed)
+        Command::Field(args::FieldCommand::Start { take, field, plants, seed, rig, name }) => {
+            let ask = live::FieldStart { plants, seed, rig: rig.as_deref(), name: name.as_deref() };
+            live::field_start(g, &take, &field, ask)
         }
-        Command::Field(args::FieldCommand::Stop) => live::field_stop(g),
-        Command::Field(args::FieldCommand::Key { key }) => live::field_key(g, &key),
+        Command::Field(args::FieldCommand::Stop { name }) => live::field_stop(g, name.as_deref()),
+        Command::Field(args::FieldCommand::Key { key, name }) => live::field_key(g, &key, name.as_deref()),
         Command::Control => live::control(g),
         Command::Graph(cmd) => graph_live::run(g, cmd),
         Command::Sim(cmd) => graph_live::sim(g, cmd),

@@ -4,6 +4,7 @@
 use std::io::{self, BufRead, IsTerminal, Read, Write};
 use std::path::Path;
 
+use frond_protocol::control::StageKind;
 use frond_protocol::{ControlReply, ControlRequest, RecordingStatus, StageInput, StageKey, StageSpec};
 
 use crate::control::{Control, check_take_name};
@@ -75,19 +76,31 @@ pub(crate) fn record_layer(
     }
 }
 
-pub(crate) fn field_start(
-    g: &Global,
-    take: &str,
-    field: &Path,
-    plants: u16,
-    seed: u64,
-) -> anyhow::Result<()> {
+/// What `frond field start` asks for besides the take and the field file.
+pub(crate) struct FieldStart<'a> {
+    /// Plants announced as `field-plant` elements (1..=64).
+    pub plants: u16,
+    /// Seed of the loop's random jumps.
+    pub seed: u64,
+    /// The plants' rig: an embedded rig's name or a rig file; `None`: the active rig.
+    pub rig: Option<&'a Path>,
+    /// The stage's name (`field` when none): fields under different names run side by side.
+    pub name: Option<&'a str>,
+}
+
+pub(crate) fn field_start(g: &Global, take: &str, field: &Path, ask: FieldStart) -> anyhow::Result<()> {
     check_take_name(take)?;
+    let FieldStart { plants, seed, rig, name } = ask;
     if !(1..=64).contains(&plants) {
         return crate::error::usage(format!("--plants must be 1..=64, got {plants}"));
     }
+    if let Some(n) = name {
+        check_stage_name(n)?;
+    }
+    let rig_toml = rig.map(field_rig_text).transpose()?;
     // The daemon takes it in one control request: no larger than that.
-    let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096;
+    let rig_bytes = rig_toml.as_ref().map_or(0, |t| t.len() as u64);
+    let max = frond_protocol::MAX_CONTROL_REQUEST as u64 - 4096 - rig_bytes;
     let field_json = frond_formats::rig_files::read_small_text(field, max).map_err(|e| {
         let too_big = matches!(e, frond_formats::rig_files::FileError::TooLarge { .. });
         let hint = if too_big {
@@ -98,32 +111,88 @@ pub(crate) fn field_start(
         anyhow::anyhow!("cannot read field file {}: {}{hint}", field.display(), e.reason())
     })?;
     let mut c = Control::from_global(g)?;
-    let spec = StageSpec::Field { take: take.into(), field_json, plants, seed };
-    c.expect_ok(&ControlRequest::StageStart { name: None, spec })?;
-    frond_binmain::outln!("field of {take} playing; steer it with `frond control` or a wrist swipe")?;
-    warn_damaged_stage(&mut c, "field");
+    let spec = match rig_toml {
+        None => StageSpec::Field { take: take.into(), field_json, plants, seed },
+        Some(rig_toml) => StageSpec::FieldOfRig { take: take.into(), field_json, plants, seed, rig_toml },
+    };
+    c.expect_ok(&ControlRequest::StageStart { name: name.map(str::to_string), spec })?;
+    let stage = name.unwrap_or("field");
+    let of_rig = rig.map(|r| format!(" of {}", r.display())).unwrap_or_default();
+    frond_binmain::outln!(
+        "field {stage}{of_rig} of take {take} playing; steer it with `frond control` or a wrist swipe"
+    )?;
+    warn_damaged_stage(&mut c, stage);
     Ok(())
 }
 
-pub(crate) fn field_stop(g: &Global) -> anyhow::Result<()> {
-    Control::from_global(g)?.expect_ok(&ControlRequest::StageStop { name: "field".into() })?;
-    frond_binmain::outln!("field playback stopped")?;
+/// The text of rig `spec` (an embedded rig's name or a rig file) for a field's plants, at most
+/// [`frond_protocol::MAX_STAGE_RIG_BYTES`]; the daemon checks the rest.
+fn field_rig_text(spec: &Path) -> anyhow::Result<String> {
+    let loaded = frond_formats::rig_files::load_rig(&spec.to_string_lossy())?;
+    let max = frond_protocol::MAX_STAGE_RIG_BYTES;
+    if loaded.text.len() > max {
+        anyhow::bail!("rig {}: {} bytes; a field's rig is at most {max}", loaded.origin, loaded.text.len());
+    }
+    Ok(loaded.text)
+}
+
+/// Refuses a stage name the daemon would refuse, before anything is read.
+fn check_stage_name(name: &str) -> anyhow::Result<()> {
+    let plain = !name.is_empty()
+        && name.len() <= 32
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if plain {
+        Ok(())
+    } else {
+        crate::error::usage(format!(
+            "--name {:?}: a stage name is 1 to 32 letters, digits, '-' or '_'",
+            name.chars().take(40).collect::<String>()
+        ))
+    }
+}
+
+/// The fields `name` picks: that one, or every field running (a meadow of several rigs is
+/// several fields, steered as one); `field`, the default name, when none runs, so that the
+/// daemon's answer says so.
+fn fields_named(c: &mut Control, name: Option<&str>) -> anyhow::Result<Vec<String>> {
+    if let Some(n) = name {
+        check_stage_name(n)?;
+        return Ok(vec![n.to_string()]);
+    }
+    let status = c.status()?;
+    let names: Vec<String> = status
+        .stages
+        .iter()
+        .filter(|s| s.kind == StageKind::Field.as_str())
+        .map(|s| s.name.clone())
+        .collect();
+    Ok(if names.is_empty() { vec!["field".into()] } else { names })
+}
+
+pub(crate) fn field_stop(g: &Global, name: Option<&str>) -> anyhow::Result<()> {
+    let mut c = Control::from_global(g)?;
+    for n in fields_named(&mut c, name)? {
+        c.expect_ok(&ControlRequest::StageStop { name: n.clone() })?;
+        frond_binmain::outln!("field {n} stopped")?;
+    }
     Ok(())
 }
 
-/// The request for field key `key` (a usage error names the keys).
-fn key_request(key: &str) -> anyhow::Result<ControlRequest> {
+/// Sends key `key` to the fields `name` picks ([`fields_named`]; a usage error names the keys).
+fn send_key(c: &mut Control, key: &str, name: Option<&str>) -> anyhow::Result<()> {
     let key: StageKey = match key.parse() {
         Ok(k) => k,
         Err(e) => return crate::error::usage(e.to_string()),
     };
-    Ok(ControlRequest::StageInput { name: "field".into(), input: StageInput::Key(key) })
+    for n in fields_named(c, name)? {
+        c.expect_ok(&ControlRequest::StageInput { name: n, input: StageInput::Key(key) })?;
+    }
+    Ok(())
 }
 
-pub(crate) fn field_key(g: &Global, key: &str) -> anyhow::Result<()> {
-    let req = key_request(key)?;
+pub(crate) fn field_key(g: &Global, key: &str, name: Option<&str>) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
-    c.expect_ok(&req)?;
+    send_key(&mut c, key, name)?;
     print_field_state(&mut c)
 }
 
@@ -213,7 +282,7 @@ fn keys_from_bytes(bytes: &[u8]) -> Vec<&'static str> {
 pub(crate) fn control(g: &Global) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     let send = |c: &mut Control, key: &str| -> anyhow::Result<()> {
-        c.expect_ok(&key_request(key)?)?;
+        send_key(c, key, None)?;
         frond_binmain::out!("\r\x1b[K")?;
         print_field_state(c)?;
         io::stdout().flush()?;
