@@ -41,3 +41,4 @@ mod warp_cage;
 mod webcam;
 mod webcam_calibrate;
 mod zenoh;
+mod zenoh_meadow;
