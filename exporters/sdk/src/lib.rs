@@ -47,6 +47,8 @@ mod zenoh_config;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_control;
 #[cfg(feature = "zenoh")]
+mod zenoh_join;
+#[cfg(feature = "zenoh")]
 mod zenoh_keys;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_many;
