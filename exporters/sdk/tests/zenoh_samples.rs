@@ -192,3 +192,99 @@ fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
     // The field frames' numbers (each its own and 2 more) follow on from the poses': no gap.
     assert_eq!((stats.gaps, stats.disconnects), (0, 0), "{stats:?}");
 }
+
+/// A field table put while a subscriber's link lost samples is asked for again after the gap,
+/// as the element table is: here the bridge never puts the new table at all (the put was
+/// lost), its `fields` queryable answers it, and the poses skip 20 numbers.
+#[test]
+fn a_field_table_lost_in_a_gap_is_asked_for_again() {
+    use frond_motion::field::{FieldParams, make_field};
+    use frond_motion::field_wire::layout_of;
+    use frond_protocol::ElementId;
+    use frond_protocol::ServerMessage;
+    use frond_protocol::field::{FieldDefinition, FieldMessage, FieldTable};
+
+    let key = format!("frond/lost{}/glove", std::process::id());
+    let (bridge, endpoint) = common::hand_made_bridge();
+    let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
+    let _hello = bridge
+        .declare_queryable(format!("{key}/hello"))
+        .callback(|query| {
+            let _ = query.reply(query.key_expr().clone(), hello_frame(0)).wait();
+        })
+        .wait()
+        .unwrap();
+    let params = FieldParams {
+        rows: 2,
+        cols: 3,
+        cell_m: 0.2,
+        speed_m_s: 1.5,
+        direction_deg: 0.0,
+        density: 1.0,
+        seed: 2,
+    };
+    let field = make_field(&params, "sway", 60, 30.0).unwrap();
+    let definition = |id: u16| FieldDefinition {
+        id: ElementId::new(id),
+        source: format!("field{id}"),
+        rig: "grass".into(),
+        layout: layout_of(&field),
+        plants: 6,
+        stream_fps: 30.0,
+        history_frames: 64,
+        publish_hz: 60,
+        plant_elements: vec![],
+    };
+    let table = |version, id| {
+        let t = FieldTable { elements_version: version, fields: vec![definition(id)] };
+        common::frame(&ServerMessage::Field(FieldMessage::Table(t)))
+    };
+    let (before, after) = (table(1, 40), table(2, 41));
+    let changed = Arc::new(AtomicBool::new(false));
+    let _fields = {
+        let changed = changed.clone();
+        bridge
+            .declare_queryable(format!("{key}/fields"))
+            .callback(move |query| {
+                let answer = if changed.load(Ordering::Relaxed) { &after } else { &before };
+                let _ = query.reply(query.key_expr().clone(), answer.clone()).wait();
+            })
+            .wait()
+            .unwrap()
+    };
+    let (stop, go) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicBool::new(false)));
+    let putter = {
+        let (session, key, stop, go, changed) =
+            (bridge.clone(), key.clone(), stop.clone(), go.clone(), changed.clone());
+        std::thread::spawn(move || {
+            let poses = session.declare_publisher(format!("{key}/poses")).wait().unwrap();
+            let mut seq = 0;
+            while !stop.load(Ordering::Relaxed) {
+                poses.put(pose_frame(seq)).wait().unwrap();
+                seq += 1;
+                if go.load(Ordering::Relaxed) && !changed.load(Ordering::Relaxed) {
+                    changed.store(true, Ordering::Relaxed);
+                    seq += 20;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        })
+    };
+
+    let source: Source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
+    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(&source).unwrap();
+    let ids = |sub: &Subscriber| sub.fields().iter().map(|f| f.definition().id).collect::<Vec<_>>();
+    while ids(&sub).is_empty() {
+        sub.next_event().unwrap();
+    }
+    assert_eq!(ids(&sub), [ElementId::new(40)], "the table asked for while joining");
+    go.store(true, Ordering::Relaxed);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while ids(&sub) != [ElementId::new(41)] {
+        assert!(Instant::now() < deadline, "the new table never came: {:?}, {:?}", ids(&sub), sub.stats());
+        sub.next_event().unwrap();
+    }
+    stop.store(true, Ordering::Relaxed);
+    putter.join().unwrap();
+    assert!(sub.stats().gaps >= 1, "{:?}", sub.stats());
+}
