@@ -1,6 +1,7 @@
 //! A subscriber over Zenoh against a hand-made bridge (a plain Zenoh session holding the
 //! source's token, answering its hello and putting poses), with samples on the poses key that
-//! are not one frame of frond's protocol put in between, as anyone who may put on the key can.
+//! are not one frame of frond's protocol put in between, as anyone who may put on the key can;
+//! and a field's tables (protocol 3) from a bridge that lies, or that a gap lost.
 
 #![cfg(feature = "zenoh")]
 
@@ -11,12 +12,25 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use common::{hello_frame, pose_frame};
+use frond_motion::field::{FieldParams, make_field};
+use frond_motion::field_wire::layout_of;
+use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable};
+use frond_protocol::{ElementId, MAX_FRAME_LEN, ServerMessage};
 use frond_sdk::{Event, Source, Subscriber};
 use zenoh::Wait;
 
-#[test]
-fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on() {
-    let key = format!("frond/odd{}/glove", std::process::id());
+/// A hand-made bridge publishing `frond/<name><pid>/glove`: its session and key, the address
+/// a subscriber uses, and what it holds for the source (its token and its hello queryable).
+struct HandMade {
+    bridge: zenoh::Session,
+    key: String,
+    source: Source,
+    _token: zenoh::liveliness::LivelinessToken,
+    _hello: zenoh::query::Queryable<()>,
+}
+
+fn hand_made(name: &str) -> HandMade {
+    let key = format!("frond/{name}{}/glove", std::process::id());
     let (bridge, endpoint) = common::hand_made_bridge();
     let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
     let _hello = bridge
@@ -26,6 +40,36 @@ fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on
         })
         .wait()
         .unwrap();
+    let source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
+    HandMade { bridge, key, source, _token, _hello }
+}
+
+/// A field of `rows x cols` plants as a daemon defines it, with id `id`.
+fn field_definition(id: u16, rows: usize, cols: usize) -> FieldDefinition {
+    let params =
+        FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 2 };
+    let field = make_field(&params, "sway", 60, 30.0).unwrap();
+    FieldDefinition {
+        id: ElementId::new(id),
+        source: "field".into(),
+        rig: "grass".into(),
+        layout: layout_of(&field),
+        plants: (rows * cols) as u32,
+        stream_fps: 30.0,
+        history_frames: 64,
+        publish_hz: 60,
+        plant_elements: vec![],
+    }
+}
+
+/// A field table frame.
+fn field_table(elements_version: u64, fields: Vec<FieldDefinition>) -> Vec<u8> {
+    common::frame(&ServerMessage::Field(FieldMessage::Table(FieldTable { elements_version, fields })))
+}
+
+#[test]
+fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on() {
+    let HandMade { bridge, key, source, .. } = &hand_made("odd");
 
     // Poses 0, 1, 2, ... every 2 ms; once the subscriber is in, after the pose 50 later, three
     // samples that are not one frame: text, a frame of another protocol version, a frame cut
@@ -58,8 +102,7 @@ fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on
         })
     };
 
-    let source: Source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
-    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(&source).unwrap();
+    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(source).unwrap();
     go.store(true, Ordering::Relaxed);
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut last = None;
@@ -85,22 +128,7 @@ fn samples_that_are_not_one_frame_are_skipped_and_counted_and_the_stream_goes_on
 /// most every 10 s), the stream goes on, and the true field is taken, numbered without a gap.
 #[test]
 fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
-    use frond_motion::field::{FieldParams, make_field};
-    use frond_motion::field_wire::layout_of;
-    use frond_protocol::ServerMessage;
-    use frond_protocol::field::{FieldDefinition, FieldFrame, FieldMessage, FieldTable};
-    use frond_protocol::{ElementId, MAX_FRAME_LEN};
-
-    let key = format!("frond/liar{}/glove", std::process::id());
-    let (bridge, endpoint) = common::hand_made_bridge();
-    let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
-    let _hello = bridge
-        .declare_queryable(format!("{key}/hello"))
-        .callback(|query| {
-            let _ = query.reply(query.key_expr().clone(), hello_frame(0)).wait();
-        })
-        .wait()
-        .unwrap();
+    let HandMade { bridge, key, source, .. } = &hand_made("liar");
     let oversized = vec![0x5a_u8; MAX_FRAME_LEN + 4096];
     // A late joiner's question is answered by the oversized sample only.
     let _fields = {
@@ -113,30 +141,8 @@ fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
             .wait()
             .unwrap()
     };
-    let params = FieldParams {
-        rows: 3,
-        cols: 4,
-        cell_m: 0.2,
-        speed_m_s: 1.5,
-        direction_deg: 0.0,
-        density: 1.0,
-        seed: 2,
-    };
-    let field = make_field(&params, "sway", 60, 30.0).unwrap();
-    let definition = FieldDefinition {
-        id: ElementId::new(40),
-        source: "field".into(),
-        rig: "grass".into(),
-        layout: layout_of(&field),
-        plants: 12,
-        stream_fps: 30.0,
-        history_frames: 64,
-        publish_hz: 60,
-        plant_elements: vec![],
-    };
-    let table = |fields: Vec<FieldDefinition>| {
-        common::frame(&ServerMessage::Field(FieldMessage::Table(FieldTable { elements_version: 0, fields })))
-    };
+    let definition = field_definition(40, 3, 4);
+    let table = |fields| field_table(0, fields);
     let million = FieldDefinition { plants: 1_000_000, ..definition.clone() };
     let lies = [oversized, table(vec![million]), table(vec![definition.clone(); 9 * 8])];
     let truth = table(vec![definition.clone()]);
@@ -169,8 +175,7 @@ fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
         })
     };
 
-    let source: Source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
-    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(&source).unwrap();
+    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(source).unwrap();
     assert!(sub.fields().is_empty(), "nothing was made of the oversized answer");
     go.store(true, Ordering::Relaxed);
     let deadline = Instant::now() + Duration::from_secs(30);
@@ -198,47 +203,8 @@ fn a_lying_bridges_field_tables_are_refused_and_the_true_field_is_taken() {
 /// lost), its `fields` queryable answers it, and the poses skip 20 numbers.
 #[test]
 fn a_field_table_lost_in_a_gap_is_asked_for_again() {
-    use frond_motion::field::{FieldParams, make_field};
-    use frond_motion::field_wire::layout_of;
-    use frond_protocol::ElementId;
-    use frond_protocol::ServerMessage;
-    use frond_protocol::field::{FieldDefinition, FieldMessage, FieldTable};
-
-    let key = format!("frond/lost{}/glove", std::process::id());
-    let (bridge, endpoint) = common::hand_made_bridge();
-    let _token = bridge.liveliness().declare_token(format!("{key}/alive")).wait().unwrap();
-    let _hello = bridge
-        .declare_queryable(format!("{key}/hello"))
-        .callback(|query| {
-            let _ = query.reply(query.key_expr().clone(), hello_frame(0)).wait();
-        })
-        .wait()
-        .unwrap();
-    let params = FieldParams {
-        rows: 2,
-        cols: 3,
-        cell_m: 0.2,
-        speed_m_s: 1.5,
-        direction_deg: 0.0,
-        density: 1.0,
-        seed: 2,
-    };
-    let field = make_field(&params, "sway", 60, 30.0).unwrap();
-    let definition = |id: u16| FieldDefinition {
-        id: ElementId::new(id),
-        source: format!("field{id}"),
-        rig: "grass".into(),
-        layout: layout_of(&field),
-        plants: 6,
-        stream_fps: 30.0,
-        history_frames: 64,
-        publish_hz: 60,
-        plant_elements: vec![],
-    };
-    let table = |version, id| {
-        let t = FieldTable { elements_version: version, fields: vec![definition(id)] };
-        common::frame(&ServerMessage::Field(FieldMessage::Table(t)))
-    };
+    let HandMade { bridge, key, source, .. } = &hand_made("lost");
+    let table = |version, id| field_table(version, vec![field_definition(id, 2, 3)]);
     let (before, after) = (table(1, 40), table(2, 41));
     let changed = Arc::new(AtomicBool::new(false));
     let _fields = {
@@ -271,8 +237,7 @@ fn a_field_table_lost_in_a_gap_is_asked_for_again() {
         })
     };
 
-    let source: Source = format!("zenoh:{key}?connect={endpoint}").parse().unwrap();
-    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(&source).unwrap();
+    let mut sub = Subscriber::options().hello_timeout(Duration::from_secs(10)).subscribe(source).unwrap();
     let ids = |sub: &Subscriber| sub.fields().iter().map(|f| f.definition().id).collect::<Vec<_>>();
     while ids(&sub).is_empty() {
         sub.next_event().unwrap();
