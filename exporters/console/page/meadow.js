@@ -1,7 +1,8 @@
 // frond console: a running field drawn in the page (protocol 3; seed 000, Eq. 6-7 and section
 // 6.3). The console passes on the daemon's field table and every field frame; the page evaluates
 // every plant itself with field.js (globalThis.frondField, field_eval.rs ported) and draws the
-// plants instanced: one instanced draw call per primitive of the rig and level of detail. Each
+// plants instanced: one instanced draw call per primitive of the field's rig and level of detail
+// (each field is drawn with its own rig: a meadow of grass and flowers is a field of each). Each
 // plant's evaluated angles ([pitch, yaw, roll] of 4 joints) and its placement are 4 texels of a
 // float DataTexture; the vertex shader chains the skeleton from them and skins (seed 000,
 // Eq. 1). An instance holds a batch of plants (the mesh copied BATCH times, each copy a slot):
@@ -10,7 +11,9 @@
 // the level's slot texture, so near and far plants are chosen again without touching the mesh.
 // Plants far from the camera use a ribbon of 10 vertices skinned to the same 4 joints.
 import * as THREE from 'three';
+import { GLTFLoader } from '/vendor/three/GLTFLoader.js';
 import { clone as cloneSkinned } from '/vendor/three/SkeletonUtils.js';
+import { rigOf, batchOf } from '/meadow_rig.js';
 
 const PER_ROW = 1024;          // plants per texture row (4 RGBA texels each), slots per slot row
 const MAX_BATCH_VERTICES = 4096; // vertices of one instance (a batch of plants)
@@ -86,110 +89,6 @@ function meadowMaterial(base, uniforms) {
   return m;
 }
 
-// What the meadow needs of a rig: its skinned primitives (geometry, material) and the skeleton
-// as uniforms, read from the console's loaded glTF scene at rest (every joint's rest rotation is
-// the identity: the baked rest pose has all angles 0).
-function rigOf(map, root) {
-  const name = (n) => THREE.PropertyBinding.sanitizeNodeName(n);
-  const skinned = [];
-  root.traverse((o) => { if (o.isSkinnedMesh) skinned.push(o); });
-  if (!skinned.length) throw new Error('the rig has no skinned mesh');
-  const bones = skinned[0].skeleton.bones;
-  const main = map.joints.map((n) => bones.findIndex((b) => b.name === name(n)));
-  if (main.some((i) => i < 0)) throw new Error('the rig\'s skin lacks a main joint');
-  // Rest transforms relative to the plant's root: translations only (rotations identity at rest).
-  const rootInv = new THREE.Matrix4().copy(root.matrixWorld).invert();
-  const restWorld = (o) => {
-    const chain = [];
-    for (let p = o; p && p !== root; p = p.parent) chain.unshift(p);
-    const m = new THREE.Matrix4();
-    for (const p of chain) m.multiply(new THREE.Matrix4().compose(p.position, new THREE.Quaternion(), p.scale));
-    return m;
-  };
-  const mainWorld = main.map((i) => restWorld(bones[i]));
-  const at = mainWorld.map((w) => new THREE.Vector3().setFromMatrixPosition(w));
-  const rest = at.map((p, k) => (k === 0 ? p.clone() : p.clone().sub(at[k - 1])));
-  const mainIndex = new Int32Array(bones.length).fill(-1);
-  const bind = bones.map(() => new THREE.Matrix4());
-  const mesh = skinned[0];
-  bones.forEach((bone, b) => {
-    // The main joint this joint hangs from (itself for a main joint; none above the root).
-    let m = -1;
-    for (let p = bone; p && m < 0; p = p.parent) m = main.indexOf(bones.indexOf(p));
-    mainIndex[b] = m;
-    const inv = m < 0 ? new THREE.Matrix4() : mainWorld[m].clone().invert();
-    bind[b].copy(inv).multiply(restWorld(bone)).multiply(mesh.skeleton.boneInverses[b]).multiply(mesh.bindMatrix);
-  });
-  root.updateMatrixWorld(true);
-  const outer = rootInv.clone().multiply(mesh.matrixWorld).multiply(mesh.bindMatrixInverse);
-  const primitives = skinned.map((s) => ({ geometry: s.geometry, material: s.material }));
-  // The far plants' ribbon: two vertices at the root, at each main joint and at the tip, each
-  // pair skinned to its joint, as wide as a tenth of the plant.
-  const box = new THREE.Box3();
-  for (const s of skinned) { s.geometry.computeBoundingBox(); box.union(s.geometry.boundingBox); }
-  const top = Math.max(box.max.y, at[3].y);
-  const width = Math.max(top * 0.1, 1e-3);
-  const levels = [at[0].y, at[1].y, at[2].y, at[3].y, top];
-  const pos = [], idx = [], wt = [], nrm = [], index = [];
-  levels.forEach((y, k) => {
-    const j = main[Math.min(3, k)];
-    const w = width * (1 - k / (levels.length));
-    for (const x of [-w / 2, w / 2]) { pos.push(x, y, 0); idx.push(j, 0, 0, 0); wt.push(1, 0, 0, 0); nrm.push(0, 0, 1); }
-    if (k > 0) { const a = 2 * (k - 1); index.push(a, a + 1, a + 2, a + 1, a + 3, a + 2); }
-  });
-  const ribbon = new THREE.BufferGeometry();
-  ribbon.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
-  ribbon.setAttribute('normal', new THREE.Float32BufferAttribute(nrm, 3));
-  ribbon.setAttribute('skinIndex', new THREE.Uint16BufferAttribute(idx, 4));
-  ribbon.setAttribute('skinWeight', new THREE.Float32BufferAttribute(wt, 4));
-  ribbon.setIndex(index);
-  const color = skinned[0].material.color ? skinned[0].material.color.clone() : new THREE.Color(0x6a9a40);
-  const far = new THREE.MeshStandardMaterial({ color, side: THREE.DoubleSide, roughness: 0.9 });
-  return { name: map.rig, primitives, ribbon, far, rest, bind, mainIndex, outer, top };
-}
-
-// `batch` copies of `geometry` (position, normal, uv, colour; one index) as one instanced
-// geometry, each vertex with its copy's number (meadowCopy) and its skinning summed per main
-// joint of `rig` (meadowQ0..3, meadowQr).
-function batchOf(geometry, batch, rig) {
-  const src = geometry.index ? geometry : geometry.clone().setIndex([...Array(geometry.getAttribute('position').count).keys()]);
-  const g = new THREE.InstancedBufferGeometry();
-  const pos = src.getAttribute('position'), verts = pos.count;
-  const idx = src.getAttribute('skinIndex'), wt = src.getAttribute('skinWeight');
-  const q = [0, 1, 2, 3, 4].map(() => new Float32Array(4 * verts));
-  const v4 = new THREE.Vector4();
-  for (let v = 0; v < verts; v++) {
-    for (let i = 0; i < 4; i++) {
-      const w = wt.getComponent(v, i), b = idx.getComponent(v, i);
-      if (!w) continue;
-      const m = rig.mainIndex[b];
-      v4.set(pos.getX(v), pos.getY(v), pos.getZ(v), 1).applyMatrix4(rig.bind[b]);
-      const o = q[m < 0 ? 4 : m];
-      o[4 * v] += w * v4.x; o[4 * v + 1] += w * v4.y; o[4 * v + 2] += w * v4.z; o[4 * v + 3] += w;
-    }
-  }
-  const copies = (a, itemSize) => {
-    const out = new Float32Array(verts * itemSize * batch);
-    for (let c = 0; c < batch; c++) out.set(a, c * verts * itemSize);
-    return out;
-  };
-  for (const name of ['position', 'normal', 'uv', 'color']) {
-    const a = src.getAttribute(name);
-    if (!a) continue;
-    const flat = new Float32Array(a.count * a.itemSize);
-    for (let v = 0; v < a.count; v++) for (let k = 0; k < a.itemSize; k++) flat[v * a.itemSize + k] = a.getComponent(v, k);
-    g.setAttribute(name, new THREE.BufferAttribute(copies(flat, a.itemSize), a.itemSize));
-  }
-  ['meadowQ0', 'meadowQ1', 'meadowQ2', 'meadowQ3', 'meadowQr'].forEach((name, k) => g.setAttribute(name, new THREE.BufferAttribute(copies(q[k], 4), 4)));
-  const copy = new Float32Array(verts * batch);
-  for (let c = 0; c < batch; c++) copy.fill(c, c * verts, (c + 1) * verts);
-  g.setAttribute('meadowCopy', new THREE.BufferAttribute(copy, 1));
-  const index = src.index.array, out = new Uint32Array(index.length * batch);
-  for (let c = 0; c < batch; c++) for (let k = 0; k < index.length; k++) out[c * index.length + k] = index[k] + c * verts;
-  g.setIndex(new THREE.BufferAttribute(out, 1));
-  return g;
-}
-
 // One running field: its evaluation and its instanced meshes.
 class DrawnField {
   constructor(def, layout, rig, group) {
@@ -236,28 +135,23 @@ class DrawnField {
     this.nearCount = 0;
     this.frameSeq = null;
     this.frameAt = 0;
-    this.partitionedAt = -Infinity;
-    this.partitionCamera = new THREE.Vector3(Infinity, 0, 0);
   }
 
-  // Near plants get the rig's mesh, far ones the ribbon (camera position `eye`).
-  partition(eye, now) {
-    if (now - this.partitionedAt < REPARTITION_MS) return;
-    const reach = LOD_HEIGHTS * this.rig.top;
-    if (eye.distanceTo(this.partitionCamera) < reach * 0.05) return;
-    this.partitionedAt = now;
-    this.partitionCamera.copy(eye);
-    const d2 = new Float32Array(this.n);
+  // Every plant's squared distance from the camera at `eye` (the meadow partitions on them).
+  distances(eye) {
+    const d2 = this.d2 || (this.d2 = new Float32Array(this.n));
     for (let i = 0; i < this.n; i++) {
       const dx = this.positions[2 * i] - eye.x, dz = this.positions[2 * i + 1] - eye.z;
       d2[i] = dx * dx + dz * dz + eye.y * eye.y;
     }
-    let r2 = reach * reach;
-    const within = d2.filter((x) => x <= r2);
-    const nearMax = globalThis.frondMeadow?.nearMax ?? NEAR_MAX;
-    if (within.length > nearMax) r2 = nearMax ? within.sort()[nearMax - 1] : -1;
+    return d2;
+  }
+
+  // The plants at most `r2` away (squared, from `distances`), `budget` of them at most, get the
+  // rig's mesh, the others the ribbon; how many got the mesh.
+  fill(r2, budget) {
     const near = [], far = [];
-    for (let i = 0; i < this.n; i++) (d2[i] <= r2 && near.length < nearMax ? near : far).push(i);
+    for (let i = 0; i < this.n; i++) (this.d2[i] <= r2 && near.length < budget ? near : far).push(i);
     const fill = (levels, list) => {
       for (const l of levels) {
         l.slots.set(list);
@@ -269,6 +163,7 @@ class DrawnField {
     fill(this.near, near);
     fill(this.far, far);
     this.nearCount = near.length;
+    return near.length;
   }
 
   // The stream time to draw at: the last frame's, advanced by the motion speed since it came.
@@ -312,7 +207,8 @@ export class Meadow {
     this.group = new THREE.Group();
     this.group.name = 'meadow';
     scene.add(this.group);
-    this.rig = null;
+    this.rig = null;         // the view's rig
+    this.rigs = new Map();   // rig name -> promise of what the meadow needs of it (rigOf)
     this.defs = [];          // the console's latest table
     this.fields = new Map(); // field id -> DrawnField
     this.loading = new Map();
@@ -321,15 +217,17 @@ export class Meadow {
     this.notes = [];
     this.note = (t) => { if (!this.notes.includes(t)) this.notes.push(t); this.notes.splice(0, this.notes.length - 20); };
     this.animate = true;
+    this.partitionedAt = -Infinity;
+    this.partitionCamera = new THREE.Vector3(Infinity, 0, 0);
     globalThis.frondMeadow = this;
   }
 
-  // The console's rig (its glTF scene and node map): the rig every field of it is drawn with.
+  // The view's rig (the console's glTF scene and node map), which fields of it are drawn with;
+  // fields of other rigs load theirs from the console (rigNamed).
   setRig(map, root) {
     try {
       this.rig = rigOf(map, root);
-      this.rigRoot = root;
-      this.rigJoints = map.joints;
+      this.rigs.set(this.rig.name, Promise.resolve(this.rig));
     } catch (e) {
       this.rig = null;
       this.note(`the meadow cannot draw rig ${map.rig}: ${e.message}`);
@@ -337,6 +235,25 @@ export class Meadow {
     for (const f of this.fields.values()) f.dispose(this.group);
     this.fields.clear();
     this.onTable({ fields: this.defs });
+  }
+
+  // Rig `name` as the meadow draws it: the view's, or the console's /api/rigs/NAME (baked by
+  // frond-gltf as the view's is), loaded once.
+  rigNamed(name) {
+    if (!this.rigs.has(name)) {
+      const at = `/api/rigs/${encodeURIComponent(name)}`;
+      const p = (async () => {
+        const r = await fetch(`${at}.json`);
+        if (!r.ok) throw new Error(`rig ${name}: ${r.status} ${await r.text()}`);
+        const map = await r.json();
+        const gltf = await new GLTFLoader().loadAsync(`${at}.glb`);
+        gltf.scene.updateMatrixWorld(true);
+        return rigOf(map, gltf.scene);
+      })();
+      p.catch(() => this.rigs.delete(name)); // asked again with the next table
+      this.rigs.set(name, p);
+    }
+    return this.rigs.get(name);
   }
 
   // Stage names of the fields drawn here (their announced plants need no clone of their own).
@@ -354,15 +271,10 @@ export class Meadow {
     this.defs = m.fields;
     const same = (a, b) => JSON.stringify(a) === JSON.stringify(b);
     for (const [id, f] of this.fields) {
-      if (!this.defs.some((d) => same(d, f.def))) { f.dispose(this.group); this.fields.delete(id); }
+      if (!this.defs.some((d) => same(d, f.def))) { f.dispose(this.group); this.fields.delete(id); this.repartition(); }
     }
     for (const d of this.defs) {
       if ((this.fields.has(d.id) && same(this.fields.get(d.id).def, d)) || this.loading.has(d.id)) continue;
-      if (!this.rig) continue; // drawn once the rig has loaded (setRig)
-      if (d.rig !== this.rig.name) {
-        this.note(`field ${d.source} of rig ${d.rig} is not drawn: the view shows rig ${this.rig.name}`);
-        continue;
-      }
       this.loading.set(d.id, this.load(d).catch((e) => this.note(`field ${d.source}: ${e.message}`))
         .finally(() => this.loading.delete(d.id)));
     }
@@ -378,10 +290,14 @@ export class Meadow {
       positions: new Float32Array(buf, 0, 2 * n), rows: new Uint32Array(buf, 8 * n, n),
       startFrames: new Uint32Array(buf, 12 * n, n), scales: new Float32Array(buf, 16 * n, n),
     };
-    // The table may have moved on while the layout came.
-    if (!this.defs.some((x) => JSON.stringify(x) === JSON.stringify(d)) || !this.rig || d.rig !== this.rig.name) return;
-    const f = new DrawnField(d, layout, this.rig, this.group);
+    const rig = await this.rigNamed(d.rig);
+    // The table may have moved on while the layout and the rig came.
+    if (!this.defs.some((x) => JSON.stringify(x) === JSON.stringify(d))) return;
+    const old = this.fields.get(d.id);
+    if (old) old.dispose(this.group);
+    const f = new DrawnField(d, layout, rig, this.group);
     this.fields.set(d.id, f);
+    this.repartition();
     this.onFrames(this.pending.get(d.id) || []);
     this.pending.delete(d.id);
     if (!this.framed.has(d.source)) { this.framed.add(d.source); this.frame(f); }
@@ -423,10 +339,46 @@ export class Meadow {
   // still), near and far chosen again when the camera moved.
   update(now = performance.now()) {
     const eye = this.camera.getWorldPosition(new THREE.Vector3());
-    for (const f of this.fields.values()) {
-      f.partition(eye, now);
-      if (this.animate) f.evaluate(f.tauNow(now));
+    this.partition(eye, now);
+    if (this.animate) for (const f of this.fields.values()) f.evaluate(f.tauNow(now));
+  }
+
+  // Near and far chosen again at the next frame.
+  repartition() {
+    this.partitionedAt = -Infinity;
+    this.partitionCamera.set(Infinity, 0, 0);
+  }
+
+  // Near plants get their rig's mesh, far ones the ribbon (camera position `eye`): a plant is
+  // near within LOD_HEIGHTS of its rig's height, and the nearest NEAR_MAX of the whole meadow at
+  // most, whatever its fields (a meadow of two rigs costs what one field of as many plants does).
+  // Chosen again at most every REPARTITION_MS when the camera moved, and at the next frame when
+  // the fields changed (repartition).
+  partition(eye, now) {
+    const fields = [...this.fields.values()];
+    const reach = (f) => LOD_HEIGHTS * f.rig.top;
+    const moved = eye.distanceTo(this.partitionCamera) >= Math.max(0, ...fields.map(reach)) * 0.05;
+    if (now - this.partitionedAt < REPARTITION_MS || !moved) return;
+    this.partitionedAt = now;
+    this.partitionCamera.copy(eye);
+    const nearMax = this.nearMax ?? NEAR_MAX;
+    let within = 0;
+    for (const f of fields) {
+      const r2 = reach(f) ** 2;
+      for (const x of f.distances(eye)) if (x <= r2) within++;
     }
+    let cap = Infinity;
+    if (within > nearMax) {
+      const all = new Float32Array(within);
+      let k = 0;
+      for (const f of fields) {
+        const r2 = reach(f) ** 2;
+        for (const x of f.d2) if (x <= r2) all[k++] = x;
+      }
+      cap = nearMax ? all.sort()[nearMax - 1] : -1;
+    }
+    let budget = nearMax;
+    for (const f of fields) budget -= f.fill(Math.min(cap, reach(f) ** 2), budget);
   }
 
   // After each render of the view: while `latency` is an array (the benchmark sets it), the
@@ -465,9 +417,9 @@ export class Meadow {
   // 256 x 256 target: the pixels each covers and both cover.
   silhouettes(id, i) {
     const f = this.fields.get(id);
-    if (!f || !this.rigRoot || !(i >= 0 && i < f.n)) return null;
+    if (!f || !(i >= 0 && i < f.n)) return null;
     const r = this.renderer, size = 256;
-    const x = f.positions[2 * i], z = f.positions[2 * i + 1], s = f.scales[i], top = this.rig.top * s;
+    const x = f.positions[2 * i], z = f.positions[2 * i + 1], s = f.scales[i], top = f.rig.top * s;
     const cam = new THREE.PerspectiveCamera(40, 1, top * 0.05, top * 20);
     cam.position.set(x + top * 1.2, top * 0.7, z + top * 2.2);
     cam.lookAt(x, top * 0.5, z);
@@ -496,15 +448,14 @@ export class Meadow {
     }
     const a = draw();
     levels.forEach((l, k) => parents[k].add(l.mesh));
-    f.partitionedAt = -Infinity;
-    f.partitionCamera.set(Infinity, 0, 0); // chosen again at the next frame
+    this.repartition();
     // three.js's: the rig cloned, placed and posed.
-    const plant = cloneSkinned(this.rigRoot);
+    const plant = cloneSkinned(f.rig.root);
     plant.position.set(x, 0, z);
     plant.scale.setScalar(s);
     const d = Math.PI / 180, qa = new THREE.Quaternion(), qb = new THREE.Quaternion();
     const X = new THREE.Vector3(1, 0, 0), Y = new THREE.Vector3(0, 1, 0), Z = new THREE.Vector3(0, 0, 1);
-    this.rigJoints.forEach((n, j) => {
+    f.rig.joints.forEach((n, j) => {
       const b = plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n));
       const [p, y, rl] = f.angles.subarray(16 * i + 3 * j, 16 * i + 3 * j + 3);
       b.quaternion.setFromAxisAngle(Z, y * d).multiply(qa.setFromAxisAngle(X, p * d)).multiply(qb.setFromAxisAngle(Y, rl * d));
@@ -512,7 +463,7 @@ export class Meadow {
     scene.add(plant);
     const b = draw();
     // And at rest, to show that the pose is what makes them agree.
-    this.rigJoints.forEach((n) => plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n)).quaternion.identity());
+    f.rig.joints.forEach((n) => plant.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(n)).quaternion.identity());
     const c = draw();
     target.dispose();
     let both = 0, meadow = 0, skinned = 0, rest = 0, bothRest = 0;
@@ -532,7 +483,21 @@ export class Meadow {
     const without = r.info.render.calls;
     this.group.visible = true;
     const levels = [...this.fields.values()].flatMap((f) => [...f.near, ...f.far]);
+    // Per rig: its levels (instanced meshes: one draw call each when it has plants), the
+    // instances and plants they draw.
+    const rigs = {};
+    for (const f of this.fields.values()) {
+      const r = rigs[f.rig.name] || (rigs[f.rig.name] = { fields: 0, levels: 0, drawn: 0, instances: 0, plants: 0 });
+      r.fields++;
+      for (const l of [...f.near, ...f.far]) {
+        r.levels++;
+        r.drawn += l.mesh.geometry.instanceCount > 0 ? 1 : 0;
+        r.instances += l.mesh.geometry.instanceCount;
+        r.plants += l.uniforms.meadowCount.value;
+      }
+    }
     return {
+      rigs,
       all, without, meadow: all - without, instanced: levels.filter((l) => l.mesh.geometry.isInstancedBufferGeometry).length,
       instances: levels.reduce((s, l) => s + l.mesh.geometry.instanceCount, 0),
       plants: levels.reduce((s, l) => s + l.uniforms.meadowCount.value, 0),

@@ -137,12 +137,17 @@ pub fn layout_bytes(fields: &LiveFields, id: ElementId) -> Vec<u8> {
 }
 
 const MEADOW_JS: &str = include_str!("../page/meadow.js");
+const MEADOW_RIG_JS: &str = include_str!("../page/meadow_rig.js");
 const FIELD_JS: &str = include_str!("../page/field.js");
 
-/// `GET /meadow.js` (the instanced drawing, a module) and `/field.js` (the evaluation, a
-/// classic script).
+/// `GET /meadow.js` (the instanced drawing, a module; `/meadow_rig.js` the rigs it draws) and
+/// `/field.js` (the evaluation, a classic script).
 pub fn page_file(path: &str) -> Response {
-    let body = if path == "/meadow.js" { MEADOW_JS } else { FIELD_JS };
+    let body = match path {
+        "/meadow.js" => MEADOW_JS,
+        "/meadow_rig.js" => MEADOW_RIG_JS,
+        _ => FIELD_JS,
+    };
     Response::new(200, "text/javascript; charset=utf-8", body)
 }
 

@@ -226,6 +226,10 @@ pub struct FieldRequest {
     pub plants: u16,
     /// Side of a cell, metres (default 0.3).
     pub cell_m: f64,
+    /// The plants' rig, an embedded rig's name (default: the daemon's rig).
+    pub rig: Option<String>,
+    /// The field's stage name (default `field`): fields under other names play beside it.
+    pub name: Option<String>,
 }
 
 impl FieldRequest {
@@ -252,8 +256,34 @@ impl FieldRequest {
                 bad(format!("cell_m must be a number of metres > 0 and <= {MAX_FIELD_CELL_M}, got {v}"))
             })?,
         };
-        Ok(FieldRequest { take: take.to_string(), rows, cols, plants, cell_m })
+        let rig = match body.get("rig") {
+            None => None,
+            Some(v) => match v.as_str() {
+                Some(r) if frond_formats::rig_files::EMBEDDED_RIGS.iter().any(|(n, _)| *n == r) => {
+                    Some(r.to_string())
+                }
+                _ => {
+                    let names: Vec<&str> =
+                        frond_formats::rig_files::EMBEDDED_RIGS.iter().map(|(n, _)| *n).collect();
+                    return Err(bad(format!("rig must be an embedded rig's name ({})", names.join(", "))));
+                }
+            },
+        };
+        let name = match body.get("name") {
+            None => None,
+            Some(v) => match v.as_str() {
+                Some(n) if is_stage_name(n) => Some(n.to_string()),
+                _ => return Err(bad("name must be 1 to 32 letters, digits, '-' or '_'".into())),
+            },
+        };
+        Ok(FieldRequest { take: take.to_string(), rows, cols, plants, cell_m, rig, name })
     }
+}
+
+/// Whether `name` is a stage name the daemon takes: 1 to 32 ASCII letters, digits, `-`, `_`.
+pub fn is_stage_name(name: &str) -> bool {
+    (1..=32).contains(&name.len())
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
 /// The field `ask` names for the page's "Field" button (seed 000, section 6.2): a `rows x cols`
@@ -436,7 +466,21 @@ mod tests {
     #[test]
     fn field_requests_name_their_json_keys() {
         let ok = FieldRequest::from_json(&json!({"take": "t"})).unwrap();
-        assert_eq!(ok, FieldRequest { take: "t".into(), rows: 4, cols: 4, plants: 16, cell_m: 0.3 });
+        assert_eq!(
+            ok,
+            FieldRequest {
+                take: "t".into(),
+                rows: 4,
+                cols: 4,
+                plants: 16,
+                cell_m: 0.3,
+                rig: None,
+                name: None
+            }
+        );
+        let flowers =
+            FieldRequest::from_json(&json!({"take": "t", "rig": "flower", "name": "flowers"})).unwrap();
+        assert_eq!((flowers.rig.as_deref(), flowers.name.as_deref()), (Some("flower"), Some("flowers")));
         for (body, key) in [
             (json!({"take": "t", "cell_m": -1}), "cell_m"),
             (json!({"take": "t", "cell_m": 0}), "cell_m"),
@@ -446,6 +490,10 @@ mod tests {
             (json!({"take": "t", "cols": 17}), "cols"),
             (json!({"take": "t", "plants": 1.5}), "plants"),
             (json!({"rows": 2}), "take"),
+            (json!({"take": "t", "rig": "/etc/passwd"}), "rig must be an embedded rig's name (grass"),
+            (json!({"take": "t", "rig": 3}), "rig"),
+            (json!({"take": "t", "name": "a b"}), "name must be"),
+            (json!({"take": "t", "name": ""}), "name must be"),
         ] {
             let e = FieldRequest::from_json(&body).unwrap_err();
             assert_eq!(e.status, 400, "{body}");

@@ -8,6 +8,8 @@
 //! - `GET /` the page; `/console.js` (with `/calibrate.js`, its guided calibration), `/console.css`;
 //!   three.js under `/vendor/`;
 //! - `GET /rig.glb` the daemon's rig baked by frond-gltf at rest, `GET /api/scene` its node map;
+//!   `GET /api/rigs/NAME.glb` and `/api/rigs/NAME.json` the same of any rig a field may be
+//!   drawn with (an embedded rig, or `--rig`'s), by name (`fields`);
 //! - `GET /api/hello` the stream's hello and element table, `GET /api/status` the daemon's status
 //!   (as `frond status --json` has it) with the console's own counters;
 //! - `GET /api/camera`, `/api/camera/webcam-N.jpg`, `/camera.js` the camera panel (`camera`);
@@ -26,7 +28,7 @@
 //!   display rate with each element's latest pose that the page does not have yet; a running
 //!   field's table (`{"type":"fields",...}`) when it changes and every field frame once
 //!   (`{"type":"field-frames","frames":[...]}`), which the page evaluates ([`crate::meadow`]);
-//! - `GET /meadow.js`, `/field.js` the field's drawing and evaluation, `GET /api/fields/ID/layout`
+//! - `GET /meadow.js` (with `/meadow_rig.js`), `/field.js` the field's drawing and evaluation, `GET /api/fields/ID/layout`
 //!   a running field's plants as bytes ([`crate::meadow::layout_bytes`]).
 //!
 //! The actions take `POST` alone, the rest `GET` and `HEAD` (the head of GET's answer); another
@@ -40,12 +42,12 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
-use frond_formats::field_json::FieldJson;
-use frond_protocol::{ControlReply, ControlRequest, StageSpec};
+use frond_protocol::{ControlReply, ControlRequest};
 use frond_sdk::Hello;
 use serde_json::{Value, json};
 
 mod camera;
+mod fields;
 mod sockets;
 
 use frond_web::access::{Access, Grant, Refusal};
@@ -231,10 +233,11 @@ impl Console {
             "/console.js" => Response::new(200, "text/javascript; charset=utf-8", CONSOLE_JS),
             "/calibrate.js" => Response::new(200, "text/javascript; charset=utf-8", CALIBRATE_JS),
             "/console.css" => Response::new(200, "text/css; charset=utf-8", CONSOLE_CSS),
-            "/meadow.js" | "/field.js" => crate::meadow::page_file(&req.path),
+            "/meadow.js" | "/meadow_rig.js" | "/field.js" => crate::meadow::page_file(&req.path),
             p if p.starts_with("/api/fields/") => {
                 crate::meadow::layout_response(p, |id| self.live.lock().fields.layout(id))
             }
+            p if p.starts_with("/api/rigs/") => self.rig_file(&p["/api/rigs/".len()..]),
             "/api/hello" => Response::json(200, &self.hello_json()),
             "/api/status" => self.status(),
             "/api/scene" => match self.scene() {
@@ -399,42 +402,6 @@ impl Console {
         }
     }
 
-    /// `POST /api/field/start {"take", "plants"?, "rows"?, "cols"?, "cell_m"?}`: builds the field
-    /// ([`takes::field`]), keeps its layout for the view, and has the daemon play it.
-    fn field_start(&self, req: &Request) -> Response {
-        let body = match json_body(req) {
-            Ok(b) => b,
-            Err(r) => return r,
-        };
-        let ask = match takes::FieldRequest::from_json(&body) {
-            Ok(a) => a,
-            Err(e) => return Response::error(e.status, e.message),
-        };
-        let field = match takes::field(&self.config.takes_dir, &ask) {
-            Ok(f) => f,
-            Err(e) => return Response::error(e.status, e.message),
-        };
-        let take = ask.take.as_str();
-        let plants = ask.plants.min(field.plants.len() as u16);
-        let layout = json!({
-            "take": take,
-            "positions_m": field.plants.iter().take(usize::from(plants)).map(|p| p.position_m).collect::<Vec<_>>(),
-            "scales": field.plants.iter().take(usize::from(plants)).map(|p| p.scale).collect::<Vec<_>>(),
-        });
-        let request = ControlRequest::StageStart {
-            name: None,
-            spec: StageSpec::Field { take: take.to_string(), field_json: field.to_json(), plants, seed: 1 },
-        };
-        // Kept before the daemon is asked: its new element table can reach the page (which then
-        // asks for the layout) before its answer reaches this thread.
-        let before = self.field.lock().unwrap_or_else(|e| e.into_inner()).replace(layout);
-        let answer = self.act(&request);
-        if answer.status != 200 {
-            *self.field.lock().unwrap_or_else(|e| e.into_inner()) = before;
-        }
-        answer
-    }
-
     /// The guided calibration's actions ([`crate::calibrate`]).
     fn calibrate(&self, req: &Request) -> Response {
         let body = match json_body(req) {
@@ -467,7 +434,10 @@ impl Console {
             Ok(r) => r,
             Err(e) => return Response::error(400, e.to_string()),
         };
-        self.act(&request)
+        match req.path.as_str() {
+            "/api/field/key" | "/api/field/stop" => self.to_every_field(request),
+            _ => self.act(&request),
+        }
     }
 
     /// Sends one control request; the daemon's answer as the page's.
@@ -506,8 +476,10 @@ fn methods(path: &str) -> Option<&'static str> {
             Some(GET_HEAD)
         }
         "/ws" | "/ws/warp" => Some(GET_HEAD),
-        "/meadow.js" | "/field.js" => Some(GET_HEAD),
-        p if p.starts_with("/api/takes/") || p.starts_with("/api/fields/") => Some(GET_HEAD),
+        "/meadow.js" | "/meadow_rig.js" | "/field.js" => Some(GET_HEAD),
+        p if p.starts_with("/api/takes/") || p.starts_with("/api/fields/") || p.starts_with("/api/rigs/") => {
+            Some(GET_HEAD)
+        }
         p if VENDOR.iter().any(|(v, _)| *v == p) => Some(GET_HEAD),
         _ => None,
     }

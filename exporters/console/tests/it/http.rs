@@ -495,3 +495,36 @@ fn a_page_that_sends_a_large_message_is_closed() {
     assert!(got.starts_with(b"HTTP/1.1 101"), "{:?}", String::from_utf8_lossy(&got[..got.len().min(200)]));
     assert!(closed, "the socket stayed open after a 64 KiB message");
 }
+
+#[test]
+fn a_fields_rig_is_served_by_name_and_only_an_embedded_one_or_the_consoles_own() {
+    // A meadow of several rigs: the page asks for each field's rig by the name the daemon
+    // publishes. An embedded rig's GLB and node map are served; `--rig`'s under its own name;
+    // any other name (a path, a rig a take names) is 404, and the answer does not echo it.
+    let files = [("secret.toml", rig_named("secret"))];
+    let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (*n, t.as_str())).collect();
+    let c = Served::start_on(&files, &[], Some("{dir}/secret.toml"));
+    for name in ["flower", "shrub", "secret"] {
+        let a = c.exchange(&format!("GET /api/rigs/{name}.json HTTP/1.1"), b"");
+        assert_eq!(status(&a), 200, "{name}: {a}");
+        let map: serde_json::Value = serde_json::from_str(body(&a)).unwrap();
+        assert_eq!(map["rig"], name, "{map}");
+        assert_eq!(map["joints"].as_array().unwrap().len(), 4, "{map}");
+        let a = c.exchange(&format!("GET /api/rigs/{name}.glb HTTP/1.1"), b"");
+        assert_eq!((status(&a), header(&a, "content-type")), (200, Some("model/gltf-binary")), "{name}");
+        assert!(body(&a).starts_with("glTF"), "{name}: a GLB");
+    }
+    for path in [
+        "/api/rigs/%2Fetc%2Fpasswd.glb",
+        "/api/rigs/..%2Fsecret.json",
+        "/api/rigs/grass",
+        "/api/rigs/<b>x</b>.json",
+    ] {
+        let a = c.exchange(&format!("GET {path} HTTP/1.1"), b"");
+        assert_eq!(status(&a), 404, "{path}: {a}");
+        assert!(!body(&a).contains("passwd") && !body(&a).contains("<b>"), "{path} echoed: {a}");
+        assert!(body(&a).contains("an embedded rig (grass, flower, shrub)"), "{a}");
+    }
+    let a = c.exchange("POST /api/rigs/grass.glb HTTP/1.1\r\nContent-Length: 0", b"");
+    assert_eq!((status(&a), header(&a, "allow")), (405, Some("GET, HEAD")), "{a}");
+}
