@@ -16,12 +16,23 @@ use frond_sdk::{Event, Subscriber};
 /// A field.json of `rows x cols` plants over take `take` without its plants (readers make them
 /// from the parameters, so it fits in a control request whatever its size).
 pub(crate) fn compact_field(daemon: &Daemon, take: &str, rows: usize, cols: usize) -> std::path::PathBuf {
-    let p =
-        FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed: 3 };
+    compact_field_seeded(daemon, take, rows, cols, 3)
+}
+
+/// [`compact_field`] with the layout's seed `seed` (two fields of one grid and two seeds
+/// interleave: each cell holds a plant of each, placed apart).
+pub(crate) fn compact_field_seeded(
+    daemon: &Daemon,
+    take: &str,
+    rows: usize,
+    cols: usize,
+    seed: u64,
+) -> std::path::PathBuf {
+    let p = FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed };
     let field = make_field(&p, take, 60, 30.0).unwrap();
     let mut json: serde_json::Value = serde_json::to_value(&field).unwrap();
     json.as_object_mut().unwrap().remove("plants");
-    let path = daemon.takes_dir.with_file_name(format!("field-{rows}x{cols}.json"));
+    let path = daemon.takes_dir.with_file_name(format!("field-{rows}x{cols}-{seed}.json"));
     std::fs::write(&path, json.to_string()).unwrap();
     path
 }
@@ -145,4 +156,96 @@ fn a_meadow_too_large_to_start_says_compact_and_the_compact_file_starts() {
     let out = start(&small);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(daemon.status().modes.iter().any(|m| m.contains("field")), "{:?}", daemon.status().modes);
+}
+
+/// A meadow of two rigs from the command line: a field of flowers (`--rig flower --name
+/// flowers`) beside the grass field of the active rig; the element table, the field definition
+/// and status name each field's rig; one `frond field key` steers both and `frond field stop`
+/// stops both. Rigs and names a field cannot take are refused saying why.
+#[test]
+fn a_field_of_flowers_beside_the_grass_names_its_rig_and_one_key_steers_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = daemon_with_sway(dir.path(), Duration::from_millis(1000));
+    let field = compact_field(&daemon, "sway", 10, 10);
+    let field = field.to_str().unwrap();
+    let start = |extra: &[&str]| {
+        let mut args = vec!["field", "start", "--take", "sway", "--field", field];
+        args.extend(extra);
+        daemon.frond().args(&args).output().unwrap()
+    };
+    // Refused, each saying why: exit 2 for a usage error, 1 for what the daemon or a file refused.
+    let not_grass = dir.path().join("grass2.toml");
+    let grass = std::fs::read_to_string(frond_e2e::repo_root().join("rig-files/plants/grass.toml")).unwrap();
+    std::fs::write(&not_grass, grass.replace("name = \"tip\"", "name = \"blade_tip\"")).unwrap();
+    for (extra, code, want) in [
+        (&["--name", "a b"][..], 2, "--name \"a b\": a stage name is 1 to 32 letters"),
+        (&["--rig", "no-such-rig"], 1, "no-such-rig"),
+        (&["--rig", not_grass.to_str().unwrap()], 1, "differs from the active rig of that name: rename it"),
+    ] {
+        let out = start(extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {err}");
+    }
+    assert!(daemon.status().stages.is_empty(), "nothing started: {:?}", daemon.status().stages);
+
+    let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
+    for extra in [&["--plants", "2"][..], &["--plants", "2", "--rig", "flower", "--name", "flowers"]] {
+        let out = start(extra);
+        assert!(out.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    let states: Vec<(String, String)> =
+        daemon.status().stages.iter().map(|s| (s.name.clone(), s.state.clone())).collect();
+    assert_eq!(states.len(), 2, "{states:?}");
+    assert!(
+        states.iter().any(|(n, s)| n == "flowers" && s.contains("100 plants (rig flower)")),
+        "{states:?}"
+    );
+    assert!(states.iter().any(|(n, s)| n == "field" && !s.contains("(rig")), "{states:?}");
+    // What a subscriber sees: each field's definition, its announced plants and the table's
+    // rigs name the field's rig.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        sub.next_event().unwrap();
+        let rigs: Vec<(String, String)> = sub
+            .fields()
+            .iter()
+            .map(|f| (f.definition().source.clone(), f.definition().rig.clone()))
+            .collect();
+        if rigs.len() == 2 {
+            assert!(rigs.contains(&("flowers".into(), "flower".into())), "{rigs:?}");
+            assert!(rigs.contains(&("field".into(), "grass".into())), "{rigs:?}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "both fields in the SDK: {rigs:?}");
+    }
+    let table = sub.elements().clone();
+    let table_rigs: Vec<&str> = table.rigs.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(table_rigs, ["grass", "flower"]);
+    let plants: Vec<(&str, &str)> = table
+        .elements
+        .iter()
+        .filter(|e| e.kind == ElementKind::FieldPlant)
+        .map(|e| (e.source.as_str(), e.rig.as_str()))
+        .collect();
+    assert_eq!(
+        plants,
+        [("field", "grass"), ("field", "grass"), ("flowers", "flower"), ("flowers", "flower")]
+    );
+
+    // One key, both fields; one stop, both stopped.
+    daemon.frond_ok(&["field", "key", "left"]);
+    for s in daemon.status().stages {
+        assert!(s.state.contains("direction 180 deg"), "the key reached {}: {}", s.name, s.state);
+    }
+    daemon.frond_ok(&["field", "key", "right", "--name", "flowers"]);
+    let direction = |name: &str| daemon.status().stages.into_iter().find(|s| s.name == name).unwrap().state;
+    assert!(direction("flowers").contains("direction 0 deg"), "{}", direction("flowers"));
+    assert!(
+        direction("field").contains("direction 180 deg"),
+        "--name keys one field: {}",
+        direction("field")
+    );
+    daemon.frond_ok(&["field", "stop"]);
+    assert!(daemon.status().stages.is_empty(), "{:?}", daemon.status().stages);
 }
