@@ -103,7 +103,8 @@ pub struct StageInfo {
     pub hand_element: Option<ElementInfo>,
     /// Which [`StageInput`]s it takes, for the control side to refuse the others by name.
     pub accepts: fn(&StageInput) -> bool,
-    /// The skeleton its elements use (the rig in force when it was built).
+    /// The skeleton its elements use (the rig in force when it was built, or the rig it plays:
+    /// a field of another rig's plants, the simulated plant of its own rig).
     pub rig: RigInfo,
     /// The most work it does in one tick ([`budget`]: checked by `stage::build` against its share).
     pub work: budget::TickWork,
