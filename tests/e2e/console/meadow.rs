@@ -210,6 +210,16 @@ fn the_console_draws_ten_thousand_plants_of_two_rigs_instanced_as_the_daemon_eva
     // And it shows: the meadow covers a good part of the view.
     let cover = d.script("return globalThis.frondMeadow.coverage();").as_f64().unwrap();
     assert!(cover > 0.05, "the meadow covers {cover} of the view");
+    // The picture (the README's first): closer, where grass and flowers are told apart.
+    d.script(
+        "const m = globalThis.frondMeadow, p = [...m.fields.values()][0].positions; \
+         let [x0, x1, z1] = [Infinity, -Infinity, -Infinity]; \
+         for (let i = 0; i < p.length; i += 2) { x0 = Math.min(x0, p[i]); x1 = Math.max(x1, p[i]); z1 = Math.max(z1, p[i + 1]); } \
+         m.camera.position.set((x0 + x1) / 2, 1.1, z1 + 2); \
+         m.controls.target.set((x0 + x1) / 2, 0, z1 - 3); m.controls.update();",
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    d.script("return 0;"); // a frame drawn from there
     super::save_screenshot(&d, "meadow.png");
     eprintln!("drawn after {:?}", t0.elapsed());
     // Each plant alone, close up (the meadow itself not drawn meanwhile: the page is quicker).
