@@ -410,7 +410,10 @@ async function listTakes() {
     const link = (label, href) => { const a = document.createElement('a'); a.textContent = label; a.href = href; a.download = ''; td.append(a); };
     btn('Play', 'play in the view', () => play(t.name));
     btn('Loop', 'loop on the daemon (every subscriber sees it)', () => post('/api/playback', { take: t.name }));
-    btn('Field', 'play a 4 x 4 field of it on the daemon (section 6.2 of Interactive authoring of bending and twisting motions of short plants using hand gestures)', () => post('/api/field/start', { take: t.name }));
+    btn('Field', 'play a 4 x 4 field of it on the daemon (section 6.2 of Interactive authoring of bending and twisting motions of short plants using hand gestures), of the rig chosen above', () => {
+      const rig = $('field-rig').value;
+      post('/api/field/start', rig ? { take: t.name, rig, name: `field-${rig}` } : { take: t.name });
+    });
     if (t.state === 'torn' || t.state === 'damaged' || t.state === 'open') {
       btn('Repair', 'keep the readable records and close the take, as frond take repair', async () => {
         const j = await post('/api/takes/repair', { take: t.name });
@@ -464,6 +467,9 @@ async function listRigs() {
   const rigs = await (await fetch('/api/rigs')).json();
   $('rig-select').replaceChildren(...rigs.map((r) => { const o = document.createElement('option'); o.value = o.textContent = r; return o; }));
   if (rigShown) $('rig-select').value = rigShown;
+  const fieldRig = $('field-rig'), chosen = fieldRig.value;
+  fieldRig.replaceChildren(fieldRig.options[0], ...rigs.map((r) => { const o = document.createElement('option'); o.value = o.textContent = r; return o; }));
+  fieldRig.value = chosen;
 }
 listRigs();
 $('rig-form').addEventListener('submit', (e) => { e.preventDefault(); post('/api/rig', { rig: $('rig-select').value }); });

@@ -280,6 +280,14 @@ impl FieldRequest {
     }
 }
 
+/// The layout's seed of a field of `rig` started from the page: 1 for the daemon's rig, and
+/// each embedded rig its own, so that fields of several rigs on one grid interleave (each cell
+/// a plant of each, placed apart) rather than stand in one another.
+fn layout_seed(rig: Option<&str>) -> u64 {
+    let embedded = frond_formats::rig_files::EMBEDDED_RIGS.iter();
+    rig.and_then(|r| embedded.clone().position(|(n, _)| *n == r)).map_or(1, |k| 2 + k as u64)
+}
+
 /// Whether `name` is a stage name the daemon takes: 1 to 32 ASCII letters, digits, `-`, `_`.
 pub fn is_stage_name(name: &str) -> bool {
     (1..=32).contains(&name.len())
@@ -305,7 +313,7 @@ pub fn field(dir: &Path, ask: &FieldRequest) -> Result<Field, TakeError> {
         speed_m_s: 1.5,
         direction_deg: 0.0,
         density: 1.0,
-        seed: 1,
+        seed: layout_seed(ask.rig.as_deref()),
     };
     make_field(&params, name, plan.frames as usize, FIELD_FPS).map_err(|e| err(400, e.to_string()))
 }

@@ -5,7 +5,7 @@
 //! instanced with its field's own rig (`page/meadow.js`). The page's angles are checked against
 //! the SDK's (`frond_sdk::field`, the daemon's own code), evaluated here from the same field
 //! frames; the draw calls against the rigs and the plant count; a third field, of shrubs, is
-//! started from the console, and one key from it steers all three.
+//! started from the page's takes panel, and one key from the page steers all three.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -231,20 +231,31 @@ fn the_console_draws_ten_thousand_plants_of_two_rigs_instanced_as_the_daemon_eva
     stop.store(true, Ordering::Relaxed);
     reader.join().unwrap();
 
-    // A third rig from the console's own field start, made with its rig; one key from the page
-    // steers every field (still not drawing the meadow, so that the page takes the frames
-    // quickly: drawing was checked above).
+    // A third rig from the page: the takes panel's Field button with shrubs chosen, a field of
+    // its own (stage field-shrub) made with its rig; one key from the page steers every field
+    // (still not drawing the meadow, so that the page takes the frames quickly: drawing was
+    // checked above).
+    let field_button = "#take-list tr[data-take=\"sway\"] .take-field";
+    poll("the take's Field button and the shrub among the rigs", Duration::from_secs(10), || {
+        let q = format!(
+            "return !!document.querySelector('{field_button}') && \
+             [...document.getElementById('field-rig').options].some((o) => o.value === 'shrub');"
+        );
+        d.script(&q).as_bool().filter(|b| *b)
+    });
+    d.script(&format!(
+        "document.getElementById('field-rig').value = 'shrub'; document.querySelector('{field_button}').click();"
+    ));
+    let ids = fields_evaluated(&d, &[("field-shrub", 16)], Duration::from_secs(30));
+    let shrub =
+        d.script(&format!("return globalThis.frondMeadow.fields.get({}).rig.name;", ids["field-shrub"]));
+    assert_eq!(shrub, "shrub");
     let post = |path: &str, body: &str| {
         d.script(&format!(
             "return fetch('{path}', {{method: 'POST', headers: {{'Content-Type': 'application/json'}}, \
              body: JSON.stringify({body})}}).then(async (r) => [r.status, await r.text()]);"
         ))
     };
-    let started = post("/api/field/start", "{take: 'sway', rig: 'shrub', name: 'shrubs', rows: 4, cols: 4}");
-    assert_eq!(started[0], 200, "{started}");
-    let ids = fields_evaluated(&d, &[("shrubs", 16)], Duration::from_secs(30));
-    let shrub = d.script(&format!("return globalThis.frondMeadow.fields.get({}).rig.name;", ids["shrubs"]));
-    assert_eq!(shrub, "shrub");
     let refused = post("/api/field/start", "{take: 'sway', rig: '../../etc/passwd'}");
     assert_eq!(refused[0], 400, "{refused}");
     let keyed = post("/api/field/key", "{key: 'left'}");
