@@ -18,7 +18,8 @@ import { rigOf, batchOf } from '/meadow_rig.js';
 const PER_ROW = 1024;          // plants per texture row (4 RGBA texels each), slots per slot row
 const MAX_BATCH_VERTICES = 4096; // vertices of one instance (a batch of plants)
 const LOD_HEIGHTS = 60;        // plants further than this many plant heights: the ribbon
-const NEAR_MAX = 4096;         // and beyond the nearest this many
+const NEAR_VERTICES = 4096 * 42; // and beyond the nearest whose meshes have this many vertices
+                                 // (4,096 grass blades; a flower has 164, a shrub 690)
 const REPARTITION_MS = 200;    // near / far chosen again at most this often while the camera moves
 
 // The protocol's rotation convention, R = R_yaw(Z) R_pitch(X) R_roll(Y), degrees; the joints
@@ -350,10 +351,10 @@ export class Meadow {
   }
 
   // Near plants get their rig's mesh, far ones the ribbon (camera position `eye`): a plant is
-  // near within LOD_HEIGHTS of its rig's height, and the nearest NEAR_MAX of the whole meadow at
-  // most, whatever its fields (a meadow of two rigs costs what one field of as many plants does).
-  // Chosen again at most every REPARTITION_MS when the camera moved, and at the next frame when
-  // the fields changed (repartition).
+  // near within LOD_HEIGHTS of its rig's height, nearest first over the whole meadow, until
+  // their meshes hold NEAR_VERTICES (software WebGL pays per vertex: a meadow of grass and
+  // flowers costs what the grass alone does). Chosen again at most every REPARTITION_MS when
+  // the camera moved, and at the next frame when the fields changed (repartition).
   partition(eye, now) {
     const fields = [...this.fields.values()];
     const reach = (f) => LOD_HEIGHTS * f.rig.top;
@@ -361,24 +362,22 @@ export class Meadow {
     if (now - this.partitionedAt < REPARTITION_MS || !moved) return;
     this.partitionedAt = now;
     this.partitionCamera.copy(eye);
-    const nearMax = this.nearMax ?? NEAR_MAX;
-    let within = 0;
-    for (const f of fields) {
+    // Each field's plants within reach, nearest first, merged over the fields.
+    const sorted = fields.map((f) => {
       const r2 = reach(f) ** 2;
-      for (const x of f.distances(eye)) if (x <= r2) within++;
+      return f.distances(eye).filter((x) => x <= r2).sort();
+    });
+    const at = fields.map(() => 0), near = fields.map(() => 0);
+    let left = this.nearVertices ?? NEAR_VERTICES;
+    for (;;) {
+      let k = -1;
+      sorted.forEach((d, j) => { if (at[j] < d.length && (k < 0 || d[at[j]] < sorted[k][at[k]])) k = j; });
+      if (k < 0 || fields[k].rig.vertices > left) break;
+      left -= fields[k].rig.vertices;
+      at[k]++;
+      near[k]++;
     }
-    let cap = Infinity;
-    if (within > nearMax) {
-      const all = new Float32Array(within);
-      let k = 0;
-      for (const f of fields) {
-        const r2 = reach(f) ** 2;
-        for (const x of f.d2) if (x <= r2) all[k++] = x;
-      }
-      cap = nearMax ? all.sort()[nearMax - 1] : -1;
-    }
-    let budget = nearMax;
-    for (const f of fields) budget -= f.fill(Math.min(cap, reach(f) ** 2), budget);
+    fields.forEach((f, j) => f.fill(near[j] ? sorted[j][near[j] - 1] : -1, near[j]));
   }
 
   // After each render of the view: while `latency` is an array (the benchmark sets it), the

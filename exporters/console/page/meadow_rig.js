@@ -68,7 +68,8 @@ export function rigOf(map, root) {
   ribbon.setIndex(index);
   const color = skinned[0].material.color ? skinned[0].material.color.clone() : new THREE.Color(0x6a9a40);
   const far = new THREE.MeshStandardMaterial({ color, side: THREE.DoubleSide, roughness: 0.9 });
-  return { name: map.rig, primitives, ribbon, far, rest, bind, mainIndex, outer, top, root, joints: map.joints };
+  const vertices = skinned.reduce((n, m) => n + m.geometry.getAttribute('position').count, 0);
+  return { name: map.rig, primitives, ribbon, far, rest, bind, mainIndex, outer, top, root, joints: map.joints, vertices };
 }
 
 // `batch` copies of `geometry` (position, normal, uv, colour; one index) as one instanced
