@@ -190,9 +190,16 @@ fn a_field_of_flowers_beside_the_grass_names_its_rig_and_one_key_steers_both() {
     assert!(daemon.status().stages.is_empty(), "nothing started: {:?}", daemon.status().stages);
 
     let mut sub = Subscriber::connect(&daemon.socket_dir).unwrap();
-    for extra in [&["--plants", "2"][..], &["--plants", "2", "--rig", "flower", "--name", "flowers"]] {
+    for (extra, said) in [
+        (&["--plants", "2"][..], "field of take sway playing"),
+        (
+            &["--plants", "2", "--rig", "flower", "--name", "flowers"],
+            "field flowers of take sway of rig flower playing",
+        ),
+    ] {
         let out = start(extra);
         assert!(out.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(String::from_utf8_lossy(&out.stdout).starts_with(said), "{extra:?}: {out:?}");
     }
     let states: Vec<(String, String)> =
         daemon.status().stages.iter().map(|s| (s.name.clone(), s.state.clone())).collect();
@@ -246,6 +253,7 @@ fn a_field_of_flowers_beside_the_grass_names_its_rig_and_one_key_steers_both() {
         "--name keys one field: {}",
         direction("field")
     );
-    daemon.frond_ok(&["field", "stop"]);
+    let said = daemon.frond_ok(&["field", "stop"]);
+    assert_eq!(said, "field playback stopped\nfield flowers stopped\n");
     assert!(daemon.status().stages.is_empty(), "{:?}", daemon.status().stages);
 }

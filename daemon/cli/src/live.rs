@@ -117,9 +117,10 @@ pub(crate) fn field_start(g: &Global, take: &str, field: &Path, ask: FieldStart)
     };
     c.expect_ok(&ControlRequest::StageStart { name: name.map(str::to_string), spec })?;
     let stage = name.unwrap_or("field");
-    let of_rig = rig.map(|r| format!(" of {}", r.display())).unwrap_or_default();
+    let named = name.map(|n| format!(" {n}")).unwrap_or_default();
+    let of_rig = rig.map(|r| format!(" of rig {}", r.display())).unwrap_or_default();
     frond_binmain::outln!(
-        "field {stage}{of_rig} of take {take} playing; steer it with `frond control` or a wrist swipe"
+        "field{named} of take {take}{of_rig} playing; steer it with `frond control` or a wrist swipe"
     )?;
     warn_damaged_stage(&mut c, stage);
     Ok(())
@@ -173,7 +174,10 @@ pub(crate) fn field_stop(g: &Global, name: Option<&str>) -> anyhow::Result<()> {
     let mut c = Control::from_global(g)?;
     for n in fields_named(&mut c, name)? {
         c.expect_ok(&ControlRequest::StageStop { name: n.clone() })?;
-        frond_binmain::outln!("field {n} stopped")?;
+        frond_binmain::outln!(
+            "{} stopped",
+            if n == "field" { "field playback".to_string() } else { format!("field {n}") }
+        )?;
     }
     Ok(())
 }
