@@ -19,7 +19,7 @@
 //! (without the SDK's hand-off), and the floor, the hop between two namespaces alone with no
 //! daemon and no bridge (`zenoh_bare_hop_*`: Zenoh's put to its callback, on its default and
 //! its low-latency transport, against a bare UDP datagram). Issue 43's floor is measured whole
-//! ([`Stage::floor`]): the daemon's poses read on host 0 as the bridge reads them, put on bare
+//! (`Stage::floor`): the daemon's poses read on host 0 as the bridge reads them, put on bare
 //! Zenoh and read in Zenoh's callback on host 1.
 
 use std::io::{BufRead, BufReader, Write};
