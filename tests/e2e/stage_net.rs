@@ -402,6 +402,17 @@ fn a_python_reader_on_another_host_agrees_with_tap_beside_a_peer_that_never_read
         "python reader: {} frames, {checked} checked against tap, {missing} missing (reported)",
         frames.len()
     );
+    // The reader reported its counts over the documented replay wire (docs/zenoh.md), last after
+    // it stopped reading: the bridge lists it by its name with exactly what it counted.
+    let from = format!("zenoh:frond/stage1/glove-a?connect={}", performer.endpoint(PORT));
+    let status =
+        reader_host.command(bin("frond")).args(["status", "--json", "--from", &from]).output().unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    let peers = report["zenoh_peers"].as_array().unwrap_or_else(|| panic!("no zenoh_peers: {report}"));
+    let python = peers.iter().find(|p| p["peer"] == "zenoh_reader.py").unwrap_or_else(|| panic!("{peers:?}"));
+    assert_eq!(python["frames"].as_u64(), Some(frames.len() as u64), "{python}");
+    assert_eq!(python["missing"].as_u64(), Some(missing), "{python}");
 
     // The never-reading peer is still subscribed, and the bridge still runs.
     assert!(

@@ -11,6 +11,10 @@ Subscribes `frond/<stage>/<source>/poses` and prints one JSON line per frame on 
 {"seq":..,"t":..,"joints":[[p,y,r] x4],"element":..,"flags":..}, and on stderr the hello it got
 from the `.../hello` queryable, each gap ("gap: N frames missing before seq S") and a last line
 "ok: ..." (exit 0) or "error: ..." (exit 1) when a payload does not decode or frames go backwards.
+Once a second, and once more after it stops reading, it reports its counts to the bridge as
+docs/zenoh.md's replay wire says (a `.../replay` query whose payload is `from`, `to` (equal: asks
+nothing), `frames`, `missing`, `recovered`, each u64 little-endian, then its `--name`), so that
+`frond status --from zenoh:...` lists it beside the SDK's subscribers.
 
   zenoh_reader.py --connect tcp/10.0.0.1:7447 --key frond/stage1/glove-a --seconds 10
   zenoh_reader.py --connect ... --key ... --seconds 10 --never-read
@@ -61,6 +65,7 @@ def main() -> int:
     ap.add_argument("--key", required=True, help="frond/<stage>/<source>")
     ap.add_argument("--seconds", type=float, required=True, help="how long to read")
     ap.add_argument("--never-read", action="store_true", help="subscribe and never read")
+    ap.add_argument("--name", default="zenoh_reader.py", help="the name it reports its counts under")
     args = ap.parse_args()
 
     session = open_session(args.connect)
@@ -122,8 +127,20 @@ def main() -> int:
         file=sys.stderr,
         flush=True,
     )
-    time.sleep(args.seconds)
+    def report(timeout: float) -> None:
+        """The counts so far, to the bridge (a report asks for no frames: from == to)."""
+        with lock:
+            counts = (state["frames"], state["missing"])
+        payload = struct.pack("<QQQQQ", 0, 0, counts[0], counts[1], 0) + args.name.encode()[:64]
+        for _ in session.get(f"{args.key}/replay", payload=payload, timeout=timeout):
+            pass  # the bridge answers a report with one reply of no frames
+
+    end = time.monotonic() + args.seconds
+    while (left := end - time.monotonic()) > 0:
+        time.sleep(min(1.0, left))
+        report(0.5)
     _sub.undeclare()
+    report(2.0)
     with lock:
         s = dict(state)
     if s["bad"]:
