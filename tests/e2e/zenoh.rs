@@ -416,3 +416,61 @@ fn one_remote_principal_spending_its_budget_leaves_another_served() {
         "the viewer after the director's flood"
     );
 }
+
+/// Issue 43's callback-driven subscription (`frond_sdk::zenoh_callback`): poses handed to a
+/// closure on Zenoh's thread are the daemon socket's very poses, in order, numbered from the
+/// hello; the subscription reports its counts to the bridge like a `Subscriber`; and after it is
+/// dropped its closure is called no more.
+#[test]
+fn a_callback_subscription_hands_over_the_sockets_poses_on_zenohs_thread() {
+    use std::sync::{Arc, Mutex};
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start(dir.path(), &["--source", "in-process"]);
+    let port = free_port();
+    let stage = format!("e2ecb{}", std::process::id());
+    let _bridge = start_bridge(&daemon, &stage, "glove-a", port);
+    let source: Source = format!("zenoh:frond/{stage}/glove-a?connect=tcp/127.0.0.1:{port}").parse().unwrap();
+    let Source::Zenoh(addr) = &source else { unreachable!() };
+    let got: Arc<Mutex<Vec<Event>>> = Arc::default();
+    let sink = got.clone();
+    let sub = frond_sdk::zenoh_callback::subscribe(
+        addr,
+        &Subscriber::options().hello_timeout(Duration::from_secs(10)),
+        move |e| sink.lock().unwrap().push(e),
+    )
+    .expect("a callback subscription");
+    assert_eq!(sub.hello().rig_name, again_rig(&daemon));
+    let mut local = Subscriber::connect(&daemon.socket_dir).unwrap();
+    let local: HashMap<u64, Pose> = poses(&mut local, 1500).into_iter().map(|p| (p.seq, p)).collect();
+    let events = std::mem::take(&mut *got.lock().unwrap());
+    let remote: Vec<&Pose> =
+        events.iter().filter_map(|e| if let Event::Pose(p) = e { Some(p) } else { None }).collect();
+    assert!(remote.first().is_some_and(|p| p.seq >= sub.hello().next_seq), "a pose from before the hello");
+    assert!(remote.windows(2).all(|w| w[1].seq > w[0].seq), "out of order");
+    let common: Vec<&&Pose> = remote.iter().filter(|p| local.contains_key(&p.seq)).collect();
+    assert!(common.len() > 100, "only {} poses in common of {}", common.len(), remote.len());
+    for p in common {
+        assert_eq!(**p, local[&p.seq], "pose {} differs", p.seq);
+    }
+    // Loopback at 1 kHz loses nothing: no gap, and the counts are the poses handed over.
+    assert!(!events.iter().any(|e| matches!(e, Event::Gap { .. })), "a gap on loopback");
+    assert!(sub.stats().frames >= remote.len() as u64 && sub.stats().missing == 0, "{:?}", sub.stats());
+
+    // Its counts reach the bridge (once a second), as frond status lists them.
+    let reported = wait_for(Duration::from_secs(10), || {
+        let out = Command::new(bin("frond"))
+            .args(["status", "--json", "--from", &source.to_string()])
+            .output()
+            .unwrap();
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+        report["zenoh_peers"].as_array().is_some_and(|peers| {
+            peers.iter().any(|p| p["frames"].as_u64().is_some_and(|f| f >= 1000) && p["missing"] == 0)
+        })
+    });
+    assert!(reported, "the bridge never listed the callback subscription's counts");
+
+    drop(sub);
+    let after = got.lock().unwrap().len();
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(got.lock().unwrap().len(), after, "the closure ran after the subscription was dropped");
+}

@@ -43,6 +43,8 @@ pub mod stage_time;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
 #[cfg(feature = "zenoh")]
+pub mod zenoh_callback;
+#[cfg(feature = "zenoh")]
 mod zenoh_config;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_control;
