@@ -7,6 +7,8 @@
 //!   with `frond_sdk`, exactly as an exporter on another host does;
 //! - `frond-bench-peer zenoh-raw ADDRESS`: a bare Zenoh subscriber on the source's `poses` key,
 //!   recording in Zenoh's callback (a diagnostic: the pose's cost up to Zenoh's receive thread);
+//! - `frond-bench-peer zenoh-sdk-callback ADDRESS`: subscribes with the SDK's callback-driven
+//!   subscription (`frond_sdk::zenoh_callback`), recording in the SDK's closure on Zenoh's thread;
 //! - `frond-bench-peer udp-sub BIND`: receives poses as plain UDP datagrams on `BIND`, one
 //!   socket-protocol frame a datagram (the baseline);
 //! - `frond-bench-peer udp-forward SOCKET_DIR ADDR [ADDR ...]`: reads the daemon's pose stream
@@ -172,6 +174,35 @@ fn zenoh_session(address: &str) -> Result<(frond_sdk::ZenohAddr, frond_sdk::zeno
     };
     let session = frond_sdk::zenoh::open_addr_session(&addr).map_err(|e| e.to_string())?;
     Ok((addr, session))
+}
+
+/// The SDK's callback-driven subscription: each pose recorded in the SDK's closure, on Zenoh's
+/// receive thread, with no hand-off to a reading thread.
+fn zenoh_sdk_callback(address: &str) -> Result<(), String> {
+    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
+        return Err(format!("{address}: not a zenoh: address"));
+    };
+    let recorder = Arc::new(Recorder::default());
+    let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<()>(1);
+    let rec = recorder.clone();
+    let _sub = frond_sdk::zenoh_callback::subscribe(&addr, &Subscriber::options(), move |event| {
+        let now = monotonic_ns();
+        match event {
+            Event::Pose(p) => {
+                rec.pose(&p, now);
+                let _ = ready_tx.try_send(());
+            }
+            Event::Gap { expected, got } => rec.gap(got.saturating_sub(expected)),
+            _ => {}
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    ready_rx.recv().map_err(|e| e.to_string())?;
+    recorder.serve_stdin();
+    say("ready");
+    loop {
+        std::thread::park();
+    }
 }
 
 /// A bare Zenoh subscriber on the source's `poses` key that records each sample in Zenoh's own
@@ -359,6 +390,8 @@ enum Peer {
     ZenohSub { address: String },
     /// A bare Zenoh subscriber on ADDRESS's `poses` key.
     ZenohRaw { address: String },
+    /// Subscribes to ADDRESS with the SDK's callback-driven subscription.
+    ZenohSdkCallback { address: String },
     /// Receives poses as plain UDP datagrams on BIND.
     UdpSub { bind: String },
     /// Reads the daemon's pose stream and sends each pose in one UDP datagram to every ADDR.
@@ -388,6 +421,7 @@ fn main() -> ExitCode {
     let result = match &peer {
         Peer::ZenohSub { address } => zenoh_sub(address),
         Peer::ZenohRaw { address } => zenoh_raw(address),
+        Peer::ZenohSdkCallback { address } => zenoh_sdk_callback(address),
         Peer::UdpSub { bind } => udp_sub(bind),
         Peer::UdpForward { socket_dir, to } => udp_forward(socket_dir, to),
         Peer::ZenohForward { socket_dir, address } => zenoh_forward(socket_dir, address),

@@ -112,15 +112,30 @@ fn check_zenoh_section(section: &Value) {
     assert!(bare["udp"]["samples"].as_u64().unwrap() > 100, "{}", bare["udp"]);
     // Issue 43's floor, measured whole in its own phase: the SDK's latency against it, with the
     // issue's limits (p50 1.5x, p99 2x).
+    // The goals are held by the SDK's callback-driven subscription; the pulling Subscriber is
+    // reported beside it.
     let one = &section["details"]["1_subscribers"];
     for (q, limit) in [("p50", 1.5), ("p99", 2.0)] {
-        let m = row(&format!("zenoh_vs_floor_{q}"));
-        assert_eq!(m["measured"], one["zenoh"][format!("{q}_us")], "floor row {q}");
         let floor = one["floor"][format!("{q}_us")].as_f64().unwrap();
+        let m = row(&format!("zenoh_sdk_callback_vs_floor_{q}"));
+        assert_eq!(m["measured"], one["zenoh_sdk_callback"][format!("{q}_us")], "callback floor row {q}");
         assert_eq!(m["baseline"].as_f64(), Some(floor.max(1.0)), "floor {q}");
         assert_eq!(m["target"]["limit"].as_f64(), Some(limit), "floor {q}'s goal");
+        let m = row(&format!("zenoh_vs_floor_{q}"));
+        assert_eq!(m["measured"], one["zenoh"][format!("{q}_us")], "floor row {q}");
+        assert_eq!(m["baseline"].as_f64(), Some(floor.max(1.0)), "floor {q}");
+        assert!(m.get("target").is_none_or(Value::is_null), "pulling {q}: {m}");
     }
+    assert!(one["zenoh_sdk_callback"]["samples"].as_u64().unwrap() > 100, "{}", one["zenoh_sdk_callback"]);
     assert!(one["floor"]["samples"].as_u64().unwrap() > 100, "{}", one["floor"]);
+    // The same 16 on the SDK's callback-driven subscription, reported without a goal.
+    let sixteen = &section["details"]["16_subscribers"];
+    for q in ["p50", "p99"] {
+        let m = row(&format!("zenoh_sdk_callback_latency_{q}_16_subscribers"));
+        assert_eq!(m["measured"], sixteen["zenoh_sdk_callback"][format!("{q}_us")], "callback fan-out {q}");
+        assert_eq!(m["baseline"], sixteen["udp"][format!("{q}_us")], "callback fan-out {q}'s baseline");
+        assert!(m.get("target").is_none_or(Value::is_null), "callback fan-out {q}: {m}");
+    }
     // The routed fan-out (issue 43): its rows are its details, against the same run's UDP phase
     // to 16 readers and the peer-to-peer bridge.
     let d = &section["details"]["16_subscribers"];
