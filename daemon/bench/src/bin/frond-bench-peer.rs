@@ -197,12 +197,7 @@ fn zenoh_sdk_callback(address: &str) -> Result<(), String> {
         }
     })
     .map_err(|e| e.to_string())?;
-    ready_rx.recv().map_err(|e| e.to_string())?;
-    recorder.serve_stdin();
-    say("ready");
-    loop {
-        std::thread::park();
-    }
+    serve_once_ready(&ready_rx, recorder)
 }
 
 /// A bare Zenoh subscriber on the source's `poses` key that records each sample in Zenoh's own
@@ -227,7 +222,13 @@ fn zenoh_raw(address: &str) -> Result<(), String> {
         })
         .wait()
         .map_err(|e| e.to_string())?;
-    ready_rx.recv().map_err(|e| e.to_string())?;
+    serve_once_ready(&ready_rx, recorder)
+}
+
+/// A subscriber that records in a callback (its subscription held by the caller): waits for the
+/// callback's first pose, then obeys standard input and says `ready`, for as long as it runs.
+fn serve_once_ready(ready: &std::sync::mpsc::Receiver<()>, recorder: Arc<Recorder>) -> Result<(), String> {
+    ready.recv().map_err(|e| e.to_string())?;
     recorder.serve_stdin();
     say("ready");
     loop {
