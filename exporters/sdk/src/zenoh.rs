@@ -144,7 +144,9 @@ impl ZenohConn {
         addr: &ZenohAddr,
         opts: &SubscriberOptions,
     ) -> Result<(ZenohConn, Hello), SdkError> {
-        let key = resolve(&session, addr, opts.hello_timeout)?;
+        // The hello is asked again once subscribed ([`ZenohConn::rejoin`]): poses are numbered
+        // from that one.
+        let (key, _) = resolve(&session, addr, opts.hello_timeout)?;
         let (frame_tx, frames) = bounded(FRAME_QUEUE);
         let (alive_tx, alive) = bounded(64);
         let overflow = Arc::new(AtomicU64::new(0));

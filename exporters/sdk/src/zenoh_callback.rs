@@ -22,7 +22,6 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
 
 use ::zenoh::Wait;
 use crossbeam_channel::{Sender, bounded};
@@ -31,8 +30,8 @@ use frond_protocol::{HEADER_LEN, Hello, MAX_FRAME_LEN, ServerMessage};
 use crate::error::SdkError;
 use crate::source::ZenohAddr;
 use crate::zenoh_config::open_addr_session;
-use crate::zenoh_join::{decode_payload, query_hello, resolve};
-use crate::zenoh_keys::{keys, no_bridge};
+use crate::zenoh_join::{decode_payload, resolve};
+use crate::zenoh_keys::keys;
 use crate::zenoh_replay::{self, REPORT_EVERY, ReplayRequest, numbered};
 use crate::{Event, Stats, SubscriberOptions};
 
@@ -121,17 +120,9 @@ where
 {
     let session = open_addr_session(addr)
         .map_err(|e| SdkError::Zenoh { source_key: addr.to_string(), reason: e.to_string() })?;
-    let key = resolve(&session, addr, opts.hello_timeout)?;
-    let deadline = Instant::now() + opts.hello_timeout;
-    let hello = loop {
-        match query_hello(&session, &key, deadline)? {
-            Some((_, hello)) => break hello,
-            None if Instant::now() >= deadline => {
-                return Err(no_bridge(&session, addr.to_string(), opts.hello_timeout));
-            }
-            None => std::thread::sleep(Duration::from_millis(50)),
-        }
-    };
+    // Poses published before the subscription is declared are not seen; the first one seen
+    // starts the numbering, so they are no gap.
+    let (key, hello) = resolve(&session, addr, opts.hello_timeout)?;
     let counts = Arc::new(Counts::default());
     let follow = Mutex::new(Follow { floor: hello.next_seq, next: None, on_event });
     let zerr = |e: ::zenoh::Error| SdkError::Zenoh { source_key: key.clone(), reason: e.to_string() };

@@ -113,16 +113,16 @@ pub(crate) fn query_fields(
 }
 
 /// Finds the one source `addr` names (its key may hold wildcards), waiting up to `timeout` for
-/// a bridge to answer.
+/// a bridge to answer: its key and the hello it answered with.
 pub(crate) fn resolve(
     session: &::zenoh::Session,
     addr: &ZenohAddr,
     timeout: Duration,
-) -> Result<String, SdkError> {
+) -> Result<(String, Hello), SdkError> {
     let deadline = Instant::now() + timeout;
     loop {
-        if let Some((key, _)) = query_hello(session, &addr.key, deadline)? {
-            return Ok(key);
+        if let Some(found) = query_hello(session, &addr.key, deadline)? {
+            return Ok(found);
         }
         if Instant::now() >= deadline {
             return Err(no_bridge(session, addr.to_string(), timeout));
