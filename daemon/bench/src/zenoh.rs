@@ -393,19 +393,18 @@ impl Stage<'_> {
             Bare::ZenohLowLatency => Some(("lowlatency.json5", LOW_LATENCY_CONFIG)),
             Bare::ZenohMulticast => Some(("multicast.json5", MULTICAST_CONFIG)),
         };
-        let config = match config {
-            Some((name, text)) => {
-                let path = self.scratch.path().join(name);
-                std::fs::write(&path, text).map_err(BenchError::at(&path))?;
-                format!("config={}", path.display())
-            }
-            None => String::new(),
-        };
+        let mut query = Vec::new();
+        if let Some((name, text)) = config {
+            let path = self.scratch.path().join(name);
+            std::fs::write(&path, text).map_err(BenchError::at(&path))?;
+            query.push(format!("config={}", path.display()));
+        }
         let listen = self.performer().endpoint(BRIDGE_PORT);
-        let address = |end: &str| match kind {
-            Bare::ZenohMulticast => format!("zenoh:frond/bench/bare?{config}"),
-            Bare::ZenohLowLatency => format!("zenoh:frond/bench/bare?{end}={listen}&{config}"),
-            _ => format!("zenoh:frond/bench/bare?{end}={listen}"),
+        // Every multicast end listens on the group its configuration names: no TCP endpoint.
+        let address = |end: &str| {
+            let endpoint = (kind != Bare::ZenohMulticast).then(|| format!("{end}={listen}"));
+            let query: Vec<&str> = endpoint.iter().chain(&query).map(String::as_str).collect();
+            format!("zenoh:frond/bench/bare?{}", query.join("&"))
         };
         for i in 0..readers {
             let host = self.listener(i);
@@ -701,10 +700,9 @@ pub fn zenoh(o: &Options) -> Result<Section, BenchError> {
         }
         if n == 16 {
             // Fan-out (issue 43): the same 16 subscribers on the SDK's callback-driven
-            // subscription, without the hand-off to a reading thread in each of the 16 processes.
-            // Reported beside the pulling Subscriber's, which carry the fan-out goal (the SDK's
-            // default way to read): these show what the hand-off to a reading thread in each of
-            // 16 processes on 2 cores costs.
+            // subscription, reported beside the pulling Subscriber's (which carry the fan-out
+            // goal: the SDK's default way to read), show what the hand-off to a reading thread
+            // in each of 16 processes on 2 cores costs.
             let callback = stage.zenoh(1, n, "zenoh-sdk-callback")?;
             measurements.extend(latency_rows(
                 "zenoh_sdk_callback_latency",

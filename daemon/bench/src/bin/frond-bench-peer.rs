@@ -167,11 +167,17 @@ fn zenoh_sub(address: &str) -> Result<(), String> {
     }
 }
 
+/// A `zenoh:` address parsed.
+fn zenoh_addr(address: &str) -> Result<frond_sdk::ZenohAddr, String> {
+    match address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? {
+        Source::Zenoh(addr) => Ok(addr),
+        _ => Err(format!("{address}: not a zenoh: address")),
+    }
+}
+
 /// A `zenoh:` address parsed, and a session opened as it says (endpoints, configuration file).
 fn zenoh_session(address: &str) -> Result<(frond_sdk::ZenohAddr, frond_sdk::zenoh::Session), String> {
-    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
-        return Err(format!("{address}: not a zenoh: address"));
-    };
+    let addr = zenoh_addr(address)?;
     let session = frond_sdk::zenoh::open_addr_session(&addr).map_err(|e| e.to_string())?;
     Ok((addr, session))
 }
@@ -179,9 +185,7 @@ fn zenoh_session(address: &str) -> Result<(frond_sdk::ZenohAddr, frond_sdk::zeno
 /// The SDK's callback-driven subscription: each pose recorded in the SDK's closure, on Zenoh's
 /// receive thread, with no hand-off to a reading thread.
 fn zenoh_sdk_callback(address: &str) -> Result<(), String> {
-    let Source::Zenoh(addr) = address.parse::<Source>().map_err(|e| format!("{address}: {e}"))? else {
-        return Err(format!("{address}: not a zenoh: address"));
-    };
+    let addr = zenoh_addr(address)?;
     let recorder = Arc::new(Recorder::default());
     let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<()>(1);
     let rec = recorder.clone();
@@ -279,7 +283,7 @@ impl UdpFanout {
 
 fn udp_forward(socket_dir: &str, to: &[String]) -> Result<(), String> {
     let fanout = UdpFanout::new(to)?;
-    forward(socket_dir, |bytes| fanout.send(bytes))
+    forward(socket_dir, |bytes| fanout.send(&bytes))
 }
 
 /// The floor's forwarder: reads the daemon's pose stream as [`udp_forward`] does and puts each
@@ -292,13 +296,14 @@ fn zenoh_forward(socket_dir: &str, address: &str) -> Result<(), String> {
     let (addr, session) = zenoh_session(address)?;
     let publisher = bare_publisher(&session, &addr)?;
     forward(socket_dir, |bytes| {
-        let _ = publisher.put(bytes.to_vec()).wait();
+        let _ = publisher.put(bytes).wait();
     })
 }
 
 /// Reads the daemon's pose stream in `socket_dir` with `frond_sdk` and hands `send` each pose,
-/// re-encoded as `frond-zenoh` re-encodes it; prints `ready` after the first.
-fn forward(socket_dir: &str, mut send: impl FnMut(&[u8])) -> Result<(), String> {
+/// re-encoded as `frond-zenoh` re-encodes it into a buffer of its own; prints `ready` after the
+/// first.
+fn forward(socket_dir: &str, mut send: impl FnMut(Vec<u8>)) -> Result<(), String> {
     let mut sub = Subscriber::connect(socket_dir).map_err(|e| format!("{socket_dir}: {e}"))?;
     let mut frame = FrameBuf::default();
     let mut ready = false;
@@ -306,7 +311,7 @@ fn forward(socket_dir: &str, mut send: impl FnMut(&[u8])) -> Result<(), String> 
     loop {
         if let Event::Pose(p) = sub.next_event().map_err(|e| e.to_string())? {
             // As frond-zenoh: one owned buffer per pose, re-encoded from the decoded pose.
-            send(frame.encode(&ServerMessage::Pose(p)));
+            send(frame.encode(&ServerMessage::Pose(p)).to_vec());
             if !ready {
                 ready = true;
                 say("ready");
