@@ -353,10 +353,7 @@ pub fn build(
     );
     let stage = FieldStage::new(looped, field, ids[0], ids.len(), seed, ctx.now_ns, report.clone())
         .map_err(invalid)?;
-    let mut elements = super::live::plant_elements(ids, "plant", ctx);
-    for e in &mut elements {
-        e.rig = rig.name.clone();
-    }
+    let elements = super::live::plant_elements(ids, "plant", &rig.name, ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {

@@ -426,7 +426,7 @@ pub fn build(
     work.check(ctx.tick_rate_hz)?;
     let (stage, report) = GraphStage::new(loaded, ids, seed, fps, ctx.now_ns);
     let stage = stage.with_budget(catch_up, plan_nodes);
-    let elements = super::live::plant_elements(ids, "walker", ctx);
+    let elements = super::live::plant_elements(ids, "walker", &ctx.rig.name, ctx);
     Ok(BuiltStage {
         stage: Box::new(stage),
         info: StageInfo {

@@ -129,9 +129,9 @@ pub fn element_ids<'a>(ctx: &BuildContext<'a>, count: usize) -> Result<&'a [Elem
     })
 }
 
-/// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants (a field's,
-/// a graph walk's), one per id.
-pub fn plant_elements(ids: &[ElementId], prefix: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
+/// The announced `field-plant` elements `PREFIX0`, `PREFIX1`, ... of a group of plants of `rig`
+/// (a field's, a graph walk's), one per id.
+pub fn plant_elements(ids: &[ElementId], prefix: &str, rig: &str, ctx: &BuildContext) -> Vec<ElementInfo> {
     ids.iter()
         .enumerate()
         .map(|(i, &id)| ElementInfo {
@@ -139,7 +139,7 @@ pub fn plant_elements(ids: &[ElementId], prefix: &str, ctx: &BuildContext) -> Ve
             name: format!("{prefix}{i}"),
             kind: frond_protocol::ElementKind::FieldPlant,
             source: ctx.name.to_string(),
-            rig: ctx.rig.name.clone(),
+            rig: rig.to_string(),
         })
         .collect()
 }
