@@ -5,8 +5,11 @@
 //! within 1e-4 degrees with the same field frame evaluated here from the daemon's own socket
 //! (the frames and tables as the daemon sent them, played into a field of the SDK's); once for
 //! a subscriber that was there when the field started, once for one that joined late and got
-//! the field's table from the bridge's queryable.
+//! the field's table from the bridge's queryable. Beside them, issue 43's independent Python
+//! reader, which is not on the SDK, reads the same `poses` key while the field runs: it skips
+//! the field frames as docs/protocol.md says a reader may, and loses no number.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -124,6 +127,16 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
         "4",
     ]);
 
+    // The independent reader (no frond code) on host 1, for 6 s of the running field.
+    let python = crate::python::python_with("zenoh, msgpack").map(|py| {
+        let script =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../exporters/zenoh/tests/zenoh_reader.py");
+        let mut cmd = b.command(py);
+        cmd.arg(script).args(["--connect", &a.endpoint(PORT), "--key", &format!("frond/{stage}/glove")]);
+        cmd.args(["--seconds", "6"]);
+        collect(cmd, "zenoh_reader.py")
+    });
+
     let printed = |t: &Arc<Mutex<Tapped>>, n| {
         wait_for(Duration::from_secs(40), || {
             lines(t) >= n || t.lock().unwrap().stderr.iter().any(|l| l.contains("Error"))
@@ -133,8 +146,17 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
     // The field's table was put once, long ago: a subscriber that joins now asks for it.
     let (_late, late) = field_plants(b, &from, 1, "field_plants (late)");
     assert!(printed(&early, 2) && printed(&late, 1), "late: {:?}", late.lock().unwrap().stderr);
+    let python = python.map(|(mut reader, out)| {
+        let done = wait_for(Duration::from_secs(40), || reader.child.try_wait().ok().flatten().is_some());
+        assert!(done, "the Python reader did not finish");
+        out
+    });
     stop.store(true, Ordering::Relaxed);
     let messages = recorder.join().unwrap();
+    match python {
+        Some(out) => check_python_reader(&out.lock().unwrap(), &messages),
+        None => crate::python::skip("no eclipse-zenoh in tests/python/.venv: the Python reader's part"),
+    }
     for (who, out) in [("early", &early), ("late", &late)] {
         let out = out.lock().unwrap();
         assert!(!out.lines.is_empty(), "{who}: {:?}", out.stderr);
@@ -142,4 +164,44 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
             check_line(line, &messages, who);
         }
     }
+}
+
+/// Issue 43's independent reader beside a field: it decoded every frame (no error, no gap), the
+/// field frames it printed are the daemon's (number, announced poses, stream time, as read on
+/// the daemon's socket), and its poses and field frames' spans cover every sequence number
+/// from its first line to its last (`seq + max(poses, 1)` follows a field frame).
+fn check_python_reader(out: &Tapped, messages: &[FieldMessage]) {
+    let ok = out.stderr.iter().find(|l| l.starts_with("ok:"));
+    let ok = ok.unwrap_or_else(|| panic!("the Python reader failed: {:?}", out.stderr));
+    assert!(ok.ends_with(", 0 gaps (0 missing)"), "{ok}");
+    let frames: HashMap<u64, &frond_protocol::field::FieldFrame> = messages
+        .iter()
+        .filter_map(|m| if let FieldMessage::Frame(f) = m { Some((f.seq, f)) } else { None })
+        .collect();
+    let lines: Vec<serde_json::Value> =
+        out.lines.iter().map(|(_, l)| serde_json::from_str(l).unwrap()).collect();
+    let mut next: Option<u64> = None;
+    let mut fields = 0;
+    for v in &lines {
+        let seq = v["seq"].as_u64().unwrap_or_else(|| panic!("no seq: {v}"));
+        if let Some(n) = next {
+            assert_eq!(seq, n, "the Python reader's line after number {} is {v}", n - 1);
+        }
+        let covers = match v.get("field") {
+            None => 1,
+            Some(_) => {
+                fields += 1;
+                let daemon =
+                    frames.get(&seq).unwrap_or_else(|| panic!("{v}: not a field frame of the daemon's"));
+                assert_eq!(v["poses"].as_u64(), Some(u64::from(daemon.poses)), "{v}");
+                assert_eq!(v["tau_s"].as_f64(), Some(daemon.tau_s), "{v}");
+                assert_eq!(v["field"].as_u64(), Some(u64::from(daemon.field.get())), "{v}");
+                u64::from(daemon.poses).max(1)
+            }
+        };
+        next = Some(seq + covers);
+    }
+    // 6 s at 60 field frames a second, among 1,000 poses a second.
+    assert!(fields > 200 && lines.len() > 4000, "{fields} field frames in {} lines", lines.len());
+    assert!(ok.contains(&format!("({fields} field frames)")), "{ok}");
 }

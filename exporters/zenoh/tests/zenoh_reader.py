@@ -3,12 +3,19 @@
 own Python binding (eclipse-zenoh) and a plain MessagePack decoder, following only the documented
 wire format (README, "Socket protocol" and "Stage across machines"):
 
-  payload = u32 little-endian length N, then N bytes: protocol version byte (2), MessagePack body
+  payload = u32 little-endian length N, then N bytes: protocol version byte (3), MessagePack body
   body    = {"Pose": {"seq", "device_time_us", "host_monotonic_ns", "flags", "element",
              "joints_deg": [[p, y, r] x 4], "hand": {"t", "wrist_deg", "thumb_deg"}}}
+          | {"Field": {"Frame": {"seq", "poses", "field", "tau_s", ...}}}
+
+A field frame (docs/protocol.md: a running field's driving motion) is not evaluated here, as the
+docs allow a reader that is not on the SDK: it is numbered `seq ..= seq + poses - 1` in the pose
+sequence (its announced plants' numbers), so the next frame is `seq + max(poses, 1)`, and a gap
+is counted only past that span.
 
 Subscribes `frond/<stage>/<source>/poses` and prints one JSON line per frame on stdout:
-{"seq":..,"t":..,"joints":[[p,y,r] x4],"element":..,"flags":..}, and on stderr the hello it got
+{"seq":..,"t":..,"joints":[[p,y,r] x4],"element":..,"flags":..} for a pose and
+{"seq":..,"field":..,"poses":..,"tau_s":..} for a field frame, and on stderr the hello it got
 from the `.../hello` queryable, each gap ("gap: N frames missing before seq S") and a last line
 "ok: ..." (exit 0) or "error: ..." (exit 1) when a payload does not decode or frames go backwards.
 Once a second, and once more after it stops reading, it reports its counts to the bridge as
@@ -39,6 +46,14 @@ PROTOCOL_VERSION = 3
 
 def decode(payload: bytes, variant: str) -> dict:
     """The message body of one frame, which must be the `variant` of the message enum."""
+    name, body = decode_any(payload)
+    if name != variant:
+        raise ValueError(f"expected a {variant} message, got {str({name: body})[:80]}")
+    return body
+
+
+def decode_any(payload: bytes) -> tuple:
+    """(variant, body) of one frame of any message."""
     if len(payload) < 5:
         raise ValueError(f"{len(payload)} bytes, shorter than a frame header")
     (n,) = struct.unpack_from("<I", payload, 0)
@@ -47,9 +62,31 @@ def decode(payload: bytes, variant: str) -> dict:
     if payload[4] != PROTOCOL_VERSION:
         raise ValueError(f"protocol version {payload[4]}, expected {PROTOCOL_VERSION}")
     body = msgpack.unpackb(payload[5:], raw=False)
-    if not isinstance(body, dict) or list(body) != [variant]:
-        raise ValueError(f"expected a {variant} message, got {str(body)[:80]}")
-    return body[variant]
+    if not isinstance(body, dict) or len(body) != 1:
+        raise ValueError(f"expected one message, got {str(body)[:80]}")
+    return next(iter(body.items()))
+
+
+def frame_line(payload: bytes) -> tuple:
+    """The stdout line of a pose or field frame, and the last sequence number it covers."""
+    name, body = decode_any(payload)
+    if name == "Pose":
+        line = {
+            "seq": body["seq"],
+            "t": body["hand"]["t"],
+            "joints": body["joints_deg"],
+            "element": body["element"],
+            "flags": body["flags"],
+        }
+        return line, line["seq"]
+    if name == "Field" and isinstance(body, dict) and list(body) == ["Frame"]:
+        f = body["Frame"]
+        poses = f["poses"]
+        if not isinstance(poses, int) or not 0 <= poses <= 255:
+            raise ValueError(f"field frame {f['seq']}: poses {poses!r} is not a u8")
+        line = {"seq": f["seq"], "field": f["field"], "poses": poses, "tau_s": f["tau_s"]}
+        return line, f["seq"] + max(poses, 1) - 1
+    raise ValueError(f"expected a Pose or Field frame on poses, got {str({name: body})[:80]}")
 
 
 def open_session(connect: str) -> "zenoh.Session":
@@ -77,20 +114,13 @@ def main() -> int:
         # The session's receive task is blocked on the full channel; leave without closing it.
         os._exit(0)
 
-    state = {"last": None, "frames": 0, "gaps": 0, "missing": 0, "bad": []}
+    state = {"last": None, "frames": 0, "fields": 0, "gaps": 0, "missing": 0, "bad": []}
     lock = threading.Lock()
     out = sys.stdout
 
     def on_sample(sample: "zenoh.Sample") -> None:
         try:
-            pose = decode(sample.payload.to_bytes(), "Pose")
-            line = {
-                "seq": pose["seq"],
-                "t": pose["hand"]["t"],
-                "joints": pose["joints_deg"],
-                "element": pose["element"],
-                "flags": pose["flags"],
-            }
+            line, covers = frame_line(sample.payload.to_bytes())
         except Exception as e:  # a bad payload is the finding, not a crash of the reader
             with lock:
                 state["bad"].append(str(e))
@@ -103,8 +133,9 @@ def main() -> int:
                 state["gaps"] += 1
                 state["missing"] += line["seq"] - last - 1
                 print(f"gap: {line['seq'] - last - 1} frames missing before seq {line['seq']}", file=sys.stderr, flush=True)
-            state["last"] = line["seq"]
+            state["last"] = covers
             state["frames"] += 1
+            state["fields"] += "field" in line
             out.write(json.dumps(line, separators=(",", ":")) + "\n")
             out.flush()
 
@@ -146,7 +177,11 @@ def main() -> int:
     if s["bad"]:
         print(f"error: {len(s['bad'])} bad frames, first: {s['bad'][0]}", file=sys.stderr, flush=True)
         os._exit(1)
-    print(f"ok: {s['frames']} frames, {s['gaps']} gaps ({s['missing']} missing)", file=sys.stderr, flush=True)
+    print(
+        f"ok: {s['frames']} frames ({s['fields']} field frames), {s['gaps']} gaps ({s['missing']} missing)",
+        file=sys.stderr,
+        flush=True,
+    )
     session.close()
     return 0
 
