@@ -17,11 +17,14 @@ use std::time::Duration;
 use frond_e2e::netns::Host;
 use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 use frond_protocol::field::FieldMessage;
+use frond_sdk::Source;
 use frond_sdk::field::LiveFields;
 use frond_sdk::{Relayed, Subscriber};
+use std::process::Command;
 
-use crate::meadow::compact_field;
+use crate::meadow::{compact_field, daemon_with_sway};
 use crate::stage_net::{PORT, Tapped, collect, lan, lines};
+use crate::zenoh::free_port;
 
 /// The field's tables and frames as the daemon sent them, in order, read on its socket.
 fn record_field(daemon: &Daemon, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<Vec<FieldMessage>> {
@@ -40,27 +43,31 @@ fn record_field(daemon: &Daemon, stop: Arc<AtomicBool>) -> std::thread::JoinHand
     })
 }
 
-/// Checks one line of `field_plants`: every plant of the field at the line's frame, against
-/// `messages` played up to that frame into a field of the SDK's here.
-fn check_line(line: &str, messages: &[FieldMessage], who: &str) {
-    let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{who}: {e}"));
-    let seq = v["seq"].as_u64().expect("seq");
-    assert_eq!(v["plants"], 10_000, "{who}");
+/// `messages` (as the daemon's socket gave them) played into fields of the SDK's here, up to
+/// and with the frame numbered `seq`.
+fn played_to(messages: &[FieldMessage], seq: u64, who: &str) -> LiveFields {
     let mut fields = LiveFields::keeping(0);
-    let mut applied = false;
     for msg in messages {
         match msg {
             FieldMessage::Table(t) => assert!(fields.on_table(t.clone()).is_empty(), "{who}"),
             FieldMessage::Frame(f) => {
                 fields.on_frame(f);
                 if f.seq == seq {
-                    applied = true;
-                    break;
+                    return fields;
                 }
             }
         }
     }
-    assert!(applied, "{who}: frame {seq} never reached the daemon's socket subscriber");
+    panic!("{who}: frame {seq} never reached the daemon's socket subscriber")
+}
+
+/// Checks one line of `field_plants`: every plant of the field at the line's frame, against
+/// `messages` played up to that frame into a field of the SDK's here.
+fn check_line(line: &str, messages: &[FieldMessage], who: &str) {
+    let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{who}: {e}"));
+    let seq = v["seq"].as_u64().expect("seq");
+    assert_eq!(v["plants"], 10_000, "{who}");
+    let fields = played_to(messages, seq, who);
     let field = fields.by_source("field").expect("the field runs");
     assert!(field.history_complete(), "{who}: the socket subscriber has the whole history at {seq}");
     let tau = field.tau_s();
@@ -163,6 +170,125 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
         for (_, line) in &out.lines {
             check_line(line, &messages, who);
         }
+    }
+}
+
+/// What the stage subscriber's fields gave at one field frame: its source, number, stream time
+/// and three plants' poses.
+type Seen = (String, u64, f64, Vec<[[f32; 3]; 4]>);
+
+/// A field of each of two performers' daemons, read by one `StageSubscriber` over the stage's
+/// selector (loopback): `StageFields` keeps each source's field apart, and at every field frame
+/// it took, plants of each (the first, one inside, the last) are what that source's daemon
+/// socket gives for the same frame, played into a field here. The announced plants of each
+/// source arrive as poses too, tagged with their source.
+#[test]
+fn a_stage_subscriber_keeps_each_sources_field_as_its_daemon_sends_it() {
+    use frond_sdk::zenoh_many::{StageEvent, StageFields, StageSubscriber};
+    let (dir_a, dir_b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let daemons = [
+        daemon_with_sway(dir_a.path(), Duration::from_secs(2)),
+        daemon_with_sway(dir_b.path(), Duration::from_secs(2)),
+    ];
+    let stage = format!("fields{}", std::process::id());
+    let ports = [free_port(), free_port()];
+    let endpoint = |port: u16| format!("tcp/127.0.0.1:{port}");
+    let _bridges: Vec<Proc> = ["a", "b"]
+        .iter()
+        .zip(&daemons)
+        .zip(ports)
+        .map(|((name, d), port)| {
+            start_zenoh_bridge(
+                Command::new(bin("frond-zenoh")),
+                d,
+                &stage,
+                name,
+                &["--listen", &endpoint(port)],
+            )
+        })
+        .collect();
+    let stop = Arc::new(AtomicBool::new(false));
+    let recorders: Vec<_> = daemons.iter().map(|d| record_field(d, stop.clone())).collect();
+    // Two sizes, so that a field taken for the other source's shows.
+    let sizes = [(10, 20), (15, 15)];
+    for (d, &(rows, cols)) in daemons.iter().zip(&sizes) {
+        let field = compact_field(d, "sway", rows, cols);
+        d.frond_ok(&[
+            "field",
+            "start",
+            "--take",
+            "sway",
+            "--field",
+            field.to_str().unwrap(),
+            "--plants",
+            "2",
+        ]);
+    }
+    let from = format!("zenoh:frond/{stage}/*?connect={},{}", endpoint(ports[0]), endpoint(ports[1]));
+    let Ok(Source::Zenoh(addr)) = from.parse::<Source>() else { panic!("{from}") };
+    let sub =
+        StageSubscriber::open(&addr, Subscriber::options().hello_timeout(Duration::from_secs(10))).unwrap();
+    let mut fields = StageFields::new();
+    // (source, frame, stream time, plants 0 / 57 / last) at each frame taken with the history whole.
+    let mut seen: Vec<Seen> = Vec::new();
+    let mut plant_poses: HashMap<String, usize> = HashMap::new();
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    let enough = |seen: &[Seen], s: &str| seen.iter().filter(|x| x.0 == s).count() >= 30;
+    while !(enough(&seen, &format!("{stage}/a")) && enough(&seen, &format!("{stage}/b"))) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "30 frames of each field within 60 s: {:?}",
+            seen.iter().map(|x| &x.0).collect::<std::collections::BTreeSet<_>>()
+        );
+        let Some(item) = sub.next_event(Some(Duration::from_secs(1))).unwrap() else { continue };
+        if let StageEvent::Event { source, event: frond_sdk::Event::Pose(p) } = &item
+            && p.element.get() != 0
+        {
+            *plant_poses.entry(source.clone()).or_default() += 1;
+        }
+        let frame = match &item {
+            StageEvent::Field { message, .. } => match &**message {
+                FieldMessage::Frame(f) => Some(f.seq),
+                FieldMessage::Table(_) => None,
+            },
+            _ => None,
+        };
+        let Some((source, live)) = fields.on_event(&item) else { continue };
+        let Some(seq) = frame else { continue };
+        let live: Vec<_> = live.iter().collect();
+        assert_eq!(live.len(), 1, "{source}: one field per source");
+        let field = live[0];
+        if !field.history_complete() {
+            continue;
+        }
+        let n = field.plants();
+        let tau = field.tau_s();
+        let poses = [0, 57, n - 1].iter().map(|&i| field.plant_pose(i, tau).expect("evaluable")).collect();
+        seen.push((source.to_owned(), seq, tau, poses));
+    }
+    stop.store(true, Ordering::Relaxed);
+    let sent: Vec<Vec<FieldMessage>> = recorders.into_iter().map(|r| r.join().unwrap()).collect();
+    for (source, seq, tau, poses) in &seen {
+        let k = usize::from(source.ends_with("/b"));
+        let who = format!("{source} frame {seq}");
+        let here = played_to(&sent[k], *seq, &who);
+        let field = here.by_source("field").expect("the field runs");
+        assert_eq!(field.plants(), sizes[k].0 * sizes[k].1, "{who}");
+        assert_eq!(field.tau_s(), *tau, "{who}");
+        for (&i, got) in [0, 57, field.plants() - 1].iter().zip(poses) {
+            let want = field.plant_pose(i, *tau).unwrap();
+            let worst = want
+                .iter()
+                .flatten()
+                .zip(got.iter().flatten())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f32::max);
+            assert!(worst <= 1e-4, "{who}: plant {i} differs by {worst} degrees");
+        }
+    }
+    for s in ["a", "b"] {
+        let n = plant_poses.get(&format!("{stage}/{s}")).copied().unwrap_or(0);
+        assert!(n > 20, "{s}: {n} announced plants' poses");
     }
 }
 

@@ -69,6 +69,8 @@ pub(crate) fn run(
                 );
                 followed.remove(&source);
             }
+            // tap prints poses; a field's announced plants arrive as poses, evaluated.
+            StageEvent::Field { .. } => {}
             StageEvent::Event { source, event } => {
                 let Some(f) = followed.get_mut(&source) else { continue };
                 match event {

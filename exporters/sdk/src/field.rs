@@ -234,6 +234,34 @@ impl Subscriber {
         std::mem::take(&mut self.fields.kept_dropped)
     }
 
+    /// From now on, keeps each field message taken (a table, a frame in the sequence) for
+    /// [`Subscriber::take_passed`]: a [`crate::zenoh_many::StageSubscriber`]'s follower passes
+    /// them on with its source's events, to be kept per source by
+    /// [`crate::zenoh_many::StageFields`].
+    #[cfg_attr(not(feature = "zenoh"), allow(dead_code))]
+    pub(crate) fn pass_field_messages(&mut self) {
+        self.passed.get_or_insert_with(VecDeque::new);
+    }
+
+    /// The field messages kept since the last call, oldest first.
+    #[cfg_attr(not(feature = "zenoh"), allow(dead_code))]
+    pub(crate) fn take_passed(&mut self) -> impl Iterator<Item = FieldMessage> + '_ {
+        self.passed.iter_mut().flat_map(|q| q.drain(..))
+    }
+
+    /// Keeps a field message for whoever passes them on. The follower takes them after every
+    /// event, and an event comes within a few messages (each pose is one); should it not, the
+    /// oldest frames give way beyond [`MAX_KEPT_FIELD_FRAMES`], never a table.
+    fn pass_on(&mut self, msg: impl FnOnce() -> FieldMessage) {
+        let Some(q) = &mut self.passed else { return };
+        if q.len() >= MAX_KEPT_FIELD_FRAMES
+            && let Some(i) = q.iter().position(|m| matches!(m, FieldMessage::Frame(_)))
+        {
+            q.remove(i);
+        }
+        q.push_back(msg());
+    }
+
     /// A field message: a table is taken (no event), a frame is numbered like a pose (a gap
     /// is reported) and gives the announced plants' poses. `Ok(None)` when there is nothing to
     /// report.
@@ -244,6 +272,7 @@ impl Subscriber {
                 return Ok(None);
             }
             FieldMessage::Table(table) => {
+                self.pass_on(|| FieldMessage::Table(table.clone()));
                 for (field, error) in self.fields.on_table(table) {
                     let f = &mut self.fields;
                     f.refused += 1;
@@ -273,6 +302,7 @@ impl Subscriber {
             self.relayed = Some(FieldMessage::Frame(frame));
             return Ok(gap.then_some(Event::Gap { expected, got: frame.seq }));
         }
+        self.pass_on(|| FieldMessage::Frame(frame));
         if let Some(field) = self.fields.on_frame(&frame) {
             let tau = field.tau_s();
             let announced = field.definition.plant_elements.iter().take(usize::from(frame.poses));

@@ -324,6 +324,9 @@ pub struct Subscriber {
     relay: bool,
     /// The field message [`Subscriber::next_relayed`] returns next.
     relayed: Option<frond_protocol::field::FieldMessage>,
+    /// The field messages taken since a [`zenoh_many::StageSubscriber`]'s follower last passed
+    /// them on (`None`: nobody passes them on).
+    passed: Option<VecDeque<frond_protocol::field::FieldMessage>>,
 }
 
 impl std::fmt::Debug for Subscriber {
@@ -404,6 +407,7 @@ impl Subscriber {
             fields,
             relay: false,
             relayed: None,
+            passed: None,
         }
     }
 

@@ -8,8 +8,31 @@
 //! its own that hands its events to the one stream. Sources are found by their bridges' liveliness
 //! tokens (`<selector>/alive`). A source whose subscription ends with an error is reported
 //! ([`StageEvent::Lost`]) and followed again when its bridge's token comes back.
+//!
+//! Fields (issue 48) cross per source as for one [`Subscriber`]: each follower evaluates its
+//! source's announced plants into [`Event::Pose`]s, and passes the field messages it took on
+//! ([`StageEvent::Field`]), in its source's order, just before the events they give. A program
+//! that draws every source's fields keeps a [`StageFields`] and gives it each item:
+//!
+//! ```no_run
+//! use frond_sdk::zenoh_many::{StageFields, StageSubscriber};
+//! use frond_sdk::{Source, Subscriber};
+//!
+//! let Source::Zenoh(addr) = "zenoh:frond/stage1/*".parse::<Source>()? else { unreachable!() };
+//! let stage = StageSubscriber::open(&addr, Subscriber::options())?;
+//! let mut fields = StageFields::new();
+//! while let Some(item) = stage.next_event(None)? {
+//!     if let Some((source, live)) = fields.on_event(&item) {
+//!         for field in live.iter() {
+//!             // Plant 1234 of this source's field, as its daemon evaluates it.
+//!             println!("{source}: {:?}", field.plant_pose(1234, field.tau_s()));
+//!         }
+//!     }
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
-use std::collections::HashSet;
+use std::collections::{BTreeMap, HashSet};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
@@ -19,8 +42,10 @@ use ::zenoh::Wait;
 use ::zenoh::sample::SampleKind;
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, bounded};
 use frond_protocol::Hello;
+use frond_protocol::field::FieldMessage;
 
 use crate::error::SdkError;
+use crate::field::LiveFields;
 use crate::source::ZenohAddr;
 pub use crate::zenoh::short;
 use crate::zenoh::{FRAME_QUEUE, keys, open_addr_session, source_key_of};
@@ -52,6 +77,15 @@ pub enum StageEvent {
         source: String,
         /// The event, as [`Subscriber::next_event`] reports it.
         event: Event,
+    },
+    /// A field message of a followed source, as its subscription took it: a table (the
+    /// source's running fields) or a frame, in that source's order before the events it gives
+    /// (its announced plants' poses). Keep them per source with [`StageFields`].
+    Field {
+        /// `<stage>/<source>`.
+        source: String,
+        /// The table or frame (boxed: a frame is large beside an event).
+        message: Box<FieldMessage>,
     },
     /// A source's subscription could not be opened or ended with an error. It is followed
     /// again when its bridge's liveliness token comes back.
@@ -252,11 +286,20 @@ fn run_follower(
     let lost = |error| StageEvent::Lost { source: source.clone(), error };
     match Subscriber::open_in_session(session, &addr, opts) {
         Ok(mut sub) => {
+            sub.pass_field_messages();
             let joined = StageEvent::Joined { source: source.clone(), hello: Box::new(sub.hello().clone()) };
             if deliver(shared, tx, joined) {
-                loop {
+                'events: loop {
                     match sub.next_event() {
                         Ok(event) => {
+                            let passed: Vec<FieldMessage> = sub.take_passed().collect();
+                            for message in passed {
+                                let field =
+                                    StageEvent::Field { source: source.clone(), message: Box::new(message) };
+                                if !deliver(shared, tx, field) {
+                                    break 'events;
+                                }
+                            }
                             if !deliver(shared, tx, StageEvent::Event { source: source.clone(), event }) {
                                 break;
                             }
@@ -278,9 +321,100 @@ fn run_follower(
     shared.followed().remove(key);
 }
 
+/// Every followed source's running fields, kept from a [`StageSubscriber`]'s stream: what
+/// [`Subscriber::fields`] is for one source (see the [module docs](self)). A source starts
+/// afresh when it joins (again); its fields are forgotten when it disconnects, as its own
+/// subscription forgets them, and the source with them when it is lost.
+#[derive(Debug, Clone, Default)]
+pub struct StageFields {
+    sources: BTreeMap<String, LiveFields>,
+}
+
+impl StageFields {
+    /// No source yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes one item of the stream. When it changed a source's fields (a table or a frame
+    /// taken), returns that source (`<stage>/<source>`) and its fields now.
+    pub fn on_event<'a>(&'a mut self, item: &'a StageEvent) -> Option<(&'a str, &'a LiveFields)> {
+        match item {
+            StageEvent::Joined { source, .. } => {
+                self.sources.insert(source.clone(), LiveFields::keeping(0));
+                None
+            }
+            // A lost source's follower has ended: drop its entry, so sources that come and go
+            // under ever new names do not pile up.
+            StageEvent::Lost { source, .. } => {
+                self.sources.remove(source);
+                None
+            }
+            StageEvent::Event { source, event: Event::Disconnected | Event::Reconnected(_) } => {
+                if let Some(fields) = self.sources.get_mut(source) {
+                    fields.clear();
+                }
+                None
+            }
+            StageEvent::Event { .. } => None,
+            StageEvent::Field { source, message } => {
+                // Only followed sources have an entry: at most MAX_FOLLOWED_SOURCES.
+                let fields = self.sources.get_mut(source)?;
+                let changed = match &**message {
+                    // The follower's subscription already logged any definition it left out.
+                    FieldMessage::Table(table) => {
+                        fields.on_table(table.clone());
+                        true
+                    }
+                    FieldMessage::Frame(frame) => fields.on_frame(frame).is_some(),
+                };
+                changed.then_some((source.as_str(), &*fields))
+            }
+        }
+    }
+
+    /// One source's fields (`<stage>/<source>`), while it is followed.
+    pub fn source(&self, source: &str) -> Option<&LiveFields> {
+        self.sources.get(source)
+    }
+
+    /// Every followed source and its fields, by source name.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &LiveFields)> + '_ {
+        self.sources.iter().map(|(s, f)| (s.as_str(), f))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stage_fields_keep_followed_sources_only_and_forget_lost_ones() {
+        use frond_protocol::field::FieldTable;
+        let hello = Hello {
+            protocol_version: frond_protocol::PROTOCOL_VERSION,
+            daemon_version: "test".into(),
+            rig_name: "grass".into(),
+            joint_names: ["a", "b", "c", "d"].map(String::from).to_vec(),
+            tick_rate_hz: 1000,
+            elements: Default::default(),
+            next_seq: 0,
+        };
+        let table = |source: &str| StageEvent::Field {
+            source: source.into(),
+            message: Box::new(FieldMessage::Table(FieldTable { elements_version: 1, fields: Vec::new() })),
+        };
+        let mut fields = StageFields::new();
+        // A source never joined (a follower's item after its loss) makes no entry.
+        assert!(fields.on_event(&table("s/x")).is_none());
+        assert!(fields.source("s/x").is_none());
+        fields.on_event(&StageEvent::Joined { source: "s/a".into(), hello: Box::new(hello) });
+        assert_eq!(fields.on_event(&table("s/a")).map(|(s, f)| (s, f.is_empty())), Some(("s/a", true)));
+        assert_eq!(fields.iter().map(|(s, _)| s).collect::<Vec<_>>(), ["s/a"]);
+        let lost = StageEvent::Lost { source: "s/a".into(), error: SdkError::Closed };
+        assert!(fields.on_event(&lost).is_none());
+        assert!(fields.source("s/a").is_none() && fields.iter().next().is_none());
+    }
 
     #[test]
     fn token_keys_name_plain_sources_only() {
