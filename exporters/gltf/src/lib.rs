@@ -25,6 +25,7 @@
 
 pub mod anim;
 pub mod bake;
+pub mod bake_live;
 pub mod bench;
 pub mod bind;
 pub mod doc;
@@ -33,6 +34,7 @@ pub mod field;
 pub mod grove;
 pub mod input;
 pub mod live;
+pub mod live_field;
 pub mod output;
 
 pub use bake::{BakeOptions, BakeStats, Baked, Baker};

@@ -35,6 +35,25 @@ pub enum LiveError {
     /// Stopped (Ctrl-C, or the daemon went away) before any pose was captured.
     #[error("nothing was captured: {0}")]
     Nothing(String),
+    /// `--field NAME` names none of the running fields.
+    #[error("no running field is named `{name}`; running: {running} (pick one with --field NAME)")]
+    NoSuchField {
+        /// The name asked for.
+        name: String,
+        /// The running fields' names, comma-separated.
+        running: String,
+    },
+    /// Several fields run and `--field` named none.
+    #[error("{count} fields are running ({running}): pick one with --field NAME")]
+    WhichField {
+        /// How many.
+        count: usize,
+        /// Their names, comma-separated.
+        running: String,
+    },
+    /// The field cannot be baked as asked (its rig).
+    #[error("{0}")]
+    Refused(String),
 }
 
 /// The poses of one live capture.

@@ -43,9 +43,6 @@ enum Command {
 
 #[derive(Args)]
 struct Common {
-    /// Rig: an embedded rig name (grass, flower, shrub) or a rig file.
-    #[arg(long, value_name = "RIG")]
-    rig: String,
     /// Output file (.glb; with --gltf a .gltf and a .bin beside it).
     #[arg(short = 'o', long = "output", value_name = "FILE")]
     output: PathBuf,
@@ -85,6 +82,9 @@ struct BakeArgs {
     /// Takes directory for take names [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
     #[arg(long, value_name = "DIR")]
     takes_dir: Option<PathBuf>,
+    /// Rig: an embedded rig name (grass, flower, shrub) or a rig file.
+    #[arg(long, value_name = "RIG")]
+    rig: String,
     #[command(flatten)]
     common: Common,
 }
@@ -104,6 +104,16 @@ struct LiveArgs {
     /// Capture every pose from now until Ctrl-C, not only a recording.
     #[arg(long)]
     all: bool,
+    /// Bake every plant of the running field (`frond field start`), not the poses: each plant
+    /// evaluated from the field's frames as the daemon's own field code does. With several
+    /// fields running, NAME (the field's stage name, `frond field start --name`) picks one.
+    #[arg(long, value_name = "NAME", num_args = 0..=1, default_missing_value = "")]
+    field: Option<String>,
+    /// Rig: an embedded rig name (grass, flower, shrub) or a rig file. With --field: the field's
+    /// rig by default (an embedded rig of the name the field gives); a rig given must have that
+    /// name (a field of a rig file needs the file here).
+    #[arg(long, value_name = "RIG", required_unless_present = "field")]
+    rig: Option<String>,
     #[command(flatten)]
     common: Common,
 }
@@ -151,7 +161,7 @@ fn progress_bar(quiet: bool) -> ProgressBar {
 
 fn bake(a: BakeArgs) -> anyhow::Result<()> {
     let (opts, format) = options(&a.common)?;
-    let rig = LoadedRig::resolve(&a.common.rig)?;
+    let rig = LoadedRig::resolve(&a.rig)?;
     let takes_dir = frond_protocol::paths::takes_dir(a.takes_dir.clone());
     if a.field.is_some() && a.take.len() > 1 {
         return Err(frond_binmain::usage(format!(
@@ -220,10 +230,10 @@ fn finish(mut baked: Baked, path: &Path, format: Format, quiet: bool) -> anyhow:
     Ok(())
 }
 
-fn live(a: LiveArgs) -> anyhow::Result<()> {
+/// What `live` and `live --field` share: the options, the destination checked, Ctrl-C and
+/// SIGTERM turned into a stop flag, the source.
+fn live_setup(a: &LiveArgs) -> anyhow::Result<(BakeOptions, Format, Arc<AtomicBool>, frond_sdk::Source)> {
     let (opts, format) = options(&a.common)?;
-    let rig = LoadedRig::resolve(&a.common.rig)?;
-    let model = rig.model()?;
     // Refuse an unwritable destination before the performance, not after it.
     if let Err(e) = frond_formats::rig_files::output_destination(&a.common.output) {
         bail!("cannot write {}: {e}", a.common.output.display());
@@ -236,6 +246,16 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
         Some(source) => source.clone(),
         None => frond_sdk::Source::Socket(frond_protocol::paths::socket_dir(a.socket_dir.clone())),
     };
+    Ok((opts, format, stop, source))
+}
+
+fn live(a: LiveArgs) -> anyhow::Result<()> {
+    if a.field.is_some() {
+        return live_field(a);
+    }
+    let rig = LoadedRig::resolve(a.rig.as_deref().unwrap_or_default())?;
+    let model = rig.model()?;
+    let (opts, format, stop, source) = live_setup(&a)?;
     let quiet = a.common.quiet;
     let mut status = |line: &str| {
         if !quiet {
@@ -256,5 +276,64 @@ fn live(a: LiveArgs) -> anyhow::Result<()> {
     });
     let take = cap.into_take(&name, &hello);
     let baked = Baker::new().bake_take(&rig, &model, &take, &opts, &mut |_, _| {})?;
+    finish(baked, &a.common.output, format, quiet)
+}
+
+/// `live --field`: the running field's frames captured, then every plant baked.
+fn live_field(a: LiveArgs) -> anyhow::Result<()> {
+    let given = a.rig.as_deref().map(LoadedRig::resolve).transpose()?;
+    let (opts, format, stop, source) = live_setup(&a)?;
+    let quiet = a.common.quiet;
+    let mut status = |line: &str| {
+        if !quiet {
+            frond_binmain::errln!("frond-gltf: {line}");
+        }
+    };
+    let name = a.field.as_deref().filter(|n| !n.is_empty());
+    let mode = if a.all { LiveMode::All } else { LiveMode::Recording };
+    // The field's rig, settled as soon as the field is picked (before the performance): the
+    // rig given, which must be the one the field names, or the embedded rig of that name.
+    let mut rig: Option<LoadedRig> = None;
+    let mut accept = |d: &frond_protocol::field::FieldDefinition| -> Result<(), String> {
+        let field = frond_protocol::printable(&d.source);
+        let chosen = match &given {
+            Some(r) if r.rig.name == d.rig => r.clone(),
+            Some(r) => {
+                return Err(format!(
+                    "field `{field}`'s plants are rig `{}`, --rig {} is rig `{}`: give its rig (or leave --rig out for an embedded one)",
+                    frond_protocol::printable(&d.rig),
+                    r.origin,
+                    frond_protocol::printable(&r.rig.name)
+                ));
+            }
+            None => LoadedRig::recorded(&d.rig).map_err(|e| {
+                format!(
+                    "field `{field}`'s rig: {e} (give the rig file the field was started with: --rig FILE)"
+                )
+            })?,
+        };
+        rig = Some(chosen);
+        Ok(())
+    };
+    let cap =
+        frond_gltf::live_field::capture_field(&source, mode, name, &stop, &opts, &mut accept, &mut status)
+            .with_context(|| format!("live capture from {source}"))?;
+    let rig = rig.context("the field's rig was not settled")?;
+    let model = rig.model()?;
+    let anim_name = a.name.clone().unwrap_or_else(|| {
+        a.common.output.file_stem().and_then(|s| s.to_str()).unwrap_or("live").to_string()
+    });
+    let bar = progress_bar(quiet);
+    bar.set_message(format!(
+        "baking {} plants of field `{}`",
+        cap.definition().plants,
+        frond_protocol::printable(&cap.definition().source)
+    ));
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let baked = Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &opts, &mut progress)?;
+    bar.finish_and_clear();
     finish(baked, &a.common.output, format, quiet)
 }
