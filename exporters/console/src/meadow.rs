@@ -17,7 +17,7 @@ use std::sync::Arc;
 use frond_protocol::ElementId;
 use frond_protocol::field::{FieldDefinition, FieldFrame};
 use frond_sdk::Subscriber;
-use frond_sdk::field::LiveFields;
+pub use frond_sdk::field::{LAYOUT_BYTES_PER_PLANT, layout_bytes};
 use frond_web::http::Response;
 use serde_json::{Value, json};
 
@@ -29,9 +29,6 @@ pub const FIELD_FRAMES_ON_CONNECT: u64 = 64;
 /// Field frames in one message to a page at most (a page that was busy gets all it missed in
 /// one, about 200 KB at most).
 pub const FIELD_FRAMES_PER_MESSAGE: usize = 128;
-
-/// Bytes per plant of a layout: `[x, z]` f32, row u32, start frame u32, scale f32.
-pub const LAYOUT_BYTES_PER_PLANT: usize = 20;
 
 /// One running field as the page gets it.
 #[derive(Debug, Clone)]
@@ -111,29 +108,6 @@ impl FieldRelay {
         self.frames.push_back((self.next, frame));
         self.next += 1;
     }
-}
-
-/// A field's plants as bytes, little-endian, in plant order: every plant's `[x, z]` (f32,
-/// metres), then every row (u32), every start frame (u32), every scale (f32);
-/// [`LAYOUT_BYTES_PER_PLANT`] bytes a plant in all.
-pub fn layout_bytes(fields: &LiveFields, id: ElementId) -> Vec<u8> {
-    let Some(f) = fields.get(id) else { return Vec::new() };
-    let plants = &f.layout().plants;
-    let mut out = Vec::with_capacity(plants.len() * LAYOUT_BYTES_PER_PLANT);
-    for p in plants {
-        out.extend(p.position_m.iter().flat_map(|v| v.to_le_bytes()));
-    }
-    // Rows and start frames are below the plant count (at most a million): u32 holds them.
-    for p in plants {
-        out.extend((p.row as u32).to_le_bytes());
-    }
-    for p in plants {
-        out.extend((p.start_frame as u32).to_le_bytes());
-    }
-    for p in plants {
-        out.extend(p.scale.to_le_bytes());
-    }
-    out
 }
 
 const MEADOW_JS: &str = include_str!("../page/meadow.js");

@@ -122,6 +122,35 @@ impl LiveField {
     }
 }
 
+/// Bytes per plant of [`layout_bytes`]: `[x, z]` f32, row u32, start frame u32, scale f32.
+pub const LAYOUT_BYTES_PER_PLANT: usize = 20;
+
+/// Field `id`'s plants as bytes, little-endian, in plant order: every plant's `[x, z]` (f32,
+/// metres), then every row (u32), every start frame (u32), every scale (f32);
+/// [`LAYOUT_BYTES_PER_PLANT`] bytes a plant in all (empty when no such field runs). What a
+/// subscriber that evaluates the plants itself, not on this SDK (the console's page, the
+/// Blender add-on through frond-osc), needs besides the definition: the layout it was made from
+/// says the same, but only `frond_motion::field::make_field` turns it into plants.
+pub fn layout_bytes(fields: &LiveFields, id: ElementId) -> Vec<u8> {
+    let Some(f) = fields.get(id) else { return Vec::new() };
+    let plants = &f.layout().plants;
+    let mut out = Vec::with_capacity(plants.len() * LAYOUT_BYTES_PER_PLANT);
+    for p in plants {
+        out.extend(p.position_m.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    // Rows and start frames are below the plant count (at most a million): u32 holds them.
+    for p in plants {
+        out.extend((p.row as u32).to_le_bytes());
+    }
+    for p in plants {
+        out.extend((p.start_frame as u32).to_le_bytes());
+    }
+    for p in plants {
+        out.extend(p.scale.to_le_bytes());
+    }
+    out
+}
+
 /// Most field frames a subscriber keeps for [`Subscriber::take_field_frames`] (4 s at 60 Hz).
 pub const MAX_KEPT_FIELD_FRAMES: usize = 256;
 
