@@ -14,14 +14,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use frond_formats::field_json::FieldJson;
-use frond_formats::rig_toml::RigText;
 use frond_motion::controls::{ControlKey, FieldControls, SwipeDetector, SwipeParams};
 use frond_motion::field::Field;
 use frond_motion::field_eval::FieldState;
 use frond_motion::field_player::FieldPlayer;
 use frond_motion::field_wire::{FrameFiller, field_is_generated, layout_of};
 use frond_motion::{HandSample, JOINTS, PoseFrame, Rig};
-use frond_protocol::MAX_STAGE_RIG_BYTES;
 use frond_protocol::control::StageKind;
 use frond_protocol::field::{FieldDefinition, FieldFrame, MAX_ANNOUNCED_PLANTS};
 use frond_protocol::{ElementId, StageInput, StageKey};
@@ -262,13 +260,7 @@ fn takes_keys(input: &StageInput) -> bool {
 /// plainly, and, when it has the active rig's name, the active rig itself (the element table
 /// and every subscriber know rigs by name).
 pub fn field_rig(text: &str, ctx: &BuildContext) -> Result<Rig, BuildError> {
-    if text.len() > MAX_STAGE_RIG_BYTES {
-        return Err(BuildError::invalid(format!(
-            "the field's rig is {} bytes of text; a rig file is at most {MAX_STAGE_RIG_BYTES}",
-            text.len()
-        )));
-    }
-    let rig = Rig::from_toml_str(text).map_err(|e| BuildError::invalid(format!("the field's {e}")))?;
+    let rig = super::live::rig_from_request(text, "the field's")?;
     if !super::registry::is_plain_name(&rig.name) {
         return Err(BuildError::invalid(format!(
             "the field's rig is named {:?}: a field's rig needs a name of 1 to 32 letters, digits, '-' or '_' \
@@ -377,11 +369,13 @@ pub fn build(
 
 #[cfg(test)]
 mod tests {
+    use frond_formats::rig_toml::RigText;
     use frond_motion::clip::{Clip, Joints};
     use frond_motion::field::{FieldParams, make_field};
     use frond_motion::field_eval::FieldState;
     use frond_motion::field_wire::apply_frame;
     use frond_motion::looping::{LoopParams, find_transitions};
+    use frond_protocol::MAX_STAGE_RIG_BYTES;
 
     use super::*;
 

@@ -8,6 +8,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+use frond_formats::rig_toml::RigText;
 use frond_motion::clip::Joints;
 use frond_motion::{HandSample, PoseFrame, Rig};
 use frond_protocol::control::StageKind;
@@ -115,6 +116,21 @@ impl StageInfo {
     pub fn element_ids(&self) -> impl Iterator<Item = ElementId> + '_ {
         self.elements.iter().chain(&self.hand_element).map(|e| e.id)
     }
+}
+
+/// A rig a stage request carries as a rig file's text (`whose` names it in errors: "the
+/// field's"): at most [`frond_protocol::MAX_STAGE_RIG_BYTES`], measured before it is parsed,
+/// and a valid rig.
+pub fn rig_from_request(text: &str, whose: &str) -> Result<Rig, BuildError> {
+    let max = frond_protocol::MAX_STAGE_RIG_BYTES;
+    if text.len() > max {
+        return Err(BuildError::invalid(format!(
+            "{whose} rig is {} bytes of text; a rig file is at most {max}",
+            text.len()
+        )));
+    }
+    // The rig's errors start with "rig: ".
+    Rig::from_toml_str(text).map_err(|e| BuildError::invalid(format!("{whose} {e}")))
 }
 
 /// A rig as the element table describes it.

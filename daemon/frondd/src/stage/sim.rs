@@ -8,9 +8,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
-use frond_formats::rig_toml::RigText;
 use frond_motion::sim::{PlantSim, WindSpec};
-use frond_motion::{HandSample, PoseFrame, Rig};
+use frond_motion::{HandSample, PoseFrame};
 use frond_protocol::control::StageKind;
 use frond_protocol::{ElementId, ElementInfo, ElementKind};
 
@@ -181,7 +180,7 @@ impl LiveStage for SimStage {
 pub fn build(rig_toml: Option<&str>, wind: &str, ctx: &BuildContext) -> Result<BuiltStage, BuildError> {
     let wind: WindSpec = wind.parse().map_err(|e| BuildError::invalid(format!("wind {wind:?}: {e}")))?;
     let rig = match rig_toml {
-        Some(text) => Rig::from_toml_str(text).map_err(|e| BuildError::invalid(format!("rig: {e}")))?,
+        Some(text) => super::live::rig_from_request(text, "the simulated plant's")?,
         None => ctx.rig.clone(),
     };
     let plant = PlantSim::from_rig(&rig, wind)
@@ -233,6 +232,9 @@ pub fn step_work(timestep_s: f64, tick_rate_hz: u32) -> TickWork {
 
 #[cfg(test)]
 mod tests {
+    use frond_formats::rig_toml::RigText;
+    use frond_motion::Rig;
+
     use super::*;
 
     #[test]
@@ -264,6 +266,22 @@ mod tests {
             wind: "speed=1,dir=0,gust=0,seed=1".into(),
         };
         super::super::build(&spec, &ctx)
+    }
+
+    #[test]
+    fn a_rig_text_past_the_limit_or_not_a_rig_is_refused_before_a_plant_is_made() {
+        let huge = format!("{GRASS}\n# {}\n", "x".repeat(frond_protocol::MAX_STAGE_RIG_BYTES));
+        let e = build_with(&huge, 1000).err().expect("a rig text past 64 KiB is refused");
+        assert_eq!(e.kind, frond_protocol::ControlErrorKind::Invalid);
+        let want =
+            format!("the simulated plant's rig is {} bytes of text; a rig file is at most 65536", huge.len());
+        assert_eq!(e.message, want);
+        let e = build_with("name = [", 1000).err().expect("not a rig");
+        assert!(e.message.starts_with("the simulated plant's rig: TOML parse error"), "{}", e.message);
+        // The limit itself is a rig file's size: GRASS padded to it plays.
+        let fits = format!("{GRASS}\n#{}", " ".repeat(frond_protocol::MAX_STAGE_RIG_BYTES - GRASS.len() - 2));
+        assert_eq!(fits.len(), frond_protocol::MAX_STAGE_RIG_BYTES);
+        assert!(build_with(&fits, 1000).is_ok());
     }
 
     #[test]
