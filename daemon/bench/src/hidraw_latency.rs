@@ -11,7 +11,9 @@
 //! queue; `frondd` and the relay take turns (one stopped before the other starts), so neither
 //! runs while the other is measured.
 
+use std::io::BufReader;
 use std::path::Path;
+use std::process::ChildStdout;
 use std::thread;
 use std::time::Duration;
 
@@ -22,7 +24,7 @@ use serde_json::json;
 use crate::Options;
 use crate::error::BenchError;
 use crate::latency::Subscribers;
-use crate::procs::{Daemon, start_vhid};
+use crate::procs::{Daemon, Proc, start_vhid};
 use crate::relay::{Relay, against_relay};
 use crate::report::{Section, Status};
 
@@ -36,29 +38,57 @@ pub fn hidraw_stamp(report: &[u8]) -> Option<u64> {
     Some(u64::from(now_us.wrapping_sub(t)) * 1000)
 }
 
+/// Why the glove cannot be served as a hidraw node here, if it cannot.
+pub(crate) fn fuse_unavailable() -> Option<&'static str> {
+    (!Path::new("/dev/fuse").exists())
+        .then_some("/dev/fuse is absent, so the glove cannot be served as a hidraw node")
+}
+
+/// The virtual glove on its FUSE hidraw node in a private directory (`frond-vhid --clock
+/// monotonic --backend fuse`): each report carries the host's `CLOCK_MONOTONIC` microseconds at
+/// its write, which is when the node wakes its reader ([`report_written_ns`]). Stopped when
+/// dropped.
+pub(crate) struct FuseGlove {
+    /// The node's path, for `frondd --device` and `frond-relay hidraw:`.
+    pub(crate) node: String,
+    _vhid: Proc,
+    _out: BufReader<ChildStdout>,
+    _dir: tempfile::TempDir,
+}
+
+impl FuseGlove {
+    /// `frond-vhid` playing `source` (`--sway --rate HZ`, `--play FILE --loop`).
+    pub(crate) fn start(o: &Options, source: &[&str]) -> Result<Self, BenchError> {
+        let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir()?;
+        let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
+        let node_arg = node.to_string_lossy().into_owned();
+        let mut args = source.to_vec();
+        args.extend(["--clock", "monotonic", "--backend", "fuse", "--node", &node_arg]);
+        let (vhid, node, out) = start_vhid(o, &args)?;
+        Ok(FuseGlove { node: node.to_string_lossy().into_owned(), _vhid: vhid, _out: out, _dir: dir })
+    }
+}
+
+/// The host `CLOCK_MONOTONIC` nanoseconds at which a report stamped `stamp_us` (the glove's
+/// wrapping `u32` microseconds, the low 32 bits of a pose's `device_time_us`) was written,
+/// given a time `now_ns` less than 71 minutes after the write.
+pub fn report_written_ns(stamp_us: u32, now_ns: u64) -> u64 {
+    let now_us = (now_ns / 1000) as u32;
+    now_ns.saturating_sub(u64::from(now_us.wrapping_sub(stamp_us)) * 1000)
+}
+
 /// Section 8.
 pub fn hidraw_latency(o: &Options) -> Result<Section, BenchError> {
-    if !Path::new("/dev/fuse").exists() {
-        return Ok(Section::unavailable(
-            "hidraw_latency",
-            TITLE,
-            Status::NotAvailable,
-            "/dev/fuse is absent, so the glove cannot be served as a hidraw node",
-        ));
+    if let Some(why) = fuse_unavailable() {
+        return Ok(Section::unavailable("hidraw_latency", TITLE, Status::NotAvailable, why));
     }
     let (warm, dur) = if o.quick {
         (Duration::from_millis(200), Duration::from_millis(800))
     } else {
         (Duration::from_secs(1), Duration::from_secs(5))
     };
-    let dir = tempfile::Builder::new().prefix("frond-bench-hidraw-").tempdir()?;
-    let node = dir.path().join("glove").join(frond_vhid::NODE_NAME);
-    let node_arg = node.to_string_lossy().into_owned();
-    let (_vhid, node, _out) = start_vhid(
-        o,
-        &["--sway", "--rate", "1000", "--clock", "monotonic", "--backend", "fuse", "--node", &node_arg],
-    )?;
-    let node = node.to_string_lossy().into_owned();
+    let glove = FuseGlove::start(o, &["--sway", "--rate", "1000"])?;
+    let node = glove.node.clone();
     let mut measurements = Vec::new();
     let mut details = serde_json::Map::new();
     for n in [1usize, 8, 32] {
@@ -115,5 +145,15 @@ mod tests {
         let ns = hidraw_stamp(&bytes).unwrap();
         assert!((1_500_000..1_500_000 + 1_000_000_000).contains(&ns), "{ns} ns");
         assert_eq!(hidraw_stamp(&bytes[..TIME_OFFSET + 3]), None, "a report too short to carry a time");
+    }
+
+    #[test]
+    fn a_reports_write_time_from_its_wrapping_stamp() {
+        // Now 5,000,000,123,456 ns = 5,000,000,123 us, whose low 32 bits are 5,000,000,123 -
+        // 4,294,967,296 = 705,032,827; written 1,500 us before, within and across the wrap.
+        let now_ns = 5_000_000_123_456;
+        assert_eq!(report_written_ns(705_031_327, now_ns), 5_000_000_123_456 - 1_500_000);
+        // Now 4,294,967,296,500 ns: the counter has just wrapped to 0; written at u32::MAX us.
+        assert_eq!(report_written_ns(u32::MAX, 4_294_967_296_500), 4_294_967_295_500);
     }
 }
