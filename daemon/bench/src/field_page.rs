@@ -29,9 +29,9 @@ use crate::report::{Bound, Measurement, Section, Status};
 pub const TITLE: &str =
     "the console page drawing a live field at 1280x720 (software WebGL): animating vs standing still";
 /// The plant counts and their grids; quick mode leaves out the last.
-const SIZES: [(usize, usize); 3] = [(25, 40), (100, 100), (250, 400)];
+pub(crate) const SIZES: [(usize, usize); 3] = [(25, 40), (100, 100), (250, 400)];
 /// The take the fields play, recorded from the glove first.
-const TAKE: &str = "sway";
+pub(crate) const TAKE: &str = "sway";
 
 /// The part (see the module docs); `sdk_plant_ns` is the SDK's evaluation per plant measured
 /// in this section, the page's baseline.
@@ -47,13 +47,13 @@ pub fn field_page(o: &Options, sdk_plant_ns: Option<f64>) -> Section {
 }
 
 /// Why the part has no figures.
-enum PartError {
+pub(crate) enum PartError {
     /// Chromium or chromedriver is not installed.
     Missing(String),
     /// The measurement failed.
     Failed(BenchError),
 }
-use PartError::{Failed, Missing};
+pub(crate) use PartError::{Failed, Missing};
 
 impl From<BenchError> for PartError {
     fn from(e: BenchError) -> Self {
@@ -61,7 +61,8 @@ impl From<BenchError> for PartError {
     }
 }
 
-fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError> {
+/// Chromium and chromedriver, or why the part cannot run.
+pub(crate) fn browser() -> Result<(PathBuf, PathBuf), PartError> {
     let chromium = frond_webdriver::find(&["chromium", "chromium-browser", "/usr/bin/chromium"]);
     let driver = frond_webdriver::find(&["chromedriver", "/usr/bin/chromedriver"]);
     let (Some(chromium), Some(driver)) = (chromium, driver) else {
@@ -69,17 +70,31 @@ fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError>
             "chromium and chromedriver are not installed (exporters/warp/tests/install-browser.sh)".into(),
         ));
     };
+    Ok((chromium, driver))
+}
+
+/// Headless Chromium at 1280x720 showing `url`, its profile under `scratch`.
+pub(crate) fn open_page(
+    browser: &(PathBuf, PathBuf),
+    scratch: &Path,
+    url: &str,
+) -> Result<Driver, PartError> {
+    let profile = scratch.join("profile");
+    std::panic::catch_unwind(|| {
+        frond_webdriver::start_session(&browser.0, &browser.1, &profile, "1280,720", url)
+    })
+    .map_err(|_| Failed(BenchError::NoData("headless Chromium did not start".into())))
+}
+
+fn measure(o: &Options, sdk_plant_ns: Option<f64>) -> Result<Section, PartError> {
+    let browser = browser()?;
     let daemon = Daemon::start(o, &["--source", "in-process", "--rig", "grass"])?;
     expect_ok(&daemon, &ControlRequest::RecordStart { name: TAKE.into() })?;
     std::thread::sleep(Duration::from_millis(1200));
     expect_ok(&daemon, &ControlRequest::RecordStop)?;
     let scratch = tempfile::Builder::new().prefix("frond-bench-page-").tempdir().map_err(BenchError::from)?;
     let (_console, url) = start_console(o, &daemon.socket_dir, scratch.path())?;
-    let profile = scratch.path().join("profile");
-    let d = std::panic::catch_unwind(|| {
-        frond_webdriver::start_session(&chromium, &driver, &profile, "1280,720", &url)
-    })
-    .map_err(|_| Failed(BenchError::NoData("headless Chromium did not start".into())))?;
+    let d = open_page(&browser, scratch.path(), &url)?;
     let frames = if o.quick { 3 } else { 8 };
     let latency_ms = if o.quick { 1000 } else { 5000 };
     let mut first_latency: Option<(f64, f64)> = None;
@@ -182,9 +197,7 @@ fn latencies(d: &Driver, settle_ms: u64, ms: u64) -> Result<Vec<f64>, BenchError
          setTimeout(() => {{ m.latency = []; \
            setTimeout(() => {{ const l = m.latency; m.latency = null; done(l); }}, {ms}); }}, {settle_ms});"
     ));
-    let wall_ns =
-        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |t| t.as_nanos()) as f64;
-    let offset_ns = wall_ns - frondd::clock::monotonic_ns() as f64;
+    let offset_ns = wall_minus_monotonic_ns();
     let mut out: Vec<f64> = got
         .as_array()
         .into_iter()
@@ -198,8 +211,17 @@ fn latencies(d: &Driver, settle_ms: u64, ms: u64) -> Result<Vec<f64>, BenchError
     Ok(out)
 }
 
+/// The wall clock (the page's `performance.timeOrigin + performance.now()`) minus
+/// `CLOCK_MONOTONIC` (the daemon's stamps), nanoseconds, now: one machine, so a monotonic time
+/// plus this is the same moment on the page's clock.
+pub(crate) fn wall_minus_monotonic_ns() -> f64 {
+    let wall_ns =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |t| t.as_nanos()) as f64;
+    wall_ns - frondd::clock::monotonic_ns() as f64
+}
+
 /// The `q` quantile of sorted `v` (nearest rank).
-fn percentile(v: &[f64], q: f64) -> f64 {
+pub(crate) fn percentile(v: &[f64], q: f64) -> f64 {
     v[((v.len() as f64 - 1.0) * q).round() as usize]
 }
 
@@ -211,7 +233,7 @@ fn median_of(v: &Value) -> Result<f64, BenchError> {
     Ok(crate::tick::median(&mut xs))
 }
 
-fn expect_ok(daemon: &Daemon, req: &ControlRequest) -> Result<(), BenchError> {
+pub(crate) fn expect_ok(daemon: &Daemon, req: &ControlRequest) -> Result<(), BenchError> {
     match daemon.control(req)? {
         ControlReply::Ok | ControlReply::Recording(_) => Ok(()),
         other => Err(BenchError::UnexpectedReply(format!("{other:?}"))),
@@ -222,7 +244,12 @@ fn expect_ok(daemon: &Daemon, req: &ControlRequest) -> Result<(), BenchError> {
 /// which every reader makes from the parameters): of the daemon's rig as stage `field`,
 /// replacing the one before, or of embedded rig `rig` as a stage of that name beside it (its own
 /// layout seed, so that the two fields' plants interleave).
-fn start_field(daemon: &Daemon, rows: usize, cols: usize, rig: Option<&str>) -> Result<(), BenchError> {
+pub(crate) fn start_field(
+    daemon: &Daemon,
+    rows: usize,
+    cols: usize,
+    rig: Option<&str>,
+) -> Result<(), BenchError> {
     let seed = if rig.is_some() { 4 } else { 3 };
     let p = FieldParams { rows, cols, cell_m: 0.2, speed_m_s: 1.5, direction_deg: 0.0, density: 1.0, seed };
     let field = make_field(&p, TAKE, 30, 30.0)?;
@@ -247,7 +274,7 @@ fn start_field(daemon: &Daemon, rows: usize, cols: usize, rig: Option<&str>) -> 
 
 /// Waits until the page evaluates `fields` fields of `n` plants each (every plant once its
 /// history has come, most of them before); how many it evaluated (of the field furthest behind).
-fn wait_for_field(d: &Driver, n: usize, fields: usize, seconds: u64) -> Result<u64, BenchError> {
+pub(crate) fn wait_for_field(d: &Driver, n: usize, fields: usize, seconds: u64) -> Result<u64, BenchError> {
     let deadline = Instant::now() + Duration::from_secs(seconds);
     let mut best;
     loop {
@@ -274,7 +301,11 @@ fn wait_for_field(d: &Driver, n: usize, fields: usize, seconds: u64) -> Result<u
 }
 
 /// Starts `frond-console` on the daemon; it and its URL.
-fn start_console(o: &Options, socket_dir: &Path, scratch: &Path) -> Result<(Proc, String), BenchError> {
+pub(crate) fn start_console(
+    o: &Options,
+    socket_dir: &Path,
+    scratch: &Path,
+) -> Result<(Proc, String), BenchError> {
     let mut child = Command::new(find_bin(o, "frond-console")?)
         .arg("--socket-dir")
         .arg(socket_dir)

@@ -3,7 +3,8 @@
 //! field frame, encode it) against protocol 2's per-plant publishing measured in the same run
 //! (evaluate every plant, encode one pose each), and the subscriber's evaluation per plant
 //! (`frond_sdk::field`, the same `frond_motion::field_eval` the daemon's field runs); its part
-//! `page` ([`crate::field_page`]) the console page drawing a live field.
+//! `page` ([`crate::field_page`]) the console page drawing a live field, its part `page_hand`
+//! ([`crate::field_hand`]) a hand sample to the first plant moving on that page.
 
 use frond_motion::clip::{Clip, Joints};
 use frond_motion::controls::FieldControls;
@@ -197,5 +198,7 @@ pub fn field_wire(o: &Options) -> Result<Section, BenchError> {
         Section::ok("field_wire", TITLE, ms, json!({ "sizes": rows, "publish_hz": PUBLISH_HZ }));
     // The console page drawing a field, against the same scene standing still.
     section.parts.push(crate::field_page::field_page(o, sdk_plant_ns));
+    // A hand sample (a wrist swipe on the FUSE glove) to the first plant moving on that page.
+    section.parts.push(crate::field_hand::field_hand(o));
     Ok(section)
 }

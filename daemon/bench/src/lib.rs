@@ -8,7 +8,8 @@
 //! hidraw node's reports through frondd against the same relay reading the node) and
 //! [`zenoh::zenoh`] (9: poses over Zenoh between network namespaces against plain UDP) and
 //! [`field_wire::field_wire`] (10: a live field at 1 to 100,000 plants against per-plant poses, and
-//! [`field_page`], the console page drawing it). [`run`] returns a [`report::Report`]; `frond bench --json`
+//! [`field_page`], the console page drawing it, and [`field_hand`], a hand sample to the first
+//! plant moving on it). [`run`] returns a [`report::Report`]; `frond bench --json`
 //! prints it, `frond bench` prints [`report::Report::to_table`].
 
 #![warn(missing_docs)]
@@ -17,6 +18,7 @@ pub mod alloc;
 pub mod components;
 mod daemon_run;
 pub mod error;
+pub mod field_hand;
 pub mod field_page;
 pub mod field_wire;
 pub mod hidraw_latency;

@@ -251,6 +251,45 @@ impl Baker {
     }
 }
 
+/// Keys a capture of `span_s` seconds of a field of `plants` plants bakes into at `fps`, checked
+/// against the limits before anything is allocated: [`BakeOptions::key_limit`] keys a channel,
+/// and `frond_motion::take::MAX_RESAMPLED_FRAMES` keys over every plant (as
+/// [`Baker::bake_field`]). The error names the numbers and the longest capture, and the highest
+/// rate, that fit.
+pub fn live_field_keys(
+    field: &str,
+    plants: usize,
+    span_s: f64,
+    fps: f64,
+    opts: &BakeOptions,
+) -> Result<u64, BakeError> {
+    let keys = frond_motion::clip::frames_needed(span_s.max(0.0), fps);
+    let (limit, hint) = opts.key_limit();
+    let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
+    let plants64 = plants.max(1) as u64;
+    let max_keys = limit.min(hard / plants64);
+    if keys <= max_keys {
+        return Ok(keys);
+    }
+    let usable = max_keys.saturating_sub(1) as f64;
+    let why = if limit <= hard / plants64 {
+        format!("the limit of a channel{hint}")
+    } else {
+        format!("{hard} keys over every plant, of {JOINTS} joint rotations each")
+    };
+    Err(BakeError::LiveFieldTooLong {
+        field: printable(field).into_owned(),
+        plants,
+        keys,
+        span_s,
+        fps,
+        max_keys,
+        why,
+        max_s: usable / fps,
+        max_fps: if span_s > 0.0 { usable / span_s } else { fps },
+    })
+}
+
 pub(crate) fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
     std::array::from_fn(|i| rig.rig.joints[i].name.clone())
 }
@@ -399,4 +438,26 @@ pub(crate) fn extras_json(rig: &LoadedRig, take: &TakeInput, fps: f64) -> serde_
         "bake_fps": fps,
         "timecode_start": h.and_then(|h| h.start_timecode(&take.frames, fps)).map(|t| t.to_string()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_live_field_budget_names_the_numbers_and_what_fits() {
+        let opts = BakeOptions::default();
+        assert_eq!(live_field_keys("m", 10_000, 10.0, 30.0, &opts).unwrap(), 301);
+        // 10,000 plants: at most 1677 keys each (16,777,216 over every plant).
+        let e = live_field_keys("m", 10_000, 60.0, 30.0, &opts).unwrap_err().to_string();
+        assert!(e.contains("field `m`: 10000 plants x 1801 keys (60.0 s at 30 FPS)"), "{e}");
+        assert!(e.contains("at most 1677 keys a plant (16777216 keys over every plant"), "{e}");
+        assert!(!e.contains("--force"), "{e}");
+        assert!(e.contains("capture at most 55.87 s") && e.contains("--fps 27.93"), "{e}");
+        // One plant: the per-channel limit, which --force lifts.
+        let e = live_field_keys("m", 1, 40_000.0, 30.0, &opts).unwrap_err().to_string();
+        assert!(e.contains("at most 1080000 keys a plant (the limit of a channel; pass --force"), "{e}");
+        let forced = BakeOptions { force: true, ..opts };
+        assert_eq!(live_field_keys("m", 1, 40_000.0, 30.0, &forced).unwrap(), 1_200_001);
+    }
 }

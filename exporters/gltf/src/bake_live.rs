@@ -17,15 +17,16 @@ use std::ops::Range;
 
 use serde_json::json;
 
+use frond_motion::JOINTS;
 use frond_motion::clip::Joints;
 use frond_motion::field_eval::FieldState;
 use frond_motion::field_wire::field_from_definition;
 use frond_motion::mesh::PlantModel;
-use frond_motion::{JOINTS, clip::frames_needed};
 use frond_protocol::printable;
 
 use crate::bake::{
     BakeOptions, BakeStats, Baked, Baker, Progress, element_names, joint_channels, joint_names,
+    live_field_keys,
 };
 use crate::doc::{DocBuilder, Placement, PlantNodes};
 use crate::error::BakeError;
@@ -35,45 +36,6 @@ use crate::live_field::{FieldCapture, FieldMark};
 /// Poses held at once while baking (48 bytes each: 64 MiB): plants are evaluated this many keys
 /// at a time, whatever the field's size.
 const POSES_AT_ONCE: usize = (64 << 20) / std::mem::size_of::<Joints>();
-
-/// Keys a capture of `span_s` seconds of a field of `plants` plants bakes into at `fps`, checked
-/// against the limits before anything is allocated: [`BakeOptions::key_limit`] keys a channel,
-/// and `frond_motion::take::MAX_RESAMPLED_FRAMES` keys over every plant (as
-/// [`Baker::bake_field`]). The error names the numbers and the longest capture, and the highest
-/// rate, that fit.
-pub fn live_field_keys(
-    field: &str,
-    plants: usize,
-    span_s: f64,
-    fps: f64,
-    opts: &BakeOptions,
-) -> Result<u64, BakeError> {
-    let keys = frames_needed(span_s.max(0.0), fps);
-    let (limit, hint) = opts.key_limit();
-    let hard = frond_motion::take::MAX_RESAMPLED_FRAMES as u64;
-    let plants64 = plants.max(1) as u64;
-    let max_keys = limit.min(hard / plants64);
-    if keys <= max_keys {
-        return Ok(keys);
-    }
-    let usable = max_keys.saturating_sub(1) as f64;
-    let why = if limit <= hard / plants64 {
-        format!("the limit of a channel{hint}")
-    } else {
-        format!("{hard} keys over every plant, of {JOINTS} joint rotations each")
-    };
-    Err(BakeError::LiveFieldTooLong {
-        field: printable(field).into_owned(),
-        plants,
-        keys,
-        span_s,
-        fps,
-        max_keys,
-        why,
-        max_s: usable / fps,
-        max_fps: if span_s > 0.0 { usable / span_s } else { fps },
-    })
-}
 
 impl Baker {
     /// Every plant of a captured live field, keyed at `opts.fps` over the captured span (see
@@ -379,22 +341,5 @@ mod tests {
             }
         }
         assert!(out.iter().flatten().flatten().any(|x| x.abs() > 1.0), "the plants move");
-    }
-
-    #[test]
-    fn the_budget_names_the_numbers_and_what_fits() {
-        let opts = BakeOptions::default();
-        assert_eq!(live_field_keys("m", 10_000, 10.0, 30.0, &opts).unwrap(), 301);
-        // 10,000 plants: at most 1677 keys each (16,777,216 over every plant).
-        let e = live_field_keys("m", 10_000, 60.0, 30.0, &opts).unwrap_err().to_string();
-        assert!(e.contains("field `m`: 10000 plants x 1801 keys (60.0 s at 30 FPS)"), "{e}");
-        assert!(e.contains("at most 1677 keys a plant (16777216 keys over every plant"), "{e}");
-        assert!(!e.contains("--force"), "{e}");
-        assert!(e.contains("capture at most 55.87 s") && e.contains("--fps 27.93"), "{e}");
-        // One plant: the per-channel limit, which --force lifts.
-        let e = live_field_keys("m", 1, 40_000.0, 30.0, &opts).unwrap_err().to_string();
-        assert!(e.contains("at most 1080000 keys a plant (the limit of a channel; pass --force"), "{e}");
-        let forced = BakeOptions { force: true, ..opts };
-        assert_eq!(live_field_keys("m", 1, 40_000.0, 30.0, &forced).unwrap(), 1_200_001);
     }
 }

@@ -23,8 +23,7 @@ use frond_protocol::{PoseFlags, printable};
 use frond_sdk::field::{LiveFields, MAX_KEPT_FIELD_FRAMES};
 use frond_sdk::{Event, SdkError, Source, Subscriber};
 
-use crate::bake::BakeOptions;
-use crate::bake_live::live_field_keys;
+use crate::bake::{BakeOptions, live_field_keys};
 use crate::live::{DRAIN, LiveError, LiveMode};
 
 /// Most stream frames one capture keeps (about 19 hours of a 30 FPS stream at motion speed 1;
@@ -238,7 +237,7 @@ pub fn pick_field(fields: &LiveFields, name: Option<&str>) -> Result<Option<Fiel
 /// on `stop` drains what was already sent, then returns. `accept` is asked about the field once
 /// picked (its rig), so that a field that cannot be baked is refused before the performance;
 /// `status` says once when the capture grows past what `opts` can bake
-/// ([`crate::bake_live::live_field_keys`]).
+/// ([`crate::bake::live_field_keys`]).
 pub fn capture_field(
     source: &Source,
     mode: LiveMode,
