@@ -5,6 +5,7 @@ mod console;
 mod demo;
 mod docs;
 mod doctor;
+mod gltf_live_field;
 mod graph_play;
 mod hands;
 mod hostile;
