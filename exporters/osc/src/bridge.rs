@@ -11,13 +11,16 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
+use frond_protocol::field::{FieldDefinition, FieldFrame};
 use frond_protocol::{ElementTable, Hello, Pose};
+use frond_sdk::field::MAX_KEPT_FIELD_FRAMES;
 use frond_sdk::{Event, SdkError, Source, Subscriber};
 use thiserror::Error;
 
 use crate::encode::{
     ClockOffset, Datagrams, EncodeError, FrondEncoder, Timetags, VmcEncoder, VmcRig, monotonic_ns,
 };
+use crate::fields::{FieldSender, FieldTable, collect_table};
 use crate::resample::{ResampleCounters, Resampler};
 use crate::sender::{Sender, SenderError, TargetCounters};
 
@@ -107,6 +110,8 @@ pub struct BridgeStats {
     pub frames_out: u64,
     /// Resampler counters (zero without `--rate`).
     pub resample: ResampleCounters,
+    /// Field frames sent (a running field sent whole, `frond` namespace).
+    pub field_frames: u64,
     /// Per-target counters.
     pub targets: Vec<(SocketAddr, TargetCounters)>,
 }
@@ -118,6 +123,9 @@ impl std::fmt::Display for BridgeStats {
             "received={} gaps={} missing={} queue_dropped={} reconnects={} frames_out={}",
             self.received, self.gaps, self.missing, self.queue_dropped, self.reconnects, self.frames_out
         )?;
+        if self.field_frames > 0 {
+            write!(f, " field_frames={}", self.field_frames)?;
+        }
         let r = &self.resample;
         if r.received > 0 {
             write!(
@@ -150,6 +158,10 @@ enum Msg {
     Pose(Pose),
     Hello(Hello),
     Elements(ElementTable),
+    /// The running fields changed (frond namespace only).
+    Fields(FieldTable),
+    /// A field frame (frond namespace only), boxed: it is large beside a pose.
+    FieldFrame(Box<FieldFrame>),
     End(SdkError),
 }
 
@@ -173,8 +185,9 @@ impl Encoder {
 
 /// Where the sending loop gets the daemon's messages.
 enum Feed {
-    /// It reads the subscription itself (forwarding every frame).
-    Direct(Box<Subscriber>),
+    /// It reads the subscription itself (forwarding every frame), and takes the field frames
+    /// and tables from it (`frames` reused for them).
+    Direct { sub: Box<Subscriber>, frames: Vec<FieldFrame>, known: Vec<FieldDefinition> },
     /// A subscriber thread reads it and queues what it reads (resampling).
     Queue(Receiver<Msg>),
 }
@@ -195,6 +208,8 @@ pub struct Bridge {
     /// The daemon's hello (rig, joint names) with its latest element table: the names bundle.
     names: Hello,
     names_due: Instant,
+    /// Running fields sent whole (`frond` namespace only).
+    fields: Option<FieldSender>,
 }
 
 impl Bridge {
@@ -203,9 +218,11 @@ impl Bridge {
     /// ever.
     pub fn connect(config: &BridgeConfig) -> Result<Bridge, BridgeError> {
         let sender = Sender::new(&config.targets, config.bind)?;
+        let frond = config.protocol == Protocol::Frond;
         let sub = Subscriber::options()
             .give_up_after(None)
             .read_timeout(Some(READ_TIMEOUT))
+            .keep_field_frames(if frond { MAX_KEPT_FIELD_FRAMES } else { 0 })
             .subscribe(&config.source)?;
         let mut vmc_rig = config.vmc_rig.clone();
         if !config.vmc_names_fixed {
@@ -231,11 +248,12 @@ impl Bridge {
             let thread_counters = Arc::clone(&counters);
             std::thread::Builder::new()
                 .name("frond-osc-sub".into())
-                .spawn(move || subscribe(sub, &tx, &thread_counters))
+                .spawn(move || subscribe(sub, &tx, &thread_counters, frond))
                 .expect("spawn the subscriber thread");
             Feed::Queue(rx)
         } else {
-            Feed::Direct(Box::new(sub))
+            let frames = Vec::with_capacity(MAX_KEPT_FIELD_FRAMES);
+            Feed::Direct { sub: Box::new(sub), frames, known: Vec::new() }
         };
         Ok(Bridge {
             feed,
@@ -248,6 +266,7 @@ impl Bridge {
             frames_out: 0,
             names,
             names_due: Instant::now(),
+            fields: frond.then(|| FieldSender::new(config.clock_offset, config.timetags)),
         })
     }
 
@@ -266,6 +285,7 @@ impl Bridge {
             queue_dropped: c.queue_dropped.load(Ordering::Relaxed),
             reconnects: c.reconnects.load(Ordering::Relaxed),
             frames_out: self.frames_out,
+            field_frames: self.fields.as_ref().map_or(0, |f| f.frames_sent),
             resample: self.resampler.as_ref().map(Resampler::counters).unwrap_or_default(),
             targets: self.sender.targets().iter().map(|t| (t.addr(), t.counters())).collect(),
         }
@@ -288,7 +308,19 @@ impl Bridge {
                 wait = wait.min(Duration::from_nanos(due.saturating_sub(monotonic_ns())));
             }
             let msg = match &mut self.feed {
-                Feed::Direct(sub) => triage(sub.next_event(), &self.counters),
+                Feed::Direct { sub, frames, known } => {
+                    let msg = triage(sub.next_event(), &self.counters);
+                    if let Some(fields) = &mut self.fields {
+                        if let Some(table) = collect_table(sub, known) {
+                            fields.set_table(table);
+                        }
+                        sub.take_field_frames(frames);
+                        for f in frames.drain(..) {
+                            fields.send_frame(&f, &mut self.datagrams, &mut self.sender)?;
+                        }
+                    }
+                    msg
+                }
                 Feed::Queue(rx) => match rx.recv_timeout(wait) {
                     Ok(msg) => Some(msg),
                     Err(RecvTimeoutError::Timeout) => None,
@@ -305,6 +337,16 @@ impl Bridge {
                     self.names.elements = table;
                     self.names_due = Instant::now();
                 }
+                Some(Msg::Fields(table)) => {
+                    if let Some(fields) = &mut self.fields {
+                        fields.set_table(table);
+                    }
+                }
+                Some(Msg::FieldFrame(f)) => {
+                    if let Some(fields) = &mut self.fields {
+                        fields.send_frame(&f, &mut self.datagrams, &mut self.sender)?;
+                    }
+                }
                 Some(Msg::End(e)) => return Err(e.into()),
                 None => {}
             }
@@ -319,6 +361,9 @@ impl Bridge {
                 result?;
             }
             self.send_names_if_due()?;
+            if let Some(fields) = &mut self.fields {
+                fields.poll(&self.names.elements, &mut self.datagrams, &mut self.sender)?;
+            }
             if let Some(every) = stats_every
                 && last_stats.elapsed() >= every
             {
@@ -370,10 +415,27 @@ fn apply_hello_names(rig: &mut VmcRig, hello: &Hello) {
     }
 }
 
-/// The subscriber thread (resampling): reads the daemon and queues what the sending loop needs.
-fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters) {
+/// The subscriber thread (resampling): reads the daemon and queues what the sending loop needs
+/// (with `fields`, the running fields' tables and every field frame, never dropped: the
+/// receiver's history needs each).
+fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters, fields: bool) {
+    let (mut frames, mut known) = (Vec::with_capacity(MAX_KEPT_FIELD_FRAMES), Vec::new());
     loop {
-        let Some(msg) = triage(sub.next_event(), counters) else { continue };
+        let msg = triage(sub.next_event(), counters);
+        if fields {
+            if let Some(table) = collect_table(&sub, &mut known)
+                && tx.send(Msg::Fields(table)).is_err()
+            {
+                return;
+            }
+            sub.take_field_frames(&mut frames);
+            for f in frames.drain(..) {
+                if tx.send(Msg::FieldFrame(Box::new(f))).is_err() {
+                    return;
+                }
+            }
+        }
+        let Some(msg) = msg else { continue };
         let sent = match msg {
             // A pose that does not fit is dropped and counted: the sending loop is behind.
             Msg::Pose(_) => match tx.try_send(msg) {

@@ -16,6 +16,7 @@
 pub mod bench;
 pub mod bridge;
 pub mod encode;
+pub mod fields;
 pub mod resample;
 pub mod rig;
 pub mod sender;

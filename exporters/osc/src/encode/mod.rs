@@ -22,6 +22,13 @@
 //! its own bundle with a single message `/frond/element/<e>/pose` carrying the same arguments as
 //! `/frond/pose`.
 //!
+//! A running field goes out whole ([`FieldEncoder`], [`encode_definitions`]; seed 000, Eq.
+//! 6-7): `/frond/fields ,i...` (the running fields' ids), per field `/frond/field/<f>/def`,
+//! `/frond/field/<f>/joints` (timetag "immediately", when the fields change and every 2 s),
+//! `/frond/field/<f>/layout ,iiib` (its plants' layout in chunks of [`LAYOUT_CHUNK_BYTES`]) and
+//! one `/frond/field/<f>/frame ,hidddddfdddhb` per field frame (timetag its host time), so a
+//! receiver evaluates every plant itself; the arguments are in the README.
+//!
 //! # VMC ([`VmcEncoder`])
 //!
 //! The Virtual Motion Capture protocol (sh-akira) as a performer sends it, one bundle per frame
@@ -44,9 +51,14 @@
 //! 2_208_988_800` (NTP era 0, mod 2^32), `fraction = floor((unix_ns mod 10^9) * 2^32 / 10^9)`.
 //! See [`timetag`].
 
+mod field;
 mod frond;
 mod vmc;
 
+pub use field::{
+    ENTRY_BYTES, FieldEncoder, LAYOUT_CHUNK_BYTES, MAX_FIELD_NAME_BYTES, MAX_LAYOUT_CHUNKS,
+    MAX_OSC_FIELD_PLANTS, encode_definitions, layout_chunks, layout_key,
+};
 pub use frond::FrondEncoder;
 pub use vmc::{DEFAULT_HEIGHTS_M, HUMANOID_BONES, VmcEncoder, VmcRig};
 

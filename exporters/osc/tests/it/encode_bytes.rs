@@ -10,9 +10,9 @@ use frond_protocol::{ElementId, HandWire, Pose, PoseFlags};
 use rosc::{OscPacket, OscType};
 
 /// Monotonic 2.0 s is wall-clock 1_700_000_000.5 s since 1970.
-const OFFSET: ClockOffset = ClockOffset::fixed(1_700_000_000_500_000_000 - 2_000_000_000);
+pub(crate) const OFFSET: ClockOffset = ClockOffset::fixed(1_700_000_000_500_000_000 - 2_000_000_000);
 /// 1_700_000_000 + 2_208_988_800 = 3_908_988_800 = 0xE8FE_6F80; 0.5 s = 0x8000_0000.
-const TIMETAG: [u8; 8] = [0xE8, 0xFE, 0x6F, 0x80, 0x80, 0x00, 0x00, 0x00];
+pub(crate) const TIMETAG: [u8; 8] = [0xE8, 0xFE, 0x6F, 0x80, 0x80, 0x00, 0x00, 0x00];
 
 const S: f32 = std::f32::consts::FRAC_1_SQRT_2; // sin 45 = cos 45
 const COS30: f32 = 0.866_025_4;
@@ -30,7 +30,7 @@ fn known_pose() -> Pose {
     }
 }
 
-fn bundle(elements: &[&[u8]]) -> Vec<u8> {
+pub(crate) fn bundle(elements: &[&[u8]]) -> Vec<u8> {
     let mut out = b"#bundle\0".to_vec();
     out.extend_from_slice(&TIMETAG);
     for e in elements {
@@ -40,11 +40,11 @@ fn bundle(elements: &[&[u8]]) -> Vec<u8> {
     out
 }
 
-fn floats(values: &[f32]) -> Vec<u8> {
+pub(crate) fn floats(values: &[f32]) -> Vec<u8> {
     values.iter().flat_map(|v| v.to_be_bytes()).collect()
 }
 
-fn message(addr_padded: &[u8], tags_padded: &[u8], args: &[u8]) -> Vec<u8> {
+pub(crate) fn message(addr_padded: &[u8], tags_padded: &[u8], args: &[u8]) -> Vec<u8> {
     assert_eq!(addr_padded.len() % 4, 0, "test bug: address not padded");
     assert_eq!(tags_padded.len() % 4, 0, "test bug: tags not padded");
     [addr_padded, tags_padded, args].concat()
@@ -292,7 +292,7 @@ fn quaternions_are_unit_in_both_dialects() {
     assert_eq!(checked, 200 * (4 + 5));
 }
 
-fn assert_bytes_eq(got: &[u8], expected: &[u8]) {
+pub(crate) fn assert_bytes_eq(got: &[u8], expected: &[u8]) {
     if got != expected {
         let at = got.iter().zip(expected).position(|(a, b)| a != b).unwrap_or(got.len().min(expected.len()));
         let lo = at.saturating_sub(8);

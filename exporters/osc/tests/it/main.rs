@@ -5,6 +5,7 @@ mod blender;
 mod cli;
 mod e2e;
 mod encode_bytes;
+mod encode_field;
 mod parsers;
 mod sender;
 mod support;
