@@ -7,7 +7,7 @@
 //! and at each key time (its own stream-time mapping, from the frames' host times) the baked
 //! rotation of announced and unannounced plants alike, within 1e-4 degrees. Beside it: a name
 //! that picks no field and a field left unnamed among two are refused listing the running
-//! fields, a 10,000-plant capture at 1000 FPS is refused naming its numbers, and Ctrl-C keeps
+//! fields, a rig other than the field's is refused, a 10,000-plant capture at 1000 FPS is refused naming its numbers, and Ctrl-C keeps
 //! what `--all` captured.
 
 use std::collections::HashMap;
@@ -313,6 +313,12 @@ fn a_recorded_live_field_bakes_every_plant_as_the_daemon_evaluates_it() {
         &daemon,
         &["--field", "-o", &x],
         "2 fields are running (field, meadow): pick one with --field NAME",
+    );
+    // A rig other than the field's: refused before any recording.
+    refused(
+        &daemon,
+        &["--field", "field", "--rig", "flower", "-o", &x],
+        "field `field`'s plants are rig `grass`; --rig gave rig `flower`",
     );
     assert!(!out("x.glb").exists());
 

@@ -300,10 +300,11 @@ fn live_field(a: LiveArgs) -> anyhow::Result<()> {
             Some(r) if r.rig.name == d.rig => r.clone(),
             Some(r) => {
                 return Err(format!(
-                    "field `{field}`'s plants are rig `{}`, --rig {} is rig `{}`: give its rig (or leave --rig out for an embedded one)",
+                    "field `{field}`'s plants are rig `{}`; --rig gave rig `{}` ({}): give the field's rig, or leave \
+                     --rig out to use the embedded rig of its name",
                     frond_protocol::printable(&d.rig),
-                    r.origin,
-                    frond_protocol::printable(&r.rig.name)
+                    frond_protocol::printable(&r.rig.name),
+                    r.origin
                 ));
             }
             None => LoadedRig::recorded(&d.rig).map_err(|e| {
