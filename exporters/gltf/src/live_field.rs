@@ -55,7 +55,8 @@ pub struct FieldCapture {
     stream: Vec<Option<Joints>>,
     recording_seen: bool,
     complete: bool,
-    /// Why the capture ended early (the stream ran past [`MAX_CAPTURED_STREAM_FRAMES`]).
+    /// Why the capture ended early (the stream ran past [`MAX_CAPTURED_STREAM_FRAMES`], or
+    /// started again).
     pub cut_short: Option<String>,
     /// Frames (of any kind) the daemon dropped for this subscriber during the capture, and
     /// field frames the SDK could not keep for it.
@@ -157,6 +158,17 @@ impl FieldCapture {
                     }
                 }
             }
+        }
+        if self.marks.last().is_some_and(|m| frame.produced < m.produced) {
+            // Stream frames are numbered from 0 again: another stream (the daemon or the field
+            // restarted under the same id), whose frames must not mix with these.
+            self.cut_short = Some(format!(
+                "the field's driving stream started again (the daemon or the field restarted); kept the {} \
+                 field frames before",
+                self.marks.len()
+            ));
+            self.complete = true;
+            return true;
         }
         if frame.produced.saturating_sub(self.stream_base) > MAX_CAPTURED_STREAM_FRAMES {
             self.cut_short = Some(format!(
@@ -439,7 +451,7 @@ mod tests {
     }
 
     #[test]
-    fn a_pose_after_recording_ends_it_and_a_runaway_stream_cuts_it_short() {
+    fn a_pose_after_recording_ends_it_and_a_runaway_or_restarted_stream_cuts_it_short() {
         let mut c = FieldCapture::new(LiveMode::Recording, definition());
         assert!(!c.pose_flags(PoseFlags::default()));
         assert!(!c.push(&frame(1, true), None));
@@ -449,6 +461,12 @@ mod tests {
         assert!(c.push(&FieldFrame { produced: u64::MAX, ..frame(2, false) }, None));
         assert!(c.cut_short.as_deref().unwrap().contains("kept the 1 field frames"));
         assert_eq!(c.len(), 1);
+        // A stream numbered from 0 again (a restarted daemon or field under the same id).
+        let mut c = FieldCapture::new(LiveMode::All, definition());
+        assert!(!c.push(&frame(5, false), None));
+        assert!(c.push(&FieldFrame { produced: 3, ..frame(6, false) }, None));
+        assert!(c.cut_short.as_deref().unwrap().contains("started again"));
+        assert_eq!((c.len(), c.stream_frame(24).unwrap()[0][0]), (1, 5.0));
     }
 
     #[test]
