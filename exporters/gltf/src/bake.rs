@@ -252,10 +252,10 @@ impl Baker {
 }
 
 /// Keys a capture of `span_s` seconds of a field of `plants` plants bakes into at `fps`, checked
-/// against the limits before anything is allocated: [`BakeOptions::key_limit`] keys a channel,
-/// and `frond_motion::take::MAX_RESAMPLED_FRAMES` keys over every plant (as
-/// [`Baker::bake_field`]). The error names the numbers and the longest capture, and the highest
-/// rate, that fit.
+/// against the limits before anything is allocated: [`MAX_BAKE_KEYS`] keys a channel (with
+/// `force`, `frond_motion::take::MAX_RESAMPLED_FRAMES`), and `MAX_RESAMPLED_FRAMES` keys over
+/// every plant (as [`Baker::bake_field`]). The error names the numbers and the longest capture,
+/// and the highest rate, that fit.
 pub fn live_field_keys(
     field: &str,
     plants: usize,
