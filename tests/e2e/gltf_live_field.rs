@@ -381,6 +381,10 @@ fn check_baked(glb: &std::path::Path, w: &mut Watched) {
         .filter(|n| n["name"].as_str().is_some_and(|s| s.len() == 9 && s.starts_with("grass_")))
         .count();
     assert_eq!(roots, 400);
+    // An armature each: a skin over the plant's joints, rooted at its node.
+    let skins = doc["skins"].as_array().unwrap();
+    assert_eq!(skins.len(), 400);
+    assert!(skins.iter().all(|k| k["joints"].as_array().unwrap().len() == 4), "grass has four joints");
     assert_eq!(doc["animations"][0]["channels"].as_array().unwrap().len(), 1600);
     let extras = &doc["asset"]["extras"]["field"];
     let recorded: Vec<&FieldFrame> =
