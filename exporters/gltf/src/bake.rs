@@ -277,7 +277,7 @@ pub fn live_field_keys(
     } else {
         format!("{hard} keys over every plant, of {JOINTS} joint rotations each")
     };
-    Err(BakeError::LiveFieldTooLong {
+    Err(BakeError::LiveFieldTooLong(Box::new(crate::error::LiveFieldTooLong {
         field: printable(field).into_owned(),
         plants,
         keys,
@@ -287,7 +287,7 @@ pub fn live_field_keys(
         why,
         max_s: usable / fps,
         max_fps: if span_s > 0.0 { usable / span_s } else { fps },
-    })
+    })))
 }
 
 pub(crate) fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {

@@ -48,32 +48,10 @@ pub enum BakeError {
         /// What to do about it (`; pass --force to go past it`, or that it is the hard limit).
         hint: &'static str,
     },
-    /// A live field's capture would bake into more keys than the limits allow.
-    #[error(
-        "field `{field}`: {plants} plants x {keys} keys ({span_s:.1} s at {fps} FPS) are more than can be baked: \
-         at most {max_keys} keys a plant ({why}); capture at most {max_s:.2} s at this rate, or at --fps \
-         {max_fps:.2} or lower"
-    )]
-    LiveFieldTooLong {
-        /// The field's stage name.
-        field: String,
-        /// Its plants.
-        plants: usize,
-        /// Keys a plant the capture needs.
-        keys: u64,
-        /// The captured span, seconds.
-        span_s: f64,
-        /// Key rate.
-        fps: f64,
-        /// Most keys a plant can have.
-        max_keys: u64,
-        /// Which limit that is, and what to do about it.
-        why: String,
-        /// The longest span that fits at `fps`, seconds.
-        max_s: f64,
-        /// The highest rate that fits this span.
-        max_fps: f64,
-    },
+    /// A live field's capture would bake into more keys than the limits allow (boxed: every
+    /// `Result` of the crate would otherwise carry its numbers).
+    #[error(transparent)]
+    LiveFieldTooLong(Box<LiveFieldTooLong>),
     /// The take holds no usable frames (of the main skeleton or of any layer).
     #[error("take `{name}` has no frames of the main skeleton or of any layer to bake")]
     TakeEmpty {
@@ -118,4 +96,32 @@ pub enum BakeError {
     /// The document could not be serialised (a bug).
     #[error("cannot serialise the glTF document: {0}")]
     Json(String),
+}
+
+/// The numbers of [`BakeError::LiveFieldTooLong`]: what the capture needs, what fits.
+#[derive(Debug, Error)]
+#[error(
+    "field `{field}`: {plants} plants x {keys} keys ({span_s:.1} s at {fps} FPS) are more than can be baked: \
+     at most {max_keys} keys a plant ({why}); capture at most {max_s:.2} s at this rate, or at --fps \
+     {max_fps:.2} or lower"
+)]
+pub struct LiveFieldTooLong {
+    /// The field's stage name.
+    pub field: String,
+    /// Its plants.
+    pub plants: usize,
+    /// Keys a plant the capture needs.
+    pub keys: u64,
+    /// The captured span, seconds.
+    pub span_s: f64,
+    /// Key rate.
+    pub fps: f64,
+    /// Most keys a plant can have.
+    pub max_keys: u64,
+    /// Which limit that is, and what to do about it.
+    pub why: String,
+    /// The longest span that fits at `fps`, seconds.
+    pub max_s: f64,
+    /// The highest rate that fits this span.
+    pub max_fps: f64,
 }
