@@ -10,12 +10,11 @@ use clap::Args;
 /// Where the daemon's sockets and takes are.
 #[derive(Debug, Clone, Args)]
 pub struct Global {
-    /// Directory of the daemon's sockets (poses.sock, control.sock)
-    /// [default: $XDG_RUNTIME_DIR/frond, /run/frond for root].
-    #[arg(long, global = true, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    /// Directory of the daemon's sockets ([`frond_protocol::paths::SOCKET_DIR_HELP`]).
+    #[arg(long, global = true, env = "FROND_SOCKET_DIR", value_name = "DIR", help = frond_protocol::paths::SOCKET_DIR_HELP)]
     pub socket_dir: Option<PathBuf>,
-    /// Directory of recorded takes [default: $XDG_DATA_HOME/frond/takes].
-    #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR")]
+    /// Directory of recorded takes ([`frond_protocol::paths::TAKES_DIR_HELP`]).
+    #[arg(long, global = true, env = "FROND_TAKES_DIR", value_name = "DIR", help = frond_protocol::paths::TAKES_DIR_HELP)]
     pub takes_dir: Option<PathBuf>,
     /// Send control commands (status, record, mark, rig set, filter, stage ...) to a daemon on
     /// another host, through its frond-zenoh bridge started with --control:

@@ -22,11 +22,9 @@ struct Args {
     /// The service unit uses it, so a fresh install runs without /etc/frond/frondd.toml.
     #[arg(long, requires = "config")]
     config_optional: bool,
-    /// Directory of poses.sock and control.sock [default: $XDG_RUNTIME_DIR/frond].
-    #[arg(long, env = "FROND_SOCKET_DIR")]
+    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR", help = frond_protocol::paths::SOCKET_DIR_HELP)]
     socket_dir: Option<PathBuf>,
-    /// Directory where takes are recorded [default: $XDG_DATA_HOME/frond/takes].
-    #[arg(long, env = "FROND_TAKES_DIR")]
+    #[arg(long, env = "FROND_TAKES_DIR", value_name = "DIR", help = frond_protocol::paths::TAKES_DIR_HELP)]
     takes_dir: Option<PathBuf>,
     /// Loop rate in Hz (30..=8000).
     #[arg(long)]

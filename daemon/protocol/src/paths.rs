@@ -10,6 +10,15 @@ pub const SOCKET_DIR_ENV: &str = "FROND_SOCKET_DIR";
 /// Environment variable naming the takes directory.
 pub const TAKES_DIR_ENV: &str = "FROND_TAKES_DIR";
 
+/// `--socket-dir`'s help in every program: where the directory is when the option is not given
+/// ([`default_socket_dir`]).
+pub const SOCKET_DIR_HELP: &str = "Directory of the daemon's sockets (poses.sock, control.sock) \
+     [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond, else /run/frond for root, else /tmp/frond-UID]";
+
+/// `--takes-dir`'s help in every program ([`default_takes_dir`]).
+pub const TAKES_DIR_HELP: &str = "Directory of recorded takes [default: $FROND_TAKES_DIR, else \
+     $XDG_DATA_HOME/frond/takes, else ~/.local/share/frond/takes, else /var/lib/frond/takes]";
+
 fn env_dir(name: &str) -> Option<PathBuf> {
     std::env::var_os(name).filter(|v| !v.is_empty()).map(PathBuf::from)
 }
@@ -126,6 +135,23 @@ pub fn take_file(arg: &str, takes_dir: &Path) -> Result<PathBuf, TakeNameError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_directory_helps_name_every_place_the_defaults_look() {
+        for place in ["$FROND_SOCKET_DIR", "$XDG_RUNTIME_DIR/frond", "/run/frond for root", "/tmp/frond-UID"]
+        {
+            assert!(SOCKET_DIR_HELP.contains(place), "{place}");
+        }
+        let takes = [
+            "$FROND_TAKES_DIR",
+            "$XDG_DATA_HOME/frond/takes",
+            "~/.local/share/frond/takes",
+            "/var/lib/frond/takes",
+        ];
+        for place in takes {
+            assert!(TAKES_DIR_HELP.contains(place), "{place}");
+        }
+    }
 
     #[test]
     fn a_take_argument_is_a_path_or_a_name_in_the_takes_directory() {

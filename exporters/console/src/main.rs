@@ -24,11 +24,9 @@ struct Args {
     /// its owner may read it (chmod 600).
     #[arg(long, value_name = "FILE")]
     token_file: Option<PathBuf>,
-    /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help = frond_protocol::paths::SOCKET_DIR_HELP)]
     socket_dir: Option<PathBuf>,
-    /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help = frond_protocol::paths::TAKES_DIR_HELP)]
     takes_dir: Option<PathBuf>,
     /// Show this rig (embedded name or file) instead of the daemon's, and bake the takes recorded
     /// on a rig that is not embedded with it (a rig file is never opened by the name a take or

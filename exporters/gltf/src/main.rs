@@ -79,8 +79,7 @@ struct BakeArgs {
     /// Length of a field bake, seconds.
     #[arg(long, value_name = "SECONDS", requires = "field")]
     duration: Option<f64>,
-    /// Takes directory for take names [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help = frond_protocol::paths::TAKES_DIR_HELP)]
     takes_dir: Option<PathBuf>,
     /// Rig: an embedded rig name (grass, flower, shrub) or a rig file.
     #[arg(long, value_name = "RIG")]
@@ -91,8 +90,7 @@ struct BakeArgs {
 
 #[derive(Args)]
 struct LiveArgs {
-    /// Daemon socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help = frond_protocol::paths::SOCKET_DIR_HELP)]
     socket_dir: Option<PathBuf>,
     /// Capture a daemon on another host through its frond-zenoh bridge:
     /// `zenoh:frond/<stage>/<source>[?connect=tcp/HOST:PORT]` [default: this host's daemon].

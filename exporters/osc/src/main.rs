@@ -47,7 +47,8 @@ struct Args {
     /// and at exit.
     #[arg(long)]
     stats: bool,
-    /// The daemon's socket directory [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    /// The daemon's socket directory [default: $FROND_SOCKET_DIR, else
+    /// $XDG_RUNTIME_DIR/frond, else /run/frond for root, else /tmp/frond-UID].
     /// The variable is read only when --from is not given, so an operator's environment does
     /// not conflict with --from.
     #[arg(long, value_name = "DIR")]

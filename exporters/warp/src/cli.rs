@@ -312,7 +312,8 @@ pub struct RenderArgs {
     /// read as given, as every frond tool takes a take.
     #[arg(long, value_name = "NAME|FILE")]
     pub take: Option<String>,
-    /// Directory of recorded takes [default: $FROND_TAKES_DIR, else $XDG_DATA_HOME/frond/takes].
+    /// Directory of recorded takes [default: $FROND_TAKES_DIR, else
+    /// $XDG_DATA_HOME/frond/takes, else ~/.local/share/frond/takes, else /var/lib/frond/takes].
     #[arg(long, value_name = "DIR")]
     pub takes_dir: Option<PathBuf>,
     /// The tree-animation paper's simulation wind `speed=S,dir=DEG[,gust=G,seed=N,until=S]` (as `frond take
@@ -384,7 +385,8 @@ pub struct ServeArgs {
     /// of a fresh one, for a page served beyond loopback.
     #[arg(long, value_name = "FILE")]
     pub token_file: Option<PathBuf>,
-    /// Socket directory of frondd [default: $FROND_SOCKET_DIR, else $XDG_RUNTIME_DIR/frond].
+    /// Socket directory of frondd [default: $FROND_SOCKET_DIR, else
+    /// $XDG_RUNTIME_DIR/frond, else /run/frond for root, else /tmp/frond-UID].
     /// The variable is read only when --from is not given, so an operator's environment does
     /// not conflict with --from.
     #[arg(long)]

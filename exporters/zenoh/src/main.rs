@@ -44,8 +44,7 @@ struct Args {
     /// 0 keeps none. Default 10000: 10 s at 1 kHz, about 3 MB.
     #[arg(long, value_name = "N", default_value_t = frond_zenoh::DEFAULT_REPLAY_FRAMES)]
     replay_frames: usize,
-    /// The daemon's socket directory.
-    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR")]
+    #[arg(long, env = "FROND_SOCKET_DIR", value_name = "DIR", help = frond_protocol::paths::SOCKET_DIR_HELP)]
     socket_dir: Option<PathBuf>,
     /// Print the bridge's counters to stderr every second (they are printed once at exit anyway).
     #[arg(long)]
