@@ -174,6 +174,48 @@ fn check_zenoh_section(section: &Value) {
     assert!(d["zenoh_routed"]["samples"].as_u64().unwrap() > 100, "{}", d["zenoh_routed"]);
 }
 
+/// Part `page_hand` of `field_wire` (issue 48: a hand sample to the first plant moving on the
+/// page): its rows are its details (the swipes' figures at 1,000 and 10,000 plants), the
+/// 10,000-plant rows against the 1,000-plant ones, every swipe accounted for.
+fn check_page_hand(part: &Value) {
+    let rows = part["measurements"].as_array().unwrap();
+    let row = |name: &str| {
+        rows.iter()
+            .find(|m| m["name"] == name)
+            .unwrap_or_else(|| panic!("page_hand: no row {name}: {rows:?}"))
+    };
+    let sizes = part["details"]["sizes"].as_array().expect("page_hand sizes");
+    let size = |n: u64| sizes.iter().find(|s| s["plants"] == n).unwrap_or_else(|| panic!("no {n} plants"));
+    let (one, ten) = (size(1000), size(10000));
+    for q in ["p50", "p99"] {
+        let m = row(&format!("page_hand_to_plant_{q}_ms_1000"));
+        assert_eq!(m["measured"], one["hand_to_plant_ms"][q], "1,000 {q}");
+        assert_eq!(m["baseline"], one["daemon_ms"][q], "1,000 {q} against the daemon's share");
+        let m = row(&format!("page_hand_to_plant_{q}_ms_10000"));
+        assert_eq!(m["measured"], ten["hand_to_plant_ms"][q], "10,000 {q}");
+        assert_eq!(m["baseline"], one["hand_to_plant_ms"][q], "10,000 {q} against 1,000");
+        // Software rendering's frame time grows with the plants: no goal on the whole.
+        assert!(m.get("target").is_none_or(Value::is_null), "{q}: {m}");
+        let m = row(&format!("page_hand_daemon_{q}_ms_10000"));
+        assert_eq!(m["measured"], ten["daemon_ms"][q], "daemon 10,000 {q}");
+        assert_eq!(m["baseline"], one["daemon_ms"][q], "daemon 10,000 {q} against 1,000");
+    }
+    assert_eq!(row("page_hand_daemon_p50_ms_10000")["target"]["limit"].as_f64(), Some(2.0));
+    // Quick mode plays 20 swipes a size; each is drawn, not drawn or not published.
+    for s in [one, ten] {
+        let completed = s["swipes_completed"].as_u64().unwrap();
+        assert!((18..=22).contains(&completed), "{s}");
+        let (drawn, lost, hidden) = (
+            s["drawn"].as_u64().unwrap(),
+            s["not_published"].as_u64().unwrap(),
+            s["not_drawn"].as_u64().unwrap(),
+        );
+        assert_eq!(drawn + lost + hidden, completed, "{s}");
+        assert!(drawn >= 3, "{s}");
+        assert!(s["hand_to_plant_ms"]["p50"].as_f64() <= s["hand_to_plant_ms"]["p99"].as_f64(), "{s}");
+    }
+}
+
 fn check_measurement(path: &str, m: &Value) {
     let measured = m["measured"].as_f64().unwrap_or_else(|| panic!("{path}: measured is not a number"));
     let baseline = m["baseline"].as_f64().unwrap_or_else(|| panic!("{path}: baseline is not a number"));
@@ -261,6 +303,13 @@ fn quick_json_has_every_section_with_ratios_from_the_measured_numbers() {
     }
     if sections["zenoh"]["status"] == "ok" {
         check_zenoh_section(&sections["zenoh"]);
+    }
+    // The hand-to-plant part needs what part `page` needs (Chromium) and the FUSE glove.
+    let field_parts = &sections["field_wire"]["parts"];
+    if field_parts["page"]["status"] == "ok" && bins_present() && Path::new("/dev/fuse").exists() {
+        let part = &field_parts["page_hand"];
+        assert_eq!(part["status"], "ok", "page_hand: {}", part["reason"]);
+        check_page_hand(part);
     }
     for part in ["field_playback", "loop_synthesis", "console"] {
         assert_eq!(parts[part]["status"], "ok", "{part} is in this workspace: {}", parts[part]["reason"]);
