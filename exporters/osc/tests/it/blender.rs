@@ -25,7 +25,7 @@ use support::*;
 
 /// Writes a take of `rig` named `name` into `dir`: `frames` frames at 30 FPS of each joint
 /// swaying on all three axes (`joints_deg(t)`), or the rest pose.
-fn write_take(dir: &Path, name: &str, rig: &str, frames: usize, sway: bool) -> PathBuf {
+pub(crate) fn write_take(dir: &Path, name: &str, rig: &str, frames: usize, sway: bool) -> PathBuf {
     let mut take = frond_motion::layers::Take::new(frond_motion::take::TakeHeader::offline(name, rig, 30));
     let pose = |t: f64| -> [[f32; 3]; 4] {
         std::array::from_fn(|j| {
@@ -70,7 +70,7 @@ fn bake_rest_glb(gltf: &Path, rig: &str, dir: &Path) -> PathBuf {
 /// Forward kinematics of a pose in frond's convention (stem +Y, each joint's matrix chained root
 /// to top, joints at the rig's heights), in Blender's Z-up world ((x, y, z) -> (x, -z, y)): each
 /// joint's head and the direction its bone points.
-fn blender_fk(joints_deg: [[f32; 3]; 4], rig: &Rig) -> ([[f64; 3]; 4], [[f64; 3]; 4]) {
+pub(crate) fn blender_fk(joints_deg: [[f32; 3]; 4], rig: &Rig) -> ([[f64; 3]; 4], [[f64; 3]; 4]) {
     let to_blender = |v: [f64; 3]| [v[0], -v[2], v[1]];
     let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
     let mut p = [0.0, f64::from(rig.joints[0].height_m), 0.0];
@@ -93,7 +93,7 @@ fn blender_fk(joints_deg: [[f32; 3]; 4], rig: &Rig) -> ([[f64; 3]; 4], [[f64; 3]
 
 /// What every test here needs: frondd, frond-gltf (beside it) and the venv's python with bpy;
 /// `None` after saying why the test is skipped.
-fn blender_tools() -> Option<(PathBuf, PathBuf, PathBuf)> {
+pub(crate) fn blender_tools() -> Option<(PathBuf, PathBuf, PathBuf)> {
     let Some(frondd) = frondd() else {
         skip("frondd is not built (cargo build --workspace --bins)");
         return None;
@@ -113,7 +113,12 @@ fn blender_tools() -> Option<(PathBuf, PathBuf, PathBuf)> {
 /// Starts `tests/SCRIPT ARGS` with `py` and reads its stdout until a line starting with
 /// `ready` (Blender's importer logs on stdout too); returns the process and the rest of that
 /// line (`port N` gives `N`).
-fn start_script(py: &Path, script: &str, args: &[&std::ffi::OsStr], ready: &str) -> (Proc, String) {
+pub(crate) fn start_script(
+    py: &Path,
+    script: &str,
+    args: &[&std::ffi::OsStr],
+    ready: &str,
+) -> (Proc, String) {
     // In a Proc at once: dropped (on a panic below too), it is killed and reaped.
     let mut proc = Proc(
         Command::new(py)
@@ -140,16 +145,16 @@ fn start_script(py: &Path, script: &str, args: &[&std::ffi::OsStr], ready: &str)
 }
 
 /// `OsStr` arguments for [`start_script`].
-fn os<'a>(args: &[&'a str]) -> Vec<&'a std::ffi::OsStr> {
+pub(crate) fn os<'a>(args: &[&'a str]) -> Vec<&'a std::ffi::OsStr> {
     args.iter().map(|a| std::ffi::OsStr::new(*a)).collect()
 }
 
-fn close(got: &[f64], want: &[f64; 3], tol: f64, what: &str) {
+pub(crate) fn close(got: &[f64], want: &[f64; 3], tol: f64, what: &str) {
     assert_eq!(got.len(), 3, "{what}: {got:?}");
     assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < tol), "{what}: {got:?} vs {want:?}");
 }
 
-fn f64s(v: &serde_json::Value) -> Vec<f64> {
+pub(crate) fn f64s(v: &serde_json::Value) -> Vec<f64> {
     v.as_array().expect("array").iter().map(|x| x.as_f64().expect("number")).collect()
 }
 

@@ -2,6 +2,7 @@
 //! test binaries was a large part of CI's build). Each module is what was one test file.
 
 mod blender;
+mod blender_meadow;
 mod cli;
 mod e2e;
 mod encode_bytes;

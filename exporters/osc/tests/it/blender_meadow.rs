@@ -1,0 +1,161 @@
+//! A whole live field into Blender (issue 48: a subscriber that draws a field evaluates each
+//! plant itself): `frond field start` plays a known take on a 20 x 20 field announcing only 2
+//! plants; frond-osc sends the field whole (definition, layout in chunks, every field frame);
+//! frond's add-on in Blender (bpy, headless) evaluates all 400 plants with its numpy port of
+//! `frond_motion::field_eval` and drives each plant's armature of the GLB frond-gltf baked from
+//! the same field file. For plants 0, 57 and 399 (two of them never announced) and several
+//! updates, the add-on's angles equal the SDK's evaluation of the same field frame, played here
+//! from what the daemon sent on its socket, within 1e-4 degrees, and the bones Blender computed
+//! equal forward kinematics of them (`blender_meadow_check.py` checks the recorded actions).
+
+use std::process::Command;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use frond_protocol::field::FieldMessage;
+use frond_sdk::field::LiveFields;
+use frond_sdk::{Relayed, Subscriber};
+
+use crate::blender::{blender_fk, blender_tools, close, f64s, os, start_script, write_take};
+use crate::support::*;
+
+/// The field's tables and frames as the daemon sent them, in order, read on its socket.
+fn record_field(
+    socket_dir: &std::path::Path,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<Vec<FieldMessage>> {
+    let mut sub = Subscriber::options()
+        .read_timeout(Some(Duration::from_millis(200)))
+        .connect(socket_dir)
+        .expect("subscribe on the daemon's socket");
+    std::thread::spawn(move || {
+        let mut got = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok(Relayed::Field(msg)) = sub.next_relayed() {
+                got.push(msg);
+            }
+        }
+        got
+    })
+}
+
+/// `messages` played into fields of the SDK's here, up to and with the frame numbered `seq`.
+fn played_to(messages: &[FieldMessage], seq: u64) -> LiveFields {
+    let mut fields = LiveFields::keeping(0);
+    for msg in messages {
+        match msg {
+            FieldMessage::Table(t) => assert!(fields.on_table(t.clone()).is_empty()),
+            FieldMessage::Frame(f) => {
+                fields.on_frame(f);
+                if f.seq == seq {
+                    return fields;
+                }
+            }
+        }
+    }
+    panic!("field frame {seq} never reached the daemon's socket subscriber");
+}
+
+#[test]
+fn blender_addon_evaluates_every_plant_of_a_live_field() {
+    let Some((frondd, py, gltf)) = blender_tools() else { return };
+    let frond = frondd.with_file_name("frond");
+    let daemon = start_daemon(&frondd);
+    let tmp = tempfile::tempdir().unwrap();
+    let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
+    let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
+    let run_frond = |args: &[&str]| {
+        let out = Command::new(&frond)
+            .args(args)
+            .env("FROND_SOCKET_DIR", &daemon.socket_dir)
+            .env("FROND_TAKES_DIR", &daemon.takes_dir)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let field = tmp.path().join("field.json");
+    let field_s = field.to_str().unwrap();
+    run_frond(&[
+        "take", "field", "sway", "--rows", "20", "--cols", "20", "--cell", "0.3", "--speed", "2", "-o",
+        field_s,
+    ]);
+    let glb = tmp.path().join("field.glb");
+    let baked = Command::new(&gltf)
+        .args(["bake", "-q", "--rig", "grass", "--take"])
+        .arg(&take)
+        .args(["--field", field_s, "--duration", "0.2", "-o"])
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    let out = tmp.path().join("meadow.jsonl");
+    let plants = ["0", "57", "399"];
+    let args = [
+        "--plants",
+        "400",
+        "--report",
+        "0,57,399",
+        "--updates",
+        "8",
+        "--record",
+        "5",
+        "--timeout",
+        "60",
+        "--out",
+    ];
+    let mut args = os(&args);
+    args.extend([out.as_os_str(), "--glb".as_ref(), glb.as_os_str()]);
+    let (mut blender, port) = start_script(&py, "blender_meadow_check.py", &args, "port ");
+    let stop = Arc::new(AtomicBool::new(false));
+    let recorder = record_field(&daemon.socket_dir, Arc::clone(&stop));
+    run_frond(&["field", "start", "--take", "sway", "--field", field_s, "--plants", "2"]);
+    // The bend turned away from the authored direction: the add-on's rotation is exercised.
+    run_frond(&["field", "key", "left"]);
+    let osc = start_osc(&daemon.socket_dir, &["--target", &format!("127.0.0.1:{port}")]);
+    wait_receiver(&mut blender);
+    stop.store(true, Ordering::Relaxed);
+    let messages = recorder.join().unwrap();
+    stop_and_stderr(osc);
+
+    let lines = read_jsonl(&out);
+    let (timing, lines) = lines.split_last().expect("lines");
+    eprintln!("the add-on per update at 400 plants: {}", timing["timing"]);
+    assert_eq!(lines.len(), 8 * plants.len());
+    let (mut worst, mut bent, mut turned) = (0.0f64, 0, 0);
+    for line in lines {
+        let (seq, plant) = (line["seq"].as_u64().unwrap(), line["plant"].as_u64().unwrap() as usize);
+        let tau = line["tau"].as_f64().unwrap();
+        let fields = played_to(&messages, seq);
+        let field = fields.by_source("field").expect("the field runs");
+        assert_eq!(field.plants(), 400);
+        assert_eq!(field.tau_s(), tau, "frame {seq}'s stream time");
+        if field.state().controls().direction_deg != field.layout().authored_direction_deg {
+            turned += 1;
+        }
+        let want = field.plant_pose(plant, tau).unwrap_or_else(|| panic!("plant {plant} at {seq} here"));
+        let got = f64s(&line["angles"]);
+        assert_eq!(got.len(), 12);
+        for (w, g) in want.iter().flatten().zip(&got) {
+            worst = worst.max((f64::from(*w) - g).abs());
+        }
+        assert!(worst <= 1e-4, "plant {plant} at {seq}: the add-on's {got:?}, the SDK's {want:?}");
+        assert_eq!(line["armature"].as_str(), Some(format!("grass_{plant:03}").as_str()));
+        let (heads, dirs) = blender_fk(want, &rig);
+        for j in 0..4 {
+            let what = format!("plant {plant} joint {j} at {seq}");
+            close(&f64s(&line["heads"][j]), &heads[j], 1e-4, &format!("{what}: head"));
+            close(&f64s(&line["dirs"][j]), &dirs[j], 1e-4, &format!("{what}: direction"));
+        }
+        if dirs[3][2] < 5f64.to_radians().cos() {
+            bent += 1;
+        }
+    }
+    eprintln!("the add-on's angles within {worst} degrees of the SDK's");
+    assert!(
+        bent >= lines.len() / 4,
+        "only {bent} of {} plant poses bend: the check would not see much",
+        lines.len()
+    );
+    assert!(turned > 0, "the field key never turned the bend: the add-on's rotation was not checked");
+}
