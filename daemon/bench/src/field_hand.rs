@@ -463,9 +463,13 @@ fn measure_size(d: &Driver, recorder: &Recorder, period: f64, swipes: usize) -> 
     }
     daemon.sort_by(f64::total_cmp);
     total.sort_by(f64::total_cmp);
+    // Reports whose device time (the glove's write stamp) did not advance on the one before:
+    // frondd counts each as a discontinuity (a new timeline; its filter is reset).
+    let repeated = seen.hands.windows(2).filter(|w| w[1].1.t <= w[0].1.t).count();
     let details = json!({
         "swipes_completed": completed.len(), "drawn": total.len(), "not_published": not_published,
-        "not_drawn": not_shown, "hand_reports": seen.hands.len(), "field_frames": seen.frames.len(),
+        "not_drawn": not_shown, "hand_reports": seen.hands.len(),
+        "hand_reports_time_not_advancing": repeated, "field_frames": seen.frames.len(),
         "page_frames_with_a_new_field_frame": drawn.len(), "watched_after_s": tail_s,
     });
     Ok(SizeRun { daemon, total, details })
