@@ -395,7 +395,7 @@ class LiveField:
         self.frame = None  # the newest frame applied: {"seq", "t", "flags", "tau"}
         self.frames = 0  # field frames applied
         self.drawn_seq = None  # the frame the armatures show
-        self.targets = None  # Blender: [(plant, [pose bones])], see field_targets
+        self.targets = None  # Blender: [(plant, armature, [pose bones])], see field_targets
         self.scene_objects = -1
         self.last_drive = None
 
@@ -771,7 +771,7 @@ def field_targets(scene, field):
     prefix = field.definition.rig + "_"
     targets = []
     for obj in scene.objects:
-        if obj.type != "ARMATURE":
+        if obj.type != "ARMATURE" or obj.pose is None:  # no pose before its first evaluation
             continue
         i = _plant_number(obj.name, prefix)
         if i is None or i >= field.definition.plants:
