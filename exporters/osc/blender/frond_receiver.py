@@ -14,7 +14,10 @@ armature, the names `joint0` .. `joint3` are tried. Secondary elements: a layer 
 `leaf#2`) drives every instance of its kind in the picked armature (`leaf0_joint0`, ...); a field
 plant (`plant<i>` of `frond field start`) or a graph walker (`walker<i>` of `frond walk`) drives
 the armature of plant i wherever it is in the scene, as Blender imports a field or grove GLB from
-frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. Every
+frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. A
+running field that frond-osc sends whole (`/frond/field/<f>/...`) is drawn whole: every plant
+evaluated here (numpy, `frond_motion::field_eval` ported) and each plant's armature driven, the
+announced plants' own poses then skipped (see "Whole fields" in exporters/osc/README.md). Every
 received frame sets the bones' rotations from `/frond/joint/<i>/quat`; Record keys each received
 frame into a new action at the frame given by the pose's device time `t` (`start frame + (t - t0)
 * scene fps`, fractional frames kept so no frame is lost; frames flagged held, which repeat the

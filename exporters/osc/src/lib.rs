@@ -7,6 +7,8 @@
 //! - [`sender`]: non-blocking UDP to several targets; a target that is down never blocks the
 //!   others.
 //! - [`resample`]: `--rate` resampling that never replays a stale frame as new.
+//! - [`fields`]: running fields sent whole (definition, layout, every field frame), so that a
+//!   receiver evaluates every plant itself (the Blender add-on does).
 //! - [`bridge`]: the loop that ties them to a subscriber, with counters.
 //! - [`bench`](mod@bench): daemon-to-receiver latency percentiles with 1 and N targets.
 //! - [`rig`]: what VMC needs from a rig (joint heights, bone names), loaded with `frond_motion`.

@@ -207,7 +207,7 @@ pub fn encode_definitions(
     Ok(())
 }
 
-/// Encoder of field frames and layout chunks: one [`FieldTemplates`] per field sent whole,
+/// Encoder of field frames and layout chunks: one set of message templates per field sent whole,
 /// made by [`FieldEncoder::set_fields`] when the fields change.
 #[derive(Debug, Clone)]
 pub struct FieldEncoder {
