@@ -178,24 +178,24 @@ function frame() {
     renderer.render(scene, camera);
     meadow?.rendered();
   }
-  if (flow.ws?.readyState === WebSocket.OPEN && flow.taken !== flow.acked) {
-    flow.acked = flow.taken;
-    flow.ws.send(`{"ack":${flow.taken}}`);
-  }
   requestAnimationFrame(frame);
 }
 requestAnimationFrame(frame);
 
 // ---- the pose stream ----
 let rigShown = null;
-// Messages taken on the socket, said to the console once a frame: it sends a page that is
-// behind the latest when it is ready rather than a queue (a large meadow drawn in software).
-const flow = { ws: null, taken: 0, acked: 0 };
+// Messages taken on the socket, said to the console as each is handled: it keeps a page at most
+// a few messages behind, so one slower than the stream (a large meadow drawn in software) gets
+// the latest when it is free rather than a queue.
+const flow = { ws: null, taken: 0 };
 function connect() {
   const ws = new WebSocket(`ws://${location.host}/ws`);
-  Object.assign(flow, { ws, taken: 0, acked: 0 });
+  Object.assign(flow, { ws, taken: 0 });
   ws.onmessage = (ev) => {
     flow.taken++;
+    // Taken as soon as it is handled, not once the next frame is drawn: while the page draws,
+    // the console goes on sending (up to its window), and the frame after draws the newest.
+    ws.send(`{"ack":${flow.taken}}`);
     const m = JSON.parse(ev.data);
     state.messages++;
     if (m.type === 'hello') {
