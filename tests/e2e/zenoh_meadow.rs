@@ -91,6 +91,21 @@ fn check_line(line: &str, messages: &[FieldMessage], who: &str) {
     assert!(worst <= 1e-4, "{who}: frame {seq}: an angle differs by {worst} degrees");
 }
 
+/// Plays take `sway` as a field of `rows` x `cols` plants, `plants` of them announced.
+fn start_field(daemon: &Daemon, rows: usize, cols: usize, plants: &str) {
+    let field = compact_field(daemon, "sway", rows, cols);
+    daemon.frond_ok(&[
+        "field",
+        "start",
+        "--take",
+        "sway",
+        "--field",
+        field.to_str().unwrap(),
+        "--plants",
+        plants,
+    ]);
+}
+
 /// The SDK's example `field_plants` on `host`, printing `frames` field frames from `from`.
 fn field_plants(host: &Host, from: &str, frames: usize, name: &str) -> (Proc, Arc<Mutex<Tapped>>) {
     let mut cmd = host.command(bin("examples/field_plants"));
@@ -122,17 +137,7 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
     let recorder = record_field(&daemon, stop.clone());
     let (_early, early) = field_plants(b, &from, 2, "field_plants (early)");
     std::thread::sleep(Duration::from_secs(2));
-    let field = compact_field(&daemon, "sway", 100, 100);
-    daemon.frond_ok(&[
-        "field",
-        "start",
-        "--take",
-        "sway",
-        "--field",
-        field.to_str().unwrap(),
-        "--plants",
-        "4",
-    ]);
+    start_field(&daemon, 100, 100, "4");
 
     // The independent reader (no frond code) on host 1, for 6 s of the running field.
     let python = crate::python::python_with("zenoh, msgpack").map(|py| {
@@ -212,17 +217,7 @@ fn a_stage_subscriber_keeps_each_sources_field_as_its_daemon_sends_it() {
     // Two sizes, so that a field taken for the other source's shows.
     let sizes = [(10, 20), (15, 15)];
     for (d, &(rows, cols)) in daemons.iter().zip(&sizes) {
-        let field = compact_field(d, "sway", rows, cols);
-        d.frond_ok(&[
-            "field",
-            "start",
-            "--take",
-            "sway",
-            "--field",
-            field.to_str().unwrap(),
-            "--plants",
-            "2",
-        ]);
+        start_field(d, rows, cols, "2");
     }
     let from = format!("zenoh:frond/{stage}/*?connect={},{}", endpoint(ports[0]), endpoint(ports[1]));
     let Ok(Source::Zenoh(addr)) = from.parse::<Source>() else { panic!("{from}") };

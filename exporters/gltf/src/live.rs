@@ -147,6 +147,15 @@ impl LiveCapture {
 /// How long to keep reading after a stop request for poses already sent.
 pub const DRAIN: Duration = Duration::from_millis(300);
 
+/// Whether a capture that was asked to stop has read for [`DRAIN`] since (the poses and field
+/// frames already sent are kept); `until` holds when the reading ends once `stop` is seen.
+pub(crate) fn drained(stop: &AtomicBool, until: &mut Option<Instant>) -> bool {
+    if until.is_none() && stop.load(Ordering::SeqCst) {
+        *until = Some(Instant::now() + DRAIN);
+    }
+    until.is_some_and(|d| Instant::now() >= d)
+}
+
 /// Subscribes to the daemon at `source` (its socket directory, or a `frond-zenoh` bridge on
 /// another host) and captures until recording stops (or, in
 /// [`LiveMode::All`], until `stop`); on `stop` drains what was already sent, then returns.
@@ -172,10 +181,7 @@ pub fn capture(
     let mut cap = LiveCapture::new(mode);
     let mut drain_until: Option<Instant> = None;
     loop {
-        if drain_until.is_none() && stop.load(Ordering::SeqCst) {
-            drain_until = Some(Instant::now() + DRAIN);
-        }
-        if drain_until.is_some_and(|d| Instant::now() >= d) {
+        if drained(stop, &mut drain_until) {
             status("stopped");
             break;
         }

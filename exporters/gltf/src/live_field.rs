@@ -11,7 +11,7 @@
 //! (`SubscriberOptions::keep_field_frames`), as [`crate::live::capture`] drives poses.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use frond_motion::clip::Joints;
@@ -24,7 +24,7 @@ use frond_sdk::field::{LiveFields, MAX_KEPT_FIELD_FRAMES};
 use frond_sdk::{Event, SdkError, Source, Subscriber};
 
 use crate::bake::{BakeOptions, live_field_keys};
-use crate::live::{DRAIN, LiveError, LiveMode};
+use crate::live::{LiveError, LiveMode, drained};
 
 /// Most stream frames one capture keeps (about 19 hours of a 30 FPS stream at motion speed 1;
 /// 2^21 frames of 48 bytes): a peer whose stream runs further ends the capture there.
@@ -281,10 +281,7 @@ pub fn capture_field(
     let mut drain_until: Option<Instant> = None;
     let mut warned = false;
     loop {
-        if drain_until.is_none() && stop.load(Ordering::SeqCst) {
-            drain_until = Some(Instant::now() + DRAIN);
-        }
-        if drain_until.is_some_and(|d| Instant::now() >= d) {
+        if drained(stop, &mut drain_until) {
             status("stopped");
             break;
         }

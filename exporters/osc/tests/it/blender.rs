@@ -145,6 +145,17 @@ pub(crate) fn start_script(
 }
 
 /// `OsStr` arguments for [`start_script`].
+/// Runs `frond ARGS` (the `frond` beside `frondd`) against `daemon`; it must succeed.
+pub(crate) fn run_frond(frond: &Path, daemon: &Daemon, args: &[&str]) {
+    let out = Command::new(frond)
+        .args(args)
+        .env("FROND_SOCKET_DIR", &daemon.socket_dir)
+        .env("FROND_TAKES_DIR", &daemon.takes_dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
 pub(crate) fn os<'a>(args: &[&'a str]) -> Vec<&'a std::ffi::OsStr> {
     args.iter().map(|a| std::ffi::OsStr::new(*a)).collect()
 }
@@ -282,15 +293,7 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     let tmp = tempfile::tempdir().unwrap();
     let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
-    let run_frond = |args: &[&str]| {
-        let out = Command::new(&frond)
-            .args(args)
-            .env("FROND_SOCKET_DIR", &daemon.socket_dir)
-            .env("FROND_TAKES_DIR", &daemon.takes_dir)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-    };
+    let run_frond = |args: &[&str]| run_frond(&frond, &daemon, args);
     let field = tmp.path().join("field.json");
     let field_s = field.to_str().unwrap();
     run_frond(&[

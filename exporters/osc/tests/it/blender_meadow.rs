@@ -17,7 +17,7 @@ use frond_protocol::field::FieldMessage;
 use frond_sdk::field::LiveFields;
 use frond_sdk::{Relayed, Subscriber};
 
-use crate::blender::{blender_fk, blender_tools, close, f64s, os, start_script, write_take};
+use crate::blender::{blender_fk, blender_tools, close, f64s, os, run_frond, start_script, write_take};
 use crate::support::*;
 
 /// The field's tables and frames as the daemon sent them, in order, read on its socket.
@@ -65,15 +65,7 @@ fn blender_addon_evaluates_every_plant_of_a_live_field() {
     let tmp = tempfile::tempdir().unwrap();
     let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
-    let run_frond = |args: &[&str]| {
-        let out = Command::new(&frond)
-            .args(args)
-            .env("FROND_SOCKET_DIR", &daemon.socket_dir)
-            .env("FROND_TAKES_DIR", &daemon.takes_dir)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-    };
+    let run_frond = |args: &[&str]| run_frond(&frond, &daemon, args);
     let field = tmp.path().join("field.json");
     let field_s = field.to_str().unwrap();
     run_frond(&[
