@@ -1,6 +1,6 @@
 //! Section 10's part `page_hand`: a hand sample to the first plant moving on the page (issue
 //! 48). The virtual glove plays scripted wrist swipes through its FUSE hidraw node
-//! ([`FuseGlove`], as section 8 reads it), `frondd` reads it at 1 kHz and plays a field of 1,000,
+//! (`FuseGlove`, as section 8 reads it), `frondd` reads it at 1 kHz and plays a field of 1,000,
 //! 10,000 and (not in quick mode) 100,000 plants that the swipes steer (seed 000, section 6.3:
 //! each swipe sets the field's heading, speed and scale), `frond-console` passes the field on
 //! and headless Chromium draws it, as part `page` ([`crate::field_page`]) does.
@@ -53,8 +53,8 @@ const AMPLITUDE_DEG: f32 = 50.0;
 /// How long the wrist moves in one swipe, seconds.
 const FLICK_S: f64 = 0.1;
 
-/// One cycle of the glove's script at [`RATE_HZ`]: a swipe of the wrist's yaw from `+25` to
-/// `-25` degrees in [`FLICK_S`], held still until `period_s`, then back, held until
+/// One cycle of the glove's script at `RATE_HZ`: a swipe of the wrist's yaw from `+25` to
+/// `-25` degrees in `FLICK_S`, held still until `period_s`, then back, held until
 /// `2 period_s`. Worked out from [`SwipeParams::default`]: 50 degrees in 0.1 s is 500 deg/s,
 /// well over the 150 deg/s that starts a swipe (the speed smoothed at 15 Hz, about 0.09 of the
 /// way a sample at 1 kHz, passes it in 4 samples); once the wrist stops the smoothed speed falls

@@ -255,7 +255,7 @@ fn takes_keys(input: &StageInput) -> bool {
     matches!(input, StageInput::Key(_))
 }
 
-/// The rig of `rig_toml` (a rig file's text, at most [`MAX_STAGE_RIG_BYTES`]) as a field's
+/// The rig of `rig_toml` (a rig file's text, at most [`frond_protocol::MAX_STAGE_RIG_BYTES`]) as a field's
 /// plants ([`StageSpec::FieldOfRig`](frond_protocol::StageSpec::FieldOfRig)): valid, named
 /// plainly, and, when it has the active rig's name, the active rig itself (the element table
 /// and every subscriber know rigs by name).
