@@ -31,13 +31,7 @@ pub const FIELD_FRAMES_ON_CONNECT: u64 = 64;
 pub const FIELD_FRAMES_PER_MESSAGE: usize = 128;
 
 /// One running field as the page gets it.
-#[derive(Debug, Clone)]
-pub struct RelayedField {
-    /// Its definition as the daemon sent it.
-    pub definition: FieldDefinition,
-    /// Its plants' layout ([`layout_bytes`]).
-    pub layout: Arc<Vec<u8>>,
-}
+pub use frond_sdk::field::RelayedField;
 
 /// The running fields and their latest frames, shared with the page connections.
 #[derive(Debug, Default)]
@@ -172,18 +166,7 @@ impl FieldRelay {
 pub fn collect(sub: &mut Subscriber, known: &mut Vec<FieldDefinition>, update: &mut FieldUpdate) -> bool {
     update.frames.clear();
     update.dropped = sub.take_field_frames(&mut update.frames);
-    if !sub.fields().iter().map(|f| f.definition()).eq(known.iter()) {
-        known.clear();
-        known.extend(sub.fields().iter().map(|f| f.definition().clone()));
-        let table = known
-            .iter()
-            .map(|d| RelayedField {
-                definition: d.clone(),
-                layout: Arc::new(layout_bytes(sub.fields(), d.id)),
-            })
-            .collect();
-        update.table = Some(table);
-    }
+    update.table = frond_sdk::field::changed_layouts(sub.fields(), known, usize::MAX);
     update.table.is_some() || !update.frames.is_empty() || update.dropped > 0
 }
 

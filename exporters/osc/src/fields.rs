@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use frond_protocol::ElementTable;
 use frond_protocol::field::{FieldDefinition, FieldFrame};
 use frond_sdk::Subscriber;
-use frond_sdk::field::{LAYOUT_BYTES_PER_PLANT, layout_bytes};
+use frond_sdk::field::{LAYOUT_BYTES_PER_PLANT, RelayedField, changed_layouts};
 
 use crate::encode::{
     ClockOffset, Datagrams, EncodeError, FieldEncoder, MAX_OSC_FIELD_PLANTS, Timetags, encode_definitions,
@@ -31,31 +31,15 @@ pub const LAYOUT_CHUNKS_PER_FRAME: usize = 8;
 /// Least time between two warnings about fields left out.
 const LEFT_OUT_LOG_EVERY: Duration = Duration::from_secs(10);
 
-/// A running field's definition and layout as the SDK keeps them.
-pub type FieldTable = Vec<(FieldDefinition, Arc<Vec<u8>>)>;
+/// The running fields' definitions and layouts, as the SDK relays them.
+pub type FieldTable = Vec<RelayedField>;
 
 /// The table of fields the subscriber now runs, if it changed since `known` (updated): each
 /// field's definition and layout, made here (on the subscriber's thread). A field larger than
 /// [`MAX_OSC_FIELD_PLANTS`] gets an empty layout, its bytes never made (the sender leaves it
 /// out).
 pub fn collect_table(sub: &Subscriber, known: &mut Vec<FieldDefinition>) -> Option<FieldTable> {
-    if sub.fields().iter().map(|f| f.definition()).eq(known.iter()) {
-        return None;
-    }
-    known.clear();
-    known.extend(sub.fields().iter().map(|f| f.definition().clone()));
-    let table = known
-        .iter()
-        .map(|d| {
-            let layout = if d.plants as usize > MAX_OSC_FIELD_PLANTS {
-                Vec::new()
-            } else {
-                layout_bytes(sub.fields(), d.id)
-            };
-            (d.clone(), Arc::new(layout))
-        })
-        .collect();
-    Some(table)
+    changed_layouts(sub.fields(), known, MAX_OSC_FIELD_PLANTS)
 }
 
 #[derive(Debug)]
@@ -106,7 +90,7 @@ impl FieldSender {
     pub fn set_table(&mut self, table: FieldTable) {
         let had = !self.fields.is_empty();
         self.fields.clear();
-        for (definition, layout) in table {
+        for RelayedField { definition, layout } in table {
             let plants = definition.plants as usize;
             if plants > MAX_OSC_FIELD_PLANTS || layout.len() != plants * LAYOUT_BYTES_PER_PLANT {
                 self.left_out += 1;
@@ -223,9 +207,9 @@ mod tests {
         // layout is not its plant count's: both left out.
         let too_large = MAX_OSC_FIELD_PLANTS as u32 + 1;
         fields.set_table(vec![
-            (definition(40, 1250), Arc::new(vec![1; 25_000])),
-            (definition(41, too_large), Arc::new(Vec::new())),
-            (definition(42, 10), Arc::new(vec![1; 199])),
+            RelayedField { definition: definition(40, 1250), layout: Arc::new(vec![1; 25_000]) },
+            RelayedField { definition: definition(41, too_large), layout: Arc::new(Vec::new()) },
+            RelayedField { definition: definition(42, 10), layout: Arc::new(vec![1; 199]) },
         ]);
         assert_eq!((fields.fields.len(), fields.left_out), (1, 2));
         let mut out = Datagrams::new();

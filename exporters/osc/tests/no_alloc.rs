@@ -35,7 +35,8 @@ fn steady_state_frames_allocate_nothing() {
     // A running field of 100,000 plants sent whole: every field frame with its entries, and
     // the layout's 2000 chunks riding 8 a frame with the first 250 (counted from frame 100).
     let mut fields = FieldSender::new(ClockOffset::fixed(0), Timetags::Publish);
-    fields.set_table(vec![(field_definition(100_000), Arc::new(vec![7u8; 100_000 * 20]))]);
+    let layout = Arc::new(vec![7u8; 100_000 * 20]);
+    fields.set_table(vec![frond_sdk::field::RelayedField { definition: field_definition(100_000), layout }]);
     let field_frame = |seq: u64| {
         let mut f = FieldFrame { seq, field: ElementId::new(40), produced: seq + 1, ..FieldFrame::default() };
         for k in 0..12 {

@@ -37,6 +37,7 @@
 //! [`LiveField::plant_pose`] says `None` for plants that read further back.
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use frond_motion::clip::Joints;
 use frond_motion::field::{Field, FieldError};
@@ -149,6 +150,43 @@ pub fn layout_bytes(fields: &LiveFields, id: ElementId) -> Vec<u8> {
         out.extend(p.scale.to_le_bytes());
     }
     out
+}
+
+/// A running field as a program that passes fields on keeps it (the console for its page,
+/// frond-osc for the Blender add-on): its definition and its plants' layout ([`layout_bytes`]).
+#[derive(Debug, Clone)]
+pub struct RelayedField {
+    /// Its definition as the daemon sent it.
+    pub definition: FieldDefinition,
+    /// Its plants' layout ([`layout_bytes`]; empty for a field over the caller's plant bound).
+    pub layout: Arc<Vec<u8>>,
+}
+
+/// The running fields with their layouts, when they changed since `known` (which is updated):
+/// what a program that passes fields on sends again. A field of more than `max_plants` plants
+/// gets an empty layout, its bytes never made.
+pub fn changed_layouts(
+    fields: &LiveFields,
+    known: &mut Vec<FieldDefinition>,
+    max_plants: usize,
+) -> Option<Vec<RelayedField>> {
+    if fields.iter().map(|f| f.definition()).eq(known.iter()) {
+        return None;
+    }
+    known.clear();
+    known.extend(fields.iter().map(|f| f.definition().clone()));
+    let relayed = known
+        .iter()
+        .map(|d| RelayedField {
+            definition: d.clone(),
+            layout: Arc::new(if d.plants as usize > max_plants {
+                Vec::new()
+            } else {
+                layout_bytes(fields, d.id)
+            }),
+        })
+        .collect();
+    Some(relayed)
 }
 
 /// Most field frames a subscriber keeps for [`Subscriber::take_field_frames`] (4 s at 60 Hz).
