@@ -219,10 +219,7 @@ impl Baker {
         let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
         let assignment = assign(rig, take, &layers, opts.seed, &assets, &mut notes);
         let n_plants = field.plants().len();
-        let digits = n_plants.max(1).to_string().len();
-        let plants: Vec<PlantNodes> = (0..n_plants)
-            .map(|i| doc.plant(&assets, &format!("{}_{i:0digits$}", rig.rig.name), &field.placement(i)))
-            .collect();
+        let plants = doc.plants(&assets, &rig.rig.name, n_plants, |i| field.placement(i));
         let input = doc.times(&times_s);
         let mut anim = doc.begin_animation(input);
         let total = (keys * plants.len()) as u64;

@@ -28,7 +28,7 @@ use crate::bake::{
     BakeOptions, BakeStats, Baked, Baker, Progress, element_names, joint_channels, joint_names,
     live_field_keys,
 };
-use crate::doc::{DocBuilder, Placement, PlantNodes};
+use crate::doc::{DocBuilder, Placement};
 use crate::error::BakeError;
 use crate::input::LoadedRig;
 use crate::live_field::{FieldCapture, FieldMark};
@@ -66,17 +66,9 @@ impl Baker {
 
         let mut doc = DocBuilder::new(std::mem::take(&mut self.bin));
         let assets = doc.plant_assets(model, &joint_names(rig), &element_names(rig));
-        let digits = n_plants.to_string().len();
-        let plants: Vec<PlantNodes> = base
-            .field()
-            .plants
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let at = Placement::on_ground(p.position_m[0], p.position_m[1], 0.0, p.scale);
-                doc.plant(&assets, &format!("{}_{i:0digits$}", rig.rig.name), &at)
-            })
-            .collect();
+        let field_plants = &base.field().plants;
+        let plants =
+            doc.plants(&assets, &rig.rig.name, n_plants, |i| Placement::of_field_plant(&field_plants[i]));
         let input = doc.times(&times_s);
         let mut anim = doc.begin_animation(input);
         let chunk = (POSES_AT_ONCE / keys.max(1)).clamp(1, n_plants);

@@ -325,6 +325,20 @@ impl DocBuilder {
         self.root.nodes[parent.value()].children.get_or_insert_with(Vec::new).push(child);
     }
 
+    /// `n` plants, plant `i` at `placement(i)` and named `<rig>_<i>` with `i` zero-padded to
+    /// `n`'s digits (`grass_03`): the names by which the Blender add-on finds a field's or a
+    /// grove's plants.
+    pub fn plants(
+        &mut self,
+        assets: &PlantAssets,
+        rig_name: &str,
+        n: usize,
+        placement: impl Fn(usize) -> Placement,
+    ) -> Vec<PlantNodes> {
+        let digits = n.max(1).to_string().len();
+        (0..n).map(|i| self.plant(assets, &format!("{rig_name}_{i:0digits$}"), &placement(i))).collect()
+    }
+
     /// One plant: a root node placed in the scene, the rig's joints under it (named after the
     /// rig's joints), each secondary element instance's skeleton under its attach joint, a skin
     /// over all of them, and a root-level node with the shared mesh and that skin.
@@ -494,6 +508,12 @@ impl Default for Placement {
 }
 
 impl Placement {
+    /// Where a field's plant stands: at its place on the ground, unturned (its bend is turned to
+    /// the force by its pose), at its size.
+    pub fn of_field_plant(p: &frond_motion::field::FieldPlant) -> Self {
+        Placement::on_ground(p.position_m[0], p.position_m[1], 0.0, p.scale)
+    }
+
     /// At `(x, 0, z)`, turned `yaw_deg` about +Y, scaled.
     pub fn on_ground(x_m: f32, z_m: f32, yaw_deg: f32, scale: f32) -> Self {
         Placement {

@@ -75,8 +75,7 @@ impl Field {
     /// Plant `id`'s root node: at `[x, 0, z]`, scaled by its size factor (the bend direction is
     /// in its poses, see [`Field::pose_at`]).
     pub fn placement(&self, id: usize) -> Placement {
-        let p = &self.field.plants[id];
-        Placement::on_ground(p.position_m[0], p.position_m[1], 0.0, p.scale)
+        Placement::of_field_plant(&self.field.plants[id])
     }
 
     /// Plant `id`'s pose at `t_s` from one layer's clip (at [`Field::fps`]): seed 000, Eq. 6-7,

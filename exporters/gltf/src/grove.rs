@@ -6,7 +6,7 @@ use frond_motion::mesh::PlantModel;
 
 use crate::anim::Layers;
 use crate::bake::{BakeOptions, BakeStats, Baked, Baker, Progress};
-use crate::doc::{DocBuilder, Placement, PlantNodes};
+use crate::doc::{DocBuilder, Placement};
 use crate::error::BakeError;
 use crate::input::{LoadedRig, TakeInput};
 
@@ -57,16 +57,7 @@ impl Baker {
         let assets =
             doc.plant_assets(model, &crate::bake::joint_names(rig), &crate::bake::element_names(rig));
         let n = takes.len();
-        let digits = n.to_string().len();
-        let plants: Vec<PlantNodes> = (0..n)
-            .map(|i| {
-                doc.plant(
-                    &assets,
-                    &format!("{}_{i:0digits$}", rig.rig.name),
-                    &grove_placement(i, n, spacing_m),
-                )
-            })
-            .collect();
+        let plants = doc.plants(&assets, &rig.rig.name, n, |i| grove_placement(i, n, spacing_m));
         let input = doc.times(&times_s);
         let mut anim = doc.begin_animation(input);
         let total = (keys * n) as u64;
