@@ -156,6 +156,39 @@ pub(crate) fn run_frond(frond: &Path, daemon: &Daemon, args: &[&str]) {
     assert!(out.status.success(), "frond {args:?}: {}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// A field file of take `sway` (`frond take field`, `[rows, cols, cell]`, speed 2) in `dir`,
+/// and frond-gltf's bake of it on `take` for `duration` seconds: the GLB Blender imports.
+pub(crate) fn field_with_glb(
+    frond: &Path,
+    gltf: &Path,
+    daemon: &Daemon,
+    take: &Path,
+    dir: &Path,
+    [rows, cols, cell]: [&str; 3],
+    duration: &str,
+) -> (PathBuf, PathBuf) {
+    let field = dir.join("field.json");
+    let field_s = field.to_str().unwrap();
+    run_frond(
+        frond,
+        daemon,
+        &[
+            "take", "field", "sway", "--rows", rows, "--cols", cols, "--cell", cell, "--speed", "2", "-o",
+            field_s,
+        ],
+    );
+    let glb = dir.join("field.glb");
+    let baked = Command::new(gltf)
+        .args(["bake", "-q", "--rig", "grass", "--take"])
+        .arg(take)
+        .args(["--field", field_s, "--duration", duration, "-o"])
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
+    (field, glb)
+}
+
 pub(crate) fn os<'a>(args: &[&'a str]) -> Vec<&'a std::ffi::OsStr> {
     args.iter().map(|a| std::ffi::OsStr::new(*a)).collect()
 }
@@ -294,20 +327,8 @@ fn blender_addon_drives_the_plants_of_a_live_field() {
     let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
     let run_frond = |args: &[&str]| run_frond(&frond, &daemon, args);
-    let field = tmp.path().join("field.json");
+    let (field, glb) = field_with_glb(&frond, &gltf, &daemon, &take, tmp.path(), ["2", "2", "1"], "1");
     let field_s = field.to_str().unwrap();
-    run_frond(&[
-        "take", "field", "sway", "--rows", "2", "--cols", "2", "--cell", "1", "--speed", "2", "-o", field_s,
-    ]);
-    let glb = tmp.path().join("field.glb");
-    let baked = Command::new(&gltf)
-        .args(["bake", "-q", "--rig", "grass", "--take"])
-        .arg(&take)
-        .args(["--field", field_s, "--duration", "1", "-o"])
-        .arg(&glb)
-        .output()
-        .unwrap();
-    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
     let out = tmp.path().join("field.jsonl");
     let args = ["--plants", "4", "--frames", "200", "--record", "120", "--timeout", "60", "--out"];
     let mut args = os(&args);

@@ -8,7 +8,6 @@
 //! from what the daemon sent on its socket, within 1e-4 degrees, and the bones Blender computed
 //! equal forward kinematics of them (`blender_meadow_check.py` checks the recorded actions).
 
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -17,7 +16,9 @@ use frond_protocol::field::FieldMessage;
 use frond_sdk::field::LiveFields;
 use frond_sdk::{Relayed, Subscriber};
 
-use crate::blender::{blender_fk, blender_tools, close, f64s, os, run_frond, start_script, write_take};
+use crate::blender::{
+    blender_fk, blender_tools, close, f64s, field_with_glb, os, run_frond, start_script, write_take,
+};
 use crate::support::*;
 
 /// The field's tables and frames as the daemon sent them, in order, read on its socket.
@@ -66,21 +67,8 @@ fn blender_addon_evaluates_every_plant_of_a_live_field() {
     let rig = frond_formats::rig_files::load_rig("grass").unwrap().rig;
     let take = write_take(&daemon.takes_dir, "sway", "grass", 150, true);
     let run_frond = |args: &[&str]| run_frond(&frond, &daemon, args);
-    let field = tmp.path().join("field.json");
+    let (field, glb) = field_with_glb(&frond, &gltf, &daemon, &take, tmp.path(), ["20", "20", "0.3"], "0.2");
     let field_s = field.to_str().unwrap();
-    run_frond(&[
-        "take", "field", "sway", "--rows", "20", "--cols", "20", "--cell", "0.3", "--speed", "2", "-o",
-        field_s,
-    ]);
-    let glb = tmp.path().join("field.glb");
-    let baked = Command::new(&gltf)
-        .args(["bake", "-q", "--rig", "grass", "--take"])
-        .arg(&take)
-        .args(["--field", field_s, "--duration", "0.2", "-o"])
-        .arg(&glb)
-        .output()
-        .unwrap();
-    assert!(baked.status.success(), "{}", String::from_utf8_lossy(&baked.stderr));
     let out = tmp.path().join("meadow.jsonl");
     let plants = ["0", "57", "399"];
     let args = [
