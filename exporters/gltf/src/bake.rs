@@ -283,8 +283,29 @@ pub fn live_field_keys(
         max_keys,
         why,
         max_s: usable / fps,
-        max_fps: if span_s > 0.0 { usable / span_s } else { fps },
+        max_fps: fitting_fps(span_s, fps, max_keys).unwrap_or(0.0),
     })))
+}
+
+/// The highest rate below `fps`, in whole hundredths of a frame a second, at which `span_s`
+/// needs at most `max_keys` keys ([`frond_motion::clip::frames_needed`]); `None` when not even
+/// 0.01 FPS does.
+fn fitting_fps(span_s: f64, fps: f64, max_keys: u64) -> Option<f64> {
+    let fits = |hundredths: f64| frond_motion::clip::frames_needed(span_s, hundredths / 100.0) <= max_keys;
+    // `frames_needed` is floor(span_s * fps + FRAME_TOLERANCE) + 1, so a rate fits when
+    // span_s * fps + FRAME_TOLERANCE < max_keys; a step or two down settles the rounding.
+    let bound = (max_keys as f64 - frond_motion::clip::FRAME_TOLERANCE) / span_s.max(1e-9);
+    let mut hundredths = (bound * 100.0).min(fps * 100.0).floor();
+    for _ in 0..4 {
+        if hundredths < 1.0 {
+            return None;
+        }
+        if fits(hundredths) {
+            return Some(hundredths / 100.0);
+        }
+        hundredths -= 1.0;
+    }
+    None
 }
 
 pub(crate) fn joint_names(rig: &LoadedRig) -> [String; JOINTS] {
@@ -450,11 +471,61 @@ mod tests {
         assert!(e.contains("field `m`: 10000 plants x 1801 keys (60.0 s at 30 FPS)"), "{e}");
         assert!(e.contains("at most 1677 keys a plant (16777216 keys over every plant"), "{e}");
         assert!(!e.contains("--force"), "{e}");
-        assert!(e.contains("capture at most 55.87 s") && e.contains("--fps 27.93"), "{e}");
+        assert!(e.contains("capture at most 55.87 s") && e.contains("--fps 27.94"), "{e}");
         // One plant: the per-channel limit, which --force lifts.
         let e = live_field_keys("m", 1, 40_000.0, 30.0, &opts).unwrap_err().to_string();
         assert!(e.contains("at most 1080000 keys a plant (the limit of a channel; pass --force"), "{e}");
         let forced = BakeOptions { force: true, ..opts };
         assert_eq!(live_field_keys("m", 1, 40_000.0, 30.0, &forced).unwrap(), 1_200_001);
+    }
+
+    fn too_long(
+        plants: usize,
+        span_s: f64,
+        fps: f64,
+        opts: &BakeOptions,
+    ) -> Option<crate::error::LiveFieldTooLong> {
+        match live_field_keys("m", plants, span_s, fps, opts) {
+            Err(BakeError::LiveFieldTooLong(t)) => Some(*t),
+            Err(e) => panic!("{e}"),
+            Ok(_) => None,
+        }
+    }
+
+    #[test]
+    fn a_capture_past_the_limit_has_the_highest_rate_that_bakes_it_whole() {
+        let opts = BakeOptions::default();
+        // By hand: 10,000 plants may have 1677 keys; 60 s at 27.94 FPS is 1676.4 frames, so keys
+        // 0..=1676 (1677); at 27.95 FPS 1677.0 frames, 1678 keys.
+        let t = too_long(10_000, 60.0, 30.0, &opts).unwrap();
+        assert_eq!(t.fitting_fps(), Some(27.94));
+        assert_eq!(live_field_keys("m", 10_000, 60.0, 27.94, &opts).unwrap(), 1677);
+        assert!(live_field_keys("m", 10_000, 60.0, 27.95, &opts).is_err());
+        // Over a grid of fields, spans and rates: every rate given is the highest in hundredths
+        // that fits, and below the rate asked.
+        let forced = BakeOptions { force: true, ..opts };
+        let mut seen = 0;
+        for o in [&opts, &forced] {
+            for plants in [1, 7, 400, 10_000, 100_000] {
+                for span_s in [0.5, 3.3, 60.0, 601.7, 40_000.0, 2.0e6] {
+                    for fps in [1.0, 29.97, 30.0, 120.0, 10_000.0] {
+                        let Some(t) = too_long(plants, span_s, fps, o) else { continue };
+                        seen += 1;
+                        let Some(f) = t.fitting_fps() else {
+                            assert!(live_field_keys("m", plants, span_s, 0.01, o).is_err(), "{t}");
+                            continue;
+                        };
+                        let hundredths = f * 100.0;
+                        assert!(f < fps && (hundredths - hundredths.round()).abs() < 1e-6, "{t}: {f}");
+                        assert!(live_field_keys("m", plants, span_s, f, o).is_ok(), "{t}: {f} does not fit");
+                        assert!(
+                            live_field_keys("m", plants, span_s, f + 0.01, o).is_err(),
+                            "{t}: {f} is not the highest"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(seen > 40, "only {seen} captures past the limit");
     }
 }

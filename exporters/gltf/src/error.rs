@@ -122,6 +122,16 @@ pub struct LiveFieldTooLong {
     pub why: String,
     /// The longest span that fits at `fps`, seconds.
     pub max_s: f64,
-    /// The highest rate that fits this span.
+    /// The highest rate, in whole hundredths of a frame a second, at which this span fits
+    /// `max_keys`; 0 when not even 0.01 FPS does.
     pub max_fps: f64,
+}
+
+impl LiveFieldTooLong {
+    /// [`max_fps`](Self::max_fps), when some rate fits. A live performance cannot be captured
+    /// again, so `frond-gltf live --field` bakes a capture past the limit at this rate rather
+    /// than lose it.
+    pub fn fitting_fps(&self) -> Option<f64> {
+        (self.max_fps >= 0.01).then_some(self.max_fps)
+    }
 }

@@ -311,7 +311,9 @@ pub fn capture_field(
             let d = c.definition();
             if let Err(e) = live_field_keys(&d.source, d.plants as usize, c.span_s(), opts.fps, opts) {
                 warned = true;
-                status(&format!("warning: stop now, the capture is too long to bake: {e}"));
+                status(&format!(
+                    "warning: {e}; stop soon: when the capture ends it is baked whole at the highest rate that fits"
+                ));
             }
         }
         let c = cap.as_mut();

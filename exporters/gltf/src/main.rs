@@ -332,7 +332,17 @@ fn live_field(a: LiveArgs) -> anyhow::Result<()> {
         bar.set_length(total);
         bar.set_position(done);
     };
-    let baked = Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &opts, &mut progress)?;
+    let baked = match Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &opts, &mut progress) {
+        // The performance cannot be captured again: baked whole at the highest rate that fits
+        // rather than lost.
+        Err(frond_gltf::BakeError::LiveFieldTooLong(t)) if t.fitting_fps().is_some() => {
+            let fps = t.fitting_fps().unwrap_or(opts.fps);
+            bar.suspend(|| status(&format!("warning: {t}; baking the whole capture at {fps} FPS instead")));
+            let lower = BakeOptions { fps, ..opts };
+            Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &lower, &mut progress)?
+        }
+        r => r?,
+    };
     bar.finish_and_clear();
     finish(baked, &a.common.output, format, quiet)
 }
