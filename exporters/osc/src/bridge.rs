@@ -112,6 +112,9 @@ pub struct BridgeStats {
     pub resample: ResampleCounters,
     /// Field frames sent (a running field sent whole, `frond` namespace).
     pub field_frames: u64,
+    /// Field frames the subscriber could not keep between two takes (beyond
+    /// `frond_sdk::field::MAX_KEPT_FIELD_FRAMES`): a receiver's field history misses them.
+    pub field_frames_dropped: u64,
     /// Per-target counters.
     pub targets: Vec<(SocketAddr, TargetCounters)>,
 }
@@ -123,8 +126,12 @@ impl std::fmt::Display for BridgeStats {
             "received={} gaps={} missing={} queue_dropped={} reconnects={} frames_out={}",
             self.received, self.gaps, self.missing, self.queue_dropped, self.reconnects, self.frames_out
         )?;
-        if self.field_frames > 0 {
-            write!(f, " field_frames={}", self.field_frames)?;
+        if self.field_frames > 0 || self.field_frames_dropped > 0 {
+            write!(
+                f,
+                " field_frames={} field_frames_dropped={}",
+                self.field_frames, self.field_frames_dropped
+            )?;
         }
         let r = &self.resample;
         if r.received > 0 {
@@ -152,6 +159,7 @@ struct SubCounters {
     missing: AtomicU64,
     queue_dropped: AtomicU64,
     reconnects: AtomicU64,
+    field_frames_dropped: AtomicU64,
 }
 
 enum Msg {
@@ -286,6 +294,7 @@ impl Bridge {
             reconnects: c.reconnects.load(Ordering::Relaxed),
             frames_out: self.frames_out,
             field_frames: self.fields.as_ref().map_or(0, |f| f.frames_sent),
+            field_frames_dropped: c.field_frames_dropped.load(Ordering::Relaxed),
             resample: self.resampler.as_ref().map(Resampler::counters).unwrap_or_default(),
             targets: self.sender.targets().iter().map(|t| (t.addr(), t.counters())).collect(),
         }
@@ -314,7 +323,8 @@ impl Bridge {
                         if let Some(table) = collect_table(sub, known) {
                             fields.set_table(table);
                         }
-                        sub.take_field_frames(frames);
+                        let dropped = sub.take_field_frames(frames);
+                        self.counters.field_frames_dropped.fetch_add(dropped, Ordering::Relaxed);
                         for f in frames.drain(..) {
                             fields.send_frame(&f, &mut self.datagrams, &mut self.sender)?;
                         }
@@ -428,7 +438,8 @@ fn subscribe(mut sub: Subscriber, tx: &SyncSender<Msg>, counters: &SubCounters, 
             {
                 return;
             }
-            sub.take_field_frames(&mut frames);
+            let dropped = sub.take_field_frames(&mut frames);
+            counters.field_frames_dropped.fetch_add(dropped, Ordering::Relaxed);
             for f in frames.drain(..) {
                 if tx.send(Msg::FieldFrame(Box::new(f))).is_err() {
                     return;
