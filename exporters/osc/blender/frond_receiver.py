@@ -17,7 +17,8 @@ the armature of plant i wherever it is in the scene, as Blender imports a field 
 frond-gltf (`<rig>_<i>`, zero-padded: `grass_03`), so live fields need no armature picked. A
 running field that frond-osc sends whole (`/frond/field/<f>/...`) is drawn whole: every plant
 evaluated here (numpy, `frond_motion::field_eval` ported) and each plant's armature driven, the
-announced plants' own poses then skipped (see "Whole fields" in exporters/osc/README.md). Every
+announced plants' own poses then skipped (see "Whole fields" in exporters/osc/README.md); Build
+field plants makes the armatures of a field's plants from one plant, without importing them. Every
 received frame sets the bones' rotations from `/frond/joint/<i>/quat`; Record keys each received
 frame into a new action at the frame given by the pose's device time `t` (`start frame + (t - t0)
 * scene fps`, fractional frames kept so no frame is lost; frames flagged held, which repeat the
@@ -401,6 +402,7 @@ class LiveField:
         self.targets = None  # Blender: [(plant, armature, [pose bones])], see field_targets
         self.scene_objects = -1
         self.last_drive = None
+        self.scales = None  # with the layout whole: every plant's scale
 
     def add_chunk(self, key, index, count, data):
         """Takes one layout chunk; a chunk of another layout (key, count) or size is ignored.
@@ -430,8 +432,10 @@ class LiveField:
         positions = np.frombuffer(layout, dtype="<f4", count=2 * n).reshape(n, 2)
         rows = np.frombuffer(layout, dtype="<u4", count=n, offset=8 * n)
         starts = np.frombuffer(layout, dtype="<u4", count=n, offset=12 * n)
-        if not np.isfinite(positions).all() or (rows >= d.rows).any():
+        scales = np.frombuffer(layout, dtype="<f4", count=n, offset=16 * n)
+        if not np.isfinite(positions).all() or (rows >= d.rows).any() or not np.isfinite(scales).all():
             return False
+        self.scales = scales.astype(np.float64)  # each plant's size factor (`build_field`)
         self.eval = FieldEval(positions, rows, starts, d.rows, d.authored, d.fps, self.history)
         if self.controls is not None:
             self.eval.set_controls(self.controls)
@@ -789,6 +793,86 @@ def field_targets(scene, field):
     return targets
 
 
+def plant_placement(field, i):
+    """Where frond-gltf's GLB of a field places plant i (`Placement::of_field_plant`), in
+    Blender's frame: glTF's (x, 0, z) on the ground is Blender's (x, -z, 0) (its importer turns
+    +Y up into +Z up), scaled by the plant's scale."""
+    from mathutils import Matrix
+
+    x, z = field.eval.positions[i]
+    s = field.scales[i]
+    return Matrix.Translation((x, -z, 0.0)) @ Matrix.Diagonal((s, s, s, 1.0))
+
+
+class BuildError(ValueError):
+    """A field's plants cannot be built (no layout yet, no plant to copy)."""
+
+
+def build_field(scene, field, template=None):
+    """Makes the armatures of every plant of `field` that has none in `scene` (`<rig>_<i>`,
+    zero-padded as Blender imports frond-gltf's GLB of the field), copied from one plant: the
+    armature `template` (default: the field's plant with the lowest number in the scene) and
+    the meshes it deforms (its children, and any mesh whose Armature modifier names it), each
+    copy's modifier pointed at the copy's armature. A copy stands where the GLB places its
+    plant (`plant_placement`), as the template stands at its own plant's place; a template not
+    named as a plant of the field counts as standing at the origin at scale 1 (a GLB of one
+    plant). Copies share the template's armature and mesh data (each armature has its own
+    pose) and go into the template's collection. Returns the armatures made.
+
+    Blender's glTF importer makes a field GLB's plants one operator at a time: about a minute
+    for 400 here, and 10,000 did not finish in 14 minutes; copies of one plant take about 2 s
+    for 10,000."""
+    from mathutils import Matrix
+
+    if field.eval is None or field.scales is None:
+        raise BuildError(f"field {field.definition.source}: its layout has not arrived whole yet")
+    d = field.definition
+    prefix = d.rig + "_"
+    have = {}
+    for obj in scene.objects:
+        i = _plant_number(obj.name, prefix) if obj.type == "ARMATURE" else None
+        if i is not None and i < d.plants:
+            have.setdefault(i, obj)
+    if template is None:
+        template = have[min(have)] if have else None
+    if template is None or template.type != "ARMATURE":
+        raise BuildError(
+            f"field {d.source}: no armature of rig {d.rig} to copy: import one plant (frond-gltf bake "
+            f"--rig {d.rig}, File > Import > glTF 2.0) and pick it"
+        )
+    t_index = _plant_number(template.name, prefix)
+    own = plant_placement(field, t_index) if t_index is not None and t_index < d.plants else Matrix.Identity(4)
+    undo = own.inverted_safe()
+    meshes = [o for o in scene.objects if o.type == "MESH" and (o.parent == template or any(
+        m.type == "ARMATURE" and m.object == template for m in o.modifiers))]
+    collection = template.users_collection[0] if template.users_collection else scene.collection
+    digits = len(str(d.plants))
+    made = 0
+    for i in range(d.plants):
+        if i in have:
+            continue
+        place = plant_placement(field, i) @ undo
+        arm = template.copy()
+        arm.name = f"{prefix}{i:0{digits}d}"
+        arm.animation_data_clear()
+        arm.matrix_world = place @ template.matrix_world
+        collection.objects.link(arm)
+        for mesh in meshes:
+            m = mesh.copy()
+            m.name = f"{arm.name}_{mesh.name}"
+            if mesh.parent == template:
+                m.parent = arm  # matrix_parent_inverse copied: it follows the copy as the mesh did
+            else:
+                m.matrix_world = place @ mesh.matrix_world
+            for mod in m.modifiers:
+                if mod.type == "ARMATURE" and mod.object == template:
+                    mod.object = arm
+            collection.objects.link(m)
+        made += 1
+    field.targets = None
+    return made
+
+
 # Whole-field keys recorded, at most this many bytes (a 10,000-plant field is 640 KB a key).
 MAX_RECORD_BYTES = 1 << 30
 
@@ -1041,6 +1125,32 @@ if bpy is not None:
                 self.report({"INFO"}, "no armature picked: recording field plants and walkers only")
             return {"FINISHED"}
 
+    class FROND_OT_build_field(bpy.types.Operator):
+        """Make the armature of every plant of the running fields that has none, copied from one
+        plant: the field's plant with the lowest number in the scene, else the picked armature"""
+
+        bl_idname = "frond.build_field"
+        bl_label = "Build field plants"
+
+        def execute(self, context):
+            receiver = _state["receiver"]
+            fields = [f for f in receiver.fields.fields.values() if f.eval is not None] if receiver else []
+            if not fields:
+                self.report({"ERROR"}, "no running field's layout has arrived (Listen, and start frond-osc)")
+                return {"CANCELLED"}
+            picked = _armature(context.scene)
+            made = 0
+            for field in fields:
+                try:
+                    made += build_field(context.scene, field)
+                except BuildError as e:
+                    if picked is None:
+                        self.report({"ERROR"}, str(e))
+                        return {"CANCELLED"}
+                    made += build_field(context.scene, field, picked)
+            self.report({"INFO"}, f"made {made} plants")
+            return {"FINISHED"}
+
     class FROND_PT_panel(bpy.types.Panel):
         bl_label = "frond receiver"
         bl_space_type = "VIEW_3D"
@@ -1063,6 +1173,7 @@ if bpy is not None:
                     col.label(text=f"rig {receiver.rig}: {', '.join(receiver.joint_names)}")
                 if _state["lost"]:
                     col.label(text=f"device lost in {_state['lost']} frames", icon="ERROR")
+                missing = False  # a field with plants that have no armature yet
                 for field in receiver.fields.fields.values():
                     d, drive = field.definition, field.last_drive
                     if drive is None:
@@ -1071,13 +1182,17 @@ if bpy is not None:
                     else:
                         ms = (drive["evaluate_s"] + drive["drive_s"]) * 1000
                         col.label(text=f"field {d.source}: {drive['driven']}/{d.plants} plants, {ms:.0f} ms")
+                    missing = missing or field.eval is not None and (drive is None or drive["driven"] < d.plants)
+                if missing:
+                    col.operator("frond.build_field", icon="OUTLINER_OB_ARMATURE")
             col.prop(props, "whole_fields")
             label = "Stop recording" if props.recording else "Record"
             col.operator("frond.record", text=label, icon="REC")
             if props.recording:
                 col.label(text=f"keyed {_state['keyed']} frames")
 
-    _classes = (FrondReceiverProps, FROND_OT_listen, FROND_OT_stop, FROND_OT_record, FROND_PT_panel)
+    _classes = (FrondReceiverProps, FROND_OT_listen, FROND_OT_stop, FROND_OT_record, FROND_OT_build_field,
+                FROND_PT_panel)
 
 
 def register():

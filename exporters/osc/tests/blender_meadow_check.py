@@ -35,6 +35,67 @@ from bpy_pump import failer  # noqa: E402
 fail = failer("blender meadow check")
 
 
+def bound_meshes(arm):
+    """The meshes armature `arm` deforms, by name."""
+    return sorted(
+        (o for o in bpy.data.objects if o.type == "MESH"
+         and any(m.type == "ARMATURE" and m.object == arm for m in o.modifiers)),
+        key=lambda o: o.name,
+    )
+
+
+def placements(arms):
+    """Each plant armature's world matrix and those of the meshes it deforms, as Blender's
+    glTF importer placed them."""
+    return {name: [list(map(list, o.matrix_world)) for o in [arm, *bound_meshes(arm)]] for name, arm in arms.items()}
+
+
+def remove_all_but_plant_0(arms):
+    """Where the importer placed every plant; then every plant but the first removed."""
+    imported = placements(arms)
+    first = min(arms)
+    for name, arm in arms.items():
+        if name != first:
+            for mesh in bound_meshes(arm):
+                bpy.data.objects.remove(mesh, do_unlink=True)
+            bpy.data.objects.remove(arm, do_unlink=True)
+    bpy.context.view_layer.update()
+    return imported
+
+
+def build_and_compare(scene, receiver, imported, plants, deadline):
+    """Once the field's layout is whole, the add-on builds the missing plants from plant 0:
+    each must stand where Blender's importer had placed it, armature and meshes."""
+    while True:
+        frond_receiver.poll_once(scene)
+        fields = [f for f in receiver.fields.fields.values() if f.eval is not None]
+        if fields:
+            break
+        if time.monotonic() > deadline:
+            fail("timeout: the field's layout never arrived whole")
+        time.sleep(0.002)
+    started = time.monotonic()
+    made = frond_receiver.build_field(scene, fields[0])
+    took = time.monotonic() - started
+    bpy.context.view_layer.update()
+    if made != plants - 1:
+        fail(f"built {made} plants, {plants - 1} were missing")
+    arms = {o.name: o for o in bpy.data.objects if o.type == "ARMATURE"}
+    if sorted(arms) != sorted(imported):
+        fail(f"built armatures {sorted(set(arms) ^ set(imported))[:5]} differ from the import's names")
+    built = placements(arms)
+    worst = 0.0
+    for name, want in imported.items():
+        got = built[name]
+        if len(got) != len(want):
+            fail(f"{name}: {len(got) - 1} meshes built, {len(want) - 1} imported")
+        for g, w in zip(got, want):
+            worst = max(worst, max(abs(a - b) for gr, wr in zip(g, w) for a, b in zip(gr, wr)))
+    if worst > 1e-5:
+        fail(f"built plants stand up to {worst} from where the importer placed them")
+    print(f"built {made} plants in {took:.2f} s, within {worst:.1e} of the import", file=sys.stderr, flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--glb", required=True, help="frond-gltf's GLB of the field")
@@ -44,6 +105,8 @@ def main():
     ap.add_argument("--record", type=int, default=5, help="updates to record")
     ap.add_argument("--timeout", type=float, default=60)
     ap.add_argument("--out", required=True)
+    ap.add_argument("--build", action="store_true",
+                    help="keep only plant 0 of the import; the add-on builds the others from the layout")
     args = ap.parse_args()
     report = [int(p) for p in args.report.split(",")]
 
@@ -66,6 +129,7 @@ def main():
     if len(arms) != args.plants:
         fail(f"{args.glb}: {len(arms)} armatures for {args.plants} plants")
     print(f"imported {len(arms)} armatures in {time.monotonic() - started:.1f} s", file=sys.stderr, flush=True)
+    imported = remove_all_but_plant_0(arms) if args.build else None
     frond_receiver.register()
     scene = bpy.context.scene
     port = frond_receiver.start("127.0.0.1", 0)
@@ -91,6 +155,9 @@ def main():
         if drive["driven"] != args.plants:
             return None, None  # a plant still waits for stream frames it reads
         return fields[0], drive
+
+    if imported is not None:
+        build_and_compare(scene, receiver, imported, args.plants, deadline)
 
     reported = 0
     while reported < args.updates:

@@ -60,6 +60,18 @@ fn played_to(messages: &[FieldMessage], seq: u64) -> LiveFields {
 
 #[test]
 fn blender_addon_evaluates_every_plant_of_a_live_field() {
+    evaluates_every_plant(false);
+}
+
+/// The same with only plant 0 imported: the add-on builds the 399 others from the layout it
+/// received (`build_field`), each where Blender's importer had placed it (the script compares
+/// every armature's and mesh's world matrix with the full import's), and drives them.
+#[test]
+fn blender_addon_builds_the_plants_of_a_live_field_from_one() {
+    evaluates_every_plant(true);
+}
+
+fn evaluates_every_plant(build: bool) {
     let Some((frondd, py, gltf)) = blender_tools() else { return };
     let frond = frondd.with_file_name("frond");
     let daemon = start_daemon(&frondd);
@@ -86,6 +98,9 @@ fn blender_addon_evaluates_every_plant_of_a_live_field() {
     ];
     let mut args = os(&args);
     args.extend([out.as_os_str(), "--glb".as_ref(), glb.as_os_str()]);
+    if build {
+        args.push("--build".as_ref());
+    }
     let (mut blender, port) = start_script(&py, "blender_meadow_check.py", &args, "port ");
     let stop = Arc::new(AtomicBool::new(false));
     let recorder = record_field(&daemon.socket_dir, Arc::clone(&stop));
