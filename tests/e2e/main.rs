@@ -5,6 +5,8 @@ mod console;
 mod demo;
 mod docs;
 mod doctor;
+#[path = "../support/field_socket.rs"]
+mod field_socket;
 mod gltf_live_field;
 mod graph_play;
 mod hands;

@@ -18,48 +18,13 @@ use frond_e2e::netns::Host;
 use frond_e2e::{Daemon, Proc, bin, start_zenoh_bridge, wait_for};
 use frond_protocol::field::FieldMessage;
 use frond_sdk::Source;
-use frond_sdk::field::LiveFields;
-use frond_sdk::{Relayed, Subscriber};
+use frond_sdk::Subscriber;
 use std::process::Command;
 
+use crate::field_socket::{played_to, record_field};
 use crate::meadow::{compact_field, daemon_with_sway};
 use crate::stage_net::{PORT, Tapped, collect, lan, lines};
 use crate::zenoh::free_port;
-
-/// The field's tables and frames as the daemon sent them, in order, read on its socket.
-fn record_field(daemon: &Daemon, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<Vec<FieldMessage>> {
-    let mut sub = Subscriber::options()
-        .read_timeout(Some(Duration::from_millis(200)))
-        .connect(&daemon.socket_dir)
-        .expect("subscribe on the daemon's socket");
-    std::thread::spawn(move || {
-        let mut got = Vec::new();
-        while !stop.load(Ordering::Relaxed) {
-            if let Ok(Relayed::Field(msg)) = sub.next_relayed() {
-                got.push(msg);
-            }
-        }
-        got
-    })
-}
-
-/// `messages` (as the daemon's socket gave them) played into fields of the SDK's here, up to
-/// and with the frame numbered `seq`.
-fn played_to(messages: &[FieldMessage], seq: u64, who: &str) -> LiveFields {
-    let mut fields = LiveFields::keeping(0);
-    for msg in messages {
-        match msg {
-            FieldMessage::Table(t) => assert!(fields.on_table(t.clone()).is_empty(), "{who}"),
-            FieldMessage::Frame(f) => {
-                fields.on_frame(f);
-                if f.seq == seq {
-                    return fields;
-                }
-            }
-        }
-    }
-    panic!("{who}: frame {seq} never reached the daemon's socket subscriber")
-}
 
 /// Checks one line of `field_plants`: every plant of the field at the line's frame, against
 /// `messages` played up to that frame into a field of the SDK's here.
@@ -134,7 +99,7 @@ fn a_remote_sdk_subscriber_evaluates_ten_thousand_plants_as_the_daemons_host_doe
 
     // Here, the daemon's own stream; on host 1, a subscriber there before the field starts.
     let stop = Arc::new(AtomicBool::new(false));
-    let recorder = record_field(&daemon, stop.clone());
+    let recorder = record_field(&daemon.socket_dir, stop.clone());
     let (_early, early) = field_plants(b, &from, 2, "field_plants (early)");
     std::thread::sleep(Duration::from_secs(2));
     start_field(&daemon, 100, 100, "4");
@@ -213,7 +178,7 @@ fn a_stage_subscriber_keeps_each_sources_field_as_its_daemon_sends_it() {
         })
         .collect();
     let stop = Arc::new(AtomicBool::new(false));
-    let recorders: Vec<_> = daemons.iter().map(|d| record_field(d, stop.clone())).collect();
+    let recorders: Vec<_> = daemons.iter().map(|d| record_field(&d.socket_dir, stop.clone())).collect();
     // Two sizes, so that a field taken for the other source's shows.
     let sizes = [(10, 20), (15, 15)];
     for (d, &(rows, cols)) in daemons.iter().zip(&sizes) {

@@ -10,53 +10,12 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
-
-use frond_protocol::field::FieldMessage;
-use frond_sdk::field::LiveFields;
-use frond_sdk::{Relayed, Subscriber};
 
 use crate::blender::{
     blender_fk, blender_tools, close, f64s, field_with_glb, os, run_frond, start_script, write_take,
 };
+use crate::support::field_socket::{played_to, record_field};
 use crate::support::*;
-
-/// The field's tables and frames as the daemon sent them, in order, read on its socket.
-fn record_field(
-    socket_dir: &std::path::Path,
-    stop: Arc<AtomicBool>,
-) -> std::thread::JoinHandle<Vec<FieldMessage>> {
-    let mut sub = Subscriber::options()
-        .read_timeout(Some(Duration::from_millis(200)))
-        .connect(socket_dir)
-        .expect("subscribe on the daemon's socket");
-    std::thread::spawn(move || {
-        let mut got = Vec::new();
-        while !stop.load(Ordering::Relaxed) {
-            if let Ok(Relayed::Field(msg)) = sub.next_relayed() {
-                got.push(msg);
-            }
-        }
-        got
-    })
-}
-
-/// `messages` played into fields of the SDK's here, up to and with the frame numbered `seq`.
-fn played_to(messages: &[FieldMessage], seq: u64) -> LiveFields {
-    let mut fields = LiveFields::keeping(0);
-    for msg in messages {
-        match msg {
-            FieldMessage::Table(t) => assert!(fields.on_table(t.clone()).is_empty()),
-            FieldMessage::Frame(f) => {
-                fields.on_frame(f);
-                if f.seq == seq {
-                    return fields;
-                }
-            }
-        }
-    }
-    panic!("field frame {seq} never reached the daemon's socket subscriber");
-}
 
 #[test]
 fn blender_addon_evaluates_every_plant_of_a_live_field() {
@@ -121,7 +80,7 @@ fn evaluates_every_plant(build: bool) {
     for line in lines {
         let (seq, plant) = (line["seq"].as_u64().unwrap(), line["plant"].as_u64().unwrap() as usize);
         let tau = line["tau"].as_f64().unwrap();
-        let fields = played_to(&messages, seq);
+        let fields = played_to(&messages, seq, "the socket");
         let field = fields.by_source("field").expect("the field runs");
         assert_eq!(field.plants(), 400);
         assert_eq!(field.tau_s(), tau, "frame {seq}'s stream time");

@@ -26,6 +26,8 @@ pub fn frondd() -> Option<PathBuf> {
     Some(dir.join("frondd")).filter(|p| p.exists())
 }
 
+#[path = "../../../../../tests/support/field_socket.rs"]
+pub mod field_socket;
 #[path = "../../../../../tests/support/python.rs"]
 mod support_python;
 pub use support_python::{python_with, skip};
