@@ -66,6 +66,28 @@ class OscError(ValueError):
     pass
 
 
+MAX_BUNDLE_DEPTH = 8  # bundles within bundles: deeper is refused (a datagram of nested headers)
+
+
+def _is_int(v):
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v):
+    """A finite int or float (OSC's i, h, f, d), not a bool."""
+    import math
+
+    return (isinstance(v, float) and math.isfinite(v)) or _is_int(v)
+
+
+def _element_id(address):
+    """`<e>` of `/frond/element/<e>/...`: a protocol element id, 1 to 65535."""
+    digits = address.split("/")[3]
+    if not digits.isdigit() or not 0 < int(digits) < 65536:
+        raise OscError(f"{address[:80]}: no element id")
+    return int(digits)
+
+
 def _string(data, i):
     end = data.index(b"\0", i)
     s = data[i:end].decode("utf-8")
@@ -111,8 +133,10 @@ def _message(data):
     return address, args
 
 
-def parse_packet(data):
+def parse_packet(data, depth=0):
     """Returns [(timetag or None, address, args)] for a datagram (bundle or message)."""
+    if depth > MAX_BUNDLE_DEPTH:
+        raise OscError(f"bundles nested deeper than {MAX_BUNDLE_DEPTH}")
     if data.startswith(b"#bundle\0"):
         if len(data) < 16:
             raise OscError("truncated bundle header")
@@ -123,7 +147,7 @@ def parse_packet(data):
             i += 4
             if size % 4 or i + size > len(data):
                 raise OscError(f"bundle element of {size} bytes does not fit")
-            for _, address, args in parse_packet(data[i : i + size]):
+            for _, address, args in parse_packet(data[i : i + size], depth + 1):
                 out.append((tag, address, args))
             i += size
         return out
@@ -137,12 +161,18 @@ def frame_from_messages(messages):
     for tag, address, args in messages:
         frame["timetag"] = tag
         if address == "/frond/pose" and len(args) == 14:
+            if not (_is_int(args[0]) and all(_is_number(a) for a in args[1:])):
+                raise OscError("/frond/pose: arguments of the wrong type or not finite")
             frame["seq"], frame["t"], frame["angles"] = args[0], args[1], list(args[2:14])
         elif address.startswith("/frond/joint/") and address.endswith("/quat") and len(args) == 4:
-            i = int(address.split("/")[3])
-            if 0 <= i < 4:
-                frame["quats"][i] = tuple(args)
+            i = address.split("/")[3]
+            if i in ("0", "1", "2", "3"):
+                if not all(_is_number(a) for a in args):
+                    raise OscError(f"{address}: a rotation of the wrong type or not finite")
+                frame["quats"][int(i)] = tuple(args)
         elif address == "/frond/status" and args:
+            if not _is_int(args[0]):
+                raise OscError("/frond/status: flags are not an integer")
             frame["flags"] = args[0]
     if "seq" not in frame or any(q is None for q in frame["quats"]):
         return None
@@ -178,9 +208,11 @@ def element_frame_from_messages(messages):
     `/frond/element/<e>/pose`, or None."""
     for tag, address, args in messages:
         if address.startswith("/frond/element/") and address.endswith("/pose") and len(args) == 14:
+            if not (_is_int(args[0]) and all(_is_number(a) for a in args[1:])):
+                raise OscError(f"{address[:80]}: arguments of the wrong type or not finite")
+            e = _element_id(address)
             a = list(args[2:14])
             quats = [joint_quat(*a[3 * j : 3 * j + 3]) for j in range(4)]
-            e = int(address.split("/")[3])
             return {"element": e, "timetag": tag, "seq": args[0], "t": args[1], "quats": quats, "flags": 0}
     return None
 
@@ -469,7 +501,7 @@ def decode_field_frame(args):
         return None
     seq, flags, t, tau, direction, speed, step, scale, d1, d2, d3, produced, blob = args
     values = (t, tau, direction, speed, step, scale, d1, d2, d3)
-    if not all(isinstance(v, float) and math.isfinite(v) for v in values):
+    if not all(isinstance(v, float) and math.isfinite(v) for v in values) or not (_is_int(seq) and _is_int(flags)):
         return None
     if not isinstance(produced, int) or produced < 0 or len(blob) % ENTRY_BYTES or len(blob) > MAX_ENTRIES * ENTRY_BYTES:
         return None
@@ -563,7 +595,9 @@ class Receiver:
             if address == "/frond/rig" and len(args) == 5 and all(isinstance(a, str) for a in args):
                 self.rig, self.joint_names = args[0], tuple(args[1:5])
             elif address.startswith("/frond/element/") and address.endswith("/info") and len(args) == 7:
-                e = int(address.split("/")[3])
+                if not all(isinstance(a, str) for a in args):
+                    raise OscError(f"{address[:80]}: names that are not strings")
+                e = _element_id(address)  # at most 65,535 elements kept
                 self.elements[e] = {"name": args[0], "kind": args[1], "rig": args[2], "joints": tuple(args[3:7])}
 
     def poll(self, limit=100000):
@@ -573,17 +607,22 @@ class Receiver:
                 data = self.sock.recv(65536)
             except (BlockingIOError, InterruptedError):
                 break
-            try:
-                messages = parse_packet(data)
-                self.read_names(messages)
-                self.fields.read(messages)
-                frame = frame_from_messages(messages) or element_frame_from_messages(messages)
-            except (OscError, struct.error, ValueError, UnicodeDecodeError):
-                self.malformed += 1
-                continue
+            frame = self.take(data)
             if frame is not None:
                 frames.append(frame)
         return frames
+
+    def take(self, data):
+        """One datagram: its names and field messages kept, its frame returned (None when it
+        holds none); a malformed one is counted and changes nothing the frames rely on."""
+        try:
+            messages = parse_packet(data)
+            self.read_names(messages)
+            self.fields.read(messages)
+            return frame_from_messages(messages) or element_frame_from_messages(messages)
+        except (OscError, struct.error, ValueError, UnicodeDecodeError):
+            self.malformed += 1
+            return None
 
     def close(self):
         self.sock.close()
@@ -592,7 +631,7 @@ class Receiver:
 # ---------------------------------------------------------------- Blender side
 
 _state = {"receiver": None, "frames": 0, "lost": 0, "last_seq": None, "t0": None, "keyed": 0, "recorded": set(),
-          "field_keys": {}, "field_key_bytes": 0, "field_keys_full": False}
+          "field_keys": {}, "field_key_bytes": 0, "field_keys_full": False, "errors": 0, "error_said": -1e9}
 
 
 def _armature(scene):
@@ -1060,8 +1099,12 @@ def _timer():
         return None
     try:
         poll_once()
-    except Exception as e:  # never let a bad frame kill the timer
-        print(f"frond receiver: {e}")
+    except Exception as e:  # never let a bad frame kill the timer; said at most every 10 s
+        _state["errors"] += 1
+        now = time.monotonic()
+        if now - _state["error_said"] >= 10.0:
+            print(f"frond receiver: {e} ({_state['errors']} errors so far)")
+            _state["error_said"] = now
     return 1.0 / 120.0
 
 
