@@ -34,17 +34,21 @@ pub(crate) struct Ltc {
     /// 29.97 drop-frame (frames of 1001/30000 s; labels :00 and :01 skipped in every minute
     /// not a multiple of ten).
     drop_frame: bool,
+    /// Frames of 1001/30000 s (29.97, drop-frame or not).
+    ntsc: bool,
 }
 
-pub(crate) const PAL: Ltc = Ltc { nominal: 25, drop_frame: false };
-const NTSC_DF: Ltc = Ltc { nominal: 30, drop_frame: true };
-const FILM: Ltc = Ltc { nominal: 24, drop_frame: false };
-const NTSC_30: Ltc = Ltc { nominal: 30, drop_frame: false };
+pub(crate) const PAL: Ltc = Ltc { nominal: 25, drop_frame: false, ntsc: false };
+const NTSC_DF: Ltc = Ltc { nominal: 30, drop_frame: true, ntsc: true };
+const FILM: Ltc = Ltc { nominal: 24, drop_frame: false, ntsc: false };
+const NTSC_30: Ltc = Ltc { nominal: 30, drop_frame: false, ntsc: false };
+/// 29.97 non-drop-frame: 30's labels, frames of 1001/30000 s.
+const NTSC_NDF: Ltc = Ltc { nominal: 30, drop_frame: false, ntsc: true };
 
 impl Ltc {
     /// Seconds a frame lasts.
     fn frame_s(self) -> f64 {
-        if self.drop_frame { 1001.0 / 30_000.0 } else { 1.0 / self.nominal as f64 }
+        if self.ntsc { 1001.0 / 30_000.0 } else { 1.0 / self.nominal as f64 }
     }
 
     /// The label (h, m, s, f) of frame `count` since midnight; at drop-frame the labels
@@ -78,6 +82,9 @@ impl Ltc {
 
     /// 10:00:00:00 (10:00:00;00), in frames since midnight.
     fn start_frame(self) -> usize {
+        if self.ntsc && !self.drop_frame {
+            return 10 * 3600 * self.nominal; // whole-frame labels: 30 to a labelled second
+        }
         (10.0 * 3600.0 / self.frame_s()).round() as usize
     }
 
@@ -204,14 +211,21 @@ fn a_take_recorded_while_ltc_plays_carries_the_stage_timecode() {
     writer_leaves(&daemon, stop, writer);
 }
 
-/// The other two rates a stage runs at (25 and 29.97 drop-frame are above): each its own daemon.
+/// The other rates a stage runs at (25 and 29.97 drop-frame are above): each its own daemon.
+/// 29.97 non-drop-frame has 30's labels; the stage says so (`ltc.fps = "29.97"`), and the
+/// frames are counted 0.1 % slower.
 #[test]
-fn takes_carry_the_stage_timecode_at_24_and_30_fps() {
-    for ltc in [FILM, NTSC_30] {
+fn takes_carry_the_stage_timecode_at_24_30_and_29_97_non_drop_fps() {
+    for ltc in [FILM, NTSC_30, NTSC_NDF] {
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("ltc.fifo");
         mkfifo(&fifo);
-        let daemon = Daemon::start(dir.path(), &["--source", "in-process", "--ltc", fifo.to_str().unwrap()]);
+        let config = dir.path().join("frondd.toml");
+        let declared = if ltc.ntsc { "fps = \"29.97\"\n" } else { "" };
+        let input = fifo.to_str().unwrap();
+        std::fs::write(&config, format!("[ltc]\ninput = \"{input}\"\n{declared}")).unwrap();
+        let daemon =
+            Daemon::start(dir.path(), &["--source", "in-process", "--config", config.to_str().unwrap()]);
         let stop = Arc::new(AtomicBool::new(false));
         let (writer, t0) = play(ltc, &fifo, stop.clone());
         locks_and_stamps_a_take(&daemon, ltc, t0);
@@ -298,6 +312,7 @@ fn a_stalled_alsa_input_does_not_keep_the_daemon_from_stopping() {
 fn locks_and_stamps_a_take(daemon: &Daemon, ltc: Ltc, t0: Instant) {
     let (fps_word, export_fps) = match (ltc.nominal, ltc.drop_frame) {
         (30, true) => ("29.97df", "29.97"),
+        (30, false) if ltc.ntsc => ("29.97", "29.97"),
         (24, _) => ("24", "24"),
         (25, _) => ("25", "25"),
         _ => ("30", "30"),
@@ -427,5 +442,5 @@ fn inputs_that_are_not_ltc_audio_are_refused_naming_the_path() {
     std::fs::write(&config, "[ltc]\ninput = \"/dev/null\"\nfps = \"31\"\nsample_rate_hz = 1\n").unwrap();
     let err = refused(dir.path(), &["--config", config.to_str().unwrap()]);
     assert!(err.contains("ltc.sample_rate_hz: 1 is out of range 8000..=192000"), "{err}");
-    assert!(err.contains("ltc.fps: \"31\" is not one of 24, 25, 29.97df, 30"), "{err}");
+    assert!(err.contains("ltc.fps: \"31\" is not one of 24, 25, 29.97df, 29.97, 30"), "{err}");
 }

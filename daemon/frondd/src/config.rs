@@ -767,7 +767,7 @@ mod tests {
         assert_eq!(
             Config::validate(raw).unwrap_err().problems,
             [
-                "triggers.timecode_fps: \"23.976\" is not one of 24, 25, 29.97df, 30",
+                "triggers.timecode_fps: \"23.976\" is not one of 24, 25, 29.97df, 29.97, 30",
                 // Its parse failed, so only the bad value is named, not the missing listen.
             ]
         );
@@ -820,12 +820,12 @@ mod tests {
         assert_eq!(l.input, Some(LtcSource::Path("/run/frond/ltc.fifo".into())));
         assert_eq!((l.sample_rate_hz, l.fps), (44_100, Some(frond_ltc::FrameRate::Fps2997Df)));
         let raw =
-            RawConfig::parse("[ltc]\ninput = \" \"\nsample_rate_hz = 4000\nfps = \"29.97\"\n", "t").unwrap();
+            RawConfig::parse("[ltc]\ninput = \" \"\nsample_rate_hz = 4000\nfps = \"29.976\"\n", "t").unwrap();
         assert_eq!(
             Config::validate(raw).unwrap_err().problems,
             [
                 "ltc.sample_rate_hz: 4000 is out of range 8000..=192000",
-                "ltc.fps: \"29.97\" is not one of 24, 25, 29.97df, 30",
+                "ltc.fps: \"29.976\" is not one of 24, 25, 29.97df, 29.97, 30",
                 "ltc.input: must name a file, a FIFO or alsa:DEVICE",
             ]
         );

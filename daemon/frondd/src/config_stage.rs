@@ -134,12 +134,13 @@ impl TriggersConfig {
     }
 }
 
-/// A frame rate key's value (`24`, `25`, `29.97df`, `30`), or its problem, named by `key`.
+/// A frame rate key's value (`24`, `25`, `29.97df`, `29.97`, `30`), or its problem, named by
+/// `key`.
 fn frame_rate(errors: &mut Vec<String>, key: &str, text: Option<&str>) -> Option<frond_ltc::FrameRate> {
     let text = text?;
     let rate = frond_ltc::FrameRate::ALL.into_iter().find(|r| r.to_string() == text);
     if rate.is_none() {
-        errors.push(format!("{key}: {text:?} is not one of 24, 25, 29.97df, 30"));
+        errors.push(format!("{key}: {text:?} is not one of 24, 25, 29.97df, 29.97, 30"));
     }
     rate
 }

@@ -148,6 +148,7 @@ fn anchor_of(at: frond_ltc::StageTime, now_ns: u64) -> StageAnchor {
         frame_count: at.rate.frame_count(at.time),
         nominal_fps: at.rate.nominal_fps(),
         drop_frame: at.rate == FrameRate::Fps2997Df,
+        ntsc: at.rate.is_ntsc(),
     }
 }
 

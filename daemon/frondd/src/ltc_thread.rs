@@ -280,7 +280,10 @@ impl LtcReader {
         let events = std::mem::take(&mut self.events);
         for event in &events {
             match *event {
-                LtcEvent::Frame(frame) => {
+                LtcEvent::Frame(mut frame) => {
+                    if let Some(taken) = frame.rate.and_then(|r| r.read_as(self.expected)) {
+                        frame.rate = Some(taken);
+                    }
                     let end_ns = ns_of(frame.end_sample);
                     self.last_frame_ns = Some(end_ns);
                     self.link.on_frame(&frame, end_ns, self.locked.is_some());
@@ -309,17 +312,19 @@ impl LtcReader {
         self.publish_counts();
     }
 
-    /// The decoder locked at `rate`: the clock is used, unless `ltc.fps` expects another rate.
+    /// The decoder locked at `rate`: the clock is used, at the rate `ltc.fps` declares (29.97
+    /// for LTC read as 30: the same labels, `FrameRate::read_as`), unless it declares another.
     fn on_locked(&mut self, rate: FrameRate) {
-        if let Some(expected) = self.expected.filter(|&e| e != rate) {
+        let Some(taken) = rate.read_as(self.expected) else {
             static WRONG: LogLimit = LogLimit::new();
+            let expected = self.expected.map_or_else(String::new, |e| e.to_string());
             let text = format!("LTC at {rate} fps, but ltc.fps expects {expected}: not used");
             WRONG.log("LTC log lines", || warn!("{text}"));
             self.link.update(|s| s.last_error = Some(text));
             return;
-        }
-        info!(fps = %rate, "LTC locked");
-        self.locked = Some(rate);
+        };
+        info!(fps = %taken, "LTC locked");
+        self.locked = Some(taken);
         self.link.set_state(LtcState::Locked);
     }
 

@@ -9,8 +9,11 @@
 
 use std::fmt;
 
-/// The rates LTC is read at. 29.97 non-drop-frame is counted as [`FrameRate::Fps30`] (its
-/// labels are the same; only the wall-clock length of a frame differs by 0.1 %).
+/// The rates LTC is read at. 29.97 non-drop-frame ([`FrameRate::Fps2997Ndf`]) has the labels of
+/// [`FrameRate::Fps30`] and frames 0.1 % longer: three frames' spacing cannot tell the two
+/// apart, so the reader locks such LTC as 30 and a stage declares 29.97 (`ltc.fps`,
+/// [`FrameRate::read_as`]). It matters over a take: counted at 30 from its start, a label drifts
+/// 18 frames from the stage's in ten minutes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FrameRate {
     /// 24 frames per second (film).
@@ -21,6 +24,9 @@ pub enum FrameRate {
     Fps2997Df,
     /// 30 frames per second, non-drop.
     Fps30,
+    /// 30000/1001 frames per second, whole-frame labels (the labels of 30 fps, running 0.1 %
+    /// slower than the wall clock).
+    Fps2997Ndf,
 }
 
 /// Frames in ten minutes of 29.97 drop-frame: 10 * 60 * 30 - 9 * 2.
@@ -30,22 +36,22 @@ const DF_FRAMES_PER_MIN: u32 = 1_798;
 
 impl FrameRate {
     /// Every rate, for tests and for callers listing them.
-    pub const ALL: [FrameRate; 4] =
-        [FrameRate::Fps24, FrameRate::Fps25, FrameRate::Fps2997Df, FrameRate::Fps30];
+    pub const ALL: [FrameRate; 5] =
+        [FrameRate::Fps24, FrameRate::Fps25, FrameRate::Fps2997Df, FrameRate::Fps30, FrameRate::Fps2997Ndf];
 
     /// Frame labels per second (30 for 29.97 drop-frame).
     pub fn nominal_fps(self) -> u32 {
         match self {
             FrameRate::Fps24 => 24,
             FrameRate::Fps25 => 25,
-            FrameRate::Fps2997Df | FrameRate::Fps30 => 30,
+            FrameRate::Fps2997Df | FrameRate::Fps30 | FrameRate::Fps2997Ndf => 30,
         }
     }
 
     /// Frames per wall-clock second (30000/1001 for drop-frame).
     pub fn fps(self) -> f64 {
         match self {
-            FrameRate::Fps2997Df => 30_000.0 / 1_001.0,
+            FrameRate::Fps2997Df | FrameRate::Fps2997Ndf => 30_000.0 / 1_001.0,
             other => f64::from(other.nominal_fps()),
         }
     }
@@ -53,6 +59,22 @@ impl FrameRate {
     /// Whether labels skip frames 0 and 1 at most minute starts.
     pub fn is_drop_frame(self) -> bool {
         self == FrameRate::Fps2997Df
+    }
+
+    /// Whether a frame lasts 1001/30000 s (29.97, drop-frame or not).
+    pub fn is_ntsc(self) -> bool {
+        matches!(self, FrameRate::Fps2997Df | FrameRate::Fps2997Ndf)
+    }
+
+    /// The rate to take LTC read at `self` as, when the stage declares `declared` (`None`:
+    /// nothing declared, taken as read): the declared rate when it is this one, or 29.97
+    /// non-drop-frame for LTC read as 30 (the same labels); `None` when the two differ.
+    pub fn read_as(self, declared: Option<FrameRate>) -> Option<FrameRate> {
+        match declared {
+            None => Some(self),
+            Some(d) if d == self || (d == FrameRate::Fps2997Ndf && self == FrameRate::Fps30) => Some(d),
+            Some(_) => None,
+        }
     }
 
     /// Frames from midnight to midnight.
@@ -118,6 +140,7 @@ impl fmt::Display for FrameRate {
             FrameRate::Fps25 => "25",
             FrameRate::Fps2997Df => "29.97df",
             FrameRate::Fps30 => "30",
+            FrameRate::Fps2997Ndf => "29.97",
         })
     }
 }
@@ -221,6 +244,26 @@ impl fmt::Display for SmpteTime {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ltc_read_at_30_is_taken_at_the_rate_a_stage_declares_when_the_labels_agree() {
+        use FrameRate::*;
+        assert_eq!(Fps30.read_as(None), Some(Fps30));
+        assert_eq!(Fps30.read_as(Some(Fps30)), Some(Fps30));
+        assert_eq!(Fps30.read_as(Some(Fps2997Ndf)), Some(Fps2997Ndf));
+        assert_eq!(Fps25.read_as(Some(Fps2997Ndf)), None);
+        assert_eq!(Fps2997Df.read_as(Some(Fps2997Ndf)), None, "drop-frame labels are not 29.97 non-drop");
+        assert_eq!(Fps2997Df.read_as(Some(Fps30)), None);
+        assert_eq!(Fps2997Ndf.to_string(), "29.97");
+        assert!(
+            Fps2997Ndf.is_ntsc() && Fps2997Df.is_ntsc() && !Fps30.is_ntsc() && !Fps2997Ndf.is_drop_frame()
+        );
+        // The labels of 30, each frame 1001/30000 s: ten minutes of wall clock is 17,982 frames,
+        // 18 short of ten minutes of labels.
+        assert_eq!(Fps2997Ndf.frame_count(t("00:10:00:00")), 18_000);
+        assert_eq!(Fps2997Ndf.from_frame_count(17_982).to_string(), "00:09:59:12");
+        assert_eq!((600.0 * Fps2997Ndf.fps()).round(), 17_982.0);
+    }
 
     fn t(text: &str) -> SmpteTime {
         SmpteTime::parse(text).unwrap()

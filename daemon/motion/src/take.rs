@@ -67,18 +67,23 @@ pub struct StageAnchor {
     pub label: String,
     /// Frames since the stage's midnight at its rate (drop-frame labels counted as such).
     pub frame_count: u32,
-    /// Frame labels per second: 24, 25 or 30 (30 also for 29.97 drop-frame).
+    /// Frame labels per second: 24, 25 or 30 (30 also for 29.97, drop-frame or not).
     pub nominal_fps: u32,
     /// 29.97 drop-frame: frames last 1001/30000 s and labels skip as SMPTE 12M says.
     pub drop_frame: bool,
+    /// Frames last 1001/30000 s: 29.97, drop-frame or not (a stage's 29.97 non-drop-frame
+    /// has 30's labels, each frame 0.1 % longer). Absent in takes made before it was written:
+    /// false, as they counted.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub ntsc: bool,
 }
 
 impl StageAnchor {
     /// Nanoseconds since the stage's midnight at which its anchor frame began: the frame count
-    /// times the frame's length (1/nominal s, or 1001/30000 s at drop-frame).
+    /// times the frame's length (1/nominal s, or 1001/30000 s at 29.97).
     fn label_ns(&self) -> u128 {
         let count = u128::from(self.frame_count);
-        if self.drop_frame {
+        if self.drop_frame || self.ntsc {
             count * 1_001 * 1_000_000_000 / 30_000
         } else {
             count * 1_000_000_000 / u128::from(self.nominal_fps.max(1))
@@ -88,8 +93,8 @@ impl StageAnchor {
     /// SMPTE timecode at `fps` of a frame stamped `host_ns` (monotonic): the stage's time of
     /// day at that instant, counted forward (or back) from the anchor on the host's clock. At
     /// the stage's own rate this is the stage's label, frame for frame: a drop-frame stage
-    /// exported at 29.97 gets drop-frame labels (`HH:MM:SS;FF`), any other rate whole-frame
-    /// labels.
+    /// exported at 29.97 gets drop-frame labels (`HH:MM:SS;FF`), a 29.97 non-drop-frame stage
+    /// whole-frame labels counted at 29.97, any other rate whole-frame labels.
     pub fn timecode_of(&self, host_ns: u64, fps: f64) -> Option<crate::timecode::Timecode> {
         let rate = crate::timecode::nominal_rate(fps).ok()?;
         const DAY_NS: i128 = 86_400 * 1_000_000_000;
@@ -97,6 +102,9 @@ impl StageAnchor {
         let of_day = (self.label_ns() as i128 + delta).rem_euclid(DAY_NS) as u64;
         if self.drop_frame && crate::timecode::is_ntsc_rate(fps) {
             return Some(crate::timecode::Timecode::drop_frame_from_ns(of_day));
+        }
+        if self.ntsc && crate::timecode::is_ntsc_rate(fps) {
+            return Some(crate::timecode::Timecode::ntsc_from_ns(of_day));
         }
         Some(crate::timecode::Timecode::from_unix_ns(of_day, rate))
     }
@@ -378,6 +386,7 @@ mod tests {
             frame_count: 900_000,
             nominal_fps: 25,
             drop_frame: false,
+            ntsc: false,
         };
         let both = TakeHeader { stage_clock: Some(stage.clone()), ..host_only.clone() };
         assert_eq!(tc(&both, 25.0).as_deref(), Some("10:00:00:00"));
@@ -405,6 +414,27 @@ mod tests {
         let minute_ns = 1_798 * 1_001 * 1_000_000_000 / 30_000 + 1; // rounded up into the frame
         assert_eq!(h.timecode_of(4_990_000_000 + minute_ns, 29.97).unwrap().to_string(), "00:02:00;02");
         assert_eq!(TakeHeader::offline("t", "grass", 1000).timecode_of(0, 30.0), None);
+
+        // 29.97 non-drop-frame: 10:00:00:00 is frame 1,080,000 (30's labels), which began
+        // 1,080,000 * 1001/30000 s = 36,036 s after the stage's midnight. 600 s of host clock
+        // later the stage's LTC has run 600 * 30000/1001 = 17,982.02 frames: 10:09:59:12.
+        // Counted at 30 (a stage that did not say 29.97) it would be 10:10:00:00, 18 frames on.
+        let ndf = StageAnchor {
+            label: "10:00:00:00".into(),
+            frame_count: 1_080_000,
+            nominal_fps: 30,
+            drop_frame: false,
+            ntsc: true,
+            host_ns: 4_990_000_000,
+        };
+        let h = TakeHeader { stage_clock: Some(ndf.clone()), ..TakeHeader::offline("t", "grass", 1000) };
+        assert_eq!(h.timecode_of(4_990_000_000, ntsc).unwrap().to_string(), "10:00:00:00");
+        assert_eq!(h.timecode_of(4_990_000_000 + 600_000_000_000, ntsc).unwrap().to_string(), "10:09:59:12");
+        let at_30 = TakeHeader { stage_clock: Some(StageAnchor { ntsc: false, ..ndf }), ..h };
+        assert_eq!(
+            at_30.timecode_of(4_990_000_000 + 600_000_000_000, ntsc).unwrap().to_string(),
+            "10:10:00:00"
+        );
     }
 
     #[test]

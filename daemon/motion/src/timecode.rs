@@ -80,6 +80,14 @@ impl Timecode {
         Timecode { frames: frames as u64 % day, rate: 30, drop_frame: true }
     }
 
+    /// The 29.97 non-drop-frame frame that contains `of_day_ns` nanoseconds since the stage's
+    /// midnight: 30 labels a second, each frame 1001/30000 s (so the labels run 0.1 % behind
+    /// the wall clock).
+    pub fn ntsc_from_ns(of_day_ns: u64) -> Timecode {
+        let frames = u128::from(of_day_ns) * 30_000 / (1_001 * 1_000_000_000);
+        Timecode { frames: frames as u64 % (30 * SECONDS_PER_DAY), rate: 30, drop_frame: false }
+    }
+
     /// Parses `HH:MM:SS:FF` (`;` before the frames accepted too) at `rate`.
     pub fn parse(text: &str, rate: u32) -> Result<Timecode, TimecodeError> {
         let syntax = || TimecodeError::Syntax(text.to_string());

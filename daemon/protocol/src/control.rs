@@ -508,7 +508,8 @@ pub struct LtcStatus {
     /// `searching` (no lock yet), `locked`, `lost` (was locked; no frames now) or `ended` (a
     /// file read to its end).
     pub state: String,
-    /// The locked (or last locked) rate: `24`, `25`, `29.97df` or `30`.
+    /// The locked (or last locked) rate: `24`, `25`, `29.97df`, `29.97` (non-drop-frame, as
+    /// `ltc.fps` declares it) or `30`.
     pub fps: Option<String>,
     /// The last frame's label (`10:00:00:00`).
     pub last_timecode: Option<String>,

@@ -82,9 +82,17 @@ fn the_stage_clock_anchor_round_trips_and_old_headers_read_without_it() {
         frame_count: 900_000,
         nominal_fps: 25,
         drop_frame: false,
+        ntsc: false,
     };
-    let staged = TakeHeader { stage_clock: Some(anchor), ..header() };
+    let staged = TakeHeader { stage_clock: Some(anchor.clone()), ..header() };
     let (bytes, _) = encode(&[TakeRecord::Header(staged.clone()), TakeRecord::End { frames: 0 }]);
+    assert_eq!(scan_take(&bytes).unwrap().header, Some(staged));
+    // `ntsc` is written only when true (a 29.97 stage), so other anchors read as before.
+    assert!(!String::from_utf8_lossy(&bytes).contains("ntsc"));
+    let ntsc = StageAnchor { nominal_fps: 30, frame_count: 1_080_000, ntsc: true, ..anchor };
+    let staged = TakeHeader { stage_clock: Some(ntsc), ..header() };
+    let (bytes, _) = encode(&[TakeRecord::Header(staged.clone()), TakeRecord::End { frames: 0 }]);
+    assert!(String::from_utf8_lossy(&bytes).contains("\"ntsc\":true"));
     assert_eq!(scan_take(&bytes).unwrap().header, Some(staged));
     let old = r#"{"name":"sway-01","rig_name":"grass","calibration_id":"none","filter":"none",
         "tick_rate_hz":1000,"created_unix_s":1700000000,"daemon_version":"frond 0.1.0",
