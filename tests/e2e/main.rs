@@ -19,6 +19,7 @@ mod ltc;
 mod meadow;
 mod no_color;
 mod osc_input;
+mod osc_zenoh_field;
 mod plausible;
 #[path = "../support/python.rs"]
 mod python;

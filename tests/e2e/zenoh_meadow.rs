@@ -57,7 +57,7 @@ fn check_line(line: &str, messages: &[FieldMessage], who: &str) {
 }
 
 /// Plays take `sway` as a field of `rows` x `cols` plants, `plants` of them announced.
-fn start_field(daemon: &Daemon, rows: usize, cols: usize, plants: &str) {
+pub(crate) fn start_field(daemon: &Daemon, rows: usize, cols: usize, plants: &str) {
     let field = compact_field(daemon, "sway", rows, cols);
     daemon.frond_ok(&[
         "field",
