@@ -203,11 +203,23 @@ fn four_subscribers_and_a_remote_recorder_lose_nothing_and_a_cut_link_is_reporte
     let losers: Vec<_> = peers.iter().filter(|p| p.2 > 0).collect();
     assert_eq!(losers.len(), 1, "exactly the cut tap lost poses: {peers:?}");
 
-    // The recorder's take is the daemon's own, frame for frame, over the span it recorded. Held
-    // frames (a tick with no new sample, republished) go out to subscribers but the daemon's own
-    // recorder does not write them, so both are compared without them (`take export` leaves
-    // them out); the recorder's summary above says it missed no pose at all, held or not.
+    // The recorder's take is the daemon's own, frame for frame, over the span it recorded: as
+    // written, and as `take export` reads them. Held frames (a tick with no new sample,
+    // republished) go out to subscribers and neither recorder writes them; the recorder's
+    // summary above says it missed no pose at all, held or not.
     let remote_take = takes.path().join("remote-glove-a.take");
+    let written = |path: &std::path::Path| -> Vec<(u64, u32)> {
+        let scan = frond_formats::scan_take(&std::fs::read(path).unwrap()).unwrap();
+        scan.frames.iter().filter(|f| f.element.is_global()).map(|f| (f.seq, f.flags)).collect()
+    };
+    let remote_written = written(&remote_take);
+    let (lo, hi) = (remote_written[0].0, remote_written[remote_written.len() - 1].0);
+    let local_written: Vec<_> = written(&daemon.takes_dir.join("local.take"))
+        .into_iter()
+        .filter(|(seq, _)| (lo..=hi).contains(seq))
+        .collect();
+    assert_eq!(local_written, remote_written, "the two takes as written, seq {lo}..={hi}");
+    assert!(remote_written.iter().all(|(_, flags)| flags & frond_motion::take::FLAG_HELD == 0));
     std::fs::copy(&remote_take, daemon.takes_dir.join("remote-glove-a.take")).unwrap();
     let [local, remote] = aligned(&daemon.takes_dir, ["local", "remote-glove-a"]);
     let (first, last) = (*remote.keys().min().unwrap(), *remote.keys().max().unwrap());

@@ -10,6 +10,11 @@
 //! takes of one recording on one timeline, even when the performers' clocks disagree; the
 //! measured offset and its uncertainty are kept in the header (`TakeHeader::stage`).
 //!
+//! A take holds what the daemon's own recorder would write: the fresh frames, not the held ones
+//! (a tick with no new sample, republished with the last pose and flagged `held`), which are
+//! counted instead. So a source's take here and the one its daemon records are the same frame
+//! for frame, through a dropout too.
+//!
 //! It runs in the foreground until Ctrl-C (or SIGTERM, or `--for`), then closes every take and
 //! prints what each holds.
 
@@ -23,7 +28,7 @@ use std::time::{Duration, Instant, SystemTime};
 use anyhow::{Context, anyhow, bail};
 use crossbeam_channel::bounded;
 use frond_motion::take::{TakeClock, TakeHeader, TakeStage};
-use frond_protocol::{ElementId, ElementKind, Hello, Pose};
+use frond_protocol::{ElementId, ElementKind, Hello, Pose, PoseFlags};
 use frond_recorder::{
     RECORDER_RING_FRAMES, RecorderCounters, RecorderMsg, frame_ring, spawn_recorder, take_frame,
 };
@@ -116,6 +121,8 @@ struct Finished {
     /// Poses lost on the way and fetched again from the bridge's replay ring.
     recovered: u64,
     dropped: u64,
+    /// Held frames received and not written.
+    held: u64,
 }
 
 /// Runs the stage recording (see the module doc).
@@ -244,13 +251,14 @@ fn finish(takes: BTreeMap<String, JoinHandle<anyhow::Result<Finished>>>) -> anyh
     for (source, handle) in takes {
         match handle.join() {
             Ok(Ok(f)) => frond_binmain::outln!(
-                "{}: {} frames, {} gaps ({} frames missing), {} recovered, {} dropped",
+                "{}: {} frames, {} gaps ({} frames missing), {} recovered, {} dropped, {} held (not written)",
                 f.path.display(),
                 f.frames,
                 f.gaps,
                 f.missing,
                 f.recovered,
-                f.dropped
+                f.dropped,
+                f.held
             )?,
             Ok(Err(e)) => {
                 failed += 1;
@@ -333,11 +341,16 @@ impl SourceJob {
         .map_err(|_| anyhow!("the take writer stopped"))?;
         reply_rx.recv().map_err(|_| anyhow!("the take writer stopped"))??;
 
-        let mut dropped = 0u64;
+        let (mut dropped, mut held) = (0u64, 0u64);
         let mut push = |pose: &Pose| {
             if pose.element.is_stage() {
                 // Above the rig's layers (docs/protocol.md: 0 is the global element, `1..=32` the
                 // rig's layers): live stages and field plants are not part of the performer's take.
+                return;
+            }
+            if pose.flags.contains(PoseFlags::HELD) {
+                // As the daemon's recorder: a held frame repeats the last pose; not written.
+                held += 1;
                 return;
             }
             if ring.push(take_frame(pose)).is_err() {
@@ -379,6 +392,7 @@ impl SourceJob {
             missing: stats.missing,
             recovered: stats.recovered,
             dropped,
+            held,
         })
     }
 
