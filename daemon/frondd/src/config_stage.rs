@@ -134,13 +134,14 @@ impl TriggersConfig {
     }
 }
 
-/// A frame rate key's value (`24`, `25`, `29.97df`, `29.97`, `30`), or its problem, named by
-/// `key`.
+/// A frame rate key's value (one of `frond_ltc::FrameRate::ALL` as written: `24`, `25`,
+/// `29.97df`, `29.97`, `30`), or its problem, named by `key`.
 fn frame_rate(errors: &mut Vec<String>, key: &str, text: Option<&str>) -> Option<frond_ltc::FrameRate> {
     let text = text?;
     let rate = frond_ltc::FrameRate::ALL.into_iter().find(|r| r.to_string() == text);
     if rate.is_none() {
-        errors.push(format!("{key}: {text:?} is not one of 24, 25, 29.97df, 29.97, 30"));
+        let all: Vec<String> = frond_ltc::FrameRate::ALL.iter().map(ToString::to_string).collect();
+        errors.push(format!("{key}: {text:?} is not one of {}", all.join(", ")));
     }
     rate
 }

@@ -35,9 +35,9 @@ const DF_FRAMES_PER_10_MIN: u32 = 17_982;
 const DF_FRAMES_PER_MIN: u32 = 1_798;
 
 impl FrameRate {
-    /// Every rate, for tests and for callers listing them.
+    /// Every rate, slowest first, for tests and for callers listing them.
     pub const ALL: [FrameRate; 5] =
-        [FrameRate::Fps24, FrameRate::Fps25, FrameRate::Fps2997Df, FrameRate::Fps30, FrameRate::Fps2997Ndf];
+        [FrameRate::Fps24, FrameRate::Fps25, FrameRate::Fps2997Df, FrameRate::Fps2997Ndf, FrameRate::Fps30];
 
     /// Frame labels per second (30 for 29.97 drop-frame).
     pub fn nominal_fps(self) -> u32 {
