@@ -65,6 +65,11 @@ pub fn nominal_rate(fps: f64) -> Result<u32, TimecodeError> {
     Ok(r as u32)
 }
 
+/// Whole frames of 1001/30000 s (29.97, drop-frame or not) in `ns` nanoseconds.
+fn ntsc_frames(ns: u64) -> u64 {
+    (u128::from(ns) * 30_000 / (1_001 * 1_000_000_000)) as u64
+}
+
 impl Timecode {
     /// The frame of the day that contains Unix time `unix_ns` (UTC), at `rate`.
     pub fn from_unix_ns(unix_ns: u64, rate: u32) -> Timecode {
@@ -75,17 +80,15 @@ impl Timecode {
 
     /// The 29.97 drop-frame frame that contains `of_day_ns` nanoseconds since midnight.
     pub fn drop_frame_from_ns(of_day_ns: u64) -> Timecode {
-        let frames = u128::from(of_day_ns) * 30_000 / (1_001 * 1_000_000_000);
         let day = u64::from(DROP_FRAME.frames_per_day());
-        Timecode { frames: frames as u64 % day, rate: 30, drop_frame: true }
+        Timecode { frames: ntsc_frames(of_day_ns) % day, rate: 30, drop_frame: true }
     }
 
     /// The 29.97 non-drop-frame frame that contains `of_day_ns` nanoseconds since the stage's
     /// midnight: 30 labels a second, each frame 1001/30000 s (so the labels run 0.1 % behind
     /// the wall clock).
     pub fn ntsc_from_ns(of_day_ns: u64) -> Timecode {
-        let frames = u128::from(of_day_ns) * 30_000 / (1_001 * 1_000_000_000);
-        Timecode { frames: frames as u64 % (30 * SECONDS_PER_DAY), rate: 30, drop_frame: false }
+        Timecode { frames: ntsc_frames(of_day_ns) % (30 * SECONDS_PER_DAY), rate: 30, drop_frame: false }
     }
 
     /// Parses `HH:MM:SS:FF` (`;` before the frames accepted too) at `rate`.
