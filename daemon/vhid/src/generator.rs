@@ -169,8 +169,8 @@ impl VirtualGloveConfig {
 /// `now_us` is not later than it (the same microsecond, or a read that went back).
 pub(crate) fn advancing_us(now_us: u32, previous_us: Option<u32>) -> u32 {
     match previous_us {
-        // Later on the wrapping counter: less than half its range ahead.
-        Some(p) if now_us.wrapping_sub(p) == 0 || now_us.wrapping_sub(p) > u32::MAX / 2 => p.wrapping_add(1),
+        // Later on the wrapping counter: 1 to half its range ahead.
+        Some(p) if !(1..=u32::MAX / 2).contains(&now_us.wrapping_sub(p)) => p.wrapping_add(1),
         _ => now_us,
     }
 }

@@ -335,8 +335,10 @@ fn live_field(a: LiveArgs) -> anyhow::Result<()> {
     let baked = match Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &opts, &mut progress) {
         // The performance cannot be captured again: baked whole at the highest rate that fits
         // rather than lost.
-        Err(frond_gltf::BakeError::LiveFieldTooLong(t)) if t.fitting_fps().is_some() => {
-            let fps = t.fitting_fps().unwrap_or(opts.fps);
+        Err(frond_gltf::BakeError::LiveFieldTooLong(t)) => {
+            let Some(fps) = t.fitting_fps() else {
+                return Err(frond_gltf::BakeError::LiveFieldTooLong(t).into());
+            };
             bar.suspend(|| status(&format!("warning: {t}; baking the whole capture at {fps} FPS instead")));
             let lower = BakeOptions { fps, ..opts };
             Baker::new().bake_live_field(&rig, &model, &cap, &anim_name, &lower, &mut progress)?
